@@ -1,0 +1,73 @@
+"""Names shared by every layer: UDHM joints, MANO-21 keypoints and LeRobot feature keys.
+
+Layer 0: imports nothing from this package.
+"""
+
+from __future__ import annotations
+
+import math
+
+# ---------------------------------------------------------------------------------------------
+# UDHM: the 22-DoF Unified Dexterous Hand Model state, in this fixed order.
+# Signs: flexion positive toward the palm; abduction positive toward the thumb side of a right
+# hand (left hands are mirrored into the right-hand frame before IK). Zero = flat hand, fingers
+# together.
+# ---------------------------------------------------------------------------------------------
+UDHM_JOINT_NAMES: tuple[str, ...] = (
+    "thumb_cmc_flex",
+    "thumb_cmc_spread",
+    "thumb_mcp_flex",
+    "thumb_mcp_abd",
+    "thumb_ip_flex",
+    "index_mcp_abd",
+    "index_mcp_flex",
+    "index_pip_flex",
+    "index_dip_flex",
+    "middle_mcp_abd",
+    "middle_mcp_flex",
+    "middle_pip_flex",
+    "middle_dip_flex",
+    "ring_mcp_abd",
+    "ring_mcp_flex",
+    "ring_pip_flex",
+    "ring_dip_flex",
+    "pinky_metacarpal_twist",
+    "pinky_mcp_abd",
+    "pinky_mcp_flex",
+    "pinky_pip_flex",
+    "pinky_dip_flex",
+)
+UDHM_DIM = len(UDHM_JOINT_NAMES)  # 22
+UDHM_INDEX: dict[str, int] = {name: i for i, name in enumerate(UDHM_JOINT_NAMES)}
+
+# Fixed normaliser of the tokenizer: x_normalised = angles_rad / ANGLE_SCALE_RAD (no dataset stats).
+ANGLE_SCALE_RAD = math.pi
+
+# ---------------------------------------------------------------------------------------------
+# MANO-21 keypoints (= OpenPose = MediaPipe = DexYCB joint_3d order).
+# ---------------------------------------------------------------------------------------------
+FINGERS: tuple[str, ...] = ("thumb", "index", "middle", "ring", "pinky")
+KEYPOINT_NAMES: tuple[str, ...] = (
+    "wrist",
+    "thumb_cmc", "thumb_mcp", "thumb_ip", "thumb_tip",
+    "index_mcp", "index_pip", "index_dip", "index_tip",
+    "middle_mcp", "middle_pip", "middle_dip", "middle_tip",
+    "ring_mcp", "ring_pip", "ring_dip", "ring_tip",
+    "pinky_mcp", "pinky_pip", "pinky_dip", "pinky_tip",
+)  # fmt: skip
+NUM_KEYPOINTS = len(KEYPOINT_NAMES)  # 21
+KEYPOINT_PARENTS: tuple[int, ...] = (-1, 0, 1, 2, 3, 0, 5, 6, 7, 0, 9, 10, 11, 0, 13, 14, 15, 0, 17, 18, 19)
+FINGERTIP_INDICES: tuple[int, ...] = (4, 8, 12, 16, 20)
+
+# ---------------------------------------------------------------------------------------------
+# LeRobot feature keys written by the converters and read by training and the processor step.
+# ---------------------------------------------------------------------------------------------
+OBS_STATE = "observation.state"
+ACTION = "action"
+HAND_TYPE_KEY = "hand_type"  # string feature: hand spec name(s) of the frame, e.g. "inspire_rh56"
+UDHM_MASK_KEY = "udhm_mask"  # bool feature: which UDHM slots are real DoFs of the source hand
+SPLIT_KEY = "split"  # not a frame feature: train/test split lives in meta/info.json "splits"
+OBS_HAND_TOKENS = "observation.hand_tokens"  # int64 codes added by the processor step
+OBS_HAND_TOKEN_FEATURES = "observation.environment_state"  # float view of the tokens for policies
+
+SIDES: tuple[str, ...] = ("right", "left")
