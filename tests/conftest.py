@@ -1,0 +1,38 @@
+"""Shared test set-up: offline Hugging Face caches in a temp dir, and the real-data fixture.
+
+The HF variables are set here, before any test module imports lerobot or huggingface_hub,
+because both read them at import time.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import pytest
+
+_HF_TMP = Path(tempfile.mkdtemp(prefix="unidextok-tests-hf-"))
+os.environ.setdefault("HF_HOME", str(_HF_TMP / "hf"))
+os.environ.setdefault("HF_LEROBOT_HOME", str(_HF_TMP / "hf" / "lerobot"))
+os.environ.setdefault("HF_DATASETS_CACHE", str(_HF_TMP / "hf" / "datasets"))
+os.environ.setdefault("HF_HUB_OFFLINE", "1")
+os.environ.setdefault("MPLBACKEND", "Agg")
+# Any request that escapes loopback fails fast instead of hanging.
+os.environ.setdefault("HTTPS_PROXY", "http://127.0.0.1:9")
+os.environ.setdefault("HTTP_PROXY", "http://127.0.0.1:9")
+os.environ.setdefault("NO_PROXY", "127.0.0.1,localhost")
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+REAL_DATA_DIR = Path(os.environ.get("UNIDEXTOK_REAL_DATA", REPO_ROOT.parent / "shared" / "data" / "real"))
+
+
+@pytest.fixture(scope="session")
+def real_data_dir() -> Path:
+    """The real recordings kept beside the checkout (../shared/data/real); skips when absent."""
+    if not REAL_DATA_DIR.is_dir():
+        pytest.skip(
+            f"real hand recordings not found at {REAL_DATA_DIR}; "
+            "set UNIDEXTOK_REAL_DATA to a copy of shared/data/real to run these tests"
+        )
+    return REAL_DATA_DIR
