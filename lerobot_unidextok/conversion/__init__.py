@@ -1,0 +1,1 @@
+"""Shared conversion machinery: raw episodes -> UDHM LeRobotDataset v3 repos."""
