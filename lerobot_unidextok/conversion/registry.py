@@ -1,0 +1,101 @@
+"""Source registry: converters register a reader class under a source name.
+
+A source reader lives in `converters/<source>.py` (installed as `lerobot_unidextok.converters`)::
+
+    @register_source("dexycb")
+    class DexYCBSource:
+        license = "CC BY-NC 4.0"
+        description = "DexYCB hand-object grasps, MANO-21 keypoints (human)"
+        synthetic = False                      # optional; True for generated samples
+
+        def __init__(self, **options): ...     # optional source options (e.g. --source_options)
+        def list_episodes(self, input_path: Path) -> list: ...   # picklable refs, in a stable order
+        def read_episode(self, ref) -> RawEpisode: ...            # one ref -> one episode
+
+`list_episodes` must be cheap and deterministic; `read_episode` runs in worker processes.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+from typing import Any, Protocol, runtime_checkable
+
+logger = logging.getLogger(__name__)
+
+_SOURCES: dict[str, type] = {}
+CONVERTERS_PACKAGE = "lerobot_unidextok.converters"
+
+
+@runtime_checkable
+class SourceReader(Protocol):
+    """What the pipeline needs from a registered source class instance."""
+
+    license: str
+    description: str
+
+    def list_episodes(self, input_path: Any) -> list: ...
+
+    def read_episode(self, ref: Any) -> Any: ...
+
+
+def register_source(name: str):
+    """Class decorator: register a source reader under `name` (lowercase, no spaces)."""
+    if not name or name != name.strip().lower() or " " in name:
+        raise ValueError(f"source name must be lowercase without spaces, got {name!r}")
+
+    def _register(cls: type) -> type:
+        for attr in ("list_episodes", "read_episode"):
+            if not callable(getattr(cls, attr, None)):
+                raise TypeError(f"source {name!r} ({cls.__qualname__}) must define {attr}()")
+        if name in _SOURCES and _SOURCES[name] is not cls:
+            raise ValueError(
+                f"source {name!r} is already registered by {_SOURCES[name].__module__}."
+                f"{_SOURCES[name].__qualname__}; pick another name"
+            )
+        cls.source_name = name
+        _SOURCES[name] = cls
+        return cls
+
+    return _register
+
+
+def unregister_source(name: str) -> None:
+    """Remove a source (tests)."""
+    _SOURCES.pop(name, None)
+
+
+def _import_converters() -> None:
+    """Import `lerobot_unidextok.converters` and its submodules so their decorators run."""
+    try:
+        pkg = importlib.import_module(CONVERTERS_PACKAGE)
+    except ModuleNotFoundError as exc:
+        logger.debug("no converters package: %s", exc)
+        return
+    import pkgutil
+
+    for info in pkgutil.iter_modules(getattr(pkg, "__path__", [])):
+        if info.name.startswith("_"):
+            continue
+        try:
+            importlib.import_module(f"{CONVERTERS_PACKAGE}.{info.name}")
+        except ImportError as exc:  # an optional extra is missing: the source stays unavailable
+            logger.warning("source module %s not importable: %s", info.name, exc)
+
+
+def available_sources() -> list[str]:
+    """Names of all registered sources (after importing the converters package)."""
+    _import_converters()
+    return sorted(_SOURCES)
+
+
+def get_source(name: str) -> type:
+    """The registered reader class for `name`; raises ValueError listing the known names."""
+    if name not in _SOURCES:
+        _import_converters()
+    if name not in _SOURCES:
+        raise ValueError(
+            f"unknown source {name!r}; available sources: {sorted(_SOURCES) or 'none registered'}. "
+            f"Register one with @register_source({name!r}) in converters/{name}.py"
+        )
+    return _SOURCES[name]
