@@ -1,0 +1,1 @@
+"""Thin draccus CLIs: parse arguments, call one library function."""
