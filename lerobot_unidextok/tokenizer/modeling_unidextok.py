@@ -1,0 +1,271 @@
+"""UniDexTok: shared encoder -> factorised cosine VQ -> decoder, conditioned on the hand type.
+
+No `from __future__ import annotations` here: the Hub mixin reads the real `UniDexTokConfig`
+annotation of `__init__` to rebuild the config from config.json.
+"""
+
+import json
+import os
+from dataclasses import dataclass
+from collections.abc import Sequence
+
+import torch
+import torch.nn.functional as F
+from huggingface_hub import PyTorchModelHubMixin, constants as hf_constants, hf_hub_download
+from torch import nn
+
+from lerobot_unidextok.constants import ANGLE_SCALE_RAD
+from lerobot_unidextok.tokenizer.configuration_unidextok import FORMAT_VERSION, UniDexTokConfig
+from lerobot_unidextok.tokenizer.layers import AdaLNBlock, AdaLNFinalNorm
+from lerobot_unidextok.tokenizer.quantizer import FactorizedCosineVQ
+
+HandArg = str | Sequence[str] | torch.Tensor
+
+
+@dataclass
+class UniDexTokOutput:
+    """What `UniDexTok.forward` returns."""
+
+    states_rad: torch.Tensor  # (B, 22) reconstruction in radians
+    indices: torch.Tensor  # (B, N, K) int64 codes
+    loss: torch.Tensor  # total = recon_loss + vq_loss
+    recon_loss: torch.Tensor  # masked MSE in normalised angle space (+ optional SmoothL1)
+    vq_loss: torch.Tensor  # commitment * beta + codebook (+ entropy)
+
+
+class UniDexTok(
+    nn.Module,
+    PyTorchModelHubMixin,
+    library_name="lerobot-unidextok",
+    tags=["robotics", "dexterous-hands", "tokenizer", "lerobot", "unidextok"],
+    license="apache-2.0",
+):
+    """Tokenise 22-DoF UDHM hand states of any hand into (N, K) discrete codes and back."""
+
+    def __init__(self, config: UniDexTokConfig) -> None:
+        super().__init__()
+        self.config = config
+        c, n = config.hidden_dim, config.num_tokens
+        self._hand_index = {name: i for i, name in enumerate(config.hand_names)}
+        self.unknown_hand_id = len(config.hand_names)
+
+        # hand-type embedding c_h; last row = "unknown hand"
+        self.hand_embed = nn.Embedding(len(config.hand_names) + 1, c)
+        # encoder
+        self.input_proj = nn.Linear(config.state_dim, n * c)
+        self.enc_pos = nn.Parameter(torch.zeros(1, n, c))
+        self.encoder = nn.ModuleList(
+            AdaLNBlock(c, config.num_heads, config.mlp_ratio, config.dropout) for _ in range(config.encoder_depth)
+        )
+        self.enc_norm = AdaLNFinalNorm(c)
+        # quantiser
+        self.quantizer = FactorizedCosineVQ(config)
+        # decoder (mirrors the encoder) and flatten head
+        self.dec_pos = nn.Parameter(torch.zeros(1, n, c))
+        self.decoder = nn.ModuleList(
+            AdaLNBlock(c, config.num_heads, config.mlp_ratio, config.dropout) for _ in range(config.decoder_depth)
+        )
+        self.dec_norm = AdaLNFinalNorm(c)
+        self.head = nn.Linear(n * c, config.state_dim)
+        self.initialize_weights()
+
+    # -----------------------------------------------------------------------------------------
+    # init (after DiT's initialize_weights)
+    # -----------------------------------------------------------------------------------------
+    def initialize_weights(self) -> None:
+        def _basic(m: nn.Module) -> None:
+            if isinstance(m, nn.Linear):
+                nn.init.xavier_uniform_(m.weight)
+                nn.init.zeros_(m.bias)
+
+        self.apply(_basic)
+        nn.init.normal_(self.enc_pos, std=0.02)
+        nn.init.normal_(self.dec_pos, std=0.02)
+        nn.init.normal_(self.hand_embed.weight, std=0.02)
+        nn.init.normal_(self.quantizer.codebooks)
+        # adaLN-Zero: every block starts as the identity, final norms as plain LayerNorm
+        for block in [*self.encoder, *self.decoder, self.enc_norm, self.dec_norm]:
+            nn.init.zeros_(block.adaLN_modulation[-1].weight)
+            nn.init.zeros_(block.adaLN_modulation[-1].bias)
+        # departure from DiT: the head is not zeroed (a zero head + zero gates stalls the first steps)
+
+    # -----------------------------------------------------------------------------------------
+    # input checks
+    # -----------------------------------------------------------------------------------------
+    def hand_ids(self, hand: HandArg, batch_size: int, allow_unknown: bool = False) -> torch.Tensor:
+        """Hand name, one name per row, or a LongTensor of ids -> (B,) ids."""
+        device = self.enc_pos.device
+        if isinstance(hand, torch.Tensor):
+            ids = hand.to(device=device, dtype=torch.long).reshape(-1)
+            if ids.numel() == 1:
+                ids = ids.expand(batch_size)
+            if ids.numel() and (int(ids.min()) < 0 or int(ids.max()) > self.unknown_hand_id):
+                raise ValueError(f"hand ids must lie in [0, {self.unknown_hand_id}] (last = unknown hand)")
+        else:
+            names = [hand] if isinstance(hand, str) else list(hand)
+            if len(names) == 1:
+                names = names * batch_size
+            ids = torch.tensor([self._name_to_id(nm, allow_unknown) for nm in names], device=device)
+        if ids.shape[0] != batch_size:
+            raise ValueError(f"got {ids.shape[0]} hands for a batch of {batch_size}; pass one name or one per row")
+        return ids  # (B,)
+
+    def _name_to_id(self, name: str, allow_unknown: bool) -> int:
+        if name in self._hand_index:
+            return self._hand_index[name]
+        if allow_unknown:
+            return self.unknown_hand_id
+        raise ValueError(
+            f"unknown hand {name!r}; this tokenizer knows {self.config.hand_names}. Pass allow_unknown=True "
+            "to use the unknown-hand embedding (zero-shot), or fine-tune with the hand added to hand_names"
+        )
+
+    def _check_states(self, states_rad: torch.Tensor) -> torch.Tensor:
+        states_rad = torch.as_tensor(states_rad, dtype=torch.float32, device=self.enc_pos.device)
+        if states_rad.ndim != 2 or states_rad.shape[-1] != self.config.state_dim:
+            raise ValueError(
+                f"states must have shape (B, {self.config.state_dim}) in UDHM order (radians), got "
+                f"{tuple(states_rad.shape)}; split two-hand states into one row per hand"
+            )
+        if not torch.isfinite(states_rad).all():
+            raise ValueError("states contain NaN or inf; fill or drop those frames before tokenising")
+        return states_rad
+
+    # -----------------------------------------------------------------------------------------
+    # encoder / decoder
+    # -----------------------------------------------------------------------------------------
+    def _encode_latent(self, x_rad: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+        b = x_rad.shape[0]
+        x = x_rad / ANGLE_SCALE_RAD  # (B, 22) normalised by a fixed pi
+        z = self.input_proj(x).view(b, self.config.num_tokens, self.config.hidden_dim)  # (B, N, C)
+        z = z + self.enc_pos  # (B, N, C)
+        for block in self.encoder:
+            z = block(z, c)  # (B, N, C)
+        return self.enc_norm(z, c)  # (B, N, C)
+
+    def _decode_latent(self, zq: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+        z = zq + self.dec_pos  # (B, N, C)
+        for block in self.decoder:
+            z = block(z, c)  # (B, N, C)
+        z = self.dec_norm(z, c)  # (B, N, C)
+        x_hat = self.head(z.flatten(1))  # (B, 22) normalised
+        return x_hat
+
+    def forward(
+        self,
+        states_rad: torch.Tensor,
+        hand: HandArg,
+        mask: torch.Tensor | None = None,
+        allow_unknown: bool = False,
+    ) -> UniDexTokOutput:
+        """Reconstruct states and compute losses; `mask` (B, 22) bool marks the active DoFs."""
+        x_rad = self._check_states(states_rad)  # (B, 22)
+        b = x_rad.shape[0]
+        c = self.hand_embed(self.hand_ids(hand, b, allow_unknown))  # (B, C)
+        z = self._encode_latent(x_rad, c)  # (B, N, C)
+        zq, indices, vq_loss = self.quantizer(z)  # (B, N, C), (B, N, K), ()
+        x_hat = self._decode_latent(zq, c)  # (B, 22) normalised
+        recon_loss = self.reconstruction_loss(x_hat, x_rad / ANGLE_SCALE_RAD, mask)
+        return UniDexTokOutput(
+            states_rad=x_hat * ANGLE_SCALE_RAD,
+            indices=indices,
+            loss=recon_loss + vq_loss,
+            recon_loss=recon_loss,
+            vq_loss=vq_loss,
+        )
+
+    def reconstruction_loss(
+        self, x_hat: torch.Tensor, x: torch.Tensor, mask: torch.Tensor | None
+    ) -> torch.Tensor:
+        """MSE (+ SmoothL1) in normalised space over active DoFs only; padded slots are not targets."""
+        if mask is None:
+            w = torch.ones_like(x)  # (B, 22)
+        else:
+            mask = torch.as_tensor(mask, device=x.device)
+            if mask.shape != x.shape:
+                raise ValueError(f"mask must have the states' shape {tuple(x.shape)}, got {tuple(mask.shape)}")
+            w = mask.to(x.dtype)  # (B, 22)
+        denom = w.sum().clamp_min(1.0)
+        loss = ((x_hat - x) ** 2 * w).sum() / denom
+        if self.config.smooth_l1_weight > 0:
+            sl1 = F.smooth_l1_loss(x_hat, x, reduction="none", beta=0.01)  # (B, 22)
+            loss = loss + self.config.smooth_l1_weight * (sl1 * w).sum() / denom
+        return loss
+
+    # -----------------------------------------------------------------------------------------
+    # public tokenizer API
+    # -----------------------------------------------------------------------------------------
+    @torch.no_grad()
+    def encode(self, states_rad: torch.Tensor, hand: HandArg, allow_unknown: bool = False) -> torch.Tensor:
+        """(B, 22) radians -> (B, N, K) int64 codes."""
+        x_rad = self._check_states(states_rad)  # (B, 22)
+        c = self.hand_embed(self.hand_ids(hand, x_rad.shape[0], allow_unknown))  # (B, C)
+        z = self._encode_latent(x_rad, c)  # (B, N, C)
+        u = self.quantizer.project_in(z).view(*z.shape[:2], self.config.num_groups, -1)  # (B, N, K, d)
+        sim = torch.einsum("bnkd,ksd->bnks", F.normalize(u, dim=-1, eps=1e-6), self.quantizer.normalized_codebooks())
+        return sim.argmax(dim=-1)  # (B, N, K) int64
+
+    @torch.no_grad()
+    def decode(self, codes: torch.Tensor, hand: HandArg, allow_unknown: bool = False) -> torch.Tensor:
+        """(B, N, K) int codes -> (B, 22) radians."""
+        codes = torch.as_tensor(codes, device=self.enc_pos.device)
+        expected = (self.config.num_tokens, self.config.num_groups)
+        if codes.ndim != 3 or tuple(codes.shape[1:]) != expected:
+            raise ValueError(f"codes must have shape (B, {expected[0]}, {expected[1]}), got {tuple(codes.shape)}")
+        self.quantizer.check_indices(codes)
+        codes = codes.long()
+        c = self.hand_embed(self.hand_ids(hand, codes.shape[0], allow_unknown))  # (B, C)
+        zq = self.quantizer.get_output_from_indices(codes)  # (B, N, C)
+        return self._decode_latent(zq, c) * ANGLE_SCALE_RAD  # (B, 22) radians
+
+    @property
+    def num_codes_per_state(self) -> int:
+        return self.config.num_tokens * self.config.num_groups
+
+    # -----------------------------------------------------------------------------------------
+    # Hub loading: format check, safetensors only, strict
+    # -----------------------------------------------------------------------------------------
+    @classmethod
+    def _from_pretrained(
+        cls,
+        *,
+        model_id: str,
+        revision: str | None,
+        cache_dir,
+        force_download: bool,
+        local_files_only: bool,
+        token,
+        map_location: str = "cpu",
+        strict: bool = True,
+        **model_kwargs,
+    ) -> "UniDexTok":
+        def _fetch(filename: str) -> str:
+            if os.path.isdir(model_id):
+                path = os.path.join(model_id, filename)
+                if not os.path.isfile(path):
+                    raise FileNotFoundError(f"{path} not found: a UniDexTok checkpoint folder holds config.json + model.safetensors")
+                return path
+            return hf_hub_download(
+                repo_id=model_id, filename=filename, revision=revision, cache_dir=cache_dir,
+                force_download=force_download, token=token, local_files_only=local_files_only,
+            )  # fmt: skip
+
+        with open(_fetch(hf_constants.CONFIG_NAME), encoding="utf-8") as f:
+            raw = json.load(f)
+        version = raw.get("format_version")
+        if version != FORMAT_VERSION:
+            raise ValueError(
+                f"checkpoint {model_id!r} has format_version={version!r} but this code reads "
+                f"format_version={FORMAT_VERSION}; install the lerobot-unidextok version that wrote it or re-train"
+            )
+        model = cls(**model_kwargs)
+        model = cls._load_as_safetensor(model, _fetch(hf_constants.SAFETENSORS_SINGLE_FILE), map_location, strict)
+        model.eval()
+        return model
+
+
+def count_parameters(model: nn.Module) -> int:
+    return sum(p.numel() for p in model.parameters())
+
+
+__all__ = ["UniDexTok", "UniDexTokOutput", "count_parameters"]
