@@ -1,0 +1,405 @@
+"""HandSpec: one hand's native joints, their conversion to radians and their UDHM slots.
+
+Conversions are linear per native joint and side: ``rad = offset + scale * raw``; then semantic
+insertion ``udhm[slot] = sign * rad``. Everything is batched over leading dims, numpy or torch.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import torch
+
+from lerobot_unidextok.constants import NUM_KEYPOINTS, UDHM_DIM, UDHM_INDEX, UDHM_JOINT_NAMES
+
+logger = logging.getLogger(__name__)
+
+Mapping = Literal["semantic", "append_pad"]
+OutOfRange = Literal["raise", "clip"]
+Array = np.ndarray | torch.Tensor
+
+MAPPINGS: tuple[str, ...] = ("semantic", "append_pad")
+OUT_OF_RANGE_MODES: tuple[str, ...] = ("raise", "clip")
+# Relative slack on range checks so float round-off at an end point is not "out of range".
+_RANGE_TOL = 1e-6
+
+
+# ---------------------------------------------------------------------------------------------
+# data classes (what one YAML file holds)
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class JointSide:
+    """One native joint on one side: raw range, its radian image and the UDHM sign."""
+
+    raw_range: tuple[float, float]  # (raw_a, raw_b), raw_a < raw_b
+    rad_at_raw_range: tuple[float, float]  # radians at raw_a and raw_b (direction included)
+    sign: float  # +1 or -1: udhm[slot] = sign * rad
+    default_raw: float  # what from_udhm writes for a dropped joint
+
+    @property
+    def scale(self) -> float:
+        return (self.rad_at_raw_range[1] - self.rad_at_raw_range[0]) / (self.raw_range[1] - self.raw_range[0])
+
+    @property
+    def offset(self) -> float:
+        return self.rad_at_raw_range[0] - self.scale * self.raw_range[0]
+
+    @property
+    def limits_rad(self) -> tuple[float, float]:
+        return (min(self.rad_at_raw_range), max(self.rad_at_raw_range))
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """One native joint: name, UDHM slot (None = dropped) and per-side conversion."""
+
+    name: str
+    slot: str | None
+    sides: dict[str, JointSide]
+    note: str = ""
+    judgement: str = ""  # non-empty = a judgement call, with its reason
+
+
+@dataclass(frozen=True)
+class CoupledJoint:
+    """A passive/mimic joint of the hardware, documented (not inserted into UDHM by default)."""
+
+    joint: str
+    follows: str
+    ratio: float
+    offset_rad: float = 0.0
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class SkeletonSpec:
+    """Hand dimensions: a scale of the default human skeleton, optional per-finger bone lengths."""
+
+    scale: float = 1.0
+    bone_lengths_m: dict[str, tuple[float, float, float]] | None = None  # finger -> 3 segments
+    note: str = ""
+
+
+# ---------------------------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------------------------
+def _to_float(x: Any) -> Array:
+    """numpy/torch float view of `x` (integers become float64 / float32)."""
+    if isinstance(x, torch.Tensor):
+        return x if x.is_floating_point() else x.to(torch.float32)
+    arr = np.asarray(x)
+    if arr.dtype.kind not in "fc":
+        arr = arr.astype(np.float64)
+    return arr
+
+
+def _table(values: np.ndarray, like: Array) -> Array:
+    if isinstance(like, torch.Tensor):
+        return torch.as_tensor(values, dtype=like.dtype, device=like.device)
+    return values.astype(like.dtype, copy=False)
+
+
+def _isnan_any(x: Array) -> bool:
+    return bool(torch.isnan(x).any()) if isinstance(x, torch.Tensor) else bool(np.isnan(x).any())
+
+
+def _clip(x: Array, lo: Array, hi: Array) -> Array:
+    if isinstance(x, torch.Tensor):
+        return torch.minimum(torch.maximum(x, lo), hi)
+    return np.minimum(np.maximum(x, lo), hi)
+
+
+def _zeros(shape: tuple[int, ...], like: Array) -> Array:
+    if isinstance(like, torch.Tensor):
+        return torch.zeros(shape, dtype=like.dtype, device=like.device)
+    return np.zeros(shape, dtype=like.dtype)
+
+
+def _where(cond: Array, a: Array, b: Array) -> Array:
+    return torch.where(cond, a, b) if isinstance(a, torch.Tensor) else np.where(cond, a, b)
+
+
+@dataclass(frozen=True)
+class _SideTable:
+    """Per-side arrays over native joints, built once from the JointSpecs."""
+
+    raw_lo: np.ndarray  # (J,)
+    raw_hi: np.ndarray  # (J,)
+    offset: np.ndarray  # (J,)
+    scale: np.ndarray  # (J,)
+    sign: np.ndarray  # (J,)
+    rad_lo: np.ndarray  # (J,)
+    rad_hi: np.ndarray  # (J,)
+    default_raw: np.ndarray  # (J,)
+
+
+# ---------------------------------------------------------------------------------------------
+# main class
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class HandSpec:
+    """A hand as data: native joints, units, conversion to radians and UDHM slots.
+
+    ``kind == "joints"``: native = joint values (..., J) in ``native_units``.
+    ``kind == "keypoints"`` (the human hand): native = MANO-21 keypoints (..., 21, 3) in metres,
+    mapped to UDHM by ``udhm.inverse_kinematics`` and back by forward kinematics.
+    """
+
+    name: str
+    embodiment: str  # hand-type label for tokenizer conditioning
+    kind: Literal["joints", "keypoints"]
+    sides: tuple[str, ...]
+    native_units: str
+    joints: tuple[JointSpec, ...]
+    description: str = ""
+    source: str = ""
+    coupled: tuple[CoupledJoint, ...] = ()
+    skeleton_spec: SkeletonSpec = field(default_factory=SkeletonSpec)
+    path: Path | None = None
+
+    # -- structure ------------------------------------------------------------------------------
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(j.name for j in self.joints)
+
+    @property
+    def num_native(self) -> int:
+        return len(self.joints)
+
+    @cached_property
+    def _active_joint_idx(self) -> np.ndarray:
+        """Native indices of joints with a UDHM slot, in native order."""
+        return np.array([i for i, j in enumerate(self.joints) if j.slot is not None], dtype=np.int64)
+
+    @cached_property
+    def _slot_idx(self) -> np.ndarray:
+        """UDHM index of each joint with a slot (same order as ``_active_joint_idx``)."""
+        return np.array([UDHM_INDEX[j.slot] for j in self.joints if j.slot is not None], dtype=np.int64)
+
+    @property
+    def num_active(self) -> int:
+        return UDHM_DIM if self.kind == "keypoints" else len(self._active_joint_idx)
+
+    @property
+    def dropped_joints(self) -> tuple[str, ...]:
+        return tuple(j.name for j in self.joints if j.slot is None)
+
+    @property
+    def active_mask(self) -> np.ndarray:
+        """(22,) bool: UDHM slots filled by a real DoF of this hand (semantic insertion)."""
+        return self.mask("semantic")
+
+    def mask(self, mapping: Mapping = "semantic") -> np.ndarray:
+        """(22,) bool active-DoF mask of ``mapping``."""
+        self._check_mapping(mapping)
+        mask = np.zeros(UDHM_DIM, dtype=bool)
+        if self.kind == "keypoints":
+            mask[:] = True
+        elif mapping == "semantic":
+            mask[self._slot_idx] = True
+        else:
+            mask[: self.num_active] = True
+        return mask
+
+    def slot_map(self) -> dict[str, str | None]:
+        """Native joint name -> UDHM slot name (None = dropped)."""
+        return {j.name: j.slot for j in self.joints}
+
+    def limits_rad(self, side: str = "right") -> np.ndarray:
+        """(J, 2) joint limits in radians for ``side``."""
+        t = self._side_table(side)
+        return np.stack([t.rad_lo, t.rad_hi], axis=-1)
+
+    def raw_range(self, side: str = "right") -> np.ndarray:
+        """(J, 2) native raw range for ``side``."""
+        t = self._side_table(side)
+        return np.stack([t.raw_lo, t.raw_hi], axis=-1)
+
+    def udhm_limits_rad(self, side: str = "right") -> tuple[np.ndarray, np.ndarray]:
+        """(22,) lower and upper UDHM bounds reachable by this hand (0 on inactive slots)."""
+        self._require_joints("udhm_limits_rad")
+        t = self._side_table(side)
+        a, s = self._active_joint_idx, t.sign[self._active_joint_idx]
+        lo, hi = np.zeros(UDHM_DIM), np.zeros(UDHM_DIM)
+        ends = np.stack([s * t.rad_lo[a], s * t.rad_hi[a]])
+        lo[self._slot_idx], hi[self._slot_idx] = ends.min(0), ends.max(0)
+        return lo, hi
+
+    # -- native <-> radians -----------------------------------------------------------------------
+    def to_radians(self, raw: Any, side: str = "right", on_out_of_range: OutOfRange = "raise") -> Array:
+        """Native raw values (..., J) -> native joint angles (..., J) in radians."""
+        self._require_joints("to_radians")
+        raw = self._check_native(raw)
+        t = self._side_table(side)
+        lo, hi = _table(t.raw_lo, raw), _table(t.raw_hi, raw)
+        raw = self._handle_out_of_range(raw, lo, hi, t.raw_hi - t.raw_lo, on_out_of_range, "raw", side)
+        return _table(t.offset, raw) + _table(t.scale, raw) * raw
+
+    def from_radians(self, angles_rad: Any, side: str = "right", on_out_of_range: OutOfRange = "raise") -> Array:
+        """Native joint angles (..., J) in radians -> native raw values (..., J).
+
+        Joints without a radian meaning (scale 0, e.g. reserved channels) get their default raw value.
+        """
+        self._require_joints("from_radians")
+        rad = self._check_native(angles_rad)
+        t = self._side_table(side)
+        lo, hi = _table(t.rad_lo, rad), _table(t.rad_hi, rad)
+        rad = self._handle_out_of_range(rad, lo, hi, t.rad_hi - t.rad_lo, on_out_of_range, "radian", side)
+        return self._rad_to_raw(rad, t)
+
+    def _rad_to_raw(self, rad: Array, t: _SideTable) -> Array:
+        invertible = t.scale != 0
+        safe_scale = np.where(invertible, t.scale, 1.0)
+        raw = (rad - _table(t.offset, rad)) / _table(safe_scale, rad)
+        raw = _where(_table(invertible, rad) > 0, raw, _table(t.default_raw, rad) + 0 * raw)
+        # Division round-off must not step outside the raw range.
+        return _clip(raw, _table(t.raw_lo, raw), _table(t.raw_hi, raw))
+
+    # -- native <-> UDHM ------------------------------------------------------------------------------
+    def to_udhm(
+        self,
+        raw: Any,
+        side: str = "right",
+        mapping: Mapping = "semantic",
+        on_out_of_range: OutOfRange = "raise",
+    ) -> Array:
+        """Native values -> UDHM state (..., 22) in radians; inactive slots are 0."""
+        self._check_mapping(mapping)
+        if self.kind == "keypoints":
+            return self._keypoints_to_udhm(raw, side)
+        rad = self.to_radians(raw, side, on_out_of_range)  # (..., J)
+        t = self._side_table(side)
+        a = self._active_joint_idx
+        values = rad[..., a] * _table(t.sign[a], rad)  # (..., A)
+        out = _zeros((*rad.shape[:-1], UDHM_DIM), rad)  # (..., 22)
+        target = self._slot_idx if mapping == "semantic" else np.arange(len(a))
+        out[..., target] = values
+        return out
+
+    def from_udhm(self, state: Any, side: str = "right", mapping: Mapping = "semantic") -> Array:
+        """UDHM state (..., 22) in radians -> native values (..., J), clipped to the joint limits.
+
+        Dropped joints get their ``default_raw``. For the human hand: keypoints (..., 21, 3) in metres
+        by forward kinematics with this spec's skeleton.
+        """
+        self._check_mapping(mapping)
+        state = _to_float(state)
+        self._check_width(state, UDHM_DIM, "UDHM state", UDHM_JOINT_NAMES)
+        self._check_nan(state, "UDHM state")
+        if self.kind == "keypoints":
+            return self._udhm_to_keypoints(state, side)
+        t = self._side_table(side)
+        a = self._active_joint_idx
+        source = self._slot_idx if mapping == "semantic" else np.arange(len(a))
+        rad = _zeros((*state.shape[:-1], self.num_native), state) + _table(t.offset + t.scale * t.default_raw, state)
+        rad[..., a] = state[..., source] * _table(t.sign[a], state)
+        rad = _clip(rad, _table(t.rad_lo, rad), _table(t.rad_hi, rad))
+        return self._rad_to_raw(rad, t)
+
+    # -- kinematics ----------------------------------------------------------------------------------
+    def skeleton(self):
+        """This hand's ``udhm.Skeleton`` (the default human skeleton scaled, per-finger lengths if given)."""
+        from lerobot_unidextok.hands.kinematics import skeleton_for
+
+        return skeleton_for(self.skeleton_spec)
+
+    def _keypoints_to_udhm(self, keypoints_m: Any, side: str) -> Array:
+        from lerobot_unidextok.hands.kinematics import keypoints_to_udhm
+
+        kp = _to_float(keypoints_m)
+        self._check_side(side)
+        if kp.ndim < 2 or tuple(kp.shape[-2:]) != (NUM_KEYPOINTS, 3):
+            raise ValueError(
+                f"hand {self.name!r}: expected MANO-21 keypoints in metres of shape (..., {NUM_KEYPOINTS}, 3), "
+                f"got {tuple(kp.shape)}"
+            )
+        self._check_nan(kp, "keypoints_m")
+        return keypoints_to_udhm(kp, side)
+
+    def _udhm_to_keypoints(self, state: Array, side: str) -> Array:
+        from lerobot_unidextok.hands.kinematics import udhm_to_keypoints
+
+        self._check_side(side)
+        return udhm_to_keypoints(state, self.skeleton(), side)
+
+    # -- checks ----------------------------------------------------------------------------------------
+    def _side_table(self, side: str) -> _SideTable:
+        self._check_side(side)
+        return self._tables[side]
+
+    @cached_property
+    def _tables(self) -> dict[str, _SideTable]:
+        tables = {}
+        for side in self.sides:
+            js = [j.sides[side] for j in self.joints]
+            col = lambda f: np.array([f(x) for x in js], dtype=np.float64)  # noqa: E731
+            tables[side] = _SideTable(
+                raw_lo=col(lambda x: x.raw_range[0]),
+                raw_hi=col(lambda x: x.raw_range[1]),
+                offset=col(lambda x: x.offset),
+                scale=col(lambda x: x.scale),
+                sign=col(lambda x: x.sign),
+                rad_lo=col(lambda x: x.limits_rad[0]),
+                rad_hi=col(lambda x: x.limits_rad[1]),
+                default_raw=col(lambda x: x.default_raw),
+            )
+        return tables
+
+    def _check_side(self, side: str) -> None:
+        if side not in self.sides:
+            raise ValueError(f"hand {self.name!r} has no side {side!r}; its sides are {list(self.sides)}")
+
+    @staticmethod
+    def _check_mapping(mapping: str) -> None:
+        if mapping not in MAPPINGS:
+            raise ValueError(f"unknown mapping {mapping!r}; use one of {list(MAPPINGS)}")
+
+    def _require_joints(self, what: str) -> None:
+        if self.kind != "joints":
+            raise ValueError(
+                f"hand {self.name!r} is given as keypoints (..., 21, 3) in metres and has no native joint "
+                f"angles; {what} is not defined for it, use to_udhm / from_udhm"
+            )
+
+    def _check_width(self, x: Array, width: int, what: str, names: tuple[str, ...]) -> None:
+        if x.ndim == 0 or x.shape[-1] != width:
+            raise ValueError(
+                f"hand {self.name!r}: {what} must have last dimension {width} ({', '.join(names)}), "
+                f"got shape {tuple(x.shape)}"
+            )
+
+    def _check_nan(self, x: Array, what: str) -> None:
+        if _isnan_any(x):
+            raise ValueError(f"hand {self.name!r}: {what} contains NaN; drop or fill missing frames before converting")
+
+    def _check_native(self, raw: Any) -> Array:
+        raw = _to_float(raw)
+        self._check_width(raw, self.num_native, f"native input ({self.native_units})", self.joint_names)
+        self._check_nan(raw, "native input")
+        return raw
+
+    def _handle_out_of_range(
+        self, x: Array, lo: Array, hi: Array, span: np.ndarray, mode: str, what: str, side: str
+    ) -> Array:
+        if mode not in OUT_OF_RANGE_MODES:
+            raise ValueError(f"unknown on_out_of_range {mode!r}; use one of {list(OUT_OF_RANGE_MODES)}")
+        tol = _table(_RANGE_TOL * np.maximum(span, 1.0), x)
+        bad = (x < lo - tol) | (x > hi + tol)
+        n_bad = int(bad.sum())
+        if n_bad:
+            if mode == "raise":
+                cols = sorted({int(c) for c in (np.nonzero(np.asarray(bad.cpu() if isinstance(bad, torch.Tensor) else bad))[-1])})
+                detail = ", ".join(
+                    f"{self.joint_names[c]} in [{float(lo[c]):g}, {float(hi[c]):g}]" for c in cols
+                )
+                raise ValueError(
+                    f"hand {self.name!r} ({side}): {n_bad} {what} value(s) out of range: {detail}. "
+                    f"Pass on_out_of_range='clip' to clip them with a warning"
+                )
+            logger.warning("hand %r (%s): clipped %d of %d %s values to the joint range", self.name, side, n_bad, bad.numel() if isinstance(bad, torch.Tensor) else bad.size, what)
+        return _clip(x, lo, hi)
