@@ -1,0 +1,67 @@
+"""The canonical hand frame, fitted to the palm, and the left/right mirror.
+
+Canonical (right-hand) frame, used by every UDHM module:
+    origin  wrist (keypoint 0)
+    x       palm normal pointing out of the palm (palmar side; curled fingers move toward +x)
+    z       wrist -> middle MCP, projected into the palm plane
+    y       z cross x, toward the thumb side of a right hand
+The palm plane is the least-squares plane through wrist, index, middle and ring MCP. This is the
+MANO wrist frame used by dex-retargeting (OPERATOR2MANO), so its recordings are already canonical.
+
+Left hands: their palm frame uses the same rule for x (palmar normal) and z, so y = z cross x points
+toward the little finger. Mirroring y (MIRROR_Y) turns left-hand canonical coordinates into those of
+the mirror-image right hand; UDHM angles and skeletons are always those of that right hand.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lerobot_unidextok.constants import SIDES
+
+MIRROR_Y = np.diag([1.0, -1.0, 1.0])  # left-hand canonical coords <-> mirrored right-hand coords
+PALM_PLANE_INDICES = (0, 5, 9, 13)  # wrist, index/middle/ring MCP
+BASE_INDICES = (1, 5, 9, 13, 17)  # thumb CMC and the four MCPs, one per finger
+
+
+def check_side(side: str) -> str:
+    """`side` if it is "right" or "left", else ValueError."""
+    if side not in SIDES:
+        raise ValueError(f"unknown side {side!r}; use one of {SIDES}")
+    return side
+
+
+def palm_frame(keypoints_m: np.ndarray, side: str = "right") -> np.ndarray:
+    """Rotation (..., 3, 3) whose columns are the canonical x, y, z axes in the input frame.
+
+    Canonical coordinates of a point p: R^T (p - wrist). Degenerate palms (collinear points) give NaN.
+    """
+    check_side(side)
+    kp = np.asarray(keypoints_m, dtype=np.float64)  # (..., 21, 3)
+    wrist = kp[..., 0, :]
+    pts = kp[..., PALM_PLANE_INDICES, :]  # (..., 4, 3)
+    centred = pts - pts.mean(axis=-2, keepdims=True)
+    cov = np.swapaxes(centred, -1, -2) @ centred  # (..., 3, 3)
+    _, vecs = np.linalg.eigh(cov)
+    normal = vecs[..., :, 0]  # smallest eigenvalue -> plane normal, (..., 3)
+    # Palmar side: curled fingers of a right hand bend toward (index MCP - wrist) x (pinky MCP - wrist).
+    palmar = np.cross(kp[..., 5, :] - wrist, kp[..., 17, :] - wrist)
+    if side == "left":
+        palmar = -palmar
+    sign = np.where(np.sum(normal * palmar, axis=-1, keepdims=True) < 0, -1.0, 1.0)
+    x = normal * sign
+    to_middle = kp[..., 9, :] - wrist
+    z = to_middle - np.sum(to_middle * x, axis=-1, keepdims=True) * x
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = z / np.linalg.norm(z, axis=-1, keepdims=True)
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=-1)
+
+
+def to_canonical(keypoints_m: np.ndarray, rotation: np.ndarray, side: str = "right") -> np.ndarray:
+    """Keypoints (..., K, 3) in the (mirrored, for left) right-hand canonical frame."""
+    kp = np.asarray(keypoints_m, dtype=np.float64)
+    local = (kp - kp[..., :1, :]) @ rotation  # (..., K, 3) = R^T (p - wrist)
+    if check_side(side) == "left":
+        local = local * np.diag(MIRROR_Y)
+    return local
