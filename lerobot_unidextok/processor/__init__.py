@@ -1,0 +1,28 @@
+"""LeRobot processor steps wrapping UniDexTok (registered in ProcessorStepRegistry on import)."""
+
+from lerobot_unidextok.processor.layout import HandLayout, hand_layout_from_dataset
+from lerobot_unidextok.processor.processor_unidextok import (
+    NATIVE_STEP_NAME,
+    REPRESENTATIONS,
+    STEP_NAME,
+    UDHMToNativeCommandStep,
+    UniDexTokStateTokenizerStep,
+    load_tokenizer,
+    tokenizer_output_dims,
+    tokens_to_native,
+    udhm_to_native,
+)
+
+__all__ = [
+    "NATIVE_STEP_NAME",
+    "REPRESENTATIONS",
+    "STEP_NAME",
+    "HandLayout",
+    "UDHMToNativeCommandStep",
+    "UniDexTokStateTokenizerStep",
+    "hand_layout_from_dataset",
+    "load_tokenizer",
+    "tokenizer_output_dims",
+    "tokens_to_native",
+    "udhm_to_native",
+]
