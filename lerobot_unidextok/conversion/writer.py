@@ -1,0 +1,277 @@
+"""Fast LeRobotDataset v3.0 writer for state-only datasets: whole episodes in, same files out.
+
+Writes what LeRobot 0.6.1's `add_frame`/`save_episode`/`finalize` writes for datasets without images
+(same parquet schema incl. the `huggingface` features metadata, one row group per episode, data/episodes
+file roll-over at `data_files_size_in_mb`, episodes metadata columns, tasks.parquet, info.json, stats.json
+with q01..q99), but from whole-episode arrays with pyarrow: no per-frame dicts, no `datasets.map`.
+LeRobot's own helpers are reused for info/tasks/stats serialisation. Differences (by design): the
+parquet `huggingface` metadata carries no random fingerprint, and dataset stats are aggregated once
+over all episodes instead of pairwise per episode (equal up to float rounding).
+"""
+
+from __future__ import annotations
+
+import logging
+from copy import deepcopy
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from lerobot_unidextok.conversion.stats import episode_stats
+
+logger = logging.getLogger(__name__)
+
+DEFAULT_KEYS = ("timestamp", "frame_index", "episode_index", "index", "task_index")
+METADATA_BUFFER_EPISODES = 256  # episodes metadata rows per parquet write
+
+
+def _lerobot():
+    """Lazy import of the LeRobot pieces the writer reuses (layer rule: lerobot.datasets lazily)."""
+    from lerobot.datasets import compute_stats, dataset_metadata, feature_utils, io_utils, utils
+    from lerobot.utils.constants import DEFAULT_FEATURES
+
+    return compute_stats, dataset_metadata, feature_utils, io_utils, utils, DEFAULT_FEATURES
+
+
+class UdhmDatasetWriter:
+    """Write a state-only LeRobotDataset v3.0 episode by episode from whole arrays.
+
+    Usage: `w = UdhmDatasetWriter(root, repo_id, fps, features)`; `w.add_episode({...}, task)` per
+    episode; `w.finalize(splits=...)`. `root` must not exist (like `LeRobotDataset.create`).
+    """
+
+    def __init__(
+        self,
+        root: str | Path,
+        repo_id: str,
+        fps: int,
+        features: dict[str, dict],
+        robot_type: str | None = None,
+        data_files_size_in_mb: int | None = None,
+        chunks_size: int | None = None,
+    ):
+        compute_stats, dataset_metadata, feature_utils, io_utils, utils, default_features = _lerobot()
+        if int(fps) != fps or fps <= 0:
+            raise ValueError(f"fps must be a positive integer (LeRobot stores int fps), got {fps!r}")
+        for key, ft in features.items():
+            if key in default_features:
+                raise ValueError(f"feature {key!r} is written by the writer itself; remove it from features")
+            if "/" in key:
+                raise ValueError(f"feature key {key!r} contains '/', which LeRobot forbids; rename it")
+            if ft["dtype"] in ("image", "video"):
+                raise ValueError(f"feature {key!r} is {ft['dtype']}: this writer handles state-only datasets")
+            if len(ft["shape"]) != 1:
+                raise ValueError(f"feature {key!r} shape {ft['shape']}: only 1-D features are supported")
+        self.root = Path(root)
+        self.repo_id = repo_id
+        self.root.mkdir(parents=True, exist_ok=False)
+        self.features = {**deepcopy(features), **default_features}
+        for ft in self.features.values():
+            ft["shape"] = tuple(ft["shape"])
+        self.info = feature_utils.create_empty_dataset_info(
+            dataset_metadata.CODEBASE_VERSION,
+            int(fps),
+            self.features,
+            use_videos=False,
+            robot_type=robot_type,
+            chunks_size=chunks_size,
+            data_files_size_in_mb=data_files_size_in_mb,
+        )
+        io_utils.write_info(self.info, self.root)
+        self._io = io_utils
+        self._utils = utils
+        self._aggregate_stats = compute_stats.aggregate_stats
+        self.schema: pa.Schema = feature_utils.get_hf_features_from_features(self.features).arrow_schema
+        self.fps = int(fps)
+        self.tasks: dict[str, int] = {}
+        self.num_episodes = 0
+        self.num_frames = 0
+        self._episode_stats: list[dict] = []
+        # data file state
+        self._data_writer: pq.ParquetWriter | None = None
+        self._data_chunk, self._data_file = 0, 0
+        self._data_path: Path | None = None
+        self._file_start_frame = 0
+        # episodes metadata state
+        self._meta_rows: list[dict] = []
+        self._meta_writer: pq.ParquetWriter | None = None
+        self._meta_chunk, self._meta_file = 0, 0
+        self._meta_episodes_in_file = 0
+        self._finalized = False
+
+    # -- data ------------------------------------------------------------------------------------
+    def _column(self, key: str, values: np.ndarray, num: int) -> pa.Array:
+        ft = self.features[key]
+        field_type = self.schema.field(key).type
+        if ft["dtype"] == "string":
+            values = np.asarray(values)
+            if values.ndim == 0 or values.size == 1:
+                return pa.array([str(values.reshape(-1)[0])] * num, type=pa.string())
+            return pa.array(values.reshape(num).tolist(), type=pa.string())
+        dtype = np.dtype(ft["dtype"])
+        values = np.asarray(values)
+        expected = (num,) if ft["shape"] == (1,) else (num, *ft["shape"])
+        if values.shape != expected and not (ft["shape"] == (1,) and values.shape == (num, 1)):
+            raise ValueError(f"feature {key!r}: expected an array of shape {expected}, got {values.shape}")
+        if values.dtype != dtype:
+            raise ValueError(f"feature {key!r}: expected dtype {dtype}, got {values.dtype}; cast before writing")
+        if ft["shape"] == (1,):
+            return pa.array(values.reshape(num), type=field_type)
+        flat = pa.array(np.ascontiguousarray(values).reshape(-1), type=field_type.value_type)
+        return pa.FixedSizeListArray.from_arrays(flat, type=field_type)
+
+    def _next_data_file(self) -> None:
+        if self._data_writer is not None:
+            self._data_writer.close()
+            self._data_writer = None
+            self._data_chunk, self._data_file = self._utils.update_chunk_file_indices(
+                self._data_chunk, self._data_file, self.info.chunks_size
+            )
+        self._file_start_frame = self.num_frames
+
+    def add_episode(self, frames: dict[str, np.ndarray], task: str) -> int:
+        """Append one episode. `frames`: every user feature as (T, *shape) arrays of its dtype
+        (strings may be one value for the whole episode). Returns the episode index."""
+        if self._finalized:
+            raise RuntimeError("writer already finalized")
+        missing = [k for k in self.features if k not in DEFAULT_KEYS and k not in frames]
+        extra = [k for k in frames if k not in self.features or k in DEFAULT_KEYS]
+        if missing or extra:
+            raise ValueError(f"episode features mismatch: missing {missing}, unexpected {extra}")
+        if not isinstance(task, str):
+            raise ValueError(f"task must be a str, got {type(task).__name__}")
+        lengths = {k: np.asarray(v).shape[0] for k, v in frames.items() if np.asarray(v).ndim > 0}
+        num = next(iter(lengths.values()), 0)
+        if num == 0 or any(n != num for n in lengths.values()):
+            raise ValueError(f"episode arrays must share a non-zero length, got {lengths}")
+
+        ep_index = self.num_episodes
+        if task not in self.tasks:
+            self.tasks[task] = len(self.tasks)
+        frame_index = np.arange(num, dtype=np.int64)
+        timestamps = frame_index / self.fps  # float64, as LeRobot's list of Python floats
+        default = {
+            "timestamp": timestamps,
+            "frame_index": frame_index,
+            "episode_index": np.full(num, ep_index, dtype=np.int64),
+            "index": np.arange(self.num_frames, self.num_frames + num, dtype=np.int64),
+            "task_index": np.full(num, self.tasks[task], dtype=np.int64),
+        }
+        columns = []
+        ep_arrays = {}
+        for key in self.features:
+            if key in DEFAULT_KEYS:
+                values = default[key]
+                columns.append(pa.array(values.astype(np.dtype(self.features[key]["dtype"])), type=self.schema.field(key).type))
+            else:
+                values = frames[key]
+                columns.append(self._column(key, values, num))
+            ep_arrays[key] = values
+        table = pa.Table.from_arrays(columns, schema=self.schema)
+
+        # roll over to the next data file as LeRobot does: current size + estimate >= limit
+        if self._data_writer is not None:
+            size_mb = self._data_path.stat().st_size / 1024**2
+            in_file = self.num_frames - self._file_start_frame
+            per_frame = size_mb / in_file if in_file > 0 else 0
+            if size_mb + per_frame * num >= self.info.data_files_size_in_mb:
+                self._next_data_file()
+        if self._data_writer is None:
+            self._data_path = self.root / self.info.data_path.format(chunk_index=self._data_chunk, file_index=self._data_file)
+            self._data_path.parent.mkdir(parents=True, exist_ok=True)
+            self._data_writer = pq.ParquetWriter(self._data_path, schema=self.schema, compression="snappy", use_dictionary=True)
+            self._file_start_frame = self.num_frames
+        self._data_writer.write_table(table)
+
+        stats = episode_stats(
+            {k: (v if np.asarray(v).ndim > 0 else np.full(num, v)) for k, v in ep_arrays.items()}, self.features
+        )
+        self._episode_stats.append(stats)
+        row = {
+            "episode_index": ep_index,
+            "tasks": [task],
+            "length": num,
+            "data/chunk_index": self._data_chunk,
+            "data/file_index": self._data_file,
+            "dataset_from_index": self.num_frames,
+            "dataset_to_index": self.num_frames + num,
+        }
+        for key, st in stats.items():
+            for name, value in st.items():
+                row[f"stats/{key}/{name}"] = value.tolist()
+        self._add_meta_row(row)
+        self.num_episodes += 1
+        self.num_frames += num
+        return ep_index
+
+    # -- episodes metadata -----------------------------------------------------------------------
+    def _add_meta_row(self, row: dict) -> None:
+        if self._meta_writer is not None and self._meta_episodes_in_file > 0:
+            path = self._meta_writer.where
+            size_mb = Path(path).stat().st_size / 1024**2 if Path(path).exists() else 0.0
+            if size_mb + size_mb / self._meta_episodes_in_file >= self.info.data_files_size_in_mb:
+                self._flush_meta()
+                self._meta_writer.close()
+                self._meta_writer = None
+                self._meta_chunk, self._meta_file = self._utils.update_chunk_file_indices(
+                    self._meta_chunk, self._meta_file, self.info.chunks_size
+                )
+                self._meta_episodes_in_file = 0
+        row["meta/episodes/chunk_index"] = self._meta_chunk
+        row["meta/episodes/file_index"] = self._meta_file
+        self._meta_rows.append(row)
+        if len(self._meta_rows) >= METADATA_BUFFER_EPISODES:
+            self._flush_meta()
+
+    def _flush_meta(self) -> None:
+        if not self._meta_rows:
+            return
+        combined = {k: [r[k] for r in self._meta_rows] for k in self._meta_rows[0]}
+        table = pa.Table.from_pydict(combined)
+        if self._meta_writer is None:
+            path = self.root / f"meta/episodes/chunk-{self._meta_chunk:03d}/file-{self._meta_file:03d}.parquet"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._meta_writer = pq.ParquetWriter(path, schema=table.schema, compression="snappy", use_dictionary=True)
+        else:
+            table = table.select(self._meta_writer.schema.names).cast(self._meta_writer.schema)
+        self._meta_writer.write_table(table)
+        self._meta_episodes_in_file += len(self._meta_rows)
+        self._meta_rows = []
+
+    # -- finalize --------------------------------------------------------------------------------
+    def finalize(self, splits: dict[str, str] | None = None) -> None:
+        """Close files and write tasks, info.json (with `splits`) and stats.json. Idempotent."""
+        if self._finalized:
+            return
+        if self.num_episodes == 0:
+            raise ValueError("no episodes were written; a LeRobotDataset needs at least one episode")
+        import pandas as pd
+
+        if self._data_writer is not None:
+            self._data_writer.close()
+            self._data_writer = None
+        self._flush_meta()
+        if self._meta_writer is not None:
+            self._meta_writer.close()
+            self._meta_writer = None
+        tasks = pd.DataFrame({"task_index": list(self.tasks.values())}, index=pd.Index(list(self.tasks), name="task"))
+        self._io.write_tasks(tasks, self.root)
+        self.info.total_episodes = self.num_episodes
+        self.info.total_frames = self.num_frames
+        self.info.total_tasks = len(self.tasks)
+        self.info.splits = splits if splits is not None else {"train": f"0:{self.num_episodes}"}
+        self._io.write_info(self.info, self.root)
+        self._io.write_stats(self._aggregate_stats(self._episode_stats), self.root)
+        self._finalized = True
+
+    def abort(self) -> None:
+        """Close open files without writing metadata (the caller removes the folder)."""
+        for w in (self._data_writer, self._meta_writer):
+            if w is not None:
+                try:
+                    w.close()
+                except Exception:  # noqa: BLE001  best effort on the error path
+                    pass
+        self._data_writer = self._meta_writer = None
