@@ -1,0 +1,248 @@
+"""Read LeRobot datasets (v2.1 and v3.0) straight from their parquet and meta files.
+
+Shared by the `dexora`, `linkerhand` and `lerobot` readers. lerobot 0.6 refuses v2.1 datasets, so both
+layouts are read with pyarrow only: v2.1 one `episode_%06d.parquet` per episode, v3.0 many episodes per
+`file-%03d.parquet` located through `meta/episodes/*.parquet`.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+SUPPORTED_VERSIONS = ("v2.0", "v2.1", "v3.0")
+
+
+class LeRobotFormatError(ValueError):
+    """A LeRobot dataset file is missing, unreadable or lacks a field; the message names both."""
+
+
+@dataclass(frozen=True)
+class LeRobotEpisodeRef:
+    """One episode of a LeRobot dataset folder (picklable)."""
+
+    root: str
+    episode_index: int
+
+    def __str__(self) -> str:
+        return f"{self.root}#episode_{self.episode_index:06d}"
+
+
+# ---------------------------------------------------------------------------------------------
+# meta
+# ---------------------------------------------------------------------------------------------
+
+
+def find_dataset_roots(input_path: str | Path) -> list[Path]:
+    """`input_path` itself if it holds `meta/info.json`, else its sub-folders that do (sorted)."""
+    path = Path(input_path)
+    if not path.exists():
+        raise FileNotFoundError(f"input path {path} does not exist")
+    if (path / "meta" / "info.json").is_file():
+        return [path]
+    roots = sorted(p.parent.parent for p in path.glob("*/meta/info.json"))
+    if not roots:
+        raise LeRobotFormatError(
+            f"{path} is not a LeRobot dataset: no meta/info.json in it or in its sub-folders; "
+            "point --input at the dataset root (the folder containing meta/ and data/)"
+        )
+    return roots
+
+
+def load_info(root: str | Path) -> dict:
+    """`meta/info.json`, checked for the fields the readers use."""
+    path = Path(root) / "meta" / "info.json"
+    try:
+        info = json.loads(path.read_text())
+    except FileNotFoundError as exc:
+        raise LeRobotFormatError(f"{path}: missing; a LeRobot dataset needs meta/info.json") from exc
+    except json.JSONDecodeError as exc:
+        raise LeRobotFormatError(f"{path}: not valid JSON ({exc})") from exc
+    for key in ("codebase_version", "fps", "features", "data_path"):
+        if key not in info:
+            raise LeRobotFormatError(f"{path}: missing field {key!r}")
+    if info["codebase_version"] not in SUPPORTED_VERSIONS:
+        raise LeRobotFormatError(
+            f"{path}: codebase_version {info['codebase_version']!r} is not supported; expected one of "
+            f"{SUPPORTED_VERSIONS}"
+        )
+    return info
+
+
+def flatten_names(names: object, where: str) -> list[str]:
+    """Feature `names` as a flat list: flat list, nested `[[...]]`, or dict `{"motors": [...], ...}`."""
+    if isinstance(names, dict):
+        out: list[str] = []
+        for value in names.values():
+            out += flatten_names(value, where)
+        return out
+    if isinstance(names, (list, tuple)):
+        out = []
+        for item in names:
+            out += flatten_names(item, where) if isinstance(item, (list, tuple, dict)) else [str(item)]
+        return out
+    raise LeRobotFormatError(f"{where}: feature names must be a list or dict of lists, got {type(names).__name__}")
+
+
+def feature_names(info: dict, key: str, root: str | Path) -> list[str]:
+    """Flat names of a vector feature, checked against its declared shape."""
+    where = f"{Path(root) / 'meta' / 'info.json'} features[{key!r}]"
+    if key not in info["features"]:
+        raise LeRobotFormatError(f"{where}: missing; available features: {sorted(info['features'])}")
+    feature = info["features"][key]
+    if feature.get("names") is None:
+        raise LeRobotFormatError(f"{where}: has no 'names'; name the hand columns explicitly")
+    names = flatten_names(feature["names"], where)
+    size = int(np.prod(feature.get("shape", [len(names)])))
+    if len(names) != size:
+        raise LeRobotFormatError(f"{where}: {len(names)} names for shape {feature.get('shape')}")
+    return names
+
+
+def _read_jsonl(path: Path) -> list[dict]:
+    try:
+        lines = path.read_text().splitlines()
+    except FileNotFoundError as exc:
+        raise LeRobotFormatError(f"{path}: missing") from exc
+    rows = []
+    for i, line in enumerate(lines):
+        if line.strip():
+            try:
+                rows.append(json.loads(line))
+            except json.JSONDecodeError as exc:
+                raise LeRobotFormatError(f"{path}: line {i + 1} is not valid JSON ({exc})") from exc
+    return rows
+
+
+def list_episodes(root: str | Path) -> list[LeRobotEpisodeRef]:
+    """Every episode of one dataset folder, by episode index."""
+    root = Path(root)
+    info = load_info(root)
+    if info["codebase_version"] == "v3.0":
+        table = _episodes_table_v30(root)
+        indices = sorted(int(i) for i in table["episode_index"])
+    else:
+        rows = _read_jsonl(root / "meta" / "episodes.jsonl")
+        for row in rows:
+            if "episode_index" not in row:
+                raise LeRobotFormatError(f"{root / 'meta' / 'episodes.jsonl'}: a row lacks 'episode_index'")
+        indices = sorted(int(r["episode_index"]) for r in rows)
+    return [LeRobotEpisodeRef(str(root), i) for i in indices]
+
+
+def _episodes_table_v30(root: Path) -> dict[str, list]:
+    import pyarrow.parquet as pq
+
+    files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
+    if not files:
+        raise LeRobotFormatError(f"{root / 'meta' / 'episodes'}: no chunk-*/file-*.parquet episode metadata")
+    columns: dict[str, list] = {}
+    for f in files:
+        try:
+            table = pq.read_table(f).to_pydict()
+        except Exception as exc:  # noqa: BLE001 - pyarrow raises several types for corrupt files
+            raise LeRobotFormatError(f"{f}: unreadable parquet ({exc})") from exc
+        for key, values in table.items():
+            columns.setdefault(key, []).extend(values)
+    for key in ("episode_index", "data/chunk_index", "data/file_index"):
+        if key not in columns:
+            raise LeRobotFormatError(f"{files[0]}: missing column {key!r}")
+    return columns
+
+
+# ---------------------------------------------------------------------------------------------
+# episode data
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass
+class EpisodeColumns:
+    """The vector columns and task of one episode."""
+
+    source_file: str
+    fps: float
+    columns: dict[str, np.ndarray]  # feature key -> (T, D) float64
+    task: str
+    info: dict
+
+
+def read_episode(ref: LeRobotEpisodeRef, keys: list[str]) -> EpisodeColumns:
+    """Read the vector features `keys` of one episode as (T, D) arrays, frames in `frame_index` order."""
+    import pyarrow.parquet as pq
+
+    root = Path(ref.root)
+    info = load_info(root)
+    version = info["codebase_version"]
+    if version == "v3.0":
+        table = _episodes_table_v30(root)
+        row = table["episode_index"].index(ref.episode_index)
+        chunk, file = int(table["data/chunk_index"][row]), int(table["data/file_index"][row])
+        path = root / info["data_path"].format(chunk_index=chunk, file_index=file)
+        tasks = table.get("tasks", [None] * len(table["episode_index"]))[row]
+    else:
+        chunk = ref.episode_index // int(info.get("chunks_size", 1000))
+        path = root / info["data_path"].format(episode_chunk=chunk, episode_index=ref.episode_index)
+        tasks = None
+    if not path.is_file():
+        raise LeRobotFormatError(f"{path}: data file of episode {ref.episode_index} is missing")
+    wanted = [*keys, "episode_index", "frame_index", "task_index"]
+    try:
+        schema_names = pq.read_schema(path).names
+        missing = [k for k in [*keys, "episode_index"] if k not in schema_names]
+        if missing:
+            raise LeRobotFormatError(f"{path}: missing column(s) {missing}; columns present: {schema_names}")
+        table = pq.read_table(path, columns=[k for k in wanted if k in schema_names])
+    except LeRobotFormatError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - truncated parquet raises ArrowInvalid/OSError
+        raise LeRobotFormatError(f"{path}: unreadable parquet ({exc})") from exc
+
+    data = table.to_pydict()
+    episode = np.asarray(data["episode_index"], dtype=np.int64)
+    rows = np.flatnonzero(episode == ref.episode_index)
+    if rows.size == 0:
+        raise LeRobotFormatError(f"{path}: no rows with episode_index == {ref.episode_index}")
+    if "frame_index" in data:
+        rows = rows[np.argsort(np.asarray(data["frame_index"])[rows], kind="stable")]
+    columns = {}
+    for key in keys:
+        values = [data[key][i] for i in rows]
+        if any(v is None for v in values):
+            raise LeRobotFormatError(f"{path}: column {key!r} has null rows in episode {ref.episode_index}")
+        columns[key] = np.asarray(values, dtype=np.float64).reshape(len(rows), -1)
+    task = _task_text(root, info, tasks, data, rows)
+    return EpisodeColumns(str(path), float(info["fps"]), columns, task, info)
+
+
+def _task_text(root: Path, info: dict, tasks: object, data: dict, rows: np.ndarray) -> str:
+    if tasks:  # v3.0 episode metadata holds the task strings
+        return "; ".join(str(t) for t in tasks)
+    if "task_index" not in data:
+        return ""
+    task_indices = sorted({int(data["task_index"][i]) for i in rows})
+    if info["codebase_version"] == "v3.0":
+        import pyarrow.parquet as pq
+
+        path = root / "meta" / "tasks.parquet"
+        if not path.is_file():
+            return ""
+        frame = pq.read_table(path).to_pandas()
+        by_index = {int(i): str(t) for t, i in zip(frame.index, frame["task_index"], strict=True)}
+    else:
+        path = root / "meta" / "tasks.jsonl"
+        if not path.is_file():
+            return ""
+        by_index = {int(r["task_index"]): str(r["task"]) for r in _read_jsonl(path)}
+    return "; ".join(by_index.get(i, "") for i in task_indices)
+
+
+def select_columns(names: list[str], wanted: list[str], where: str) -> np.ndarray:
+    """Indices of `wanted` in `names`; a clear error lists the missing ones and what exists."""
+    index = {n: i for i, n in enumerate(names)}
+    missing = [n for n in wanted if n not in index]
+    if missing:
+        raise LeRobotFormatError(f"{where}: unknown names {missing}; available names: {names}")
+    return np.array([index[n] for n in wanted], dtype=np.int64)
