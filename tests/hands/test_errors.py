@@ -1,0 +1,159 @@
+"""Bad input gives clear errors; a new hand is one YAML file loaded with hands.load_spec."""
+
+from __future__ import annotations
+
+import logging
+import textwrap
+
+import numpy as np
+import pytest
+import torch
+
+from lerobot_unidextok import hands
+
+MINIMAL = textwrap.dedent(
+    """\
+    name: {name}
+    embodiment: toy_gripper_hand
+    kind: joints
+    sides: [right]
+    native_units: degrees
+    joints:
+      - name: finger_a
+        slot: index_mcp_flex
+        raw_range: [0, 90]
+        rad_at_raw_range: [0.0, 1.5707963267948966]
+      - name: finger_b
+        slot: thumb_cmc_flex
+        raw_range: [0, 90]
+        rad_at_raw_range: [1.5707963267948966, 0.0]  # 90 = open
+      - name: wrist
+        slot: null
+        raw_range: [-10, 10]
+        rad_at_raw_range: [0.0, 0.0]
+        note: not a finger joint
+    """
+)
+
+
+def _write(tmp_path, text: str, name: str = "toy_hand"):
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(text)
+    return path
+
+
+# ---------------------------------------------------------------------------------------------
+# adding a hand = adding one YAML
+# ---------------------------------------------------------------------------------------------
+def test_new_hand_from_one_yaml(tmp_path):
+    spec = hands.load_spec(_write(tmp_path, MINIMAL.format(name="toy_hand")))
+    assert spec.name == "toy_hand" and spec.embodiment == "toy_gripper_hand"
+    assert spec.joint_names == ("finger_a", "finger_b", "wrist")
+    state = spec.to_udhm(np.array([[45.0, 90.0, 3.0]]))
+    assert state.shape == (1, 22)
+    assert state[0, 6] == pytest.approx(np.pi / 4)  # index_mcp_flex
+    assert state[0, 0] == pytest.approx(0.0)  # thumb open at 90
+    assert spec.active_mask.sum() == 2 and spec.dropped_joints == ("wrist",)
+    back = spec.from_udhm(state)
+    np.testing.assert_allclose(back, [[45.0, 90.0, 10.0]], atol=1e-12)  # dropped, no angle: upper raw end
+
+
+# ---------------------------------------------------------------------------------------------
+# invalid YAML: each problem names the file and the field
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("old", "new", "field"),
+    [
+        ("kind: joints", "kind: joints\ncolour: red", "<top level>"),  # unknown top-level key
+        ("slot: index_mcp_flex", "slot: index_knuckle", "slot"),  # slot not in UDHM
+        ("slot: thumb_cmc_flex", "slot: index_mcp_flex", "joints[].slot"),  # duplicate slot
+        ("raw_range: [0, 90]\n    rad_at_raw_range: [0.0, 1.57", "raw_range: [90, 0]\n    rad_at_raw_range: [0.0, 1.57", "raw_range"),
+        ("name: finger_b", "name: finger_a", "joints[].name"),  # duplicate joint
+        ("sides: [right]", "sides: [up]", "sides"),
+        ("    note: not a finger joint", "    tendon: 3", "unknown key"),
+        ("slot: index_mcp_flex\n", "slot: index_mcp_flex\n    sign: 2\n", "sign"),
+        ("embodiment: toy_gripper_hand\n", "", "embodiment"),
+    ],
+)
+def test_invalid_yaml_names_file_and_field(tmp_path, old, new, field):
+    text = MINIMAL.format(name="toy_hand")
+    assert old in text
+    path = _write(tmp_path, text.replace(old, new, 1))
+    with pytest.raises(ValueError) as err:
+        hands.load_spec(path)
+    msg = str(err.value)
+    assert str(path) in msg and field in msg
+
+
+def test_file_name_must_match_spec_name(tmp_path):
+    path = _write(tmp_path, MINIMAL.format(name="other_name"))
+    with pytest.raises(hands.SpecError, match="file name stem"):
+        hands.load_spec(path)
+
+
+def test_unknown_hand_lists_known_names():
+    with pytest.raises(KeyError) as err:
+        hands.get("linkerhand_l99")
+    assert isinstance(err.value, ValueError)
+    for name in ("linkerhand_l10", "inspire_rh56", "shadow"):
+        assert name in str(err.value)
+
+
+# ---------------------------------------------------------------------------------------------
+# bad arrays
+# ---------------------------------------------------------------------------------------------
+def test_wrong_width_names_hand_width_and_joints():
+    spec = hands.get("linkerhand_l10")
+    with pytest.raises(ValueError) as err:
+        spec.to_udhm(np.zeros((4, 9)))
+    msg = str(err.value)
+    assert "linkerhand_l10" in msg and "10" in msg and "thumb_cmc_roll" in msg and "(4, 9)" in msg
+    with pytest.raises(ValueError, match="last dimension 22"):
+        spec.from_udhm(np.zeros((4, 21)))
+    with pytest.raises(ValueError, match=r"\(\.\.\., 21, 3\)"):
+        hands.get("human").to_udhm(np.zeros((4, 20, 3)))
+
+
+@pytest.mark.parametrize("as_torch", [False, True])
+def test_nan_raises(as_torch):
+    spec = hands.get("inspire_rh56_unitree")
+    raw = np.full((3, 6), 0.5)
+    raw[1, 2] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        spec.to_udhm(torch.tensor(raw) if as_torch else raw)
+    with pytest.raises(ValueError, match="NaN"):
+        spec.from_udhm(np.full((2, 22), np.nan))
+
+
+@pytest.mark.parametrize("as_torch", [False, True])
+def test_out_of_range_raise_or_clip_with_counted_warning(caplog, as_torch):
+    spec = hands.get("linkerhand_l6")
+    raw = np.array([[255.0, 255, 300, 255, -5, 255], [0, 0, 0, 0, 0, 0]])
+    x = torch.tensor(raw) if as_torch else raw
+    with pytest.raises(ValueError) as err:
+        spec.to_udhm(x)  # default: raise
+    msg = str(err.value)
+    assert "2 raw value(s) out of range" in msg and "index_mcp_pitch" in msg and "ring_mcp_pitch" in msg
+    assert "on_out_of_range='clip'" in msg
+    with caplog.at_level(logging.WARNING, logger="lerobot_unidextok.hands.spec"):
+        state = spec.to_udhm(x, on_out_of_range="clip")
+    warnings = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(warnings) == 1 and "clipped 2 of 12" in warnings[0].getMessage()
+    state = np.asarray(state)
+    assert state[0, 6] == pytest.approx(0.0)  # 300 -> 255 = open, not wrapped
+    assert state[0, 14] == pytest.approx(1.26)  # -5 -> 0 = fully flexed
+    with pytest.raises(ValueError, match="on_out_of_range"):
+        spec.to_udhm(raw, on_out_of_range="wrap")
+
+
+def test_bad_side_and_mapping():
+    spec = hands.get("linkerhand_l10")
+    with pytest.raises(ValueError, match="sides are"):
+        spec.to_udhm(np.zeros(10), side="middle")
+    with pytest.raises(ValueError, match="append_pad"):
+        spec.to_udhm(np.zeros(10), mapping="interleave")
+
+
+def test_human_has_no_joint_radians():
+    with pytest.raises(ValueError, match="keypoints"):
+        hands.get("human").to_radians(np.zeros(22))
