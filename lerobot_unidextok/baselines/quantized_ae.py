@@ -76,7 +76,7 @@ class QuantizedAEConfig:
 
 QAE_PRESETS: dict[str, QuantizedAEConfig] = {
     "cpu": QuantizedAEConfig(),
-    "tiny": QuantizedAEConfig(hidden_dim=32, token_dim=8, batch_size=32, steps=30, progress=False),
+    "tiny": QuantizedAEConfig(hidden_dim=32, token_dim=8, batch_size=32, lr=3e-3, steps=120, progress=False),
 }
 
 

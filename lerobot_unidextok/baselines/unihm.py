@@ -289,6 +289,8 @@ class UniHMTokenizer(nn.Module):
             raise ValueError(f"masks lack hands {missing}; give one (22,) mask per hand in train_states")
         generator = torch.Generator().manual_seed(cfg.seed)
         torch.manual_seed(cfg.seed)
+        self.quantizer = VectorQuantizer(cfg)
+        self.teacher = UniHMEncoder(cfg)
         self.decoders = nn.ModuleDict({hand: UniHMDecoder(cfg) for hand in states})
         student_hands = [hand for hand in states if hand != cfg.teacher_hand]
         self.students = nn.ModuleDict({hand: UniHMEncoder(cfg) for hand in student_hands})
