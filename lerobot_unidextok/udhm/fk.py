@@ -6,16 +6,18 @@ Kinematic model (right-hand canonical frame of `frames.py`: x palmar normal, y t
 every finger is the same chain of elementary Rodrigues rotations with six slots
     [twist, abd1, flex1, abd2, flex2, flex3]
     R_base = Rot(u_f, twist)                  u_f = unit(wrist -> finger base); used by the pinky only
-    R_1    = R_base Rot_x(-abd1) Rot_y(flex1)  base joint: abduction about the palm normal, then
-                                               flexion about the local lateral (y) axis
+    R_1    = R_base Rot_x(-abd1) Rot_y(flex1) Rot_z(pron)  base joint: abduction about the palm normal, then
+                                               flexion about the local lateral (y) axis;
+                                               pron = fixed axial turn (thumb only)
     R_2    = R_1 Rot_x(-abd2) Rot_y(flex2)     second joint (abd2 used by the thumb MCP only)
     R_3    = R_2 Rot_y(flex3)
     p_1 = base + R_1 e_z L_1,  p_2 = p_1 + R_2 e_z L_2,  p_3 = p_2 + R_3 e_z L_3
 Zero pose: all fingers (and the thumb) straight along +z in the palm plane: flat hand, fingers together.
 Flexion > 0 moves toward +x (palm), abduction > 0 toward +y (thumb side).
-Thumb: abd1 = CMC spread, flex1 = CMC flexion (palmar abduction). Its MCP/IP flexion axis stays
-perpendicular to the plane spanned by the CMC->MCP direction and the palm normal, so the thumb plane
-follows the CMC->MCP direction. Pinky twist > 0 rotates the pinky frame about wrist -> pinky MCP so that
+Thumb: abd1 = CMC spread (in the palm plane), flex1 = CMC flexion (out of the palm plane, palmar
+abduction). R_1 is then turned by a fixed -90 deg about the CMC->MCP axis (AXIAL_PRONATION_RAD), so the
+thumb plane follows the CMC->MCP direction: MCP/IP flexion moves the tip across the palm toward the
+little finger, MCP abduction moves it toward the palm side. Pinky twist > 0 rotates the pinky frame about wrist -> pinky MCP so that
 its flexion plane tilts toward the thumb (palm cupping); the MCP itself stays put.
 Left hands: FK of the mirror-image right hand, mirrored in y (`side="left"`), then the wrist pose.
 """
@@ -56,6 +58,16 @@ CHAIN_SLOTS = np.array(
 )  # (5, 6)
 CHAIN_ACTIVE = CHAIN_SLOTS < _Z  # (5, 6) which slots are real DoFs
 
+# Fixed axial rotation (rad) of each finger's frame after its base joint, about the segment axis.
+# Thumb: -90 deg, the anatomical convention that thumb MCP/IP flexion happens in a plane parallel
+# to the palm (the tip moves across the palm toward the little finger) while abduction is
+# perpendicular to it; the thumbnail sits at ~90 deg to the fingernails (Kapandji, "The Physiology
+# of the Joints" vol. 1). Thumb CMC keeps the robot-hand convention: flex = out of the palm plane
+# toward the palm side (palmar abduction, "thumb pitch"), spread = in the palm plane ("thumb yaw").
+# The finger chains have none.
+AXIAL_PRONATION_RAD = np.array([-np.pi / 2, 0.0, 0.0, 0.0, 0.0])  # (5,)
+AXIAL_PRONATION_RAD.setflags(write=False)
+
 
 # ---------------------------------------------------------------------------------------------
 # backend helpers (numpy or torch, chosen by the input type)
@@ -87,6 +99,13 @@ def _rot_y(f: Array) -> Array:
     return _mat3([[c, z, s], [z, o, z], [-s, z, c]])
 
 
+def _rot_z(g: Array) -> Array:
+    """Rot_z(g): axial rotation about the segment, rotates +x toward +y by g. (..., 3, 3)"""
+    c, s = np.cos(g) if isinstance(g, np.ndarray) else torch.cos(g), np.sin(g) if isinstance(g, np.ndarray) else torch.sin(g)
+    o, z = c * 0 + 1, c * 0
+    return _mat3([[c, -s, z], [s, c, z], [z, z, o]])
+
+
 def rodrigues(axis: Array, angle: Array) -> Array:
     """Rotation matrices (..., 3, 3) about unit `axis` (..., 3) by `angle` (...) rad."""
     c = np.cos(angle) if isinstance(angle, np.ndarray) else torch.cos(angle)
@@ -111,13 +130,17 @@ class Chain(NamedTuple):
     points: Array  # (..., 5, 4, 3) base, p1, p2, p3
 
 
-def finger_chain(slots: Array, palm_offsets_m: Array, bone_lengths_m: Array) -> Chain:
-    """Run the five chains: slots (..., 5, 6) rad, offsets/bones (..., 5, 3) m (broadcastable)."""
+def finger_chain(slots: Array, palm_offsets_m: Array, bone_lengths_m: Array, pronation_rad: Array | None = None) -> Chain:
+    """Run the five chains: slots (..., 5, 6) rad, offsets/bones (..., 5, 3) m (broadcastable).
+
+    pronation_rad: (..., 5) fixed axial rotations; None = AXIAL_PRONATION_RAD (finger axis of size 5).
+    """
+    pronation_rad = _like(AXIAL_PRONATION_RAD, slots) if pronation_rad is None else pronation_rad
     twist, abd1, flex1, abd2, flex2, flex3 = (slots[..., i] for i in range(6))  # each (..., 5)
     axis = palm_offsets_m / _norm(palm_offsets_m)  # (..., 5, 3)
     r_base = rodrigues(axis, twist)  # (..., 5, 3, 3)
     r_abd1 = r_base @ _rot_x_neg(abd1)
-    r_1 = r_abd1 @ _rot_y(flex1)
+    r_1 = r_abd1 @ _rot_y(flex1) @ _rot_z(pronation_rad + flex1 * 0)  # (..., 5, 3, 3)
     r_abd2 = r_1 @ _rot_x_neg(abd2)
     r_2 = r_abd2 @ _rot_y(flex2)
     r_3 = r_2 @ _rot_y(flex3)

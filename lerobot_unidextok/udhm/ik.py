@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm.auto import tqdm
 
-from lerobot_unidextok.udhm.fk import CHAIN_ACTIVE, CHAIN_SLOTS, finger_chain, forward_kinematics, rodrigues, slots_to_angles
+from lerobot_unidextok.udhm.fk import AXIAL_PRONATION_RAD, CHAIN_ACTIVE, CHAIN_SLOTS, finger_chain, forward_kinematics, rodrigues, slots_to_angles
 from lerobot_unidextok.udhm.frames import BASE_INDICES, MIRROR_Y, check_side, palm_frame, to_canonical
 from lerobot_unidextok.udhm.joints import JOINT_LIMITS_RAD, limit_violations
 from lerobot_unidextok.udhm.skeleton import MIN_BONE_LENGTH_M, Skeleton
@@ -61,8 +61,8 @@ def inverse_kinematics(
     side: str = "right",
     mask: np.ndarray | None = None,
     skeleton: Skeleton | None = None,
-    iterations: int = 30,
-    limit_weight_m_per_rad: float = 0.01,
+    iterations: int = 100,
+    limit_weight_m_per_rad: float = 1.0,
     chunk_size: int = 65_536,
     progress: bool | None = None,
 ) -> IKResult:
@@ -168,7 +168,7 @@ def _solve_chunk(kp, side, fixed, iterations, limit_weight, idx, lead):
         rot = _kabsch_palm(kp, offsets, side)
         local = to_canonical(kp, rot, side)
     target = local[:, 1:].reshape(-1, 5, 4, 3)[:, :, 1:]  # (N, 5, 3, 3) p1..p3 per finger
-    slots = _initial_slots(target, offsets)
+    slots = _initial_slots(target, offsets, bones, limit_weight)
     slots = _levenberg_marquardt(slots, target, offsets, bones, iterations, limit_weight)
     chain = finger_chain(slots, offsets, bones)
     fit = chain_to_keypoints(chain.points)  # (N, 21, 3)
@@ -216,12 +216,12 @@ def _local(r: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.einsum("...ji,...j->...i", r, v)
 
 
-def _initial_slots(target: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+def _initial_slots(target: np.ndarray, offsets: np.ndarray, bones: np.ndarray, limit_weight: float) -> np.ndarray:
     """Closed-form start (N, 5, 6): each segment direction read off in its parent's frame.
 
     The pinky twist is only identifiable from a flexed finger, so three starts are built (no twist and
     the two twists that put the observed flexion plane's normal into the twisted palm plane) and the
-    one deepest inside the joint limits wins (ties: the smallest twist).
+    one with the lowest LM cost (keypoint residual + limit penalty) wins (ties: the smallest twist).
     """
     axis = _unit(offsets)  # (N, 5, 3) twist axes
     lateral = _unit(np.cross(target[:, :, 0] - offsets, target[:, :, 2] - target[:, :, 0]))
@@ -235,7 +235,8 @@ def _initial_slots(target: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     for twist in (np.zeros_like(a_c), _wrap(phase + half), _wrap(phase - half)):
         twist = np.where(CHAIN_ACTIVE[:, 0], twist, 0.0)
         slots = _best_branch(_slots_given_twist(target, offsets, axis, twist))
-        score = _limit_excess(slots) + 1e-3 * np.abs(twist)
+        fit = finger_chain(slots, offsets, bones).points[:, :, 1:]  # (N, 5, 3, 3)
+        score = ((fit - target) ** 2).sum((-1, -2)) + (limit_weight * _limit_excess(slots)) ** 2 + 1e-12 * np.abs(twist)
         if best is None:
             best, best_score = slots, score
         else:
@@ -294,12 +295,12 @@ def _best_branch(slots: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 # batched Levenberg-Marquardt
 # ---------------------------------------------------------------------------------------------
-def _residuals(slots, target, offsets, bones, active, lo, hi, limit_weight, with_jacobian: bool):
+def _residuals(slots, target, offsets, bones, pron, active, lo, hi, limit_weight, with_jacobian: bool):
     """One block per (frame, finger), M blocks: slots (M, 6), target (M, 3, 3), offsets/bones (M, 3).
 
     Returns residual (M, 15) = 9 keypoint coordinates + 6 limit terms, and Jacobian (M, 15, 6).
     """
-    chain = finger_chain(slots, offsets, bones)
+    chain = finger_chain(slots, offsets, bones, pron)
     pts = chain.points  # (M, 4, 3)
     below, above = slots < lo, slots > hi
     lim = limit_weight * (np.where(below, slots - lo, 0.0) + np.where(above, slots - hi, 0.0))
@@ -334,8 +335,9 @@ def _levenberg_marquardt(slots, target, offsets, bones, iterations, limit_weight
     act = np.broadcast_to(CHAIN_ACTIVE, (n, 5, 6)).reshape(-1, 6)
     lo = np.broadcast_to(SLOT_LIMITS_RAD[..., 0], (n, 5, 6)).reshape(-1, 6)
     hi = np.broadcast_to(SLOT_LIMITS_RAD[..., 1], (n, 5, 6)).reshape(-1, 6)
+    pron = np.broadcast_to(AXIAL_PRONATION_RAD, (n, 5)).reshape(-1)
     lam = np.full(len(q), 1e-3)
-    res, jac = _residuals(q, tgt, off, bon, act, lo, hi, limit_weight, True)
+    res, jac = _residuals(q, tgt, off, bon, pron, act, lo, hi, limit_weight, True)
     cost = np.einsum("mi,mi->m", res, res)
     todo = np.arange(len(q))  # blocks still iterating
     for _ in range(iterations):
@@ -348,7 +350,9 @@ def _levenberg_marquardt(slots, target, offsets, bones, iterations, limit_weight
         lhs = jtj + (lam[todo, None] * (diag + 1e-9) + ~a_)[..., None] * np.eye(6)  # fixed slots: zero step
         step = -np.linalg.solve(lhs, grad[..., None])[..., 0]
         trial = q[todo] + step
-        res_t, jac_t = _residuals(trial, tgt[todo], off[todo], bon[todo], a_, lo[todo], hi[todo], limit_weight, True)
+        res_t, jac_t = _residuals(
+            trial, tgt[todo], off[todo], bon[todo], pron[todo], a_, lo[todo], hi[todo], limit_weight, True
+        )
         cost_t = np.einsum("mi,mi->m", res_t, res_t)
         ok = cost_t < cost[todo]
         acc = todo[ok]
