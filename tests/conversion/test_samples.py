@@ -1,0 +1,135 @@
+"""The synthetic sample generator: native layouts, determinism, labels, plausible gesture motion."""
+
+from __future__ import annotations
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+
+from lerobot_unidextok import udhm
+from lerobot_unidextok.constants import UDHM_DIM
+from lerobot_unidextok.conversion.registry import get_source
+from lerobot_unidextok.conversion.sample_motion import GESTURES, gesture_track
+from lerobot_unidextok.conversion.samples import SAMPLE_SOURCES, write_samples
+
+EPISODES, FRAMES = 3, 45
+
+
+@pytest.fixture(scope="module")
+def samples(tmp_path_factory):
+    out = tmp_path_factory.mktemp("samples")
+    return write_samples(out, episodes_per_source=EPISODES, frames_per_episode=FRAMES, seed=0)
+
+
+def _source(name: str):
+    opts = {"lerobot": {"hands": {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}}}
+    return get_source(name)(**opts.get(name, {}))
+
+
+def test_every_source_written_with_synthetic_labels(samples):
+    assert sorted(samples) == sorted(SAMPLE_SOURCES)
+    for name, folder in samples.items():
+        assert "SYNTHETIC" in (folder / "README.md").read_text()
+        labels = json.loads((folder / "gestures.json").read_text())
+        assert labels["synthetic"] is True and len(labels["episodes"]) == EPISODES
+    info = json.loads((samples["lerobot"] / "meta" / "info.json").read_text())
+    assert info["synthetic"] is True and info["codebase_version"] == "v2.1"
+    with h5py.File(next(samples["egodex"].rglob("*.hdf5")), "r") as f:
+        assert bool(f.attrs["synthetic"]) and "SYNTHETIC" in f.attrs["note"]
+    let_file = next(samples["let"].rglob("episode_*.json"))
+    assert json.loads(let_file.read_text())["synthetic"] is True
+
+
+def test_native_layouts(samples):
+    d = samples["dexycb"]
+    captures = sorted(d.glob("*/*/meta.yml"))
+    assert len(captures) == EPISODES
+    cap = captures[0].parent
+    npz = np.load(next((cap / "836212060125").glob("labels_*.npz")))
+    assert npz["joint_3d"].shape == (1, 21, 3) and npz["joint_2d"].shape == (1, 21, 2)
+    assert np.load(cap / "pose.npz")["pose_m"].shape[1:] == (1, 51)
+    with h5py.File(next(samples["egodex"].rglob("*.hdf5")), "r") as f:
+        assert f["transforms/rightHand"].shape[1:] == (4, 4) and "transforms/camera" in f
+        assert "transforms/leftLittleFingerMetacarpal" in f and f.attrs["llm_description"]
+    for name in ("dexora", "lerobot"):
+        assert len(list((samples[name] / "data" / "chunk-000").glob("episode_*.parquet"))) == EPISODES
+    dexora = json.loads((samples["dexora"] / "meta" / "info.json").read_text())
+    assert dexora["features"]["observation.state"]["shape"] == [39]
+    g1 = json.loads((samples["lerobot"] / "meta" / "info.json").read_text())
+    assert isinstance(g1["features"]["observation.state"]["names"][0], list)  # nested, as Unitree ports
+    assert len(g1["features"]["observation.state"]["names"][0]) == 26
+
+
+def test_deterministic_by_seed(tmp_path):
+    a = write_samples(tmp_path / "a", sources=["let", "egodex"], episodes_per_source=2, frames_per_episode=30, seed=3)
+    b = write_samples(tmp_path / "b", sources=["let", "egodex"], episodes_per_source=2, frames_per_episode=30, seed=3)
+    c = write_samples(tmp_path / "c", sources=["let"], episodes_per_source=2, frames_per_episode=30, seed=4)
+    for name in ("let", "egodex"):
+        src = _source(name)
+        for ra, rb in zip(src.list_episodes(a[name]), src.list_episodes(b[name]), strict=True):
+            ea, eb = src.read_episode(ra), src.read_episode(rb)
+            for ha, hb in zip(ea.hands, eb.hands, strict=True):
+                np.testing.assert_array_equal(ha.state_native, hb.state_native)
+    let = _source("let")
+    ea = let.read_episode(let.list_episodes(a["let"])[0])
+    ec = let.read_episode(let.list_episodes(c["let"])[0])
+    assert ea.num_frames != ec.num_frames or not np.array_equal(ea.hands[0].state_native, ec.hands[0].state_native)
+
+
+def test_bad_requests_raise(tmp_path):
+    with pytest.raises(ValueError, match="mano extra"):
+        write_samples(tmp_path, sources=["oakink2"])
+    with pytest.raises(ValueError, match="unknown sample source"):
+        write_samples(tmp_path, sources=["nope"])
+    write_samples(tmp_path, sources=["let"], episodes_per_source=1, frames_per_episode=20)
+    with pytest.raises(FileExistsError, match="overwrite"):
+        write_samples(tmp_path, sources=["let"], episodes_per_source=1, frames_per_episode=20)
+
+
+def test_gesture_track_is_smooth_coupled_and_labelled():
+    rng = np.random.default_rng(0)
+    track = gesture_track(rng, 600, 30.0)
+    q = track.angles_rad
+    assert q.shape == (600, UDHM_DIM) and len(track.labels) == 600
+    assert set(track.labels) <= set(GESTURES) and len(set(track.labels)) >= 4
+    assert not udhm.limit_violations(q).any()
+    # smooth: no frame-to-frame jump beyond ~15 deg, and strongly autocorrelated unlike random angles
+    assert np.degrees(np.abs(np.diff(q, axis=0))).max() < 15.0
+    centred = q - q.mean(0)
+    lag1 = (centred[1:] * centred[:-1]).sum() / (centred**2).sum()
+    assert lag1 > 0.95
+    # coupling: PIP follows MCP across the whole track
+    idx = udhm.joint_index
+    assert np.corrcoef(q[:, idx("middle_mcp_flex")], q[:, idx("middle_pip_flex")])[0, 1] > 0.9
+    # held frames sit near their gesture's prototype
+    held = np.flatnonzero(track.holding)
+    protos = np.stack([GESTURES[track.labels[i]].angles_rad() for i in held])
+    assert np.degrees(np.abs(q[held] - protos)).mean() < 6.0
+
+
+def test_human_samples_decode_to_their_gesture_labels(samples):
+    """IK on the DexYCB sample's keypoints gives back the labelled gesture on held frames."""
+    names = list(GESTURES)
+    protos = np.stack([GESTURES[n].angles_rad() for n in names])  # (G, 22)
+    labels = json.loads((samples["dexycb"] / "gestures.json").read_text())["episodes"]
+    src = _source("dexycb")
+    hits = total = 0
+    for ref in src.list_episodes(samples["dexycb"]):
+        ep = src.read_episode(ref)
+        hand = ep.hands[0]
+        key = "/".join(ref.split("/")[-2:])
+        lab = labels[key][hand.side]
+        held = np.asarray(labels[key][f"{hand.side}_holding"]) & hand.valid
+        assert [bool(x) for x in hand.valid] == [bool(x) for x in lab]  # '' label exactly where no hand
+        kp = hand.state_native[held]
+        res = udhm.inverse_kinematics(kp, side=hand.side)
+        # bone lengths are constant within an episode (one person) and adult-sized
+        palm = np.linalg.norm(kp[:, 9] - kp[:, 0], axis=-1)
+        assert palm.std() < 1e-4 and 0.08 < palm.mean() < 0.12
+        nearest = np.argmin(np.abs(res.angles_rad[:, None] - protos[None]).sum(-1), axis=1)
+        truth = [lab[i] for i in np.flatnonzero(held)]
+        hits += sum(names[j] == t for j, t in zip(nearest, truth, strict=True))
+        total += len(truth)
+    assert total > 30 and hits / total > 0.9

@@ -1,0 +1,237 @@
+"""Every source reader on the synthetic samples: shapes, native units, sides, valid masks, tasks."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from lerobot_unidextok import hands
+from lerobot_unidextok.conversion.episode import RawEpisode
+from lerobot_unidextok.conversion.registry import available_sources, get_source
+from lerobot_unidextok.conversion.samples import SampleSpec, write_linkerhand_episodes, write_samples
+
+EPISODES, FRAMES = 3, 40
+G1_HANDS = {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}
+
+
+@pytest.fixture(scope="module")
+def samples(tmp_path_factory):
+    out = tmp_path_factory.mktemp("source_samples")
+    return write_samples(out, episodes_per_source=EPISODES, frames_per_episode=FRAMES, seed=1)
+
+
+def _read_all(name: str, folder, **options) -> list[RawEpisode]:
+    src = get_source(name)(**options)
+    refs = src.list_episodes(folder)
+    assert len(refs) == EPISODES
+    return [src.read_episode(r) for r in refs]
+
+
+def _labels(folder) -> dict:
+    return json.loads((folder / "gestures.json").read_text())["episodes"]
+
+
+def test_all_sources_registered_with_license_and_description():
+    names = available_sources()
+    for name in ("dexycb", "oakink2", "egodex", "let", "dexora", "linkerhand", "lerobot"):
+        assert name in names
+        cls = get_source(name)
+        assert cls.license and cls.description
+
+
+def test_dexycb(samples):
+    labels = _labels(samples["dexycb"])
+    for ep in _read_all("dexycb", samples["dexycb"]):
+        (hand,) = ep.hands
+        meta = yaml.safe_load(open(f"{ep.source_file}/meta.yml"))
+        assert hand.side == meta["mano_sides"][0] and hand.hand == "human" and ep.fps == 30.0
+        assert hand.state_native.shape == (meta["num_frames"], 21, 3)
+        key = "/".join(ep.source_file.split("/")[-2:])
+        assert hand.valid.tolist() == [lab != "" for lab in labels[key][hand.side]]
+        assert not hand.valid.all() and np.all(hand.state_native[~hand.valid] == -1)
+        z = hand.state_native[hand.valid, :, 2]
+        assert (z > 0.3).all() and (z < 1.2).all()  # in front of the camera, metres
+        assert ep.task.startswith("grasp the ")
+
+
+def test_dexycb_view_and_handedness(samples, tmp_path):
+    import shutil
+
+    src_cap = next(samples["dexycb"].glob("*/*/meta.yml")).parent
+    cap = tmp_path / "s" / "c"
+    shutil.copytree(src_cap, cap)
+    meta = yaml.safe_load((cap / "meta.yml").read_text())
+    meta["mano_sides"] = ["left" if meta["mano_sides"][0] == "right" else "right"]
+    (cap / "meta.yml").write_text(yaml.safe_dump(meta))
+    src = get_source("dexycb")()
+    ep0 = src.read_episode(str(cap))
+    assert ep0.hands[0].side == meta["mano_sides"][0]
+    ep1 = get_source("dexycb")(view=1).read_episode(str(cap))
+    v = ep0.hands[0].valid
+    # another camera: different coordinates, same hand (same inter-keypoint distances)
+    a, b = ep0.hands[0].state_native[v], ep1.hands[0].state_native[v]
+    assert not np.allclose(a, b)
+    np.testing.assert_allclose(np.linalg.norm(a[:, 8] - a[:, 0], axis=-1), np.linalg.norm(b[:, 8] - b[:, 0], axis=-1), atol=1e-5)
+
+
+def test_egodex(samples):
+    episodes = _read_all("egodex", samples["egodex"])
+    confidences_missing = 0
+    for ep in episodes:
+        assert [h.side for h in ep.hands] == ["left", "right"] and ep.fps == 30.0
+        assert ep.task and "synthetic" not in ep.task
+        for h in ep.hands:
+            assert h.hand == "human" and h.state_native.shape == (ep.num_frames, 21, 3)
+            palm = np.linalg.norm(h.state_native[:, 9] - h.state_native[:, 0], axis=-1)
+            assert 0.07 < palm.mean() < 0.13 and palm.std() < 1e-4  # wrist -> middle knuckle, metres
+            confidences_missing += h.valid is None
+        left, right = (h.state_native[:, 0, 0].mean() for h in ep.hands)
+        assert left < right  # left hand on the left (ARKit x to the right)
+    assert confidences_missing == 2  # the third file was written without confidences/
+
+
+def test_let(samples):
+    for ep in _read_all("let", samples["let"]):
+        assert [h.side for h in ep.hands] == ["left", "right"] and ep.fps == pytest.approx(30.0)
+        assert "grasp" in ep.task
+        for h in ep.hands:
+            assert h.hand == "brainco_revo1" and h.state_native.shape == (ep.num_frames, 6)
+            assert h.action_native.shape == h.state_native.shape
+            assert h.state_native.min() >= 0 and h.state_native.max() <= 100
+            assert np.array_equal(h.action_native, np.round(h.action_native))  # integer 0-100 commands
+            hands.get(h.hand).to_udhm(h.state_native, side=h.side)  # in range for the hand spec
+
+
+def test_dexora(samples):
+    spec = hands.get("xhand1")
+    for ep in _read_all("dexora", samples["dexora"]):
+        assert ep.fps == 20.0 and ep.task
+        for h in ep.hands:
+            assert h.hand == "xhand1" and h.state_native.shape == (ep.num_frames, 12)
+            lo, hi = spec.limits_rad(h.side).T
+            assert (h.action_native >= lo - 1e-6).all() and (h.action_native <= hi + 1e-6).all()  # radians
+            assert np.abs(h.state_native).max() < 2.0
+
+
+def test_dexora_slices_by_name_not_position(samples, tmp_path):
+    """Reordering the columns (README vs converter order) does not change what the reader returns."""
+    import shutil
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    root = tmp_path / "dexora"
+    shutil.copytree(samples["dexora"], root)
+    info = json.loads((root / "meta" / "info.json").read_text())
+    names = info["features"]["observation.state"]["names"]
+    perm = np.random.default_rng(0).permutation(len(names))
+    for key in ("observation.state", "action"):
+        info["features"][key]["names"] = [info["features"][key]["names"][i] for i in perm]
+    (root / "meta" / "info.json").write_text(json.dumps(info))
+    for path in (root / "data" / "chunk-000").glob("*.parquet"):
+        table = pq.read_table(path)
+        cols = {}
+        for key in table.column_names:
+            if key in ("observation.state", "action"):
+                arr = np.stack(table[key].to_numpy(zero_copy_only=False))[:, perm].astype(np.float32)
+                cols[key] = pa.FixedSizeListArray.from_arrays(pa.array(arr.ravel()), arr.shape[1])
+            else:
+                cols[key] = table[key]
+        pq.write_table(pa.table(cols), path)
+    before = _read_all("dexora", samples["dexora"])[0]
+    after = _read_all("dexora", root)[0]
+    for a, b in zip(before.hands, after.hands, strict=True):
+        np.testing.assert_array_equal(a.state_native, b.state_native)
+        np.testing.assert_array_equal(a.action_native, b.action_native)
+
+
+def test_linkerhand_json_l10_and_l20(samples, tmp_path):
+    for ep in _read_all("linkerhand", samples["linkerhand"]):
+        assert [h.side for h in ep.hands] == ["left", "right"] and ep.task
+        for h in ep.hands:
+            assert h.hand == "linkerhand_l10" and h.state_native.shape == (ep.num_frames, 10)
+            assert h.state_native.min() >= 0 and h.state_native.max() <= 255
+            assert np.array_equal(h.state_native, np.round(h.state_native))
+    write_linkerhand_episodes(tmp_path, SampleSpec(EPISODES, FRAMES, 0), model="L20")
+    for ep in _read_all("linkerhand", tmp_path):
+        assert {h.hand for h in ep.hands} == {"linkerhand_l20"}
+        assert ep.hands[0].state_native.shape[1] == 20 and ep.hands[0].action_native.shape[1] == 20
+
+
+def test_generic_lerobot_on_sample(samples):
+    labels = _labels(samples["lerobot"])
+    episodes = _read_all("lerobot", samples["lerobot"], hands=json.dumps(G1_HANDS))
+    for i, ep in enumerate(episodes):
+        assert ep.fps == 30.0 and ep.task and ep.extra["codebase_version"] == "v2.1"
+        assert ep.num_frames == len(labels[f"episode_{i:06d}"]["right"])
+        for h in ep.hands:
+            assert h.hand == "inspire_rh56_unitree" and h.state_native.shape == (ep.num_frames, 6)
+            assert h.state_native.min() >= 0 and h.state_native.max() <= 1  # normalised, 1 = open
+            assert h.action_native.shape == h.state_native.shape
+    # the long form with explicit names selects the same columns
+    explicit = {
+        side: {"hand": "inspire_rh56_unitree", "state_names": [f"k{side.title()}Hand{j}" for j in ("Pinky", "Ring", "Middle", "Index", "ThumbBend", "ThumbRotation")]}
+        for side in ("left", "right")
+    }
+    again = _read_all("lerobot", samples["lerobot"], hands=explicit)
+    for a, b in zip(episodes[0].hands, again[0].hands, strict=True):
+        np.testing.assert_array_equal(a.state_native, b.state_native)
+
+
+def test_generic_lerobot_bad_options(samples):
+    with pytest.raises(ValueError, match="needs hands"):
+        get_source("lerobot")()
+    with pytest.raises(ValueError, match="'<hand spec>:<name prefix>'"):
+        get_source("lerobot")(hands={"left": "inspire_rh56_unitree"})
+    with pytest.raises(ValueError, match="'left' or 'right'"):
+        get_source("lerobot")(hands={"middle": "x:y"})
+    src = get_source("lerobot")(hands={"left": {"hand": "inspire_rh56_unitree", "state_names": ["kLeftHandPinky", "kLeftHandThumbTip"]}})
+    with pytest.raises(ValueError, match=r"info.json.*unknown names \['kLeftHandThumbTip'\]"):
+        src.read_episode(src.list_episodes(samples["lerobot"])[0])
+
+
+def test_generic_lerobot_reads_v30_written_by_lerobot(samples, tmp_path):
+    """A v3.0 dataset written with LeRobot's own writer reads back like the v2.1 source it came from."""
+    from lerobot.datasets import LeRobotDataset
+
+    v21 = _read_all("lerobot", samples["lerobot"], hands=G1_HANDS)
+    info = json.loads((samples["lerobot"] / "meta" / "info.json").read_text())
+    names = info["features"]["observation.state"]["names"]
+    features = {k: {"dtype": "float32", "shape": (26,), "names": names} for k in ("observation.state", "action")}
+    ds = LeRobotDataset.create(repo_id="local/g1_v30", fps=30, features=features, root=tmp_path / "v30", use_videos=False)
+    src21 = get_source("lerobot")(hands=G1_HANDS)
+    import pyarrow.parquet as pq
+
+    for ref, ep in zip(src21.list_episodes(samples["lerobot"]), v21, strict=True):
+        table = pq.read_table(f"{ref.root}/data/chunk-000/episode_{ref.episode_index:06d}.parquet").to_pydict()
+        for s, a in zip(table["observation.state"], table["action"], strict=True):
+            ds.add_frame({"observation.state": np.asarray(s, np.float32), "action": np.asarray(a, np.float32), "task": ep.task})
+        ds.save_episode()
+    ds.finalize()
+    v30 = _read_all("lerobot", tmp_path / "v30", hands=G1_HANDS)
+    for a, b in zip(v21, v30, strict=True):
+        assert b.extra["codebase_version"] == "v3.0" and a.task == b.task and a.fps == b.fps
+        for ha, hb in zip(a.hands, b.hands, strict=True):
+            np.testing.assert_array_equal(ha.state_native, hb.state_native)
+            np.testing.assert_array_equal(ha.action_native, hb.action_native)
+
+
+def test_generic_lerobot_on_real_g1_inspire(real_data_dir):
+    """The real Unitree G1 + Inspire v2.1 episodes (nested names, hands normalised 0-1)."""
+    root = real_data_dir / "g1-inspire"
+    src = get_source("lerobot")(hands=G1_HANDS)
+    refs = src.list_episodes(root)
+    assert len(refs) == 10
+    episodes = [src.read_episode(r) for r in refs]
+    assert sum(ep.num_frames for ep in episodes) == 4236
+    assert episodes[0].num_frames == 479
+    for ep in episodes:
+        assert ep.fps == 30.0 and ep.task == "Pick up the yellow bottle on the table."
+        for h in ep.hands:
+            assert h.state_native.shape == (ep.num_frames, 6) and h.action_native.shape == (ep.num_frames, 6)
+            assert h.state_native.min() >= 0.0 and h.state_native.max() <= 1.0
+    right = np.concatenate([ep.hands[1].state_native for ep in episodes])
+    assert right.max() > 0.95 and right.min() < 0.5  # opens fully, closes for the grasp
