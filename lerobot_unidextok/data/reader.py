@@ -113,11 +113,12 @@ def _fixed_list_to_numpy(col: pa.ChunkedArray, width: int, dtype) -> np.ndarray:
 
 
 def load_udhm_frames(
-    root: str | Path | None = None, repo_id: str | None = None, split: str | None = None
+    root: str | Path | None = None, repo_id: str | None = None, split: str | None = None, drop_absent: bool = True
 ) -> UdhmFrames:
     """Load a converted dataset's hand states as per-hand rows.
 
     split: "train" | "test" (episode ranges from meta/info.json `splits`) or None for all episodes.
+    drop_absent: drop rows whose mask is all False (a hand not present in that frame, zero-filled).
     """
     if split is not None and split not in SPLITS:
         raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
@@ -160,7 +161,7 @@ def load_udhm_frames(
     hands = lut[codes].reshape(-1).astype(str) if n else np.empty(0, dtype=str)
 
     rep = lambda a: np.repeat(a, num_hands)  # noqa: E731  frame-major rows
-    return UdhmFrames(
+    frames = UdhmFrames(
         states_rad=states,
         hands=hands,
         masks=masks,
@@ -171,3 +172,8 @@ def load_udhm_frames(
         fps=float(info.get("fps", 0)),
         info=info,
     )
+    if drop_absent:
+        present = frames.masks.any(axis=1)
+        if not present.all():
+            frames = frames.select(present)
+    return frames

@@ -79,3 +79,23 @@ def test_bad_inputs_raise_clear_errors(lerobot_written, tmp_path):
         load_udhm_frames(tmp_path)
     with pytest.raises(ValueError, match="not in meta/info.json splits"):
         split_episode_range({"splits": {"train": "0:3"}}, "test")
+
+
+def test_absent_hand_rows_dropped_by_default(tmp_path):
+    from lerobot.datasets import LeRobotDataset
+
+    features = {
+        "observation.state": {"dtype": "float32", "shape": (44,), "names": NAMES},
+        "hand_type": {"dtype": "string", "shape": (1,), "names": None},
+        "udhm_mask": {"dtype": "bool", "shape": (44,), "names": NAMES},
+    }
+    ds = LeRobotDataset.create("test/absent", fps=30, features=features, root=tmp_path / "d", use_videos=False)
+    mask = np.zeros(44, bool)
+    mask[:22] = True  # left hand absent
+    for t in range(4):
+        ds.add_frame({"observation.state": np.full(44, t, np.float32) * mask, "hand_type": "human,human", "udhm_mask": mask, "task": ""})
+    ds.save_episode()
+    ds.finalize()
+    kept = load_udhm_frames(tmp_path / "d")
+    assert len(kept) == 4 and set(kept.side) == {"right"} and kept.actions_rad is None
+    assert len(load_udhm_frames(tmp_path / "d", drop_absent=False)) == 8

@@ -1,0 +1,215 @@
+"""RawEpisode (native units) -> UDHM arrays for the writer, with per-episode validation.
+
+Every hand stream goes through `hands.get(hand).to_udhm(native, side, mapping)`: robot joint values by
+semantic insertion (or append_pad), human MANO-21 keypoints through the UDHM inverse kinematics.
+Frames where a hand is not present (`HandStream.valid` False) get zeros and a False mask in that block;
+leading/trailing frames where no hand is present are trimmed. Anything that would write garbage
+(NaN, out-of-range raw values, wrong shapes, unknown hands/sides) raises `EpisodeError`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from lerobot_unidextok.constants import SIDES, UDHM_DIM, UDHM_JOINT_NAMES
+from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
+
+Mapping = Literal["semantic", "append_pad"]
+MAPPINGS: tuple[str, ...] = ("semantic", "append_pad")
+ANGLE_BOUND_RAD = 2 * np.pi  # no UDHM joint angle is beyond this: larger values are unit errors
+
+
+class EpisodeError(ValueError):
+    """One episode cannot be converted; `source_file` and `reason` go into the error report."""
+
+    def __init__(self, source_file: str, reason: str):
+        super().__init__(f"{source_file}: {reason}")
+        self.source_file = source_file
+        self.reason = reason
+
+
+@dataclass
+class UdhmEpisode:
+    """One episode in UDHM, ready for the writer (H hands, T frames)."""
+
+    source_file: str
+    fps: float
+    task: str
+    sides: tuple[str, ...]  # (H,)
+    hands: tuple[str, ...]  # (H,) hand spec names
+    state_rad: np.ndarray  # (T, 22 * H) float32
+    mask: np.ndarray  # (T, 22 * H) bool
+    action_rad: np.ndarray | None = None  # (T, 22 * H) float32
+    trimmed_frames: int = 0
+    absent_hand_frames: int = 0  # hand-frames zero-filled because the hand was not present
+    synthetic: bool = False
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.state_rad.shape[0])
+
+    @property
+    def hand_type(self) -> str:
+        return ",".join(self.hands)
+
+    @property
+    def layout(self) -> tuple[tuple[str, ...], bool]:
+        """What must match across a dataset's episodes: block sides and whether actions exist."""
+        return self.sides, self.action_rad is not None
+
+
+def state_names(sides: tuple[str, ...] | list[str]) -> list[str]:
+    """`<side>_<udhm joint>` names of a (22 * H,) state, blocks in `sides` order."""
+    return [f"{side}_{joint}" for side in sides for joint in UDHM_JOINT_NAMES]
+
+
+def _frames(idx: np.ndarray, limit: int = 8) -> str:
+    shown = ", ".join(str(i) for i in idx[:limit])
+    return f"[{shown}{', ...' if len(idx) > limit else ''}] ({len(idx)} frames)"
+
+
+def _map_values(spec, values: np.ndarray, side: str, mapping: str, what: str, src: str, present: np.ndarray) -> np.ndarray:
+    """(T, ...) native -> (T, 22) float32 rad; absent frames are zero."""
+    num = values.shape[0]
+    out = np.zeros((num, UDHM_DIM), dtype=np.float32)
+    sel = values[present]
+    if sel.size and not np.isfinite(sel).all():
+        bad = ~np.isfinite(sel.reshape(sel.shape[0], -1)).all(axis=1)
+        raise EpisodeError(src, f"NaN/inf in {what} of the {side} hand at frames {_frames(np.flatnonzero(present)[bad])}")
+    if not present.any():
+        return out
+    try:
+        udhm = np.asarray(spec.to_udhm(sel, side=side, mapping=mapping), dtype=np.float64)
+    except EpisodeError:
+        raise
+    except (ValueError, KeyError) as exc:
+        raise EpisodeError(src, f"{what} of the {side} {spec.name} hand: {exc}") from exc
+    if not np.isfinite(udhm).all():
+        raise EpisodeError(src, f"UDHM mapping of the {side} {spec.name} {what} produced NaN/inf")
+    if np.abs(udhm).max(initial=0.0) > ANGLE_BOUND_RAD:
+        raise EpisodeError(
+            src, f"UDHM {what} of the {side} {spec.name} hand reaches {np.abs(udhm).max():.3g} rad: wrong units?"
+        )
+    out[present] = udhm.astype(np.float32)
+    return out
+
+
+def _check_stream(stream: HandStream, spec, num: int, src: str) -> np.ndarray:
+    if stream.side not in SIDES:
+        raise EpisodeError(src, f"hand side {stream.side!r} is not one of {SIDES}")
+    state = np.asarray(stream.state_native)
+    expected = "(T, 21, 3) keypoints_m" if spec.kind == "keypoints" else f"(T, {spec.num_native}) native joints"
+    ok = state.shape == (num, 21, 3) if spec.kind == "keypoints" else state.shape == (num, spec.num_native)
+    if not ok:
+        raise EpisodeError(src, f"{stream.side} {spec.name} state has shape {state.shape}, expected {expected} with T={num}")
+    if stream.action_native is not None and np.asarray(stream.action_native).shape != state.shape:
+        raise EpisodeError(src, f"{stream.side} action shape {np.asarray(stream.action_native).shape} != state shape {state.shape}")
+    if stream.valid is None:
+        return np.ones(num, dtype=bool)
+    valid = np.asarray(stream.valid)
+    if valid.shape != (num,) or valid.dtype != bool:
+        raise EpisodeError(src, f"{stream.side} valid must be a bool array of shape ({num},), got {valid.dtype} {valid.shape}")
+    return valid
+
+
+def map_episode(raw: RawEpisode, mapping: str = "semantic") -> UdhmEpisode:
+    """Validate one raw episode and map every hand to UDHM; raises EpisodeError with the reason."""
+    from lerobot_unidextok import hands as hand_registry
+
+    src = raw.source_file
+    if mapping not in MAPPINGS:
+        raise ValueError(f"mapping must be one of {MAPPINGS}, got {mapping!r}")
+    if not raw.hands:
+        raise EpisodeError(src, "episode has no hand streams")
+    if not (np.isfinite(raw.fps) and raw.fps > 0):
+        raise EpisodeError(src, f"fps must be positive, got {raw.fps!r}")
+    sides = tuple(s.side for s in raw.hands)
+    if len(set(sides)) != len(sides):
+        raise EpisodeError(src, f"two hand streams share a side: {sides}")
+    has_action = [s.action_native is not None for s in raw.hands]
+    if any(has_action) and not all(has_action):
+        raise EpisodeError(src, "some hands have actions and others do not; give actions for all hands or none")
+    num = int(np.asarray(raw.hands[0].state_native).shape[0])
+    if num == 0:
+        raise EpisodeError(src, "episode has 0 frames")
+
+    specs, valids = [], []
+    for stream in raw.hands:
+        try:
+            spec = hand_registry.get(stream.hand)
+        except (KeyError, ValueError) as exc:
+            raise EpisodeError(src, f"unknown hand {stream.hand!r}: {exc}") from exc
+        specs.append(spec)
+        valids.append(_check_stream(stream, spec, num, src))
+    present = np.stack(valids)  # (H, T)
+    any_present = present.any(axis=0)
+    if not any_present.any():
+        raise EpisodeError(src, "no frame has a present hand (all valid flags False)")
+    first, last = int(np.argmax(any_present)), num - int(np.argmax(any_present[::-1]))
+
+    states, masks, actions = [], [], []
+    for stream, spec, valid in zip(raw.hands, specs, valids, strict=True):
+        keep = valid[first:last]
+        native = np.asarray(stream.state_native)[first:last]
+        states.append(_map_values(spec, native, stream.side, mapping, "state", src, keep))
+        masks.append(np.where(keep[:, None], spec.mask(mapping)[None, :], False))
+        if stream.action_native is not None:
+            act = np.asarray(stream.action_native)[first:last]
+            actions.append(_map_values(spec, act, stream.side, mapping, "action", src, keep))
+
+    return UdhmEpisode(
+        source_file=src,
+        fps=float(raw.fps),
+        task=str(raw.task or ""),
+        sides=sides,
+        hands=tuple(spec.name for spec in specs),
+        state_rad=np.concatenate(states, axis=1),
+        mask=np.concatenate(masks, axis=1),
+        action_rad=np.concatenate(actions, axis=1) if actions else None,
+        trimmed_frames=num - (last - first),
+        absent_hand_frames=int((~present[:, first:last]).sum()),
+        synthetic=bool(raw.extra.get("synthetic", False)),
+        extra=dict(raw.extra),
+    )
+
+
+def to_layout(ep: UdhmEpisode, sides: tuple[str, ...]) -> UdhmEpisode:
+    """Reorder `ep`'s blocks to `sides`; sides the episode lacks get zeros, a False mask and the
+    spec name of its first hand in `hand_type` (a single-hand source whose sequences are left or right)."""
+    if ep.sides == tuple(sides):
+        return ep
+    extra = [s for s in ep.sides if s not in sides]
+    if extra:
+        raise EpisodeError(ep.source_file, f"episode has hand side(s) {extra} outside the dataset layout {tuple(sides)}")
+    num = ep.num_frames
+    blocks = {s: i for i, s in enumerate(ep.sides)}
+
+    def arrange(values: np.ndarray | None, fill) -> np.ndarray | None:
+        if values is None:
+            return None
+        parts = [
+            values[:, blocks[s] * UDHM_DIM : (blocks[s] + 1) * UDHM_DIM] if s in blocks else np.full((num, UDHM_DIM), fill, values.dtype)
+            for s in sides
+        ]
+        return np.concatenate(parts, axis=1)
+
+    hands = tuple(ep.hands[blocks[s]] if s in blocks else ep.hands[0] for s in sides)
+    absent = num * (len(sides) - len(ep.sides))
+    return UdhmEpisode(
+        source_file=ep.source_file,
+        fps=ep.fps,
+        task=ep.task,
+        sides=tuple(sides),
+        hands=hands,
+        state_rad=arrange(ep.state_rad, 0.0),
+        mask=arrange(ep.mask, False),
+        action_rad=arrange(ep.action_rad, 0.0),
+        trimmed_frames=ep.trimmed_frames,
+        absent_hand_frames=ep.absent_hand_frames + absent,
+        synthetic=ep.synthetic,
+        extra=ep.extra,
+    )
