@@ -389,17 +389,18 @@ class HandSpec:
         if mode not in OUT_OF_RANGE_MODES:
             raise ValueError(f"unknown on_out_of_range {mode!r}; use one of {list(OUT_OF_RANGE_MODES)}")
         tol = _table(_RANGE_TOL * np.maximum(span, 1.0), x)
-        bad = (x < lo - tol) | (x > hi + tol)
-        n_bad = int(bad.sum())
+        bad = (x < lo - tol) | (x > hi + tol)  # (..., J)
+        bad_np = bad.cpu().numpy() if isinstance(bad, torch.Tensor) else np.asarray(bad)
+        n_bad = int(bad_np.sum())
         if n_bad:
             if mode == "raise":
-                cols = sorted({int(c) for c in (np.nonzero(np.asarray(bad.cpu() if isinstance(bad, torch.Tensor) else bad))[-1])})
-                detail = ", ".join(
-                    f"{self.joint_names[c]} in [{float(lo[c]):g}, {float(hi[c]):g}]" for c in cols
-                )
+                cols = np.flatnonzero(bad_np.reshape(-1, bad_np.shape[-1]).any(0))
+                detail = ", ".join(f"{self.joint_names[c]} in [{float(lo[c]):g}, {float(hi[c]):g}]" for c in cols)
                 raise ValueError(
                     f"hand {self.name!r} ({side}): {n_bad} {what} value(s) out of range: {detail}. "
                     f"Pass on_out_of_range='clip' to clip them with a warning"
                 )
-            logger.warning("hand %r (%s): clipped %d of %d %s values to the joint range", self.name, side, n_bad, bad.numel() if isinstance(bad, torch.Tensor) else bad.size, what)
+            logger.warning(
+                "hand %r (%s): clipped %d of %d %s values to the joint range", self.name, side, n_bad, bad_np.size, what
+            )
         return _clip(x, lo, hi)

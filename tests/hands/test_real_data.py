@@ -93,7 +93,9 @@ def test_linkerhand_open_pose_spreads_fingers_the_same_way_on_both_sides(presets
         assert state[UDHM_INDEX["pinky_mcp_abd"]] < -0.1
 
 
-@pytest.mark.parametrize(("file", "spec_name"), [("L6_positions.yaml", "linkerhand_l6"), ("L10_positions.yaml", "linkerhand_l10")])
+@pytest.mark.parametrize(
+    ("file", "spec_name"), [("L6_positions.yaml", "linkerhand_l6"), ("L10_positions.yaml", "linkerhand_l10")]
+)
 def test_linkerhand_yaml_presets(real_data_dir, file, spec_name):
     """ROS2 SDK preset files: 张开 open, 握拳 fist, 食指弯曲 index bent."""
     spec = hands.get(spec_name)
