@@ -221,6 +221,8 @@ def forward_kinematics(
 def _like(x: Array, ref: Array) -> Array:
     """`x` as the backend / dtype / device of `ref`."""
     if isinstance(ref, torch.Tensor):
+        if isinstance(x, np.ndarray) and not x.flags.writeable:
+            x = x.copy()  # torch refuses read-only numpy buffers
         return torch.as_tensor(x, dtype=ref.dtype, device=ref.device)
     if isinstance(x, torch.Tensor):
         x = x.detach().cpu().numpy()
