@@ -34,10 +34,13 @@ def plot_per_joint_errors(
         if arr.shape[-1] != len(joint_names) or arr.ndim not in (1, 2):
             raise ValueError(f"errors_deg[{m!r}] must have shape ({len(joint_names)},) or (N, {len(joint_names)}); got {arr.shape}")
         if arr.ndim == 2:
-            count = np.isfinite(arr).sum(0)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                means[m] = np.nanmean(np.where(count > 0, arr, 0.0), axis=0) * np.where(count > 0, 1.0, np.nan)
-                cis[m] = 1.96 * np.nanstd(arr, axis=0) / np.sqrt(np.maximum(count, 1))
+            finite = np.isfinite(arr)
+            count = finite.sum(0)  # (22,) states per joint; 0 = inactive slot
+            safe = np.where(finite, arr, 0.0)
+            mean = safe.sum(0) / np.maximum(count, 1)
+            std = np.sqrt((np.where(finite, arr - mean, 0.0) ** 2).sum(0) / np.maximum(count, 1))
+            means[m] = np.where(count > 0, mean, np.nan)
+            cis[m] = np.where(count > 0, 1.96 * std / np.sqrt(np.maximum(count, 1)), 0.0)
         else:
             means[m], cis[m] = arr, None
     colors = method_colors(list(means))
