@@ -38,6 +38,7 @@ def _object_name(ycb_id: int) -> str:
 class DexYCBSource:
     license = "CC BY-NC 4.0 (DexYCB; non-commercial research use)"
     description = "DexYCB hand-object grasps: MANO-21 keypoints from labels_*.npz joint_3d (human, one hand)"
+    sides = ("right", "left")  # block layout: sequences are right- or left-handed, so both blocks exist
 
     def __init__(self, view: int | str = 0, fps: float = DEXYCB_FPS) -> None:
         self.view = view  # camera index into meta.yml serials, or a serial string

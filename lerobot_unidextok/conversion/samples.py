@@ -41,6 +41,8 @@ SYNTHETIC_NOTE = (
 )
 SAMPLE_SOURCES: tuple[str, ...] = ("dexycb", "egodex", "let", "dexora", "linkerhand", "lerobot")
 MANO_SOURCES: tuple[str, ...] = ("oakink2",)
+LABELS_FILE = "gestures.json"
+TRUTH_FILE = "udhm_truth.npz"  # the UDHM angles each sample was generated from, per episode and side
 
 # Hand spec names (lerobot_unidextok.hands registry) used by the robot samples.
 HAND_LET = "brainco_revo1"
@@ -118,27 +120,31 @@ def _num_frames(rng: np.random.Generator, spec: SampleSpec) -> int:
     return max(10, int(round(spec.num_frames * rng.uniform(0.8, 1.2))))
 
 
-def _label_entry(tracks: dict[str, GestureTrack], valid: dict[str, np.ndarray] | None = None) -> dict[str, list]:
-    entry: dict[str, list] = {}
+def _label_entry(tracks: dict[str, GestureTrack], valid: dict[str, np.ndarray] | None = None) -> dict:
+    entry: dict = {"_angles_rad": {}}
     for side, track in tracks.items():
         labels = list(track.labels)
         if valid is not None and side in valid:
             labels = [lab if ok else "" for lab, ok in zip(labels, valid[side], strict=True)]
         entry[side] = labels
         entry[f"{side}_holding"] = [bool(h) for h in track.holding]
+        entry["_angles_rad"][side] = track.angles_rad.astype(np.float32)
     return entry
 
 
 def _write_labels(folder: Path, source: str, labels: Labels) -> None:
+    truth = {f"{key}|{side}": q for key, entry in labels.items() for side, q in entry.pop("_angles_rad").items()}
+    np.savez_compressed(folder / TRUTH_FILE, **truth)
     payload = {
         "synthetic": True,
         "note": SYNTHETIC_NOTE,
         "source": source,
         "description": "per-frame gesture each hand moves to or holds ('' = hand absent); "
-        "<side>_holding is True while the gesture is held",
+        f"<side>_holding is True while the gesture is held; {TRUTH_FILE} holds the generating UDHM angles "
+        "(rad, (T, 22) float32) under '<episode>|<side>'",
         "episodes": labels,
     }
-    (folder / "gestures.json").write_text(json.dumps(payload))
+    (folder / LABELS_FILE).write_text(json.dumps(payload))
 
 
 _README_FORMS = {
@@ -169,7 +175,7 @@ def _write_readme(folder: Path, source: str, spec: SampleSpec) -> None:
         "- Motion: random sequences of named gestures (open, fist, point, pinch, thumbs_up, count_2-4, ok, "
         "rock, call, grasp_cylinder, tripod) with minimum-jerk transitions, PIP/DIP coupled to MCP, "
         "per-episode tempo, per-visit jitter, drift and noise (lerobot_unidextok.conversion.sample_motion).\n"
-        "- `gestures.json`: the gesture label of every frame and hand.\n"
+        f"- `{LABELS_FILE}`: the gesture label of every frame and hand; `{TRUTH_FILE}`: the generating UDHM angles.\n"
         f"- Convert: `unidextok-convert --source={source} --input={folder.name} ...`\n"
     )
     (folder / "README.md").write_text(text)
