@@ -215,6 +215,11 @@ class HandSpec:
         t = self._side_table(side)
         return np.stack([t.rad_lo, t.rad_hi], axis=-1)
 
+    def conversion(self, side: str = "right") -> tuple[np.ndarray, np.ndarray]:
+        """(offset, scale), each (J,): the exact native -> radian map ``rad = offset + scale * raw``."""
+        t = self._side_table(side)
+        return t.offset.copy(), t.scale.copy()
+
     def raw_range(self, side: str = "right") -> np.ndarray:
         """(J, 2) native raw range for ``side``."""
         t = self._side_table(side)

@@ -195,3 +195,19 @@ def test_allegro_home_pose_maps_into_limits(real_data_dir):
     assert state[UDHM_INDEX["index_pip_flex"]] == pytest.approx(np.deg2rad(45))
     assert state[UDHM_INDEX["thumb_cmc_spread"]] == pytest.approx(np.deg2rad(60))
     np.testing.assert_allclose(spec.from_udhm(state), rad, atol=1e-12)
+
+
+def test_linkerhand_l6_channel_order_matches_linker_sim_decoder(real_data_dir):
+    """linker-sim's L6 decoder (SDK channel -> URDF joint) agrees with the spec's order: ring before pinky."""
+    decoder = yaml.safe_load((real_data_dir / "linker-sim" / "linkerhand_l6" / "decoder.yaml").read_text())
+    channels = [c.replace("{S}h_", "") for c in decoder["channels"]]
+    spec = hands.get("linkerhand_l6")
+    assert channels[0] == spec.joint_names[0] == "thumb_cmc_pitch"
+    assert channels[2:] == list(spec.joint_names[2:])
+
+
+def test_linkerhand_conversion_is_the_sdk_formula():
+    """derict = -1: rad = max - raw / 255 * (max - min), e.g. L10 right index: 1.62 - raw / 255 * 1.62."""
+    offset, scale = hands.get("linkerhand_l10").conversion("right")
+    assert offset[2] == pytest.approx(1.62) and scale[2] == pytest.approx(-1.62 / 255)
+    assert offset[9] == pytest.approx(1.01) and scale[9] == pytest.approx(-1.53 / 255)  # thumb roll, min -0.52
