@@ -39,7 +39,7 @@ from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 logger = logging.getLogger(__name__)
 
 OnError = Literal["raise", "skip"]
-CONVERSION_INFO_KEY = "unidextok_conversion"  # extra key in meta/info.json with settings and counts
+CONVERSION_SETTINGS_PATH = "meta/unidextok_conversion.json"  # settings and counts (LeRobot drops unknown info.json keys)
 
 
 @dataclass
@@ -380,10 +380,13 @@ def format_failures(failures: list[EpisodeFailure], limit: int = 50) -> str:
 
 
 def _record_settings(root: Path, settings: dict) -> None:
-    path = root / "meta" / "info.json"
-    info = json.loads(path.read_text())
-    info[CONVERSION_INFO_KEY] = settings
-    path.write_text(json.dumps(info, indent=4))
+    (root / CONVERSION_SETTINGS_PATH).write_text(json.dumps(settings, indent=2, default=str))
+
+
+def read_settings(root: str | Path) -> dict:
+    """Conversion settings recorded next to the dataset metadata ({} if absent)."""
+    path = Path(root) / CONVERSION_SETTINGS_PATH
+    return json.loads(path.read_text()) if path.is_file() else {}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -412,12 +415,15 @@ def merge_shards(shard_roots: list[str | Path], root: str | Path, repo_id: str =
         info = json.loads(path.read_text())
         total = int(info["total_episodes"])
         info["splits"] = {"train": f"0:{num_train}", "test": f"{num_train}:{total}"}
-        settings = dict(infos[0].get(CONVERSION_INFO_KEY, {}))
-        settings["shard"] = f"merged {len(shard_roots)} shards"
-        settings["skipped_episodes"] = sum(i.get(CONVERSION_INFO_KEY, {}).get("skipped_episodes", 0) for i in infos)
-        settings["hands"] = sorted({h for i in infos for h in i.get(CONVERSION_INFO_KEY, {}).get("hands", [])})
-        info[CONVERSION_INFO_KEY] = settings
         path.write_text(json.dumps(info, indent=4))
+        shard_settings = [read_settings(r) for r in shard_roots]
+        settings = dict(shard_settings[0])
+        settings["shard"] = f"merged {len(shard_roots)} shards"
+        for key in ("skipped_episodes", "trimmed_frames", "absent_hand_frames"):
+            settings[key] = sum(s.get(key, 0) for s in shard_settings)
+        settings["hands"] = sorted({h for s in shard_settings for h in s.get("hands", [])})
+        settings["synthetic"] = any(s.get("synthetic", False) for s in shard_settings)
+        _record_settings(tmp, settings)
         write_card(
             tmp,
             repo_id=repo_id,

@@ -1,0 +1,205 @@
+"""Check an existing converted UDHM dataset against the converted-dataset contract.
+
+Checks: format version, features (names, dtypes, shapes), frame/episode counts, hand_type names,
+mask consistency (zeros where masked, masks equal to the hand specs' masks), value limits, splits,
+card, and that `LeRobotDataset(repo_id, root=...)` loads it and returns a frame.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
+
+from lerobot_unidextok.constants import ACTION, HAND_TYPE_KEY, OBS_STATE, SIDES, UDHM_DIM, UDHM_JOINT_NAMES, UDHM_MASK_KEY
+from lerobot_unidextok.conversion.mapping import ANGLE_BOUND_RAD
+
+LIMIT_TOL_RAD = 1e-3
+
+
+@dataclass
+class Check:
+    name: str
+    ok: bool
+    detail: str = ""
+    warning: bool = False  # informational: does not fail the dataset
+
+
+@dataclass
+class ValidationReport:
+    root: Path
+    checks: list[Check] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return all(c.ok or c.warning for c in self.checks)
+
+    def add(self, name: str, ok: bool, detail: str = "", warning: bool = False) -> bool:
+        self.checks.append(Check(name, bool(ok), detail, warning))
+        return bool(ok)
+
+    def failed(self) -> list[Check]:
+        return [c for c in self.checks if not c.ok and not c.warning]
+
+    def table(self) -> str:
+        width = max(len(c.name) for c in self.checks) if self.checks else 10
+        lines = [f"validate {self.root}"]
+        for c in self.checks:
+            status = "ok" if c.ok else ("WARN" if c.warning else "FAIL")
+            lines.append(f"  {status:4s}  {c.name:<{width}}  {c.detail}")
+        lines.append(f"result: {'VALID' if self.ok else 'INVALID'} ({len(self.failed())} failed)")
+        return "\n".join(lines)
+
+
+def _names(ft: dict) -> list[str]:
+    names = ft.get("names") or []
+    return list(next(iter(names.values()))) if isinstance(names, dict) else list(names)
+
+
+def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = True) -> ValidationReport:
+    """Validate the converted dataset at `root`; never raises on a bad dataset, reports instead."""
+    from lerobot_unidextok import hands as hand_registry
+
+    root = Path(root)
+    rep = ValidationReport(root)
+    info_path = root / "meta" / "info.json"
+    if not rep.add("meta/info.json", info_path.is_file(), str(info_path)):
+        return rep
+    info = json.loads(info_path.read_text())
+    rep.add("codebase_version", info.get("codebase_version") == "v3.0", str(info.get("codebase_version")))
+    feats = info.get("features", {})
+
+    # -- features ----------------------------------------------------------------------------------
+    st = feats.get(OBS_STATE)
+    if not rep.add("observation.state feature", st is not None and st.get("dtype") == "float32", str(st and st.get("dtype"))):
+        return rep
+    dim = int(st["shape"][0])
+    names = _names(st)
+    num_hands = dim // UDHM_DIM
+    sides = [n.split("_", 1)[0] for n in names[::UDHM_DIM]]
+    expected = [f"{s}_{j}" for s in sides for j in UDHM_JOINT_NAMES]
+    rep.add(
+        "state names <side>_<udhm joint>",
+        dim % UDHM_DIM == 0 and num_hands in (1, 2) and names == expected and set(sides) <= set(SIDES) and len(set(sides)) == len(sides),
+        f"{num_hands} block(s): {sides}",
+    )
+    for key, dtype in ((ACTION, "float32"), (UDHM_MASK_KEY, "bool")):
+        ft = feats.get(key)
+        if ft is None:
+            rep.add(f"{key} feature", key == ACTION, "absent" if key == ACTION else "missing")
+            continue
+        rep.add(f"{key} feature", ft.get("dtype") == dtype and list(ft["shape"]) == [dim] and _names(ft) == names, f"{ft.get('dtype')} {ft['shape']}")
+    ht = feats.get(HAND_TYPE_KEY)
+    rep.add("hand_type feature", ht is not None and ht.get("dtype") == "string", str(ht and ht.get("dtype")))
+    if not rep.ok:
+        return rep
+
+    # -- data ----------------------------------------------------------------------------------------
+    files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
+    cols = [OBS_STATE, UDHM_MASK_KEY, HAND_TYPE_KEY, "episode_index"] + ([ACTION] if ACTION in feats else [])
+    try:
+        table = pq.read_table(files, columns=cols) if files else None
+    except Exception as exc:  # noqa: BLE001
+        rep.add("data parquet readable", False, f"{type(exc).__name__}: {exc}")
+        return rep
+    if not rep.add("data parquet readable", table is not None, f"{len(files)} file(s)"):
+        return rep
+    n = table.num_rows
+    rep.add("total_frames", n == info.get("total_frames"), f"{n} rows, info says {info.get('total_frames')}")
+    eps = np.unique(table.column("episode_index").to_numpy())
+    total_eps = int(info.get("total_episodes", -1))
+    rep.add("episodes 0..N-1", len(eps) == total_eps and (len(eps) == 0 or (eps[0] == 0 and eps[-1] == total_eps - 1)), f"{len(eps)} episodes")
+
+    def arr(key, dtype):
+        col = table.column(key).combine_chunks()
+        return col.values.to_numpy(zero_copy_only=False).astype(dtype).reshape(n, num_hands, UDHM_DIM)
+
+    state = arr(OBS_STATE, np.float32)
+    mask = arr(UDHM_MASK_KEY, bool)
+    action = arr(ACTION, np.float32) if ACTION in feats else None
+    for key, values in ((OBS_STATE, state), (ACTION, action)):
+        if values is None:
+            continue
+        finite = np.isfinite(values).all()
+        rep.add(f"{key} finite", finite, "" if finite else f"{int((~np.isfinite(values)).sum())} NaN/inf values")
+        peak = float(np.abs(np.nan_to_num(values)).max(initial=0.0))
+        rep.add(f"{key} |angle| <= 2 pi", peak <= ANGLE_BOUND_RAD, f"max |angle| {peak:.3f} rad")
+        leak = int((values[~mask] != 0).sum())
+        rep.add(f"{key} zero where masked", leak == 0, f"{leak} non-zero masked values")
+
+    # hand_type: known specs, masks equal to the spec masks (or all False for an absent hand)
+    settings_path = root / "meta" / "unidextok_conversion.json"
+    mapping = json.loads(settings_path.read_text()).get("mapping", "semantic") if settings_path.is_file() else "semantic"
+    ht_col = table.column(HAND_TYPE_KEY).combine_chunks().dictionary_encode()
+    codes = ht_col.indices.to_numpy(zero_copy_only=False)
+    bad_names, bad_masks, out_of_limits, checked = [], 0, 0, 0
+    for code, value in enumerate(ht_col.dictionary.to_pylist()):
+        parts = value.split(",")
+        rows = codes == code
+        if len(parts) != num_hands:
+            bad_names.append(value)
+            continue
+        for b, name in enumerate(parts):
+            try:
+                spec = hand_registry.get(name)
+            except (KeyError, ValueError):
+                bad_names.append(name)
+                continue
+            m = mask[rows, b]
+            spec_mask = spec.mask(mapping)
+            ok_rows = (m == spec_mask).all(axis=1) | ~m.any(axis=1)
+            bad_masks += int((~ok_rows).sum())
+            present = m.any(axis=1)
+            if spec.kind == "keypoints":
+                from lerobot_unidextok.udhm import JOINT_LIMITS_RAD
+
+                lo, hi = JOINT_LIMITS_RAD[:, 0], JOINT_LIMITS_RAD[:, 1]
+            else:
+                lo, hi = spec.udhm_limits_rad(sides[b])
+            vals = state[rows, b][present]
+            out_of_limits += int(((vals < lo - LIMIT_TOL_RAD) | (vals > hi + LIMIT_TOL_RAD)).sum())
+            checked += vals.size
+    rep.add("hand_type names known", not bad_names, f"unknown/mis-sized: {sorted(set(bad_names))[:5]}" if bad_names else f"{ht_col.dictionary.to_pylist()[:4]}")
+    rep.add("udhm_mask matches hand specs", bad_masks == 0, f"{bad_masks} inconsistent hand-frames (mapping={mapping})")
+    rep.add(
+        "state within hand limits",
+        out_of_limits == 0,
+        f"{out_of_limits} of {checked} values beyond limits + {LIMIT_TOL_RAD} rad (IK fits may exceed slightly)",
+        warning=True,
+    )
+
+    # -- splits ----------------------------------------------------------------------------------
+    splits = info.get("splits", {})
+    try:
+        tr = [int(x) for x in splits["train"].split(":")]
+        te = [int(x) for x in splits["test"].split(":")]
+        ok = tr[0] == 0 and tr[1] == te[0] and te[1] == total_eps and tr[1] >= tr[0] and te[1] >= te[0]
+        detail = f"train {splits['train']} test {splits['test']} of {total_eps}"
+    except (KeyError, ValueError, AttributeError):
+        ok, detail = False, f"splits must be {{'train': 'a:b', 'test': 'c:d'}}, got {splits}"
+    rep.add("splits train/test cover episodes", ok, detail)
+    rep.add("dataset card README.md", (root / "README.md").is_file(), "")
+    for rel in ("meta/stats.json", "meta/tasks.parquet"):
+        rep.add(rel, (root / rel).is_file(), "")
+    ep_files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
+    if ep_files:
+        ep_tab = pq.read_table(ep_files, columns=["episode_index", "length"])
+        rep.add("meta/episodes lengths", int(pc.sum(ep_tab.column("length")).as_py() or 0) == n and ep_tab.num_rows == total_eps, f"{ep_tab.num_rows} rows")
+    else:
+        rep.add("meta/episodes lengths", False, "no meta/episodes parquet")
+
+    # -- LeRobot load ------------------------------------------------------------------------------
+    if load:
+        try:
+            from lerobot.datasets import LeRobotDataset
+
+            ds = LeRobotDataset(repo_id or info.get("repo_id") or f"local/{root.name}", root=root)
+            item = ds[0]
+            rep.add("LeRobotDataset loads", tuple(item[OBS_STATE].shape) == (dim,), f"{ds.num_episodes} episodes, {ds.num_frames} frames")
+        except Exception as exc:  # noqa: BLE001
+            rep.add("LeRobotDataset loads", False, f"{type(exc).__name__}: {exc}")
+    return rep

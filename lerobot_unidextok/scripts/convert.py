@@ -1,0 +1,138 @@
+"""`unidextok-convert`: raw source dataset -> UDHM LeRobotDataset v3.0 (or validate / push one).
+
+    unidextok-convert --source=linkerhand --input=raw/linkerhand --repo_id=me/linkerhand_udhm \\
+        --root=out/linkerhand_udhm --num_workers=2 --on_error=skip
+    unidextok-convert --source=dexycb --input=raw/dexycb --sides=right,left --root=out/dexycb_udhm
+    unidextok-convert --source=lerobot --input=raw/g1 --source_options='{"hands": {...}}' --root=...
+    unidextok-convert --validate=true --root=out/linkerhand_udhm
+    unidextok-convert --config_path=convert.yaml          # same fields in a YAML/JSON file
+    unidextok-convert --list_sources=true
+
+--push_to_hub=true uploads the result (HF_ENDPOINT / HF_TOKEN honoured) and tags it v3.0.
+"""
+
+
+import json
+import logging
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import draccus
+
+
+@dataclass
+class ConvertConfig:
+    # -- what ---------------------------------------------------------------------------------------
+    source: str = ""  # registered source name (see --list_sources=true)
+    input: str = ""  # raw dataset folder (or file) of the source
+    source_options: str = ""  # JSON object of source reader options, e.g. '{"hands": {...}}'
+    # -- where --------------------------------------------------------------------------------------
+    repo_id: str = "local/udhm"  # dataset id (namespace/name), used for the card and the Hub
+    root: str = ""  # output folder; default $HF_LEROBOT_HOME/<repo_id>
+    overwrite: bool = False  # replace an existing dataset at --root (atomically, at the end)
+    # -- how ----------------------------------------------------------------------------------------
+    mapping: str = "semantic"  # "semantic" (joint -> named UDHM slot) | "append_pad" (ablation)
+    sides: str = ""  # block layout, e.g. "right,left" for sources whose episodes are left or right hands
+    num_workers: int = 1  # processes reading + mapping episodes
+    on_error: str = "raise"  # "raise": stop at the first bad episode | "skip": skip, report at the end
+    test_fraction: float = 0.2  # share of episodes in the deterministic test split
+    max_episodes: int | None = None  # convert only the first N episodes (quick looks)
+    shard_index: int = 0  # convert one contiguous shard of the episode list (multi-machine runs)
+    num_shards: int = 1
+    # -- modes --------------------------------------------------------------------------------------
+    validate: bool = False  # validate the dataset at --root instead of converting
+    push_to_hub: bool = False  # upload the dataset to --repo_id after converting (or validating)
+    private: bool = False
+    list_sources: bool = False  # print the registered sources and exit
+
+
+def _root(cfg: ConvertConfig) -> Path:
+    if cfg.root:
+        return Path(cfg.root).expanduser()
+    home = os.environ.get("HF_LEROBOT_HOME") or str(Path(os.environ.get("HF_HOME", "~/.cache/huggingface")) / "lerobot")
+    return Path(home).expanduser() / cfg.repo_id
+
+
+def _source_options(text: str) -> dict:
+    if not text:
+        return {}
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SystemExit(f"error: --source_options must be a JSON object: {exc}") from exc
+    if not isinstance(value, dict):
+        raise SystemExit(f"error: --source_options must be a JSON object, got {type(value).__name__}")
+    return value
+
+
+def run(cfg: ConvertConfig) -> int:
+    """Run the CLI config; returns the process exit code."""
+    from lerobot_unidextok.conversion import pipeline, registry
+    from lerobot_unidextok.conversion.validate import validate_dataset
+
+    if cfg.list_sources:
+        for name in registry.available_sources():
+            cls = registry.get_source(name)
+            print(f"{name:12s} {getattr(cls, 'description', '')}  [license: {getattr(cls, 'license', '?')}]")
+        return 0
+    root = _root(cfg)
+    if not cfg.validate:
+        if not cfg.source or not cfg.input:
+            raise SystemExit("error: --source and --input are required (or --validate=true / --list_sources=true)")
+        opts = pipeline.ConvertOptions(
+            source=cfg.source,
+            input=cfg.input,
+            root=root,
+            repo_id=cfg.repo_id,
+            source_options=_source_options(cfg.source_options),
+            mapping=cfg.mapping,
+            on_error=cfg.on_error,
+            num_workers=cfg.num_workers,
+            overwrite=cfg.overwrite,
+            test_fraction=cfg.test_fraction,
+            max_episodes=cfg.max_episodes,
+            shard_index=cfg.shard_index,
+            num_shards=cfg.num_shards,
+            sides=tuple(s.strip() for s in cfg.sides.split(",") if s.strip()) or None,
+        )
+        try:
+            report = pipeline.convert(opts)
+        except (pipeline.ConversionError, FileExistsError, FileNotFoundError, ValueError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 1
+        print(
+            f"wrote {report.root}: {report.num_episodes} episodes ({report.num_train} train / {report.num_test} test), "
+            f"{report.num_frames} frames, hands {', '.join(report.hands)}, {report.seconds:.1f} s "
+            f"({report.frames_per_second:,.0f} frames/s)"
+        )
+        if report.failures:
+            print(f"skipped {len(report.failures)} episode(s):\n{pipeline.format_failures(report.failures)}")
+    validation = validate_dataset(root, repo_id=cfg.repo_id)
+    if cfg.validate or not validation.ok:
+        print(validation.table())
+    if not validation.ok:
+        return 2
+    if cfg.push_to_hub:
+        from lerobot_unidextok.hub import push
+
+        commit = push(str(root), cfg.repo_id, "dataset", private=cfg.private)
+        print(f"pushed {root} -> {cfg.repo_id} (tag v3.0) @ {commit}")
+    return 0
+
+
+@draccus.wrap()
+def convert_cli(cfg: ConvertConfig) -> int:
+    return run(cfg)
+
+
+def main() -> None:
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    for noisy in ("httpx", "lerobot.datasets.utils"):
+        logging.getLogger(noisy).setLevel(logging.WARNING)
+    sys.exit(convert_cli())
+
+
+if __name__ == "__main__":
+    main()
