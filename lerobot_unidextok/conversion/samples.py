@@ -49,6 +49,10 @@ HAND_LET = "brainco_revo1"
 HAND_DEXORA = "xhand1"
 HAND_LINKERHAND = {"L10": "linkerhand_l10", "L20": "linkerhand_l20"}
 HAND_G1 = "inspire_rh56_unitree"
+# Reader options each sample needs (the generic LeRobot source must be told which columns are hands).
+SAMPLE_SOURCE_OPTIONS: dict[str, dict] = {
+    "lerobot": {"hands": {"left": f"{HAND_G1}:kLeftHand", "right": f"{HAND_G1}:kRightHand"}},
+}
 
 
 @dataclass(frozen=True)
@@ -161,7 +165,8 @@ _README_FORMS = {
     "dexora": "Dexora as a LeRobot v2.1 dataset: 39-D observation.state/action (arms, two XHand1 hands in "
     "radians, head, spine), names in meta/info.json, 20 fps.",
     "linkerhand": "LinkerHand-Open-World as a JSON dump of the LinkerHand ROS topics per episode: "
-    "/cb_<side>_hand_state and /cb_<side>_hand_control_cmd, one 0-255 value per joint (255 = open).",
+    "/cb_<side>_hand_state and /cb_<side>_hand_control_cmd, one 0-255 value per joint (255 = open); "
+    "even episodes L10 hands (10 values), odd episodes L20 (20 values), named by hand_model.",
     "lerobot": "A generic LeRobot v2.1 dataset shaped like a Unitree G1 + two Inspire hands dataset: "
     "26-D state/action with nested names, arms in radians, hands normalised to [0, 1] (1 = open), 30 fps.",
 }
@@ -635,13 +640,15 @@ LINKERHAND_FPS = 30.0
 LINKERHAND_TASKS = ("grasp_bottle", "handover_cube")
 
 
-def write_linkerhand_episodes(folder: Path, spec: SampleSpec, model: str = "L10") -> Labels:
-    """LinkerHand JSON episodes for one hand model (`L10` or `L20`)."""
-    if model not in HAND_LINKERHAND:
-        raise ValueError(f"unknown LinkerHand model {model!r}; samples exist for {sorted(HAND_LINKERHAND)}")
-    hand = HAND_LINKERHAND[model]
+def write_linkerhand_episodes(folder: Path, spec: SampleSpec, models: tuple[str, ...] = ("L10", "L20")) -> Labels:
+    """LinkerHand JSON episodes; episode i uses hand model `models[i % len(models)]` (`L10`, `L20`)."""
+    unknown = [m for m in models if m not in HAND_LINKERHAND]
+    if not models or unknown:
+        raise ValueError(f"unknown LinkerHand models {unknown or models!r}; samples exist for {sorted(HAND_LINKERHAND)}")
     labels: Labels = {}
     for ep in range(spec.num_episodes):
+        model = models[ep % len(models)]
+        hand = HAND_LINKERHAND[model]
         rng = _rng("linkerhand", spec, ep)
         n = _num_frames(rng, spec)
         task = LINKERHAND_TASKS[ep % len(LINKERHAND_TASKS)]
@@ -669,7 +676,7 @@ def write_linkerhand_episodes(folder: Path, spec: SampleSpec, model: str = "L10"
 
 
 def _write_linkerhand(folder: Path, spec: SampleSpec) -> Labels:
-    return write_linkerhand_episodes(folder, spec, "L10")
+    return write_linkerhand_episodes(folder, spec)
 
 
 # ---------------------------------------------------------------------------------------------

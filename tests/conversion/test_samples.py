@@ -12,7 +12,7 @@ from lerobot_unidextok import udhm
 from lerobot_unidextok.constants import UDHM_DIM
 from lerobot_unidextok.conversion.registry import get_source
 from lerobot_unidextok.conversion.sample_motion import GESTURES, gesture_track
-from lerobot_unidextok.conversion.samples import SAMPLE_SOURCES, write_samples
+from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, SAMPLE_SOURCES, write_samples
 
 EPISODES, FRAMES = 3, 45
 
@@ -24,8 +24,7 @@ def samples(tmp_path_factory):
 
 
 def _source(name: str):
-    opts = {"lerobot": {"hands": {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}}}
-    return get_source(name)(**opts.get(name, {}))
+    return get_source(name)(**SAMPLE_SOURCE_OPTIONS.get(name, {}))
 
 
 def test_every_source_written_with_synthetic_labels(samples):

@@ -149,16 +149,21 @@ def test_dexora_slices_by_name_not_position(samples, tmp_path):
 
 
 def test_linkerhand_json_l10_and_l20(samples, tmp_path):
-    for ep in _read_all("linkerhand", samples["linkerhand"]):
+    episodes = _read_all("linkerhand", samples["linkerhand"])
+    for ep in episodes:
+        number = int(ep.source_file.rsplit("_", 1)[1].split(".")[0])  # episode_0003.json -> 3
+        hand, width = ("linkerhand_l10", 10) if number % 2 == 0 else ("linkerhand_l20", 20)  # models alternate
         assert [h.side for h in ep.hands] == ["left", "right"] and ep.task
+        assert ep.extra["hand_model"] == ("L10" if width == 10 else "L20")
         for h in ep.hands:
-            assert h.hand == "linkerhand_l10" and h.state_native.shape == (ep.num_frames, 10)
+            assert h.hand == hand and h.state_native.shape == (ep.num_frames, width)
+            assert h.action_native.shape == h.state_native.shape
             assert h.state_native.min() >= 0 and h.state_native.max() <= 255
             assert np.array_equal(h.state_native, np.round(h.state_native))
-    write_linkerhand_episodes(tmp_path, SampleSpec(EPISODES, FRAMES, 0), model="L20")
-    for ep in _read_all("linkerhand", tmp_path):
-        assert {h.hand for h in ep.hands} == {"linkerhand_l20"}
-        assert ep.hands[0].state_native.shape[1] == 20 and ep.hands[0].action_native.shape[1] == 20
+    write_linkerhand_episodes(tmp_path, SampleSpec(EPISODES, FRAMES, 0), models=("L20",))
+    assert {h.hand for ep in _read_all("linkerhand", tmp_path) for h in ep.hands} == {"linkerhand_l20"}
+    with pytest.raises(ValueError, match="unknown LinkerHand models"):
+        write_linkerhand_episodes(tmp_path, SampleSpec(1, 20, 0), models=("L99",))
 
 
 def test_generic_lerobot_on_sample(samples):
