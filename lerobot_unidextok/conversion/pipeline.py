@@ -278,7 +278,7 @@ def convert(opts: ConvertOptions) -> ConvertReport:
                     layout = (result.layout, fps)
                     writer = UdhmDatasetWriter(
                         tmp, opts.repo_id, fps, udhm_features(result.sides, result.action_rad is not None),
-                        robot_type=result.hand_type,
+                        robot_type="udhm",  # one value for every conversion: aggregate_datasets requires equal robot_type
                     )
                 elif (result.layout, fps) != layout:
                     (first_sides, act), f0 = layout

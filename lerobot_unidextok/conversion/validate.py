@@ -116,7 +116,7 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
 
     def arr(key, dtype):
         col = table.column(key).combine_chunks()
-        return col.values.to_numpy(zero_copy_only=False).astype(dtype).reshape(n, num_hands, UDHM_DIM)
+        return col.flatten().to_numpy(zero_copy_only=False).astype(dtype).reshape(n, num_hands, UDHM_DIM)
 
     state = arr(OBS_STATE, np.float32)
     mask = arr(UDHM_MASK_KEY, bool)

@@ -1,0 +1,236 @@
+"""End-to-end conversion of synthetic sample sources and of a deliberately broken test source."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from lerobot_unidextok import hands
+from lerobot_unidextok.constants import UDHM_DIM
+from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
+from lerobot_unidextok.conversion.pipeline import (
+    ConversionError,
+    ConvertOptions,
+    convert,
+    merge_shards,
+    read_settings,
+    split_order,
+)
+from lerobot_unidextok.conversion.registry import get_source, register_source, unregister_source
+from lerobot_unidextok.conversion.validate import validate_dataset
+from lerobot_unidextok.data import load_udhm_frames
+
+
+@pytest.fixture(scope="module")
+def samples(tmp_path_factory):
+    from lerobot_unidextok.conversion.samples import write_samples
+
+    return write_samples(tmp_path_factory.mktemp("raw"), sources=["linkerhand", "dexycb"], episodes_per_source=6, frames_per_episode=40)
+
+
+@pytest.fixture(scope="module")
+def linker(samples, tmp_path_factory):
+    root = tmp_path_factory.mktemp("out") / "linker"
+    report = convert(ConvertOptions(source="linkerhand", input=samples["linkerhand"], root=root, repo_id="t/linker", progress=False))
+    return root, report
+
+
+def _data(root):
+    return pq.read_table(sorted((root / "data").rglob("*.parquet"))).replace_schema_metadata(None)
+
+
+# ---------------------------------------------------------------------------------------------
+# robot source
+# ---------------------------------------------------------------------------------------------
+def test_robot_source_contract_and_round_trip(samples, linker):
+    from lerobot.datasets import LeRobotDataset
+
+    root, report = linker
+    assert (report.num_episodes, report.num_train, report.num_test) == (6, 5, 1)  # round(0.2 * 6) = 1
+    ds = LeRobotDataset("t/linker", root=root)
+    assert ds.num_episodes == 6 and ds.fps == 30
+    names = ds.meta.features["observation.state"]["names"]
+    sides = [names[0].split("_")[0], names[UDHM_DIM].split("_")[0]]
+    assert sorted(sides) == ["left", "right"] and names[6] == f"{sides[0]}_index_mcp_flex"
+    assert ds.meta.features["action"]["dtype"] == "float32"
+    assert ds.meta.info.splits == {"train": "0:5", "test": "5:6"}
+    assert validate_dataset(root).ok
+
+    # every written frame equals the hand spec's mapping of the raw values, and maps back to them
+    src = get_source("linkerhand")()
+    refs = src.list_episodes(samples["linkerhand"])
+    settings = read_settings(root)
+    assert settings["source"] == "linkerhand" and settings["synthetic"] is True
+    frames = load_udhm_frames(root)
+    raws = {src.read_episode(r).source_file: src.read_episode(r) for r in refs}
+    checked = 0
+    for ep_index in range(6):
+        state = frames.states_rad[frames.episode_index == ep_index].reshape(-1, 2, UDHM_DIM)
+        matches = []
+        for raw in raws.values():
+            if raw.num_frames != state.shape[0]:
+                continue
+            by_side = {h.side: h for h in raw.hands}
+            spec = hands.get(by_side[sides[0]].hand)
+            expect = np.stack([hands.get(by_side[s].hand).to_udhm(by_side[s].state_native, side=s) for s in sides], axis=1)
+            if np.allclose(expect, state, atol=1e-6):
+                assert list(frames.hands[frames.episode_index == ep_index][:2]) == [by_side[s].hand for s in sides]
+                native = np.asarray(spec.from_udhm(state[:, 0].astype(np.float64), side=sides[0]))
+                active = [i for i, j in enumerate(spec.joints) if j.slot is not None]
+                np.testing.assert_allclose(native[:, active], by_side[sides[0]].state_native[:, active], atol=1e-3)  # SDK units
+                matches.append(raw.source_file)
+        assert len(matches) == 1
+        checked += 1
+    assert checked == 6
+    card = (root / "README.md").read_text()
+    assert "linkerhand" in card and "SYNTHETIC" in card and "license" in card.lower() and "linkerhand_l" in card
+
+
+def test_split_deterministic_and_worker_independent(samples, linker, tmp_path):
+    root, _ = linker
+    again = tmp_path / "again"
+    convert(ConvertOptions(source="linkerhand", input=samples["linkerhand"], root=again, repo_id="t/linker", num_workers=2, progress=False))
+    assert _data(root).equals(_data(again))
+    assert json.loads((again / "meta/info.json").read_text())["splits"] == {"train": "0:5", "test": "5:6"}
+
+    keys = [f"ep_{i}" for i in range(50)]
+    train, test = split_order(keys, 0.2)
+    assert len(test) == 10 and sorted(train + test) == list(range(50))
+    train_rev, test_rev = split_order(keys[::-1], 0.2)
+    assert sorted(keys[::-1][i] for i in test_rev) == sorted(keys[i] for i in test)  # order-independent
+
+
+def test_existing_target_refused_then_overwritten(samples, linker, tmp_path):
+    target = tmp_path / "t"
+    target.mkdir()
+    (target / "keep.txt").write_text("x")
+    opts = dict(source="linkerhand", input=samples["linkerhand"], root=target, progress=False, max_episodes=2)
+    with pytest.raises(FileExistsError, match="--overwrite"):
+        convert(ConvertOptions(**opts))
+    assert (target / "keep.txt").exists()
+    convert(ConvertOptions(**opts, overwrite=True))
+    assert not (target / "keep.txt").exists() and json.loads((target / "meta/info.json").read_text())["total_episodes"] == 2
+    assert [p.name for p in tmp_path.iterdir()] == ["t"]  # no temp or backup folders left
+
+
+def test_shards_merge_equals_single_run(samples, linker, tmp_path):
+    from lerobot.datasets import LeRobotDataset
+
+    root, _ = linker
+    shards = []
+    for k in range(2):
+        shard = tmp_path / f"shard{k}"
+        convert(ConvertOptions(source="linkerhand", input=samples["linkerhand"], root=shard, progress=False, shard_index=k, num_shards=2))
+        shards.append(shard)
+    merged = merge_shards(shards, tmp_path / "merged", repo_id="t/merged")
+    info = json.loads((merged / "meta/info.json").read_text())
+    assert info["splits"] == {"train": "0:5", "test": "5:6"} and info["total_episodes"] == 6
+    single, both = _data(root), _data(merged)
+    for col in ("observation.state", "action", "udhm_mask", "hand_type", "episode_index", "frame_index", "index"):
+        assert single.column(col).to_pylist() == both.column(col).to_pylist(), col  # aggregate writes list<>, not fixed_size_list<>
+    assert LeRobotDataset("t/merged", root=merged).num_frames == single.num_rows
+    assert validate_dataset(merged).ok
+
+
+# ---------------------------------------------------------------------------------------------
+# human source
+# ---------------------------------------------------------------------------------------------
+def test_human_source_left_or_right_sequences(samples, tmp_path, monkeypatch):
+    root = tmp_path / "dexycb"
+    cls = get_source("dexycb")
+    monkeypatch.setattr(cls, "sides", None)  # without a declared layout the first episode's side wins
+    with pytest.raises(ConversionError, match="--sides=right,left"):
+        convert(ConvertOptions(source="dexycb", input=samples["dexycb"], root=root, progress=False))
+    assert not root.exists()
+    report = convert(ConvertOptions(source="dexycb", input=samples["dexycb"], root=root, progress=False, sides=("right", "left")))
+    assert report.hands == ["human"]
+    frames = load_udhm_frames(root)
+    assert set(frames.hands) == {"human"} and frames.masks.all()  # absent hands dropped, human = 22 DoF
+    assert np.isfinite(frames.states_rad).all() and np.abs(frames.states_rad).max() < np.pi
+    every = load_udhm_frames(root, drop_absent=False)
+    assert len(every) > len(frames)  # each sequence has one hand: the other block is masked
+    assert validate_dataset(root).ok
+
+
+# ---------------------------------------------------------------------------------------------
+# bad episodes
+# ---------------------------------------------------------------------------------------------
+@register_source("_broken_test")
+class BrokenSource:
+    license = "test"
+    description = "episodes with known defects"
+
+    def list_episodes(self, input_path):
+        return ["good_a", "truncated", "nan", "out_of_range", "unknown_hand", "good_b", "interrupt"]
+
+    def read_episode(self, ref):
+        spec = hands.get("linkerhand_l10")
+        rng = np.random.default_rng(len(ref))
+        state = rng.uniform(10, 240, size=(20, spec.num_native))
+        hand = "linkerhand_l10"
+        if ref == "truncated":
+            raise OSError("file truncated at byte 120")
+        if ref == "nan":
+            state[4, 2] = np.nan
+        if ref == "out_of_range":
+            state[3, 1] = 900.0
+        if ref == "unknown_hand":
+            hand = "robo_x"
+        if ref == "interrupt" and getattr(self, "interrupt", False):
+            raise KeyboardInterrupt
+        return RawEpisode(source_file=f"/data/{ref}.json", fps=30, hands=[HandStream("right", hand, state)], task="t")
+
+
+@pytest.fixture
+def broken_input(tmp_path):
+    (tmp_path / "in").mkdir()
+    return tmp_path / "in"
+
+
+def test_on_error_raise_stops_and_writes_nothing(broken_input, tmp_path):
+    target = tmp_path / "out"
+    with pytest.raises(ConversionError) as err:
+        convert(ConvertOptions(source="_broken_test", input=broken_input, root=target, progress=False, test_fraction=0.0))
+    assert "truncated" in str(err.value) and "file truncated at byte 120" in str(err.value) and "--on_error=skip" in str(err.value)
+    assert not target.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["in"]
+
+
+def test_on_error_skip_reports_each_file_and_reason(broken_input, tmp_path):
+    report = convert(ConvertOptions(source="_broken_test", input=broken_input, root=tmp_path / "out", progress=False, on_error="skip", test_fraction=0.0))
+    assert report.num_episodes == 3  # good_a, good_b, interrupt (not interrupting here)
+    reasons = {f.source_file: f.reason for f in report.failures}
+    assert set(reasons) == {"truncated", "/data/nan.json", "/data/out_of_range.json", "/data/unknown_hand.json"}
+    assert "OSError" in reasons["truncated"]
+    assert "NaN" in reasons["/data/nan.json"] and "[4]" in reasons["/data/nan.json"]
+    assert "range" in reasons["/data/out_of_range.json"]
+    assert "robo_x" in reasons["/data/unknown_hand.json"]
+    frames = load_udhm_frames(tmp_path / "out")
+    assert np.isfinite(frames.states_rad).all() and len(frames) == 60
+    assert read_settings(tmp_path / "out")["skipped_episodes"] == 4
+    assert "Skipped episodes (4)" in (tmp_path / "out" / "README.md").read_text()
+
+
+def test_interrupt_leaves_no_partial_dataset(broken_input, tmp_path, monkeypatch):
+    monkeypatch.setattr(BrokenSource, "interrupt", True, raising=False)
+    target = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt):
+        convert(ConvertOptions(source="_broken_test", input=broken_input, root=target, progress=False, on_error="skip", test_fraction=0.0))
+    assert not target.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["in"]
+
+
+def test_options_validation():
+    with pytest.raises(ValueError, match="mapping must be one of"):
+        ConvertOptions(source="x", input=".", root=".", mapping="nearest")
+    with pytest.raises(ValueError, match="on_error"):
+        ConvertOptions(source="x", input=".", root=".", on_error="ignore")
+    with pytest.raises(ValueError, match="sides must be distinct"):
+        ConvertOptions(source="x", input=".", root=".", sides=("right", "right"))
+    with pytest.raises(ValueError, match="unknown source 'nope'"):
+        get_source("nope")
+
+
+def teardown_module():
+    unregister_source("_broken_test")
