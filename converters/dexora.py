@@ -10,9 +10,10 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from lerobot_unidextok.converters import _lerobot_files as lr
+
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
-from lerobot_unidextok.converters import _lerobot_files as lr
 
 XHAND = "xhand1"
 XHAND_JOINTS = 12
@@ -47,7 +48,9 @@ class DexoraSource:
     license = "Dexora dataset terms (HF Dexora/Dexora_Real-World_Dataset); check before redistribution"
     description = "Dexora real-world bimanual data: AIRBOT arms + two XHand1 hands, 12 joints each in radians (robot)"
 
-    def __init__(self, hand: str = XHAND, state_key: str = "observation.state", action_key: str | None = "action") -> None:
+    def __init__(
+        self, hand: str = XHAND, state_key: str = "observation.state", action_key: str | None = "action"
+    ) -> None:
         self.hand = hand
         self.state_key = state_key
         self.action_key = action_key

@@ -109,7 +109,9 @@ class EgoDexSource:
                 )
             conf = np.stack(confidences, axis=1)  # (T, 21)
             if conf.shape[0] != state.shape[0]:
-                raise EgoDexFormatError(f"{path}: confidences/{side}* have {conf.shape[0]} frames, transforms {state.shape[0]}")
+                raise EgoDexFormatError(
+                    f"{path}: confidences/{side}* have {conf.shape[0]} frames, transforms {state.shape[0]}"
+                )
             valid = conf.min(axis=1) > self.min_confidence
         return HandStream(side=side, hand="human", state_native=state, valid=valid)
 

@@ -17,9 +17,10 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+from lerobot_unidextok.converters import _lerobot_files as lr
+
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
-from lerobot_unidextok.converters import _lerobot_files as lr
 
 
 @dataclass(frozen=True)
@@ -39,7 +40,9 @@ class HandColumns:
             return list(explicit)
         picked = [n for n in names if n.startswith(self.prefix or "")]
         if not picked:
-            raise lr.LeRobotFormatError(f"{where}: no names start with prefix {self.prefix!r}; available names: {names}")
+            raise lr.LeRobotFormatError(
+                f"{where}: no names start with prefix {self.prefix!r}; available names: {names}"
+            )
         return picked
 
 
@@ -53,7 +56,8 @@ def parse_hands(hands: dict | str) -> list[HandColumns]:
     if not isinstance(hands, dict) or not hands:
         raise ValueError(
             "hands must map 'left'/'right' to a hand spec and its columns, e.g. "
-            '{"right": {"hand": "inspire_rh56_unitree", "prefix": "kRightHand"}} or {"right": "inspire_rh56_unitree:kRightHand"}'
+            '{"right": {"hand": "inspire_rh56_unitree", "prefix": "kRightHand"}} '
+            'or {"right": "inspire_rh56_unitree:kRightHand"}'
         )
     out = []
     for side, entry in hands.items():
@@ -69,7 +73,9 @@ def parse_hands(hands: dict | str) -> list[HandColumns]:
             raise ValueError(f"hands[{side!r}] must be a dict with 'hand' and 'state_names' or 'prefix', got {entry!r}")
         unknown = set(entry) - {"hand", "state_names", "action_names", "prefix"}
         if unknown:
-            raise ValueError(f"hands[{side!r}] has unknown keys {sorted(unknown)}; use hand, state_names, action_names, prefix")
+            raise ValueError(
+                f"hands[{side!r}] has unknown keys {sorted(unknown)}; use hand, state_names, action_names, prefix"
+            )
         if ("state_names" in entry) == ("prefix" in entry):
             raise ValueError(f"hands[{side!r}] needs exactly one of 'state_names' or 'prefix'")
         state = tuple(entry["state_names"]) if "state_names" in entry else None
@@ -113,7 +119,9 @@ def read_mapped_episode(
     info = lr.load_info(ref.root)
     info_path = Path(ref.root) / "meta" / "info.json"
     state_names = lr.feature_names(info, state_key, ref.root)
-    action_names = lr.feature_names(info, action_key, ref.root) if action_key and action_key in info["features"] else None
+    action_names = (
+        lr.feature_names(info, action_key, ref.root) if action_key and action_key in info["features"] else None
+    )
     plan = []
     for h in hands:
         s_cols = h.resolve(state_names, f"{info_path} features[{state_key!r}] ({h.side} hand)", h.state_names)
@@ -137,5 +145,9 @@ def read_mapped_episode(
         fps=episode.fps,
         hands=streams,
         task=episode.task,
-        extra={"robot_type": info.get("robot_type", ""), "episode_index": ref.episode_index, "codebase_version": info["codebase_version"]},
+        extra={
+            "robot_type": info.get("robot_type", ""),
+            "episode_index": ref.episode_index,
+            "codebase_version": info["codebase_version"],
+        },
     )

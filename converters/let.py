@@ -13,10 +13,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from lerobot_unidextok.converters._topic_json import array_field, field, fps_from_stamps, load_json
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
-from lerobot_unidextok.converters._topic_json import array_field, field, fps_from_stamps, load_json
 
 COMMAND_TOPIC = "/control_robot_hand_position"
 STATE_TOPIC = "/dexhand/state"
@@ -56,7 +56,15 @@ class LETSource:
         cmd = field(topics, COMMAND_TOPIC, path, LETFormatError, "topics")
         stamps = array_field(LETFormatError, cmd, "stamp_s", path, f"topics[{COMMAND_TOPIC!r}]", ndim=1)
         action = {
-            side: array_field(LETFormatError, cmd, f"{side}_hand_position", path, f"topics[{COMMAND_TOPIC!r}]", ndim=2, width=NUM_JOINTS)
+            side: array_field(
+                LETFormatError,
+                cmd,
+                f"{side}_hand_position",
+                path,
+                f"topics[{COMMAND_TOPIC!r}]",
+                ndim=2,
+                width=NUM_JOINTS,
+            )
             for side in ("left", "right")
         }
         for side, values in action.items():
@@ -73,7 +81,10 @@ class LETSource:
             rows = np.clip(np.searchsorted(st_stamps, stamps, side="right") - 1, 0, len(st_stamps) - 1)
             state = {"left": position[rows, :NUM_JOINTS], "right": position[rows, NUM_JOINTS:]}
         fps = self.fps or fps_from_stamps(stamps, path, LETFormatError)
-        hands = [HandStream(side=s, hand=self.hand, state_native=state[s], action_native=action[s]) for s in ("left", "right")]
+        hands = [
+            HandStream(side=s, hand=self.hand, state_native=state[s], action_native=action[s])
+            for s in ("left", "right")
+        ]
         task = str(data.get("task", ""))
         marks = data.get("annotation", {}).get("marks", []) if isinstance(data.get("annotation"), dict) else []
         details = [str(m["enSkillDetail"]) for m in marks if isinstance(m, dict) and m.get("enSkillDetail")]

@@ -16,12 +16,12 @@ import re
 from pathlib import Path
 
 import numpy as np
-
-from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
-from lerobot_unidextok.conversion.registry import register_source
 from lerobot_unidextok.converters import _lerobot_files as lr
 from lerobot_unidextok.converters._topic_json import array_field, field, fps_from_stamps, load_json
 from lerobot_unidextok.converters.lerobot import HandColumns, parse_hands, read_mapped_episode
+
+from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
+from lerobot_unidextok.conversion.registry import register_source
 
 MODELS: dict[str, tuple[str, int]] = {  # SDK model -> (hand spec name, joints per hand)
     "L6": ("linkerhand_l6", 6),
@@ -95,8 +95,9 @@ class LinkerHandSource:
         for side, by_k in sorted(found.items()):
             ks = sorted(by_k)
             if len(ks) != num or ks not in (list(range(num)), list(range(1, num + 1))):
+                info_path = Path(ref.root) / "meta" / "info.json"
                 raise LinkerHandFormatError(
-                    f"{Path(ref.root) / 'meta' / 'info.json'}: {side} hand has joints {ks}, expected {num} for {self.model}"
+                    f"{info_path}: {side} hand has joints {ks}, expected {num} for {self.model}"
                 )
             out.append(HandColumns(side, spec, state_names=tuple(by_k[k] for k in ks)))
         return out

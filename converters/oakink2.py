@@ -66,7 +66,12 @@ class OakInk2Source:
             raise MissingManoError(f"manotorch is not installed: {MANO_HELP}") from exc
         return {
             side: ManoLayer(
-                rot_mode="quat", side=side, center_idx=0, use_pca=False, flat_hand_mean=True, mano_assets_root=str(assets)
+                rot_mode="quat",
+                side=side,
+                center_idx=0,
+                use_pca=False,
+                flat_hand_mean=True,
+                mano_assets_root=str(assets),
             ).to(self.device)
             for side in ("right", "left")
         }

@@ -24,6 +24,7 @@ MCP_FLEX_MAX_RAD = 1.45  # curl 1.0 of a long finger
 LONG_FINGERS: tuple[str, ...] = ("index", "middle", "ring", "pinky")
 # MCP abduction at full spread (rad, + = toward the thumb side of a right hand).
 SPREAD_ABD_RAD: dict[str, float] = {"index": 0.22, "middle": 0.02, "ring": -0.14, "pinky": -0.28}
+_THUMB_JOINTS = ("thumb_cmc_flex", "thumb_cmc_spread", "thumb_mcp_flex", "thumb_mcp_abd", "thumb_ip_flex")
 
 
 @dataclass(frozen=True)
@@ -48,11 +49,7 @@ class Gesture:
             q[UDHM_INDEX[f"{finger}_dip_flex"]] = min(self.dip_ratio * pip, 1.3)
             q[UDHM_INDEX[f"{finger}_mcp_abd"]] = self.spread * SPREAD_ABD_RAD[finger] * (1.0 - 0.6 * curl)
         q[UDHM_INDEX["pinky_metacarpal_twist"]] = 0.25 * self.curl[3]  # palm cups as the pinky curls
-        for name, value in zip(
-            ("thumb_cmc_flex", "thumb_cmc_spread", "thumb_mcp_flex", "thumb_mcp_abd", "thumb_ip_flex"),
-            self.thumb_rad,
-            strict=True,
-        ):
+        for name, value in zip(_THUMB_JOINTS, self.thumb_rad, strict=True):
             q[UDHM_INDEX[name]] = value
         return q
 
@@ -111,9 +108,9 @@ def _smooth_noise(rng: np.random.Generator, num_frames: int, dim: int, width: in
 
 # UDHM slots moved by each finger's onset lag during a transition.
 _FINGER_SLOTS: dict[str, list[int]] = {
-    "thumb": [UDHM_INDEX[n] for n in ("thumb_cmc_flex", "thumb_cmc_spread", "thumb_mcp_flex", "thumb_mcp_abd", "thumb_ip_flex")],
+    "thumb": [UDHM_INDEX[n] for n in _THUMB_JOINTS],
     **{f: [UDHM_INDEX[f"{f}_{j}"] for j in ("mcp_abd", "mcp_flex", "pip_flex", "dip_flex")] for f in LONG_FINGERS},
-}  # fmt: skip
+}
 _FINGER_SLOTS["pinky"].append(UDHM_INDEX["pinky_metacarpal_twist"])
 
 

@@ -186,9 +186,7 @@ def _write_readme(folder: Path, source: str, spec: SampleSpec) -> None:
     (folder / "README.md").write_text(text)
 
 
-def _human_keypoints_m(
-    angles_rad: np.ndarray, scale: float, wrist_pose: np.ndarray, side: str
-) -> np.ndarray:
+def _human_keypoints_m(angles_rad: np.ndarray, scale: float, wrist_pose: np.ndarray, side: str) -> np.ndarray:
     """(T, 21, 3) keypoints in the frame of `wrist_pose` (T, 4, 4) via UDHM FK on a scaled default skeleton."""
     from lerobot_unidextok import udhm
 
@@ -214,7 +212,9 @@ def _first_order_lag(x: np.ndarray, fps: float, tau_s: float) -> np.ndarray:
     return y
 
 
-def _robot_tracks(rng: np.random.Generator, num_frames: int, fps: float, sides: tuple[str, ...]) -> dict[str, GestureTrack]:
+def _robot_tracks(
+    rng: np.random.Generator, num_frames: int, fps: float, sides: tuple[str, ...]
+) -> dict[str, GestureTrack]:
     return {side: gesture_track(rng, num_frames, fps) for side in sides}
 
 
@@ -254,7 +254,9 @@ def _write_dexycb(folder: Path, spec: SampleSpec) -> Labels:
             {
                 "master": DEXYCB_SERIALS[0],
                 # camera -> master (3x4 row-major), as in DexYCB
-                "extrinsics": {s: np.linalg.inv(e)[:3].ravel().tolist() for s, e in zip(DEXYCB_SERIALS, extr, strict=True)},
+                "extrinsics": {
+                    s: np.linalg.inv(e)[:3].ravel().tolist() for s, e in zip(DEXYCB_SERIALS, extr, strict=True)
+                },
                 "synthetic": True,
             }
         )
@@ -296,7 +298,10 @@ def _write_dexycb(folder: Path, spec: SampleSpec) -> Labels:
             view.mkdir()
             kp_cam = keypoints @ cam_from_master[:3, :3].T + cam_from_master[:3, 3]  # (T, 21, 3)
             uv = np.stack(
-                [k["fx"] * kp_cam[..., 0] / kp_cam[..., 2] + k["ppx"], k["fy"] * kp_cam[..., 1] / kp_cam[..., 2] + k["ppy"]],
+                [
+                    k["fx"] * kp_cam[..., 0] / kp_cam[..., 2] + k["ppx"],
+                    k["fy"] * kp_cam[..., 1] / kp_cam[..., 2] + k["ppy"],
+                ],
                 axis=-1,
             )
             for t in range(n):
@@ -392,7 +397,9 @@ def _write_egodex(folder: Path, spec: SampleSpec) -> Labels:
         scale = rng.uniform(0.85, 1.15)  # one person per episode: same skeleton for both hands
         tracks, transforms, conf = {}, {}, {}
         for side, x in (("left", -0.18), ("right", 0.18)):
-            track = gesture_track(rng, n, EGODEX_FPS, gestures=["open", "pinch", "grasp_cylinder", "tripod", "point", "fist"])
+            track = gesture_track(
+                rng, n, EGODEX_FPS, gestures=["open", "pinch", "grasp_cylinder", "tripod", "point", "fist"]
+            )
             # ARKit world: y up, -z forward from the head; palms face down/inward over a table
             base_rot = np.array([-np.pi / 2, 0.0, np.pi / 2 if side == "left" else -np.pi / 2]) + rng.normal(0, 0.2, 3)
             wrist = wrist_track(rng, n, EGODEX_FPS, np.array([x, 1.05, -0.40]) + rng.normal(0, 0.03, 3), base_rot)
@@ -414,7 +421,9 @@ def _write_egodex(folder: Path, spec: SampleSpec) -> Labels:
         hip[:, :3, 3] = [0.0, 0.95, 0.05]
         transforms["hip"] = hip
         with h5py.File(path, "w") as f:
-            f.create_dataset("camera/intrinsic", data=np.array([[736.6339, 0, 960], [0, 736.6339, 540], [0, 0, 1]], np.float32))
+            f.create_dataset(
+                "camera/intrinsic", data=np.array([[736.6339, 0, 960], [0, 736.6339, 540], [0, 0, 1]], np.float32)
+            )
             for name, value in transforms.items():
                 f.create_dataset(f"transforms/{name}", data=value.astype(np.float32))
             if ep % 3 != 2:  # confidences are missing in some real files
@@ -463,8 +472,18 @@ def _write_let(folder: Path, spec: SampleSpec) -> Labels:
             "task": task,
             "annotation": {
                 "marks": [
-                    {"skillAtomic": "grasp", "enSkillDetail": f"{detail}: grasp", "startTime": stamp0, "endTime": stamp0 + n / LET_FPS / 2},
-                    {"skillAtomic": "release", "enSkillDetail": f"{detail}: release", "startTime": stamp0 + n / LET_FPS / 2, "endTime": stamp0 + n / LET_FPS},
+                    {
+                        "skillAtomic": "grasp",
+                        "enSkillDetail": f"{detail}: grasp",
+                        "startTime": stamp0,
+                        "endTime": stamp0 + n / LET_FPS / 2,
+                    },
+                    {
+                        "skillAtomic": "release",
+                        "enSkillDetail": f"{detail}: release",
+                        "startTime": stamp0 + n / LET_FPS / 2,
+                        "endTime": stamp0 + n / LET_FPS,
+                    },
                 ]
             },
             "topics": {
@@ -477,7 +496,9 @@ def _write_let(folder: Path, spec: SampleSpec) -> Labels:
                     "stamp_s": stamps_state.tolist(),
                     "name": [f"left_{j}" for j in LET_JOINTS] + [f"right_{j}" for j in LET_JOINTS],
                     "position": np.round(np.concatenate([state["left"], state["right"]], axis=1), 2).tolist(),
-                    "velocity": np.round(np.gradient(np.concatenate([state["left"], state["right"]], axis=1), axis=0) * LET_FPS, 2).tolist(),
+                    "velocity": np.round(
+                        np.gradient(np.concatenate([state["left"], state["right"]], axis=1), axis=0) * LET_FPS, 2
+                    ).tolist(),
                     "effort": np.round(rng.normal(0.2, 0.05, (n, 12)), 3).tolist(),
                 },
             },
@@ -542,10 +563,14 @@ def _write_lerobot_v21(
         }
         stats_rows.append({"episode_index": ep, "stats": stats})
         index += n
-    features: dict[str, dict] = {
-        key: {"dtype": "float32", "shape": [dims[key]], "names": names[key]} for key in dims
-    }
-    for key, dtype in (("timestamp", "float32"), ("frame_index", "int64"), ("episode_index", "int64"), ("index", "int64"), ("task_index", "int64")):
+    features: dict[str, dict] = {key: {"dtype": "float32", "shape": [dims[key]], "names": names[key]} for key in dims}
+    for key, dtype in (
+        ("timestamp", "float32"),
+        ("frame_index", "int64"),
+        ("episode_index", "int64"),
+        ("index", "int64"),
+        ("task_index", "int64"),
+    ):
         features[key] = {"dtype": dtype, "shape": [1], "names": None}
     info = {
         "codebase_version": "v2.1",
@@ -565,7 +590,9 @@ def _write_lerobot_v21(
         "note": SYNTHETIC_NOTE,
     }
     (root / "meta" / "info.json").write_text(json.dumps(info, indent=4))
-    (root / "meta" / "tasks.jsonl").write_text("".join(json.dumps({"task_index": i, "task": t}) + "\n" for i, t in enumerate(tasks)))
+    (root / "meta" / "tasks.jsonl").write_text(
+        "".join(json.dumps({"task_index": i, "task": t}) + "\n" for i, t in enumerate(tasks))
+    )
     (root / "meta" / "episodes.jsonl").write_text("".join(json.dumps(r) + "\n" for r in episode_rows))
     (root / "meta" / "episodes_stats.jsonl").write_text("".join(json.dumps(r) + "\n" for r in stats_rows))
 
@@ -644,7 +671,9 @@ def write_linkerhand_episodes(folder: Path, spec: SampleSpec, models: tuple[str,
     """LinkerHand JSON episodes; episode i uses hand model `models[i % len(models)]` (`L10`, `L20`)."""
     unknown = [m for m in models if m not in HAND_LINKERHAND]
     if not models or unknown:
-        raise ValueError(f"unknown LinkerHand models {unknown or models!r}; samples exist for {sorted(HAND_LINKERHAND)}")
+        raise ValueError(
+            f"unknown LinkerHand models {unknown or models!r}; samples exist for {sorted(HAND_LINKERHAND)}"
+        )
     labels: Labels = {}
     for ep in range(spec.num_episodes):
         model = models[ep % len(models)]
@@ -660,7 +689,10 @@ def write_linkerhand_episodes(folder: Path, spec: SampleSpec, models: tuple[str,
             cmd = np.round(_to_native(hand, tracks[side].angles_rad, side))
             state = np.clip(np.round(_first_order_lag(cmd, LINKERHAND_FPS, 0.05)), 0, 255)
             topics[f"/cb_{side}_hand_control_cmd"] = {"stamp_s": stamps.tolist(), "position": cmd.astype(int).tolist()}
-            topics[f"/cb_{side}_hand_state"] = {"stamp_s": (stamps + 0.004).tolist(), "position": state.astype(int).tolist()}
+            topics[f"/cb_{side}_hand_state"] = {
+                "stamp_s": (stamps + 0.004).tolist(),
+                "position": state.astype(int).tolist(),
+            }
         payload = {
             "synthetic": True,
             "note": SYNTHETIC_NOTE,

@@ -29,7 +29,7 @@ def _source(name: str):
 
 def test_every_source_written_with_synthetic_labels(samples):
     assert sorted(samples) == sorted(SAMPLE_SOURCES)
-    for name, folder in samples.items():
+    for folder in samples.values():
         assert "SYNTHETIC" in (folder / "README.md").read_text()
         labels = json.loads((folder / "gestures.json").read_text())
         assert labels["synthetic"] is True and len(labels["episodes"]) == EPISODES

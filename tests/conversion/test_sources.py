@@ -74,7 +74,9 @@ def test_dexycb_view_and_handedness(samples, tmp_path):
     # another camera: different coordinates, same hand (same inter-keypoint distances)
     a, b = ep0.hands[0].state_native[v], ep1.hands[0].state_native[v]
     assert not np.allclose(a, b)
-    np.testing.assert_allclose(np.linalg.norm(a[:, 8] - a[:, 0], axis=-1), np.linalg.norm(b[:, 8] - b[:, 0], axis=-1), atol=1e-5)
+    np.testing.assert_allclose(
+        np.linalg.norm(a[:, 8] - a[:, 0], axis=-1), np.linalg.norm(b[:, 8] - b[:, 0], axis=-1), atol=1e-5
+    )
 
 
 def test_egodex(samples):
@@ -178,7 +180,12 @@ def test_generic_lerobot_on_sample(samples):
             assert h.action_native.shape == h.state_native.shape
     # the long form with explicit names selects the same columns
     explicit = {
-        side: {"hand": "inspire_rh56_unitree", "state_names": [f"k{side.title()}Hand{j}" for j in ("Pinky", "Ring", "Middle", "Index", "ThumbBend", "ThumbRotation")]}
+        side: {
+            "hand": "inspire_rh56_unitree",
+            "state_names": [
+                f"k{side.title()}Hand{j}" for j in ("Pinky", "Ring", "Middle", "Index", "ThumbBend", "ThumbRotation")
+            ],
+        }
         for side in ("left", "right")
     }
     again = _read_all("lerobot", samples["lerobot"], hands=explicit)
@@ -193,7 +200,9 @@ def test_generic_lerobot_bad_options(samples):
         get_source("lerobot")(hands={"left": "inspire_rh56_unitree"})
     with pytest.raises(ValueError, match="'left' or 'right'"):
         get_source("lerobot")(hands={"middle": "x:y"})
-    src = get_source("lerobot")(hands={"left": {"hand": "inspire_rh56_unitree", "state_names": ["kLeftHandPinky", "kLeftHandThumbTip"]}})
+    src = get_source("lerobot")(
+        hands={"left": {"hand": "inspire_rh56_unitree", "state_names": ["kLeftHandPinky", "kLeftHandThumbTip"]}}
+    )
     with pytest.raises(ValueError, match=r"info.json.*unknown names \['kLeftHandThumbTip'\]"):
         src.read_episode(src.list_episodes(samples["lerobot"])[0])
 
@@ -206,14 +215,18 @@ def test_generic_lerobot_reads_v30_written_by_lerobot(samples, tmp_path):
     info = json.loads((samples["lerobot"] / "meta" / "info.json").read_text())
     names = info["features"]["observation.state"]["names"]
     features = {k: {"dtype": "float32", "shape": (26,), "names": names} for k in ("observation.state", "action")}
-    ds = LeRobotDataset.create(repo_id="local/g1_v30", fps=30, features=features, root=tmp_path / "v30", use_videos=False)
+    ds = LeRobotDataset.create(
+        repo_id="local/g1_v30", fps=30, features=features, root=tmp_path / "v30", use_videos=False
+    )
     src21 = get_source("lerobot")(hands=G1_HANDS)
     import pyarrow.parquet as pq
 
     for ref, ep in zip(src21.list_episodes(samples["lerobot"]), v21, strict=True):
         table = pq.read_table(f"{ref.root}/data/chunk-000/episode_{ref.episode_index:06d}.parquet").to_pydict()
         for s, a in zip(table["observation.state"], table["action"], strict=True):
-            ds.add_frame({"observation.state": np.asarray(s, np.float32), "action": np.asarray(a, np.float32), "task": ep.task})
+            ds.add_frame(
+                {"observation.state": np.asarray(s, np.float32), "action": np.asarray(a, np.float32), "task": ep.task}
+            )
         ds.save_episode()
     ds.finalize()
     v30 = _read_all("lerobot", tmp_path / "v30", hands=G1_HANDS)

@@ -121,7 +121,9 @@ def test_linkerhand_wrong_width_and_model(samples):
     data = json.loads(path.read_text())
     data["hand_model"] = "L20"  # L10 values under an L20 label: 10 columns where 20 are expected
     path.write_text(json.dumps(data))
-    with pytest.raises(ValueError, match=r"'/cb_left_hand_state'.*'position' has shape \(\d+, 10\), expected \(T, 20\)"):
+    with pytest.raises(
+        ValueError, match=r"'/cb_left_hand_state'.*'position' has shape \(\d+, 10\), expected \(T, 20\)"
+    ):
         src.read_episode(ref)
     del data["hand_model"]
     path.write_text(json.dumps(data))
@@ -136,7 +138,13 @@ def test_linkerhand_lerobot_export(samples, tmp_path):
     rng = np.random.default_rng(0)
     names = [f"right_hand_joint_{k}" for k in range(10)]
     values = rng.integers(0, 256, size=(25, 10)).astype(np.float64)
-    _write_lerobot_v21(tmp_path / "lh", 30.0, "linkerhand_l10", {"observation.state": names, "action": names}, [({"observation.state": values, "action": values}, "wave")])
+    _write_lerobot_v21(
+        tmp_path / "lh",
+        30.0,
+        "linkerhand_l10",
+        {"observation.state": names, "action": names},
+        [({"observation.state": values, "action": values}, "wave")],
+    )
     with pytest.raises(ValueError, match="needs model="):
         get_source("linkerhand")().list_episodes(tmp_path / "lh")
     src = get_source("linkerhand")(model="L10")
@@ -199,7 +207,10 @@ def test_dexora_missing_hand_joint_names(samples):
     names = info["features"]["observation.state"]["names"]
     names[names.index("right_hand_joint_7_obs")] = "right_hand_joint_seven_obs"
     info_path.write_text(json.dumps(info))
-    with pytest.raises(ValueError, match=r"info\.json features\['observation.state'\]: missing right hand joint names \['right_hand_joint_7'\]"):
+    with pytest.raises(
+        ValueError,
+        match=r"info\.json features\['observation.state'\]: missing right hand joint names \['right_hand_joint_7'\]",
+    ):
         src.read_episode(ref)
 
 
@@ -212,7 +223,11 @@ def test_not_a_lerobot_dataset(tmp_path):
 def test_oakink2_needs_mano(tmp_path):
     anno = tmp_path / "anno_preview"
     anno.mkdir()
-    frame = {f"{p}__{k}": np.zeros(s) for p in ("rh", "lh") for k, s in (("pose_coeffs", (1, 16, 4)), ("tsl", (1, 3)), ("betas", (1, 10)))}
+    frame = {
+        f"{p}__{k}": np.zeros(s)
+        for p in ("rh", "lh")
+        for k, s in (("pose_coeffs", (1, 16, 4)), ("tsl", (1, 3)), ("betas", (1, 10)))
+    }
     with open(anno / "seq_a.pkl", "wb") as f:
         pickle.dump({"mocap_frame_id_list": [0, 1], "raw_mano": {0: frame, 1: frame}}, f)
     src = get_source("oakink2")()
