@@ -82,7 +82,14 @@ def _norm(x: Array) -> Array:
 
 def _mat3(rows: list[list[Array]]) -> Array:
     """(..., 3, 3) from 3x3 nested lists of (...) arrays."""
-    return _stack([_stack(r, -1) for r in rows], -2)
+    if isinstance(rows[0][0], torch.Tensor):
+        return _stack([_stack(r, -1) for r in rows], -2)
+    shape = np.broadcast_shapes(*(np.shape(e) for r in rows for e in r))
+    out = np.empty((*shape, 3, 3))
+    for i, r in enumerate(rows):
+        for j, e in enumerate(r):
+            out[..., i, j] = e
+    return out
 
 
 def _rot_x_neg(a: Array) -> Array:

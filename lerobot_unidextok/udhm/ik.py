@@ -219,12 +219,15 @@ def _local(r: np.ndarray, v: np.ndarray) -> np.ndarray:
 def _initial_slots(target: np.ndarray, offsets: np.ndarray, bones: np.ndarray, limit_weight: float) -> np.ndarray:
     """Closed-form start (N, 5, 6): each segment direction read off in its parent's frame.
 
-    The pinky twist is only identifiable from a flexed finger, so three starts are built (no twist and
-    the two twists that put the observed flexion plane's normal into the twisted palm plane) and the
-    one with the lowest LM cost (keypoint residual + limit penalty) wins (ties: the smallest twist).
+    The pinky twist is only identifiable from a flexed finger, so the pinky gets three starts (no
+    twist, and the two twists that put the observed flexion plane's normal into the twisted palm
+    plane); the one with the lowest LM cost (keypoint residual + limit penalty) wins.
     """
-    axis = _unit(offsets)  # (N, 5, 3) twist axes
-    lateral = _unit(np.cross(target[:, :, 0] - offsets, target[:, :, 2] - target[:, :, 0]))
+    slots = _best_branch(_slots_given_twist(target, offsets, np.zeros(target.shape[:2])), slice(None))
+    p = slice(4, 5)  # the pinky, the only finger with a twist slot
+    tgt, off, bon = target[:, p], offsets[:, p], bones[:, p]
+    axis = _unit(off)  # (N, 1, 3) twist axis
+    lateral = _unit(np.cross(tgt[:, :, 0] - off, tgt[:, :, 2] - tgt[:, :, 0]))
     # l . R(u, t) e_x = 0  <=>  (A - C) cos t + B sin t + C = 0
     a_c = lateral[..., 0]
     b_c = np.einsum("...i,...i->...", lateral, np.cross(axis, np.array([1.0, 0.0, 0.0])))
@@ -233,38 +236,41 @@ def _initial_slots(target: np.ndarray, offsets: np.ndarray, bones: np.ndarray, l
     half = np.arccos(np.clip(np.divide(-c_c, amp, out=np.zeros_like(amp), where=amp > 1e-12), -1.0, 1.0))
     best, best_score = None, None
     for twist in (np.zeros_like(a_c), _wrap(phase + half), _wrap(phase - half)):
-        twist = np.where(CHAIN_ACTIVE[:, 0], twist, 0.0)
-        slots = _best_branch(_slots_given_twist(target, offsets, axis, twist))
-        fit = finger_chain(slots, offsets, bones).points[:, :, 1:]  # (N, 5, 3, 3)
-        score = ((fit - target) ** 2).sum((-1, -2)) + (limit_weight * _limit_excess(slots)) ** 2 + 1e-12 * np.abs(twist)
+        cand = _best_branch(_slots_given_twist(tgt, off, twist, p), p)
+        fit = finger_chain(cand, off, bon, AXIAL_PRONATION_RAD[p]).points[:, :, 1:]  # (N, 1, 3, 3)
+        score = ((fit - tgt) ** 2).sum((-1, -2)) + (limit_weight * _limit_excess(cand, p)) ** 2 + 1e-12 * np.abs(twist)
         if best is None:
-            best, best_score = slots, score
+            best, best_score = cand, score
         else:
             take = score < best_score
-            best, best_score = np.where(take[..., None], slots, best), np.where(take, score, best_score)
-    return best
+            best, best_score = np.where(take[..., None], cand, best), np.where(take, score, best_score)
+    slots[:, p] = best
+    return slots
 
 
-def _slots_given_twist(target, offsets, axis, twist) -> np.ndarray:
-    n = len(target)
+def _slots_given_twist(target, offsets, twist, fingers: slice = slice(None)) -> np.ndarray:
+    """Analytic slots (N, k, 6) for the fingers `fingers` (k of them) given their twist (N, k)."""
+    active, pron = CHAIN_ACTIVE[fingers], AXIAL_PRONATION_RAD[fingers]
     d1 = _unit(target[:, :, 0] - offsets)
     d2 = _unit(target[:, :, 1] - target[:, :, 0])
     d3 = _unit(target[:, :, 2] - target[:, :, 1])
-    abd1, flex1 = _abd_flex(_local(rodrigues(axis, twist), d1))
-    slots = np.zeros((n, 5, 6))
+    twist = np.where(active[:, 0], twist, 0.0)
+    abd1, flex1 = _abd_flex(_local(rodrigues(_unit(offsets), twist), d1))
+    slots = np.zeros((*target.shape[:2], 6))
     slots[..., 0], slots[..., 1], slots[..., 2] = twist, abd1, flex1
-    d2l = _local(finger_chain(slots, offsets, np.ones_like(offsets)).r_1, d2)
+    ones = np.ones_like(offsets)
+    d2l = _local(finger_chain(slots, offsets, ones, pron).r_1, d2)
     abd2, flex2 = _abd_flex(d2l)
-    slots[..., 3] = np.where(CHAIN_ACTIVE[:, 3], abd2, 0.0)
-    slots[..., 4] = np.where(CHAIN_ACTIVE[:, 3], flex2, np.arctan2(d2l[..., 0], d2l[..., 2]))
-    d3l = _local(finger_chain(slots, offsets, np.ones_like(offsets)).r_2, d3)
+    slots[..., 3] = np.where(active[:, 3], abd2, 0.0)
+    slots[..., 4] = np.where(active[:, 3], flex2, np.arctan2(d2l[..., 0], d2l[..., 2]))
+    d3l = _local(finger_chain(slots, offsets, ones, pron).r_2, d3)
     slots[..., 5] = np.arctan2(d3l[..., 0], d3l[..., 2])
     return slots
 
 
-def _limit_excess(slots: np.ndarray) -> np.ndarray:
-    """Sum over slots of the distance outside the limits (rad), (N, 5)."""
-    lo, hi = SLOT_LIMITS_RAD[..., 0], SLOT_LIMITS_RAD[..., 1]
+def _limit_excess(slots: np.ndarray, fingers: slice = slice(None)) -> np.ndarray:
+    """Sum over slots of the distance outside the limits (rad), (N, k)."""
+    lo, hi = SLOT_LIMITS_RAD[fingers, :, 0], SLOT_LIMITS_RAD[fingers, :, 1]
     return (np.clip(lo - slots, 0, None) + np.clip(slots - hi, 0, None)).sum(-1)
 
 
@@ -272,7 +278,7 @@ def _wrap(x: np.ndarray) -> np.ndarray:
     return (x + np.pi) % (2 * np.pi) - np.pi
 
 
-def _best_branch(slots: np.ndarray) -> np.ndarray:
+def _best_branch(slots: np.ndarray, fingers: slice) -> np.ndarray:
     """Among the equivalent solutions, the one furthest inside the joint limits.
 
     Rot_x(-a) Rot_y(f) = Rot_x(-(a + pi)) Rot_y(pi - f) Rot_z(pi), and Rot_z(pi) flips the sign of every
@@ -286,9 +292,9 @@ def _best_branch(slots: np.ndarray) -> np.ndarray:
             twin[..., j + 1] = _wrap(np.pi - c[..., j + 1])
             twin[..., j + 2 :] = -c[..., j + 2 :]
             if j == 3:  # the twin of joint 2 exists only where abd2 is a real DoF (thumb MCP)
-                twin = np.where(CHAIN_ACTIVE[:, 3, None], twin, c)
+                twin = np.where(CHAIN_ACTIVE[fingers, 3, None], twin, c)
             cands.append(twin)
-    best = np.argmin(np.stack([_limit_excess(c) for c in cands]), axis=0)  # (N, 5)
+    best = np.argmin(np.stack([_limit_excess(c, fingers) for c in cands]), axis=0)  # (N, 5)
     return np.take_along_axis(np.stack(cands), best[None, ..., None], axis=0)[0]
 
 
@@ -354,12 +360,15 @@ def _levenberg_marquardt(slots, target, offsets, bones, iterations, limit_weight
             trial, tgt[todo], off[todo], bon[todo], pron[todo], a_, lo[todo], hi[todo], limit_weight, True
         )
         cost_t = np.einsum("mi,mi->m", res_t, res_t)
-        ok = cost_t < cost[todo]
+        before = cost[todo]
+        ok = cost_t < before
         acc = todo[ok]
         q[acc], res[acc], jac[acc], cost[acc] = trial[ok], res_t[ok], jac_t[ok], cost_t[ok]
         lam[todo] = np.clip(np.where(ok, lam[todo] * 0.3, lam[todo] * 10.0), 1e-12, 1e10)
-        small = np.abs(step).max(-1) < 1e-10
-        done = (ok & small) | (~ok & (lam[todo] >= 1e10)) | (~ok & small)
+        small = np.abs(step).max(-1) < 1e-9  # rad; quadratic convergence leaves ~1e-15 after it
+        # converged: tiny step, or relative cost decrease below 1e-10, or an exact fit (< 1e-12 m)
+        flat = ok & (before - cost_t <= 1e-10 * before)
+        done = small | flat | (cost_t < 1e-24) | (~ok & (before < 1e-24)) | (lam[todo] >= 1e10)
         todo = todo[~done]
     return _wrap(q).reshape(shape)
 
