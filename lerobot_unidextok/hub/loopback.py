@@ -190,7 +190,7 @@ class _Handler(BaseHTTPRequestHandler):
                      "oid": git_blob_oid(files[f["path"]]) if f["path"] in files else None} for f in wanted]})
             if rest[0] == "commit":
                 return self._commit(repo, revision, dict(files))
-            return self._tree(files, unquote("/".join(rest[2:])), query.get("recursive", ["False"])[0] == "True")
+            return self._tree(files, unquote("/".join(rest[2:])), query.get("recursive", ["false"])[0].lower() == "true")
         return self._json(404, {"error": f"loopback hub has no route for {m} {self.path}"})
 
     def _commit(self, repo: _Repo, branch: str, files: dict[str, bytes]) -> None:
