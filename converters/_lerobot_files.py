@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -134,15 +135,28 @@ def list_episodes(root: str | Path) -> list[LeRobotEpisodeRef]:
 
 
 def _episodes_table_v30(root: Path) -> dict[str, list]:
+    """All rows of `meta/episodes/*.parquet`, cached per folder and file state (workers read many episodes)."""
+    files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
+    stamp = tuple((str(f), f.stat().st_mtime_ns, f.stat().st_size) for f in files)
+    return _episodes_table_cached(str(root), stamp)
+
+
+_EPISODE_COLUMNS = ("episode_index", "tasks", "length", "data/chunk_index", "data/file_index")  # skip the stats
+
+
+@lru_cache(maxsize=8)
+def _episodes_table_cached(root_str: str, stamp: tuple) -> dict[str, list]:
     import pyarrow.parquet as pq
 
-    files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
+    root = Path(root_str)
+    files = [Path(f) for f, _, _ in stamp]
     if not files:
         raise LeRobotFormatError(f"{root / 'meta' / 'episodes'}: no chunk-*/file-*.parquet episode metadata")
     columns: dict[str, list] = {}
     for f in files:
         try:
-            table = pq.read_table(f).to_pydict()
+            present = pq.read_schema(f).names
+            table = pq.read_table(f, columns=[c for c in _EPISODE_COLUMNS if c in present]).to_pydict()
         except Exception as exc:  # noqa: BLE001 - pyarrow raises several types for corrupt files
             raise LeRobotFormatError(f"{f}: unreadable parquet ({exc})") from exc
         for key, values in table.items():
@@ -194,7 +208,11 @@ def read_episode(ref: LeRobotEpisodeRef, keys: list[str]) -> EpisodeColumns:
         missing = [k for k in [*keys, "episode_index"] if k not in schema_names]
         if missing:
             raise LeRobotFormatError(f"{path}: missing column(s) {missing}; columns present: {schema_names}")
-        table = pq.read_table(path, columns=[k for k in wanted if k in schema_names])
+        table = pq.read_table(
+            path,
+            columns=[k for k in wanted if k in schema_names],
+            filters=[("episode_index", "=", ref.episode_index)],  # v3.0 files hold many episodes
+        )
     except LeRobotFormatError:
         raise
     except Exception as exc:  # noqa: BLE001 - truncated parquet raises ArrowInvalid/OSError
