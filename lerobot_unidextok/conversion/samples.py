@@ -62,6 +62,14 @@ class SampleSpec:
     num_episodes: int = 10
     num_frames: int = 150  # per episode, before per-episode variation (+-20 %)
     seed: int = 0
+    progress: bool = False  # tqdm bar over the episodes of each source
+
+
+def _episodes(spec: SampleSpec, source: str):
+    """Episode indices of one source, with a progress bar when asked."""
+    from tqdm.auto import tqdm
+
+    return tqdm(range(spec.num_episodes), desc=f"sample {source}", unit="ep", disable=not spec.progress, leave=False)
 
 
 def write_samples(
@@ -71,6 +79,7 @@ def write_samples(
     frames_per_episode: int = 150,
     seed: int = 0,
     overwrite: bool = False,
+    progress: bool = False,
 ) -> dict[str, Path]:
     """Write synthetic raw datasets for `sources` (default: all with a sample) under `out_dir/<source>`.
 
@@ -91,7 +100,7 @@ def write_samples(
             f"need episodes_per_source >= 1 and frames_per_episode >= 10, got {episodes_per_source}, "
             f"{frames_per_episode}"
         )
-    spec = SampleSpec(episodes_per_source, frames_per_episode, seed)
+    spec = SampleSpec(episodes_per_source, frames_per_episode, seed, progress)
     out = Path(out_dir)
     written: dict[str, Path] = {}
     for name in names:
@@ -261,7 +270,7 @@ def _write_dexycb(folder: Path, spec: SampleSpec) -> Labels:
             }
         )
     )
-    for ep in range(spec.num_episodes):
+    for ep in _episodes(spec, "dexycb"):
         rng = _rng("dexycb", spec, ep)
         n = _num_frames(rng, spec)
         subject = f"20200709-subject-{ep % 3 + 1:02d}"
@@ -388,7 +397,7 @@ def _write_egodex(folder: Path, spec: SampleSpec) -> Labels:
 
     labels: Labels = {}
     task_names = list(EGODEX_TASKS)
-    for ep in range(spec.num_episodes):
+    for ep in _episodes(spec, "egodex"):
         rng = _rng("egodex", spec, ep)
         n = _num_frames(rng, spec)
         task = task_names[ep % len(task_names)]
@@ -453,7 +462,7 @@ LET_JOINTS = ("thumb", "thumb_aux", "index", "middle", "ring", "pinky")
 
 def _write_let(folder: Path, spec: SampleSpec) -> Labels:
     labels: Labels = {}
-    for ep in range(spec.num_episodes):
+    for ep in _episodes(spec, "let"):
         rng = _rng("let", spec, ep)
         n = _num_frames(rng, spec)
         task = LET_TASKS[ep % len(LET_TASKS)]
@@ -627,7 +636,7 @@ def dexora_names(suffix: str) -> list[str]:
 def _write_dexora(folder: Path, spec: SampleSpec) -> Labels:
     labels: Labels = {}
     episodes = []
-    for ep in range(spec.num_episodes):
+    for ep in _episodes(spec, "dexora"):
         rng = _rng("dexora", spec, ep)
         n = _num_frames(rng, spec)
         tracks = _robot_tracks(rng, n, DEXORA_FPS, ("left", "right"))
@@ -675,7 +684,7 @@ def write_linkerhand_episodes(folder: Path, spec: SampleSpec, models: tuple[str,
             f"unknown LinkerHand models {unknown or models!r}; samples exist for {sorted(HAND_LINKERHAND)}"
         )
     labels: Labels = {}
-    for ep in range(spec.num_episodes):
+    for ep in _episodes(spec, "linkerhand"):
         model = models[ep % len(models)]
         hand = HAND_LINKERHAND[model]
         rng = _rng("linkerhand", spec, ep)
@@ -728,7 +737,7 @@ G1_TASKS = ("Pick up the yellow bottle on the table.", "Hand the cup to the left
 def _write_lerobot(folder: Path, spec: SampleSpec) -> Labels:
     labels: Labels = {}
     episodes = []
-    for ep in range(spec.num_episodes):
+    for ep in _episodes(spec, "lerobot"):
         rng = _rng("lerobot", spec, ep)
         n = _num_frames(rng, spec)
         tracks = _robot_tracks(rng, n, G1_FPS, ("left", "right"))
