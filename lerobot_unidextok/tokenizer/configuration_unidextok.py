@@ -12,10 +12,12 @@ FORMAT_VERSION = 1
 DEFAULT_HAND_NAMES: tuple[str, ...] = (
     "human",
     "inspire_rh56",
+    "inspire_rh56_unitree",
     "linkerhand_l6",
     "linkerhand_l10",
     "linkerhand_l20",
     "xhand1",
+    "brainco_revo1",
     "allegro",
     "leap",
     "shadow",

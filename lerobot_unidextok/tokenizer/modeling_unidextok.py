@@ -218,6 +218,28 @@ class UniDexTok(
         zq = self.quantizer.get_output_from_indices(codes)  # (B, N, C)
         return self._decode_latent(zq, c) * ANGLE_SCALE_RAD  # (B, 22) radians
 
+    @torch.no_grad()
+    def add_hands(self, names: Sequence[str]) -> list[str]:
+        """Grow the hand vocabulary in place (few-shot adaptation); new rows start as the unknown embedding.
+
+        Returns the names actually added (known names are skipped).
+        """
+        new = [n for n in dict.fromkeys(names) if n not in self._hand_index]
+        if not new:
+            return []
+        old = self.hand_embed.weight  # (H + 1, C)
+        known, unknown = old[:-1], old[-1:]
+        weight = torch.cat([known, unknown.expand(len(new), -1), unknown], dim=0)  # (H + new + 1, C)
+        self.hand_embed = nn.Embedding(weight.shape[0], weight.shape[1], device=old.device, dtype=old.dtype)
+        self.hand_embed.weight.copy_(weight)
+        self.config.hand_names = [*self.config.hand_names, *new]
+        self._hand_index = {name: i for i, name in enumerate(self.config.hand_names)}
+        self.unknown_hand_id = len(self.config.hand_names)
+        return new
+
+    def knows_hand(self, name: str) -> bool:
+        return name in self._hand_index
+
     @property
     def num_codes_per_state(self) -> int:
         return self.config.num_tokens * self.config.num_groups

@@ -1,0 +1,75 @@
+"""Evaluate a tokenizer on held-out rows and write the report as JSON + a Markdown table."""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from lerobot_unidextok.evaluation.metrics import reconstruction_metrics
+from lerobot_unidextok.evaluation.reconstruct import codebook_usage, reconstruct
+
+
+def evaluate_tokenizer(model, data, batch_size: int = 4096) -> dict:
+    """Per-hand and overall metrics of decode(encode(x)); hands unknown to the model are scored
+    zero-shot through its unknown-hand embedding and flagged `zero_shot`."""
+    rec = reconstruct(model, data.states_rad, data.hands, batch_size=batch_size, allow_unknown=True)
+    report = reconstruction_metrics(rec.states_rad, data.states_rad, data.hands, data.masks)
+    size = model.config.codebook_size
+    report["overall"]["codebook"] = codebook_usage(rec.codes, size)
+    for hand, entry in report["per_hand"].items():
+        entry["zero_shot"] = not model.knows_hand(hand)
+        entry["codebook"] = codebook_usage(rec.codes[data.hands == hand], size)
+    report["model"] = {"hand_names": list(model.config.hand_names), "num_tokens": model.config.num_tokens,
+                       "num_groups": model.config.num_groups, "codebook_size": size}  # fmt: skip
+    return report
+
+
+def _fmt(x: float, digits: int = 3) -> str:
+    return "nan" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
+
+
+def markdown_table(report: dict) -> str:
+    """Per-hand summary table, then the per-joint MAE (deg) table."""
+    lines = [
+        "| hand | rows | active DoFs | MPJAE (deg) | MPJPE (mm) | fingertip (mm) | code usage | zero-shot |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    rows = [*report["per_hand"].items(), ("**overall**", report["overall"])]
+    for hand, e in rows:
+        usage = e.get("codebook", {}).get("usage", float("nan"))
+        zs = "yes" if e.get("zero_shot") else ("" if hand == "**overall**" else "no")
+        lines.append(
+            f"| {hand} | {e['rows']} | {e['active_dofs']} | {_fmt(e['mpjae_deg'])} | {_fmt(e['mpjpe_mm'])} | "
+            f"{_fmt(e['fingertip_mm'])} | {_fmt(usage, 2)} | {zs} |"
+        )
+    hands = list(report["per_hand"])
+    lines += ["", "Per-joint MAE (deg), active rows only:", "", "| joint | " + " | ".join(hands) + " |",
+              "|---|" + "---|" * len(hands)]  # fmt: skip
+    joints = list(report["overall"]["per_joint_deg"])
+    for j in joints:
+        cells = [_fmt(report["per_hand"][h]["per_joint_deg"][j], 2) if j in report["per_hand"][h]["per_joint_deg"] else "-" for h in hands]
+        lines.append(f"| {j} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return None if math.isnan(float(x)) else float(x)
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+def write_report(report: dict, stem: str | Path) -> str:
+    """Write `<stem>.json` and `<stem>.md`; returns the Markdown text."""
+    stem = Path(stem)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    stem.with_suffix(".json").write_text(json.dumps(_jsonable(report), indent=2))
+    md = markdown_table(report)
+    stem.with_suffix(".md").write_text(md + "\n")
+    return md

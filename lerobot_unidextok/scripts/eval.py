@@ -1,0 +1,59 @@
+"""`unidextok-eval`: per-hand MPJAE / MPJPE / fingertip error and codebook usage of a tokenizer.
+
+    unidextok-eval --checkpoint=outputs/small/best --datasets='[data/sample_mixture]'
+    unidextok-eval --checkpoint=me/unidextok-small --datasets='[me/inspire_udhm]' --split=test
+
+Hands the checkpoint never saw are evaluated zero-shot (unknown-hand embedding) and flagged.
+Writes <output>.json and <output>.md and prints the table.
+"""
+
+import logging
+from dataclasses import dataclass, field
+
+import draccus
+
+
+@dataclass
+class EvalConfig:
+    checkpoint: str = ""  # tokenizer folder (config.json + model.safetensors) or Hub repo id
+    datasets: list[str] = field(default_factory=list)  # converted UDHM datasets: local roots or repo ids
+    split: str = "test"  # train | test | all
+    hands: list[str] = field(default_factory=list)  # evaluate only these hands (empty = all)
+    output: str = "outputs/unidextok_eval/eval"  # path stem of the .json / .md report
+    device: str = "cpu"
+
+
+def run(cfg: EvalConfig) -> dict:
+    from lerobot_unidextok.evaluation import evaluate_tokenizer, write_report
+    from lerobot_unidextok.tokenizer import UniDexTok
+    from lerobot_unidextok.training import load_hand_states
+
+    if not cfg.checkpoint:
+        raise SystemExit("error: --checkpoint is required (a folder with config.json + model.safetensors or a repo id)")
+    if cfg.split not in ("train", "test", "all"):
+        raise SystemExit(f"error: --split must be train, test or all, got {cfg.split!r}")
+    data = load_hand_states(cfg.datasets, split=None if cfg.split == "all" else cfg.split)
+    if cfg.hands:
+        data = data.only(cfg.hands)
+        if len(data) == 0:
+            raise SystemExit(f"error: no rows for hands {cfg.hands} in {cfg.datasets}")
+    model = UniDexTok.from_pretrained(cfg.checkpoint).to(cfg.device)
+    report = evaluate_tokenizer(model, data)
+    report["checkpoint"], report["datasets"], report["split"] = cfg.checkpoint, cfg.datasets, cfg.split
+    md = write_report(report, cfg.output)
+    print(md)
+    return report
+
+
+@draccus.wrap()
+def eval_cli(cfg: EvalConfig) -> None:
+    run(cfg)
+
+
+def main() -> None:
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    eval_cli()
+
+
+if __name__ == "__main__":
+    main()

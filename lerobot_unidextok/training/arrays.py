@@ -1,0 +1,132 @@
+"""In-memory per-hand rows for training and evaluation, and the hand-mixing sampler."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lerobot_unidextok.constants import UDHM_DIM
+
+
+@dataclass
+class HandStates:
+    """Rows of one hand state each: (N, 22) radians, (N,) hand names, (N, 22) active-DoF masks."""
+
+    states_rad: np.ndarray
+    hands: np.ndarray
+    masks: np.ndarray
+    episode_index: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.states_rad = np.asarray(self.states_rad, dtype=np.float32)
+        self.hands = np.asarray(self.hands).astype(str)
+        self.masks = np.asarray(self.masks, dtype=bool)
+        n = len(self.states_rad)
+        if self.states_rad.ndim != 2 or self.states_rad.shape[1] != UDHM_DIM:
+            raise ValueError(f"states_rad must be (N, {UDHM_DIM}), got {self.states_rad.shape}")
+        if self.hands.shape != (n,):
+            raise ValueError(f"hands must be (N,) = ({n},), got {self.hands.shape}")
+        if self.masks.shape != self.states_rad.shape:
+            raise ValueError(f"masks must be {self.states_rad.shape}, got {self.masks.shape}")
+        if not np.isfinite(self.states_rad).all():
+            raise ValueError("states_rad contains NaN/inf; drop or fill those frames first")
+        if self.episode_index is not None:
+            self.episode_index = np.asarray(self.episode_index, dtype=np.int64)
+
+    def __len__(self) -> int:
+        return len(self.states_rad)
+
+    def select(self, rows: np.ndarray) -> "HandStates":
+        ep = None if self.episode_index is None else self.episode_index[rows]
+        return HandStates(self.states_rad[rows], self.hands[rows], self.masks[rows], ep)
+
+    def only(self, hands: list[str] | str) -> "HandStates":
+        hands = [hands] if isinstance(hands, str) else hands
+        return self.select(np.flatnonzero(np.isin(self.hands, hands)))
+
+    def without(self, hands: list[str] | str) -> "HandStates":
+        hands = [hands] if isinstance(hands, str) else hands
+        return self.select(np.flatnonzero(~np.isin(self.hands, hands)))
+
+    def hand_names(self) -> list[str]:
+        return sorted(set(self.hands.tolist()))
+
+    @staticmethod
+    def concat(parts: list["HandStates"]) -> "HandStates":
+        if not parts:
+            raise ValueError("nothing to concatenate: no hand-state arrays given")
+        eps = None
+        if all(p.episode_index is not None for p in parts):
+            eps = np.concatenate([p.episode_index for p in parts])
+        return HandStates(
+            np.concatenate([p.states_rad for p in parts]),
+            np.concatenate([p.hands for p in parts]),
+            np.concatenate([p.masks for p in parts]),
+            eps,
+        )
+
+    @staticmethod
+    def from_frames(frames) -> "HandStates":
+        """From `lerobot_unidextok.data.UdhmFrames`."""
+        return HandStates(frames.states_rad, frames.hands, frames.masks, frames.episode_index)
+
+
+def load_hand_states(datasets: list[str], split: str | None) -> HandStates:
+    """Per-hand rows of one split of several converted datasets (local roots or repo ids)."""
+    from pathlib import Path
+
+    from lerobot_unidextok.data import load_udhm_frames
+
+    if not datasets:
+        raise ValueError("no datasets given: pass --datasets='[path/or/repo_id, ...]'")
+    parts = []
+    for ds in datasets:
+        if Path(ds).expanduser().is_dir():
+            frames = load_udhm_frames(root=Path(ds).expanduser(), split=split)
+        else:
+            frames = load_udhm_frames(repo_id=ds, split=split)
+        parts.append(HandStates.from_frames(frames))
+    return HandStates.concat(parts)
+
+
+def subsample_episodes(data: HandStates, fraction: float, seed: int = 0) -> HandStates:
+    """Keep the first `fraction` of each hand's frames, per episode where known (few-shot)."""
+    if not 0.0 < fraction <= 1.0:
+        raise ValueError(f"fraction must be in (0, 1], got {fraction}")
+    if fraction == 1.0:
+        return data
+    rng = np.random.default_rng(seed)
+    keep = []
+    for hand in data.hand_names():
+        rows = np.flatnonzero(data.hands == hand)
+        if data.episode_index is not None:
+            eps = np.unique(data.episode_index[rows])
+            rng.shuffle(eps)
+            taken = []
+            target = max(1, int(round(fraction * len(rows))))
+            for ep in eps:  # whole episodes first, then a slice of the last one
+                ep_rows = rows[data.episode_index[rows] == ep]
+                taken.append(ep_rows[: target - sum(map(len, taken))])
+                if sum(map(len, taken)) >= target:
+                    break
+            keep.append(np.concatenate(taken))
+        else:
+            keep.append(rng.choice(rows, size=max(1, int(round(fraction * len(rows)))), replace=False))
+    return data.select(np.sort(np.concatenate(keep)))
+
+
+class HandMixSampler:
+    """Draws batches of row indices with a fixed share per hand (relative weights)."""
+
+    def __init__(self, hands: np.ndarray, weights: dict[str, float], default_weight: float, seed: int) -> None:
+        names, inverse, counts = np.unique(hands, return_inverse=True, return_counts=True)
+        w = np.array([weights.get(n, default_weight) for n in names], dtype=np.float64)
+        if w.sum() <= 0:
+            raise ValueError(f"all hand weights are zero for hands {names.tolist()}; give at least one a weight > 0")
+        share = w / w.sum()
+        self.hand_share = dict(zip(names.tolist(), share.tolist(), strict=True))
+        self.p = share[inverse] / counts[inverse]  # per-row probability
+        self.p /= self.p.sum()
+        self.rng = np.random.default_rng(seed)
+
+    def sample(self, batch_size: int) -> np.ndarray:
+        return self.rng.choice(len(self.p), size=batch_size, p=self.p)

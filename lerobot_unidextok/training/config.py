@@ -1,0 +1,67 @@
+"""Typed training configuration (draccus reads it from YAML / CLI)."""
+
+from dataclasses import dataclass, field
+
+
+@dataclass
+class TrainConfig:
+    """How to train (or adapt) a UniDexTok tokenizer."""
+
+    # --- data -------------------------------------------------------------------------------------
+    # Converted UDHM LeRobotDatasets: local roots, or repo ids resolved in HF_LEROBOT_HOME.
+    datasets: list[str] = field(default_factory=list)
+    # Share of each hand in a batch (relative weights). Hands not listed get `default_hand_weight`.
+    hand_weights: dict[str, float] = field(default_factory=dict)
+    # 1.0 for every hand = balanced mixing; set 0 to train only on the hands listed in hand_weights.
+    default_hand_weight: float = 1.0
+    # Hands dropped from training (kept in evaluation): the zero-shot protocol.
+    exclude_hands: list[str] = field(default_factory=list)
+
+    # --- model ------------------------------------------------------------------------------------
+    preset: str = "small"  # UniDexTokConfig preset: paper | small | tiny
+    # Hand vocabulary; empty = the preset's default list plus every hand in the training data.
+    hand_names: list[str] = field(default_factory=list)
+    init_from: str | None = None  # start from a pretrained checkpoint (folder or repo id)
+
+    # --- optimisation -------------------------------------------------------------------------------
+    steps: int = 4000
+    batch_size: int = 256
+    lr: float = 1e-3
+    min_lr_ratio: float = 0.05  # cosine decays to lr * min_lr_ratio
+    warmup_steps: int = 200
+    weight_decay: float = 0.01  # not applied to codebooks, norms, embeddings, biases
+    betas: tuple[float, float] = (0.9, 0.99)
+    grad_clip_norm: float = 1.0
+    reseed_every: int = 50  # dead-code re-seeding period in steps (0 disables)
+    seed: int = 0
+
+    # --- evaluation and checkpoints ----------------------------------------------------------------
+    eval_every: int = 250
+    eval_max_frames: int = 20000  # held-out rows used for checkpoint selection (all if fewer)
+    output_dir: str = "outputs/unidextok"
+    resume: bool = False  # continue from output_dir/last (model, optimiser, step)
+    save_last_every: int = 500
+
+    # --- few-shot adaptation ------------------------------------------------------------------------
+    # When > 0: epochs over `fraction` of the training frames (steps is then derived).
+    fraction: float = 1.0
+    epochs: float = 0.0
+
+    # --- runtime ------------------------------------------------------------------------------------
+    device: str = "cpu"  # cpu | cuda | cuda:N ; multi-GPU through `accelerate launch`
+    num_threads: int = 0  # torch CPU threads (0 = torch default)
+    progress: bool = True  # tqdm bar
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.fraction <= 1.0:
+            raise ValueError(f"fraction must be in (0, 1], got {self.fraction}")
+        if self.steps < 1 and self.epochs <= 0:
+            raise ValueError(f"steps must be >= 1 (or set epochs > 0), got {self.steps}")
+        if self.batch_size < 1:
+            raise ValueError(f"batch_size must be >= 1, got {self.batch_size}")
+        if self.warmup_steps < 0:
+            raise ValueError(f"warmup_steps must be >= 0, got {self.warmup_steps}")
+        bad = {h: w for h, w in self.hand_weights.items() if w < 0}
+        if bad or self.default_hand_weight < 0:
+            raise ValueError(f"hand weights must be >= 0, got {bad or self.default_hand_weight}")
+        self.betas = tuple(self.betas)
