@@ -14,9 +14,10 @@ reader in `converters/<source>.py`:
 
 OakInk-v2 stores MANO parameters only; making them needs the licensed MANO model, so no sample is
 written for it. Motion: `sample_motion` (named gestures in UDHM, joint coupling, noise); human
-keypoints come from UDHM forward kinematics with varied skeletons and wrist poses; robot values from the
-hand specs' `from_udhm`. Every folder has a README and `gestures.json` (per-frame gesture labels), and
-every file says it is synthetic.
+keypoints come from UDHM forward kinematics with varied skeletons (per-person scale and proportions)
+and wrist poses; robot values from the hand specs' `from_udhm`. Every folder has a README,
+`gestures.json` (per-frame gesture labels) and `udhm_truth.npz` (the generating angles), and every file
+says it is synthetic.
 """
 
 from __future__ import annotations
@@ -195,11 +196,20 @@ def _write_readme(folder: Path, source: str, spec: SampleSpec) -> None:
     (folder / "README.md").write_text(text)
 
 
-def _human_keypoints_m(angles_rad: np.ndarray, scale: float, wrist_pose: np.ndarray, side: str) -> np.ndarray:
-    """(T, 21, 3) keypoints in the frame of `wrist_pose` (T, 4, 4) via UDHM FK on a scaled default skeleton."""
+def _person_skeleton(rng: np.random.Generator):
+    """One person's hand: the default skeleton scaled 0.85-1.15, each palm offset and bone varied ~4 %."""
     from lerobot_unidextok import udhm
 
-    skeleton = udhm.Skeleton.default().scaled(scale)
+    base = udhm.Skeleton.default().scaled(rng.uniform(0.85, 1.15))
+    offsets = np.asarray(base.palm_offsets_m) * rng.normal(1.0, 0.04, (5, 1)).clip(0.9, 1.1)
+    bones = np.asarray(base.bone_lengths_m) * rng.normal(1.0, 0.04, (5, 3)).clip(0.9, 1.1)
+    return udhm.Skeleton(offsets, bones)
+
+
+def _human_keypoints_m(angles_rad: np.ndarray, skeleton, wrist_pose: np.ndarray, side: str) -> np.ndarray:
+    """(T, 21, 3) keypoints in the frame of `wrist_pose` (T, 4, 4) via UDHM FK on `skeleton`."""
+    from lerobot_unidextok import udhm
+
     pose = (wrist_pose[:, :3, :3], wrist_pose[:, :3, 3])
     return np.asarray(udhm.forward_kinematics(angles_rad, skeleton, pose, side=side), dtype=np.float64)
 
@@ -281,7 +291,7 @@ def _write_dexycb(folder: Path, spec: SampleSpec) -> Labels:
         track = gesture_track(rng, n, DEXYCB_FPS, gestures=["open", "pinch", "grasp_cylinder", "tripod", "fist", "ok"])
         base_rot = np.array([np.pi / 2, 0.0, 0.0]) + rng.normal(0.0, 0.3, 3)
         wrist = wrist_track(rng, n, DEXYCB_FPS, np.array([0.0, 0.05, 0.65]) + rng.normal(0, 0.04, 3), base_rot)
-        keypoints = _human_keypoints_m(track.angles_rad, rng.uniform(0.85, 1.15), wrist, side)  # master cam frame
+        keypoints = _human_keypoints_m(track.angles_rad, _person_skeleton(rng), wrist, side)  # master cam frame
         valid = np.ones(n, dtype=bool)
         valid[: int(rng.integers(3, 12))] = False  # hand not yet in view
         for _ in range(int(rng.integers(0, 3))):  # short annotation gaps
@@ -403,7 +413,7 @@ def _write_egodex(folder: Path, spec: SampleSpec) -> Labels:
         task = task_names[ep % len(task_names)]
         (folder / task).mkdir(exist_ok=True)
         path = folder / task / f"{ep // len(task_names)}.hdf5"
-        scale = rng.uniform(0.85, 1.15)  # one person per episode: same skeleton for both hands
+        skeleton = _person_skeleton(rng)  # one person per episode: same skeleton for both hands
         tracks, transforms, conf = {}, {}, {}
         for side, x in (("left", -0.18), ("right", 0.18)):
             track = gesture_track(
@@ -412,7 +422,7 @@ def _write_egodex(folder: Path, spec: SampleSpec) -> Labels:
             # ARKit world: y up, -z forward from the head; palms face down/inward over a table
             base_rot = np.array([-np.pi / 2, 0.0, np.pi / 2 if side == "left" else -np.pi / 2]) + rng.normal(0, 0.2, 3)
             wrist = wrist_track(rng, n, EGODEX_FPS, np.array([x, 1.05, -0.40]) + rng.normal(0, 0.03, 3), base_rot)
-            kp = _human_keypoints_m(track.angles_rad, scale, wrist, side)
+            kp = _human_keypoints_m(track.angles_rad, skeleton, wrist, side)
             tracks[side] = track
             transforms.update(_egodex_hand_transforms(kp, wrist, side))
             c = np.clip(rng.normal(0.9, 0.05, n), 0.0, 1.0)
