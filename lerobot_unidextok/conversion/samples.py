@@ -16,8 +16,8 @@ OakInk-v2 stores MANO parameters only; making them needs the licensed MANO model
 written for it. Motion: `sample_motion` (named gestures in UDHM, joint coupling, noise); human
 keypoints come from UDHM forward kinematics with varied skeletons (per-person scale and proportions)
 and wrist poses; robot values from the hand specs' `from_udhm`. Every folder has a README,
-`gestures.json` (per-frame gesture labels) and `udhm_truth.npz` (the generating angles), and every file
-says it is synthetic.
+`gestures.json` (per-frame gesture labels) and `udhm_truth.npz` (the generating angles), and every data file
+carries a synthetic marker where its format allows (npz key, parquet metadata, HDF5 attribute, JSON/YAML field).
 """
 
 from __future__ import annotations
@@ -311,7 +311,7 @@ def _write_dexycb(folder: Path, spec: SampleSpec) -> Labels:
         (cap_dir / "meta.yml").write_text(yaml.safe_dump(meta))
         pose_y = np.zeros((n, len(ycb_ids), 7), dtype=np.float32)
         pose_y[..., 3] = 1.0  # identity quaternion (xyzw)
-        np.savez(cap_dir / "pose.npz", pose_m=np.zeros((n, 1, 51), np.float32), pose_y=pose_y)
+        np.savez(cap_dir / "pose.npz", pose_m=np.zeros((n, 1, 51), np.float32), pose_y=pose_y, synthetic=np.True_)
         for serial, cam_from_master in zip(DEXYCB_SERIALS, extr, strict=True):
             view = cap_dir / serial
             view.mkdir()
@@ -332,6 +332,7 @@ def _write_dexycb(folder: Path, spec: SampleSpec) -> Labels:
                     joint_2d=joint_2d,
                     pose_m=np.zeros((1, 51), np.float32),
                     pose_y=np.tile(np.eye(4, dtype=np.float32)[:3], (len(ycb_ids), 1, 1)),
+                    synthetic=np.True_,  # extra key: marks the file, ignored by DexYCB tools
                 )
         labels[f"{subject}/{capture}"] = _label_entry({side: track}, {side: valid})
     return labels
@@ -566,6 +567,7 @@ def _write_lerobot_v21(
             "task_index": pa.array(np.full(n, task_index[task], dtype=np.int64)),
         }
         table = pa.Table.from_arrays(arrays + list(scalars.values()), names=fields + list(scalars))
+        table = table.replace_schema_metadata({"unidextok_synthetic": SYNTHETIC_NOTE})
         path = root / "data" / f"chunk-{ep // 1000:03d}" / f"episode_{ep:06d}.parquet"
         path.parent.mkdir(parents=True, exist_ok=True)
         pq.write_table(table, path)

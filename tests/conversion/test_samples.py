@@ -37,6 +37,12 @@ def test_every_source_written_with_synthetic_labels(samples):
     assert info["synthetic"] is True and info["codebase_version"] == "v2.1"
     with h5py.File(next(samples["egodex"].rglob("*.hdf5")), "r") as f:
         assert bool(f.attrs["synthetic"]) and "SYNTHETIC" in f.attrs["note"]
+    assert bool(np.load(next(samples["dexycb"].rglob("labels_000000.npz")))["synthetic"])
+    import pyarrow.parquet as pq
+
+    for name in ("dexora", "lerobot"):
+        meta = pq.read_schema(next(samples[name].rglob("episode_000000.parquet"))).metadata
+        assert b"SYNTHETIC" in meta[b"unidextok_synthetic"]
     let_file = next(samples["let"].rglob("episode_*.json"))
     assert json.loads(let_file.read_text())["synthetic"] is True
 
