@@ -1,0 +1,99 @@
+"""Metric functions on known errors: degrees, active DoFs only, FK keypoint distances in mm."""
+
+import math
+
+import numpy as np
+import pytest
+
+from lerobot_unidextok.constants import FINGERTIP_INDICES, KEYPOINT_NAMES, UDHM_INDEX
+from lerobot_unidextok.evaluation import (
+    fingertip_error_mm,
+    keypoint_errors_mm,
+    mpjae_deg,
+    mpjpe_mm,
+    per_joint_mae_deg,
+    reconstruction_metrics,
+)
+
+
+def _true(n: int = 6) -> np.ndarray:
+    rng = np.random.default_rng(0)
+    q = rng.uniform(0.0, 0.8, size=(n, 22))
+    q[:, [UDHM_INDEX[k] for k in ("index_mcp_abd", "middle_mcp_abd", "ring_mcp_abd", "pinky_mcp_abd")]] *= 0.2
+    return q
+
+
+def test_mpjae_in_degrees_over_active_dofs_only():
+    true = _true()
+    pred = true + math.radians(2.0)
+    mask = np.zeros_like(true, dtype=bool)
+    mask[:, :5] = True
+    pred[:, 5:] += 1.0  # large errors on inactive slots are ignored
+    assert mpjae_deg(pred, true, mask) == pytest.approx(2.0)
+    assert mpjae_deg(true, true) == 0.0
+    table = per_joint_mae_deg(pred, true, mask)
+    assert list(table) == ["thumb_cmc_flex", "thumb_cmc_spread", "thumb_mcp_flex", "thumb_mcp_abd", "thumb_ip_flex"]
+    assert all(v == pytest.approx(2.0) for v in table.values())
+
+
+def test_keypoint_errors_follow_forward_kinematics():
+    """A DIP error of d moves only the index tip, by the chord 2 L sin(d / 2) of the distal bone."""
+    from lerobot_unidextok import hands
+
+    true = _true(4)
+    pred = true.copy()
+    d = math.radians(10.0)
+    pred[:, UDHM_INDEX["index_dip_flex"]] += d
+    hand_names = np.array(["human"] * 4)
+    err = keypoint_errors_mm(pred, true, hand_names)  # (4, 21)
+    tip = KEYPOINT_NAMES.index("index_tip")
+    bone_mm = float(np.asarray(hands.get("human").skeleton().bone_lengths_m)[1, 2]) * 1000
+    np.testing.assert_allclose(err[:, tip], 2 * bone_mm * math.sin(d / 2), rtol=1e-9)
+    others = np.delete(err, tip, axis=1)
+    np.testing.assert_allclose(others, 0.0, atol=1e-9)
+    assert mpjpe_mm(pred, true, hand_names) == pytest.approx(err[:, tip].mean() / 21)
+    assert fingertip_error_mm(pred, true, hand_names) == pytest.approx(err[:, tip].mean() / len(FINGERTIP_INDICES))
+
+
+def test_inactive_slots_do_not_move_keypoints():
+    true = _true(3)
+    pred = true + 0.3
+    mask = np.zeros_like(true, dtype=bool)
+    assert mpjpe_mm(pred, true, np.array(["inspire_rh56"] * 3), mask) == 0.0
+
+
+def test_robot_skeleton_is_used_per_hand():
+    from lerobot_unidextok import hands
+
+    true = _true(2)
+    pred = true.copy()
+    pred[:, UDHM_INDEX["index_dip_flex"]] += 0.2
+    tip = KEYPOINT_NAMES.index("index_tip")
+    for name in ("human", "allegro"):
+        err = keypoint_errors_mm(pred, true, np.array([name] * 2))[:, tip]
+        bone_mm = float(np.asarray(hands.get(name).skeleton().bone_lengths_m)[1, 2]) * 1000
+        np.testing.assert_allclose(err, 2 * bone_mm * math.sin(0.1), rtol=1e-9)
+
+
+def test_reconstruction_metrics_per_hand():
+    true = _true(6)
+    pred = true.copy()
+    pred[:3] += math.radians(1.0)
+    pred[3:] += math.radians(3.0)
+    hand_names = np.array(["human"] * 3 + ["leap"] * 3)
+    out = reconstruction_metrics(pred, true, hand_names, np.ones_like(true, bool))
+    assert out["per_hand"]["human"]["mpjae_deg"] == pytest.approx(1.0)
+    assert out["per_hand"]["leap"]["mpjae_deg"] == pytest.approx(3.0)
+    assert out["overall"]["mpjae_deg"] == pytest.approx(2.0)
+    assert out["overall"]["rows"] == 6 and len(out["overall"]["per_keypoint_mm"]) == 21
+    assert out["per_hand"]["leap"]["mpjpe_mm"] > out["per_hand"]["human"]["mpjpe_mm"] > 0
+
+
+def test_bad_inputs_raise():
+    true = _true(2)
+    with pytest.raises(ValueError, match=r"\(N, 22\)"):
+        mpjae_deg(true[:, :21], true[:, :21])
+    with pytest.raises(ValueError, match="masks must be"):
+        mpjae_deg(true, true, np.ones((2, 21), bool))
+    with pytest.raises(ValueError, match="one hand per row"):
+        keypoint_errors_mm(true, true, np.array(["human"]))
