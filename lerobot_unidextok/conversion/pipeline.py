@@ -33,7 +33,7 @@ from tqdm import tqdm
 from lerobot_unidextok.constants import ACTION, HAND_TYPE_KEY, OBS_STATE, SIDES, UDHM_MASK_KEY
 from lerobot_unidextok.conversion.card import write_card
 from lerobot_unidextok.conversion.mapping import MAPPINGS, EpisodeError, UdhmEpisode, map_episode, state_names, to_layout
-from lerobot_unidextok.conversion.registry import get_source
+from lerobot_unidextok.conversion.registry import CONVERTERS_PACKAGE, get_source
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 
 logger = logging.getLogger(__name__)
@@ -61,6 +61,7 @@ class ConvertOptions:
     shard_index: int = 0
     num_shards: int = 1
     progress: bool = True
+    mp_context: str = "forkserver"  # worker start method; "fork" is unsafe in a threaded parent (pyarrow, torch)
 
     def __post_init__(self):
         if self.mapping not in MAPPINGS:
@@ -164,8 +165,16 @@ def _iter_results(refs: list, opts: ConvertOptions):
             yield _read_and_map(ref)
         return
     window = 4 * opts.num_workers
+    import multiprocessing
+
+    ctx = multiprocessing.get_context(opts.mp_context)
+    if opts.mp_context == "forkserver":  # import once in the server; workers fork from it
+        ctx.set_forkserver_preload(["lerobot_unidextok.conversion.pipeline", "lerobot_unidextok.hands", CONVERTERS_PACKAGE])
     with ProcessPoolExecutor(
-        opts.num_workers, initializer=_init_worker, initargs=(opts.source, opts.source_options, opts.mapping)
+        opts.num_workers,
+        mp_context=ctx,
+        initializer=_init_worker,
+        initargs=(opts.source, opts.source_options, opts.mapping),
     ) as pool:
         pending: deque = deque()
         it = iter(refs)

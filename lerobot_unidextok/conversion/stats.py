@@ -20,28 +20,50 @@ NUM_BINS = 5000  # RunningQuantileStats default
 def _bin_indices(batch: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """(T, D) bin of each value as np.histogram(batch[:, d], bins=edges[d]) counts it.
 
-    Bin i holds edges[i] <= x < edges[i + 1]; the last bin is closed. An arithmetic guess on the
-    near-uniform edges is corrected against the real edges; dimensions whose edges are not strictly
-    increasing (float32 collapse on tiny ranges) use searchsorted.
+    Bin i holds edges[i] <= x < edges[i + 1]; the last bin is closed. Constant dimensions take one
+    searchsorted; others an arithmetic guess on the near-uniform edges, corrected against the real
+    edges; dimensions whose edges are not strictly increasing (float32 collapse) use searchsorted.
     """
     num, dim = batch.shape
-    first, last = edges[:, 0], edges[:, -1]  # (D,)
-    span = (last - first).astype(np.float64)
-    strict = np.all(np.diff(edges, axis=1) > 0, axis=1)  # (D,)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        guess = np.floor((batch - first) / np.where(span > 0, span, 1.0) * NUM_BINS)
-    idx = np.clip(np.nan_to_num(guess), 0, NUM_BINS - 1).astype(np.int64)  # (T, D)
-    cols = np.broadcast_to(np.arange(dim), idx.shape)
-    for _ in range(8):
-        down = edges[cols, idx] > batch
-        up = (idx < NUM_BINS - 1) & (edges[cols, idx + 1] <= batch)
-        if not (down.any() or up.any()):
+    idx = np.empty((num, dim), dtype=np.int64)
+
+    def exact(d: int, values: np.ndarray) -> np.ndarray:
+        e = edges[d]
+        out = np.searchsorted(e, values, side="right") - 1
+        out[values == e[-1]] = NUM_BINS - 1
+        return np.clip(out, 0, NUM_BINS - 1)
+
+    const = batch.min(axis=0) == batch.max(axis=0)  # (D,)
+    for d in np.flatnonzero(const):
+        idx[:, d] = exact(d, batch[:1, d])[0]
+    var = np.flatnonzero(~const)
+    if not len(var):
+        return idx
+    e = edges[var]  # (V, B+1)
+    x = batch[:, var]  # (T, V)
+    strict = np.all(e[:, 1:] > e[:, :-1], axis=1)  # (V,)
+    first, span = e[:, 0], (e[:, -1] - e[:, 0]).astype(np.float64)
+    guess = np.floor((x - first) / np.where(span > 0, span, 1.0) * NUM_BINS)
+    sub = np.clip(guess, 0, NUM_BINS - 1).astype(np.int64)  # (T, V)
+    rows = np.broadcast_to(np.arange(len(var)), sub.shape)
+    todo = np.ones(sub.shape, dtype=bool)
+    for _ in range(8):  # each pass moves a wrong guess one bin; guesses are off by at most one or two
+        r, c = np.nonzero(todo)
+        cur = sub[r, c]
+        xv = x[r, c]
+        down = e[rows[r, c], cur] > xv
+        up = (cur < NUM_BINS - 1) & (e[rows[r, c], np.minimum(cur + 1, NUM_BINS)] <= xv)
+        moved = down | up
+        if not moved.any():
             break
-        idx = idx - down + up
+        sub[r, c] = cur - down + up
+        todo[:] = False
+        todo[r[moved], c[moved]] = True
     else:
-        strict = np.zeros(dim, dtype=bool)
-    for d in np.flatnonzero(~strict):
-        idx[:, d] = np.clip(np.searchsorted(edges[d], batch[:, d], side="right") - 1, 0, NUM_BINS - 1)
+        strict[:] = False
+    idx[:, var] = sub
+    for j in np.flatnonzero(~strict):
+        idx[:, var[j]] = exact(var[j], batch[:, var[j]])
     return idx
 
 

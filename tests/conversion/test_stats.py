@@ -10,7 +10,7 @@ from lerobot_unidextok.conversion.stats import episode_stats
 
 def _cases():
     rng = np.random.default_rng(7)
-    for trial in range(60):
+    for trial in range(24):
         num, dim = int(rng.integers(1, 300)), int(rng.integers(1, 8))
         kind = trial % 6
         if kind == 0:
