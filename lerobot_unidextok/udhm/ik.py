@@ -63,7 +63,7 @@ def inverse_kinematics(
     skeleton: Skeleton | None = None,
     iterations: int = 100,
     limit_weight_m_per_rad: float = 1.0,
-    chunk_size: int = 65_536,
+    chunk_size: int = 4096,
     progress: bool | None = None,
 ) -> IKResult:
     """Fit UDHM to keypoints (..., 21, 3) m in MANO-21 order, in any frame (camera, world, wrist).
@@ -74,7 +74,8 @@ def inverse_kinematics(
     skeleton: None = measured on each frame (exact palm, exact bone lengths); or a fixed `Skeleton`
         broadcastable to (..., 5, 3), e.g. `Skeleton.from_keypoints(kp, per_frame=False)`.
     iterations: maximum Levenberg-Marquardt iterations (stops earlier once converged).
-    chunk_size: frames per vectorised chunk; memory is bounded by it, not by the input length.
+    chunk_size: frames per vectorised chunk; memory is bounded by it, not by the input length
+        (4096 keeps the working set in cache: ~4x faster per frame than 65536 chunks on 2 cores).
     """
     check_side(side)
     kp = np.asarray(keypoints_m, dtype=np.float64)
