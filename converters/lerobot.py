@@ -6,9 +6,11 @@
      "right": {"hand": "inspire_rh56_unitree", "prefix": "kRightHand"}}
     {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}   # shorthand
 
-`prefix` selects the names starting with it, in dataset order. `action_names` default to the state
-names when the action feature has them all (else no action). Names are normalised from flat, nested
-`[[...]]` and dict forms. Both versions are read straight from parquet (lerobot 0.6 refuses v2.1).
+`prefix` selects the names starting with it, in dataset order. `action_names` default to the state names
+when the action feature has them all (else no action). A hand stored in a feature of its own takes
+`{"hand": ..., "state_key": "observation.state.right_hand", "action_key": "action.right_hand"}` (every
+column; names optional). Names are normalised from flat, nested `[[...]]` and dict forms. Both versions
+are read straight from parquet (lerobot 0.6 refuses v2.1).
 """
 
 from __future__ import annotations
@@ -17,10 +19,13 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 from lerobot_unidextok.converters import _lerobot_files as lr
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
+
+ALL_COLUMNS = ("*",)  # state_names meaning "every column of the hand's own feature"
 
 
 @dataclass(frozen=True)
@@ -32,9 +37,13 @@ class HandColumns:
     state_names: tuple[str, ...] | None = None
     action_names: tuple[str, ...] | None = None
     prefix: str | None = None
+    state_key: str | None = None  # this hand's own feature (e.g. "observation.state.right_hand"); None = shared
+    action_key: str | None = None
 
     def resolve(self, names: list[str], where: str, explicit: tuple[str, ...] | None) -> list[str]:
         """The column names of this hand among `names` (a feature's flat names)."""
+        if explicit == ALL_COLUMNS:
+            return list(names)
         if explicit is not None:
             lr.select_columns(names, list(explicit), where)  # raises naming the unknown ones
             return list(explicit)
@@ -71,16 +80,32 @@ def parse_hands(hands: dict | str) -> list[HandColumns]:
             continue
         if not isinstance(entry, dict) or "hand" not in entry:
             raise ValueError(f"hands[{side!r}] must be a dict with 'hand' and 'state_names' or 'prefix', got {entry!r}")
-        unknown = set(entry) - {"hand", "state_names", "action_names", "prefix"}
+        known = {"hand", "state_names", "action_names", "prefix", "state_key", "action_key"}
+        unknown = set(entry) - known
         if unknown:
+            raise ValueError(f"hands[{side!r}] has unknown keys {sorted(unknown)}; use {sorted(known)}")
+        if "state_names" in entry and "prefix" in entry:
+            raise ValueError(f"hands[{side!r}] takes 'state_names' or 'prefix', not both")
+        if "state_names" not in entry and "prefix" not in entry and "state_key" not in entry:
             raise ValueError(
-                f"hands[{side!r}] has unknown keys {sorted(unknown)}; use hand, state_names, action_names, prefix"
+                f"hands[{side!r}] needs 'state_names' or 'prefix' (columns of a shared feature), or 'state_key' "
+                "(a feature holding only this hand)"
             )
-        if ("state_names" in entry) == ("prefix" in entry):
-            raise ValueError(f"hands[{side!r}] needs exactly one of 'state_names' or 'prefix'")
         state = tuple(entry["state_names"]) if "state_names" in entry else None
+        if state is None and "prefix" not in entry:
+            state = ALL_COLUMNS  # the hand's own feature, every column
         action = tuple(entry["action_names"]) if entry.get("action_names") is not None else None
-        out.append(HandColumns(side, str(entry["hand"]), state, action, entry.get("prefix")))
+        out.append(
+            HandColumns(
+                side,
+                str(entry["hand"]),
+                state,
+                action,
+                entry.get("prefix"),
+                entry.get("state_key"),
+                entry.get("action_key"),
+            )
+        )
     return out
 
 
@@ -118,27 +143,42 @@ def read_mapped_episode(
     """One episode with each hand's state (and action) columns picked by name."""
     info = lr.load_info(ref.root)
     info_path = Path(ref.root) / "meta" / "info.json"
-    state_names = lr.feature_names(info, state_key, ref.root)
-    action_names = (
-        lr.feature_names(info, action_key, ref.root) if action_key and action_key in info["features"] else None
-    )
+    names: dict[str, list[str]] = {}
+
+    def names_of(key: str, all_columns: bool) -> list[str]:
+        if key not in names:
+            feature = info["features"].get(key)
+            if all_columns and feature is not None and feature.get("names") is None:  # unnamed own feature
+                names[key] = [f"{key}[{i}]" for i in range(int(np.prod(feature.get("shape", [0]))))]
+            else:
+                names[key] = lr.feature_names(info, key, ref.root)
+        return names[key]
+
     plan = []
     for h in hands:
-        s_cols = h.resolve(state_names, f"{info_path} features[{state_key!r}] ({h.side} hand)", h.state_names)
+        s_key, a_key = h.state_key or state_key, h.action_key or action_key
+        s_where = f"{info_path} features[{s_key!r}] ({h.side} hand)"
+        s_cols = h.resolve(names_of(s_key, h.state_names == ALL_COLUMNS), s_where, h.state_names)
         a_cols = None
-        if action_names is not None:
-            wanted = h.action_names or tuple(s_cols)
-            if h.action_names is not None or all(n in action_names for n in wanted):
-                a_cols = h.resolve(action_names, f"{info_path} features[{action_key!r}] ({h.side} hand)", tuple(wanted))
-        plan.append((h, s_cols, a_cols))
-    keys = [state_key] + ([action_key] if any(a is not None for _, _, a in plan) else [])
+        if a_key and a_key in info["features"]:
+            a_names = names_of(a_key, h.state_names == ALL_COLUMNS and h.action_key is not None)
+            if h.action_key is not None and h.state_names == ALL_COLUMNS:
+                a_cols = a_names  # the hand's own action feature
+            else:
+                wanted = h.action_names or tuple(s_cols)
+                if h.action_names is not None or all(n in a_names for n in wanted):
+                    a_cols = h.resolve(a_names, f"{info_path} features[{a_key!r}] ({h.side} hand)", tuple(wanted))
+        elif h.action_names is not None or h.action_key is not None:
+            raise lr.LeRobotFormatError(f"{info_path} features[{a_key!r}]: missing, but {h.side} hand asks for it")
+        plan.append((h, s_key, s_cols, a_key if a_cols is not None else None, a_cols))
+    keys = sorted({p[1] for p in plan} | {p[3] for p in plan if p[3]})
     episode = lr.read_episode(ref, keys)
     streams = []
-    for h, s_cols, a_cols in plan:
-        state = episode.columns[state_key][:, lr.select_columns(state_names, s_cols, str(info_path))]
+    for h, s_key, s_cols, a_key, a_cols in plan:
+        state = episode.columns[s_key][:, lr.select_columns(names[s_key], s_cols, str(info_path))]
         action = None
         if a_cols is not None:
-            action = episode.columns[action_key][:, lr.select_columns(action_names, a_cols, str(info_path))]
+            action = episode.columns[a_key][:, lr.select_columns(names[a_key], a_cols, str(info_path))]
         streams.append(HandStream(side=h.side, hand=h.hand, state_native=state, action_native=action))
     return RawEpisode(
         source_file=episode.source_file,

@@ -272,3 +272,34 @@ def test_dexora_sample_converts_with_lerobots_v21_to_v30_script(samples, tmp_pat
         for ha, hb in zip(a.hands, b.hands, strict=True):
             np.testing.assert_array_equal(ha.state_native, hb.state_native)
             np.testing.assert_array_equal(ha.action_native, hb.action_native)
+
+
+def test_generic_lerobot_hand_in_its_own_feature(tmp_path):
+    """A dataset storing each hand in its own (unnamed) feature: `state_key` / `action_key` per hand."""
+    from lerobot_unidextok.conversion.samples import _write_lerobot_v21
+
+    rng = np.random.default_rng(0)
+    right = rng.uniform(0, 1, (30, 6))
+    cols = {"observation.state.right_hand": right, "action.right_hand": right[::-1].copy()}
+    _write_lerobot_v21(tmp_path / "own", 15.0, "x", {k: None for k in cols}, [(cols, "wave")])
+    hands_opt = {
+        "right": {
+            "hand": "inspire_rh56_unitree",
+            "state_key": "observation.state.right_hand",
+            "action_key": "action.right_hand",
+        }
+    }
+    (ep,) = _read_all_n("lerobot", tmp_path / "own", 1, hands=hands_opt)
+    (h,) = ep.hands
+    np.testing.assert_allclose(h.state_native, right.astype(np.float32))
+    np.testing.assert_allclose(h.action_native, right[::-1].astype(np.float32))
+    assert ep.fps == 15.0 and ep.task == "wave"
+    with pytest.raises(ValueError, match=r"needs 'state_names' or 'prefix'.*or 'state_key'"):
+        get_source("lerobot")(hands={"right": {"hand": "inspire_rh56_unitree"}})
+
+
+def _read_all_n(name: str, folder, n: int, **options) -> list[RawEpisode]:
+    src = get_source(name)(**options)
+    refs = src.list_episodes(folder)
+    assert len(refs) == n
+    return [src.read_episode(r) for r in refs]
