@@ -19,12 +19,19 @@ from scipy.optimize import least_squares
 from tqdm import tqdm
 
 from lerobot_unidextok import udhm
-from lerobot_unidextok.udhm.fk import angles_to_slots, slots_to_angles
+from lerobot_unidextok.udhm.fk import slots_to_angles
 from lerobot_unidextok.udhm.frames import palm_frame, to_canonical
 from lerobot_unidextok.udhm.ik import _initial_slots
 from lerobot_unidextok.udhm.joints import JOINT_LIMITS_RAD
 
-CLIP = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "dex-retargeting" / "human_joint_right.npy"
+CLIP = (
+    Path(__file__).resolve().parents[1].parent
+    / "shared"
+    / "data"
+    / "real"
+    / "dex-retargeting"
+    / "human_joint_right.npy"
+)
 LIMIT_WEIGHT_M_PER_RAD = 1.0
 
 
@@ -49,7 +56,12 @@ def reference_ik(kp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         sk = udhm.Skeleton.from_keypoints(local[i])
         target = local[i]
         x0 = slots_to_angles(
-            _initial_slots(target[None, 1:].reshape(1, 5, 4, 3)[:, :, 1:], sk.palm_offsets_m[None], sk.bone_lengths_m[None], LIMIT_WEIGHT_M_PER_RAD)
+            _initial_slots(
+                target[None, 1:].reshape(1, 5, 4, 3)[:, :, 1:],
+                sk.palm_offsets_m[None],
+                sk.bone_lengths_m[None],
+                LIMIT_WEIGHT_M_PER_RAD,
+            )
         )[0]
 
         def residual(q: np.ndarray, sk=sk, target=target) -> np.ndarray:
@@ -90,13 +102,19 @@ def main() -> None:
     fps_ref, fps_ours = len(sub) / cpu_ref, len(kp) / cpu_ours
     print(f"source={args.source} frames={len(kp)} noise={args.noise_mm} mm reference_frames={len(sub)}")
     print(f"{'solver':<34}{'frames':>9}{'cpu s':>9}{'wall s':>9}{'frames/cpu-s':>14}{'mean err mm':>13}")
-    print(f"{'scipy least_squares (per frame)':<34}{len(sub):>9}{cpu_ref:>9.2f}{wall_ref:>9.2f}{fps_ref:>14.1f}{ref_err.mean() * 1e3:>13.4f}")
+    print(
+        f"{'scipy least_squares (per frame)':<34}{len(sub):>9}{cpu_ref:>9.2f}{wall_ref:>9.2f}{fps_ref:>14.1f}{ref_err.mean() * 1e3:>13.4f}"
+    )
     print(f"{'udhm batched LM (same subset)':<34}{len(sub):>9}{'':>9}{'':>9}{'':>14}{ours_sub.mean() * 1e3:>13.4f}")
-    print(f"{'udhm batched LM (all frames)':<34}{len(kp):>9}{cpu_ours:>9.2f}{wall_ours:>9.2f}{fps_ours:>14.1f}{res.residual_m.mean() * 1e3:>13.4f}")
-    print(f"speed ratio (cpu): {fps_ours / fps_ref:.0f}x   (wall: {len(kp) / wall_ours / (len(sub) / wall_ref):.0f}x)   "
-          "max |angle diff| vs reference on subset: "
-          f"{np.degrees(np.abs(res.angles_rad[: len(sub)] - ref_angles).max()):.3f} deg   "
-          f"limit violations: {int(res.limit_violations.sum())}")
+    print(
+        f"{'udhm batched LM (all frames)':<34}{len(kp):>9}{cpu_ours:>9.2f}{wall_ours:>9.2f}{fps_ours:>14.1f}{res.residual_m.mean() * 1e3:>13.4f}"
+    )
+    print(
+        f"speed ratio (cpu): {fps_ours / fps_ref:.0f}x   (wall: {len(kp) / wall_ours / (len(sub) / wall_ref):.0f}x)   "
+        "max |angle diff| vs reference on subset: "
+        f"{np.degrees(np.abs(res.angles_rad[: len(sub)] - ref_angles).max()):.3f} deg   "
+        f"limit violations: {int(res.limit_violations.sum())}"
+    )
 
 
 if __name__ == "__main__":

@@ -20,10 +20,10 @@ from lerobot_unidextok.udhm.joints import (
 from lerobot_unidextok.udhm.skeleton import Skeleton
 
 __all__ = [
-    "IKResult",
     "JOINT_LIMITS_RAD",
     "JOINT_NAMES",
     "KEYPOINT_NAMES",
+    "IKResult",
     "Skeleton",
     "clip_to_limits",
     "forward_kinematics",

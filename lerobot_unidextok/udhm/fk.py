@@ -42,7 +42,14 @@ _Z = UDHM_DIM
 _I = UDHM_INDEX
 CHAIN_SLOTS = np.array(
     [
-        [_Z, _I["thumb_cmc_spread"], _I["thumb_cmc_flex"], _I["thumb_mcp_abd"], _I["thumb_mcp_flex"], _I["thumb_ip_flex"]],
+        [
+            _Z,
+            _I["thumb_cmc_spread"],
+            _I["thumb_cmc_flex"],
+            _I["thumb_mcp_abd"],
+            _I["thumb_mcp_flex"],
+            _I["thumb_ip_flex"],
+        ],
         [_Z, _I["index_mcp_abd"], _I["index_mcp_flex"], _Z, _I["index_pip_flex"], _I["index_dip_flex"]],
         [_Z, _I["middle_mcp_abd"], _I["middle_mcp_flex"], _Z, _I["middle_pip_flex"], _I["middle_dip_flex"]],
         [_Z, _I["ring_mcp_abd"], _I["ring_mcp_flex"], _Z, _I["ring_pip_flex"], _I["ring_dip_flex"]],
@@ -77,7 +84,11 @@ def _stack(xs: list[Array], axis: int) -> Array:
 
 
 def _norm(x: Array) -> Array:
-    return torch.linalg.norm(x, dim=-1, keepdim=True) if isinstance(x, torch.Tensor) else np.linalg.norm(x, axis=-1, keepdims=True)
+    return (
+        torch.linalg.norm(x, dim=-1, keepdim=True)
+        if isinstance(x, torch.Tensor)
+        else np.linalg.norm(x, axis=-1, keepdims=True)
+    )
 
 
 def _mat3(rows: list[list[Array]]) -> Array:
@@ -94,21 +105,30 @@ def _mat3(rows: list[list[Array]]) -> Array:
 
 def _rot_x_neg(a: Array) -> Array:
     """Rot_x(-a): rotates +z toward +y by a. (..., 3, 3)"""
-    c, s = np.cos(a) if isinstance(a, np.ndarray) else torch.cos(a), np.sin(a) if isinstance(a, np.ndarray) else torch.sin(a)
+    c, s = (
+        np.cos(a) if isinstance(a, np.ndarray) else torch.cos(a),
+        np.sin(a) if isinstance(a, np.ndarray) else torch.sin(a),
+    )
     o, z = c * 0 + 1, c * 0
     return _mat3([[o, z, z], [z, c, s], [z, -s, c]])
 
 
 def _rot_y(f: Array) -> Array:
     """Rot_y(f): rotates +z toward +x by f. (..., 3, 3)"""
-    c, s = np.cos(f) if isinstance(f, np.ndarray) else torch.cos(f), np.sin(f) if isinstance(f, np.ndarray) else torch.sin(f)
+    c, s = (
+        np.cos(f) if isinstance(f, np.ndarray) else torch.cos(f),
+        np.sin(f) if isinstance(f, np.ndarray) else torch.sin(f),
+    )
     o, z = c * 0 + 1, c * 0
     return _mat3([[c, z, s], [z, o, z], [-s, z, c]])
 
 
 def _rot_z(g: Array) -> Array:
     """Rot_z(g): axial rotation about the segment, rotates +x toward +y by g. (..., 3, 3)"""
-    c, s = np.cos(g) if isinstance(g, np.ndarray) else torch.cos(g), np.sin(g) if isinstance(g, np.ndarray) else torch.sin(g)
+    c, s = (
+        np.cos(g) if isinstance(g, np.ndarray) else torch.cos(g),
+        np.sin(g) if isinstance(g, np.ndarray) else torch.sin(g),
+    )
     o, z = c * 0 + 1, c * 0
     return _mat3([[c, -s, z], [s, c, z], [z, z, o]])
 
@@ -137,7 +157,9 @@ class Chain(NamedTuple):
     points: Array  # (..., 5, 4, 3) base, p1, p2, p3
 
 
-def finger_chain(slots: Array, palm_offsets_m: Array, bone_lengths_m: Array, pronation_rad: Array | None = None) -> Chain:
+def finger_chain(
+    slots: Array, palm_offsets_m: Array, bone_lengths_m: Array, pronation_rad: Array | None = None
+) -> Chain:
     """Run the five chains: slots (..., 5, 6) rad, offsets/bones (..., 5, 3) m (broadcastable).
 
     pronation_rad: (..., 5) fixed axial rotations; None = AXIAL_PRONATION_RAD (finger axis of size 5).

@@ -20,13 +20,20 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from tqdm.auto import tqdm
 
-from lerobot_unidextok.udhm.fk import AXIAL_PRONATION_RAD, CHAIN_ACTIVE, CHAIN_SLOTS, finger_chain, forward_kinematics, rodrigues, slots_to_angles
+from lerobot_unidextok.udhm.fk import (
+    AXIAL_PRONATION_RAD,
+    CHAIN_ACTIVE,
+    CHAIN_SLOTS,
+    chain_to_keypoints,
+    finger_chain,
+    forward_kinematics,
+    rodrigues,
+    slots_to_angles,
+)
 from lerobot_unidextok.udhm.frames import BASE_INDICES, MIRROR_Y, check_side, palm_frame, to_canonical
 from lerobot_unidextok.udhm.joints import JOINT_LIMITS_RAD, limit_violations
 from lerobot_unidextok.udhm.skeleton import MIN_BONE_LENGTH_M, Skeleton
-from lerobot_unidextok.udhm.fk import chain_to_keypoints
 
 logger = logging.getLogger(__name__)
 
@@ -74,11 +81,14 @@ def inverse_kinematics(
     skeleton: None = measured on each frame (exact palm, exact bone lengths); or a fixed `Skeleton`
         broadcastable to (..., 5, 3), e.g. `Skeleton.from_keypoints(kp, per_frame=False)`.
     iterations: maximum Levenberg-Marquardt iterations (stops earlier once converged).
+    progress: show a tqdm bar over chunks (None = only for more than 4 chunks).
     chunk_size: frames per vectorised chunk; memory is bounded by it, not by the input length
         (4096 keeps the working set in cache: ~4x faster per frame than 65536 chunks on 2 cores).
     """
     check_side(side)
-    kp = np.asarray(keypoints_m, dtype=np.float64)
+    kp = np.asarray(keypoints_m)  # float32 stays float32 until its chunk is solved (memory)
+    if not np.issubdtype(kp.dtype, np.floating):
+        kp = kp.astype(np.float64)
     if kp.ndim < 2 or kp.shape[-2:] != (21, 3):
         raise ValueError(f"keypoints_m must have shape (..., 21, 3) in MANO-21 order, got {kp.shape}")
     if iterations < 0 or chunk_size < 1:
@@ -96,9 +106,13 @@ def inverse_kinematics(
     else:
         present = np.asarray(mask)
         if present.dtype != bool or present.shape != lead:
-            raise ValueError(f"mask must be a bool array of shape {lead} (True = frame present), got {present.dtype} {present.shape}")
+            raise ValueError(
+                f"mask must be a bool array of shape {lead} (True = frame present), got {present.dtype} {present.shape}"
+            )
         if (present & ~finite).any():
-            raise ValueError(f"keypoints_m has NaN/inf in frames {_frame_list(present & ~finite)} that mask marks present")
+            raise ValueError(
+                f"keypoints_m has NaN/inf in frames {_frame_list(present & ~finite)} that mask marks present"
+            )
 
     flat = kp.reshape(n, 21, 3)
     present_flat = present.reshape(n)
@@ -112,10 +126,16 @@ def inverse_kinematics(
     idx_present = np.flatnonzero(present_flat)
     starts = range(0, len(idx_present), chunk_size)
     show = progress if progress is not None else len(starts) > 4
-    for s in tqdm(starts, desc="UDHM IK", unit="chunk", disable=not show):
+    if show:  # optional progress bar; tqdm is imported only when one is shown
+        from tqdm.auto import tqdm
+
+        starts = tqdm(starts, desc="UDHM IK", unit="chunk")
+    for s in starts:
         idx = idx_present[s : s + chunk_size]
         sk = None if fixed is None else (fixed[0][idx], fixed[1][idx])
-        a, r, o, b, e = _solve_chunk(flat[idx], side, sk, iterations, limit_weight_m_per_rad, idx, lead)
+        a, r, o, b, e = _solve_chunk(
+            flat[idx].astype(np.float64), side, sk, iterations, limit_weight_m_per_rad, idx, lead
+        )
         angles[idx], rots[idx], offsets[idx], bones[idx], resid[idx] = a, r, o, b, e
 
     if fixed is None:
@@ -132,8 +152,10 @@ def inverse_kinematics(
     angles = angles.reshape(*lead, 22)
     violations = limit_violations(np.nan_to_num(angles, nan=0.0))
     if violations.any():
-        logger.info("UDHM IK: %d joint-limit violations in %d frames", int(violations.sum()), int(violations.any(-1).sum()))
-    wrist = np.where(present[..., None], kp[..., 0, :], np.nan)
+        logger.info(
+            "UDHM IK: %d joint-limit violations in %d frames", int(violations.sum()), int(violations.any(-1).sum())
+        )
+    wrist = np.where(present[..., None], kp[..., 0, :].astype(np.float64), np.nan)
     return IKResult(
         angles_rad=angles,
         skeleton=out_skeleton,
@@ -154,7 +176,9 @@ def _solve_chunk(kp, side, fixed, iterations, limit_weight, idx, lead):
         rot = palm_frame(kp, side)  # (N, 3, 3)
         bad = ~np.isfinite(rot).all(axis=(-1, -2))
         if bad.any():
-            raise ValueError(f"degenerate palm (wrist and MCPs collinear or coincident) in frames {_frame_list(idx[bad], lead)}")
+            raise ValueError(
+                f"degenerate palm (wrist and MCPs collinear or coincident) in frames {_frame_list(idx[bad], lead)}"
+            )
         local = to_canonical(kp, rot, side)  # (N, 21, 3)
         offsets = local[:, BASE_INDICES, :]
         bones = np.linalg.norm(np.diff(local[:, 1:].reshape(-1, 5, 4, 3), axis=-2), axis=-1)  # (N, 5, 3)

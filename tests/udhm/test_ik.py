@@ -141,3 +141,13 @@ def test_bad_input_errors(rng):
         udhm.inverse_kinematics(flat)
     with pytest.raises(ValueError, match="does not broadcast"):
         udhm.inverse_kinematics(kp, skeleton=udhm.Skeleton.from_keypoints(kp[:2]))
+
+
+def test_float32_input_and_many_chunks(rng):
+    angles = udhm.sample_angles(rng, (40,))
+    kp = udhm.forward_kinematics(angles).astype(np.float32)
+    res = udhm.inverse_kinematics(kp, chunk_size=7, progress=False)
+    assert res.angles_rad.dtype == np.float64
+    # float32 rounding (~1e-8 m) limits the recovery, not the solver
+    assert np.abs(res.angles_rad - angles).max() < 1e-3
+    assert res.residual_m.max() < 1e-6
