@@ -204,35 +204,49 @@ def read_episode(ref: LeRobotEpisodeRef, keys: list[str]) -> EpisodeColumns:
         raise LeRobotFormatError(f"{path}: data file of episode {ref.episode_index} is missing")
     wanted = [*keys, "episode_index", "frame_index", "task_index"]
     try:
-        schema_names = pq.read_schema(path).names
+        pf = pq.ParquetFile(path)
+        schema_names = pf.schema_arrow.names
         missing = [k for k in [*keys, "episode_index"] if k not in schema_names]
         if missing:
             raise LeRobotFormatError(f"{path}: missing column(s) {missing}; columns present: {schema_names}")
-        table = pq.read_table(
-            path,
-            columns=[k for k in wanted if k in schema_names],
-            filters=[("episode_index", "=", ref.episode_index)],  # v3.0 files hold many episodes
-        )
+        columns_read = [k for k in wanted if k in schema_names]
+        if version == "v3.0":  # files hold many episodes: skip row groups of other episodes
+            table = pq.read_table(path, columns=columns_read, filters=[("episode_index", "=", ref.episode_index)])
+        else:
+            table = pf.read(columns=columns_read)
     except LeRobotFormatError:
         raise
     except Exception as exc:  # noqa: BLE001 - truncated parquet raises ArrowInvalid/OSError
         raise LeRobotFormatError(f"{path}: unreadable parquet ({exc})") from exc
 
-    data = table.to_pydict()
-    episode = np.asarray(data["episode_index"], dtype=np.int64)
+    data = {k: table[k] for k in table.column_names}
+    episode = data["episode_index"].to_numpy()
     rows = np.flatnonzero(episode == ref.episode_index)
     if rows.size == 0:
         raise LeRobotFormatError(f"{path}: no rows with episode_index == {ref.episode_index}")
     if "frame_index" in data:
-        rows = rows[np.argsort(np.asarray(data["frame_index"])[rows], kind="stable")]
-    columns = {}
-    for key in keys:
-        values = [data[key][i] for i in rows]
-        if any(v is None for v in values):
-            raise LeRobotFormatError(f"{path}: column {key!r} has null rows in episode {ref.episode_index}")
-        columns[key] = np.asarray(values, dtype=np.float64).reshape(len(rows), -1)
+        rows = rows[np.argsort(data["frame_index"].to_numpy()[rows], kind="stable")]
+    columns = {key: _vector_column(data[key], rows, path, key, ref.episode_index) for key in keys}
     task = _task_text(root, info, tasks, data, rows)
     return EpisodeColumns(str(path), float(info["fps"]), columns, task, info)
+
+
+def _vector_column(column, rows: np.ndarray, path: Path, key: str, episode_index: int) -> np.ndarray:
+    """(T, D) float64 of a list / fixed-size-list (or scalar) parquet column at `rows`."""
+    import pyarrow as pa
+
+    column = column.combine_chunks() if isinstance(column, pa.ChunkedArray) else column
+    if column.null_count:
+        raise LeRobotFormatError(f"{path}: column {key!r} has null rows in episode {episode_index}")
+    if pa.types.is_fixed_size_list(column.type) or pa.types.is_list(column.type):
+        lengths = set(column.value_lengths().to_numpy(zero_copy_only=False).tolist()) if len(column) else {0}
+        if len(lengths) != 1:
+            raise LeRobotFormatError(f"{path}: column {key!r} has rows of different lengths {sorted(lengths)}")
+        flat = column.flatten().to_numpy(zero_copy_only=False).astype(np.float64)
+        values = flat.reshape(len(column), -1)
+    else:
+        values = column.to_numpy(zero_copy_only=False).astype(np.float64).reshape(len(column), -1)
+    return values[rows]
 
 
 def _task_text(root: Path, info: dict, tasks: object, data: dict, rows: np.ndarray) -> str:
@@ -240,7 +254,7 @@ def _task_text(root: Path, info: dict, tasks: object, data: dict, rows: np.ndarr
         return "; ".join(str(t) for t in tasks)
     if "task_index" not in data:
         return ""
-    task_indices = sorted({int(data["task_index"][i]) for i in rows})
+    task_indices = sorted({int(i) for i in data["task_index"].to_numpy()[rows]})
     if info["codebase_version"] == "v3.0":
         import pyarrow.parquet as pq
 
