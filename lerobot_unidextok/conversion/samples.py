@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import shutil
 import zlib
 from collections.abc import Callable
@@ -110,10 +111,16 @@ def write_samples(
             if not overwrite:
                 raise FileExistsError(f"{folder} exists; pass overwrite=True or choose another out_dir")
             shutil.rmtree(folder)
-        folder.mkdir(parents=True)
-        labels = _WRITERS[name](folder, spec)
-        _write_labels(folder, name, labels)
-        _write_readme(folder, name, spec)
+        tmp = out / f".{name}.partial-{os.getpid()}"  # a crash never leaves a half-written sample at `folder`
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir(parents=True)
+        try:
+            labels = _WRITERS[name](tmp, spec)
+            _write_labels(tmp, name, labels)
+            _write_readme(tmp, name, spec)
+            tmp.rename(folder)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
         written[name] = folder
         logger.info("wrote synthetic %s sample: %d episodes -> %s", name, spec.num_episodes, folder)
     return written
@@ -123,7 +130,8 @@ def write_samples(
 # helpers
 # ---------------------------------------------------------------------------------------------
 
-Labels = dict[str, dict[str, list]]  # episode key -> {side: labels, f"{side}_holding": bools}
+# episode key -> {side: labels, f"{side}_holding": bools, "_angles_rad": {side: (T, 22)}}
+Labels = dict[str, dict]
 
 
 def _rng(source: str, spec: SampleSpec, episode: int) -> np.random.Generator:
@@ -191,7 +199,13 @@ def _write_readme(folder: Path, source: str, spec: SampleSpec) -> None:
         "rock, call, grasp_cylinder, tripod) with minimum-jerk transitions, PIP/DIP coupled to MCP, "
         "per-episode tempo, per-visit jitter, drift and noise (lerobot_unidextok.conversion.sample_motion).\n"
         f"- `{LABELS_FILE}`: the gesture label of every frame and hand; `{TRUTH_FILE}`: the generating UDHM angles.\n"
-        f"- Convert: `unidextok-convert --source={source} --input={folder.name} ...`\n"
+        f"- Convert: `unidextok-convert --source={source} --input=<this folder> ...`"
+        + (
+            f" with source options `{json.dumps(SAMPLE_SOURCE_OPTIONS[source])}`"
+            if source in SAMPLE_SOURCE_OPTIONS
+            else ""
+        )
+        + "\n"
     )
     (folder / "README.md").write_text(text)
 

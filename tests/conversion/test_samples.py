@@ -177,3 +177,16 @@ def test_egodex_keypoints_invert_to_their_udhm_truth(samples):
         res = udhm.inverse_kinematics(h.state_native, side=h.side)
         err = np.degrees(np.abs(res.angles_rad - truth[f"{key}|{h.side}"]))
         assert err.mean() < 0.5, (h.side, err.mean())
+
+
+def test_failed_write_leaves_nothing_behind(tmp_path, monkeypatch):
+    from lerobot_unidextok.conversion import samples as samples_mod
+
+    def boom(folder, spec):
+        (folder / "half.txt").write_text("x")
+        raise RuntimeError("disk full")
+
+    monkeypatch.setitem(samples_mod._WRITERS, "let", boom)
+    with pytest.raises(RuntimeError, match="disk full"):
+        write_samples(tmp_path, sources=["let"], episodes_per_source=1, frames_per_episode=20)
+    assert list(tmp_path.iterdir()) == []  # no target folder, no partial folder
