@@ -460,7 +460,8 @@ def _write_egodex(folder: Path, spec: SampleSpec) -> Labels:
             )
             for name, value in transforms.items():
                 f.create_dataset(f"transforms/{name}", data=value.astype(np.float32))
-            if ep % 3 != 2:  # confidences are missing in some real files
+            has_confidences = ep % 3 != 2  # confidences are missing in some real files
+            if has_confidences:
                 for name, value in conf.items():
                     f.create_dataset(f"confidences/{name}", data=value)
             f.attrs["task"] = task
@@ -471,7 +472,7 @@ def _write_egodex(folder: Path, spec: SampleSpec) -> Labels:
             f.attrs["session_name"] = f"synthetic_session_{ep:03d}"
             f.attrs["synthetic"] = True
             f.attrs["note"] = SYNTHETIC_NOTE
-        valid = {s: conf[f"{s}Hand"] > 0 for s in tracks}
+        valid = {s: conf[f"{s}Hand"] > 0 for s in tracks} if has_confidences else None  # as the reader sees it
         labels[f"{task}/{path.name}"] = _label_entry(tracks, valid)
     return labels
 

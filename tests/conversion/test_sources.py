@@ -303,3 +303,14 @@ def _read_all_n(name: str, folder, n: int, **options) -> list[RawEpisode]:
     refs = src.list_episodes(folder)
     assert len(refs) == n
     return [src.read_episode(r) for r in refs]
+
+
+def test_egodex_valid_mask_matches_labels(samples):
+    labels = _labels(samples["egodex"])
+    src = get_source("egodex")()
+    for ref in src.list_episodes(samples["egodex"]):
+        ep = src.read_episode(ref)
+        key = "/".join(ref.split("/")[-2:])
+        for h in ep.hands:
+            present = [lab != "" for lab in labels[key][h.side]]
+            assert (h.valid.tolist() if h.valid is not None else [True] * ep.num_frames) == present
