@@ -166,3 +166,17 @@ def cached_snapshot(repo_id: str, repo_type: str = "model", revision: str | None
             f"{repo_type} {repo_id} is not in the local HF cache ({cache_dir() or 'default'}): run "
             f"`unidextok-pull --repo_id={repo_id}{flag}` (or unset HF_HUB_OFFLINE) first"
         ) from err
+
+
+def cache_via_loopback(local_dir: str | Path, repo_id: str, repo_type: str | None = None) -> Path:
+    """Publish a folder into the local HF cache through a throwaway loopback Hub (demos, no network).
+
+    Afterwards `UniDexTok.from_pretrained(repo_id)` resolves from the cache under HF_HUB_OFFLINE=1
+    (in this process: pass `local_files_only=True`, huggingface_hub reads the variable at import).
+    """
+    from lerobot_unidextok.hub.loopback import LoopbackHub
+
+    repo_type = repo_type or detect_repo_type(Path(local_dir))
+    with LoopbackHub(lifetime_s=300) as hub:
+        push(local_dir, repo_id, repo_type, endpoint=hub.url)
+        return pull(repo_id, repo_type, endpoint=hub.url)

@@ -146,3 +146,17 @@ def test_proxy_blocks_non_loopback_traffic():
     code = "import httpx; httpx.get('https://huggingface.co/api/whoami-v2', timeout=5)"
     r = subprocess.run([sys.executable, "-c", code], env=subprocess_env(), capture_output=True, text=True, timeout=60)
     assert r.returncode != 0 and ("ProxyError" in r.stderr or "ConnectError" in r.stderr)
+
+
+def test_cache_via_loopback_then_offline_load(tok_dir, tmp_path):
+    code = f"""
+from lerobot_unidextok.hub import cache_via_loopback
+from lerobot_unidextok.tokenizer import UniDexTok
+path = cache_via_loopback("{tok_dir}", "demo/unidextok-tiny")
+tok = UniDexTok.from_pretrained("demo/unidextok-tiny", local_files_only=True)
+print(path.parent.parent.name, tok.config.num_tokens)
+"""
+    r = subprocess.run([sys.executable, "-c", code], env=subprocess_env(HF_HUB_OFFLINE="0", HF_HOME=str(tmp_path)),
+                       capture_output=True, text=True, timeout=180)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert r.stdout.split()[-2:] == ["models--demo--unidextok-tiny", "4"]

@@ -1,0 +1,88 @@
+"""Latency of the UniDexTok processor step (CPU), batch 1 and batch 256, small and paper presets.
+
+Measured in the same run against a reference: the bare tokenizer `encode` + `decode` on the same
+rows, so the figure for the step = tokenizer cost + LeRobot pipeline/step overhead. Inputs are real
+LinkerHand L10 vendor preset poses (both hands -> 44-wide UDHM states), tiled to the batch size.
+Weights are untrained (latency does not depend on them). Target: <= 1 ms per single state, small.
+
+    .venv/bin/python benchmarks/bench_processor.py
+    .venv/bin/python benchmarks/bench_processor.py --threads 1 --repeats 200
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from lerobot.processor import PolicyProcessorPipeline
+
+from lerobot_unidextok.constants import OBS_STATE
+from lerobot_unidextok.processor import UniDexTokStateTokenizerStep
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fixtures"))
+from linkerhand_udhm import l10_preset_states  # noqa: E402
+
+REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
+
+
+def median_ms(fn, repeats: int) -> float:
+    for _ in range(2):  # warm-up
+        fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return 1e3 * statistics.median(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--presets", nargs="+", default=["small", "paper"])
+    parser.add_argument("--batches", nargs="+", type=int, default=[1, 256])
+    parser.add_argument("--repeats", type=int, default=100, help="timed calls at batch 1")
+    parser.add_argument("--repeats_large", type=int, default=5, help="timed calls at batch > 1")
+    parser.add_argument("--threads", type=int, default=0, help="torch threads (0 = torch default)")
+    args = parser.parse_args()
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    torch.manual_seed(0)
+    poses = torch.from_numpy(l10_preset_states(REAL))  # (P, 44) real two-hand states
+    hands = ["linkerhand_l10", "linkerhand_l10"]
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, CPU, load average "
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; median of {args.repeats} (batch 1) / "
+          f"{args.repeats_large} (larger) calls")
+    print(f"{'preset':<7} {'batch':>5} {'states':>6} | {'step ms':>8} {'ms/state':>9} | {'bare tok ms':>11} {'overhead ms':>11}")
+    for preset in args.presets:
+        step = UniDexTokStateTokenizerStep(hand_layout=hands, preset=preset)
+        pipe = PolicyProcessorPipeline(steps=[step], name="policy_preprocessor")
+        tok = step.tokenizer
+        for batch in args.batches:
+            x = poses[np.arange(batch) % len(poses)]  # (B, 44)
+            if batch == 1:
+                x = x[0]  # one unbatched frame, as at inference
+            rows = x.reshape(-1, 22)  # (B*2, 22)
+            names = hands * (rows.shape[0] // 2)
+
+            def run_step(x=x):
+                pipe({OBS_STATE: x})
+
+            def run_bare(rows=rows, names=names):
+                tok.decode(tok.encode(rows, names), names)
+
+            repeats = args.repeats if batch == 1 else args.repeats_large
+            with torch.inference_mode():
+                step_ms = median_ms(run_step, repeats)
+                bare_ms = median_ms(run_bare, repeats)
+            print(f"{preset:<7} {batch:>5} {batch * 2:>6} | {step_ms:>8.3f} {step_ms / batch:>9.4f} | "
+                  f"{bare_ms:>11.3f} {step_ms - bare_ms:>11.3f}")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
