@@ -420,6 +420,8 @@ def _frame_list(bad: np.ndarray, lead: tuple[int, ...] | None = None, limit: int
         where = np.argwhere(bad)
     else:
         where = np.stack(np.unravel_index(np.asarray(bad), lead), axis=-1) if lead else np.zeros((len(bad), 0), int)
+    if where.shape[-1] == 0:
+        return "[the single input frame]"
     items = [str(tuple(int(i) for i in w)) if len(w) != 1 else str(int(w[0])) for w in where[:limit]]
     more = f" (+{len(where) - limit} more)" if len(where) > limit else ""
-    return "[" + ", ".join(items or ["()"]) + "]" + more
+    return "[" + ", ".join(items) + "]" + more
