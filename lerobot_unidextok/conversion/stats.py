@@ -45,20 +45,16 @@ def _bin_indices(batch: np.ndarray, edges: np.ndarray) -> np.ndarray:
     first, span = e[:, 0], (e[:, -1] - e[:, 0]).astype(np.float64)
     guess = np.floor((x - first) / np.where(span > 0, span, 1.0) * NUM_BINS)
     sub = np.clip(guess, 0, NUM_BINS - 1).astype(np.int64)  # (T, V)
-    rows = np.broadcast_to(np.arange(len(var)), sub.shape)
-    todo = np.ones(sub.shape, dtype=bool)
+    width = len(var)
+    flat_edges = np.ascontiguousarray(e.T).reshape(-1)  # (B+1) * V: edge j of column v at j * V + v
+    cols = np.arange(width)
     for _ in range(8):  # each pass moves a wrong guess one bin; guesses are off by at most one or two
-        r, c = np.nonzero(todo)
-        cur = sub[r, c]
-        xv = x[r, c]
-        down = e[rows[r, c], cur] > xv
-        up = (cur < NUM_BINS - 1) & (e[rows[r, c], np.minimum(cur + 1, NUM_BINS)] <= xv)
-        moved = down | up
-        if not moved.any():
+        flat = sub * width + cols  # (T, V)
+        down = flat_edges[flat] > x
+        up = (sub < NUM_BINS - 1) & (flat_edges[flat + width] <= x)
+        if not (down.any() or up.any()):
             break
-        sub[r, c] = cur - down + up
-        todo[:] = False
-        todo[r[moved], c[moved]] = True
+        sub += up.astype(np.int64) - down.astype(np.int64)
     else:
         strict[:] = False
     idx[:, var] = sub
@@ -86,10 +82,15 @@ def _vector_stats(batch: np.ndarray) -> dict[str, np.ndarray]:
     std = np.sqrt(np.maximum(0, mean_sq - mean**2))
 
     # histograms (D, NUM_BINS) on per-dimension linspace edges, np.histogram's bin rule
-    # per-dimension linspace: the vectorised form rounds differently when any dimension is constant
+    # lerobot calls linspace per dimension; one vectorised call gives the same values unless some
+    # dimension has a zero step (numpy then switches formula for the whole array), so those go alone.
+    lo, hi = vmin - 1e-10, vmax + 1e-10
     edges = np.empty((dim, NUM_BINS + 1), dtype=np.result_type(vmin.dtype, np.float32))  # (D, B+1)
-    for d in range(dim):
-        edges[d] = np.linspace(vmin[d] - 1e-10, vmax[d] + 1e-10, NUM_BINS + 1)
+    zero_step = (hi - lo) / NUM_BINS == 0
+    if (~zero_step).any():
+        edges[~zero_step] = np.linspace(lo[~zero_step], hi[~zero_step], NUM_BINS + 1, axis=-1)
+    for d in np.flatnonzero(zero_step):
+        edges[d] = np.linspace(lo[d], hi[d], NUM_BINS + 1)
     idx = _bin_indices(batch, edges)  # (T, D) np.histogram bin of every value
     idx_sorted = np.sort(idx, axis=0)  # (T, D)
 

@@ -55,3 +55,22 @@ def test_scalar_features_and_strings():
         for stat in a[key]:
             assert a[key][stat].shape == b[key][stat].shape == (1,)
             np.testing.assert_array_equal(b[key][stat], a[key][stat])
+
+
+def test_mixed_constant_and_varying_dimensions_of_a_real_episode_shape():
+    """UDHM-like episode: masked zero slots, constant mask columns and moving joints side by side."""
+    from lerobot.datasets.compute_stats import compute_episode_stats
+
+    rng = np.random.default_rng(11)
+    state = np.cumsum(rng.normal(0, 0.02, size=(700, 44)), axis=0).astype(np.float32)
+    state[:, [1, 3, 17, 23, 39]] = 0.0
+    state[:, 5] = 1.25
+    mask = np.ones((700, 44), bool)
+    mask[:, [1, 3, 17, 23, 39]] = False
+    features = {"s": {"dtype": "float32", "shape": (44,)}, "m": {"dtype": "bool", "shape": (44,)}}
+    ep = {"s": state, "m": mask}
+    a, b = compute_episode_stats(ep, features), episode_stats(ep, features)
+    for key in a:
+        for stat in a[key]:
+            assert a[key][stat].dtype == b[key][stat].dtype
+            np.testing.assert_array_equal(b[key][stat], a[key][stat], err_msg=f"{key}/{stat}")
