@@ -38,11 +38,11 @@ class UniHMConfig:
     """UniHM-style VQ-VAE. Defaults = the `cpu` preset (a few minutes on 2 cores)."""
 
     # --- architecture (UniHM: h_dim 128, res_h_dim 128, n_res_layers 2, codebook 8192 x 512, beta 0.25)
-    h_dim: int = 64  # Conv1d channels
-    res_h_dim: int = 64  # residual block hidden channels
+    h_dim: int = 32  # Conv1d channels
+    res_h_dim: int = 32  # residual block hidden channels
     n_res_layers: int = 2
     codebook_size: int = 1024  # entries of the single codebook (one token per state)
-    embedding_dim: int = 128  # codebook vector width = bottleneck width
+    embedding_dim: int = 64  # codebook vector width = bottleneck width
     beta: float = 0.25  # weights the codebook term of the VQ loss, as in UniHM's code
     teacher_hand: str = "human"  # hand whose encoder is the teacher; others get students
 
@@ -52,21 +52,21 @@ class UniHMConfig:
     weight_decay: float = 1e-4
     codebook_lr: float = 1e-3
     codebook_momentum: float = 0.9
-    teacher_steps: int = 1500
+    teacher_steps: int = 1200
     # k-means codebook resets (UniHM: epoch 5, then every 40 epochs; only cold codes late in training)
     kmeans_first_step: int = 100
-    kmeans_every: int = 300
+    kmeans_every: int = 250
     kmeans_cold_after: float = 0.6  # fraction of teacher_steps after which only cold codes are reset
     kmeans_cold_ratio: float = 0.2
     kmeans_iters: int = 10
     # students (UniHM: distil AdamW 5e-3, align AdamW 1e-3, fine-tune AdamW 5e-4; 1 + 4 rounds x 0.8^i)
-    distill_steps: int = 150  # per round
+    distill_steps: int = 60  # per round
     distill_lr: float = 5e-3
-    align_steps: int = 150  # per round
+    align_steps: int = 60  # per round
     align_lr: float = 1e-3
     rounds: int = 5
     round_lr_decay: float = 0.8
-    finetune_steps: int = 400
+    finetune_steps: int = 300
     finetune_lr: float = 5e-4
     seed: int = 0
     progress: bool = True  # tqdm bars during fit
