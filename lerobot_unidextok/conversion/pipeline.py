@@ -225,6 +225,22 @@ def _temp_dir(target: Path) -> Path:
     return target.parent / f".{target.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}"
 
 
+def _remove_stale_temps(target: Path) -> None:
+    """Delete temp folders of earlier runs on `target` whose process is gone (killed with SIGKILL)."""
+    for path in target.parent.glob(f".{target.name}.tmp-*"):
+        try:
+            pid = int(path.name.rsplit(".tmp-", 1)[1].split("-")[0])
+        except (IndexError, ValueError):
+            continue
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            logger.warning("removing stale temp folder of a dead conversion run: %s", path)
+            shutil.rmtree(path, ignore_errors=True)
+        except PermissionError:
+            pass
+
+
 def _move_into_place(tmp: Path, target: Path, overwrite: bool) -> None:
     if target.exists():
         if not overwrite:  # appeared while we were converting
@@ -265,6 +281,7 @@ def convert(opts: ConvertOptions) -> ConvertReport:
             raise ValueError(f"shard {opts.shard_index}/{opts.num_shards} is empty ({len(refs)} episodes)")
 
     target.parent.mkdir(parents=True, exist_ok=True)
+    _remove_stale_temps(target)
     tmp = _temp_dir(target)
     writer: UdhmDatasetWriter | None = None
     layout = None

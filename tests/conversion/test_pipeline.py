@@ -276,3 +276,18 @@ def test_real_g1_inspire_end_to_end(real_data_dir, tmp_path):
             break
     else:
         pytest.fail("no converted episode equals the hand spec applied to the raw G1 values")
+
+
+def test_append_pad_mapping_and_stale_temp_cleanup(samples, tmp_path):
+    target = tmp_path / "pad"
+    stale = tmp_path / ".pad.tmp-999999999-deadbeef"  # a run killed with SIGKILL (no such pid)
+    (stale / "data").mkdir(parents=True)
+    convert(ConvertOptions(source="linkerhand", input=samples["linkerhand"], root=target, progress=False, mapping="append_pad", max_episodes=2))
+    assert not stale.exists()
+    frames = load_udhm_frames(target)
+    for hand in set(frames.hands):
+        n_active = hands.get(hand).num_active
+        rows = frames.masks[frames.hands == hand]
+        assert rows[:, :n_active].all() and not rows[:, n_active:].any()  # packed at the front
+    assert read_settings(target)["mapping"] == "append_pad"
+    assert validate_dataset(target).ok  # the validator checks masks against the recorded mapping
