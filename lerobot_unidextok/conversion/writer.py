@@ -25,6 +25,7 @@ logger = logging.getLogger(__name__)
 
 DEFAULT_KEYS = ("timestamp", "frame_index", "episode_index", "index", "task_index")
 METADATA_BUFFER_EPISODES = 256  # episodes metadata rows per parquet write
+STATS_FOLD_EPISODES = 1024  # fold per-episode stats into one running aggregate this often (bounded memory)
 
 
 def _lerobot():
@@ -189,6 +190,8 @@ class UdhmDatasetWriter:
             {k: (v if np.asarray(v).ndim > 0 else np.full(num, v)) for k, v in ep_arrays.items()}, self.features
         )
         self._episode_stats.append(stats)
+        if len(self._episode_stats) >= STATS_FOLD_EPISODES:  # count-weighted, so folding in blocks is exact
+            self._episode_stats = [self._aggregate_stats(self._episode_stats)]
         row = {
             "episode_index": ep_index,
             "tasks": [task],

@@ -124,7 +124,7 @@ def test_loads_with_lerobot_offline(both):
     np.testing.assert_array_equal(item["observation.state"].numpy(), eps[1]["observation.state"][0])
     assert item["task"] == "place" and item["hand_type"] == "inspire_rh56,linkerhand_l10"
     assert int(item["episode_index"]) == 1
-    assert ds.meta.info["splits"] == {"train": "0:5"}
+    assert ds.meta.info.splits == {"train": "0:5"}
 
 
 def test_data_file_rollover_matches_lerobot(tmp_path):
@@ -160,3 +160,28 @@ def test_bad_episode_raises(tmp_path):
         UdhmDatasetWriter(tmp_path / "y", "t/y", fps=29.97, features=FEATURES)
     with pytest.raises(FileExistsError):
         UdhmDatasetWriter(tmp_path / "x", "t/x", fps=30, features=FEATURES)
+
+
+def test_stats_folding_in_blocks_matches_one_aggregate(tmp_path, monkeypatch):
+    """Folding episode stats every few episodes (bounded memory) gives LeRobot's aggregate."""
+    from lerobot.datasets.compute_stats import aggregate_stats
+
+    from lerobot_unidextok.conversion import writer as writer_mod
+
+    monkeypatch.setattr(writer_mod, "STATS_FOLD_EPISODES", 2)
+    eps = _episodes()
+    w = UdhmDatasetWriter(tmp_path / "f", "t/f", fps=30, features=FEATURES)
+    per_episode = []
+    for ep in eps:
+        frames = {k: v for k, v in ep.items() if k != "task"}
+        w.add_episode(frames, task=ep["task"])
+    w.finalize()
+    table = pq.read_table(tmp_path / "f/meta/episodes/chunk-000/file-000.parquet").to_pylist()
+    for row in table:
+        per_episode.append({key: {stat: np.array(row[f"stats/{key}/{stat}"]) for stat in ("min", "max", "mean", "std", "count", "q01", "q10", "q50", "q90", "q99")}
+                            for key in ("observation.state", "action", "udhm_mask", "timestamp", "frame_index", "episode_index", "index", "task_index")})
+    expect = aggregate_stats(per_episode)
+    got = json.loads((tmp_path / "f/meta/stats.json").read_text())
+    for key in expect:
+        for stat in expect[key]:
+            np.testing.assert_allclose(np.array(got[key][stat], float), np.array(expect[key][stat], float), rtol=1e-6, atol=1e-9)
