@@ -47,21 +47,18 @@ def test_mpjae_ignores_inactive_slots() -> None:
     assert mpjae_deg(gt, recon, mask) == 0.0
 
 
-def test_unidextok_adapter_rate_and_errors() -> None:
-    class Cfg:
-        num_tokens, num_groups, codebook_size = 8, 8, 32
-
-    class Model:
-        config = Cfg()
-
-        def encode(self, states_rad, hand):
-            return torch.zeros(states_rad.shape[0], 8, 8, dtype=torch.long)
-
-        def decode(self, codes, hand):
-            return torch.zeros(codes.shape[0], 22)
-
-    adapter = UniDexTokAdapter(Model())
-    assert adapter.rate("human").bits_per_state == 320
-    assert adapter.encode(torch.zeros(3, 22), "human").shape == (3, 8, 8)
+def test_unidextok_adapter_on_the_real_model() -> None:
+    tokenizer = pytest.importorskip("lerobot_unidextok.tokenizer")
+    cfg = tokenizer.UniDexTokConfig.from_preset("tiny", hand_names=["human", "inspire_rh56"])
+    adapter = UniDexTokAdapter(tokenizer.UniDexTok(cfg).eval())
+    rate = adapter.rate("human")
+    assert (rate.tokens_per_state, rate.codes_per_token, rate.vocab_per_code) == (4, 8, 32)
+    assert rate.bits_per_state == 4 * 8 * 5
+    x = torch.rand(5, 22)
+    codes = adapter.encode(x, "human")
+    assert codes.dtype == torch.int64 and codes.shape == (5, 4, 8) and 0 <= codes.min() and codes.max() < 32
+    assert adapter.decode(codes, "human").shape == (5, 22)
+    paper = tokenizer.UniDexTokConfig.from_preset("paper")
+    assert Rate(paper.num_tokens, paper.num_groups, paper.codebook_size).bits_per_state == 320
     with pytest.raises(ValueError, match="encode/decode/config"):
         UniDexTokAdapter(object())
