@@ -29,7 +29,24 @@ _EXPORTS = {
     "validate_dataset": "validate",
 }
 
-__all__ = sorted(_EXPORTS)
+__all__ = [
+    "ConversionError",
+    "ConvertOptions",
+    "ConvertReport",
+    "EpisodeError",
+    "HandStream",
+    "RawEpisode",
+    "UdhmDatasetWriter",
+    "UdhmEpisode",
+    "available_sources",
+    "convert",
+    "get_source",
+    "map_episode",
+    "merge_shards",
+    "register_source",
+    "udhm_features",
+    "validate_dataset",
+]
 
 
 def __getattr__(name: str):

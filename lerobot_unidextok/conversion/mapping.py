@@ -19,7 +19,9 @@ from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 
 Mapping = Literal["semantic", "append_pad"]
 MAPPINGS: tuple[str, ...] = ("semantic", "append_pad")
-ANGLE_BOUND_RAD = 2 * np.pi  # no UDHM joint angle is beyond this: larger values are unit errors
+ANGLE_BOUND_RAD = (
+    2 * np.pi
+)  # no UDHM joint angle is beyond this: larger values are unit errors
 
 
 class EpisodeError(ValueError):
@@ -44,7 +46,9 @@ class UdhmEpisode:
     mask: np.ndarray  # (T, 22 * H) bool
     action_rad: np.ndarray | None = None  # (T, 22 * H) float32
     trimmed_frames: int = 0
-    absent_hand_frames: int = 0  # hand-frames zero-filled because the hand was not present
+    absent_hand_frames: int = (
+        0  # hand-frames zero-filled because the hand was not present
+    )
     synthetic: bool = False
     extra: dict = field(default_factory=dict)
 
@@ -72,27 +76,45 @@ def _frames(idx: np.ndarray, limit: int = 8) -> str:
     return f"[{shown}{', ...' if len(idx) > limit else ''}] ({len(idx)} frames)"
 
 
-def _map_values(spec, values: np.ndarray, side: str, mapping: str, what: str, src: str, present: np.ndarray) -> np.ndarray:
+def _map_values(
+    spec,
+    values: np.ndarray,
+    side: str,
+    mapping: str,
+    what: str,
+    src: str,
+    present: np.ndarray,
+) -> np.ndarray:
     """(T, ...) native -> (T, 22) float32 rad; absent frames are zero."""
     num = values.shape[0]
     out = np.zeros((num, UDHM_DIM), dtype=np.float32)
     sel = values[present]
     if sel.size and not np.isfinite(sel).all():
         bad = ~np.isfinite(sel.reshape(sel.shape[0], -1)).all(axis=1)
-        raise EpisodeError(src, f"NaN/inf in {what} of the {side} hand at frames {_frames(np.flatnonzero(present)[bad])}")
+        raise EpisodeError(
+            src,
+            f"NaN/inf in {what} of the {side} hand at frames {_frames(np.flatnonzero(present)[bad])}",
+        )
     if not present.any():
         return out
     try:
-        udhm = np.asarray(spec.to_udhm(sel, side=side, mapping=mapping), dtype=np.float64)
+        udhm = np.asarray(
+            spec.to_udhm(sel, side=side, mapping=mapping), dtype=np.float64
+        )
     except EpisodeError:
         raise
     except (ValueError, KeyError) as exc:
-        raise EpisodeError(src, f"{what} of the {side} {spec.name} hand: {exc}") from exc
+        raise EpisodeError(
+            src, f"{what} of the {side} {spec.name} hand: {exc}"
+        ) from exc
     if not np.isfinite(udhm).all():
-        raise EpisodeError(src, f"UDHM mapping of the {side} {spec.name} {what} produced NaN/inf")
+        raise EpisodeError(
+            src, f"UDHM mapping of the {side} {spec.name} {what} produced NaN/inf"
+        )
     if np.abs(udhm).max(initial=0.0) > ANGLE_BOUND_RAD:
         raise EpisodeError(
-            src, f"UDHM {what} of the {side} {spec.name} hand reaches {np.abs(udhm).max():.3g} rad: wrong units?"
+            src,
+            f"UDHM {what} of the {side} {spec.name} hand reaches {np.abs(udhm).max():.3g} rad: wrong units?",
         )
     out[present] = udhm.astype(np.float32)
     return out
@@ -102,17 +124,37 @@ def _check_stream(stream: HandStream, spec, num: int, src: str) -> np.ndarray:
     if stream.side not in SIDES:
         raise EpisodeError(src, f"hand side {stream.side!r} is not one of {SIDES}")
     state = np.asarray(stream.state_native)
-    expected = "(T, 21, 3) keypoints_m" if spec.kind == "keypoints" else f"(T, {spec.num_native}) native joints"
-    ok = state.shape == (num, 21, 3) if spec.kind == "keypoints" else state.shape == (num, spec.num_native)
+    expected = (
+        "(T, 21, 3) keypoints_m"
+        if spec.kind == "keypoints"
+        else f"(T, {spec.num_native}) native joints"
+    )
+    ok = (
+        state.shape == (num, 21, 3)
+        if spec.kind == "keypoints"
+        else state.shape == (num, spec.num_native)
+    )
     if not ok:
-        raise EpisodeError(src, f"{stream.side} {spec.name} state has shape {state.shape}, expected {expected} with T={num}")
-    if stream.action_native is not None and np.asarray(stream.action_native).shape != state.shape:
-        raise EpisodeError(src, f"{stream.side} action shape {np.asarray(stream.action_native).shape} != state shape {state.shape}")
+        raise EpisodeError(
+            src,
+            f"{stream.side} {spec.name} state has shape {state.shape}, expected {expected} with T={num}",
+        )
+    if (
+        stream.action_native is not None
+        and np.asarray(stream.action_native).shape != state.shape
+    ):
+        raise EpisodeError(
+            src,
+            f"{stream.side} action shape {np.asarray(stream.action_native).shape} != state shape {state.shape}",
+        )
     if stream.valid is None:
         return np.ones(num, dtype=bool)
     valid = np.asarray(stream.valid)
     if valid.shape != (num,) or valid.dtype != bool:
-        raise EpisodeError(src, f"{stream.side} valid must be a bool array of shape ({num},), got {valid.dtype} {valid.shape}")
+        raise EpisodeError(
+            src,
+            f"{stream.side} valid must be a bool array of shape ({num},), got {valid.dtype} {valid.shape}",
+        )
     return valid
 
 
@@ -132,7 +174,10 @@ def map_episode(raw: RawEpisode, mapping: str = "semantic") -> UdhmEpisode:
         raise EpisodeError(src, f"two hand streams share a side: {sides}")
     has_action = [s.action_native is not None for s in raw.hands]
     if any(has_action) and not all(has_action):
-        raise EpisodeError(src, "some hands have actions and others do not; give actions for all hands or none")
+        raise EpisodeError(
+            src,
+            "some hands have actions and others do not; give actions for all hands or none",
+        )
     num = int(np.asarray(raw.hands[0].state_native).shape[0])
     if num == 0:
         raise EpisodeError(src, "episode has 0 frames")
@@ -155,11 +200,15 @@ def map_episode(raw: RawEpisode, mapping: str = "semantic") -> UdhmEpisode:
     for stream, spec, valid in zip(raw.hands, specs, valids, strict=True):
         keep = valid[first:last]
         native = np.asarray(stream.state_native)[first:last]
-        states.append(_map_values(spec, native, stream.side, mapping, "state", src, keep))
+        states.append(
+            _map_values(spec, native, stream.side, mapping, "state", src, keep)
+        )
         masks.append(np.where(keep[:, None], spec.mask(mapping)[None, :], False))
         if stream.action_native is not None:
             act = np.asarray(stream.action_native)[first:last]
-            actions.append(_map_values(spec, act, stream.side, mapping, "action", src, keep))
+            actions.append(
+                _map_values(spec, act, stream.side, mapping, "action", src, keep)
+            )
 
     return UdhmEpisode(
         source_file=src,
@@ -184,7 +233,10 @@ def to_layout(ep: UdhmEpisode, sides: tuple[str, ...]) -> UdhmEpisode:
         return ep
     extra = [s for s in ep.sides if s not in sides]
     if extra:
-        raise EpisodeError(ep.source_file, f"episode has hand side(s) {extra} outside the dataset layout {tuple(sides)}")
+        raise EpisodeError(
+            ep.source_file,
+            f"episode has hand side(s) {extra} outside the dataset layout {tuple(sides)}",
+        )
     num = ep.num_frames
     blocks = {s: i for i, s in enumerate(ep.sides)}
 
@@ -192,7 +244,9 @@ def to_layout(ep: UdhmEpisode, sides: tuple[str, ...]) -> UdhmEpisode:
         if values is None:
             return None
         parts = [
-            values[:, blocks[s] * UDHM_DIM : (blocks[s] + 1) * UDHM_DIM] if s in blocks else np.full((num, UDHM_DIM), fill, values.dtype)
+            values[:, blocks[s] * UDHM_DIM : (blocks[s] + 1) * UDHM_DIM]
+            if s in blocks
+            else np.full((num, UDHM_DIM), fill, values.dtype)
             for s in sides
         ]
         return np.concatenate(parts, axis=1)

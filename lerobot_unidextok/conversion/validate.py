@@ -15,7 +15,15 @@ import numpy as np
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from lerobot_unidextok.constants import ACTION, HAND_TYPE_KEY, OBS_STATE, SIDES, UDHM_DIM, UDHM_JOINT_NAMES, UDHM_MASK_KEY
+from lerobot_unidextok.constants import (
+    ACTION,
+    HAND_TYPE_KEY,
+    OBS_STATE,
+    SIDES,
+    UDHM_DIM,
+    UDHM_JOINT_NAMES,
+    UDHM_MASK_KEY,
+)
 from lerobot_unidextok.conversion.mapping import ANGLE_BOUND_RAD
 
 LIMIT_TOL_RAD = 1e-3
@@ -51,7 +59,9 @@ class ValidationReport:
         for c in self.checks:
             status = "ok" if c.ok else ("WARN" if c.warning else "FAIL")
             lines.append(f"  {status:4s}  {c.name:<{width}}  {c.detail}")
-        lines.append(f"result: {'VALID' if self.ok else 'INVALID'} ({len(self.failed())} failed)")
+        lines.append(
+            f"result: {'VALID' if self.ok else 'INVALID'} ({len(self.failed())} failed)"
+        )
         return "\n".join(lines)
 
 
@@ -60,7 +70,9 @@ def _names(ft: dict) -> list[str]:
     return list(next(iter(names.values()))) if isinstance(names, dict) else list(names)
 
 
-def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = True) -> ValidationReport:
+def validate_dataset(
+    root: str | Path, repo_id: str | None = None, load: bool = True
+) -> ValidationReport:
     """Validate the converted dataset at `root`; never raises on a bad dataset, reports instead."""
     from lerobot_unidextok import hands as hand_registry
 
@@ -70,12 +82,20 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
     if not rep.add("meta/info.json", info_path.is_file(), str(info_path)):
         return rep
     info = json.loads(info_path.read_text())
-    rep.add("codebase_version", info.get("codebase_version") == "v3.0", str(info.get("codebase_version")))
+    rep.add(
+        "codebase_version",
+        info.get("codebase_version") == "v3.0",
+        str(info.get("codebase_version")),
+    )
     feats = info.get("features", {})
 
     # -- features ----------------------------------------------------------------------------------
     st = feats.get(OBS_STATE)
-    if not rep.add("observation.state feature", st is not None and st.get("dtype") == "float32", str(st and st.get("dtype"))):
+    if not rep.add(
+        "observation.state feature",
+        st is not None and st.get("dtype") == "float32",
+        str(st and st.get("dtype")),
+    ):
         return rep
     dim = int(st["shape"][0])
     names = _names(st)
@@ -84,23 +104,43 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
     expected = [f"{s}_{j}" for s in sides for j in UDHM_JOINT_NAMES]
     rep.add(
         "state names <side>_<udhm joint>",
-        dim % UDHM_DIM == 0 and num_hands in (1, 2) and names == expected and set(sides) <= set(SIDES) and len(set(sides)) == len(sides),
+        dim % UDHM_DIM == 0
+        and num_hands in (1, 2)
+        and names == expected
+        and set(sides) <= set(SIDES)
+        and len(set(sides)) == len(sides),
         f"{num_hands} block(s): {sides}",
     )
     for key, dtype in ((ACTION, "float32"), (UDHM_MASK_KEY, "bool")):
         ft = feats.get(key)
         if ft is None:
-            rep.add(f"{key} feature", key == ACTION, "absent" if key == ACTION else "missing")
+            rep.add(
+                f"{key} feature",
+                key == ACTION,
+                "absent" if key == ACTION else "missing",
+            )
             continue
-        rep.add(f"{key} feature", ft.get("dtype") == dtype and list(ft["shape"]) == [dim] and _names(ft) == names, f"{ft.get('dtype')} {ft['shape']}")
+        rep.add(
+            f"{key} feature",
+            ft.get("dtype") == dtype
+            and list(ft["shape"]) == [dim]
+            and _names(ft) == names,
+            f"{ft.get('dtype')} {ft['shape']}",
+        )
     ht = feats.get(HAND_TYPE_KEY)
-    rep.add("hand_type feature", ht is not None and ht.get("dtype") == "string", str(ht and ht.get("dtype")))
+    rep.add(
+        "hand_type feature",
+        ht is not None and ht.get("dtype") == "string",
+        str(ht and ht.get("dtype")),
+    )
     if not rep.ok:
         return rep
 
     # -- data ----------------------------------------------------------------------------------------
     files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
-    cols = [OBS_STATE, UDHM_MASK_KEY, HAND_TYPE_KEY, "episode_index"] + ([ACTION] if ACTION in feats else [])
+    cols = [OBS_STATE, UDHM_MASK_KEY, HAND_TYPE_KEY, "episode_index"] + (
+        [ACTION] if ACTION in feats else []
+    )
     try:
         table = pq.read_table(files, columns=cols) if files else None
     except Exception as exc:  # noqa: BLE001
@@ -109,14 +149,28 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
     if not rep.add("data parquet readable", table is not None, f"{len(files)} file(s)"):
         return rep
     n = table.num_rows
-    rep.add("total_frames", n == info.get("total_frames"), f"{n} rows, info says {info.get('total_frames')}")
+    rep.add(
+        "total_frames",
+        n == info.get("total_frames"),
+        f"{n} rows, info says {info.get('total_frames')}",
+    )
     eps = np.unique(table.column("episode_index").to_numpy())
     total_eps = int(info.get("total_episodes", -1))
-    rep.add("episodes 0..N-1", len(eps) == total_eps and (len(eps) == 0 or (eps[0] == 0 and eps[-1] == total_eps - 1)), f"{len(eps)} episodes")
+    rep.add(
+        "episodes 0..N-1",
+        len(eps) == total_eps
+        and (len(eps) == 0 or (eps[0] == 0 and eps[-1] == total_eps - 1)),
+        f"{len(eps)} episodes",
+    )
 
     def arr(key, dtype):
         col = table.column(key).combine_chunks()
-        return col.flatten().to_numpy(zero_copy_only=False).astype(dtype).reshape(n, num_hands, UDHM_DIM)
+        return (
+            col.flatten()
+            .to_numpy(zero_copy_only=False)
+            .astype(dtype)
+            .reshape(n, num_hands, UDHM_DIM)
+        )
 
     state = arr(OBS_STATE, np.float32)
     mask = arr(UDHM_MASK_KEY, bool)
@@ -125,15 +179,27 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         if values is None:
             continue
         finite = np.isfinite(values).all()
-        rep.add(f"{key} finite", finite, "" if finite else f"{int((~np.isfinite(values)).sum())} NaN/inf values")
+        rep.add(
+            f"{key} finite",
+            finite,
+            "" if finite else f"{int((~np.isfinite(values)).sum())} NaN/inf values",
+        )
         peak = float(np.abs(np.nan_to_num(values)).max(initial=0.0))
-        rep.add(f"{key} |angle| <= 2 pi", peak <= ANGLE_BOUND_RAD, f"max |angle| {peak:.3f} rad")
+        rep.add(
+            f"{key} |angle| <= 2 pi",
+            peak <= ANGLE_BOUND_RAD,
+            f"max |angle| {peak:.3f} rad",
+        )
         leak = int((values[~mask] != 0).sum())
         rep.add(f"{key} zero where masked", leak == 0, f"{leak} non-zero masked values")
 
     # hand_type: known specs, masks equal to the spec masks (or all False for an absent hand)
     settings_path = root / "meta" / "unidextok_conversion.json"
-    mapping = json.loads(settings_path.read_text()).get("mapping", "semantic") if settings_path.is_file() else "semantic"
+    mapping = (
+        json.loads(settings_path.read_text()).get("mapping", "semantic")
+        if settings_path.is_file()
+        else "semantic"
+    )
     ht_col = table.column(HAND_TYPE_KEY).combine_chunks().dictionary_encode()
     codes = ht_col.indices.to_numpy(zero_copy_only=False)
     bad_names, bad_masks, out_of_limits, checked = [], 0, 0, 0
@@ -161,10 +227,22 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
             else:
                 lo, hi = spec.udhm_limits_rad(sides[b])
             vals = state[rows, b][present]
-            out_of_limits += int(((vals < lo - LIMIT_TOL_RAD) | (vals > hi + LIMIT_TOL_RAD)).sum())
+            out_of_limits += int(
+                ((vals < lo - LIMIT_TOL_RAD) | (vals > hi + LIMIT_TOL_RAD)).sum()
+            )
             checked += vals.size
-    rep.add("hand_type names known", not bad_names, f"unknown/mis-sized: {sorted(set(bad_names))[:5]}" if bad_names else f"{ht_col.dictionary.to_pylist()[:4]}")
-    rep.add("udhm_mask matches hand specs", bad_masks == 0, f"{bad_masks} inconsistent hand-frames (mapping={mapping})")
+    rep.add(
+        "hand_type names known",
+        not bad_names,
+        f"unknown/mis-sized: {sorted(set(bad_names))[:5]}"
+        if bad_names
+        else f"{ht_col.dictionary.to_pylist()[:4]}",
+    )
+    rep.add(
+        "udhm_mask matches hand specs",
+        bad_masks == 0,
+        f"{bad_masks} inconsistent hand-frames (mapping={mapping})",
+    )
     rep.add(
         "state within hand limits",
         out_of_limits == 0,
@@ -177,10 +255,19 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
     try:
         tr = [int(x) for x in splits["train"].split(":")]
         te = [int(x) for x in splits["test"].split(":")]
-        ok = tr[0] == 0 and tr[1] == te[0] and te[1] == total_eps and tr[1] >= tr[0] and te[1] >= te[0]
+        ok = (
+            tr[0] == 0
+            and tr[1] == te[0]
+            and te[1] == total_eps
+            and tr[1] >= tr[0]
+            and te[1] >= te[0]
+        )
         detail = f"train {splits['train']} test {splits['test']} of {total_eps}"
     except (KeyError, ValueError, AttributeError):
-        ok, detail = False, f"splits must be {{'train': 'a:b', 'test': 'c:d'}}, got {splits}"
+        ok, detail = (
+            False,
+            f"splits must be {{'train': 'a:b', 'test': 'c:d'}}, got {splits}",
+        )
     rep.add("splits train/test cover episodes", ok, detail)
     rep.add("dataset card README.md", (root / "README.md").is_file(), "")
     for rel in ("meta/stats.json", "meta/tasks.parquet"):
@@ -188,7 +275,12 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
     ep_files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
     if ep_files:
         ep_tab = pq.read_table(ep_files, columns=["episode_index", "length"])
-        rep.add("meta/episodes lengths", int(pc.sum(ep_tab.column("length")).as_py() or 0) == n and ep_tab.num_rows == total_eps, f"{ep_tab.num_rows} rows")
+        rep.add(
+            "meta/episodes lengths",
+            int(pc.sum(ep_tab.column("length")).as_py() or 0) == n
+            and ep_tab.num_rows == total_eps,
+            f"{ep_tab.num_rows} rows",
+        )
     else:
         rep.add("meta/episodes lengths", False, "no meta/episodes parquet")
 
@@ -197,9 +289,15 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         try:
             from lerobot.datasets import LeRobotDataset
 
-            ds = LeRobotDataset(repo_id or info.get("repo_id") or f"local/{root.name}", root=root)
+            ds = LeRobotDataset(
+                repo_id or info.get("repo_id") or f"local/{root.name}", root=root
+            )
             item = ds[0]
-            rep.add("LeRobotDataset loads", tuple(item[OBS_STATE].shape) == (dim,), f"{ds.num_episodes} episodes, {ds.num_frames} frames")
+            rep.add(
+                "LeRobotDataset loads",
+                tuple(item[OBS_STATE].shape) == (dim,),
+                f"{ds.num_episodes} episodes, {ds.num_frames} frames",
+            )
         except Exception as exc:  # noqa: BLE001
             rep.add("LeRobotDataset loads", False, f"{type(exc).__name__}: {exc}")
     return rep

@@ -19,7 +19,11 @@ from lerobot_unidextok.conversion.pipeline import (
     read_settings,
     split_order,
 )
-from lerobot_unidextok.conversion.registry import get_source, register_source, unregister_source
+from lerobot_unidextok.conversion.registry import (
+    get_source,
+    register_source,
+    unregister_source,
+)
 from lerobot_unidextok.conversion.validate import validate_dataset
 from lerobot_unidextok.data import load_udhm_frames
 
@@ -28,18 +32,33 @@ from lerobot_unidextok.data import load_udhm_frames
 def samples(tmp_path_factory):
     from lerobot_unidextok.conversion.samples import write_samples
 
-    return write_samples(tmp_path_factory.mktemp("raw"), sources=["linkerhand", "dexycb"], episodes_per_source=6, frames_per_episode=40)
+    return write_samples(
+        tmp_path_factory.mktemp("raw"),
+        sources=["linkerhand", "dexycb"],
+        episodes_per_source=6,
+        frames_per_episode=40,
+    )
 
 
 @pytest.fixture(scope="module")
 def linker(samples, tmp_path_factory):
     root = tmp_path_factory.mktemp("out") / "linker"
-    report = convert(ConvertOptions(source="linkerhand", input=samples["linkerhand"], root=root, repo_id="t/linker", progress=False))
+    report = convert(
+        ConvertOptions(
+            source="linkerhand",
+            input=samples["linkerhand"],
+            root=root,
+            repo_id="t/linker",
+            progress=False,
+        )
+    )
     return root, report
 
 
 def _data(root):
-    return pq.read_table(sorted((root / "data").rglob("*.parquet"))).replace_schema_metadata(None)
+    return pq.read_table(
+        sorted((root / "data").rglob("*.parquet"))
+    ).replace_schema_metadata(None)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -49,12 +68,18 @@ def test_robot_source_contract_and_round_trip(samples, linker):
     from lerobot.datasets import LeRobotDataset
 
     root, report = linker
-    assert (report.num_episodes, report.num_train, report.num_test) == (6, 5, 1)  # round(0.2 * 6) = 1
+    assert (report.num_episodes, report.num_train, report.num_test) == (
+        6,
+        5,
+        1,
+    )  # round(0.2 * 6) = 1
     ds = LeRobotDataset("t/linker", root=root)
     assert ds.num_episodes == 6 and ds.fps == 30
     names = ds.meta.features["observation.state"]["names"]
     sides = [names[0].split("_")[0], names[UDHM_DIM].split("_")[0]]
-    assert sorted(sides) == ["left", "right"] and names[6] == f"{sides[0]}_index_mcp_flex"
+    assert (
+        sorted(sides) == ["left", "right"] and names[6] == f"{sides[0]}_index_mcp_flex"
+    )
     assert ds.meta.features["action"]["dtype"] == "float32"
     assert ds.meta.info.splits == {"train": "0:5", "test": "5:6"}
     assert validate_dataset(root).ok
@@ -68,52 +93,98 @@ def test_robot_source_contract_and_round_trip(samples, linker):
     raws = {src.read_episode(r).source_file: src.read_episode(r) for r in refs}
     checked = 0
     for ep_index in range(6):
-        state = frames.states_rad[frames.episode_index == ep_index].reshape(-1, 2, UDHM_DIM)
+        state = frames.states_rad[frames.episode_index == ep_index].reshape(
+            -1, 2, UDHM_DIM
+        )
         matches = []
         for raw in raws.values():
             if raw.num_frames != state.shape[0]:
                 continue
             by_side = {h.side: h for h in raw.hands}
             spec = hands.get(by_side[sides[0]].hand)
-            expect = np.stack([hands.get(by_side[s].hand).to_udhm(by_side[s].state_native, side=s) for s in sides], axis=1)
+            expect = np.stack(
+                [
+                    hands.get(by_side[s].hand).to_udhm(by_side[s].state_native, side=s)
+                    for s in sides
+                ],
+                axis=1,
+            )
             if np.allclose(expect, state, atol=1e-6):
-                assert list(frames.hands[frames.episode_index == ep_index][:2]) == [by_side[s].hand for s in sides]
-                native = np.asarray(spec.from_udhm(state[:, 0].astype(np.float64), side=sides[0]))
+                assert list(frames.hands[frames.episode_index == ep_index][:2]) == [
+                    by_side[s].hand for s in sides
+                ]
+                native = np.asarray(
+                    spec.from_udhm(state[:, 0].astype(np.float64), side=sides[0])
+                )
                 active = [i for i, j in enumerate(spec.joints) if j.slot is not None]
-                np.testing.assert_allclose(native[:, active], by_side[sides[0]].state_native[:, active], atol=1e-3)  # SDK units
+                np.testing.assert_allclose(
+                    native[:, active],
+                    by_side[sides[0]].state_native[:, active],
+                    atol=1e-3,
+                )  # SDK units
                 matches.append(raw.source_file)
         assert len(matches) == 1
         checked += 1
     assert checked == 6
     card = (root / "README.md").read_text()
-    assert "linkerhand" in card and "SYNTHETIC" in card and "license" in card.lower() and "linkerhand_l" in card
+    assert (
+        "linkerhand" in card
+        and "SYNTHETIC" in card
+        and "license" in card.lower()
+        and "linkerhand_l" in card
+    )
 
 
 def test_split_deterministic_and_worker_independent(samples, linker, tmp_path):
     root, _ = linker
     again = tmp_path / "again"
-    convert(ConvertOptions(source="linkerhand", input=samples["linkerhand"], root=again, repo_id="t/linker", num_workers=2, progress=False))
+    convert(
+        ConvertOptions(
+            source="linkerhand",
+            input=samples["linkerhand"],
+            root=again,
+            repo_id="t/linker",
+            num_workers=2,
+            progress=False,
+        )
+    )
     assert _data(root).equals(_data(again))
-    assert json.loads((again / "meta/info.json").read_text())["splits"] == {"train": "0:5", "test": "5:6"}
+    assert json.loads((again / "meta/info.json").read_text())["splits"] == {
+        "train": "0:5",
+        "test": "5:6",
+    }
 
     keys = [f"ep_{i}" for i in range(50)]
     train, test = split_order(keys, 0.2)
     assert len(test) == 10 and sorted(train + test) == list(range(50))
-    train_rev, test_rev = split_order(keys[::-1], 0.2)
-    assert sorted(keys[::-1][i] for i in test_rev) == sorted(keys[i] for i in test)  # order-independent
+    _train_rev, test_rev = split_order(keys[::-1], 0.2)
+    assert sorted(keys[::-1][i] for i in test_rev) == sorted(
+        keys[i] for i in test
+    )  # order-independent
 
 
 def test_existing_target_refused_then_overwritten(samples, linker, tmp_path):
     target = tmp_path / "t"
     target.mkdir()
     (target / "keep.txt").write_text("x")
-    opts = dict(source="linkerhand", input=samples["linkerhand"], root=target, progress=False, max_episodes=2)
+    opts = {
+        "source": "linkerhand",
+        "input": samples["linkerhand"],
+        "root": target,
+        "progress": False,
+        "max_episodes": 2,
+    }
     with pytest.raises(FileExistsError, match="--overwrite"):
         convert(ConvertOptions(**opts))
     assert (target / "keep.txt").exists()
     convert(ConvertOptions(**opts, overwrite=True))
-    assert not (target / "keep.txt").exists() and json.loads((target / "meta/info.json").read_text())["total_episodes"] == 2
-    assert [p.name for p in tmp_path.iterdir()] == ["t"]  # no temp or backup folders left
+    assert (
+        not (target / "keep.txt").exists()
+        and json.loads((target / "meta/info.json").read_text())["total_episodes"] == 2
+    )
+    assert [p.name for p in tmp_path.iterdir()] == [
+        "t"
+    ]  # no temp or backup folders left
 
 
 def test_shards_merge_equals_single_run(samples, linker, tmp_path):
@@ -123,14 +194,36 @@ def test_shards_merge_equals_single_run(samples, linker, tmp_path):
     shards = []
     for k in range(2):
         shard = tmp_path / f"shard{k}"
-        convert(ConvertOptions(source="linkerhand", input=samples["linkerhand"], root=shard, progress=False, shard_index=k, num_shards=2))
+        convert(
+            ConvertOptions(
+                source="linkerhand",
+                input=samples["linkerhand"],
+                root=shard,
+                progress=False,
+                shard_index=k,
+                num_shards=2,
+            )
+        )
         shards.append(shard)
     merged = merge_shards(shards, tmp_path / "merged", repo_id="t/merged")
     info = json.loads((merged / "meta/info.json").read_text())
-    assert info["splits"] == {"train": "0:5", "test": "5:6"} and info["total_episodes"] == 6
+    assert (
+        info["splits"] == {"train": "0:5", "test": "5:6"}
+        and info["total_episodes"] == 6
+    )
     single, both = _data(root), _data(merged)
-    for col in ("observation.state", "action", "udhm_mask", "hand_type", "episode_index", "frame_index", "index"):
-        assert single.column(col).to_pylist() == both.column(col).to_pylist(), col  # aggregate writes list<>, not fixed_size_list<>
+    for col in (
+        "observation.state",
+        "action",
+        "udhm_mask",
+        "hand_type",
+        "episode_index",
+        "frame_index",
+        "index",
+    ):
+        assert single.column(col).to_pylist() == both.column(col).to_pylist(), (
+            col
+        )  # aggregate writes list<>, not fixed_size_list<>
     assert LeRobotDataset("t/merged", root=merged).num_frames == single.num_rows
     assert validate_dataset(merged).ok
 
@@ -141,17 +234,37 @@ def test_shards_merge_equals_single_run(samples, linker, tmp_path):
 def test_human_source_left_or_right_sequences(samples, tmp_path, monkeypatch):
     root = tmp_path / "dexycb"
     cls = get_source("dexycb")
-    monkeypatch.setattr(cls, "sides", None)  # without a declared layout the first episode's side wins
+    monkeypatch.setattr(
+        cls, "sides", None
+    )  # without a declared layout the first episode's side wins
     with pytest.raises(ConversionError, match="--sides=right,left"):
-        convert(ConvertOptions(source="dexycb", input=samples["dexycb"], root=root, progress=False))
+        convert(
+            ConvertOptions(
+                source="dexycb", input=samples["dexycb"], root=root, progress=False
+            )
+        )
     assert not root.exists()
-    report = convert(ConvertOptions(source="dexycb", input=samples["dexycb"], root=root, progress=False, sides=("right", "left")))
+    report = convert(
+        ConvertOptions(
+            source="dexycb",
+            input=samples["dexycb"],
+            root=root,
+            progress=False,
+            sides=("right", "left"),
+        )
+    )
     assert report.hands == ["human"]
     frames = load_udhm_frames(root)
-    assert set(frames.hands) == {"human"} and frames.masks.all()  # absent hands dropped, human = 22 DoF
-    assert np.isfinite(frames.states_rad).all() and np.abs(frames.states_rad).max() < np.pi
+    assert (
+        set(frames.hands) == {"human"} and frames.masks.all()
+    )  # absent hands dropped, human = 22 DoF
+    assert (
+        np.isfinite(frames.states_rad).all() and np.abs(frames.states_rad).max() < np.pi
+    )
     every = load_udhm_frames(root, drop_absent=False)
-    assert len(every) > len(frames)  # each sequence has one hand: the other block is masked
+    assert len(every) > len(
+        frames
+    )  # each sequence has one hand: the other block is masked
     assert validate_dataset(root).ok
 
 
@@ -164,7 +277,15 @@ class BrokenSource:
     description = "episodes with known defects"
 
     def list_episodes(self, input_path):
-        return ["good_a", "truncated", "nan", "out_of_range", "unknown_hand", "good_b", "interrupt"]
+        return [
+            "good_a",
+            "truncated",
+            "nan",
+            "out_of_range",
+            "unknown_hand",
+            "good_b",
+            "interrupt",
+        ]
 
     def read_episode(self, ref):
         spec = hands.get("linkerhand_l10")
@@ -181,7 +302,12 @@ class BrokenSource:
             hand = "robo_x"
         if ref == "interrupt" and getattr(self, "interrupt", False):
             raise KeyboardInterrupt
-        return RawEpisode(source_file=f"/data/{ref}.json", fps=30, hands=[HandStream("right", hand, state)], task="t")
+        return RawEpisode(
+            source_file=f"/data/{ref}.json",
+            fps=30,
+            hands=[HandStream("right", hand, state)],
+            task="t",
+        )
 
 
 @pytest.fixture
@@ -193,16 +319,42 @@ def broken_input(tmp_path):
 def test_on_error_raise_stops_and_writes_nothing(broken_input, tmp_path):
     target = tmp_path / "out"
     with pytest.raises(ConversionError) as err:
-        convert(ConvertOptions(source="_broken_test", input=broken_input, root=target, progress=False, test_fraction=0.0))
-    assert "truncated" in str(err.value) and "file truncated at byte 120" in str(err.value) and "--on_error=skip" in str(err.value)
+        convert(
+            ConvertOptions(
+                source="_broken_test",
+                input=broken_input,
+                root=target,
+                progress=False,
+                test_fraction=0.0,
+            )
+        )
+    assert (
+        "truncated" in str(err.value)
+        and "file truncated at byte 120" in str(err.value)
+        and "--on_error=skip" in str(err.value)
+    )
     assert not target.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["in"]
 
 
 def test_on_error_skip_reports_each_file_and_reason(broken_input, tmp_path):
-    report = convert(ConvertOptions(source="_broken_test", input=broken_input, root=tmp_path / "out", progress=False, on_error="skip", test_fraction=0.0))
+    report = convert(
+        ConvertOptions(
+            source="_broken_test",
+            input=broken_input,
+            root=tmp_path / "out",
+            progress=False,
+            on_error="skip",
+            test_fraction=0.0,
+        )
+    )
     assert report.num_episodes == 3  # good_a, good_b, interrupt (not interrupting here)
     reasons = {f.source_file: f.reason for f in report.failures}
-    assert set(reasons) == {"truncated", "/data/nan.json", "/data/out_of_range.json", "/data/unknown_hand.json"}
+    assert set(reasons) == {
+        "truncated",
+        "/data/nan.json",
+        "/data/out_of_range.json",
+        "/data/unknown_hand.json",
+    }
     assert "OSError" in reasons["truncated"]
     assert "NaN" in reasons["/data/nan.json"] and "[4]" in reasons["/data/nan.json"]
     assert "range" in reasons["/data/out_of_range.json"]
@@ -217,7 +369,16 @@ def test_interrupt_leaves_no_partial_dataset(broken_input, tmp_path, monkeypatch
     monkeypatch.setattr(BrokenSource, "interrupt", True, raising=False)
     target = tmp_path / "out"
     with pytest.raises(KeyboardInterrupt):
-        convert(ConvertOptions(source="_broken_test", input=broken_input, root=target, progress=False, on_error="skip", test_fraction=0.0))
+        convert(
+            ConvertOptions(
+                source="_broken_test",
+                input=broken_input,
+                root=target,
+                progress=False,
+                on_error="skip",
+                test_fraction=0.0,
+            )
+        )
     assert not target.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["in"]
 
 
@@ -248,9 +409,22 @@ def test_real_g1_inspire_end_to_end(real_data_dir, tmp_path):
         "right": "inspire_rh56_unitree:kRightHand",
     }
     root = tmp_path / "g1"
-    report = convert(ConvertOptions(source="lerobot", input=real_data_dir / "g1-inspire", root=root, repo_id="t/g1",
-                                    source_options={"hands": hands_opt}, progress=False))
-    assert (report.num_episodes, report.num_frames, report.num_train, report.num_test) == (10, 4236, 8, 2)
+    report = convert(
+        ConvertOptions(
+            source="lerobot",
+            input=real_data_dir / "g1-inspire",
+            root=root,
+            repo_id="t/g1",
+            source_options={"hands": hands_opt},
+            progress=False,
+        )
+    )
+    assert (
+        report.num_episodes,
+        report.num_frames,
+        report.num_train,
+        report.num_test,
+    ) == (10, 4236, 8, 2)
     ds = LeRobotDataset("t/g1", root=root)
     assert ds.num_frames == 4236 and ds.meta.features["action"]["shape"] == (44,)
     assert ds[0]["task"] == "Pick up the yellow bottle on the table."
@@ -264,30 +438,54 @@ def test_real_g1_inspire_end_to_end(real_data_dir, tmp_path):
     raws = {src.read_episode(r).num_frames: src.read_episode(r) for r in refs[:3]}
     frames = load_udhm_frames(root, drop_absent=False)
     spec = hands.get("inspire_rh56_unitree")
-    sides = [n.split("_")[0] for n in ds.meta.features["observation.state"]["names"][::UDHM_DIM]]
+    sides = [
+        n.split("_")[0]
+        for n in ds.meta.features["observation.state"]["names"][::UDHM_DIM]
+    ]
     for ep_index in range(10):
-        state = frames.states_rad[frames.episode_index == ep_index].reshape(-1, len(sides), UDHM_DIM)
+        state = frames.states_rad[frames.episode_index == ep_index].reshape(
+            -1, len(sides), UDHM_DIM
+        )
         raw = raws.get(state.shape[0])
         if raw is None:
             continue
         by_side = {h.side: h for h in raw.hands}
-        expect = np.stack([spec.to_udhm(by_side[s].state_native, side=s) for s in sides], axis=1)
+        expect = np.stack(
+            [spec.to_udhm(by_side[s].state_native, side=s) for s in sides], axis=1
+        )
         if np.allclose(expect, state, atol=1e-6):
             break
     else:
-        pytest.fail("no converted episode equals the hand spec applied to the raw G1 values")
+        pytest.fail(
+            "no converted episode equals the hand spec applied to the raw G1 values"
+        )
 
 
 def test_append_pad_mapping_and_stale_temp_cleanup(samples, tmp_path):
     target = tmp_path / "pad"
-    stale = tmp_path / ".pad.tmp-999999999-deadbeef"  # a run killed with SIGKILL (no such pid)
+    stale = (
+        tmp_path / ".pad.tmp-999999999-deadbeef"
+    )  # a run killed with SIGKILL (no such pid)
     (stale / "data").mkdir(parents=True)
-    convert(ConvertOptions(source="linkerhand", input=samples["linkerhand"], root=target, progress=False, mapping="append_pad", max_episodes=2))
+    convert(
+        ConvertOptions(
+            source="linkerhand",
+            input=samples["linkerhand"],
+            root=target,
+            progress=False,
+            mapping="append_pad",
+            max_episodes=2,
+        )
+    )
     assert not stale.exists()
     frames = load_udhm_frames(target)
     for hand in set(frames.hands):
         n_active = hands.get(hand).num_active
         rows = frames.masks[frames.hands == hand]
-        assert rows[:, :n_active].all() and not rows[:, n_active:].any()  # packed at the front
+        assert (
+            rows[:, :n_active].all() and not rows[:, n_active:].any()
+        )  # packed at the front
     assert read_settings(target)["mapping"] == "append_pad"
-    assert validate_dataset(target).ok  # the validator checks masks against the recorded mapping
+    assert validate_dataset(
+        target
+    ).ok  # the validator checks masks against the recorded mapping

@@ -33,22 +33,35 @@ def _cases():
 def test_float_features_bit_exact(name, x):
     from lerobot.datasets.compute_stats import compute_episode_stats
 
-    features = {"x": {"dtype": "float32", "shape": (x.shape[1],)}, "m": {"dtype": "bool", "shape": (x.shape[1],)}}
+    features = {
+        "x": {"dtype": "float32", "shape": (x.shape[1],)},
+        "m": {"dtype": "bool", "shape": (x.shape[1],)},
+    }
     ep = {"x": x, "m": x > np.median(x)}
     a, b = compute_episode_stats(ep, features), episode_stats(ep, features)
     for key in a:
         assert list(a[key]) == list(b[key])
         for stat in a[key]:
             assert a[key][stat].dtype == b[key][stat].dtype, (key, stat)
-            np.testing.assert_array_equal(b[key][stat], a[key][stat], err_msg=f"{key}/{stat}")
+            np.testing.assert_array_equal(
+                b[key][stat], a[key][stat], err_msg=f"{key}/{stat}"
+            )
 
 
 def test_scalar_features_and_strings():
     from lerobot.datasets.compute_stats import compute_episode_stats
 
     n = 123
-    features = {"t": {"dtype": "float32", "shape": (1,)}, "i": {"dtype": "int64", "shape": (1,)}, "s": {"dtype": "string", "shape": (1,)}}
-    ep = {"t": np.arange(n) / 30, "i": np.arange(n, dtype=np.int64), "s": np.array(["a"] * n)}
+    features = {
+        "t": {"dtype": "float32", "shape": (1,)},
+        "i": {"dtype": "int64", "shape": (1,)},
+        "s": {"dtype": "string", "shape": (1,)},
+    }
+    ep = {
+        "t": np.arange(n) / 30,
+        "i": np.arange(n, dtype=np.int64),
+        "s": np.array(["a"] * n),
+    }
     a, b = compute_episode_stats(ep, features), episode_stats(ep, features)
     assert "s" not in b and a.keys() == b.keys()
     for key in a:
@@ -67,10 +80,15 @@ def test_mixed_constant_and_varying_dimensions_of_a_real_episode_shape():
     state[:, 5] = 1.25
     mask = np.ones((700, 44), bool)
     mask[:, [1, 3, 17, 23, 39]] = False
-    features = {"s": {"dtype": "float32", "shape": (44,)}, "m": {"dtype": "bool", "shape": (44,)}}
+    features = {
+        "s": {"dtype": "float32", "shape": (44,)},
+        "m": {"dtype": "bool", "shape": (44,)},
+    }
     ep = {"s": state, "m": mask}
     a, b = compute_episode_stats(ep, features), episode_stats(ep, features)
     for key in a:
         for stat in a[key]:
             assert a[key][stat].dtype == b[key][stat].dtype
-            np.testing.assert_array_equal(b[key][stat], a[key][stat], err_msg=f"{key}/{stat}")
+            np.testing.assert_array_equal(
+                b[key][stat], a[key][stat], err_msg=f"{key}/{stat}"
+            )

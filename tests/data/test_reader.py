@@ -24,16 +24,28 @@ def lerobot_written(tmp_path_factory):
         "hand_type": {"dtype": "string", "shape": (1,), "names": None},
         "udhm_mask": {"dtype": "bool", "shape": (44,), "names": NAMES},
     }
-    ds = LeRobotDataset.create("test/reader", fps=25, features=features, root=root, use_videos=False)
+    ds = LeRobotDataset.create(
+        "test/reader", fps=25, features=features, root=root, use_videos=False
+    )
     rng = np.random.default_rng(0)
     mask = np.ones(44, bool)
     mask[[1, 3, 30]] = False
     states = []
-    for ep, (length, ht) in enumerate([(7, "inspire_rh56,inspire_rh56"), (5, "human,inspire_rh56"), (6, "a,b")]):
+    for ep, (length, ht) in enumerate(
+        [(7, "inspire_rh56,inspire_rh56"), (5, "human,inspire_rh56"), (6, "a,b")]
+    ):
         s = rng.uniform(-1, 1, size=(length, 44)).astype(np.float32)
         states.append(s)
         for t in range(length):
-            ds.add_frame({"observation.state": s[t], "action": -s[t], "hand_type": ht, "udhm_mask": mask, "task": f"t{ep}"})
+            ds.add_frame(
+                {
+                    "observation.state": s[t],
+                    "action": -s[t],
+                    "hand_type": ht,
+                    "udhm_mask": mask,
+                    "task": f"t{ep}",
+                }
+            )
         ds.save_episode()
     ds.finalize()
     info_path = root / "meta" / "info.json"
@@ -89,11 +101,20 @@ def test_absent_hand_rows_dropped_by_default(tmp_path):
         "hand_type": {"dtype": "string", "shape": (1,), "names": None},
         "udhm_mask": {"dtype": "bool", "shape": (44,), "names": NAMES},
     }
-    ds = LeRobotDataset.create("test/absent", fps=30, features=features, root=tmp_path / "d", use_videos=False)
+    ds = LeRobotDataset.create(
+        "test/absent", fps=30, features=features, root=tmp_path / "d", use_videos=False
+    )
     mask = np.zeros(44, bool)
     mask[:22] = True  # left hand absent
     for t in range(4):
-        ds.add_frame({"observation.state": np.full(44, t, np.float32) * mask, "hand_type": "human,human", "udhm_mask": mask, "task": ""})
+        ds.add_frame(
+            {
+                "observation.state": np.full(44, t, np.float32) * mask,
+                "hand_type": "human,human",
+                "udhm_mask": mask,
+                "task": "",
+            }
+        )
     ds.save_episode()
     ds.finalize()
     kept = load_udhm_frames(tmp_path / "d")
