@@ -109,6 +109,14 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             logger.warning("UniDexTok step built from preset %r with untrained weights", self.preset)
             self._tokenizer = UniDexTok(UniDexTokConfig.from_preset(self.preset)).eval()
         self.tokenizer_config = asdict(self._tokenizer.config)
+        unknown = sorted(set(self.hand_layout) - set(self._tokenizer.config.hand_names))
+        if unknown and not self.allow_unknown:
+            raise ValueError(
+                f"hands {unknown} are not in the tokenizer vocabulary {self._tokenizer.config.hand_names}; "
+                "set allow_unknown=True (zero-shot 'unknown hand' embedding) or use a tokenizer trained on them"
+            )
+        if unknown:
+            logger.warning("hands %s are not in the tokenizer vocabulary: using its unknown-hand embedding", unknown)
 
     @property
     def tokenizer(self) -> UniDexTok:

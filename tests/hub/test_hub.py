@@ -50,33 +50,43 @@ def run_cli(args: list[str], **env: str) -> subprocess.CompletedProcess:
 
 
 def test_round_trip_tokenizer_and_dataset(hub, tok_dir, l10_dataset, tmp_path):
-    push_env = {"HF_ENDPOINT": hub.url, "HF_TOKEN": TOKEN, "HF_HUB_OFFLINE": "0", "HF_HOME": str(tmp_path / "hf-push")}
-    r = run_cli(["unidextok-push", f"--local_dir={tok_dir}", "--repo_id=lab/unidextok-tiny",
-                 "--training_data=[lab/l10_udhm]"], **push_env)
-    assert r.returncode == 0, r.stderr
-    r = run_cli(["unidextok-push", f"--local_dir={l10_dataset}", "--repo_id=lab/l10_udhm"], **push_env)
-    assert r.returncode == 0, r.stderr
+    # one online process runs the CLI entry points (draccus parsing included) for 2 pushes + 2 pulls,
+    # pulling into an HF cache nothing was downloaded into before
+    cache = tmp_path / "hf-fresh"
+    cli = f"""
+import sys
+from lerobot_unidextok.scripts.hub import pull_main, push_main
+for argv, main in [
+    (["--local_dir={tok_dir}", "--repo_id=lab/unidextok-tiny", "--training_data=[lab/l10_udhm]"], push_main),
+    (["--local_dir={l10_dataset}", "--repo_id=lab/l10_udhm"], push_main),
+    (["--repo_id=lab/unidextok-tiny"], pull_main),
+    (["--repo_id=lab/l10_udhm", "--repo_type=dataset"], pull_main),
+]:
+    sys.argv = ["unidextok", *argv]
+    main()
+"""
+    r = subprocess.run([sys.executable, "-c", cli], capture_output=True, text=True, timeout=300,
+                       env=subprocess_env(HF_ENDPOINT=hub.url, HF_TOKEN=TOKEN, HF_HUB_OFFLINE="0", HF_HOME=str(cache)))
+    assert r.returncode == 0, r.stderr[-3000:]
+    lines = r.stdout.strip().splitlines()
+    assert lines[0].startswith("pushed") and lines[1].startswith("pushed")
+    model_snapshot, ds_snapshot = Path(lines[-2]), Path(lines[-1])
     assert ("model", "lab/unidextok-tiny") in hub.repos
     assert "v3.0" in hub.repos[("dataset", "lab/l10_udhm")].tags  # LeRobot resolves this tag
     assert not (tok_dir / "README.md").exists()  # the card is staged, the user's folder untouched
-
-    # pull both into a fresh HF cache
-    cache = tmp_path / "hf-fresh"
-    pull_env = {"HF_ENDPOINT": hub.url, "HF_TOKEN": TOKEN, "HF_HUB_OFFLINE": "0", "HF_HOME": str(cache)}
-    r = run_cli(["unidextok-pull", "--repo_id=lab/unidextok-tiny"], **pull_env)
-    assert r.returncode == 0, r.stderr
-    model_snapshot = Path(r.stdout.strip().splitlines()[-1])
-    assert model_snapshot.is_relative_to(cache / "hub")
+    assert model_snapshot.is_relative_to(cache / "hub") and ds_snapshot.is_relative_to(cache / "hub")
     card = (model_snapshot / "README.md").read_text()
     assert "- `linkerhand_l10`" in card and "preset: `tiny`" in card and "- `lab/l10_udhm`" in card
     assert "| linkerhand_l10 | 1.5 | 2 |" in card
-    r = run_cli(["unidextok-pull", "--repo_id=lab/l10_udhm", "--repo_type=dataset"], **pull_env)
-    assert r.returncode == 0, r.stderr
-    ds_snapshot = Path(r.stdout.strip().splitlines()[-1])
 
     # offline, in a fresh process: tokenizer by repo id (bit-exact), processor step by repo id, dataset
     check = f"""
 import torch
+import lerobot_unidextok  # registration on package import (checked here to save a process)
+from lerobot.processor import ProcessorStepRegistry
+from lerobot.configs.policies import PreTrainedConfig
+assert "unidextok.state_tokenizer" in ProcessorStepRegistry.list()
+assert "act_udt" in PreTrainedConfig.get_known_choices()
 from safetensors.torch import load_file
 from lerobot_unidextok.tokenizer import UniDexTok
 from lerobot_unidextok.processor import UniDexTokStateTokenizerStep

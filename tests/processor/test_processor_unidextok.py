@@ -1,8 +1,6 @@
 """The UniDexTok processor step inside LeRobot pipelines, on real LinkerHand L10 preset poses."""
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -172,12 +170,10 @@ def test_device_follows_input(step, l10_states):
     assert out[OBS_HAND_TOKENS].device.type == "cuda"
 
 
-def test_registration_on_package_import_in_fresh_process():
-    code = (
-        "import lerobot_unidextok\n"
-        "from lerobot.processor import ProcessorStepRegistry\n"
-        "from lerobot.configs.policies import PreTrainedConfig\n"
-        f"assert '{STEP_NAME}' in ProcessorStepRegistry.list()\n"
-        "assert 'act_udt' in PreTrainedConfig.get_known_choices()\n"
-    )
-    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+def test_hand_outside_vocabulary_needs_allow_unknown(tok_dir):
+    with pytest.raises(ValueError, match=r"\['xhand1'\] are not in the tokenizer vocabulary"):
+        UniDexTokStateTokenizerStep(hand_layout=["xhand1"], pretrained=str(tok_dir), allow_unknown=False)
+    step = UniDexTokStateTokenizerStep(hand_layout=["xhand1"], pretrained=str(tok_dir))
+    out = step.observation({OBS_STATE: torch.zeros(22)})
+    unknown = step.tokenizer.encode(torch.zeros(1, 22), torch.tensor([step.tokenizer.unknown_hand_id]))
+    assert torch.equal(out[OBS_HAND_TOKENS], unknown.flatten())
