@@ -270,6 +270,22 @@ def _int_fps(fps: float, src: str) -> int:
 # ---------------------------------------------------------------------------------------------
 # convert
 # ---------------------------------------------------------------------------------------------
+def input_is_synthetic(input_path: Path) -> bool:
+    """True when `input_path` is (inside) a sample written by `conversion.samples` (its labels file says so),
+    so the card is marked synthetic even for formats whose reader cannot carry the marker."""
+    from lerobot_unidextok.conversion.samples import LABELS_FILE
+
+    path = input_path.resolve()
+    for folder in [path, *path.parents][:3]:
+        labels = folder / LABELS_FILE
+        if labels.is_file():
+            try:
+                return bool(json.loads(labels.read_text()).get("synthetic", False))
+            except (json.JSONDecodeError, AttributeError):
+                return False
+    return False
+
+
 def _temp_dir(target: Path) -> Path:
     return target.parent / f".{target.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}"
 
@@ -350,7 +366,9 @@ def convert(opts: ConvertOptions) -> ConvertReport:
     counts = {"train": 0, "test": 0}
     hands_seen: dict[str, None] = {}
     stats = {"trimmed_frames": 0, "absent_hand_frames": 0}
-    synthetic = bool(getattr(reader_cls, "synthetic", False))
+    synthetic = bool(getattr(reader_cls, "synthetic", False)) or input_is_synthetic(
+        input_path
+    )
     sides = opts.sides or (
         tuple(reader_cls.sides) if getattr(reader_cls, "sides", None) else None
     )

@@ -266,6 +266,10 @@ def test_human_source_left_or_right_sequences(samples, tmp_path, monkeypatch):
         frames
     )  # each sequence has one hand: the other block is masked
     assert validate_dataset(root).ok
+    assert (
+        read_settings(root)["synthetic"] is True
+    )  # npz marker unread by the reader: the labels file says so
+    assert "SYNTHETIC" in (root / "README.md").read_text()
 
 
 # ---------------------------------------------------------------------------------------------
