@@ -94,6 +94,7 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
 
     _tokenizer: UniDexTok | None = field(default=None, init=False, repr=False)
     _layout: HandLayout | None = field(default=None, init=False, repr=False)
+    _hand_ids: torch.Tensor | None = field(default=None, init=False, repr=False)  # (H,) tokenizer hand ids
 
     def __post_init__(self) -> None:
         if self.representation not in REPRESENTATIONS:
@@ -117,6 +118,7 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             )
         if unknown:
             logger.warning("hands %s are not in the tokenizer vocabulary: using its unknown-hand embedding", unknown)
+        self._hand_ids = torch.tensor([self._tokenizer._name_to_id(h, True) for h in self.hand_layout])
 
     @property
     def tokenizer(self) -> UniDexTok:
@@ -145,10 +147,12 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             tok.to(states_rad.device)
         h = self.layout.num_hands
         rows = states_rad.float().reshape(b * h, UDHM_DIM)  # (B*H, 22)
-        names = self.layout.hands * b  # one name per row, block order within each frame
-        codes = tok.encode(rows, names, allow_unknown=self.allow_unknown)  # (B*H, N, K)
+        if self._hand_ids.device != states_rad.device:
+            self._hand_ids = self._hand_ids.to(states_rad.device)
+        ids = self._hand_ids.repeat(b)  # (B*H,) one id per row, block order within each frame
+        codes = tok.encode(rows, ids)  # (B*H, N, K)
         if self.representation == "dequantized":
-            view = tok.decode(codes, names, allow_unknown=self.allow_unknown)  # (B*H, 22) radians
+            view = tok.decode(codes, ids)  # (B*H, 22) radians
         else:
             view = tok.quantizer.indices_to_codes(codes).flatten(1)  # (B*H, N*K*d)
         return codes.reshape(b, -1), view.reshape(b, -1).float()
