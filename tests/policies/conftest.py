@@ -20,3 +20,15 @@ def l10_states(real_data_dir):
 def l10_dataset(real_data_dir, tmp_path_factory) -> Path:
     """A LeRobotDataset v3.0 folder following the converted-dataset contract."""
     return write_l10_dataset(tmp_path_factory.mktemp("l10") / "ds", real_data_dir)
+
+
+@pytest.fixture(scope="session")
+def g1_dataset(real_data_dir, tmp_path_factory) -> Path:
+    """Real Unitree G1 + two Inspire hands (3 episodes) converted to UDHM by the project's converter."""
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+
+    root = tmp_path_factory.mktemp("g1") / "ds"
+    hands = {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}
+    convert(ConvertOptions(source="lerobot", input=real_data_dir / "g1-inspire", root=root, repo_id="test/g1_udhm",
+                           source_options={"hands": hands}, max_episodes=3, progress=False))  # fmt: skip
+    return root

@@ -26,7 +26,8 @@ TINY_ACT = ["--policy.chunk_size=4", "--policy.n_action_steps=4", "--policy.dim_
 def tok_dir(tmp_path_factory):
     torch.manual_seed(2)
     path = tmp_path_factory.mktemp("tok") / "unidextok-tiny"
-    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["human", "linkerhand_l10"])).save_pretrained(path)
+    hands = ["human", "linkerhand_l10", "inspire_rh56_unitree"]
+    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=hands)).save_pretrained(path)
     return path
 
 
@@ -68,11 +69,14 @@ def test_processors_place_the_step_before_batching(tok_dir):
 
 
 @pytest.mark.slow
-def test_lerobot_train_then_reload_in_fresh_process(tok_dir, l10_dataset, tmp_path):
+def test_lerobot_train_then_reload_in_fresh_process(tok_dir, g1_dataset, tmp_path):
+    """Real G1 + Inspire episodes converted by unidextok-convert's pipeline -> lerobot-train -> reload."""
     out = tmp_path / "train"
+    inspire = "inspire_rh56_unitree"
     args = [str(BIN / "lerobot-train"), "--policy.type=act_udt", "--policy.discover_packages_path=lerobot_unidextok",
-            "--dataset.repo_id=test/l10_presets_udhm", f"--dataset.root={l10_dataset}", "--policy.device=cpu",
+            "--dataset.repo_id=test/g1_udhm", f"--dataset.root={g1_dataset}", "--policy.device=cpu",
             "--policy.push_to_hub=false", f"--policy.udt_pretrained={tok_dir}", "--steps=3", "--batch_size=4",
+            f"--policy.udt_command_hands=[{inspire},{inspire}]",
             "--num_workers=0", f"--output_dir={out}", "--save_freq=3", "--log_freq=1", "--wandb.enable=false",
             *TINY_ACT]  # fmt: skip
     r = subprocess.run(args, env=subprocess_env(HF_HOME=str(tmp_path / "hf")), capture_output=True, text=True,
@@ -83,11 +87,13 @@ def test_lerobot_train_then_reload_in_fresh_process(tok_dir, l10_dataset, tmp_pa
     steps = [s["registry_name"] for s in pre_json["steps"]]
     assert steps.index(STEP_NAME) < steps.index("to_batch_processor")
     tok_cfg = next(s for s in pre_json["steps"] if s["registry_name"] == STEP_NAME)["config"]
-    assert tok_cfg["hand_layout"] == ["linkerhand_l10"] * 2  # read from the dataset's hand_type column
+    assert tok_cfg["hand_layout"] == [inspire, inspire]  # read from the dataset's hand_type column
     assert (ckpt / f"policy_preprocessor_step_1_{STEP_NAME}.safetensors").is_file()
-    assert NATIVE_STEP_NAME not in (ckpt / "policy_postprocessor.json").read_text()
+    post_json = json.loads((ckpt / "policy_postprocessor.json").read_text())
+    native = next(s for s in post_json["steps"] if s["registry_name"] == NATIVE_STEP_NAME)["config"]
+    assert native["sides"] == ["left", "right"]  # block order of the converted dataset
 
-    # a fresh process with no lerobot_unidextok import of its own: discovery by name, then select_action
+    # a fresh process: plugin loaded by name (as LeRobot's CLIs do), then select_action on dataset frames
     check = f"""
 import torch
 from lerobot.configs.parser import load_plugin
@@ -99,16 +105,16 @@ path = "{ckpt}"
 cfg = PreTrainedConfig.from_pretrained(path)
 policy = get_policy_class(cfg.type).from_pretrained(path).eval()
 pre, post = make_pre_post_processors(cfg, pretrained_path=path)
-ds = LeRobotDataset("test/l10_presets_udhm", root="{l10_dataset}")
+ds = LeRobotDataset("test/g1_udhm", root="{g1_dataset}")
 acts = []
-for i in (0, 5, 17):
+for i in (0, 100, 700):
     frame = {{"observation.state": ds[i]["observation.state"]}}
     acts.append(post(policy.select_action(pre(frame))))
 a = torch.stack(acts)
-assert torch.isfinite(a).all()
+assert torch.isfinite(a).all() and a.min() >= 0 and a.max() <= 1, a  # Inspire (Unitree) native range
 print(type(policy).__name__, tuple(a.shape))
 """
     r = subprocess.run([sys.executable, "-c", check], env=subprocess_env(HF_HOME=str(tmp_path / "hf2")),
                        capture_output=True, text=True, timeout=180)  # fmt: skip
     assert r.returncode == 0, r.stderr[-3000:]
-    assert r.stdout.strip().splitlines()[-1] == "ACTUdtPolicy (3, 1, 44)"
+    assert r.stdout.strip().splitlines()[-1] == "ACTUdtPolicy (3, 1, 12)"  # 2 Inspire hands x 6 native DoFs
