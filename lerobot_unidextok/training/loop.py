@@ -72,8 +72,18 @@ def train_tokenizer(
 
     if len(train_data) == 0 or len(eval_data) == 0:
         raise ValueError(f"need training and held-out rows, got {len(train_data)} and {len(eval_data)}")
+    threads_before = torch.get_num_threads()
     if cfg.num_threads > 0:
         torch.set_num_threads(cfg.num_threads)
+    try:
+        return _train(cfg, train_data, eval_data, model)
+    finally:
+        torch.set_num_threads(threads_before)
+
+
+def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, model: UniDexTok | None) -> TrainResult:
+    from accelerate import Accelerator
+
     accelerator = Accelerator(cpu=cfg.device == "cpu")
     torch.manual_seed(cfg.seed + accelerator.process_index)
     out = Path(cfg.output_dir)

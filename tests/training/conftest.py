@@ -23,6 +23,6 @@ def gesture_rows(hand: str, episodes: int, frames: int, seed: int) -> HandStates
 @pytest.fixture(scope="session")
 def mixture() -> tuple[HandStates, HandStates]:
     """(train, held-out) rows of human + inspire_rh56, held-out from different episodes/seeds."""
-    train = HandStates.concat([gesture_rows("human", 8, 200, 0), gesture_rows("inspire_rh56", 8, 200, 1)])
-    test = HandStates.concat([gesture_rows("human", 3, 200, 10), gesture_rows("inspire_rh56", 3, 200, 11)])
+    train = HandStates.concat([gesture_rows("human", 8, 150, 0), gesture_rows("inspire_rh56", 8, 150, 1)])
+    test = HandStates.concat([gesture_rows("human", 2, 150, 10), gesture_rows("inspire_rh56", 2, 150, 11)])
     return train, test

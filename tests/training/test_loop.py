@@ -11,8 +11,8 @@ from lerobot_unidextok.training import TrainConfig, build_model, evaluate_mae_de
 
 
 def _cfg(tmp_path, **kw) -> TrainConfig:
-    base = dict(preset="tiny", steps=300, batch_size=128, lr=3e-3, warmup_steps=30, eval_every=100,
-                output_dir=str(tmp_path / "run"), progress=False, save_last_every=100)  # fmt: skip
+    base = dict(preset="tiny", steps=200, batch_size=64, lr=3e-3, warmup_steps=20, eval_every=100,
+                output_dir=str(tmp_path / "run"), progress=False, save_last_every=100, num_threads=1)  # fmt: skip
     base.update(kw)
     return TrainConfig(**base)
 
@@ -25,7 +25,7 @@ def test_training_tiny_reduces_mae_far_below_untrained(mixture, tmp_path):
     result = train_tokenizer(cfg, train, test)
     assert result.best_mae_deg < 0.4 * untrained, (result.best_mae_deg, untrained)
     assert result.best_mae_deg < 12.0
-    assert [h["step"] for h in result.history] == [100, 200, 300]
+    assert [h["step"] for h in result.history] == [100, 200]
     # the kept checkpoint is the one with the lowest held-out MAE, and reloads to that number
     assert result.best_mae_deg == min(h["eval_mae_deg"] for h in result.history)
     best = UniDexTok.from_pretrained(result.best_dir)
@@ -37,15 +37,14 @@ def test_training_tiny_reduces_mae_far_below_untrained(mixture, tmp_path):
 
 def test_resume_continues_from_last_checkpoint(mixture, tmp_path):
     train, test = mixture
-    first = train_tokenizer(_cfg(tmp_path, steps=40, eval_every=20, save_last_every=20, warmup_steps=5), train, test)
+    kw = dict(eval_every=10, save_last_every=10, warmup_steps=2, batch_size=16)
+    first = train_tokenizer(_cfg(tmp_path, steps=20, **kw), train, test)
     state = json.loads((tmp_path / "run" / "last" / "training_state.json").read_text())
-    assert state["step"] == 40 and len(state["history"]) == 2
-    resumed = train_tokenizer(
-        _cfg(tmp_path, steps=60, eval_every=20, save_last_every=20, warmup_steps=5, resume=True), train, test
-    )
-    assert [h["step"] for h in resumed.history] == [20, 40, 60]
+    assert state["step"] == 20 and len(state["history"]) == 2
+    resumed = train_tokenizer(_cfg(tmp_path, steps=30, resume=True, **kw), train, test)
+    assert [h["step"] for h in resumed.history] == [10, 20, 30]
     assert resumed.history[:2] == first.history
-    assert json.loads((tmp_path / "run" / "last" / "training_state.json").read_text())["step"] == 60
+    assert json.loads((tmp_path / "run" / "last" / "training_state.json").read_text())["step"] == 30
 
 
 def test_resume_without_checkpoint_is_a_clear_error(mixture, tmp_path):
@@ -56,7 +55,7 @@ def test_resume_without_checkpoint_is_a_clear_error(mixture, tmp_path):
 
 def test_few_shot_adds_the_hand_and_adapts(mixture, tmp_path):
     train, test = mixture
-    base_cfg = _cfg(tmp_path, steps=150, eval_every=150, output_dir=str(tmp_path / "base"))
+    base_cfg = _cfg(tmp_path, steps=100, eval_every=100, output_dir=str(tmp_path / "base"), hand_names=["human"])
     base = train_tokenizer(base_cfg, train.without("inspire_rh56"), test.only("human"))
     model = UniDexTok.from_pretrained(base.best_dir)
     assert not model.knows_hand("inspire_rh56") and model.knows_hand("human")
