@@ -27,7 +27,7 @@ from lerobot_unidextok.constants import OBS_STATE
 from lerobot_unidextok.processor import UniDexTokStateTokenizerStep
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fixtures"))
-from linkerhand_udhm import l10_preset_states  # noqa: E402
+from linkerhand_udhm import l10_preset_states
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 
@@ -46,24 +46,40 @@ def median_ms(fn, repeats: int) -> tuple[float, float]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--presets", nargs="+", default=["small", "paper"])
     parser.add_argument("--batches", nargs="+", type=int, default=[1, 256])
-    parser.add_argument("--repeats", type=int, default=100, help="timed calls at batch 1")
-    parser.add_argument("--repeats_large", type=int, default=5, help="timed calls at batch > 1")
-    parser.add_argument("--num_hands", type=int, choices=(1, 2), default=2, help="UDHM blocks per frame")
-    parser.add_argument("--threads", type=int, default=0, help="torch threads (0 = torch default)")
+    parser.add_argument(
+        "--repeats", type=int, default=100, help="timed calls at batch 1"
+    )
+    parser.add_argument(
+        "--repeats_large", type=int, default=5, help="timed calls at batch > 1"
+    )
+    parser.add_argument(
+        "--num_hands", type=int, choices=(1, 2), default=2, help="UDHM blocks per frame"
+    )
+    parser.add_argument(
+        "--threads", type=int, default=0, help="torch threads (0 = torch default)"
+    )
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
     torch.manual_seed(0)
-    poses = torch.from_numpy(l10_preset_states(REAL))[:, : 22 * args.num_hands]  # (P, 22*H) real states
+    poses = torch.from_numpy(l10_preset_states(REAL))[
+        :, : 22 * args.num_hands
+    ]  # (P, 22*H) real states
     hands = ["linkerhand_l10"] * args.num_hands
-    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, CPU, load average "
-          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; median of {args.repeats} (batch 1) / "
-          f"{args.repeats_large} (larger) calls")
-    print(f"{'preset':<7} {'batch':>5} {'states':>6} | {'step CPU ms':>11} {'CPU ms/state':>12} {'wall ms':>9} | "
-          f"{'bare tok CPU ms':>15} {'step overhead CPU ms':>20}")
+    print(
+        f"torch {torch.__version__}, {torch.get_num_threads()} threads, CPU, load average "
+        f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; median of {args.repeats} (batch 1) / "
+        f"{args.repeats_large} (larger) calls"
+    )
+    print(
+        f"{'preset':<7} {'batch':>5} {'states':>6} | {'step CPU ms':>11} {'CPU ms/state':>12} {'wall ms':>9} | "
+        f"{'bare tok CPU ms':>15} {'step overhead CPU ms':>20}"
+    )
     for preset in args.presets:
         step = UniDexTokStateTokenizerStep(hand_layout=hands, preset=preset)
         pipe = PolicyProcessorPipeline(steps=[step], name="policy_preprocessor")
@@ -75,10 +91,10 @@ def main() -> None:
             rows = x.reshape(-1, 22)  # (B*H, 22)
             names = hands * (rows.shape[0] // args.num_hands)
 
-            def run_step(x=x):
+            def run_step(x=x, pipe=pipe):
                 pipe({OBS_STATE: x})
 
-            def run_bare(rows=rows, names=names):
+            def run_bare(rows=rows, names=names, tok=tok):
                 tok.decode(tok.encode(rows, names), names)
 
             repeats = args.repeats if batch == 1 else args.repeats_large

@@ -2,6 +2,18 @@
 
 from lerobot_unidextok.hub.card import tokenizer_card
 from lerobot_unidextok.hub.loopback import LoopbackHub
-from lerobot_unidextok.hub.push_pull import cache_via_loopback, cached_snapshot, pull, push
+from lerobot_unidextok.hub.push_pull import (
+    cache_via_loopback,
+    cached_snapshot,
+    pull,
+    push,
+)
 
-__all__ = ["LoopbackHub", "cache_via_loopback", "cached_snapshot", "pull", "push", "tokenizer_card"]
+__all__ = [
+    "LoopbackHub",
+    "cache_via_loopback",
+    "cached_snapshot",
+    "pull",
+    "push",
+    "tokenizer_card",
+]

@@ -9,7 +9,14 @@ from pathlib import Path
 logger = logging.getLogger(__name__)
 
 # Fields that identify a preset (VQ settings are the same in every preset).
-_SIZE_FIELDS = ("num_tokens", "hidden_dim", "encoder_depth", "decoder_depth", "num_heads", "mlp_ratio")
+_SIZE_FIELDS = (
+    "num_tokens",
+    "hidden_dim",
+    "encoder_depth",
+    "decoder_depth",
+    "num_heads",
+    "mlp_ratio",
+)
 EVAL_GLOBS = ("eval*.json", "metrics*.json", "evaluation*.json")
 
 
@@ -40,17 +47,26 @@ def eval_table(metrics: dict) -> str:
     rows = {k: v for k, v in rows.items() if isinstance(v, dict)}
     if not rows:
         return ""
-    cols = list(dict.fromkeys(c for v in rows.values() for c in v if not isinstance(v[c], (dict, list))))
+    cols = list(
+        dict.fromkeys(
+            c for v in rows.values() for c in v if not isinstance(v[c], (dict, list))
+        )
+    )
 
     def fmt(x) -> str:
         return f"{x:.4g}" if isinstance(x, float) else str(x)
 
     lines = ["| | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
-    lines += [f"| {name} | " + " | ".join(fmt(v.get(c, "")) for c in cols) + " |" for name, v in rows.items()]
+    lines += [
+        f"| {name} | " + " | ".join(fmt(v.get(c, "")) for c in cols) + " |"
+        for name, v in rows.items()
+    ]
     return "\n".join(lines)
 
 
-def tokenizer_card(folder: str | Path, repo_id: str, training_data: list[str] | None = None) -> str:
+def tokenizer_card(
+    folder: str | Path, repo_id: str, training_data: list[str] | None = None
+) -> str:
     """README.md text: hands supported, training data, preset and the evaluation table."""
     folder = Path(folder)
     config_path = folder / "config.json"
@@ -65,21 +81,31 @@ def tokenizer_card(folder: str | Path, repo_id: str, training_data: list[str] | 
     eval_path = find_eval_json(folder)
     table = eval_table(json.loads(eval_path.read_text())) if eval_path else ""
 
-    front = ["---", "library_name: lerobot-unidextok", "license: apache-2.0",
-             "tags:", "- lerobot", "- unidextok", "- dexterous-hands", "- tokenizer"]
+    front = [
+        "---",
+        "library_name: lerobot-unidextok",
+        "license: apache-2.0",
+        "tags:",
+        "- lerobot",
+        "- unidextok",
+        "- dexterous-hands",
+        "- tokenizer",
+    ]
     front += ["datasets:"] + [f"- {d}" for d in training_data] if training_data else []
     front += ["---", ""]
     body = [
         f"# {repo_id}",
         "",
         "UniDexTok hand-state tokenizer: 22-DoF UDHM joint angles (radians, divided by pi) of any supported",
-        f"hand -> {config.get('num_tokens')} tokens x {config.get('num_groups')} groups of "
-        f"{config.get('codebook_size')}-entry cosine codebooks, decoded back to angles.",
+        (
+            f"hand -> {config.get('num_tokens')} tokens x {config.get('num_groups')} groups of "
+            f"{config.get('codebook_size')}-entry cosine codebooks, decoded back to angles."
+        ),
         "",
         "## Hands supported",
         "",
         *([f"- `{h}`" for h in hands] or ["- (none listed)"]),
-        "- any other hand through the shared \"unknown hand\" embedding (zero-shot)",
+        '- any other hand through the shared "unknown hand" embedding (zero-shot)',
         "",
         "## Training data",
         "",
@@ -88,11 +114,18 @@ def tokenizer_card(folder: str | Path, repo_id: str, training_data: list[str] | 
         "## Model",
         "",
         f"- preset: `{preset}`",
-        *[f"- {f}: {config.get(f)}" for f in (*_SIZE_FIELDS, "codebook_dim", "num_groups", "codebook_size")],
+        *[
+            f"- {f}: {config.get(f)}"
+            for f in (*_SIZE_FIELDS, "codebook_dim", "num_groups", "codebook_size")
+        ],
         "",
         "## Evaluation",
         "",
-        (f"From `{eval_path.name}`:\n\n{table}" if table else "No evaluation file in this checkpoint."),
+        (
+            f"From `{eval_path.name}`:\n\n{table}"
+            if table
+            else "No evaluation file in this checkpoint."
+        ),
         "",
         "## Use",
         "",

@@ -17,6 +17,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from typing import Self
 from urllib.parse import parse_qs, unquote, urlsplit
 
 logger = logging.getLogger(__name__)
@@ -34,12 +35,16 @@ def git_blob_oid(data: bytes) -> str:
 class _Repo:
     repo_id: str
     repo_type: str
-    commits: dict[str, dict[str, bytes]] = field(default_factory=dict)  # sha -> {path: content}
+    commits: dict[str, dict[str, bytes]] = field(
+        default_factory=dict
+    )  # sha -> {path: content}
     branches: dict[str, str] = field(default_factory=dict)  # name -> sha
     tags: dict[str, str] = field(default_factory=dict)  # name -> sha
 
     def commit(self, files: dict[str, bytes], branch: str = "main") -> str:
-        sha = hashlib.sha1(f"{self.repo_id}:{len(self.commits)}:{time.time_ns()}".encode()).hexdigest()
+        sha = hashlib.sha1(
+            f"{self.repo_id}:{len(self.commits)}:{time.time_ns()}".encode()
+        ).hexdigest()
         self.commits[sha] = files
         self.branches[branch] = sha
         return sha
@@ -56,11 +61,13 @@ class _Repo:
 class _Handler(BaseHTTPRequestHandler):
     server: LoopbackHub._Server  # type: ignore[name-defined]
 
-    def log_message(self, format: str, *args) -> None:  # noqa: A002 - stdlib signature
+    def log_message(self, format: str, *args) -> None:
         logger.debug("loopback hub: " + format, *args)
 
     # ----------------------------------------------------------------------------- replies
-    def _send(self, status: int, body: bytes = b"", headers: dict[str, str] | None = None) -> None:
+    def _send(
+        self, status: int, body: bytes = b"", headers: dict[str, str] | None = None
+    ) -> None:
         self.send_response(status)
         for key, value in (headers or {}).items():
             self.send_header(key, value)
@@ -72,7 +79,12 @@ class _Handler(BaseHTTPRequestHandler):
     def _json(self, status: int, obj, error_code: str | None = None) -> None:
         headers = {"Content-Type": "application/json"}
         if error_code:
-            headers.update({"X-Error-Code": error_code, "X-Error-Message": str(obj.get("error", ""))})
+            headers.update(
+                {
+                    "X-Error-Code": error_code,
+                    "X-Error-Message": str(obj.get("error", "")),
+                }
+            )
         self._send(status, json.dumps(obj).encode(), headers)
 
     def _body(self) -> bytes:
@@ -102,7 +114,9 @@ class _Handler(BaseHTTPRequestHandler):
             self._json(401, {"error": "Invalid credentials in Authorization header"})
             return
         url = urlsplit(self.path)
-        parts = url.path.strip("/").split("/")  # still percent-encoded: revisions may contain '/'
+        parts = url.path.strip("/").split(
+            "/"
+        )  # still percent-encoded: revisions may contain '/'
         query = parse_qs(url.query)
         try:
             with hub.lock:
@@ -110,42 +124,79 @@ class _Handler(BaseHTTPRequestHandler):
         except (ValueError, KeyError, json.JSONDecodeError) as err:
             self._json(400, {"error": f"bad request: {err}"})
 
-    def _route(self, hub: LoopbackHub, parts: list[str], query: dict) -> None:  # noqa: C901 - one table
+    def _route(self, hub: LoopbackHub, parts: list[str], query: dict) -> None:
         m = self.command
         if parts[:2] == ["api", "whoami-v2"]:
-            return self._json(200, {"type": "user", "name": hub.user, "fullname": hub.user, "orgs": [],
-                                    "auth": {"type": "access_token", "accessToken": {"role": "write"}}})
-        if parts[:2] == ["api", "validate-yaml"] and m == "POST":  # README front matter check
+            return self._json(
+                200,
+                {
+                    "type": "user",
+                    "name": hub.user,
+                    "fullname": hub.user,
+                    "orgs": [],
+                    "auth": {"type": "access_token", "accessToken": {"role": "write"}},
+                },
+            )
+        if (
+            parts[:2] == ["api", "validate-yaml"] and m == "POST"
+        ):  # README front matter check
             self._body()
             return self._json(200, {"errors": [], "warnings": []})
         if parts[:3] == ["api", "repos", "create"] and m == "POST":
             payload = json.loads(self._body())
             repo_type = payload.get("type") or "model"
             repo_id = f"{payload.get('organization') or hub.user}/{payload['name']}"
-            url = f"{hub.url}/{'' if repo_type == 'model' else repo_type + 's/'}{repo_id}"
+            url = (
+                f"{hub.url}/{'' if repo_type == 'model' else repo_type + 's/'}{repo_id}"
+            )
             if (repo_type, repo_id) in hub.repos:
-                return self._json(409, {"error": "You already created this repo", "url": url})
+                return self._json(
+                    409, {"error": "You already created this repo", "url": url}
+                )
             if len(hub.repos) >= MAX_REPOS:
-                return self._json(507, {"error": f"loopback hub holds at most {MAX_REPOS} repos"})
+                return self._json(
+                    507, {"error": f"loopback hub holds at most {MAX_REPOS} repos"}
+                )
             repo = hub.repos[(repo_type, repo_id)] = _Repo(repo_id, repo_type)
-            repo.commit({".gitattributes": b"*.safetensors filter=lfs diff=lfs merge=lfs -text\n"})
+            repo.commit(
+                {
+                    ".gitattributes": b"*.safetensors filter=lfs diff=lfs merge=lfs -text\n"
+                }
+            )
             return self._json(200, {"url": url, "name": repo_id})
-        if parts[0] == "api" and len(parts) >= 4 and parts[1] in ("models", "datasets", "spaces"):
-            repo_type, repo_id = parts[1][:-1], f"{unquote(parts[2])}/{unquote(parts[3])}"
+        if (
+            parts[0] == "api"
+            and len(parts) >= 4
+            and parts[1] in ("models", "datasets", "spaces")
+        ):
+            repo_type, repo_id = (
+                parts[1][:-1],
+                f"{unquote(parts[2])}/{unquote(parts[3])}",
+            )
             repo = hub.repos.get((repo_type, repo_id))
             if repo is None:
-                return self._json(404, {"error": f"Repository {repo_id} not found"}, "RepoNotFound")
+                return self._json(
+                    404, {"error": f"Repository {repo_id} not found"}, "RepoNotFound"
+                )
             return self._api(repo, parts[4:], query)
         if m in ("GET", "HEAD") and len(parts) >= 5:
             repo_type = "model"
             if parts[0] in ("datasets", "spaces"):
                 repo_type, parts = parts[0][:-1], parts[1:]
             if len(parts) >= 5 and parts[2] == "resolve":
-                repo = hub.repos.get((repo_type, f"{unquote(parts[0])}/{unquote(parts[1])}"))
+                repo = hub.repos.get(
+                    (repo_type, f"{unquote(parts[0])}/{unquote(parts[1])}")
+                )
                 if repo is None:
-                    return self._json(404, {"error": "Repository not found"}, "RepoNotFound")
-                return self._resolve(repo, unquote(parts[3]), unquote("/".join(parts[4:])))
-        return self._json(404, {"error": f"loopback hub has no route for {m} {self.path}"})
+                    return self._json(
+                        404, {"error": "Repository not found"}, "RepoNotFound"
+                    )
+                return self._resolve(
+                    repo, unquote(parts[3]), unquote("/".join(parts[4:]))
+                )
+        return self._json(
+            404, {"error": f"loopback hub has no route for {m} {self.path}"}
+        )
 
     # ----------------------------------------------------------------------------- repo API
     def _api(self, repo: _Repo, rest: list[str], query: dict) -> None:
@@ -154,25 +205,49 @@ class _Handler(BaseHTTPRequestHandler):
             revision = unquote(rest[1]) if len(rest) > 1 else "main"
             sha = repo.resolve(revision)
             if sha is None:
-                return self._json(404, {"error": f"Invalid rev id: {revision}"}, "RevisionNotFound")
+                return self._json(
+                    404, {"error": f"Invalid rev id: {revision}"}, "RevisionNotFound"
+                )
             files = repo.commits[sha]
-            return self._json(200, {"id": repo.repo_id, "sha": sha, "private": False, "tags": [],
-                                    "siblings": [{"rfilename": p, "size": len(files[p])} for p in sorted(files)]})
+            return self._json(
+                200,
+                {
+                    "id": repo.repo_id,
+                    "sha": sha,
+                    "private": False,
+                    "tags": [],
+                    "siblings": [
+                        {"rfilename": p, "size": len(files[p])} for p in sorted(files)
+                    ],
+                },
+            )
         if rest[0] == "refs":
+
             def ref(kind: str, name: str, sha: str) -> dict:
                 return {"name": name, "ref": f"refs/{kind}/{name}", "targetCommit": sha}
-            return self._json(200, {"branches": [ref("heads", n, s) for n, s in repo.branches.items()],
-                                    "tags": [ref("tags", n, s) for n, s in repo.tags.items()],
-                                    "converts": [], "pullRequests": []})
+
+            return self._json(
+                200,
+                {
+                    "branches": [ref("heads", n, s) for n, s in repo.branches.items()],
+                    "tags": [ref("tags", n, s) for n, s in repo.tags.items()],
+                    "converts": [],
+                    "pullRequests": [],
+                },
+            )
         if rest[0] == "tag" and len(rest) == 2:
             if m == "DELETE":
                 if repo.tags.pop(unquote(rest[1]), None) is None:
-                    return self._json(404, {"error": f"tag {rest[1]} not found"}, "RevisionNotFound")
+                    return self._json(
+                        404, {"error": f"tag {rest[1]} not found"}, "RevisionNotFound"
+                    )
                 return self._json(200, {})
             tag = json.loads(self._body())["tag"]
             sha = repo.resolve(unquote(rest[1]))
             if sha is None:
-                return self._json(404, {"error": f"Invalid rev id: {rest[1]}"}, "RevisionNotFound")
+                return self._json(
+                    404, {"error": f"Invalid rev id: {rest[1]}"}, "RevisionNotFound"
+                )
             if tag in repo.tags:
                 return self._json(409, {"error": f"tag {tag} already exists"})
             repo.tags[tag] = sha
@@ -181,17 +256,38 @@ class _Handler(BaseHTTPRequestHandler):
             revision = unquote(rest[1])
             sha = repo.resolve(revision)
             if sha is None and not (rest[0] == "commit" and revision == "main"):
-                return self._json(404, {"error": f"Invalid rev id: {revision}"}, "RevisionNotFound")
+                return self._json(
+                    404, {"error": f"Invalid rev id: {revision}"}, "RevisionNotFound"
+                )
             files = repo.commits.get(sha, {})
             if rest[0] == "preupload":
                 wanted = json.loads(self._body())["files"]
-                return self._json(200, {"files": [
-                    {"path": f["path"], "uploadMode": "regular", "shouldIgnore": False,
-                     "oid": git_blob_oid(files[f["path"]]) if f["path"] in files else None} for f in wanted]})
+                return self._json(
+                    200,
+                    {
+                        "files": [
+                            {
+                                "path": f["path"],
+                                "uploadMode": "regular",
+                                "shouldIgnore": False,
+                                "oid": git_blob_oid(files[f["path"]])
+                                if f["path"] in files
+                                else None,
+                            }
+                            for f in wanted
+                        ]
+                    },
+                )
             if rest[0] == "commit":
                 return self._commit(repo, revision, dict(files))
-            return self._tree(files, unquote("/".join(rest[2:])), query.get("recursive", ["false"])[0].lower() == "true")
-        return self._json(404, {"error": f"loopback hub has no route for {m} {self.path}"})
+            return self._tree(
+                files,
+                unquote("/".join(rest[2:])),
+                query.get("recursive", ["false"])[0].lower() == "true",
+            )
+        return self._json(
+            404, {"error": f"loopback hub has no route for {m} {self.path}"}
+        )
 
     def _commit(self, repo: _Repo, branch: str, files: dict[str, bytes]) -> None:
         for line in self._body().splitlines():
@@ -207,33 +303,69 @@ class _Handler(BaseHTTPRequestHandler):
                 prefix = value["path"].rstrip("/") + "/"
                 files = {p: c for p, c in files.items() if not p.startswith(prefix)}
             elif key != "header":
-                return self._json(400, {"error": f"loopback hub supports only regular uploads, got {key!r}"})
+                return self._json(
+                    400,
+                    {
+                        "error": f"loopback hub supports only regular uploads, got {key!r}"
+                    },
+                )
         sha = repo.commit(files, branch)
         prefix = "" if repo.repo_type == "model" else f"{repo.repo_type}s/"
         url = f"{self.server.hub.url}/{prefix}{repo.repo_id}/commit/{sha}"
-        return self._json(200, {"commitUrl": url, "commitOid": sha, "success": True, "pullRequestUrl": None})
+        return self._json(
+            200,
+            {
+                "commitUrl": url,
+                "commitOid": sha,
+                "success": True,
+                "pullRequestUrl": None,
+            },
+        )
 
     def _tree(self, files: dict[str, bytes], root: str, recursive: bool) -> None:
         prefix = f"{root.strip('/')}/" if root.strip("/") else ""
         entries, folders = [], set()
         for path in sorted(p for p in files if p.startswith(prefix)):
-            rel = path[len(prefix):].split("/")
+            rel = path[len(prefix) :].split("/")
             for depth in range(1, len(rel) if recursive else min(len(rel), 2)):
                 folders.add(prefix + "/".join(rel[:depth]))
             if recursive or len(rel) == 1:
-                entries.append({"type": "file", "path": path, "size": len(files[path]), "oid": git_blob_oid(files[path])})
-        entries += [{"type": "directory", "path": d, "oid": hashlib.sha1(d.encode()).hexdigest()} for d in sorted(folders)]
+                entries.append(
+                    {
+                        "type": "file",
+                        "path": path,
+                        "size": len(files[path]),
+                        "oid": git_blob_oid(files[path]),
+                    }
+                )
+        entries += [
+            {
+                "type": "directory",
+                "path": d,
+                "oid": hashlib.sha1(d.encode()).hexdigest(),
+            }
+            for d in sorted(folders)
+        ]
         return self._json(200, entries)
 
     def _resolve(self, repo: _Repo, revision: str, path: str) -> None:
         sha = repo.resolve(revision)
         if sha is None:
-            return self._json(404, {"error": f"Invalid rev id: {revision}"}, "RevisionNotFound")
+            return self._json(
+                404, {"error": f"Invalid rev id: {revision}"}, "RevisionNotFound"
+            )
         content = repo.commits[sha].get(path)
         if content is None:
             return self._json(404, {"error": f"{path} does not exist"}, "EntryNotFound")
-        self._send(200, content, {"ETag": f'"{git_blob_oid(content)}"', "X-Repo-Commit": sha,
-                                  "Content-Type": "application/octet-stream"})
+        self._send(
+            200,
+            content,
+            {
+                "ETag": f'"{git_blob_oid(content)}"',
+                "X-Repo-Commit": sha,
+                "Content-Type": "application/octet-stream",
+            },
+        )
 
 
 class LoopbackHub:
@@ -243,7 +375,12 @@ class LoopbackHub:
         daemon_threads = True
         hub: LoopbackHub
 
-    def __init__(self, lifetime_s: float = 600.0, token: str | None = None, user: str = "loopback") -> None:
+    def __init__(
+        self,
+        lifetime_s: float = 600.0,
+        token: str | None = None,
+        user: str = "loopback",
+    ) -> None:
         if lifetime_s <= 0:
             raise ValueError(f"lifetime_s must be > 0, got {lifetime_s}")
         self.lifetime_s, self.token, self.user = lifetime_s, token, user
@@ -255,17 +392,23 @@ class LoopbackHub:
     @property
     def url(self) -> str:
         if self._server is None:
-            raise RuntimeError("LoopbackHub is not running: call start() or use it as a context manager")
+            raise RuntimeError(
+                "LoopbackHub is not running: call start() or use it as a context manager"
+            )
         host, port = self._server.server_address[:2]
         return f"http://{host}:{port}"
 
     def touch(self) -> None:
         self._last_request = time.monotonic()
 
-    def start(self) -> LoopbackHub:
+    def start(self) -> Self:
         self._server = self._Server(("127.0.0.1", 0), _Handler)
         self._server.hub = self
-        threading.Thread(target=self._server.serve_forever, kwargs={"poll_interval": 0.1}, daemon=True).start()
+        threading.Thread(
+            target=self._server.serve_forever,
+            kwargs={"poll_interval": 0.1},
+            daemon=True,
+        ).start()
         threading.Thread(target=self._watchdog, daemon=True).start()
         logger.info("loopback hub listening on %s", self.url)
         return self
@@ -282,7 +425,7 @@ class LoopbackHub:
             server.shutdown()
             server.server_close()
 
-    def __enter__(self) -> LoopbackHub:
+    def __enter__(self) -> Self:
         return self.start()
 
     def __exit__(self, *exc) -> None:

@@ -6,22 +6,36 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from lerobot_unidextok.constants import HAND_TYPE_KEY, OBS_STATE, SIDES, UDHM_DIM, UDHM_JOINT_NAMES
+from lerobot_unidextok.constants import (
+    HAND_TYPE_KEY,
+    OBS_STATE,
+    SIDES,
+    UDHM_DIM,
+    UDHM_JOINT_NAMES,
+)
 
 
 @dataclass
 class HandLayout:
     """Hand spec name and side of each UDHM block, in block order."""
 
-    hands: list[str]  # hand spec names, e.g. ["inspire_rh56", "inspire_rh56"] or ["human"]
-    sides: list[str] = field(default_factory=list)  # "right" | "left" per block; [] = unknown
+    hands: list[
+        str
+    ]  # hand spec names, e.g. ["inspire_rh56", "inspire_rh56"] or ["human"]
+    sides: list[str] = field(
+        default_factory=list
+    )  # "right" | "left" per block; [] = unknown
 
     def __post_init__(self) -> None:
         self.hands, self.sides = list(self.hands), list(self.sides)
         if not self.hands:
-            raise ValueError("HandLayout needs at least one hand name, e.g. HandLayout(['human'])")
+            raise ValueError(
+                "HandLayout needs at least one hand name, e.g. HandLayout(['human'])"
+            )
         if self.sides and len(self.sides) != len(self.hands):
-            raise ValueError(f"got {len(self.sides)} sides for {len(self.hands)} hands: {self.sides} vs {self.hands}")
+            raise ValueError(
+                f"got {len(self.sides)} sides for {len(self.hands)} hands: {self.sides} vs {self.hands}"
+            )
         bad = [s for s in self.sides if s not in SIDES]
         if bad:
             raise ValueError(f"sides must be in {SIDES}, got {bad}")
@@ -37,7 +51,9 @@ class HandLayout:
     def check_width(self, width: int, key: str = OBS_STATE) -> None:
         """Raise a ValueError naming the fix when `width` is not this layout's state width."""
         if width != self.state_dim:
-            known = ", ".join(f"{UDHM_DIM * h} ({h} hand{'s' * (h > 1)})" for h in (1, 2))
+            known = ", ".join(
+                f"{UDHM_DIM * h} ({h} hand{'s' * (h > 1)})" for h in (1, 2)
+            )
             raise ValueError(
                 f"{key} has width {width}, which matches no UDHM layout for hands {self.hands} "
                 f"(expected {self.state_dim}; known widths: {known}). Convert the dataset to UDHM with "
@@ -66,7 +82,9 @@ class HandLayout:
             sides.append(side)
         hands = [hands] * len(sides) if isinstance(hands, str) else list(hands)
         if len(hands) != len(sides):
-            raise ValueError(f"{len(hands)} hand names for {len(sides)} UDHM blocks ({sides})")
+            raise ValueError(
+                f"{len(hands)} hand names for {len(sides)} UDHM blocks ({sides})"
+            )
         return cls(hands=hands, sides=sides)
 
 
@@ -77,7 +95,9 @@ def hand_layout_from_dataset(root: str | Path) -> HandLayout:
     root = Path(root)
     info_path = root / "meta" / "info.json"
     if not info_path.is_file():
-        raise FileNotFoundError(f"{info_path} not found: pass the root folder of a LeRobotDataset v3.0")
+        raise FileNotFoundError(
+            f"{info_path} not found: pass the root folder of a LeRobotDataset v3.0"
+        )
     features = json.loads(info_path.read_text())["features"]
     if OBS_STATE not in features or HAND_TYPE_KEY not in features:
         raise ValueError(
@@ -88,4 +108,6 @@ def hand_layout_from_dataset(root: str | Path) -> HandLayout:
         raise FileNotFoundError(f"no data parquet under {root / 'data'}")
     hand_type = pq.read_table(files[0], columns=[HAND_TYPE_KEY]).column(0)[0].as_py()
     hand_type = hand_type[0] if isinstance(hand_type, list) else hand_type
-    return HandLayout.from_state_names(features[OBS_STATE]["names"], str(hand_type).split(","))
+    return HandLayout.from_state_names(
+        features[OBS_STATE]["names"], str(hand_type).split(",")
+    )

@@ -7,7 +7,6 @@
 HF_ENDPOINT, HF_TOKEN, HF_HOME / HF_HUB_CACHE are honoured.
 """
 
-
 import logging
 from dataclasses import dataclass, field
 
@@ -20,16 +19,22 @@ from lerobot_unidextok.hub import pull, push
 class PushConfig:
     local_dir: str = ""  # checkpoint folder (config.json + model.safetensors) or LeRobotDataset v3.0 folder
     repo_id: str = ""  # namespace/name on the Hub
-    repo_type: str | None = None  # "model" | "dataset"; detected from the folder when omitted
+    repo_type: str | None = (
+        None  # "model" | "dataset"; detected from the folder when omitted
+    )
     private: bool = False
-    training_data: list[str] = field(default_factory=list)  # dataset repo ids named in the model card
+    training_data: list[str] = field(
+        default_factory=list
+    )  # dataset repo ids named in the model card
 
 
 @dataclass
 class PullConfig:
     repo_id: str = ""  # namespace/name on the Hub
     repo_type: str = "model"  # "model" | "dataset"
-    revision: str | None = None  # branch, tag or commit; datasets default to the v3.0 tag
+    revision: str | None = (
+        None  # branch, tag or commit; datasets default to the v3.0 tag
+    )
 
 
 def _require(value: str, flag: str) -> None:
@@ -41,7 +46,13 @@ def _require(value: str, flag: str) -> None:
 def push_cli(cfg: PushConfig) -> None:
     _require(cfg.local_dir, "--local_dir")
     _require(cfg.repo_id, "--repo_id")
-    commit = push(cfg.local_dir, cfg.repo_id, cfg.repo_type, private=cfg.private, training_data=cfg.training_data)
+    commit = push(
+        cfg.local_dir,
+        cfg.repo_id,
+        cfg.repo_type,
+        private=cfg.private,
+        training_data=cfg.training_data,
+    )
     print(f"pushed {cfg.local_dir} -> {cfg.repo_id} @ {commit}")
 
 

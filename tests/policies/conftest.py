@@ -7,7 +7,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
 
-from linkerhand_udhm import l10_preset_states, write_l10_dataset  # noqa: E402
+from linkerhand_udhm import l10_preset_states, write_l10_dataset
 
 
 @pytest.fixture(scope="session")
@@ -28,7 +28,10 @@ def g1_dataset(real_data_dir, tmp_path_factory) -> Path:
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
 
     root = tmp_path_factory.mktemp("g1") / "ds"
-    hands = {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}
+    hands = {
+        "left": "inspire_rh56_unitree:kLeftHand",
+        "right": "inspire_rh56_unitree:kRightHand",
+    }
     convert(ConvertOptions(source="lerobot", input=real_data_dir / "g1-inspire", root=root, repo_id="test/g1_udhm",
                            source_options={"hands": hands}, max_episodes=3, progress=False))  # fmt: skip
     return root

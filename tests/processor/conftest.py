@@ -7,7 +7,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
 
-from linkerhand_udhm import l10_preset_states, write_l10_dataset  # noqa: E402
+from linkerhand_udhm import l10_preset_states, write_l10_dataset
 
 
 @pytest.fixture(scope="session")

@@ -14,7 +14,12 @@ from lerobot.configs.policies import PreTrainedConfig
 from lerobot.configs.types import FeatureType, PolicyFeature
 from lerobot.policies.act.configuration_act import ACTConfig
 
-from lerobot_unidextok.constants import OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE, UDHM_DIM
+from lerobot_unidextok.constants import (
+    OBS_HAND_TOKEN_FEATURES,
+    OBS_HAND_TOKENS,
+    OBS_STATE,
+    UDHM_DIM,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -26,12 +31,16 @@ class ACTUdtConfig(ACTConfig):
     # Hand spec name per 22-wide block of observation.state (one name = all blocks). Empty: read from
     # the training dataset (`hand_type` column + `<side>_<joint>` state names) when lerobot-train builds it.
     udt_hand_layout: list[str] = field(default_factory=list)
-    udt_sides: list[str] = field(default_factory=list)  # filled from the dataset's state names
+    udt_sides: list[str] = field(
+        default_factory=list
+    )  # filled from the dataset's state names
     # UniDexTok checkpoint folder or Hub repo id (resolved offline from the HF cache once pulled).
     # None: an untrained `udt_preset` tokenizer (smoke tests only).
     udt_pretrained: str | None = None
     udt_preset: str = "small"
-    udt_representation: str = "dequantized"  # "dequantized" (H*22 rad) | "embedding" (H*N*codebook_dim)
+    udt_representation: str = (
+        "dequantized"  # "dequantized" (H*22 rad) | "embedding" (H*N*codebook_dim)
+    )
     # Optional post-processor: convert predicted UDHM actions to these hands' native command units.
     udt_command_hands: list[str] = field(default_factory=list)
 
@@ -60,7 +69,12 @@ class ACTUdtConfig(ACTConfig):
         if not self.udt_hand_layout:
             self.udt_hand_layout = layout.hands
         self.udt_sides = layout.sides
-        logger.info("act_udt: hand layout %s (sides %s) from %s", self.udt_hand_layout, self.udt_sides, meta.root)
+        logger.info(
+            "act_udt: hand layout %s (sides %s) from %s",
+            self.udt_hand_layout,
+            self.udt_sides,
+            meta.root,
+        )
 
     def validate_features(self) -> None:
         from lerobot_unidextok.processor import tokenizer_output_dims
@@ -68,7 +82,9 @@ class ACTUdtConfig(ACTConfig):
         self._fill_layout_from_dataset()
         state = self.input_features.get(OBS_STATE)
         if state is None:
-            raise ValueError(f"act_udt needs '{OBS_STATE}' (UDHM hand states) among the dataset features")
+            raise ValueError(
+                f"act_udt needs '{OBS_STATE}' (UDHM hand states) among the dataset features"
+            )
         width = state.shape[0]
         if width % UDHM_DIM:
             raise ValueError(
@@ -88,9 +104,17 @@ class ACTUdtConfig(ACTConfig):
                 f"udt_hand_layout {self.udt_hand_layout} names {len(self.udt_hand_layout)} hands but "
                 f"{OBS_STATE} (width {width}) holds {num_hands}"
             )
-        self.input_features.pop(OBS_HAND_TOKENS, None)  # int64 ids must not reach the normalizer
-        if OBS_HAND_TOKEN_FEATURES in self.input_features:  # reloaded config: already sized
+        self.input_features.pop(
+            OBS_HAND_TOKENS, None
+        )  # int64 ids must not reach the normalizer
+        if (
+            OBS_HAND_TOKEN_FEATURES in self.input_features
+        ):  # reloaded config: already sized
             return super().validate_features()
-        _, env_width = tokenizer_output_dims(self.tokenizer_config(), num_hands, self.udt_representation)
-        self.input_features[OBS_HAND_TOKEN_FEATURES] = PolicyFeature(type=FeatureType.ENV, shape=(env_width,))
+        _, env_width = tokenizer_output_dims(
+            self.tokenizer_config(), num_hands, self.udt_representation
+        )
+        self.input_features[OBS_HAND_TOKEN_FEATURES] = PolicyFeature(
+            type=FeatureType.ENV, shape=(env_width,)
+        )
         super().validate_features()
