@@ -1,6 +1,7 @@
 """LeRobot processor steps wrapping UniDexTok (registered in ProcessorStepRegistry on import)."""
 
 from lerobot_unidextok.processor.layout import HandLayout, hand_layout_from_dataset
+from lerobot_unidextok.processor.preview import token_preview
 from lerobot_unidextok.processor.processor_unidextok import (
     NATIVE_STEP_NAME,
     REPRESENTATIONS,
@@ -22,6 +23,7 @@ __all__ = [
     "UniDexTokStateTokenizerStep",
     "hand_layout_from_dataset",
     "load_tokenizer",
+    "token_preview",
     "tokenizer_output_dims",
     "tokens_to_native",
     "udhm_to_native",

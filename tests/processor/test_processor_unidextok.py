@@ -242,3 +242,17 @@ def test_hand_outside_vocabulary_needs_allow_unknown(tok_dir):
         torch.zeros(1, 22), torch.tensor([step.tokenizer.unknown_hand_id])
     )
     assert torch.equal(out[OBS_HAND_TOKENS], unknown.flatten())
+
+
+def test_token_preview_shows_codes_and_decoded_state(step, l10_states):
+    from lerobot_unidextok.processor import token_preview
+
+    text = token_preview(step, torch.from_numpy(l10_states[:2]))
+    cfg = step.tokenizer.config
+    assert text.count("frame ") == 4  # 2 frames x 2 hands
+    assert text.count("  tokens ") == 4 * cfg.num_tokens
+    first_codes = step.observation({OBS_STATE: torch.from_numpy(l10_states[0])})[
+        OBS_HAND_TOKENS
+    ][: cfg.num_groups]
+    assert "  tokens " + " ".join(f"{c:2d}" for c in first_codes.tolist()) in text
+    assert "input deg" in text and "decoded deg" in text
