@@ -34,7 +34,9 @@ def main() -> None:
     ap.add_argument("--presets", nargs="+", default=list(PRESETS))
     ap.add_argument("--seconds", type=float, default=3.0, help="CPU seconds per measurement")
     ap.add_argument("--train_batch", type=int, default=256)
+    ap.add_argument("--threads", type=int, default=1, help="torch CPU threads (1 = the training default)")
     args = ap.parse_args()
+    torch.set_num_threads(args.threads)
     torch.manual_seed(0)
     states = torch.as_tensor(gesture_track(np.random.default_rng(0), 2048, 30.0).angles_rad, dtype=torch.float32)
 
