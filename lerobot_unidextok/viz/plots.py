@@ -89,20 +89,20 @@ def plot_rate_distortion(
     for r in flat:
         ax.scatter(r["bits_per_state"], r[error], color=colors[r["method"]], edgecolor="#222222", linewidth=0.5,
                    marker=HAND_MARKERS[hands.index(r["hand"]) % len(HAND_MARKERS)], s=60, zorder=3)  # fmt: skip
-    for m in methods:  # one label per method, next to its lowest-error point
-        pts = [r for r in flat if r["method"] == m]
-        best = min(pts, key=lambda r: r[error])
-        ax.annotate(m, (best["bits_per_state"], best[error]), textcoords="offset points", xytext=(6, 4),
-                    fontsize=8, color=colors[m])  # fmt: skip
     ax.set_xscale("log", base=2)
     ax.set_xlabel("bits per hand state (log2)")
     ax.set_ylabel(error_label or error)
     ax.set_title(title)
     ax.grid(alpha=0.3, which="both")
     ax.set_axisbelow(True)
-    for i, h in enumerate(hands):
-        ax.scatter([], [], marker=HAND_MARKERS[i % len(HAND_MARKERS)], color="#888888", label=h)
-    ax.legend(title="hand", fontsize=8, title_fontsize=8, frameon=False, loc="best")
+    method_handles = [ax.scatter([], [], marker="o", color=colors[m], edgecolor="#222222", label=m) for m in methods]
+    hand_handles = [ax.scatter([], [], marker=HAND_MARKERS[i % len(HAND_MARKERS)], color="#888888", label=h)
+                    for i, h in enumerate(hands)]  # fmt: skip
+    method_legend = ax.legend(handles=method_handles, title="method", fontsize=8, title_fontsize=8, frameon=False,
+                              loc="upper left", bbox_to_anchor=(1.01, 1.0))  # fmt: skip
+    ax.add_artist(method_legend)
+    ax.legend(handles=hand_handles, title="hand", fontsize=8, title_fontsize=8, frameon=False,
+              loc="lower left", bbox_to_anchor=(1.01, 0.0))  # fmt: skip
     return save(fig, out_path)
 
 
@@ -141,7 +141,7 @@ def plot_codebook_usage(
     num = counts.shape[0]
     cols = min(num, 4)
     rows = int(np.ceil(num / cols))
-    fig = Figure(figsize=(3.2 * cols, 2.4 * rows + 0.5))
+    fig = Figure(figsize=(max(3.2 * cols, 5.5), 2.4 * rows + 0.9))
     for g in range(num):
         ax = fig.add_subplot(rows, cols, g + 1)
         freq = counts[g] / counts[g].sum() * 100.0
