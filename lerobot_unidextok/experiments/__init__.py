@@ -1,0 +1,8 @@
+"""The paper's experiments, one `run(cfg)` / `main()` each; results as JSON + Markdown + PNG under
+`outputs/experiments/<name>/`, collected into `benchmarks/RESULTS.md` by `results_page`."""
+
+from lerobot_unidextok.experiments.config import PRESETS, ExperimentConfig, parse_config
+
+EXPERIMENTS: tuple[str, ...] = ("main_table", "ablation_human", "ablation_mapping", "transfer", "probe")
+
+__all__ = ["EXPERIMENTS", "PRESETS", "ExperimentConfig", "parse_config"]
