@@ -32,6 +32,7 @@ from lerobot_unidextok.constants import (
     OBS_STATE,
     UDHM_DIM,
 )
+from lerobot_unidextok import hands
 from lerobot_unidextok.processor.layout import HandLayout
 from lerobot_unidextok.tokenizer import PRESETS, UniDexTok, UniDexTokConfig
 
@@ -121,6 +122,7 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     _hand_ids: torch.Tensor | None = field(
         default=None, init=False, repr=False
     )  # (H,) tokenizer hand ids
+    _active: torch.Tensor | None = field(default=None, init=False, repr=False)  # (H, 22) bool
 
     def __post_init__(self) -> None:
         if self.representation not in REPRESENTATIONS:
@@ -159,6 +161,8 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
         self._hand_ids = torch.tensor(
             [self._tokenizer._name_to_id(h, True) for h in self.hand_layout]
         )
+        # (H, 22) active-DoF masks: decoded values on slots a hand does not have are zeroed, as in the data.
+        self._active = torch.as_tensor(np.stack([hands.get(h).active_mask for h in self.hand_layout]))
 
     @property
     def tokenizer(self) -> UniDexTok:
@@ -194,7 +198,8 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
         )  # (B*H,) one id per row, block order within each frame
         codes = tok.encode(rows, ids)  # (B*H, N, K)
         if self.representation == "dequantized":
-            view = tok.decode(codes, ids)  # (B*H, 22) radians
+            active = self._active.to(states_rad.device).repeat(b, 1)  # (B*H, 22)
+            view = tok.decode(codes, ids) * active  # (B*H, 22) radians, inactive slots zero
         else:
             view = tok.quantizer.indices_to_codes(codes).flatten(1)  # (B*H, N*K*d)
         return codes.reshape(b, -1), view.reshape(b, -1).float()
