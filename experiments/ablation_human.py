@@ -1,0 +1,6 @@
+"""`python experiments/ablation_human.py [--tiny] [--datasets=a,b] [--config_path=configs/experiments/default.yaml] [--<field>=<value>]`"""
+
+from lerobot_unidextok.experiments.ablation_human import main
+
+if __name__ == "__main__":
+    main()

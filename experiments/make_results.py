@@ -1,0 +1,6 @@
+"""`python experiments/make_results.py [--results_dir=outputs/experiments] [--page=benchmarks/RESULTS.md]`"""
+
+from lerobot_unidextok.experiments.results_page import main
+
+if __name__ == "__main__":
+    main()
