@@ -74,15 +74,17 @@ def test_committed_without_outputs():
     tagged = [c for c in nb.cells if "parameters" in c.metadata.get("tags", [])]
     assert len(tagged) == 1, "exactly one cell must be tagged 'parameters'"
     for name in [*TINY, "OUTPUT_DIR", "REAL_DATA_DIR"]:
-        assert re.search(rf"^{name} = ", tagged[0].source, re.M), f"parameter {name} missing from the parameters cell"
+        assert re.search(rf"^{name} = ", tagged[0].source, re.MULTILINE), (
+            f"parameter {name} missing from the parameters cell"
+        )
 
 
-@pytest.mark.slow
-def test_walkthrough_runs_top_to_bottom(tmp_path, monkeypatch):
+def _run(tmp_path: Path, monkeypatch, real_data_dir: Path) -> tuple[str, nbformat.NotebookNode, Path]:
+    """Execute the notebook with the tiny parameters; returns its visible text, the executed notebook and OUTPUT_DIR."""
     nb = _load()
     idx = next(i for i, c in enumerate(nb.cells) if "parameters" in c.metadata.get("tags", []))
     out_dir = tmp_path / "out"
-    overrides = {**TINY, "OUTPUT_DIR": str(out_dir)}
+    overrides = {**TINY, "OUTPUT_DIR": str(out_dir), "REAL_DATA_DIR": str(real_data_dir)}
     injected = nbformat.v4.new_code_cell("\n".join(f"{k} = {v!r}" for k, v in overrides.items()))
     injected.metadata["tags"] = ["injected-parameters"]
     nb.cells.insert(idx + 1, injected)
@@ -96,10 +98,13 @@ def test_walkthrough_runs_top_to_bottom(tmp_path, monkeypatch):
         resources={"metadata": {"path": str(NOTEBOOK.parent)}},
     )
     client.execute(env=env)  # raises CellExecutionError on any failing cell
-    text = _text(nb)
+    return _text(nb), nb, out_dir
 
+
+def _check_pipeline(text: str, nb: nbformat.NotebookNode, out_dir: Path) -> None:
+    """What every run must show: conversion, loading, training, evaluation, figures, processor, save/reload."""
     # conversion table and the LeRobotDataset load agree on the frame count
-    table = dict(re.findall(r"^(\w+)\s+\d+\s+(\d+)\s+\d+/\d+\s", text, re.M))
+    table = dict(re.findall(r"^(\w+)\s+\d+\s+(\d+)\s+\d+/\d+\s", text, re.MULTILINE))
     assert set(table) == set(SOURCES), text[:2000]
     loaded = re.search(r"loaded local/lerobot_udhm: (\d+) frames, (\d+) episodes", text)
     assert loaded and loaded.group(1) == table["lerobot"]
@@ -117,20 +122,41 @@ def test_walkthrough_runs_top_to_bottom(tmp_path, monkeypatch):
     # figures displayed inline and written
     pngs = sum(1 for c in nb.cells for o in c.get("outputs", []) if "image/png" in o.get("data", {}))
     assert pngs >= 4  # training curve, 3D human, 3D robot, per-joint errors
-    for name in ("hands3d_human.png", "per_joint_errors.png"):
+    for name in ("hands3d_human.png", "hands3d_inspire_rh56_unitree.png", "per_joint_errors.png"):
         assert (out_dir / "figures" / name).stat().st_size > 10_000
 
-    # processor pipeline: tokens shown, reload identical; tokenizer saved and reloaded (folder and Hub cache)
+    # processor pipeline: tokens next to decoded states, equal to the tokenizer's own round trip, reload identical
     shape = re.search(r"hand_tokens \((\d+), (\d+)\)", text)
     assert shape and shape.groups() == ("2", str(2 * 4 * 8))  # 2 frames; 2 hands x 4 tokens (tiny) x 8 groups
     assert re.search(r"token 0( +\d+){8}\n", text)
+    assert re.search(r"thumb_cmc_flex +input +-?[\d.]+ +decoded +-?[\d.]+ deg", text)
+    assert "step output equals tok.decode(tok.encode(state)): True" in text
     assert "reloaded pipeline gives identical tokens: True" in text
+
+    # tokenizer saved and reloaded from the folder and by repo id from the HF cache
     assert re.search(r"identical codes and decoded states on \d+ rows: True", text)
     assert "loaded by repo id, offline: identical codes: True" in text
     assert {p.name for p in (out_dir / "tokenizer").iterdir()} >= {"config.json", "model.safetensors"}
 
-    if "real MediaPipe video" in text:  # real recordings present
-        real = json.loads((out_dir / "eval" / "real_mediapipe_video.json").read_text())
-        assert real["overall"]["rows"] == TINY["REAL_FRAMES"]
-        med = float(re.search(r"IK residual median ([\d.]+) mm", text).group(1))
-        assert 0.0 < med < 10.0
+
+@pytest.mark.slow
+def test_walkthrough_with_real_data(tmp_path, monkeypatch, real_data_dir):
+    text, nb, out_dir = _run(tmp_path, monkeypatch, real_data_dir)
+    _check_pipeline(text, nb, out_dir)
+    # real MediaPipe keypoints: IK fits to a few mm, the tokenizer scores them, the gestures are drawn
+    med = float(re.search(r"IK residual median ([\d.]+) mm", text).group(1))
+    assert 0.0 < med < 10.0
+    assert len(re.findall(r"^\w+_landmarks\.pbtxt +[\d.]+", text, re.MULTILINE)) == 6
+    real = json.loads((out_dir / "eval" / "real_mediapipe_video.json").read_text())
+    assert real["overall"]["rows"] == TINY["REAL_FRAMES"]
+    assert (out_dir / "figures" / "hands3d_real_gestures.png").is_file()
+    assert "skipped" not in text
+
+
+@pytest.mark.slow
+def test_walkthrough_without_real_data(tmp_path, monkeypatch):
+    text, nb, out_dir = _run(tmp_path, monkeypatch, tmp_path / "no_real_data_here")
+    _check_pipeline(text, nb, out_dir)
+    assert "is not a folder: the real-data cells will skip" in text
+    assert text.count("skipped: no real recordings") == 3  # IK, real evaluation, real gestures
+    assert not (out_dir / "eval" / "real_mediapipe_video.json").exists()
