@@ -111,8 +111,28 @@ def markdown(result: dict) -> str:
     lines += ["", "Overall (all held-out rows):", ""]
     lines.append(md_table(["method", "MPJAE (deg)", "MPJPE (mm)", "fingertip (mm)", "fit seconds"],
                           [[m, o["mpjae_deg"], o["mpjpe_mm"], o["fingertip_mm"], fmt(result["fit_seconds"].get(m), 1)] for m, o in result["overall"].items()]))  # fmt: skip
+    lines += ["", "Where each method wins (computed from the rows above):", "", *wins(rows)]
     lines += ["", f"UniDexTok codebook: usage {fmt(result['codebook']['usage'])}, mean perplexity {fmt(result['codebook']['perplexity'], 1)} of {result['codebook']['codebook_size']}."]
     return "\n".join(lines)
+
+
+def wins(rows: list[dict]) -> list[str]:
+    """Per hand: lowest MPJAE overall, and lowest among the methods at UniDexTok's bit budget or below."""
+    out = []
+    for hand in sorted({r["hand"] for r in rows}):
+        hr = [r for r in rows if r["hand"] == hand]
+        best = min(hr, key=lambda r: r["mpjae_deg"])
+        ours = next((r for r in hr if r["method"] == UNIDEXTOK), None)
+        line = f"- {hand}: lowest MPJAE {best['method']} ({best['mpjae_deg']:.2f} deg at {best['bits_per_state']:g} bits)"
+        if ours is not None:
+            budget = [r for r in hr if r["bits_per_state"] <= ours["bits_per_state"] and r["method"] != best["method"]]
+            learned = [r for r in budget if r["method"] != BINNING]
+            if learned:
+                b2 = min(learned, key=lambda r: r["mpjae_deg"])
+                line += f"; best learned tokenizer at <= {ours['bits_per_state']:g} bits: {b2['method']} ({b2['mpjae_deg']:.2f} deg)"
+            line += f"; UniDexTok {ours['mpjae_deg']:.2f} deg at {ours['bits_per_state']:g} bits, {ours['tokens_per_state']} tokens"
+        out.append(line + ".")
+    return out
 
 
 def main(argv: list[str] | None = None) -> None:
