@@ -24,9 +24,9 @@ class TrainConfig:
     init_from: str | None = None  # start from a pretrained checkpoint (folder or repo id)
 
     # --- optimisation -------------------------------------------------------------------------------
-    steps: int = 4000
+    steps: int = 4000  # small preset: 1.10 deg held-out MAE on gesture data after 4000 steps, 450 s (docs/tokenizer.md)
     batch_size: int = 256
-    lr: float = 1e-3
+    lr: float = 3e-3  # tuned for the CPU presets; the paper preset uses 5e-4 (configs/train/paper.yaml)
     min_lr_ratio: float = 0.05  # cosine decays to lr * min_lr_ratio
     warmup_steps: int = 200
     weight_decay: float = 0.01  # not applied to codebooks, norms, embeddings, biases
