@@ -106,8 +106,17 @@ def hand_layout_from_dataset(root: str | Path) -> HandLayout:
     files = sorted((root / "data").rglob("*.parquet"))
     if not files:
         raise FileNotFoundError(f"no data parquet under {root / 'data'}")
-    hand_type = pq.read_table(files[0], columns=[HAND_TYPE_KEY]).column(0)[0].as_py()
-    hand_type = hand_type[0] if isinstance(hand_type, list) else hand_type
-    return HandLayout.from_state_names(
-        features[OBS_STATE]["names"], str(hand_type).split(",")
-    )
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    column = pa.concat_arrays([pq.read_table(f, columns=[HAND_TYPE_KEY]).column(0).combine_chunks() for f in files])
+    if pa.types.is_list(column.type) or pa.types.is_fixed_size_list(column.type):
+        column = pc.list_flatten(column)
+    hand_types = sorted(pc.unique(column).to_pylist())
+    if len(hand_types) != 1:
+        raise ValueError(
+            f"{root} mixes hand layouts across frames ({hand_types}), but a processor step tokenises every "
+            "frame with one fixed layout. Convert each hand into its own dataset (e.g. --max_episodes or "
+            "separate inputs), or pass hand_layout explicitly if one layout is really meant for all frames"
+        )
+    return HandLayout.from_state_names(features[OBS_STATE]["names"], str(hand_types[0]).split(","))

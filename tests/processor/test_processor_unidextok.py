@@ -258,3 +258,16 @@ def test_token_preview_shows_codes_and_decoded_state(step, l10_states):
     ][: cfg.num_groups]
     assert "  tokens " + " ".join(f"{c:2d}" for c in first_codes.tolist()) in text
     assert "input deg" in text and "decoded deg" in text
+
+
+def test_layout_refuses_a_dataset_that_mixes_hands(tmp_path):
+    """A converted LinkerHand sample alternates L10 and L20 episodes: one fixed layout would silently
+    tokenise L20 frames as L10, so the layout reader must refuse and name both hands."""
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.conversion.samples import write_samples
+
+    raw = write_samples(tmp_path / "raw", sources=["linkerhand"], episodes_per_source=4, frames_per_episode=30)
+    report = convert(ConvertOptions(source="linkerhand", input=raw["linkerhand"], root=tmp_path / "ds", progress=False))
+    assert {"linkerhand_l10", "linkerhand_l20"} <= set(report.hands)
+    with pytest.raises(ValueError, match="mixes hand layouts.*linkerhand_l10.*linkerhand_l20"):
+        hand_layout_from_dataset(report.root)
