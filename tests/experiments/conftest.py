@@ -19,3 +19,14 @@ def main_result(tiny_cfg):
     from lerobot_unidextok.experiments import main_table
 
     return main_table.run(tiny_cfg)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def one_torch_thread():
+    """As the experiment CLIs do: extra intra-op threads are ~10x slower on shared cores."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
