@@ -7,6 +7,7 @@ because both read them at import time.
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
 from pathlib import Path
 
@@ -36,3 +37,24 @@ def real_data_dir() -> Path:
             "set UNIDEXTOK_REAL_DATA to a copy of shared/data/real to run these tests"
         )
     return REAL_DATA_DIR
+
+
+# Real LinkerHand L10 vendor presets as UDHM (tests/fixtures/linkerhand_udhm.py), shared by the
+# processor, hub and policy tests.
+sys.path.insert(0, str(Path(__file__).resolve().parent / "fixtures"))
+
+
+@pytest.fixture(scope="session")
+def l10_states(real_data_dir):
+    """(P, 44) float32 UDHM radians of real two-hand L10 preset poses."""
+    from linkerhand_udhm import l10_preset_states
+
+    return l10_preset_states(real_data_dir)
+
+
+@pytest.fixture(scope="session")
+def l10_dataset(real_data_dir, tmp_path_factory) -> Path:
+    """A LeRobotDataset v3.0 folder following the converted-dataset contract."""
+    from linkerhand_udhm import write_l10_dataset
+
+    return write_l10_dataset(tmp_path_factory.mktemp("l10") / "ds", real_data_dir)
