@@ -1,5 +1,6 @@
 """What the experiments share: sample data cache, cached tokenizer training, scoring, result files."""
 
+import dataclasses
 import hashlib
 import json
 import logging
@@ -189,10 +190,10 @@ def trained_unidextok(cfg: ExperimentConfig, tag: str, train: HandStates, select
     from lerobot_unidextok.tokenizer import UniDexTok
 
     hands = train.hand_names()
-    key = _fingerprint(
-        [cfg.preset, cfg.steps, cfg.batch_size, cfg.lr, cfg.warmup_steps, cfg.eval_every, cfg.seed, hands],
-        train.states_rad, train.hands.astype("U32"), train.masks, select.states_rad,
-    )
+    settings = dataclasses.asdict(train_config(cfg, Path("."), hands))  # every training setting, incl. defaults
+    for volatile in ("output_dir", "progress"):
+        settings.pop(volatile)
+    key = _fingerprint(settings, train.states_rad, train.hands.astype("U32"), train.masks, select.states_rad)
     folder = Path(cfg.models_dir) / f"{tag}-{key}"
     done = folder / "train_info.json"
     if done.is_file() and (folder / "best" / "config.json").is_file():

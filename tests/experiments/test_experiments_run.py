@@ -58,6 +58,10 @@ def test_tokenizer_cache_is_reused(tiny_cfg, main_result):
     assert info["cached"] is True and info["dir"] == main_result["unidextok_training"]["dir"]
     _, other = trained_unidextok(tiny_cfg, "no_human", fit.without("human"), select.without("human"))  # other rows: new model
     assert other["cached"] is False and other["dir"] != info["dir"]
+    from dataclasses import replace
+
+    _, changed = trained_unidextok(replace(tiny_cfg, lr=tiny_cfg.lr / 2), "all_hands", fit, select)  # other settings
+    assert changed["cached"] is False and changed["dir"] != info["dir"]
 
 
 def test_ablation_human(tiny_cfg, main_result):
