@@ -3,6 +3,12 @@
 
 from lerobot_unidextok.experiments.config import PRESETS, ExperimentConfig, parse_config
 
-EXPERIMENTS: tuple[str, ...] = ("main_table", "ablation_human", "ablation_mapping", "transfer", "probe")
+EXPERIMENTS: tuple[str, ...] = (
+    "main_table",
+    "ablation_human",
+    "ablation_mapping",
+    "transfer",
+    "probe",
+)
 
 __all__ = ["EXPERIMENTS", "PRESETS", "ExperimentConfig", "parse_config"]

@@ -21,14 +21,20 @@ def hand_range(hand: str, train: HandStates, mask: np.ndarray):
     rows = train.states_rad[train.hands == hand].astype(np.float64)
     lo, hi = rows.min(0), rows.max(0)
     if hand == HUMAN:
-        lo, hi = np.minimum(lo, udhm.JOINT_LIMITS_RAD[:, 0]), np.maximum(hi, udhm.JOINT_LIMITS_RAD[:, 1])
+        lo, hi = (
+            np.minimum(lo, udhm.JOINT_LIMITS_RAD[:, 0]),
+            np.maximum(hi, udhm.JOINT_LIMITS_RAD[:, 1]),
+        )
     else:
         try:
             spec = registry.get(hand)
             for side in ("right", "left"):
                 s_lo, s_hi = spec.udhm_limits_rad(side)
                 lo, hi = np.minimum(lo, s_lo), np.maximum(hi, s_hi)
-        except Exception as e:  # unregistered or keypoint-only hand: training range only
+        except (
+            KeyError,
+            ValueError,
+        ) as e:  # unregistered or keypoint-only hand: training range only
             logger.warning("binning range of %r from training rows only (%s)", hand, e)
     hi = np.where(mask & (hi <= lo), lo + 1e-3, hi)
     return HandRange(lo, hi, mask)
@@ -63,9 +69,18 @@ def quantized_ae(cfg: ExperimentConfig, train: HandStates, quantizer: str):
     try:
         import vector_quantize_pytorch  # noqa: F401
     except ImportError:
-        logger.warning("vector-quantize-pytorch missing (pip install '.[baselines]'): skipping %s", quantizer)
+        logger.warning(
+            "vector-quantize-pytorch missing (pip install '.[baselines]'): skipping %s",
+            quantizer,
+        )
         return None
-    qcfg = QuantizedAEConfig.from_preset(cfg.qae_preset, quantizer=quantizer, steps=cfg.qae_steps, seed=cfg.seed, progress=cfg.progress)
+    qcfg = QuantizedAEConfig.from_preset(
+        cfg.qae_preset,
+        quantizer=quantizer,
+        steps=cfg.qae_steps,
+        seed=cfg.seed,
+        progress=cfg.progress,
+    )
     tok = QuantizedAETokenizer(qcfg)
     tok.fit(per_hand_states(train), hand_masks(train))
     return tok

@@ -14,7 +14,12 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_unidextok.experiments.config import ExperimentConfig, config_dict
-from lerobot_unidextok.training import HandStates, TrainConfig, load_hand_states, train_tokenizer
+from lerobot_unidextok.training import (
+    HandStates,
+    TrainConfig,
+    load_hand_states,
+    train_tokenizer,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -29,8 +34,26 @@ def git_commit() -> str:
     """HEAD of the checkout this package lives in (+ '-dirty' with uncommitted changes), or 'unknown'."""
     repo = Path(__file__).resolve().parents[2]
     try:
-        head = subprocess.run(["git", "-C", str(repo), "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(repo), "status", "--porcelain", "--", "lerobot_unidextok"], capture_output=True, text=True, check=True).stdout.strip()
+        head = subprocess.run(
+            ["git", "-C", str(repo), "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            [
+                "git",
+                "-C",
+                str(repo),
+                "status",
+                "--porcelain",
+                "--",
+                "lerobot_unidextok",
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
     return head + ("-dirty" if dirty else "")
@@ -83,12 +106,21 @@ def write_result(folder: Path, name: str, result: dict, markdown: str) -> Path:
 
 
 def fmt(x: float | None, digits: int = 2) -> str:
-    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
+    return (
+        "-"
+        if x is None or (isinstance(x, float) and math.isnan(x))
+        else f"{x:.{digits}f}"
+    )
 
 
 def md_table(header: list[str], rows: list[list]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(fmt(c) if isinstance(c, float) or c is None else str(c) for c in r) + " |" for r in rows]
+    lines += [
+        "| "
+        + " | ".join(fmt(c) if isinstance(c, float) or c is None else str(c) for c in r)
+        + " |"
+        for r in rows
+    ]
     return "\n".join(lines)
 
 
@@ -101,26 +133,42 @@ class ExperimentData:
     test: HandStates
     datasets: list[Path | str]
     synthetic: bool
-    raw_dir: Path | None = None  # raw sample sources (labels for the probe), None for user datasets
+    raw_dir: Path | None = (
+        None  # raw sample sources (labels for the probe), None for user datasets
+    )
 
 
 def sample_raw_dir(cfg: ExperimentConfig) -> Path:
-    return Path(cfg.data_dir) / f"raw_e{cfg.sample_episodes}_f{cfg.sample_frames}_s{cfg.seed}"
+    return (
+        Path(cfg.data_dir)
+        / f"raw_e{cfg.sample_episodes}_f{cfg.sample_frames}_s{cfg.seed}"
+    )
 
 
 def _valid_dataset(root: Path) -> bool:
-    return (root / "meta" / "info.json").is_file() and any((root / "data").glob("chunk-*/file-*.parquet"))
+    return (root / "meta" / "info.json").is_file() and any(
+        (root / "data").glob("chunk-*/file-*.parquet")
+    )
 
 
 def prepare_sample_data(cfg: ExperimentConfig, mapping: str = "semantic") -> list[Path]:
     """Write the synthetic sample sources once and convert them with `mapping`; reused when present."""
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, SAMPLE_SOURCES, write_samples
+    from lerobot_unidextok.conversion.samples import (
+        SAMPLE_SOURCE_OPTIONS,
+        SAMPLE_SOURCES,
+        write_samples,
+    )
 
     raw = sample_raw_dir(cfg)
     if not (raw / "DONE").is_file():
         shutil.rmtree(raw, ignore_errors=True)
-        write_samples(raw, episodes_per_source=cfg.sample_episodes, frames_per_episode=cfg.sample_frames, seed=cfg.seed)
+        write_samples(
+            raw,
+            episodes_per_source=cfg.sample_episodes,
+            frames_per_episode=cfg.sample_frames,
+            seed=cfg.seed,
+        )
         (raw / "DONE").write_text("complete\n")
     conv = Path(cfg.data_dir) / f"{mapping}_{raw.name}"
     roots = []
@@ -134,14 +182,27 @@ def prepare_sample_data(cfg: ExperimentConfig, mapping: str = "semantic") -> lis
     return roots
 
 
-def load_data(cfg: ExperimentConfig, mapping: str = "semantic", datasets: list[str] | None = None) -> ExperimentData:
+def load_data(
+    cfg: ExperimentConfig, mapping: str = "semantic", datasets: list[str] | None = None
+) -> ExperimentData:
     """Train / test rows of `datasets` (default cfg.datasets), or of the converted sample data."""
     datasets = list(cfg.datasets if datasets is None else datasets)
     if datasets:
-        return ExperimentData(load_hand_states(datasets, "train"), load_hand_states(datasets, "test"), datasets, False)
+        return ExperimentData(
+            load_hand_states(datasets, "train"),
+            load_hand_states(datasets, "test"),
+            datasets,
+            False,
+        )
     roots = prepare_sample_data(cfg, mapping)
     names = [str(r) for r in roots]
-    return ExperimentData(load_hand_states(names, "train"), load_hand_states(names, "test"), roots, True, sample_raw_dir(cfg))
+    return ExperimentData(
+        load_hand_states(names, "train"),
+        load_hand_states(names, "test"),
+        roots,
+        True,
+        sample_raw_dir(cfg),
+    )
 
 
 def cap_rows(data: HandStates, max_rows: int, seed: int) -> HandStates:
@@ -172,11 +233,17 @@ def per_hand_states(data: HandStates) -> dict[str, np.ndarray]:
 def _fingerprint(*parts) -> str:
     h = hashlib.sha1()
     for p in parts:
-        h.update(p.tobytes() if isinstance(p, np.ndarray) else json.dumps(p, sort_keys=True, default=str).encode())
+        h.update(
+            p.tobytes()
+            if isinstance(p, np.ndarray)
+            else json.dumps(p, sort_keys=True, default=str).encode()
+        )
     return h.hexdigest()[:12]
 
 
-def train_config(cfg: ExperimentConfig, output_dir: Path, hand_names: list[str]) -> TrainConfig:
+def train_config(
+    cfg: ExperimentConfig, output_dir: Path, hand_names: list[str]
+) -> TrainConfig:
     return TrainConfig(
         preset=cfg.preset, steps=cfg.steps, batch_size=cfg.batch_size, lr=cfg.lr, warmup_steps=cfg.warmup_steps,
         eval_every=cfg.eval_every, save_last_every=10**9, seed=cfg.seed, output_dir=str(output_dir),
@@ -184,16 +251,26 @@ def train_config(cfg: ExperimentConfig, output_dir: Path, hand_names: list[str])
     )  # fmt: skip
 
 
-def trained_unidextok(cfg: ExperimentConfig, tag: str, train: HandStates, select: HandStates):
+def trained_unidextok(
+    cfg: ExperimentConfig, tag: str, train: HandStates, select: HandStates
+):
     """A UniDexTok trained on `train` (checkpoint chosen on `select`), from cache when the same
     configuration and rows were trained before. Returns (model, info dict)."""
     from lerobot_unidextok.tokenizer import UniDexTok
 
     hands = train.hand_names()
-    settings = dataclasses.asdict(train_config(cfg, Path("."), hands))  # every training setting, incl. defaults
+    settings = dataclasses.asdict(
+        train_config(cfg, Path("."), hands)
+    )  # every training setting, incl. defaults
     for volatile in ("output_dir", "progress"):
         settings.pop(volatile)
-    key = _fingerprint(settings, train.states_rad, train.hands.astype("U32"), train.masks, select.states_rad)
+    key = _fingerprint(
+        settings,
+        train.states_rad,
+        train.hands.astype("U32"),
+        train.masks,
+        select.states_rad,
+    )
     folder = Path(cfg.models_dir) / f"{tag}-{key}"
     done = folder / "train_info.json"
     if done.is_file() and (folder / "best" / "config.json").is_file():
@@ -209,15 +286,21 @@ def trained_unidextok(cfg: ExperimentConfig, tag: str, train: HandStates, select
     return UniDexTok.from_pretrained(folder / "best"), info
 
 
-def selection_split(train: HandStates, seed: int, fraction: float = 0.1) -> tuple[HandStates, HandStates]:
+def selection_split(
+    train: HandStates, seed: int, fraction: float = 0.1
+) -> tuple[HandStates, HandStates]:
     """(fit rows, checkpoint-selection rows): whole training episodes held back per hand, never test rows."""
     rng = np.random.default_rng(seed)
     pick = np.zeros(len(train), dtype=bool)
-    eps = train.episode_index if train.episode_index is not None else np.arange(len(train))
+    eps = (
+        train.episode_index
+        if train.episode_index is not None
+        else np.arange(len(train))
+    )
     for hand in train.hand_names():
         rows = train.hands == hand
         uniq = np.unique(eps[rows])
-        n = max(1, int(round(fraction * len(uniq)))) if len(uniq) > 1 else 0
+        n = max(1, round(fraction * len(uniq))) if len(uniq) > 1 else 0
         chosen = rng.choice(uniq, size=n, replace=False) if n else []
         pick |= rows & np.isin(eps, chosen)
     if not pick.any():  # one episode only: hold back every 10th row
@@ -260,11 +343,19 @@ def summary_row(entry: dict) -> dict:
 
 def abs_errors_deg(pred_rad: np.ndarray, data: HandStates) -> np.ndarray:
     """(N, 22) absolute angle errors (deg), NaN on inactive slots (for per-joint error bars)."""
-    err = np.degrees(np.abs(pred_rad.astype(np.float64) - data.states_rad.astype(np.float64)))
+    err = np.degrees(
+        np.abs(pred_rad.astype(np.float64) - data.states_rad.astype(np.float64))
+    )
     return np.where(data.masks, err, np.nan)
 
 
 def reduction_pct(before: float | None, after: float | None) -> float | None:
-    if before is None or after is None or not before or math.isnan(before) or math.isnan(after):
+    if (
+        before is None
+        or after is None
+        or not before
+        or math.isnan(before)
+        or math.isnan(after)
+    ):
         return None
     return 100.0 * (before - after) / before

@@ -42,10 +42,23 @@ def run(cfg: ExperimentConfig) -> dict:
     model, train_info = trained_unidextok(cfg, "all_hands", fit, select)
     pred_udt, codes = reconstruct_unidextok(model, test)
     preds = {UNIDEXTOK: pred_udt}
-    rates = {UNIDEXTOK: {h: (model.config.num_tokens, model.config.num_tokens * model.config.num_groups * np.log2(model.config.codebook_size)) for h in test.hand_names()}}
+    rates = {
+        UNIDEXTOK: {
+            h: (
+                model.config.num_tokens,
+                model.config.num_tokens
+                * model.config.num_groups
+                * np.log2(model.config.codebook_size),
+            )
+            for h in test.hand_names()
+        }
+    }
     fit_seconds = {UNIDEXTOK: train_info["seconds"]}
 
-    tokenizers = {BINNING: lambda: B.binning(data.train), UNIHM: lambda: B.unihm(cfg, fit)}
+    tokenizers = {
+        BINNING: lambda: B.binning(data.train),
+        UNIHM: lambda: B.unihm(cfg, fit),
+    }
     if cfg.with_qae:
         tokenizers[FSQ] = lambda: B.quantized_ae(cfg, fit, "fsq")
         tokenizers[RVQ] = lambda: B.quantized_ae(cfg, fit, "rvq")
@@ -56,7 +69,10 @@ def run(cfg: ExperimentConfig) -> dict:
             continue
         fit_seconds[method] = round(time.perf_counter() - t, 1)
         preds[method] = reconstruct_baseline(tok, test)
-        rates[method] = {h: (tok.rate(h).tokens_per_state, tok.rate(h).bits_per_state) for h in test.hand_names()}
+        rates[method] = {
+            h: (tok.rate(h).tokens_per_state, tok.rate(h).bits_per_state)
+            for h in test.hand_names()
+        }
         logger.info("%s fitted in %.1f s", method, fit_seconds[method])
 
     # --- scores: one evaluation code for all --------------------------------------------------------
@@ -67,7 +83,13 @@ def run(cfg: ExperimentConfig) -> dict:
             tokens, bits = rates[m][hand]
             rows.append({"method": m, "hand": hand, "tokens_per_state": int(tokens), "bits_per_state": float(bits),
                          **summary_row(rep["per_hand"][hand])})  # fmt: skip
-    overall = {m: {**summary_row(rep["overall"]), "per_joint_deg": rep["overall"]["per_joint_deg"]} for m, rep in reports.items()}
+    overall = {
+        m: {
+            **summary_row(rep["overall"]),
+            "per_joint_deg": rep["overall"]["per_joint_deg"],
+        }
+        for m, rep in reports.items()
+    }
 
     # --- figures --------------------------------------------------------------------------------------
     from lerobot_unidextok import viz
@@ -83,7 +105,9 @@ def run(cfg: ExperimentConfig) -> dict:
     baseline_for_render = UNIHM if UNIHM in preds else BINNING
     for hand in test.hand_names():
         rows_h = np.flatnonzero(test.hands == hand)
-        pick = np.sort(rng.choice(rows_h, size=min(cfg.render_samples, len(rows_h)), replace=False))
+        pick = np.sort(
+            rng.choice(rows_h, size=min(cfg.render_samples, len(rows_h)), replace=False)
+        )
         figures[f"render_{hand}"] = str(viz.plot_hand_reconstructions(
             test.states_rad[pick], {UNIDEXTOK: preds[UNIDEXTOK][pick], baseline_for_render: preds[baseline_for_render][pick]},
             hand, folder / f"render_{hand}.png", title=f"{hand}: ground truth (light) vs {UNIDEXTOK} (green) vs {baseline_for_render} (red)"))  # fmt: skip
@@ -105,14 +129,27 @@ def run(cfg: ExperimentConfig) -> dict:
 
 def markdown(result: dict) -> str:
     rows = result["rows"]
-    lines = [f"# {NAME}", "", "Held-out split, per hand; same metric code (`evaluation.metrics`) for every method.", ""]
+    lines = [
+        f"# {NAME}",
+        "",
+        "Held-out split, per hand; same metric code (`evaluation.metrics`) for every method.",
+        "",
+    ]
     lines.append(md_table(["hand", "method", "tokens/state", "bits/state", "MPJAE (deg)", "MPJPE (mm)", "fingertip (mm)"],
                           [[r["hand"], r["method"], r["tokens_per_state"], f"{r['bits_per_state']:g}", r["mpjae_deg"], r["mpjpe_mm"], r["fingertip_mm"]] for r in rows]))  # fmt: skip
     lines += ["", "Overall (all held-out rows):", ""]
     lines.append(md_table(["method", "MPJAE (deg)", "MPJPE (mm)", "fingertip (mm)", "fit seconds"],
                           [[m, o["mpjae_deg"], o["mpjpe_mm"], o["fingertip_mm"], fmt(result["fit_seconds"].get(m), 1)] for m, o in result["overall"].items()]))  # fmt: skip
-    lines += ["", "Where each method wins (computed from the rows above):", "", *wins(rows)]
-    lines += ["", f"UniDexTok codebook: usage {fmt(result['codebook']['usage'])}, mean perplexity {fmt(result['codebook']['perplexity'], 1)} of {result['codebook']['codebook_size']}."]
+    lines += [
+        "",
+        "Where each method wins (computed from the rows above):",
+        "",
+        *wins(rows),
+    ]
+    lines += [
+        "",
+        f"UniDexTok codebook: usage {fmt(result['codebook']['usage'])}, mean perplexity {fmt(result['codebook']['perplexity'], 1)} of {result['codebook']['codebook_size']}.",
+    ]
     return "\n".join(lines)
 
 
@@ -125,7 +162,12 @@ def wins(rows: list[dict]) -> list[str]:
         ours = next((r for r in hr if r["method"] == UNIDEXTOK), None)
         line = f"- {hand}: lowest MPJAE {best['method']} ({best['mpjae_deg']:.2f} deg at {best['bits_per_state']:g} bits)"
         if ours is not None:
-            budget = [r for r in hr if r["bits_per_state"] <= ours["bits_per_state"] and r["method"] != best["method"]]
+            budget = [
+                r
+                for r in hr
+                if r["bits_per_state"] <= ours["bits_per_state"]
+                and r["method"] != best["method"]
+            ]
             learned = [r for r in budget if r["method"] != BINNING]
             if learned:
                 b2 = min(learned, key=lambda r: r["mpjae_deg"])

@@ -34,11 +34,15 @@ ZERO, FEW, FULL = "zero-shot", "few-shot", "in training (reference)"
 def holdout_hand(cfg: ExperimentConfig, hands: list[str]) -> str:
     if cfg.holdout_hand:
         if cfg.holdout_hand not in hands:
-            raise ValueError(f"--holdout_hand={cfg.holdout_hand!r} is not in the data; hands: {hands}")
+            raise ValueError(
+                f"--holdout_hand={cfg.holdout_hand!r} is not in the data; hands: {hands}"
+            )
         return cfg.holdout_hand
     inspire = [h for h in hands if "inspire" in h]
     if not inspire:
-        raise ValueError(f"no Inspire hand in the data ({hands}); pass --holdout_hand=<one of them>")
+        raise ValueError(
+            f"no Inspire hand in the data ({hands}); pass --holdout_hand=<one of them>"
+        )
     return inspire[0]
 
 
@@ -52,13 +56,17 @@ def run(cfg: ExperimentConfig) -> dict:
     test = cap_rows(data.test.only(hand), cfg.max_eval_frames, cfg.seed)
     fit, select = selection_split(data.train, cfg.seed)
 
-    base, base_info = trained_unidextok(cfg, f"without_{hand}", fit.without(hand), select.without(hand))
+    base, base_info = trained_unidextok(
+        cfg, f"without_{hand}", fit.without(hand), select.without(hand)
+    )
     full, full_info = trained_unidextok(cfg, "all_hands", fit, select)
     reports = {ZERO: score(reconstruct_unidextok(base, test)[0], test)}
 
     # few-shot: the first fraction of the held-out hand's training frames (whole episodes first);
     # the checkpoint is chosen on those same frames, so no held-out frame is seen before scoring
-    shots = subsample_episodes(data.train.only(hand), cfg.fewshot_fraction, seed=cfg.seed)
+    shots = subsample_episodes(
+        data.train.only(hand), cfg.fewshot_fraction, seed=cfg.seed
+    )
     few_cfg = TrainConfig(
         preset=cfg.preset, init_from=base_info["dir"], fraction=1.0, epochs=cfg.fewshot_epochs, batch_size=cfg.fewshot_batch_size,
         lr=cfg.fewshot_lr, warmup_steps=1, eval_every=1, save_last_every=10**9, seed=cfg.seed,
@@ -71,12 +79,26 @@ def run(cfg: ExperimentConfig) -> dict:
 
     per_joint = {}
     for joint in reports[ZERO]["per_hand"][hand]["per_joint_deg"]:
-        z, f = (reports[k]["per_hand"][hand]["per_joint_deg"][joint] for k in (ZERO, FEW))
-        per_joint[joint] = {ZERO: z, FEW: f, FULL: reports[FULL]["per_hand"][hand]["per_joint_deg"][joint], "reduction_pct": reduction_pct(z, f)}
+        z, f = (
+            reports[k]["per_hand"][hand]["per_joint_deg"][joint] for k in (ZERO, FEW)
+        )
+        per_joint[joint] = {
+            ZERO: z,
+            FEW: f,
+            FULL: reports[FULL]["per_hand"][hand]["per_joint_deg"][joint],
+            "reduction_pct": reduction_pct(z, f),
+        }
     per_finger = {}
     for tip in (KEYPOINT_NAMES[i] for i in FINGERTIP_INDICES):
-        z, f = (reports[k]["per_hand"][hand]["per_keypoint_mm"][tip] for k in (ZERO, FEW))
-        per_finger[tip] = {ZERO: z, FEW: f, FULL: reports[FULL]["per_hand"][hand]["per_keypoint_mm"][tip], "reduction_pct": reduction_pct(z, f)}
+        z, f = (
+            reports[k]["per_hand"][hand]["per_keypoint_mm"][tip] for k in (ZERO, FEW)
+        )
+        per_finger[tip] = {
+            ZERO: z,
+            FEW: f,
+            FULL: reports[FULL]["per_hand"][hand]["per_keypoint_mm"][tip],
+            "reduction_pct": reduction_pct(z, f),
+        }
     summary = {k: summary_row(r["per_hand"][hand]) for k, r in reports.items()}
     result = {
         "experiment": NAME, "provenance": provenance(cfg, data, time.perf_counter() - t0), "holdout_hand": hand,
@@ -105,14 +127,14 @@ def _joints() -> list[str]:
 
 def markdown(result: dict) -> str:
     fs = result["fewshot"]
-    lines = [f"# {NAME}", "", f"Held-out hand: **{result['holdout_hand']}**. Zero-shot = tokenizer trained without it "
+    lines = [f"# {NAME}", "", (f"Held-out hand: **{result['holdout_hand']}**. Zero-shot = tokenizer trained without it "
              f"(unknown-hand embedding); few-shot = that tokenizer adapted on {fs['frames']} of its {fs['of_frames']} "
              f"training frames ({100 * fs['fraction']:.1f} %) for {fs['epochs']:g} epochs ({fs['steps']} steps, "
-             f"{fs['seconds']} s); reference = the tokenizer trained with it. Reduction = (zero - few) / zero.", ""]  # fmt: skip
+             f"{fs['seconds']} s); reference = the tokenizer trained with it. Reduction = (zero - few) / zero."), ""]  # fmt: skip
     lines.append(md_table(["setting", "MPJAE (deg)", "MPJPE (mm)", "fingertip (mm)"],
                           [[k, v["mpjae_deg"], v["mpjpe_mm"], v["fingertip_mm"]] for k, v in result["summary"].items()]))  # fmt: skip
-    lines += ["", f"MPJAE reduction {fmt(result['mpjae_reduction_pct'], 1)} %, fingertip reduction "
-              f"{fmt(result['fingertip_reduction_pct'], 1)} %.", "", "Per-joint MPJAE (deg):", ""]  # fmt: skip
+    lines += ["", (f"MPJAE reduction {fmt(result['mpjae_reduction_pct'], 1)} %, fingertip reduction "
+              f"{fmt(result['fingertip_reduction_pct'], 1)} %."), "", "Per-joint MPJAE (deg):", ""]  # fmt: skip
     lines.append(md_table(["joint", ZERO, FEW, "reduction %", FULL],
                           [[j, v[ZERO], v[FEW], v["reduction_pct"], v[FULL]] for j, v in result["per_joint_deg"].items()]))  # fmt: skip
     lines += ["", "Per-finger fingertip error (mm):", ""]

@@ -9,7 +9,10 @@ from lerobot_unidextok.experiments import ExperimentConfig
 def tiny_cfg(tmp_path_factory) -> ExperimentConfig:
     root = tmp_path_factory.mktemp("experiments")
     return ExperimentConfig.from_preset(
-        "tiny", output_root=str(root / "out"), data_dir=str(root / "_data"), models_dir=str(root / "_models"),
+        "tiny",
+        output_root=str(root / "out"),
+        data_dir=str(root / "_data"),
+        models_dir=str(root / "_models"),
         linkerhand_presets=str(root / "absent.json"),
     )
 

@@ -12,11 +12,18 @@ from lerobot_unidextok.training import HandStates
 
 def test_parse_config_flags_and_yaml(tmp_path):
     cfg = parse_config(["--tiny", "--steps=7", "--datasets=a,b", "--with_qae=false"])
-    assert cfg.preset == "tiny" and cfg.steps == 7 and cfg.datasets == ["a", "b"] and cfg.with_qae is False
+    assert (
+        cfg.preset == "tiny"
+        and cfg.steps == 7
+        and cfg.datasets == ["a", "b"]
+        and cfg.with_qae is False
+    )
     path = tmp_path / "c.yaml"
     path.write_text("steps: 11\nseed: 3\n")
     cfg = parse_config([f"--config_path={path}", "--seed=4"])
-    assert cfg.steps == 11 and cfg.seed == 4 and cfg.preset == "small"  # flags override the file
+    assert (
+        cfg.steps == 11 and cfg.seed == 4 and cfg.preset == "small"
+    )  # flags override the file
     path.write_text("stepz: 1\n")
     with pytest.raises(ValueError, match="unknown fields"):
         parse_config([f"--config_path={path}"])
@@ -31,8 +38,12 @@ def test_knn_topk_exact():
     labels = np.array(["a", "b", "c"])
     queries = np.array([[2.0, 0.1], [0.1, 3.0], [-1.0, -0.5]])
     r = knn_topk(gallery, labels, queries, np.array(["a", "a", "b"]))
-    assert r["knn_top1"] == pytest.approx(1 / 3)  # only the first query's nearest is right
-    assert r["knn_top3"] == pytest.approx(1.0)  # with 3 neighbours every label is in reach
+    assert r["knn_top1"] == pytest.approx(
+        1 / 3
+    )  # only the first query's nearest is right
+    assert r["knn_top3"] == pytest.approx(
+        1.0
+    )  # with 3 neighbours every label is in reach
 
 
 def test_linear_probe_separates_separable_classes():
@@ -40,11 +51,15 @@ def test_linear_probe_separates_separable_classes():
     x = np.concatenate([rng.normal(0, 0.1, (40, 5)), rng.normal(2, 0.1, (40, 5))])
     y = np.array(["a"] * 40 + ["b"] * 40)
     assert linear_probe(x[::2], y[::2], x[1::2], y[1::2], seed=0) == 1.0
-    shuffled = rng.permutation(y)  # labels unrelated to features: near chance, far from perfect
+    shuffled = rng.permutation(
+        y
+    )  # labels unrelated to features: near chance, far from perfect
     assert linear_probe(x[::2], shuffled[::2], x[1::2], shuffled[1::2], seed=0) < 0.9
 
 
-@pytest.mark.parametrize("hand", ["inspire_rh56_unitree", "linkerhand_l10", "xhand1", "brainco_revo1"])
+@pytest.mark.parametrize(
+    "hand", ["inspire_rh56_unitree", "linkerhand_l10", "xhand1", "brainco_revo1"]
+)
 def test_append_pad_permutation_matches_the_spec(hand):
     from lerobot_unidextok import hands
 
@@ -60,7 +75,9 @@ def test_append_pad_permutation_matches_the_spec(hand):
 
 def test_selection_split_holds_back_whole_episodes():
     eps = np.repeat(np.arange(10), 5)
-    data = HandStates(np.zeros((50, 22)), np.array(["human"] * 50), np.ones((50, 22), bool), eps)
+    data = HandStates(
+        np.zeros((50, 22)), np.array(["human"] * 50), np.ones((50, 22), bool), eps
+    )
     fit, sel = selection_split(data, seed=0)
     assert len(fit) + len(sel) == 50 and len(sel) == 5
     assert not set(fit.episode_index) & set(sel.episode_index)
