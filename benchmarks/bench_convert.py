@@ -63,9 +63,7 @@ def _writer_only(episodes, features, root: Path) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=30, help="robot episodes")
-    parser.add_argument(
-        "--frames", type=int, default=1000, help="frames per robot episode"
-    )
+    parser.add_argument("--frames", type=int, default=1000, help="frames per robot episode")
     parser.add_argument("--human_episodes", type=int, default=4)
     parser.add_argument("--human_frames", type=int, default=300)
     parser.add_argument(
@@ -126,9 +124,7 @@ def main() -> None:
         refs = reader.list_episodes(raw["linkerhand"])
         episodes = [map_episode(reader.read_episode(r)) for r in refs]
         by_layout = [e for e in episodes if e.layout == episodes[0].layout]
-        features = udhm_features(
-            by_layout[0].sides, by_layout[0].action_rad is not None
-        )
+        features = udhm_features(by_layout[0].sides, by_layout[0].action_rad is not None)
         sec = _writer_only(by_layout, features, tmp / "writer_only")
         rows.append(
             (
@@ -149,9 +145,7 @@ def main() -> None:
             )
         )
 
-        print(
-            f"\n{'what':52s} {'episodes':>8s} {'frames':>8s} {'CPU s':>8s} {'frames/CPU-s':>12s}"
-        )
+        print(f"\n{'what':52s} {'episodes':>8s} {'frames':>8s} {'CPU s':>8s} {'frames/CPU-s':>12s}")
         for name, eps, frames, sec in rows:
             print(f"{name:52s} {eps:8d} {frames:8d} {sec:8.2f} {frames / sec:12,.0f}")
         ref = rows[3][2] / rows[3][3]

@@ -46,30 +46,18 @@ def median_ms(fn, repeats: int) -> tuple[float, float]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--presets", nargs="+", default=["small", "paper"])
     parser.add_argument("--batches", nargs="+", type=int, default=[1, 256])
-    parser.add_argument(
-        "--repeats", type=int, default=100, help="timed calls at batch 1"
-    )
-    parser.add_argument(
-        "--repeats_large", type=int, default=5, help="timed calls at batch > 1"
-    )
-    parser.add_argument(
-        "--num_hands", type=int, choices=(1, 2), default=2, help="UDHM blocks per frame"
-    )
-    parser.add_argument(
-        "--threads", type=int, default=0, help="torch threads (0 = torch default)"
-    )
+    parser.add_argument("--repeats", type=int, default=100, help="timed calls at batch 1")
+    parser.add_argument("--repeats_large", type=int, default=5, help="timed calls at batch > 1")
+    parser.add_argument("--num_hands", type=int, choices=(1, 2), default=2, help="UDHM blocks per frame")
+    parser.add_argument("--threads", type=int, default=0, help="torch threads (0 = torch default)")
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
     torch.manual_seed(0)
-    poses = torch.from_numpy(l10_preset_states(REAL))[
-        :, : 22 * args.num_hands
-    ]  # (P, 22*H) real states
+    poses = torch.from_numpy(l10_preset_states(REAL))[:, : 22 * args.num_hands]  # (P, 22*H) real states
     hands = ["linkerhand_l10"] * args.num_hands
     print(
         f"torch {torch.__version__}, {torch.get_num_threads()} threads, CPU, load average "

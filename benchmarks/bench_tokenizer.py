@@ -41,7 +41,9 @@ def main() -> None:
     states = torch.as_tensor(gesture_track(np.random.default_rng(0), 2048, 30.0).angles_rad, dtype=torch.float32)
 
     print(f"torch {torch.__version__}, threads {torch.get_num_threads()}")
-    print("| tokenizer | params | batch | encode+decode states / CPU-s | states / wall-s | train samples / CPU-s (batch) |")
+    print(
+        "| tokenizer | params | batch | encode+decode states / CPU-s | states / wall-s | train samples / CPU-s (batch) |"
+    )
     print("|---|---|---|---|---|---|")
 
     binning = UniformBinning({"human": HandRange(np.full(22, -np.pi / 2), np.full(22, np.pi / 2), np.ones(22, bool))})

@@ -10,10 +10,9 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from lerobot_unidextok.converters import _lerobot_files as lr
-
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
+from lerobot_unidextok.converters import _lerobot_files as lr
 
 XHAND = "xhand1"
 XHAND_JOINTS = 12

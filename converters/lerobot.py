@@ -20,10 +20,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from lerobot_unidextok.converters import _lerobot_files as lr
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
+from lerobot_unidextok.converters import _lerobot_files as lr
 
 ALL_COLUMNS = ("*",)  # state_names meaning "every column of the hand's own feature"
 

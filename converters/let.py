@@ -13,10 +13,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from lerobot_unidextok.converters._topic_json import array_field, field, fps_from_stamps, load_json
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
+from lerobot_unidextok.converters._topic_json import array_field, field, fps_from_stamps, load_json
 
 COMMAND_TOPIC = "/control_robot_hand_position"
 STATE_TOPIC = "/dexhand/state"

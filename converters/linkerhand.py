@@ -16,12 +16,12 @@ import re
 from pathlib import Path
 
 import numpy as np
-from lerobot_unidextok.converters import _lerobot_files as lr
-from lerobot_unidextok.converters._topic_json import array_field, field, fps_from_stamps, load_json
-from lerobot_unidextok.converters.lerobot import HandColumns, parse_hands, read_mapped_episode
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
+from lerobot_unidextok.converters import _lerobot_files as lr
+from lerobot_unidextok.converters._topic_json import array_field, field, fps_from_stamps, load_json
+from lerobot_unidextok.converters.lerobot import HandColumns, parse_hands, read_mapped_episode
 
 MODELS: dict[str, tuple[str, int]] = {  # SDK model -> (hand spec name, joints per hand)
     "L6": ("linkerhand_l6", 6),

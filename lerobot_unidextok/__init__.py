@@ -1,14 +1,14 @@
 """lerobot-unidextok: UDHM hand model, dataset converters and the UniDexTok hand-state tokenizer.
 
-    from lerobot_unidextok import udhm, hands, UniDexTok
+from lerobot_unidextok import udhm, hands, UniDexTok
 """
-
-from lerobot_unidextok.constants import KEYPOINT_NAMES, UDHM_DIM, UDHM_JOINT_NAMES
-from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 
 # LeRobot registration on import: the `unidextok.state_tokenizer` / `unidextok.udhm_to_native`
 # processor steps and the `act_udt` policy type (see docs/lerobot.md).
-from lerobot_unidextok import policies as _policies, processor as _processor  # noqa: E402, F401, I001
+from lerobot_unidextok import policies as _policies  # noqa: E402, F401, I001
+from lerobot_unidextok import processor as _processor
+from lerobot_unidextok.constants import KEYPOINT_NAMES, UDHM_DIM, UDHM_JOINT_NAMES
+from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 
 __version__ = "0.1.0"
 

@@ -4,10 +4,27 @@ Layer 2: imports `constants` and torch only; hands are known by name, limits and
 The FSQ / RVQ baselines need the `baselines` extra (vector-quantize-pytorch), imported when built.
 """
 
-from lerobot_unidextok.baselines.base import Rate, StateTokenizer, TrainableStateTokenizer, bits_per_state, tokens_per_state
+from lerobot_unidextok.baselines.base import (
+    Rate,
+    StateTokenizer,
+    TrainableStateTokenizer,
+    bits_per_state,
+    tokens_per_state,
+)
 from lerobot_unidextok.baselines.binning import BinningConfig, HandRange, UniformBinning
-from lerobot_unidextok.baselines.quantized_ae import QuantizedAEConfig, QuantizedAETokenizer, fsq_tokenizer, rvq_tokenizer
-from lerobot_unidextok.baselines.rate_distortion import RateDistortionRow, markdown_table, mpjae_deg, rate_distortion, reconstruct
+from lerobot_unidextok.baselines.quantized_ae import (
+    QuantizedAEConfig,
+    QuantizedAETokenizer,
+    fsq_tokenizer,
+    rvq_tokenizer,
+)
+from lerobot_unidextok.baselines.rate_distortion import (
+    RateDistortionRow,
+    markdown_table,
+    mpjae_deg,
+    rate_distortion,
+    reconstruct,
+)
 from lerobot_unidextok.baselines.unidextok_adapter import UniDexTokAdapter
 from lerobot_unidextok.baselines.unihm import UNIHM_PRESETS, UniHMConfig, UniHMTokenizer
 

@@ -41,7 +41,7 @@ class HandRange:
             )
 
     @classmethod
-    def from_limits(cls, limits_rad: ArrayLike, active_mask: ArrayLike) -> "HandRange":
+    def from_limits(cls, limits_rad: ArrayLike, active_mask: ArrayLike) -> HandRange:
         """From a `(22, 2)` [lower, upper] table (e.g. `udhm.JOINT_LIMITS_RAD`) and a `(22,)` mask."""
         limits = np.asarray(limits_rad, dtype=np.float64)
         if limits.shape != (UDHM_DIM, 2):
@@ -104,7 +104,9 @@ class UniformBinning:
                 f"binning codes of hand {hand!r} must have shape (B, {int(mask.sum())}); got {tuple(codes.shape)}"
             )
         if codes.numel() and (codes.min() < 0 or codes.max() >= self.config.num_bins):
-            raise ValueError(f"binning codes must lie in [0, {self.config.num_bins}); got [{codes.min()}, {codes.max()}]")
+            raise ValueError(
+                f"binning codes must lie in [0, {self.config.num_bins}); got [{codes.min()}, {codes.max()}]"
+            )
         centres = lower + (codes.to(torch.float64) + 0.5) * (upper - lower) / self.config.num_bins  # (B, n_active)
         states = torch.zeros(codes.shape[0], UDHM_DIM, dtype=torch.float32)
         states[:, mask] = centres.to(torch.float32)

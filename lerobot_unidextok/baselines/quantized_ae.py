@@ -15,7 +15,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import torch
-import torch.nn.functional as F
 from torch import nn
 from tqdm.auto import tqdm
 
@@ -68,7 +67,7 @@ class QuantizedAEConfig:
         return 2**self.bits_per_code
 
     @classmethod
-    def from_preset(cls, name: str, **overrides) -> "QuantizedAEConfig":
+    def from_preset(cls, name: str, **overrides) -> QuantizedAEConfig:
         if name not in QAE_PRESETS:
             raise ValueError(f"unknown preset {name!r}; choose one of {sorted(QAE_PRESETS)}")
         return replace(QAE_PRESETS[name], **overrides)
@@ -103,7 +102,9 @@ class QuantizedAETokenizer(nn.Module):
         if cfg.quantizer == "fsq":
             from vector_quantize_pytorch import FSQ
 
-            self.quantizer = FSQ(levels=list(FSQ_LEVELS[cfg.bits_per_code]), dim=cfg.token_dim, num_codebooks=cfg.codes_per_token)
+            self.quantizer = FSQ(
+                levels=list(FSQ_LEVELS[cfg.bits_per_code]), dim=cfg.token_dim, num_codebooks=cfg.codes_per_token
+            )
         else:
             from vector_quantize_pytorch import ResidualVQ
 
@@ -145,9 +146,13 @@ class QuantizedAETokenizer(nn.Module):
         cfg = self.config
         codes = torch.as_tensor(codes)
         if codes.ndim != 3 or codes.shape[1:] != (cfg.num_tokens, cfg.codes_per_token):
-            raise ValueError(f"{self.name} codes must have shape (B, {cfg.num_tokens}, {cfg.codes_per_token}); got {tuple(codes.shape)}")
+            raise ValueError(
+                f"{self.name} codes must have shape (B, {cfg.num_tokens}, {cfg.codes_per_token}); got {tuple(codes.shape)}"
+            )
         if codes.numel() and (codes.min() < 0 or codes.max() >= cfg.vocab_per_code):
-            raise ValueError(f"{self.name} codes must lie in [0, {cfg.vocab_per_code}); got [{codes.min()}, {codes.max()}]")
+            raise ValueError(
+                f"{self.name} codes must lie in [0, {cfg.vocab_per_code}); got [{codes.min()}, {codes.max()}]"
+            )
         if cfg.quantizer == "fsq":
             z_q = self.quantizer.indices_to_codes(codes)  # (B, N, d)
         else:

@@ -64,8 +64,12 @@ def rate_distortion(
             rate = tokenizer.rate(hand)
             rows.append(
                 RateDistortionRow(
-                    method=method, hand=hand, tokens_per_state=rate.tokens_per_state,
-                    codes_per_state=rate.codes_per_state, bits_per_state=rate.bits_per_state, num_states=gt.shape[0],
+                    method=method,
+                    hand=hand,
+                    tokens_per_state=rate.tokens_per_state,
+                    codes_per_state=rate.codes_per_state,
+                    bits_per_state=rate.bits_per_state,
+                    num_states=gt.shape[0],
                     errors={name: fn(gt, recon, mask, hand) for name, fn in error_fns.items()},
                 )  # fmt: skip
             )
@@ -80,6 +84,12 @@ def markdown_table(rows: list[RateDistortionRow]) -> str:
     header = ["method", "hand", "tokens/state", "bits/state", *error_names]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for r in rows:
-        cells = [r.method, r.hand, str(r.tokens_per_state), f"{r.bits_per_state:g}", *(f"{r.errors[n]:.2f}" for n in error_names)]
+        cells = [
+            r.method,
+            r.hand,
+            str(r.tokens_per_state),
+            f"{r.bits_per_state:g}",
+            *(f"{r.errors[n]:.2f}" for n in error_names),
+        ]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)

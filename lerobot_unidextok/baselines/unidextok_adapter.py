@@ -19,7 +19,9 @@ class UniDexTokAdapter:
     def __init__(self, model) -> None:
         missing = [attr for attr in ("encode", "decode", "config") if not hasattr(model, attr)]
         if missing:
-            raise ValueError(f"UniDexTokAdapter needs a model with encode/decode/config; {type(model).__name__} lacks {missing}")
+            raise ValueError(
+                f"UniDexTokAdapter needs a model with encode/decode/config; {type(model).__name__} lacks {missing}"
+            )
         self.model = model
 
     def rate(self, hand: str) -> Rate:

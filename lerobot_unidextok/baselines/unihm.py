@@ -73,16 +73,20 @@ class UniHMConfig:
 
     def __post_init__(self) -> None:
         if self.h_dim < 2 or self.h_dim % 2:
-            raise ValueError(f"h_dim must be an even number >= 2 (the first conv has h_dim/2 channels); got {self.h_dim}")
+            raise ValueError(
+                f"h_dim must be an even number >= 2 (the first conv has h_dim/2 channels); got {self.h_dim}"
+            )
         if self.codebook_size < 2:
             raise ValueError(f"codebook_size must be >= 2; got {self.codebook_size}")
         if not 0.0 <= self.kmeans_cold_after <= 1.0:
-            raise ValueError(f"kmeans_cold_after is a fraction of teacher_steps in [0, 1]; got {self.kmeans_cold_after}")
+            raise ValueError(
+                f"kmeans_cold_after is a fraction of teacher_steps in [0, 1]; got {self.kmeans_cold_after}"
+            )
         if self.batch_size < 1 or self.rounds < 1:
             raise ValueError(f"batch_size and rounds must be >= 1; got {self.batch_size}, {self.rounds}")
 
     @classmethod
-    def from_preset(cls, name: str, **overrides) -> "UniHMConfig":
+    def from_preset(cls, name: str, **overrides) -> UniHMConfig:
         if name not in UNIHM_PRESETS:
             raise ValueError(f"unknown UniHM preset {name!r}; choose one of {sorted(UNIHM_PRESETS)}")
         return replace(UNIHM_PRESETS[name], **overrides)
@@ -202,13 +206,17 @@ class VectorQuantizer(nn.Module):
         return z + (z_q - z).detach(), idx, loss  # (B, D), (B,), ()
 
     @torch.no_grad()
-    def kmeans_reset(self, latents: torch.Tensor, iters: int, cold_ratio: float | None, generator: torch.Generator) -> None:
+    def kmeans_reset(
+        self, latents: torch.Tensor, iters: int, cold_ratio: float | None, generator: torch.Generator
+    ) -> None:
         """Re-initialise the codebook (or only its coldest `cold_ratio` entries) with k-means on `latents`."""
         num_codes = self.codebook.num_embeddings
         replace_init = latents.shape[0] < num_codes
-        centres = latents[torch.randint(latents.shape[0], (num_codes,), generator=generator)] if replace_init else (
-            latents[torch.randperm(latents.shape[0], generator=generator)[:num_codes]]
-        ).clone()  # (K, D)
+        centres = (
+            latents[torch.randint(latents.shape[0], (num_codes,), generator=generator)]
+            if replace_init
+            else (latents[torch.randperm(latents.shape[0], generator=generator)[:num_codes]]).clone()
+        )  # (K, D)
         for _ in range(iters):
             labels = torch.cdist(latents, centres).argmin(dim=1)  # (M,)
             sums = torch.zeros_like(centres).index_add_(0, labels, latents)
@@ -266,7 +274,9 @@ class UniHMTokenizer(nn.Module):
         if codes.ndim != 2 or codes.shape[1] != 1:
             raise ValueError(f"UniHM codes must have shape (B, 1); got {tuple(codes.shape)}")
         if codes.numel() and (codes.min() < 0 or codes.max() >= self.config.codebook_size):
-            raise ValueError(f"UniHM codes must lie in [0, {self.config.codebook_size}); got [{codes.min()}, {codes.max()}]")
+            raise ValueError(
+                f"UniHM codes must lie in [0, {self.config.codebook_size}); got [{codes.min()}, {codes.max()}]"
+            )
         x_norm = self.decoders[hand](self.quantizer.codebook(codes[:, 0]))  # (B, 22)
         return x_norm * ANGLE_SCALE_RAD * self.masks[hand]  # (B, 22) rad, inactive slots zero
 

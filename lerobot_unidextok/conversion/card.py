@@ -26,13 +26,9 @@ def render_card(
 ) -> str:
     """Markdown card with a YAML header (license `other`: the source licence is quoted in the body)."""
     synthetic = bool(settings.get("synthetic"))
-    tags = ["LeRobot", "unidextok", "udhm", "dexterous-hands", source] + (
-        ["synthetic"] if synthetic else []
-    )
+    tags = ["LeRobot", "unidextok", "udhm", "dexterous-hands", source] + (["synthetic"] if synthetic else [])
     header = (
-        ["---", "license: other", "tags:"]
-        + [f"- {t}" for t in tags]
-        + ["task_categories:", "- robotics", "---", ""]
+        ["---", "license: other", "tags:"] + [f"- {t}" for t in tags] + ["task_categories:", "- robotics", "---", ""]
     )
     hands = ", ".join(settings.get("hands", [])) or "unknown"
     sides = settings.get("sides", [])
@@ -51,14 +47,8 @@ def render_card(
         "## Features",
         "",
         f"- `observation.state`: float32 `(22 x {len(sides)})` UDHM joint angles in radians, names `<side>_<joint>`",
-        "  over the 22 UDHM joints: "
-        + ", ".join(f"`{j}`" for j in UDHM_JOINT_NAMES)
-        + ".",
-        *(
-            ["- `action`: same layout, the source's commands mapped to UDHM."]
-            if settings.get("has_action")
-            else []
-        ),
+        "  over the 22 UDHM joints: " + ", ".join(f"`{j}`" for j in UDHM_JOINT_NAMES) + ".",
+        *(["- `action`: same layout, the source's commands mapped to UDHM."] if settings.get("has_action") else []),
         "- `hand_type`: hand spec name of each block, comma-separated in block order.",
         "- `udhm_mask`: bool, True where the UDHM slot is a real DoF of the hand and the hand is present.",
         "",

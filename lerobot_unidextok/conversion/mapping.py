@@ -19,9 +19,7 @@ from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 
 Mapping = Literal["semantic", "append_pad"]
 MAPPINGS: tuple[str, ...] = ("semantic", "append_pad")
-ANGLE_BOUND_RAD = (
-    2 * np.pi
-)  # no UDHM joint angle is beyond this: larger values are unit errors
+ANGLE_BOUND_RAD = 2 * np.pi  # no UDHM joint angle is beyond this: larger values are unit errors
 
 
 class EpisodeError(ValueError):
@@ -46,9 +44,7 @@ class UdhmEpisode:
     mask: np.ndarray  # (T, 22 * H) bool
     action_rad: np.ndarray | None = None  # (T, 22 * H) float32
     trimmed_frames: int = 0
-    absent_hand_frames: int = (
-        0  # hand-frames zero-filled because the hand was not present
-    )
+    absent_hand_frames: int = 0  # hand-frames zero-filled because the hand was not present
     synthetic: bool = False
     extra: dict = field(default_factory=dict)
 
@@ -98,19 +94,13 @@ def _map_values(
     if not present.any():
         return out
     try:
-        udhm = np.asarray(
-            spec.to_udhm(sel, side=side, mapping=mapping), dtype=np.float64
-        )
+        udhm = np.asarray(spec.to_udhm(sel, side=side, mapping=mapping), dtype=np.float64)
     except EpisodeError:
         raise
     except (ValueError, KeyError) as exc:
-        raise EpisodeError(
-            src, f"{what} of the {side} {spec.name} hand: {exc}"
-        ) from exc
+        raise EpisodeError(src, f"{what} of the {side} {spec.name} hand: {exc}") from exc
     if not np.isfinite(udhm).all():
-        raise EpisodeError(
-            src, f"UDHM mapping of the {side} {spec.name} {what} produced NaN/inf"
-        )
+        raise EpisodeError(src, f"UDHM mapping of the {side} {spec.name} {what} produced NaN/inf")
     if np.abs(udhm).max(initial=0.0) > ANGLE_BOUND_RAD:
         raise EpisodeError(
             src,
@@ -124,25 +114,14 @@ def _check_stream(stream: HandStream, spec, num: int, src: str) -> np.ndarray:
     if stream.side not in SIDES:
         raise EpisodeError(src, f"hand side {stream.side!r} is not one of {SIDES}")
     state = np.asarray(stream.state_native)
-    expected = (
-        "(T, 21, 3) keypoints_m"
-        if spec.kind == "keypoints"
-        else f"(T, {spec.num_native}) native joints"
-    )
-    ok = (
-        state.shape == (num, 21, 3)
-        if spec.kind == "keypoints"
-        else state.shape == (num, spec.num_native)
-    )
+    expected = "(T, 21, 3) keypoints_m" if spec.kind == "keypoints" else f"(T, {spec.num_native}) native joints"
+    ok = state.shape == (num, 21, 3) if spec.kind == "keypoints" else state.shape == (num, spec.num_native)
     if not ok:
         raise EpisodeError(
             src,
             f"{stream.side} {spec.name} state has shape {state.shape}, expected {expected} with T={num}",
         )
-    if (
-        stream.action_native is not None
-        and np.asarray(stream.action_native).shape != state.shape
-    ):
+    if stream.action_native is not None and np.asarray(stream.action_native).shape != state.shape:
         raise EpisodeError(
             src,
             f"{stream.side} action shape {np.asarray(stream.action_native).shape} != state shape {state.shape}",
@@ -200,15 +179,11 @@ def map_episode(raw: RawEpisode, mapping: str = "semantic") -> UdhmEpisode:
     for stream, spec, valid in zip(raw.hands, specs, valids, strict=True):
         keep = valid[first:last]
         native = np.asarray(stream.state_native)[first:last]
-        states.append(
-            _map_values(spec, native, stream.side, mapping, "state", src, keep)
-        )
+        states.append(_map_values(spec, native, stream.side, mapping, "state", src, keep))
         masks.append(np.where(keep[:, None], spec.mask(mapping)[None, :], False))
         if stream.action_native is not None:
             act = np.asarray(stream.action_native)[first:last]
-            actions.append(
-                _map_values(spec, act, stream.side, mapping, "action", src, keep)
-            )
+            actions.append(_map_values(spec, act, stream.side, mapping, "action", src, keep))
 
     return UdhmEpisode(
         source_file=src,

@@ -52,7 +52,9 @@ from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 logger = logging.getLogger(__name__)
 
 OnError = Literal["raise", "skip"]
-CONVERSION_SETTINGS_PATH = "meta/unidextok_conversion.json"  # settings and counts (LeRobot drops unknown info.json keys)
+CONVERSION_SETTINGS_PATH = (
+    "meta/unidextok_conversion.json"  # settings and counts (LeRobot drops unknown info.json keys)
+)
 
 
 @dataclass
@@ -63,20 +65,14 @@ class ConvertOptions:
     input: str | Path
     root: str | Path
     repo_id: str = "local/udhm"
-    source_options: dict[str, Any] = field(
-        default_factory=dict
-    )  # kwargs of the source reader class
+    source_options: dict[str, Any] = field(default_factory=dict)  # kwargs of the source reader class
     mapping: str = "semantic"  # "semantic" | "append_pad"
     on_error: OnError = "raise"
     num_workers: int = 1  # processes reading + mapping episodes; 1 = in this process
     overwrite: bool = False
     test_fraction: float = 0.2
-    max_episodes: int | None = (
-        None  # first N episodes of the ordered list (quick looks)
-    )
-    sides: tuple[str, ...] | None = (
-        None  # block layout, e.g. ("right", "left"); None = source's `sides` or 1st episode
-    )
+    max_episodes: int | None = None  # first N episodes of the ordered list (quick looks)
+    sides: tuple[str, ...] | None = None  # block layout, e.g. ("right", "left"); None = source's `sides` or 1st episode
     shard_index: int = 0
     num_shards: int = 1
     progress: bool = True
@@ -86,29 +82,17 @@ class ConvertOptions:
         if self.mapping not in MAPPINGS:
             raise ValueError(f"mapping must be one of {MAPPINGS}, got {self.mapping!r}")
         if self.on_error not in ("raise", "skip"):
-            raise ValueError(
-                f"on_error must be 'raise' or 'skip', got {self.on_error!r}"
-            )
+            raise ValueError(f"on_error must be 'raise' or 'skip', got {self.on_error!r}")
         if self.num_workers < 1:
             raise ValueError(f"num_workers must be >= 1, got {self.num_workers}")
         if not 0.0 <= self.test_fraction < 1.0:
-            raise ValueError(
-                f"test_fraction must be in [0, 1), got {self.test_fraction}"
-            )
+            raise ValueError(f"test_fraction must be in [0, 1), got {self.test_fraction}")
         if self.sides is not None:
             self.sides = tuple(self.sides)
-            if (
-                not self.sides
-                or len(set(self.sides)) != len(self.sides)
-                or not set(self.sides) <= set(SIDES)
-            ):
-                raise ValueError(
-                    f"sides must be distinct values of {SIDES}, got {self.sides!r}"
-                )
+            if not self.sides or len(set(self.sides)) != len(self.sides) or not set(self.sides) <= set(SIDES):
+                raise ValueError(f"sides must be distinct values of {SIDES}, got {self.sides!r}")
         if not 0 <= self.shard_index < self.num_shards:
-            raise ValueError(
-                f"need 0 <= shard_index < num_shards, got {self.shard_index}/{self.num_shards}"
-            )
+            raise ValueError(f"need 0 <= shard_index < num_shards, got {self.shard_index}/{self.num_shards}")
 
 
 @dataclass
@@ -148,14 +132,10 @@ def episode_key(ref: Any, input_path: str | Path) -> str:
     return text
 
 
-def split_order(
-    keys: list[str], test_fraction: float = 0.2
-) -> tuple[list[int], list[int]]:
+def split_order(keys: list[str], test_fraction: float = 0.2) -> tuple[list[int], list[int]]:
     """(train, test) positions: test = the round(f * N) keys with the smallest sha1; each list in input order."""
     num_test = round(test_fraction * len(keys)) if len(keys) > 1 else 0
-    ranked = sorted(
-        range(len(keys)), key=lambda i: hashlib.sha1(keys[i].encode()).hexdigest()
-    )
+    ranked = sorted(range(len(keys)), key=lambda i: hashlib.sha1(keys[i].encode()).hexdigest())
     test = set(ranked[:num_test])
     return [i for i in range(len(keys)) if i not in test], sorted(test)
 
@@ -203,9 +183,7 @@ def _iter_results(refs: list, opts: ConvertOptions):
     import multiprocessing
 
     ctx = multiprocessing.get_context(opts.mp_context)
-    if (
-        opts.mp_context == "forkserver"
-    ):  # import once in the server; workers fork from it
+    if opts.mp_context == "forkserver":  # import once in the server; workers fork from it
         ctx.set_forkserver_preload(
             [
                 "lerobot_unidextok.conversion.pipeline",
@@ -261,9 +239,7 @@ def _episode_frames(ep: UdhmEpisode) -> dict[str, np.ndarray | str]:
 
 def _int_fps(fps: float, src: str) -> int:
     if abs(fps - round(fps)) > 1e-3:
-        raise EpisodeError(
-            src, f"fps {fps} is not an integer; LeRobot datasets store integer fps"
-        )
+        raise EpisodeError(src, f"fps {fps} is not an integer; LeRobot datasets store integer fps")
     return round(fps)
 
 
@@ -300,9 +276,7 @@ def _remove_stale_temps(target: Path) -> None:
         try:
             os.kill(pid, 0)
         except ProcessLookupError:
-            logger.warning(
-                "removing stale temp folder of a dead conversion run: %s", path
-            )
+            logger.warning("removing stale temp folder of a dead conversion run: %s", path)
             shutil.rmtree(path, ignore_errors=True)
         except PermissionError:
             pass
@@ -311,9 +285,7 @@ def _remove_stale_temps(target: Path) -> None:
 def _move_into_place(tmp: Path, target: Path, overwrite: bool) -> None:
     if target.exists():
         if not overwrite:  # appeared while we were converting
-            raise ConversionError(
-                f"{target} appeared during conversion; result left in {tmp}"
-            )
+            raise ConversionError(f"{target} appeared during conversion; result left in {tmp}")
         old = target.parent / f".{target.name}.old-{uuid.uuid4().hex[:8]}"
         target.rename(old)
         tmp.rename(target)
@@ -327,9 +299,7 @@ def convert(opts: ConvertOptions) -> ConvertReport:
     t0 = time.perf_counter()
     target = Path(opts.root).expanduser().resolve()
     if target.exists() and not opts.overwrite:
-        raise FileExistsError(
-            f"{target} already exists; pass --overwrite=true to replace it, or choose another --root"
-        )
+        raise FileExistsError(f"{target} already exists; pass --overwrite=true to replace it, or choose another --root")
     input_path = Path(opts.input).expanduser()
     if not input_path.exists():
         raise FileNotFoundError(f"--input {input_path} does not exist")
@@ -338,24 +308,16 @@ def convert(opts: ConvertOptions) -> ConvertReport:
     reader = reader_cls(**opts.source_options)
     refs = list(reader.list_episodes(input_path))
     if not refs:
-        raise ValueError(
-            f"source {opts.source!r} found no episodes under {input_path}; check --input"
-        )
-    train_pos, test_pos = split_order(
-        [episode_key(r, input_path) for r in refs], opts.test_fraction
-    )
-    ordered = [(refs[i], "train") for i in train_pos] + [
-        (refs[i], "test") for i in test_pos
-    ]
+        raise ValueError(f"source {opts.source!r} found no episodes under {input_path}; check --input")
+    train_pos, test_pos = split_order([episode_key(r, input_path) for r in refs], opts.test_fraction)
+    ordered = [(refs[i], "train") for i in train_pos] + [(refs[i], "test") for i in test_pos]
     if opts.max_episodes is not None:
         ordered = ordered[: opts.max_episodes]
     if opts.num_shards > 1:
         bounds = np.linspace(0, len(ordered), opts.num_shards + 1).round().astype(int)
         ordered = ordered[bounds[opts.shard_index] : bounds[opts.shard_index + 1]]
         if not ordered:
-            raise ValueError(
-                f"shard {opts.shard_index}/{opts.num_shards} is empty ({len(refs)} episodes)"
-            )
+            raise ValueError(f"shard {opts.shard_index}/{opts.num_shards} is empty ({len(refs)} episodes)")
 
     target.parent.mkdir(parents=True, exist_ok=True)
     _remove_stale_temps(target)
@@ -366,12 +328,8 @@ def convert(opts: ConvertOptions) -> ConvertReport:
     counts = {"train": 0, "test": 0}
     hands_seen: dict[str, None] = {}
     stats = {"trimmed_frames": 0, "absent_hand_frames": 0}
-    synthetic = bool(getattr(reader_cls, "synthetic", False)) or input_is_synthetic(
-        input_path
-    )
-    sides = opts.sides or (
-        tuple(reader_cls.sides) if getattr(reader_cls, "sides", None) else None
-    )
+    synthetic = bool(getattr(reader_cls, "synthetic", False)) or input_is_synthetic(input_path)
+    sides = opts.sides or (tuple(reader_cls.sides) if getattr(reader_cls, "sides", None) else None)
     bar = tqdm(
         total=len(ordered),
         desc=f"convert {opts.source}",
@@ -379,9 +337,7 @@ def convert(opts: ConvertOptions) -> ConvertReport:
         disable=not opts.progress,
     )
     try:
-        for (ref, split), result in zip(
-            ordered, _iter_results([r for r, _ in ordered], opts), strict=True
-        ):
+        for (ref, split), result in zip(ordered, _iter_results([r for r, _ in ordered], opts), strict=True):
             try:
                 if isinstance(result, EpisodeFailure):
                     raise EpisodeError(result.source_file, result.reason)
@@ -405,11 +361,7 @@ def convert(opts: ConvertOptions) -> ConvertReport:
                         f"from the dataset's sides={first_sides} action={act} fps={f0} (set by its first episode); for a "
                         "source whose episodes are left or right hands pass --sides=right,left",
                     )
-                if (
-                    split == "test"
-                    and counts["test"] == 0
-                    and writer.num_episodes != counts["train"]
-                ):
+                if split == "test" and counts["test"] == 0 and writer.num_episodes != counts["train"]:
                     raise AssertionError("train episodes must precede test episodes")
                 writer.add_episode(_episode_frames(result), task=result.task)
             except EpisodeError as exc:
@@ -437,11 +389,7 @@ def convert(opts: ConvertOptions) -> ConvertReport:
         if writer is None:
             raise ConversionError(
                 f"no episode of {opts.source!r} could be converted ({len(failures)} failed); first: "
-                + (
-                    f"{failures[0].source_file}: {failures[0].reason}"
-                    if failures
-                    else "none"
-                )
+                + (f"{failures[0].source_file}: {failures[0].reason}" if failures else "none")
             )
         num_train, num_total = counts["train"], writer.num_episodes
         splits = {"train": f"0:{num_train}", "test": f"{num_train}:{num_total}"}
@@ -496,9 +444,7 @@ def convert(opts: ConvertOptions) -> ConvertReport:
         hands=list(hands_seen),
     )
     if failures:
-        logger.warning(
-            "%d episode(s) skipped:\n%s", len(failures), format_failures(failures)
-        )
+        logger.warning("%d episode(s) skipped:\n%s", len(failures), format_failures(failures))
     return report
 
 
@@ -510,9 +456,7 @@ def format_failures(failures: list[EpisodeFailure], limit: int = 50) -> str:
 
 
 def _record_settings(root: Path, settings: dict) -> None:
-    (root / CONVERSION_SETTINGS_PATH).write_text(
-        json.dumps(settings, indent=2, default=str)
-    )
+    (root / CONVERSION_SETTINGS_PATH).write_text(json.dumps(settings, indent=2, default=str))
 
 
 def read_settings(root: str | Path) -> dict:
@@ -535,16 +479,10 @@ def merge_shards(
 
     target = Path(root).expanduser().resolve()
     if target.exists() and not overwrite:
-        raise FileExistsError(
-            f"{target} already exists; pass overwrite=True or choose another root"
-        )
+        raise FileExistsError(f"{target} already exists; pass overwrite=True or choose another root")
     shard_roots = [Path(r) for r in shard_roots]
     infos = [json.loads((r / "meta" / "info.json").read_text()) for r in shard_roots]
-    num_train = sum(
-        int(i["splits"]["train"].split(":")[1])
-        - int(i["splits"]["train"].split(":")[0])
-        for i in infos
-    )
+    num_train = sum(int(i["splits"]["train"].split(":")[1]) - int(i["splits"]["train"].split(":")[0]) for i in infos)
     # Shards are contiguous slices of one ordered list (train episodes first), so train stays a prefix.
     tmp = _temp_dir(target)
     try:
@@ -564,9 +502,7 @@ def merge_shards(
         settings["shard"] = f"merged {len(shard_roots)} shards"
         for key in ("skipped_episodes", "trimmed_frames", "absent_hand_frames"):
             settings[key] = sum(s.get(key, 0) for s in shard_settings)
-        settings["hands"] = sorted(
-            {h for s in shard_settings for h in s.get("hands", [])}
-        )
+        settings["hands"] = sorted({h for s in shard_settings for h in s.get("hands", [])})
         settings["synthetic"] = any(s.get("synthetic", False) for s in shard_settings)
         _record_settings(tmp, settings)
         write_card(

@@ -47,9 +47,7 @@ def register_source(name: str):
     def _register(cls: type) -> type:
         for attr in ("list_episodes", "read_episode"):
             if not callable(getattr(cls, attr, None)):
-                raise TypeError(
-                    f"source {name!r} ({cls.__qualname__}) must define {attr}()"
-                )
+                raise TypeError(f"source {name!r} ({cls.__qualname__}) must define {attr}()")
         if name in _SOURCES and _SOURCES[name] is not cls:
             raise ValueError(
                 f"source {name!r} is already registered by {_SOURCES[name].__module__}."
@@ -81,9 +79,7 @@ def _import_converters() -> None:
             continue
         try:
             importlib.import_module(f"{CONVERTERS_PACKAGE}.{info.name}")
-        except (
-            ImportError
-        ) as exc:  # an optional extra is missing: the source stays unavailable
+        except ImportError as exc:  # an optional extra is missing: the source stays unavailable
             logger.warning("source module %s not importable: %s", info.name, exc)
 
 

@@ -52,13 +52,9 @@ def _bin_indices(batch: np.ndarray, edges: np.ndarray) -> np.ndarray:
     guess = np.floor((x - first) / np.where(span > 0, span, 1.0) * NUM_BINS)
     sub = np.clip(guess, 0, NUM_BINS - 1).astype(np.int64)  # (T, V)
     width = len(var)
-    flat_edges = np.ascontiguousarray(e.T).reshape(
-        -1
-    )  # (B+1) * V: edge j of column v at j * V + v
+    flat_edges = np.ascontiguousarray(e.T).reshape(-1)  # (B+1) * V: edge j of column v at j * V + v
     cols = np.arange(width)
-    for _ in range(
-        8
-    ):  # each pass moves a wrong guess one bin; guesses are off by at most one or two
+    for _ in range(8):  # each pass moves a wrong guess one bin; guesses are off by at most one or two
         flat = sub * width + cols  # (T, V)
         down = flat_edges[flat] > x
         up = (sub < NUM_BINS - 1) & (flat_edges[flat + width] <= x)
@@ -100,14 +96,10 @@ def _vector_stats(batch: np.ndarray) -> dict[str, np.ndarray]:
     # lerobot calls linspace per dimension; one vectorised call gives the same values unless some
     # dimension has a zero step (numpy then switches formula for the whole array), so those go alone.
     lo, hi = vmin - 1e-10, vmax + 1e-10
-    edges = np.empty(
-        (dim, NUM_BINS + 1), dtype=np.result_type(vmin.dtype, np.float32)
-    )  # (D, B+1)
+    edges = np.empty((dim, NUM_BINS + 1), dtype=np.result_type(vmin.dtype, np.float32))  # (D, B+1)
     zero_step = (hi - lo) / NUM_BINS == 0
     if (~zero_step).any():
-        edges[~zero_step] = np.linspace(
-            lo[~zero_step], hi[~zero_step], NUM_BINS + 1, axis=-1
-        )
+        edges[~zero_step] = np.linspace(lo[~zero_step], hi[~zero_step], NUM_BINS + 1, axis=-1)
     for d in np.flatnonzero(zero_step):
         edges[d] = np.linspace(lo[d], hi[d], NUM_BINS + 1)
     idx = _bin_indices(batch, edges)  # (T, D) np.histogram bin of every value
@@ -142,9 +134,7 @@ def feature_stats(values: np.ndarray) -> dict[str, np.ndarray]:
     return ordered
 
 
-def episode_stats(
-    episode: dict[str, np.ndarray], features: dict[str, dict]
-) -> dict[str, dict[str, np.ndarray]]:
+def episode_stats(episode: dict[str, np.ndarray], features: dict[str, dict]) -> dict[str, dict[str, np.ndarray]]:
     """`compute_episode_stats` for numeric/bool features (strings skipped, no images)."""
     out = {}
     for key, values in episode.items():
@@ -152,8 +142,6 @@ def episode_stats(
         if dtype in ("string", "language"):
             continue
         if dtype in ("image", "video"):
-            raise ValueError(
-                f"feature {key!r} is {dtype}: the UDHM writer handles state-only datasets"
-            )
+            raise ValueError(f"feature {key!r} is {dtype}: the UDHM writer handles state-only datasets")
         out[key] = feature_stats(np.asarray(values))
     return out

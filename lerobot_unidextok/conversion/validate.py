@@ -59,9 +59,7 @@ class ValidationReport:
         for c in self.checks:
             status = "ok" if c.ok else ("WARN" if c.warning else "FAIL")
             lines.append(f"  {status:4s}  {c.name:<{width}}  {c.detail}")
-        lines.append(
-            f"result: {'VALID' if self.ok else 'INVALID'} ({len(self.failed())} failed)"
-        )
+        lines.append(f"result: {'VALID' if self.ok else 'INVALID'} ({len(self.failed())} failed)")
         return "\n".join(lines)
 
 
@@ -70,9 +68,7 @@ def _names(ft: dict) -> list[str]:
     return list(next(iter(names.values()))) if isinstance(names, dict) else list(names)
 
 
-def validate_dataset(
-    root: str | Path, repo_id: str | None = None, load: bool = True
-) -> ValidationReport:
+def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = True) -> ValidationReport:
     """Validate the converted dataset at `root`; never raises on a bad dataset, reports instead."""
     from lerobot_unidextok import hands as hand_registry
 
@@ -122,9 +118,7 @@ def validate_dataset(
             continue
         rep.add(
             f"{key} feature",
-            ft.get("dtype") == dtype
-            and list(ft["shape"]) == [dim]
-            and _names(ft) == names,
+            ft.get("dtype") == dtype and list(ft["shape"]) == [dim] and _names(ft) == names,
             f"{ft.get('dtype')} {ft['shape']}",
         )
     ht = feats.get(HAND_TYPE_KEY)
@@ -138,9 +132,7 @@ def validate_dataset(
 
     # -- data ----------------------------------------------------------------------------------------
     files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
-    cols = [OBS_STATE, UDHM_MASK_KEY, HAND_TYPE_KEY, "episode_index"] + (
-        [ACTION] if ACTION in feats else []
-    )
+    cols = [OBS_STATE, UDHM_MASK_KEY, HAND_TYPE_KEY, "episode_index"] + ([ACTION] if ACTION in feats else [])
     try:
         table = pq.read_table(files, columns=cols) if files else None
     except Exception as exc:  # noqa: BLE001
@@ -158,19 +150,13 @@ def validate_dataset(
     total_eps = int(info.get("total_episodes", -1))
     rep.add(
         "episodes 0..N-1",
-        len(eps) == total_eps
-        and (len(eps) == 0 or (eps[0] == 0 and eps[-1] == total_eps - 1)),
+        len(eps) == total_eps and (len(eps) == 0 or (eps[0] == 0 and eps[-1] == total_eps - 1)),
         f"{len(eps)} episodes",
     )
 
     def arr(key, dtype):
         col = table.column(key).combine_chunks()
-        return (
-            col.flatten()
-            .to_numpy(zero_copy_only=False)
-            .astype(dtype)
-            .reshape(n, num_hands, UDHM_DIM)
-        )
+        return col.flatten().to_numpy(zero_copy_only=False).astype(dtype).reshape(n, num_hands, UDHM_DIM)
 
     state = arr(OBS_STATE, np.float32)
     mask = arr(UDHM_MASK_KEY, bool)
@@ -196,9 +182,7 @@ def validate_dataset(
     # hand_type: known specs, masks equal to the spec masks (or all False for an absent hand)
     settings_path = root / "meta" / "unidextok_conversion.json"
     mapping = (
-        json.loads(settings_path.read_text()).get("mapping", "semantic")
-        if settings_path.is_file()
-        else "semantic"
+        json.loads(settings_path.read_text()).get("mapping", "semantic") if settings_path.is_file() else "semantic"
     )
     ht_col = table.column(HAND_TYPE_KEY).combine_chunks().dictionary_encode()
     codes = ht_col.indices.to_numpy(zero_copy_only=False)
@@ -227,16 +211,12 @@ def validate_dataset(
             else:
                 lo, hi = spec.udhm_limits_rad(sides[b])
             vals = state[rows, b][present]
-            out_of_limits += int(
-                ((vals < lo - LIMIT_TOL_RAD) | (vals > hi + LIMIT_TOL_RAD)).sum()
-            )
+            out_of_limits += int(((vals < lo - LIMIT_TOL_RAD) | (vals > hi + LIMIT_TOL_RAD)).sum())
             checked += vals.size
     rep.add(
         "hand_type names known",
         not bad_names,
-        f"unknown/mis-sized: {sorted(set(bad_names))[:5]}"
-        if bad_names
-        else f"{ht_col.dictionary.to_pylist()[:4]}",
+        f"unknown/mis-sized: {sorted(set(bad_names))[:5]}" if bad_names else f"{ht_col.dictionary.to_pylist()[:4]}",
     )
     rep.add(
         "udhm_mask matches hand specs",
@@ -255,13 +235,7 @@ def validate_dataset(
     try:
         tr = [int(x) for x in splits["train"].split(":")]
         te = [int(x) for x in splits["test"].split(":")]
-        ok = (
-            tr[0] == 0
-            and tr[1] == te[0]
-            and te[1] == total_eps
-            and tr[1] >= tr[0]
-            and te[1] >= te[0]
-        )
+        ok = tr[0] == 0 and tr[1] == te[0] and te[1] == total_eps and tr[1] >= tr[0] and te[1] >= te[0]
         detail = f"train {splits['train']} test {splits['test']} of {total_eps}"
     except (KeyError, ValueError, AttributeError):
         ok, detail = (
@@ -277,8 +251,7 @@ def validate_dataset(
         ep_tab = pq.read_table(ep_files, columns=["episode_index", "length"])
         rep.add(
             "meta/episodes lengths",
-            int(pc.sum(ep_tab.column("length")).as_py() or 0) == n
-            and ep_tab.num_rows == total_eps,
+            int(pc.sum(ep_tab.column("length")).as_py() or 0) == n and ep_tab.num_rows == total_eps,
             f"{ep_tab.num_rows} rows",
         )
     else:
@@ -289,9 +262,7 @@ def validate_dataset(
         try:
             from lerobot.datasets import LeRobotDataset
 
-            ds = LeRobotDataset(
-                repo_id or info.get("repo_id") or f"local/{root.name}", root=root
-            )
+            ds = LeRobotDataset(repo_id or info.get("repo_id") or f"local/{root.name}", root=root)
             item = ds[0]
             rep.add(
                 "LeRobotDataset loads",

@@ -75,26 +75,16 @@ class UdhmDatasetWriter:
             default_features,
         ) = _lerobot()
         if int(fps) != fps or fps <= 0:
-            raise ValueError(
-                f"fps must be a positive integer (LeRobot stores int fps), got {fps!r}"
-            )
+            raise ValueError(f"fps must be a positive integer (LeRobot stores int fps), got {fps!r}")
         for key, ft in features.items():
             if key in default_features:
-                raise ValueError(
-                    f"feature {key!r} is written by the writer itself; remove it from features"
-                )
+                raise ValueError(f"feature {key!r} is written by the writer itself; remove it from features")
             if "/" in key:
-                raise ValueError(
-                    f"feature key {key!r} contains '/', which LeRobot forbids; rename it"
-                )
+                raise ValueError(f"feature key {key!r} contains '/', which LeRobot forbids; rename it")
             if ft["dtype"] in ("image", "video"):
-                raise ValueError(
-                    f"feature {key!r} is {ft['dtype']}: this writer handles state-only datasets"
-                )
+                raise ValueError(f"feature {key!r} is {ft['dtype']}: this writer handles state-only datasets")
             if len(ft["shape"]) != 1:
-                raise ValueError(
-                    f"feature {key!r} shape {ft['shape']}: only 1-D features are supported"
-                )
+                raise ValueError(f"feature {key!r} shape {ft['shape']}: only 1-D features are supported")
         self.root = Path(root)
         self.repo_id = repo_id
         self.root.mkdir(parents=True, exist_ok=False)
@@ -114,9 +104,7 @@ class UdhmDatasetWriter:
         self._io = io_utils
         self._utils = utils
         self._aggregate_stats = compute_stats.aggregate_stats
-        self.schema: pa.Schema = feature_utils.get_hf_features_from_features(
-            self.features
-        ).arrow_schema
+        self.schema: pa.Schema = feature_utils.get_hf_features_from_features(self.features).arrow_schema
         self.fps = int(fps)
         self.tasks: dict[str, int] = {}
         self.num_episodes = 0
@@ -146,21 +134,13 @@ class UdhmDatasetWriter:
         dtype = np.dtype(ft["dtype"])
         values = np.asarray(values)
         expected = (num,) if ft["shape"] == (1,) else (num, *ft["shape"])
-        if values.shape != expected and not (
-            ft["shape"] == (1,) and values.shape == (num, 1)
-        ):
-            raise ValueError(
-                f"feature {key!r}: expected an array of shape {expected}, got {values.shape}"
-            )
+        if values.shape != expected and not (ft["shape"] == (1,) and values.shape == (num, 1)):
+            raise ValueError(f"feature {key!r}: expected an array of shape {expected}, got {values.shape}")
         if values.dtype != dtype:
-            raise ValueError(
-                f"feature {key!r}: expected dtype {dtype}, got {values.dtype}; cast before writing"
-            )
+            raise ValueError(f"feature {key!r}: expected dtype {dtype}, got {values.dtype}; cast before writing")
         if ft["shape"] == (1,):
             return pa.array(values.reshape(num), type=field_type)
-        flat = pa.array(
-            np.ascontiguousarray(values).reshape(-1), type=field_type.value_type
-        )
+        flat = pa.array(np.ascontiguousarray(values).reshape(-1), type=field_type.value_type)
         return pa.FixedSizeListArray.from_arrays(flat, type=field_type)
 
     def _next_data_file(self) -> None:
@@ -177,34 +157,22 @@ class UdhmDatasetWriter:
         (strings may be one value for the whole episode). Returns the episode index."""
         if self._finalized:
             raise RuntimeError("writer already finalized")
-        missing = [
-            k for k in self.features if k not in DEFAULT_KEYS and k not in frames
-        ]
+        missing = [k for k in self.features if k not in DEFAULT_KEYS and k not in frames]
         extra = [k for k in frames if k not in self.features or k in DEFAULT_KEYS]
         if missing or extra:
-            raise ValueError(
-                f"episode features mismatch: missing {missing}, unexpected {extra}"
-            )
+            raise ValueError(f"episode features mismatch: missing {missing}, unexpected {extra}")
         if not isinstance(task, str):
             raise TypeError(f"task must be a str, got {type(task).__name__}")
-        lengths = {
-            k: np.asarray(v).shape[0]
-            for k, v in frames.items()
-            if np.asarray(v).ndim > 0
-        }
+        lengths = {k: np.asarray(v).shape[0] for k, v in frames.items() if np.asarray(v).ndim > 0}
         num = next(iter(lengths.values()), 0)
         if num == 0 or any(n != num for n in lengths.values()):
-            raise ValueError(
-                f"episode arrays must share a non-zero length, got {lengths}"
-            )
+            raise ValueError(f"episode arrays must share a non-zero length, got {lengths}")
 
         ep_index = self.num_episodes
         if task not in self.tasks:
             self.tasks[task] = len(self.tasks)
         frame_index = np.arange(num, dtype=np.int64)
-        timestamps = (
-            frame_index / self.fps
-        )  # float64, as LeRobot's list of Python floats
+        timestamps = frame_index / self.fps  # float64, as LeRobot's list of Python floats
         default = {
             "timestamp": timestamps,
             "frame_index": frame_index,
@@ -251,16 +219,11 @@ class UdhmDatasetWriter:
         self._data_writer.write_table(table)
 
         stats = episode_stats(
-            {
-                k: (v if np.asarray(v).ndim > 0 else np.full(num, v))
-                for k, v in ep_arrays.items()
-            },
+            {k: (v if np.asarray(v).ndim > 0 else np.full(num, v)) for k, v in ep_arrays.items()},
             self.features,
         )
         self._episode_stats.append(stats)
-        if (
-            len(self._episode_stats) >= STATS_FOLD_EPISODES
-        ):  # count-weighted, so folding in blocks is exact
+        if len(self._episode_stats) >= STATS_FOLD_EPISODES:  # count-weighted, so folding in blocks is exact
             self._episode_stats = [self._aggregate_stats(self._episode_stats)]
         row = {
             "episode_index": ep_index,
@@ -283,20 +246,13 @@ class UdhmDatasetWriter:
     def _add_meta_row(self, row: dict) -> None:
         if self._meta_writer is not None and self._meta_episodes_in_file > 0:
             path = self._meta_writer.where
-            size_mb = (
-                Path(path).stat().st_size / 1024**2 if Path(path).exists() else 0.0
-            )
-            if (
-                size_mb + size_mb / self._meta_episodes_in_file
-                >= self.info.data_files_size_in_mb
-            ):
+            size_mb = Path(path).stat().st_size / 1024**2 if Path(path).exists() else 0.0
+            if size_mb + size_mb / self._meta_episodes_in_file >= self.info.data_files_size_in_mb:
                 self._flush_meta()
                 self._meta_writer.close()
                 self._meta_writer = None
-                self._meta_chunk, self._meta_file = (
-                    self._utils.update_chunk_file_indices(
-                        self._meta_chunk, self._meta_file, self.info.chunks_size
-                    )
+                self._meta_chunk, self._meta_file = self._utils.update_chunk_file_indices(
+                    self._meta_chunk, self._meta_file, self.info.chunks_size
                 )
                 self._meta_episodes_in_file = 0
         row["meta/episodes/chunk_index"] = self._meta_chunk
@@ -311,18 +267,11 @@ class UdhmDatasetWriter:
         combined = {k: [r[k] for r in self._meta_rows] for k in self._meta_rows[0]}
         table = pa.Table.from_pydict(combined)
         if self._meta_writer is None:
-            path = (
-                self.root
-                / f"meta/episodes/chunk-{self._meta_chunk:03d}/file-{self._meta_file:03d}.parquet"
-            )
+            path = self.root / f"meta/episodes/chunk-{self._meta_chunk:03d}/file-{self._meta_file:03d}.parquet"
             path.parent.mkdir(parents=True, exist_ok=True)
-            self._meta_writer = pq.ParquetWriter(
-                path, schema=table.schema, compression="snappy", use_dictionary=True
-            )
+            self._meta_writer = pq.ParquetWriter(path, schema=table.schema, compression="snappy", use_dictionary=True)
         else:
-            table = table.select(self._meta_writer.schema.names).cast(
-                self._meta_writer.schema
-            )
+            table = table.select(self._meta_writer.schema.names).cast(self._meta_writer.schema)
         self._meta_writer.write_table(table)
         self._meta_episodes_in_file += len(self._meta_rows)
         self._meta_rows = []
@@ -333,9 +282,7 @@ class UdhmDatasetWriter:
         if self._finalized:
             return
         if self.num_episodes == 0:
-            raise ValueError(
-                "no episodes were written; a LeRobotDataset needs at least one episode"
-            )
+            raise ValueError("no episodes were written; a LeRobotDataset needs at least one episode")
         import pandas as pd
 
         if self._data_writer is not None:
@@ -353,9 +300,7 @@ class UdhmDatasetWriter:
         self.info.total_episodes = self.num_episodes
         self.info.total_frames = self.num_frames
         self.info.total_tasks = len(self.tasks)
-        self.info.splits = (
-            splits if splits is not None else {"train": f"0:{self.num_episodes}"}
-        )
+        self.info.splits = splits if splits is not None else {"train": f"0:{self.num_episodes}"}
         self._io.write_info(self.info, self.root)
         self._io.write_stats(self._aggregate_stats(self._episode_stats), self.root)
         self._finalized = True

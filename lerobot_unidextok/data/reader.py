@@ -37,9 +37,7 @@ class UdhmFrames:
     episode_index: np.ndarray  # (N,) int64
     side: np.ndarray  # (N,) str: "right" | "left"
     frame_index: np.ndarray  # (N,) int64: frame within the episode
-    actions_rad: np.ndarray | None = (
-        None  # (N, 22) float32 where the dataset has `action`
-    )
+    actions_rad: np.ndarray | None = None  # (N, 22) float32 where the dataset has `action`
     fps: float = 0.0
     info: dict = field(default_factory=dict, repr=False)
 
@@ -64,9 +62,7 @@ class UdhmFrames:
 def _resolve_root(root: str | Path | None, repo_id: str | None) -> Path:
     if root is None:
         if repo_id is None:
-            raise ValueError(
-                "give root= (a converted dataset folder) or repo_id= (looked up in $HF_LEROBOT_HOME)"
-            )
+            raise ValueError("give root= (a converted dataset folder) or repo_id= (looked up in $HF_LEROBOT_HOME)")
         home = Path(
             os.environ.get(
                 "HF_LEROBOT_HOME",
@@ -103,14 +99,10 @@ def _block_sides(info: dict) -> list[str]:
     """Side of each 22-block of observation.state from its names ("<side>_<udhm joint>")."""
     ft = info["features"].get(OBS_STATE)
     if ft is None:
-        raise ValueError(
-            f"dataset has no {OBS_STATE!r} feature; is it a UDHM conversion?"
-        )
+        raise ValueError(f"dataset has no {OBS_STATE!r} feature; is it a UDHM conversion?")
     dim = int(ft["shape"][0])
     if dim % UDHM_DIM:
-        raise ValueError(
-            f"{OBS_STATE} has {dim} values, not a multiple of {UDHM_DIM}: not a UDHM dataset"
-        )
+        raise ValueError(f"{OBS_STATE} has {dim} values, not a multiple of {UDHM_DIM}: not a UDHM dataset")
     names = ft.get("names") or []
     if isinstance(names, dict):  # LeRobot also allows {"axes": [...]}
         names = next(iter(names.values()))
@@ -119,9 +111,7 @@ def _block_sides(info: dict) -> list[str]:
         block = list(names[b * UDHM_DIM : (b + 1) * UDHM_DIM])
         side = block[0].split("_", 1)[0] if block else ""
         if [n.split("_", 1)[-1] for n in block] != list(UDHM_JOINT_NAMES):
-            raise ValueError(
-                f"{OBS_STATE} block {b} names are not '<side>_<udhm joint>' in UDHM order: {block[:3]}..."
-            )
+            raise ValueError(f"{OBS_STATE} block {b} names are not '<side>_<udhm joint>' in UDHM order: {block[:3]}...")
         sides.append(side)
     return sides
 
@@ -169,17 +159,11 @@ def load_udhm_frames(
         table = table.filter(pc.and_(pc.greater_equal(ep, a), pc.less(ep, b)))
 
     n = table.num_rows
-    states = _fixed_list_to_numpy(table.column(OBS_STATE), width, np.float32).reshape(
-        n * num_hands, UDHM_DIM
-    )
-    masks = _fixed_list_to_numpy(table.column(UDHM_MASK_KEY), width, np.bool_).reshape(
-        n * num_hands, UDHM_DIM
-    )
+    states = _fixed_list_to_numpy(table.column(OBS_STATE), width, np.float32).reshape(n * num_hands, UDHM_DIM)
+    masks = _fixed_list_to_numpy(table.column(UDHM_MASK_KEY), width, np.bool_).reshape(n * num_hands, UDHM_DIM)
     actions = None
     if has_action:
-        actions = _fixed_list_to_numpy(table.column(ACTION), width, np.float32).reshape(
-            n * num_hands, UDHM_DIM
-        )
+        actions = _fixed_list_to_numpy(table.column(ACTION), width, np.float32).reshape(n * num_hands, UDHM_DIM)
 
     # hand_type: split each distinct string once, then gather by dictionary index.
     ht = table.column(HAND_TYPE_KEY).combine_chunks().dictionary_encode()
@@ -187,15 +171,9 @@ def load_udhm_frames(
     for s in ht.dictionary.to_pylist():
         parts = s.split(",")
         if len(parts) != num_hands:
-            raise ValueError(
-                f"hand_type {s!r} names {len(parts)} hands but {OBS_STATE} has {num_hands} blocks"
-            )
+            raise ValueError(f"hand_type {s!r} names {len(parts)} hands but {OBS_STATE} has {num_hands} blocks")
         per_value.append(parts)
-    lut = (
-        np.array(per_value, dtype=object).reshape(-1, num_hands)
-        if per_value
-        else np.empty((0, num_hands), object)
-    )
+    lut = np.array(per_value, dtype=object).reshape(-1, num_hands) if per_value else np.empty((0, num_hands), object)
     codes = ht.indices.to_numpy(zero_copy_only=False)
     hands = lut[codes].reshape(-1).astype(str) if n else np.empty(0, dtype=str)
 

@@ -48,7 +48,10 @@ def markdown_table(report: dict) -> str:
               "|---|" + "---|" * len(hands)]  # fmt: skip
     joints = list(report["overall"]["per_joint_deg"])
     for j in joints:
-        cells = [_fmt(report["per_hand"][h]["per_joint_deg"][j], 2) if j in report["per_hand"][h]["per_joint_deg"] else "-" for h in hands]
+        cells = [
+            _fmt(report["per_hand"][h]["per_joint_deg"][j], 2) if j in report["per_hand"][h]["per_joint_deg"] else "-"
+            for h in hands
+        ]
         lines.append(f"| {j} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

@@ -47,26 +47,17 @@ def eval_table(metrics: dict) -> str:
     rows = {k: v for k, v in rows.items() if isinstance(v, dict)}
     if not rows:
         return ""
-    cols = list(
-        dict.fromkeys(
-            c for v in rows.values() for c in v if not isinstance(v[c], (dict, list))
-        )
-    )
+    cols = list(dict.fromkeys(c for v in rows.values() for c in v if not isinstance(v[c], (dict, list))))
 
     def fmt(x) -> str:
         return f"{x:.4g}" if isinstance(x, float) else str(x)
 
     lines = ["| | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
-    lines += [
-        f"| {name} | " + " | ".join(fmt(v.get(c, "")) for c in cols) + " |"
-        for name, v in rows.items()
-    ]
+    lines += [f"| {name} | " + " | ".join(fmt(v.get(c, "")) for c in cols) + " |" for name, v in rows.items()]
     return "\n".join(lines)
 
 
-def tokenizer_card(
-    folder: str | Path, repo_id: str, training_data: list[str] | None = None
-) -> str:
+def tokenizer_card(folder: str | Path, repo_id: str, training_data: list[str] | None = None) -> str:
     """README.md text: hands supported, training data, preset and the evaluation table."""
     folder = Path(folder)
     config_path = folder / "config.json"
@@ -114,18 +105,11 @@ def tokenizer_card(
         "## Model",
         "",
         f"- preset: `{preset}`",
-        *[
-            f"- {f}: {config.get(f)}"
-            for f in (*_SIZE_FIELDS, "codebook_dim", "num_groups", "codebook_size")
-        ],
+        *[f"- {f}: {config.get(f)}" for f in (*_SIZE_FIELDS, "codebook_dim", "num_groups", "codebook_size")],
         "",
         "## Evaluation",
         "",
-        (
-            f"From `{eval_path.name}`:\n\n{table}"
-            if table
-            else "No evaluation file in this checkpoint."
-        ),
+        (f"From `{eval_path.name}`:\n\n{table}" if table else "No evaluation file in this checkpoint."),
         "",
         "## Use",
         "",

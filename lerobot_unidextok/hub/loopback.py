@@ -35,16 +35,12 @@ def git_blob_oid(data: bytes) -> str:
 class _Repo:
     repo_id: str
     repo_type: str
-    commits: dict[str, dict[str, bytes]] = field(
-        default_factory=dict
-    )  # sha -> {path: content}
+    commits: dict[str, dict[str, bytes]] = field(default_factory=dict)  # sha -> {path: content}
     branches: dict[str, str] = field(default_factory=dict)  # name -> sha
     tags: dict[str, str] = field(default_factory=dict)  # name -> sha
 
     def commit(self, files: dict[str, bytes], branch: str = "main") -> str:
-        sha = hashlib.sha1(
-            f"{self.repo_id}:{len(self.commits)}:{time.time_ns()}".encode()
-        ).hexdigest()
+        sha = hashlib.sha1(f"{self.repo_id}:{len(self.commits)}:{time.time_ns()}".encode()).hexdigest()
         self.commits[sha] = files
         self.branches[branch] = sha
         return sha
@@ -65,9 +61,7 @@ class _Handler(BaseHTTPRequestHandler):
         logger.debug("loopback hub: " + format, *args)
 
     # ----------------------------------------------------------------------------- replies
-    def _send(
-        self, status: int, body: bytes = b"", headers: dict[str, str] | None = None
-    ) -> None:
+    def _send(self, status: int, body: bytes = b"", headers: dict[str, str] | None = None) -> None:
         self.send_response(status)
         for key, value in (headers or {}).items():
             self.send_header(key, value)
@@ -114,9 +108,7 @@ class _Handler(BaseHTTPRequestHandler):
             self._json(401, {"error": "Invalid credentials in Authorization header"})
             return
         url = urlsplit(self.path)
-        parts = url.path.strip("/").split(
-            "/"
-        )  # still percent-encoded: revisions may contain '/'
+        parts = url.path.strip("/").split("/")  # still percent-encoded: revisions may contain '/'
         query = parse_qs(url.query)
         try:
             with hub.lock:
@@ -137,66 +129,40 @@ class _Handler(BaseHTTPRequestHandler):
                     "auth": {"type": "access_token", "accessToken": {"role": "write"}},
                 },
             )
-        if (
-            parts[:2] == ["api", "validate-yaml"] and m == "POST"
-        ):  # README front matter check
+        if parts[:2] == ["api", "validate-yaml"] and m == "POST":  # README front matter check
             self._body()
             return self._json(200, {"errors": [], "warnings": []})
         if parts[:3] == ["api", "repos", "create"] and m == "POST":
             payload = json.loads(self._body())
             repo_type = payload.get("type") or "model"
             repo_id = f"{payload.get('organization') or hub.user}/{payload['name']}"
-            url = (
-                f"{hub.url}/{'' if repo_type == 'model' else repo_type + 's/'}{repo_id}"
-            )
+            url = f"{hub.url}/{'' if repo_type == 'model' else repo_type + 's/'}{repo_id}"
             if (repo_type, repo_id) in hub.repos:
-                return self._json(
-                    409, {"error": "You already created this repo", "url": url}
-                )
+                return self._json(409, {"error": "You already created this repo", "url": url})
             if len(hub.repos) >= MAX_REPOS:
-                return self._json(
-                    507, {"error": f"loopback hub holds at most {MAX_REPOS} repos"}
-                )
+                return self._json(507, {"error": f"loopback hub holds at most {MAX_REPOS} repos"})
             repo = hub.repos[(repo_type, repo_id)] = _Repo(repo_id, repo_type)
-            repo.commit(
-                {
-                    ".gitattributes": b"*.safetensors filter=lfs diff=lfs merge=lfs -text\n"
-                }
-            )
+            repo.commit({".gitattributes": b"*.safetensors filter=lfs diff=lfs merge=lfs -text\n"})
             return self._json(200, {"url": url, "name": repo_id})
-        if (
-            parts[0] == "api"
-            and len(parts) >= 4
-            and parts[1] in ("models", "datasets", "spaces")
-        ):
+        if parts[0] == "api" and len(parts) >= 4 and parts[1] in ("models", "datasets", "spaces"):
             repo_type, repo_id = (
                 parts[1][:-1],
                 f"{unquote(parts[2])}/{unquote(parts[3])}",
             )
             repo = hub.repos.get((repo_type, repo_id))
             if repo is None:
-                return self._json(
-                    404, {"error": f"Repository {repo_id} not found"}, "RepoNotFound"
-                )
+                return self._json(404, {"error": f"Repository {repo_id} not found"}, "RepoNotFound")
             return self._api(repo, parts[4:], query)
         if m in ("GET", "HEAD") and len(parts) >= 5:
             repo_type = "model"
             if parts[0] in ("datasets", "spaces"):
                 repo_type, parts = parts[0][:-1], parts[1:]
             if len(parts) >= 5 and parts[2] == "resolve":
-                repo = hub.repos.get(
-                    (repo_type, f"{unquote(parts[0])}/{unquote(parts[1])}")
-                )
+                repo = hub.repos.get((repo_type, f"{unquote(parts[0])}/{unquote(parts[1])}"))
                 if repo is None:
-                    return self._json(
-                        404, {"error": "Repository not found"}, "RepoNotFound"
-                    )
-                return self._resolve(
-                    repo, unquote(parts[3]), unquote("/".join(parts[4:]))
-                )
-        return self._json(
-            404, {"error": f"loopback hub has no route for {m} {self.path}"}
-        )
+                    return self._json(404, {"error": "Repository not found"}, "RepoNotFound")
+                return self._resolve(repo, unquote(parts[3]), unquote("/".join(parts[4:])))
+        return self._json(404, {"error": f"loopback hub has no route for {m} {self.path}"})
 
     # ----------------------------------------------------------------------------- repo API
     def _api(self, repo: _Repo, rest: list[str], query: dict) -> None:
@@ -205,9 +171,7 @@ class _Handler(BaseHTTPRequestHandler):
             revision = unquote(rest[1]) if len(rest) > 1 else "main"
             sha = repo.resolve(revision)
             if sha is None:
-                return self._json(
-                    404, {"error": f"Invalid rev id: {revision}"}, "RevisionNotFound"
-                )
+                return self._json(404, {"error": f"Invalid rev id: {revision}"}, "RevisionNotFound")
             files = repo.commits[sha]
             return self._json(
                 200,
@@ -216,9 +180,7 @@ class _Handler(BaseHTTPRequestHandler):
                     "sha": sha,
                     "private": False,
                     "tags": [],
-                    "siblings": [
-                        {"rfilename": p, "size": len(files[p])} for p in sorted(files)
-                    ],
+                    "siblings": [{"rfilename": p, "size": len(files[p])} for p in sorted(files)],
                 },
             )
         if rest[0] == "refs":
@@ -238,16 +200,12 @@ class _Handler(BaseHTTPRequestHandler):
         if rest[0] == "tag" and len(rest) == 2:
             if m == "DELETE":
                 if repo.tags.pop(unquote(rest[1]), None) is None:
-                    return self._json(
-                        404, {"error": f"tag {rest[1]} not found"}, "RevisionNotFound"
-                    )
+                    return self._json(404, {"error": f"tag {rest[1]} not found"}, "RevisionNotFound")
                 return self._json(200, {})
             tag = json.loads(self._body())["tag"]
             sha = repo.resolve(unquote(rest[1]))
             if sha is None:
-                return self._json(
-                    404, {"error": f"Invalid rev id: {rest[1]}"}, "RevisionNotFound"
-                )
+                return self._json(404, {"error": f"Invalid rev id: {rest[1]}"}, "RevisionNotFound")
             if tag in repo.tags:
                 return self._json(409, {"error": f"tag {tag} already exists"})
             repo.tags[tag] = sha
@@ -256,9 +214,7 @@ class _Handler(BaseHTTPRequestHandler):
             revision = unquote(rest[1])
             sha = repo.resolve(revision)
             if sha is None and not (rest[0] == "commit" and revision == "main"):
-                return self._json(
-                    404, {"error": f"Invalid rev id: {revision}"}, "RevisionNotFound"
-                )
+                return self._json(404, {"error": f"Invalid rev id: {revision}"}, "RevisionNotFound")
             files = repo.commits.get(sha, {})
             if rest[0] == "preupload":
                 wanted = json.loads(self._body())["files"]
@@ -270,9 +226,7 @@ class _Handler(BaseHTTPRequestHandler):
                                 "path": f["path"],
                                 "uploadMode": "regular",
                                 "shouldIgnore": False,
-                                "oid": git_blob_oid(files[f["path"]])
-                                if f["path"] in files
-                                else None,
+                                "oid": git_blob_oid(files[f["path"]]) if f["path"] in files else None,
                             }
                             for f in wanted
                         ]
@@ -285,9 +239,7 @@ class _Handler(BaseHTTPRequestHandler):
                 unquote("/".join(rest[2:])),
                 query.get("recursive", ["false"])[0].lower() == "true",
             )
-        return self._json(
-            404, {"error": f"loopback hub has no route for {m} {self.path}"}
-        )
+        return self._json(404, {"error": f"loopback hub has no route for {m} {self.path}"})
 
     def _commit(self, repo: _Repo, branch: str, files: dict[str, bytes]) -> None:
         for line in self._body().splitlines():
@@ -305,9 +257,7 @@ class _Handler(BaseHTTPRequestHandler):
             elif key != "header":
                 return self._json(
                     400,
-                    {
-                        "error": f"loopback hub supports only regular uploads, got {key!r}"
-                    },
+                    {"error": f"loopback hub supports only regular uploads, got {key!r}"},
                 )
         sha = repo.commit(files, branch)
         prefix = "" if repo.repo_type == "model" else f"{repo.repo_type}s/"
@@ -351,9 +301,7 @@ class _Handler(BaseHTTPRequestHandler):
     def _resolve(self, repo: _Repo, revision: str, path: str) -> None:
         sha = repo.resolve(revision)
         if sha is None:
-            return self._json(
-                404, {"error": f"Invalid rev id: {revision}"}, "RevisionNotFound"
-            )
+            return self._json(404, {"error": f"Invalid rev id: {revision}"}, "RevisionNotFound")
         content = repo.commits[sha].get(path)
         if content is None:
             return self._json(404, {"error": f"{path} does not exist"}, "EntryNotFound")
@@ -392,9 +340,7 @@ class LoopbackHub:
     @property
     def url(self) -> str:
         if self._server is None:
-            raise RuntimeError(
-                "LoopbackHub is not running: call start() or use it as a context manager"
-            )
+            raise RuntimeError("LoopbackHub is not running: call start() or use it as a context manager")
         host, port = self._server.server_address[:2]
         return f"http://{host}:{port}"
 

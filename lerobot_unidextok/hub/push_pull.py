@@ -75,15 +75,11 @@ def push(
 
     local_dir = Path(local_dir)
     if not local_dir.is_dir():
-        raise FileNotFoundError(
-            f"{local_dir} is not a folder; pass the checkpoint or dataset directory"
-        )
+        raise FileNotFoundError(f"{local_dir} is not a folder; pass the checkpoint or dataset directory")
     repo_type = repo_type or detect_repo_type(local_dir)
     _check_repo(repo_id, repo_type)
     if _offline():
-        raise RuntimeError(
-            "HF_HUB_OFFLINE is set: unset it (or set HF_HUB_OFFLINE=0) to push"
-        )
+        raise RuntimeError("HF_HUB_OFFLINE is set: unset it (or set HF_HUB_OFFLINE=0) to push")
 
     api = HfApi(endpoint=_endpoint(endpoint), token=token or os.environ.get("HF_TOKEN"))
     with tempfile.TemporaryDirectory(prefix="unidextok-push-") as staging:
@@ -101,17 +97,14 @@ def push(
             # Stage a copy so the user's folder is not modified.
             upload_dir = Path(staging) / "repo"
             shutil.copytree(local_dir, upload_dir)
-            (upload_dir / "README.md").write_text(
-                tokenizer_card(local_dir, repo_id, training_data)
-            )
+            (upload_dir / "README.md").write_text(tokenizer_card(local_dir, repo_id, training_data))
 
         api.create_repo(repo_id, repo_type=repo_type, private=private, exist_ok=True)
         commit = api.upload_folder(
             repo_id=repo_id,
             repo_type=repo_type,
             folder_path=upload_dir,
-            commit_message=commit_message
-            or f"Upload {repo_type} with lerobot-unidextok",
+            commit_message=commit_message or f"Upload {repo_type} with lerobot-unidextok",
             ignore_patterns=[".cache/**", "**/.cache/**", "images/**"],
         )
     if repo_type == "dataset":
@@ -158,9 +151,7 @@ def pull(
     return Path(path)
 
 
-def cached_snapshot(
-    repo_id: str, repo_type: str = "model", revision: str | None = None
-) -> Path:
+def cached_snapshot(repo_id: str, repo_type: str = "model", revision: str | None = None) -> Path:
     """The cached snapshot of `repo_id` without any network access; clear error when absent."""
     from huggingface_hub import snapshot_download
     from huggingface_hub.errors import LocalEntryNotFoundError
@@ -184,9 +175,7 @@ def cached_snapshot(
         ) from err
 
 
-def cache_via_loopback(
-    local_dir: str | Path, repo_id: str, repo_type: str | None = None
-) -> Path:
+def cache_via_loopback(local_dir: str | Path, repo_id: str, repo_type: str | None = None) -> Path:
     """Publish a folder into the local HF cache through a throwaway loopback Hub (demos, no network).
 
     Afterwards `UniDexTok.from_pretrained(repo_id)` resolves from the cache under HF_HUB_OFFLINE=1

@@ -19,23 +19,15 @@ from lerobot_unidextok.constants import (
 class HandLayout:
     """Hand spec name and side of each UDHM block, in block order."""
 
-    hands: list[
-        str
-    ]  # hand spec names, e.g. ["inspire_rh56", "inspire_rh56"] or ["human"]
-    sides: list[str] = field(
-        default_factory=list
-    )  # "right" | "left" per block; [] = unknown
+    hands: list[str]  # hand spec names, e.g. ["inspire_rh56", "inspire_rh56"] or ["human"]
+    sides: list[str] = field(default_factory=list)  # "right" | "left" per block; [] = unknown
 
     def __post_init__(self) -> None:
         self.hands, self.sides = list(self.hands), list(self.sides)
         if not self.hands:
-            raise ValueError(
-                "HandLayout needs at least one hand name, e.g. HandLayout(['human'])"
-            )
+            raise ValueError("HandLayout needs at least one hand name, e.g. HandLayout(['human'])")
         if self.sides and len(self.sides) != len(self.hands):
-            raise ValueError(
-                f"got {len(self.sides)} sides for {len(self.hands)} hands: {self.sides} vs {self.hands}"
-            )
+            raise ValueError(f"got {len(self.sides)} sides for {len(self.hands)} hands: {self.sides} vs {self.hands}")
         bad = [s for s in self.sides if s not in SIDES]
         if bad:
             raise ValueError(f"sides must be in {SIDES}, got {bad}")
@@ -51,9 +43,7 @@ class HandLayout:
     def check_width(self, width: int, key: str = OBS_STATE) -> None:
         """Raise a ValueError naming the fix when `width` is not this layout's state width."""
         if width != self.state_dim:
-            known = ", ".join(
-                f"{UDHM_DIM * h} ({h} hand{'s' * (h > 1)})" for h in (1, 2)
-            )
+            known = ", ".join(f"{UDHM_DIM * h} ({h} hand{'s' * (h > 1)})" for h in (1, 2))
             raise ValueError(
                 f"{key} has width {width}, which matches no UDHM layout for hands {self.hands} "
                 f"(expected {self.state_dim}; known widths: {known}). Convert the dataset to UDHM with "
@@ -82,9 +72,7 @@ class HandLayout:
             sides.append(side)
         hands = [hands] * len(sides) if isinstance(hands, str) else list(hands)
         if len(hands) != len(sides):
-            raise ValueError(
-                f"{len(hands)} hand names for {len(sides)} UDHM blocks ({sides})"
-            )
+            raise ValueError(f"{len(hands)} hand names for {len(sides)} UDHM blocks ({sides})")
         return cls(hands=hands, sides=sides)
 
 
@@ -95,14 +83,10 @@ def hand_layout_from_dataset(root: str | Path) -> HandLayout:
     root = Path(root)
     info_path = root / "meta" / "info.json"
     if not info_path.is_file():
-        raise FileNotFoundError(
-            f"{info_path} not found: pass the root folder of a LeRobotDataset v3.0"
-        )
+        raise FileNotFoundError(f"{info_path} not found: pass the root folder of a LeRobotDataset v3.0")
     features = json.loads(info_path.read_text())["features"]
     if OBS_STATE not in features or HAND_TYPE_KEY not in features:
-        raise ValueError(
-            f"{root} lacks '{OBS_STATE}' or '{HAND_TYPE_KEY}'; convert it to UDHM with unidextok-convert"
-        )
+        raise ValueError(f"{root} lacks '{OBS_STATE}' or '{HAND_TYPE_KEY}'; convert it to UDHM with unidextok-convert")
     files = sorted((root / "data").rglob("*.parquet"))
     if not files:
         raise FileNotFoundError(f"no data parquet under {root / 'data'}")

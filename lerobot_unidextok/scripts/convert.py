@@ -26,35 +26,23 @@ class ConvertConfig:
     # -- what ---------------------------------------------------------------------------------------
     source: str = ""  # registered source name (see --list_sources=true)
     input: str = ""  # raw dataset folder (or file) of the source
-    source_options: str = (
-        ""  # JSON object of source reader options, e.g. '{"hands": {...}}'
-    )
+    source_options: str = ""  # JSON object of source reader options, e.g. '{"hands": {...}}'
     # -- where --------------------------------------------------------------------------------------
-    repo_id: str = (
-        "local/udhm"  # dataset id (namespace/name), used for the card and the Hub
-    )
+    repo_id: str = "local/udhm"  # dataset id (namespace/name), used for the card and the Hub
     root: str = ""  # output folder; default $HF_LEROBOT_HOME/<repo_id>
-    overwrite: bool = (
-        False  # replace an existing dataset at --root (atomically, at the end)
-    )
+    overwrite: bool = False  # replace an existing dataset at --root (atomically, at the end)
     # -- how ----------------------------------------------------------------------------------------
-    mapping: str = (
-        "semantic"  # "semantic" (joint -> named UDHM slot) | "append_pad" (ablation)
-    )
+    mapping: str = "semantic"  # "semantic" (joint -> named UDHM slot) | "append_pad" (ablation)
     sides: str = ""  # block layout, e.g. "right,left" for sources whose episodes are left or right hands
     num_workers: int = 1  # processes reading + mapping episodes
     on_error: str = "raise"  # "raise": stop at the first bad episode | "skip": skip, report at the end
     test_fraction: float = 0.2  # share of episodes in the deterministic test split
     max_episodes: int | None = None  # convert only the first N episodes (quick looks)
-    shard_index: int = (
-        0  # convert one contiguous shard of the episode list (multi-machine runs)
-    )
+    shard_index: int = 0  # convert one contiguous shard of the episode list (multi-machine runs)
     num_shards: int = 1
     # -- modes --------------------------------------------------------------------------------------
     validate: bool = False  # validate the dataset at --root instead of converting
-    push_to_hub: bool = (
-        False  # upload the dataset to --repo_id after converting (or validating)
-    )
+    push_to_hub: bool = False  # upload the dataset to --repo_id after converting (or validating)
     private: bool = False
     list_sources: bool = False  # print the registered sources and exit
 
@@ -62,9 +50,7 @@ class ConvertConfig:
 def _root(cfg: ConvertConfig) -> Path:
     if cfg.root:
         return Path(cfg.root).expanduser()
-    home = os.environ.get("HF_LEROBOT_HOME") or str(
-        Path(os.environ.get("HF_HOME", "~/.cache/huggingface")) / "lerobot"
-    )
+    home = os.environ.get("HF_LEROBOT_HOME") or str(Path(os.environ.get("HF_HOME", "~/.cache/huggingface")) / "lerobot")
     return Path(home).expanduser() / cfg.repo_id
 
 
@@ -74,13 +60,9 @@ def _source_options(text: str) -> dict:
     try:
         value = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise SystemExit(
-            f"error: --source_options must be a JSON object: {exc}"
-        ) from exc
+        raise SystemExit(f"error: --source_options must be a JSON object: {exc}") from exc
     if not isinstance(value, dict):
-        raise SystemExit(
-            f"error: --source_options must be a JSON object, got {type(value).__name__}"
-        )
+        raise SystemExit(f"error: --source_options must be a JSON object, got {type(value).__name__}")
     return value
 
 
@@ -92,16 +74,12 @@ def run(cfg: ConvertConfig) -> int:
     if cfg.list_sources:
         for name in registry.available_sources():
             cls = registry.get_source(name)
-            print(
-                f"{name:12s} {getattr(cls, 'description', '')}  [license: {getattr(cls, 'license', '?')}]"
-            )
+            print(f"{name:12s} {getattr(cls, 'description', '')}  [license: {getattr(cls, 'license', '?')}]")
         return 0
     root = _root(cfg)
     if not cfg.validate:
         if not cfg.source or not cfg.input:
-            raise SystemExit(
-                "error: --source and --input are required (or --validate=true / --list_sources=true)"
-            )
+            raise SystemExit("error: --source and --input are required (or --validate=true / --list_sources=true)")
         opts = pipeline.ConvertOptions(
             source=cfg.source,
             input=cfg.input,
@@ -134,9 +112,7 @@ def run(cfg: ConvertConfig) -> int:
             f"({report.frames_per_second:,.0f} frames/s)"
         )
         if report.failures:
-            print(
-                f"skipped {len(report.failures)} episode(s):\n{pipeline.format_failures(report.failures)}"
-            )
+            print(f"skipped {len(report.failures)} episode(s):\n{pipeline.format_failures(report.failures)}")
     validation = validate_dataset(root, repo_id=cfg.repo_id)
     if cfg.validate or not validation.ok:
         print(validation.table())
@@ -156,9 +132,7 @@ def convert_cli(cfg: ConvertConfig) -> int:
 
 
 def main() -> None:
-    logging.basicConfig(
-        level=logging.INFO, format="%(levelname)s %(name)s: %(message)s"
-    )
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     for noisy in ("httpx", "lerobot.datasets.utils"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
     sys.exit(convert_cli())

@@ -19,22 +19,16 @@ from lerobot_unidextok.hub import pull, push
 class PushConfig:
     local_dir: str = ""  # checkpoint folder (config.json + model.safetensors) or LeRobotDataset v3.0 folder
     repo_id: str = ""  # namespace/name on the Hub
-    repo_type: str | None = (
-        None  # "model" | "dataset"; detected from the folder when omitted
-    )
+    repo_type: str | None = None  # "model" | "dataset"; detected from the folder when omitted
     private: bool = False
-    training_data: list[str] = field(
-        default_factory=list
-    )  # dataset repo ids named in the model card
+    training_data: list[str] = field(default_factory=list)  # dataset repo ids named in the model card
 
 
 @dataclass
 class PullConfig:
     repo_id: str = ""  # namespace/name on the Hub
     repo_type: str = "model"  # "model" | "dataset"
-    revision: str | None = (
-        None  # branch, tag or commit; datasets default to the v3.0 tag
-    )
+    revision: str | None = None  # branch, tag or commit; datasets default to the v3.0 tag
 
 
 def _require(value: str, flag: str) -> None:

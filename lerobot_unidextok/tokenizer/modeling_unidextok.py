@@ -6,12 +6,13 @@ annotation of `__init__` to rebuild the config from config.json.
 
 import json
 import os
-from dataclasses import dataclass
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import torch
 import torch.nn.functional as F
-from huggingface_hub import PyTorchModelHubMixin, constants as hf_constants, hf_hub_download
+from huggingface_hub import PyTorchModelHubMixin, hf_hub_download
+from huggingface_hub import constants as hf_constants
 from torch import nn
 
 from lerobot_unidextok.constants import ANGLE_SCALE_RAD
@@ -174,9 +175,7 @@ class UniDexTok(
             vq_loss=vq_loss,
         )
 
-    def reconstruction_loss(
-        self, x_hat: torch.Tensor, x: torch.Tensor, mask: torch.Tensor | None
-    ) -> torch.Tensor:
+    def reconstruction_loss(self, x_hat: torch.Tensor, x: torch.Tensor, mask: torch.Tensor | None) -> torch.Tensor:
         """MSE (+ SmoothL1) in normalised space over active DoFs only; padded slots are not targets."""
         if mask is None:
             w = torch.ones_like(x)  # (B, 22)
@@ -265,7 +264,9 @@ class UniDexTok(
             if os.path.isdir(model_id):
                 path = os.path.join(model_id, filename)
                 if not os.path.isfile(path):
-                    raise FileNotFoundError(f"{path} not found: a UniDexTok checkpoint folder holds config.json + model.safetensors")
+                    raise FileNotFoundError(
+                        f"{path} not found: a UniDexTok checkpoint folder holds config.json + model.safetensors"
+                    )
                 return path
             return hf_hub_download(
                 repo_id=model_id, filename=filename, revision=revision, cache_dir=cache_dir,

@@ -90,7 +90,9 @@ class FactorizedCosineVQ(nn.Module):
     # -----------------------------------------------------------------------------------------
     def forward(
         self, z: torch.Tensor, return_loss_breakdown: bool = False
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | tuple[torch.Tensor, torch.Tensor, torch.Tensor, LossBreakdown]:
+    ) -> (
+        tuple[torch.Tensor, torch.Tensor, torch.Tensor] | tuple[torch.Tensor, torch.Tensor, torch.Tensor, LossBreakdown]
+    ):
         b, n, _ = z.shape
 
         # project and split into unit-norm group vectors

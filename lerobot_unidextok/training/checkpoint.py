@@ -10,7 +10,9 @@ TRAINING_STATE = "training_state.json"
 OPTIMIZER_STATE = "optimizer.safetensors"
 
 
-def save_checkpoint(model, directory: Path, optimizer: torch.optim.Optimizer | None = None, state: dict | None = None) -> Path:
+def save_checkpoint(
+    model, directory: Path, optimizer: torch.optim.Optimizer | None = None, state: dict | None = None
+) -> Path:
     """Write config.json + model.safetensors (+ optimiser tensors and a JSON training state)."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)

@@ -68,7 +68,6 @@ def train_tokenizer(
     cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, model: UniDexTok | None = None
 ) -> TrainResult:
     """Train (or adapt) a tokenizer; keeps the checkpoint with the lowest held-out joint MAE (deg)."""
-    from accelerate import Accelerator
 
     if len(train_data) == 0 or len(eval_data) == 0:
         raise ValueError(f"need training and held-out rows, got {len(train_data)} and {len(eval_data)}")
@@ -113,7 +112,10 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
     raw_model: UniDexTok = accelerator.unwrap_model(model)
 
     sampler = HandMixSampler(
-        train_data.hands, cfg.hand_weights, cfg.default_hand_weight, seed=cfg.seed * 1000 + start + accelerator.process_index
+        train_data.hands,
+        cfg.hand_weights,
+        cfg.default_hand_weight,
+        seed=cfg.seed * 1000 + start + accelerator.process_index,
     )
     logger.info("training %d steps on %d rows; hand shares %s", n_steps, len(train_data), sampler.hand_share)
     states = torch.as_tensor(train_data.states_rad)
@@ -130,10 +132,23 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
         if mae < best_mae:
             best_mae, best_step = mae, step
             save_checkpoint(raw_model, best_dir, state={"step": step, "eval_mae_deg": mae})
-        logger.info("step %d: held-out MAE %.3f deg (best %.3f @ %d), usage %.2f", step, mae, best_mae, best_step, usage["usage"])
+        logger.info(
+            "step %d: held-out MAE %.3f deg (best %.3f @ %d), usage %.2f",
+            step,
+            mae,
+            best_mae,
+            best_step,
+            usage["usage"],
+        )
 
     t0 = time.perf_counter()
-    bar = tqdm(range(start, n_steps), disable=not (cfg.progress and accelerator.is_main_process), desc="unidextok", initial=start, total=n_steps)
+    bar = tqdm(
+        range(start, n_steps),
+        disable=not (cfg.progress and accelerator.is_main_process),
+        desc="unidextok",
+        initial=start,
+        total=n_steps,
+    )
     for step in bar:
         lr = lr_at(step, n_steps, cfg.lr, cfg.warmup_steps, cfg.min_lr_ratio)
         for g in optimizer.param_groups:
@@ -153,7 +168,12 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
         if step % 10 == 0:
             with torch.no_grad():
                 err = (out.states_rad - x).abs()[m].mean().item()
-            bar.set_postfix(loss=f"{out.loss.item():.4f}", mae_deg=f"{math.degrees(err):.2f}", usage=f"{raw_model.quantizer.last_usage:.2f}", lr=f"{lr:.1e}")
+            bar.set_postfix(
+                loss=f"{out.loss.item():.4f}",
+                mae_deg=f"{math.degrees(err):.2f}",
+                usage=f"{raw_model.quantizer.last_usage:.2f}",
+                lr=f"{lr:.1e}",
+            )
         if (step + 1) % cfg.eval_every == 0 or step + 1 == n_steps:
             _evaluate(step + 1)
         if accelerator.is_main_process and ((step + 1) % cfg.save_last_every == 0 or step + 1 == n_steps):

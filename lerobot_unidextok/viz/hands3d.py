@@ -86,7 +86,8 @@ def plot_hand_reconstructions(
             ax.set_axis_off()
             if row == 0:
                 errs = "  ".join(
-                    f"{m}: {np.linalg.norm(kp[col] - kp_gt[col], axis=-1).mean() * 1000:.1f}" for m, kp in kp_rec.items()
+                    f"{m}: {np.linalg.norm(kp[col] - kp_gt[col], axis=-1).mean() * 1000:.1f}"
+                    for m, kp in kp_rec.items()
                 )
                 ax.set_title(f"#{col}  MPJPE mm\n{errs}", color="white", fontsize=7)
             if col == 0:

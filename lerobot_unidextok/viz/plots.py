@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from lerobot_unidextok.constants import UDHM_DIM, UDHM_JOINT_NAMES
+from lerobot_unidextok.constants import UDHM_JOINT_NAMES
 from lerobot_unidextok.viz.style import method_colors, save
 
 HAND_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "<", ">")
@@ -32,7 +32,9 @@ def plot_per_joint_errors(
     for m, e in errors_deg.items():
         arr = np.asarray(e, dtype=np.float64)
         if arr.shape[-1] != len(joint_names) or arr.ndim not in (1, 2):
-            raise ValueError(f"errors_deg[{m!r}] must have shape ({len(joint_names)},) or (N, {len(joint_names)}); got {arr.shape}")
+            raise ValueError(
+                f"errors_deg[{m!r}] must have shape ({len(joint_names)},) or (N, {len(joint_names)}); got {arr.shape}"
+            )
         if arr.ndim == 2:
             finite = np.isfinite(arr)
             count = finite.sum(0)  # (22,) states per joint; 0 = inactive slot

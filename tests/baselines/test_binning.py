@@ -19,7 +19,10 @@ INSPIRE_MASK[[0, 1, 6, 10, 14, 19]] = True
 @pytest.fixture
 def binning() -> UniformBinning:
     return UniformBinning(
-        {"human": HandRange.from_limits(LIMITS, np.ones(UDHM_DIM, bool)), "inspire": HandRange.from_limits(LIMITS, INSPIRE_MASK)}
+        {
+            "human": HandRange.from_limits(LIMITS, np.ones(UDHM_DIM, bool)),
+            "inspire": HandRange.from_limits(LIMITS, INSPIRE_MASK),
+        }
     )
 
 
@@ -55,7 +58,12 @@ def test_rate_matches_rt2(binning: UniformBinning) -> None:
     assert isinstance(binning, StateTokenizer)
     assert binning.rate("human").bits_per_state == 176  # 22 x 8 bits
     assert binning.rate("inspire").tokens_per_state == 6
-    assert UniformBinning({"h": HandRange.from_limits(LIMITS, np.ones(22))}, BinningConfig(num_bins=16)).rate("h").bits_per_state == 88
+    assert (
+        UniformBinning({"h": HandRange.from_limits(LIMITS, np.ones(22))}, BinningConfig(num_bins=16))
+        .rate("h")
+        .bits_per_state
+        == 88
+    )
 
 
 def test_bad_input_errors(binning: UniformBinning) -> None:

@@ -42,21 +42,10 @@ def raw(tmp_path_factory):
 
 def test_validate_reports_ok_and_catches_corruption(raw, tmp_path, capsys):
     root = tmp_path / "let_udhm"
-    assert (
-        run(
-            ConvertConfig(
-                source="let", input=str(raw), root=str(root), repo_id="lab/let"
-            )
-        )
-        == 0
-    )
+    assert run(ConvertConfig(source="let", input=str(raw), root=str(root), repo_id="lab/let")) == 0
     assert run(ConvertConfig(validate=True, root=str(root), repo_id="lab/let")) == 0
     out = capsys.readouterr().out
-    assert (
-        "result: VALID" in out
-        and "udhm_mask matches hand specs" in out
-        and "LeRobotDataset loads" in out
-    )
+    assert "result: VALID" in out and "udhm_mask matches hand specs" in out and "LeRobotDataset loads" in out
 
     info_path = root / "meta/info.json"
     info = json.loads(info_path.read_text())
@@ -90,9 +79,7 @@ def test_entry_point_config_file_flags_and_push_to_hub(raw, tmp_path, capsys):
 
     root = tmp_path / "let_udhm"
     cfg = tmp_path / "convert.yaml"
-    cfg.write_text(
-        f"source: let\ninput: {raw}\nrepo_id: lab/let_udhm\nroot: {root}\non_error: raise\n"
-    )
+    cfg.write_text(f"source: let\ninput: {raw}\nrepo_id: lab/let_udhm\nroot: {root}\non_error: raise\n")
     token = "hf_loopback_convert"
     with LoopbackHub(lifetime_s=240, token=token) as hub:
         env = _env(
@@ -115,11 +102,7 @@ def test_entry_point_config_file_flags_and_push_to_hub(raw, tmp_path, capsys):
             check=False,
         )
         assert r.returncode == 0, r.stderr[-2000:]
-        assert (
-            "5 episodes (4 train / 1 test)" in r.stdout
-            and "frames/s" in r.stdout
-            and "pushed" in r.stdout
-        )
+        assert "5 episodes (4 train / 1 test)" in r.stdout and "frames/s" in r.stdout and "pushed" in r.stdout
         repo = hub.repos[("dataset", "lab/let_udhm")]
         assert "v3.0" in repo.tags
         files = repo.commits[repo.tags["v3.0"]]
@@ -134,10 +117,7 @@ def test_entry_point_config_file_flags_and_push_to_hub(raw, tmp_path, capsys):
         "train": "0:4",
         "test": "4:5",
     }
-    assert (
-        json.loads((root / "meta/unidextok_conversion.json").read_text())["on_error"]
-        == "skip"
-    )  # flag beat file
+    assert json.loads((root / "meta/unidextok_conversion.json").read_text())["on_error"] == "skip"  # flag beat file
 
     # re-running onto the existing dataset refuses clearly
     assert run(ConvertConfig(source="let", input=str(raw), root=str(root))) == 1

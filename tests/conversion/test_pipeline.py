@@ -56,9 +56,7 @@ def linker(samples, tmp_path_factory):
 
 
 def _data(root):
-    return pq.read_table(
-        sorted((root / "data").rglob("*.parquet"))
-    ).replace_schema_metadata(None)
+    return pq.read_table(sorted((root / "data").rglob("*.parquet"))).replace_schema_metadata(None)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -77,9 +75,7 @@ def test_robot_source_contract_and_round_trip(samples, linker):
     assert ds.num_episodes == 6 and ds.fps == 30
     names = ds.meta.features["observation.state"]["names"]
     sides = [names[0].split("_")[0], names[UDHM_DIM].split("_")[0]]
-    assert (
-        sorted(sides) == ["left", "right"] and names[6] == f"{sides[0]}_index_mcp_flex"
-    )
+    assert sorted(sides) == ["left", "right"] and names[6] == f"{sides[0]}_index_mcp_flex"
     assert ds.meta.features["action"]["dtype"] == "float32"
     assert ds.meta.info.splits == {"train": "0:5", "test": "5:6"}
     assert validate_dataset(root).ok
@@ -93,9 +89,7 @@ def test_robot_source_contract_and_round_trip(samples, linker):
     raws = {src.read_episode(r).source_file: src.read_episode(r) for r in refs}
     checked = 0
     for ep_index in range(6):
-        state = frames.states_rad[frames.episode_index == ep_index].reshape(
-            -1, 2, UDHM_DIM
-        )
+        state = frames.states_rad[frames.episode_index == ep_index].reshape(-1, 2, UDHM_DIM)
         matches = []
         for raw in raws.values():
             if raw.num_frames != state.shape[0]:
@@ -103,19 +97,12 @@ def test_robot_source_contract_and_round_trip(samples, linker):
             by_side = {h.side: h for h in raw.hands}
             spec = hands.get(by_side[sides[0]].hand)
             expect = np.stack(
-                [
-                    hands.get(by_side[s].hand).to_udhm(by_side[s].state_native, side=s)
-                    for s in sides
-                ],
+                [hands.get(by_side[s].hand).to_udhm(by_side[s].state_native, side=s) for s in sides],
                 axis=1,
             )
             if np.allclose(expect, state, atol=1e-6):
-                assert list(frames.hands[frames.episode_index == ep_index][:2]) == [
-                    by_side[s].hand for s in sides
-                ]
-                native = np.asarray(
-                    spec.from_udhm(state[:, 0].astype(np.float64), side=sides[0])
-                )
+                assert list(frames.hands[frames.episode_index == ep_index][:2]) == [by_side[s].hand for s in sides]
+                native = np.asarray(spec.from_udhm(state[:, 0].astype(np.float64), side=sides[0]))
                 active = [i for i, j in enumerate(spec.joints) if j.slot is not None]
                 np.testing.assert_allclose(
                     native[:, active],
@@ -127,12 +114,7 @@ def test_robot_source_contract_and_round_trip(samples, linker):
         checked += 1
     assert checked == 6
     card = (root / "README.md").read_text()
-    assert (
-        "linkerhand" in card
-        and "SYNTHETIC" in card
-        and "license" in card.lower()
-        and "linkerhand_l" in card
-    )
+    assert "linkerhand" in card and "SYNTHETIC" in card and "license" in card.lower() and "linkerhand_l" in card
 
 
 def test_split_deterministic_and_worker_independent(samples, linker, tmp_path):
@@ -158,9 +140,7 @@ def test_split_deterministic_and_worker_independent(samples, linker, tmp_path):
     train, test = split_order(keys, 0.2)
     assert len(test) == 10 and sorted(train + test) == list(range(50))
     _train_rev, test_rev = split_order(keys[::-1], 0.2)
-    assert sorted(keys[::-1][i] for i in test_rev) == sorted(
-        keys[i] for i in test
-    )  # order-independent
+    assert sorted(keys[::-1][i] for i in test_rev) == sorted(keys[i] for i in test)  # order-independent
 
 
 def test_existing_target_refused_then_overwritten(samples, linker, tmp_path):
@@ -182,9 +162,7 @@ def test_existing_target_refused_then_overwritten(samples, linker, tmp_path):
         not (target / "keep.txt").exists()
         and json.loads((target / "meta/info.json").read_text())["total_episodes"] == 2
     )
-    assert [p.name for p in tmp_path.iterdir()] == [
-        "t"
-    ]  # no temp or backup folders left
+    assert [p.name for p in tmp_path.iterdir()] == ["t"]  # no temp or backup folders left
 
 
 def test_shards_merge_equals_single_run(samples, linker, tmp_path):
@@ -207,10 +185,7 @@ def test_shards_merge_equals_single_run(samples, linker, tmp_path):
         shards.append(shard)
     merged = merge_shards(shards, tmp_path / "merged", repo_id="t/merged")
     info = json.loads((merged / "meta/info.json").read_text())
-    assert (
-        info["splits"] == {"train": "0:5", "test": "5:6"}
-        and info["total_episodes"] == 6
-    )
+    assert info["splits"] == {"train": "0:5", "test": "5:6"} and info["total_episodes"] == 6
     single, both = _data(root), _data(merged)
     for col in (
         "observation.state",
@@ -234,15 +209,9 @@ def test_shards_merge_equals_single_run(samples, linker, tmp_path):
 def test_human_source_left_or_right_sequences(samples, tmp_path, monkeypatch):
     root = tmp_path / "dexycb"
     cls = get_source("dexycb")
-    monkeypatch.setattr(
-        cls, "sides", None
-    )  # without a declared layout the first episode's side wins
+    monkeypatch.setattr(cls, "sides", None)  # without a declared layout the first episode's side wins
     with pytest.raises(ConversionError, match="--sides=right,left"):
-        convert(
-            ConvertOptions(
-                source="dexycb", input=samples["dexycb"], root=root, progress=False
-            )
-        )
+        convert(ConvertOptions(source="dexycb", input=samples["dexycb"], root=root, progress=False))
     assert not root.exists()
     report = convert(
         ConvertOptions(
@@ -255,20 +224,12 @@ def test_human_source_left_or_right_sequences(samples, tmp_path, monkeypatch):
     )
     assert report.hands == ["human"]
     frames = load_udhm_frames(root)
-    assert (
-        set(frames.hands) == {"human"} and frames.masks.all()
-    )  # absent hands dropped, human = 22 DoF
-    assert (
-        np.isfinite(frames.states_rad).all() and np.abs(frames.states_rad).max() < np.pi
-    )
+    assert set(frames.hands) == {"human"} and frames.masks.all()  # absent hands dropped, human = 22 DoF
+    assert np.isfinite(frames.states_rad).all() and np.abs(frames.states_rad).max() < np.pi
     every = load_udhm_frames(root, drop_absent=False)
-    assert len(every) > len(
-        frames
-    )  # each sequence has one hand: the other block is masked
+    assert len(every) > len(frames)  # each sequence has one hand: the other block is masked
     assert validate_dataset(root).ok
-    assert (
-        read_settings(root)["synthetic"] is True
-    )  # npz marker unread by the reader: the labels file says so
+    assert read_settings(root)["synthetic"] is True  # npz marker unread by the reader: the labels file says so
     assert "SYNTHETIC" in (root / "README.md").read_text()
 
 
@@ -442,34 +403,23 @@ def test_real_g1_inspire_end_to_end(real_data_dir, tmp_path):
     raws = {src.read_episode(r).num_frames: src.read_episode(r) for r in refs[:3]}
     frames = load_udhm_frames(root, drop_absent=False)
     spec = hands.get("inspire_rh56_unitree")
-    sides = [
-        n.split("_")[0]
-        for n in ds.meta.features["observation.state"]["names"][::UDHM_DIM]
-    ]
+    sides = [n.split("_")[0] for n in ds.meta.features["observation.state"]["names"][::UDHM_DIM]]
     for ep_index in range(10):
-        state = frames.states_rad[frames.episode_index == ep_index].reshape(
-            -1, len(sides), UDHM_DIM
-        )
+        state = frames.states_rad[frames.episode_index == ep_index].reshape(-1, len(sides), UDHM_DIM)
         raw = raws.get(state.shape[0])
         if raw is None:
             continue
         by_side = {h.side: h for h in raw.hands}
-        expect = np.stack(
-            [spec.to_udhm(by_side[s].state_native, side=s) for s in sides], axis=1
-        )
+        expect = np.stack([spec.to_udhm(by_side[s].state_native, side=s) for s in sides], axis=1)
         if np.allclose(expect, state, atol=1e-6):
             break
     else:
-        pytest.fail(
-            "no converted episode equals the hand spec applied to the raw G1 values"
-        )
+        pytest.fail("no converted episode equals the hand spec applied to the raw G1 values")
 
 
 def test_append_pad_mapping_and_stale_temp_cleanup(samples, tmp_path):
     target = tmp_path / "pad"
-    stale = (
-        tmp_path / ".pad.tmp-999999999-deadbeef"
-    )  # a run killed with SIGKILL (no such pid)
+    stale = tmp_path / ".pad.tmp-999999999-deadbeef"  # a run killed with SIGKILL (no such pid)
     (stale / "data").mkdir(parents=True)
     convert(
         ConvertOptions(
@@ -486,10 +436,6 @@ def test_append_pad_mapping_and_stale_temp_cleanup(samples, tmp_path):
     for hand in set(frames.hands):
         n_active = hands.get(hand).num_active
         rows = frames.masks[frames.hands == hand]
-        assert (
-            rows[:, :n_active].all() and not rows[:, n_active:].any()
-        )  # packed at the front
+        assert rows[:, :n_active].all() and not rows[:, n_active:].any()  # packed at the front
     assert read_settings(target)["mapping"] == "append_pad"
-    assert validate_dataset(
-        target
-    ).ok  # the validator checks masks against the recorded mapping
+    assert validate_dataset(target).ok  # the validator checks masks against the recorded mapping

@@ -43,9 +43,7 @@ def test_float_features_bit_exact(name, x):
         assert list(a[key]) == list(b[key])
         for stat in a[key]:
             assert a[key][stat].dtype == b[key][stat].dtype, (key, stat)
-            np.testing.assert_array_equal(
-                b[key][stat], a[key][stat], err_msg=f"{key}/{stat}"
-            )
+            np.testing.assert_array_equal(b[key][stat], a[key][stat], err_msg=f"{key}/{stat}")
 
 
 def test_scalar_features_and_strings():
@@ -89,6 +87,4 @@ def test_mixed_constant_and_varying_dimensions_of_a_real_episode_shape():
     for key in a:
         for stat in a[key]:
             assert a[key][stat].dtype == b[key][stat].dtype
-            np.testing.assert_array_equal(
-                b[key][stat], a[key][stat], err_msg=f"{key}/{stat}"
-            )
+            np.testing.assert_array_equal(b[key][stat], a[key][stat], err_msg=f"{key}/{stat}")

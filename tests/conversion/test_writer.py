@@ -23,12 +23,8 @@ FEATURES = {
 def _episodes():
     rng = np.random.default_rng(3)
     eps = []
-    for i, length in enumerate(
-        [40, 1, 2, 57, 33]
-    ):  # includes LeRobot's <2-frame stats path
-        state = np.cumsum(rng.normal(0, 0.05, size=(length, 44)), axis=0).astype(
-            np.float32
-        )
+    for i, length in enumerate([40, 1, 2, 57, 33]):  # includes LeRobot's <2-frame stats path
+        state = np.cumsum(rng.normal(0, 0.05, size=(length, 44)), axis=0).astype(np.float32)
         state[:, 5] = 0.25  # a constant joint
         mask = np.ones(44, bool)
         mask[[1, 3, 22 + 17]] = False
@@ -74,9 +70,7 @@ def both(tmp_path_factory):
         ref.save_episode()
     ref.finalize()
 
-    w = UdhmDatasetWriter(
-        fast_root, "test/fast", fps=30, features=FEATURES, robot_type="hands"
-    )
+    w = UdhmDatasetWriter(fast_root, "test/fast", fps=30, features=FEATURES, robot_type="hands")
     for ep in eps:
         w.add_episode({k: v for k, v in ep.items() if k != "task"}, task=ep["task"])
     w.finalize(splits={"train": "0:5"})
@@ -85,9 +79,7 @@ def both(tmp_path_factory):
 
 def test_same_files(both):
     ref_root, fast_root, _ = both
-    rel = lambda root: sorted(
-        p.relative_to(root).as_posix() for p in root.rglob("*") if p.is_file()
-    )
+    rel = lambda root: sorted(p.relative_to(root).as_posix() for p in root.rglob("*") if p.is_file())
     assert rel(ref_root) == rel(fast_root)
 
 
@@ -111,9 +103,7 @@ def test_same_meta(both):
     ib = json.loads((fast_root / "meta/info.json").read_text())
     ia.pop("splits"), ib.pop("splits")
     assert ia == ib
-    assert pq.read_table(ref_root / "meta/tasks.parquet").equals(
-        pq.read_table(fast_root / "meta/tasks.parquet")
-    )
+    assert pq.read_table(ref_root / "meta/tasks.parquet").equals(pq.read_table(fast_root / "meta/tasks.parquet"))
     ea = pq.read_table(ref_root / "meta/episodes/chunk-000/file-000.parquet")
     eb = pq.read_table(fast_root / "meta/episodes/chunk-000/file-000.parquet")
     assert ea.schema == eb.schema
@@ -142,16 +132,10 @@ def test_loads_with_lerobot_offline(both):
 
     _ref_root, fast_root, eps = both
     ds = LeRobotDataset("test/fast", root=fast_root)
-    assert ds.num_episodes == 5 and ds.num_frames == sum(
-        len(e["observation.state"]) for e in eps
-    )
+    assert ds.num_episodes == 5 and ds.num_frames == sum(len(e["observation.state"]) for e in eps)
     item = ds[40]  # episode 1, its only frame
-    np.testing.assert_array_equal(
-        item["observation.state"].numpy(), eps[1]["observation.state"][0]
-    )
-    assert (
-        item["task"] == "place" and item["hand_type"] == "inspire_rh56,linkerhand_l10"
-    )
+    np.testing.assert_array_equal(item["observation.state"].numpy(), eps[1]["observation.state"][0])
+    assert item["task"] == "place" and item["hand_type"] == "inspire_rh56,linkerhand_l10"
     assert int(item["episode_index"]) == 1
     assert ds.meta.info.splits == {"train": "0:5"}
 
@@ -169,9 +153,7 @@ def test_data_file_rollover_matches_lerobot(tmp_path):
         use_videos=False,
         data_files_size_in_mb=0.01,
     )
-    w = UdhmDatasetWriter(
-        tmp_path / "f", "t/f", fps=30, features=FEATURES, data_files_size_in_mb=0.01
-    )
+    w = UdhmDatasetWriter(tmp_path / "f", "t/f", fps=30, features=FEATURES, data_files_size_in_mb=0.01)
     for ep in eps:
         frames = {k: v for k, v in ep.items() if k != "task"}
         for t in range(len(ep["observation.state"])):
@@ -188,17 +170,11 @@ def test_data_file_rollover_matches_lerobot(tmp_path):
         w.add_episode(frames, task=ep["task"])
     ref.finalize()
     w.finalize()
-    ea = pq.read_table(tmp_path / "r/meta/episodes").select(
-        ["episode_index", "data/chunk_index", "data/file_index"]
-    )
-    eb = pq.read_table(tmp_path / "f/meta/episodes").select(
-        ["episode_index", "data/chunk_index", "data/file_index"]
-    )
+    ea = pq.read_table(tmp_path / "r/meta/episodes").select(["episode_index", "data/chunk_index", "data/file_index"])
+    eb = pq.read_table(tmp_path / "f/meta/episodes").select(["episode_index", "data/chunk_index", "data/file_index"])
     assert ea.equals(eb)
     assert max(eb.column("data/file_index").to_pylist()) >= 1
-    assert LeRobotDataset("t/f", root=tmp_path / "f").num_frames == sum(
-        len(e["observation.state"]) for e in eps
-    )
+    assert LeRobotDataset("t/f", root=tmp_path / "f").num_frames == sum(len(e["observation.state"]) for e in eps)
 
 
 def test_bad_episode_raises(tmp_path):
@@ -228,9 +204,7 @@ def test_stats_folding_in_blocks_matches_one_aggregate(tmp_path, monkeypatch):
         frames = {k: v for k, v in ep.items() if k != "task"}
         w.add_episode(frames, task=ep["task"])
     w.finalize()
-    table = pq.read_table(
-        tmp_path / "f/meta/episodes/chunk-000/file-000.parquet"
-    ).to_pylist()
+    table = pq.read_table(tmp_path / "f/meta/episodes/chunk-000/file-000.parquet").to_pylist()
     for row in table:
         per_episode.append(
             {

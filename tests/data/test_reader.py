@@ -24,16 +24,12 @@ def lerobot_written(tmp_path_factory):
         "hand_type": {"dtype": "string", "shape": (1,), "names": None},
         "udhm_mask": {"dtype": "bool", "shape": (44,), "names": NAMES},
     }
-    ds = LeRobotDataset.create(
-        "test/reader", fps=25, features=features, root=root, use_videos=False
-    )
+    ds = LeRobotDataset.create("test/reader", fps=25, features=features, root=root, use_videos=False)
     rng = np.random.default_rng(0)
     mask = np.ones(44, bool)
     mask[[1, 3, 30]] = False
     states = []
-    for ep, (length, ht) in enumerate(
-        [(7, "inspire_rh56,inspire_rh56"), (5, "human,inspire_rh56"), (6, "a,b")]
-    ):
+    for ep, (length, ht) in enumerate([(7, "inspire_rh56,inspire_rh56"), (5, "human,inspire_rh56"), (6, "a,b")]):
         s = rng.uniform(-1, 1, size=(length, 44)).astype(np.float32)
         states.append(s)
         for t in range(length):
@@ -101,9 +97,7 @@ def test_absent_hand_rows_dropped_by_default(tmp_path):
         "hand_type": {"dtype": "string", "shape": (1,), "names": None},
         "udhm_mask": {"dtype": "bool", "shape": (44,), "names": NAMES},
     }
-    ds = LeRobotDataset.create(
-        "test/absent", fps=30, features=features, root=tmp_path / "d", use_videos=False
-    )
+    ds = LeRobotDataset.create("test/absent", fps=30, features=features, root=tmp_path / "d", use_videos=False)
     mask = np.zeros(44, bool)
     mask[:22] = True  # left hand absent
     for t in range(4):

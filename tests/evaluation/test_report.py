@@ -81,7 +81,9 @@ def test_train_then_eval_cli_on_a_lerobot_dataset(udhm_dataset, tmp_path, capsys
     assert report["training"]["train_rows"] == 240 and report["training"]["test_rows"] == 60
     assert (out / "best" / "model.safetensors").is_file() and (out / "eval.md").is_file()
 
-    ecfg = eval_script.EvalConfig(checkpoint=str(out / "best"), datasets=[str(udhm_dataset)], output=str(tmp_path / "e"))
+    ecfg = eval_script.EvalConfig(
+        checkpoint=str(out / "best"), datasets=[str(udhm_dataset)], output=str(tmp_path / "e")
+    )
     ereport = eval_script.run(ecfg)
     assert ereport["overall"]["rows"] == 60
     assert ereport["overall"]["mpjae_deg"] == pytest.approx(report["overall"]["mpjae_deg"])

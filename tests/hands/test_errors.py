@@ -67,8 +67,11 @@ def test_new_hand_from_one_yaml(tmp_path):
         ("kind: joints", "kind: joints\ncolour: red", "<top level>"),  # unknown top-level key
         ("slot: index_mcp_flex", "slot: index_knuckle", "slot"),  # slot not in UDHM
         ("slot: thumb_cmc_flex", "slot: index_mcp_flex", "joints[].slot"),  # duplicate slot
-        ("raw_range: [0, 90]\n    rad_at_raw_range: [0.0, 1.5", "raw_range: [90, 0]\n    rad_at_raw_range: [0.0, 1.5",
-         "raw_range"),  # min > max
+        (
+            "raw_range: [0, 90]\n    rad_at_raw_range: [0.0, 1.5",
+            "raw_range: [90, 0]\n    rad_at_raw_range: [0.0, 1.5",
+            "raw_range",
+        ),  # min > max
         ("name: finger_b", "name: finger_a", "joints[].name"),  # duplicate joint
         ("sides: [right]", "sides: [up]", "sides"),
         ("    note: not a finger joint", "    tendon: 3", "unknown key"),

@@ -175,7 +175,6 @@ def test_describe_lists_native_joints_and_slots():
     assert "LFJ5" in text and "pinky_metacarpal_twist" in text
 
 
-
 def test_docs_cover_every_hand():
     from pathlib import Path
 

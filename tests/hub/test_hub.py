@@ -43,9 +43,7 @@ def hub():
 def tok_dir(tmp_path_factory):
     torch.manual_seed(1)
     path = tmp_path_factory.mktemp("tok") / "ckpt"
-    UniDexTok(
-        UniDexTokConfig.from_preset("tiny", hand_names=["human", "linkerhand_l10"])
-    ).save_pretrained(path)
+    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["human", "linkerhand_l10"])).save_pretrained(path)
     (path / "README.md").unlink()  # let unidextok-push generate the card
     (path / "eval.json").write_text(json.dumps(EVAL))
     return path
@@ -84,30 +82,18 @@ for argv, main in [
         capture_output=True,
         text=True,
         timeout=300,
-        env=subprocess_env(
-            HF_ENDPOINT=hub.url, HF_TOKEN=TOKEN, HF_HUB_OFFLINE="0", HF_HOME=str(cache)
-        ),
+        env=subprocess_env(HF_ENDPOINT=hub.url, HF_TOKEN=TOKEN, HF_HUB_OFFLINE="0", HF_HOME=str(cache)),
     )
     assert r.returncode == 0, r.stderr[-3000:]
     lines = r.stdout.strip().splitlines()
     assert lines[0].startswith("pushed") and lines[1].startswith("pushed")
     model_snapshot, ds_snapshot = Path(lines[-2]), Path(lines[-1])
     assert ("model", "lab/unidextok-tiny") in hub.repos
-    assert (
-        "v3.0" in hub.repos[("dataset", "lab/l10_udhm")].tags
-    )  # LeRobot resolves this tag
-    assert not (
-        tok_dir / "README.md"
-    ).exists()  # the card is staged, the user's folder untouched
-    assert model_snapshot.is_relative_to(cache / "hub") and ds_snapshot.is_relative_to(
-        cache / "hub"
-    )
+    assert "v3.0" in hub.repos[("dataset", "lab/l10_udhm")].tags  # LeRobot resolves this tag
+    assert not (tok_dir / "README.md").exists()  # the card is staged, the user's folder untouched
+    assert model_snapshot.is_relative_to(cache / "hub") and ds_snapshot.is_relative_to(cache / "hub")
     card = (model_snapshot / "README.md").read_text()
-    assert (
-        "- `linkerhand_l10`" in card
-        and "preset: `tiny`" in card
-        and "- `lab/l10_udhm`" in card
-    )
+    assert "- `linkerhand_l10`" in card and "preset: `tiny`" in card and "- `lab/l10_udhm`" in card
     assert "| linkerhand_l10 | 1.5 | 2 |" in card
 
     # offline, in a fresh process: tokenizer by repo id (bit-exact), processor step by repo id, dataset
@@ -159,9 +145,7 @@ def test_offline_errors_name_the_fix(tmp_path, monkeypatch):
     with pytest.raises(RuntimeError, match="unset HF_HUB_OFFLINE"):
         pull("lab/unidextok-tiny")
     monkeypatch.setenv("HF_HUB_CACHE", str(tmp_path))
-    with pytest.raises(
-        FileNotFoundError, match=r"unidextok-pull --repo_id=lab/nothing-here"
-    ):
+    with pytest.raises(FileNotFoundError, match=r"unidextok-pull --repo_id=lab/nothing-here"):
         cached_snapshot("lab/nothing-here")
     with pytest.raises(ValueError, match="namespace/name"):
         pull("no-namespace")
@@ -170,9 +154,7 @@ def test_offline_errors_name_the_fix(tmp_path, monkeypatch):
 def test_loopback_hub_stops_by_itself():
     server = LoopbackHub(lifetime_s=0.5).start()
     url = server.url
-    with urllib.request.urlopen(
-        f"{url}/api/whoami-v2", timeout=5
-    ) as resp:  # NO_PROXY covers 127.0.0.1
+    with urllib.request.urlopen(f"{url}/api/whoami-v2", timeout=5) as resp:  # NO_PROXY covers 127.0.0.1
         assert json.load(resp)["name"] == "loopback"
     deadline = time.monotonic() + 10
     while time.monotonic() < deadline:
@@ -192,11 +174,7 @@ def test_card_helpers(tok_dir, tmp_path):
     assert eval_table({"mpjae_deg": 2.0}).splitlines()[-1] == "| all | 2 |"
     (tmp_path / "config.json").write_text(json.dumps(cfg))
     card = tokenizer_card(tmp_path, "a/b")
-    assert (
-        "No evaluation file" in card
-        and "not recorded" in card
-        and "library_name: lerobot-unidextok" in card
-    )
+    assert "No evaluation file" in card and "not recorded" in card and "library_name: lerobot-unidextok" in card
     with pytest.raises(FileNotFoundError, match="not a UniDexTok checkpoint"):
         tokenizer_card(tmp_path / "empty", "a/b")
 
@@ -212,9 +190,7 @@ def test_proxy_blocks_non_loopback_traffic():
         text=True,
         timeout=60,
     )
-    assert r.returncode != 0 and (
-        "ProxyError" in r.stderr or "ConnectError" in r.stderr
-    )
+    assert r.returncode != 0 and ("ProxyError" in r.stderr or "ConnectError" in r.stderr)
 
 
 def test_cache_via_loopback_then_offline_load(tok_dir, tmp_path):

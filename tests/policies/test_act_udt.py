@@ -29,9 +29,7 @@ def tok_dir(tmp_path_factory):
     torch.manual_seed(2)
     path = tmp_path_factory.mktemp("tok") / "unidextok-tiny"
     hands = ["human", "linkerhand_l10", "inspire_rh56_unitree"]
-    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=hands)).save_pretrained(
-        path
-    )
+    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=hands)).save_pretrained(path)
     return path
 
 
@@ -46,19 +44,11 @@ def _config(tok_dir, width: int = 44, **kw) -> ACTUdtConfig:
 def test_config_adds_env_state_of_the_tokenizer_width(tok_dir):
     cfg = _config(tok_dir, udt_hand_layout=["linkerhand_l10"])
     cfg.validate_features()
-    assert (
-        cfg.udt_hand_layout == ["linkerhand_l10"] * 2
-    )  # one name broadcast to both blocks
-    assert cfg.input_features[OBS_HAND_TOKEN_FEATURES] == PolicyFeature(
-        FeatureType.ENV, (44,)
-    )
-    emb = _config(
-        tok_dir, udt_hand_layout=["linkerhand_l10"], udt_representation="embedding"
-    )
+    assert cfg.udt_hand_layout == ["linkerhand_l10"] * 2  # one name broadcast to both blocks
+    assert cfg.input_features[OBS_HAND_TOKEN_FEATURES] == PolicyFeature(FeatureType.ENV, (44,))
+    emb = _config(tok_dir, udt_hand_layout=["linkerhand_l10"], udt_representation="embedding")
     emb.validate_features()
-    assert emb.input_features[OBS_HAND_TOKEN_FEATURES].shape == (
-        2 * 4 * 256,
-    )  # H * N * codebook_dim
+    assert emb.input_features[OBS_HAND_TOKEN_FEATURES].shape == (2 * 4 * 256,)  # H * N * codebook_dim
 
 
 def test_config_errors_name_the_fix(tok_dir):
@@ -78,9 +68,7 @@ def test_processors_place_the_step_before_batching(tok_dir):
     cfg.validate_features()
     pre, post = make_act_udt_pre_post_processors(cfg)
     names = [type(s).__name__ for s in pre.steps]
-    assert names.index("UniDexTokStateTokenizerStep") < names.index(
-        "AddBatchDimensionProcessorStep"
-    )
+    assert names.index("UniDexTokStateTokenizerStep") < names.index("AddBatchDimensionProcessorStep")
     out = pre({OBS_STATE: torch.zeros(44)})  # a single unbatched frame
     assert out[OBS_HAND_TOKEN_FEATURES].shape == (1, 44)  # batched after the step
     assert post(torch.zeros(3, 44)).shape == (3, 20)  # two L10 hands, native SDK units
@@ -104,18 +92,14 @@ def test_lerobot_train_then_reload_in_fresh_process(tok_dir, g1_dataset, tmp_pat
     pre_json = json.loads((ckpt / "policy_preprocessor.json").read_text())
     steps = [s["registry_name"] for s in pre_json["steps"]]
     assert steps.index(STEP_NAME) < steps.index("to_batch_processor")
-    tok_cfg = next(s for s in pre_json["steps"] if s["registry_name"] == STEP_NAME)[
-        "config"
-    ]
+    tok_cfg = next(s for s in pre_json["steps"] if s["registry_name"] == STEP_NAME)["config"]
     assert tok_cfg["hand_layout"] == [
         inspire,
         inspire,
     ]  # read from the dataset's hand_type column
     assert (ckpt / f"policy_preprocessor_step_1_{STEP_NAME}.safetensors").is_file()
     post_json = json.loads((ckpt / "policy_postprocessor.json").read_text())
-    native = next(
-        s for s in post_json["steps"] if s["registry_name"] == NATIVE_STEP_NAME
-    )["config"]
+    native = next(s for s in post_json["steps"] if s["registry_name"] == NATIVE_STEP_NAME)["config"]
     assert native["sides"] == ["left", "right"]  # block order of the converted dataset
 
     # a fresh process: plugin loaded by name (as LeRobot's CLIs do), then select_action on dataset frames
@@ -142,6 +126,4 @@ print(type(policy).__name__, tuple(a.shape))
     r = subprocess.run([sys.executable, "-c", check], check=False, env=subprocess_env(HF_HOME=str(tmp_path / "hf2")),
                        capture_output=True, text=True, timeout=180)  # fmt: skip
     assert r.returncode == 0, r.stderr[-3000:]
-    assert (
-        r.stdout.strip().splitlines()[-1] == "ACTUdtPolicy (3, 1, 12)"
-    )  # 2 Inspire hands x 6 native DoFs
+    assert r.stdout.strip().splitlines()[-1] == "ACTUdtPolicy (3, 1, 12)"  # 2 Inspire hands x 6 native DoFs

@@ -33,9 +33,7 @@ L10 = ["linkerhand_l10", "linkerhand_l10"]
 def tok_dir(tmp_path_factory):
     torch.manual_seed(0)
     path = tmp_path_factory.mktemp("tok") / "unidextok-tiny"
-    UniDexTok(
-        UniDexTokConfig.from_preset("tiny", hand_names=["human", "linkerhand_l10"])
-    ).save_pretrained(path)
+    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["human", "linkerhand_l10"])).save_pretrained(path)
     return path
 
 
@@ -64,9 +62,7 @@ def test_tokens_and_dequantized_view_match_the_tokenizer(step, l10_states):
     # per hand: encode the right block with the right hand name, decode it back
     right_codes = step.tokenizer.encode(x[:, :22], "linkerhand_l10")  # (P, N, K)
     left_codes = step.tokenizer.encode(x[:, 22:], "linkerhand_l10")
-    assert torch.equal(
-        tokens, torch.cat([right_codes.flatten(1), left_codes.flatten(1)], dim=1)
-    )
+    assert torch.equal(tokens, torch.cat([right_codes.flatten(1), left_codes.flatten(1)], dim=1))
     # the dequantized view is the decoded state on the hand's active DoFs and zero elsewhere, like the data
     active = torch.as_tensor(hands.get("linkerhand_l10").active_mask)
     decoded = step.tokenizer.decode(right_codes, "linkerhand_l10")
@@ -81,15 +77,11 @@ def test_unbatched_equals_batched_row_inside_pipeline(step, l10_states):
     single = pipe({OBS_STATE: x[2]})
     assert single[OBS_HAND_TOKENS].shape == batched[OBS_HAND_TOKENS].shape[1:]
     assert torch.equal(single[OBS_HAND_TOKENS], batched[OBS_HAND_TOKENS][2])
-    torch.testing.assert_close(
-        single[OBS_HAND_TOKEN_FEATURES], batched[OBS_HAND_TOKEN_FEATURES][2]
-    )
+    torch.testing.assert_close(single[OBS_HAND_TOKEN_FEATURES], batched[OBS_HAND_TOKEN_FEATURES][2])
 
 
 def test_embedding_representation_width_and_features(tok_dir, l10_states):
-    step = UniDexTokStateTokenizerStep(
-        hand_layout=L10, pretrained=str(tok_dir), representation="embedding"
-    )
+    step = UniDexTokStateTokenizerStep(hand_layout=L10, pretrained=str(tok_dir), representation="embedding")
     cfg = step.tokenizer.config
     out = step.observation({OBS_STATE: torch.from_numpy(l10_states)})
     view = out[OBS_HAND_TOKEN_FEATURES]
@@ -98,16 +90,10 @@ def test_embedding_representation_width_and_features(tok_dir, l10_states):
     norms = view.reshape(len(l10_states), -1, cfg.group_dim).norm(dim=-1)
     torch.testing.assert_close(norms, torch.ones_like(norms))
     feats = step.transform_features(
-        {
-            PipelineFeatureType.OBSERVATION: {
-                OBS_STATE: PolicyFeature(FeatureType.STATE, (44,))
-            }
-        }
+        {PipelineFeatureType.OBSERVATION: {OBS_STATE: PolicyFeature(FeatureType.STATE, (44,))}}
     )
     obs = feats[PipelineFeatureType.OBSERVATION]
-    assert obs[OBS_HAND_TOKEN_FEATURES] == PolicyFeature(
-        FeatureType.ENV, (view.shape[1],)
-    )
+    assert obs[OBS_HAND_TOKEN_FEATURES] == PolicyFeature(FeatureType.ENV, (view.shape[1],))
     assert obs[OBS_HAND_TOKENS].shape == (out[OBS_HAND_TOKENS].shape[1],)
     assert OBS_STATE in obs
 
@@ -122,60 +108,40 @@ def test_pipeline_save_and_reload_is_bit_exact(step, l10_states, tmp_path):
     # reload without the original checkpoint folder: weights come from the pipeline's safetensors
     saved["steps"][0]["config"]["pretrained"] = "/nonexistent/checkpoint"
     (tmp_path / "policy_preprocessor.json").write_text(json.dumps(saved))
-    again = PolicyProcessorPipeline.from_pretrained(
-        tmp_path, config_filename="policy_preprocessor.json"
-    )
+    again = PolicyProcessorPipeline.from_pretrained(tmp_path, config_filename="policy_preprocessor.json")
     x = torch.from_numpy(l10_states)
     a, b = pipe({OBS_STATE: x}), again({OBS_STATE: x})
     assert torch.equal(a[OBS_HAND_TOKENS], b[OBS_HAND_TOKENS])
     assert torch.equal(a[OBS_HAND_TOKEN_FEATURES], b[OBS_HAND_TOKEN_FEATURES])
 
 
-def test_reference_only_pipeline_reloads_from_checkpoint_folder(
-    tok_dir, l10_states, tmp_path
-):
-    step = UniDexTokStateTokenizerStep(
-        hand_layout=L10, pretrained=str(tok_dir), embed_weights=False
-    )
+def test_reference_only_pipeline_reloads_from_checkpoint_folder(tok_dir, l10_states, tmp_path):
+    step = UniDexTokStateTokenizerStep(hand_layout=L10, pretrained=str(tok_dir), embed_weights=False)
     assert step.state_dict() == {} and step.get_config()["tokenizer_config"] is None
     pipe = PolicyProcessorPipeline(steps=[step], name="policy_preprocessor")
     pipe.save_pretrained(tmp_path)
-    again = PolicyProcessorPipeline.from_pretrained(
-        tmp_path, config_filename="policy_preprocessor.json"
-    )
+    again = PolicyProcessorPipeline.from_pretrained(tmp_path, config_filename="policy_preprocessor.json")
     x = torch.from_numpy(l10_states)
-    assert torch.equal(
-        pipe({OBS_STATE: x})[OBS_HAND_TOKENS], again({OBS_STATE: x})[OBS_HAND_TOKENS]
-    )
+    assert torch.equal(pipe({OBS_STATE: x})[OBS_HAND_TOKENS], again({OBS_STATE: x})[OBS_HAND_TOKENS])
 
 
 def test_bad_width_names_the_fix(step):
-    with pytest.raises(
-        ValueError, match=r"width 30, which matches no UDHM layout.*unidextok-convert"
-    ):
+    with pytest.raises(ValueError, match=r"width 30, which matches no UDHM layout.*unidextok-convert"):
         step.observation({OBS_STATE: torch.zeros(4, 30)})
     with pytest.raises(ValueError, match="width 22"):
-        step.observation(
-            {OBS_STATE: torch.zeros(22)}
-        )  # one hand where the layout has two
+        step.observation({OBS_STATE: torch.zeros(22)})  # one hand where the layout has two
 
 
 def test_nan_names_the_frame(step, l10_states):
     x = torch.from_numpy(l10_states.copy())
     x[1, 5] = float("nan")
-    with pytest.raises(
-        ValueError, match=r"NaN/inf \(first at \[batch, dim\] = \[1, 5\]\)"
-    ):
+    with pytest.raises(ValueError, match=r"NaN/inf \(first at \[batch, dim\] = \[1, 5\]\)"):
         step.observation({OBS_STATE: x})
 
 
 def test_checkpoint_missing_offline_names_unidextok_pull():
-    with pytest.raises(
-        FileNotFoundError, match=r"unidextok-pull --repo_id=nobody/missing-tokenizer"
-    ):
-        UniDexTokStateTokenizerStep(
-            hand_layout=["human"], pretrained="nobody/missing-tokenizer"
-        )
+    with pytest.raises(FileNotFoundError, match=r"unidextok-pull --repo_id=nobody/missing-tokenizer"):
+        UniDexTokStateTokenizerStep(hand_layout=["human"], pretrained="nobody/missing-tokenizer")
 
 
 def test_layout_from_converted_dataset(l10_dataset):
@@ -190,39 +156,25 @@ def test_layout_from_converted_dataset(l10_dataset):
 def test_udhm_to_native_recovers_real_presets(real_data_dir, l10_states):
     import yaml
 
-    presets = yaml.safe_load(
-        (real_data_dir / "linkerhand-ros2-sdk" / "L10_positions.yaml").read_text()
-    )
+    presets = yaml.safe_load((real_data_dir / "linkerhand-ros2-sdk" / "L10_positions.yaml").read_text())
     right = {p["ACTION_NAME"]: p["POSITION"] for p in presets["RIGHT_HAND"]}
     left = {p["ACTION_NAME"]: p["POSITION"] for p in presets["LEFT_HAND"]}
-    raw = np.array(
-        [right[n] + left[n] for n in right if n in left], dtype=np.float64
-    )  # (P, 20)
+    raw = np.array([right[n] + left[n] for n in right if n in left], dtype=np.float64)  # (P, 20)
     layout = HandLayout(L10, ["right", "left"])
     native = udhm_to_native(torch.from_numpy(l10_states), layout)
     assert native.shape == raw.shape
-    np.testing.assert_allclose(
-        native, raw, atol=0.5
-    )  # float32 UDHM round trip, 0-255 units
+    np.testing.assert_allclose(native, raw, atol=0.5)  # float32 UDHM round trip, 0-255 units
     post = UDHMToNativeCommandStep(hand_layout=L10, sides=["right", "left"])
-    np.testing.assert_allclose(
-        post.action(torch.from_numpy(l10_states)).numpy(), raw, atol=0.5
-    )
+    np.testing.assert_allclose(post.action(torch.from_numpy(l10_states)).numpy(), raw, atol=0.5)
     assert post.native_dim() == 2 * hands.get("linkerhand_l10").num_native
 
 
 def test_tokens_to_native_shape_and_limits(step, l10_states):
-    tokens = step.observation({OBS_STATE: torch.from_numpy(l10_states)})[
-        OBS_HAND_TOKENS
-    ]
-    native = tokens_to_native(
-        tokens, step.tokenizer, HandLayout(L10, ["right", "left"])
-    )
+    tokens = step.observation({OBS_STATE: torch.from_numpy(l10_states)})[OBS_HAND_TOKENS]
+    native = tokens_to_native(tokens, step.tokenizer, HandLayout(L10, ["right", "left"]))
     assert native.shape == (len(l10_states), 20)
     assert native.min() >= 0 and native.max() <= 255  # clipped to the SDK range
-    assert tokens_to_native(
-        tokens[0], step.tokenizer, HandLayout(L10, ["right", "left"])
-    ).shape == (20,)
+    assert tokens_to_native(tokens[0], step.tokenizer, HandLayout(L10, ["right", "left"])).shape == (20,)
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
@@ -232,17 +184,11 @@ def test_device_follows_input(step, l10_states):
 
 
 def test_hand_outside_vocabulary_needs_allow_unknown(tok_dir):
-    with pytest.raises(
-        ValueError, match=r"\['xhand1'\] are not in the tokenizer vocabulary"
-    ):
-        UniDexTokStateTokenizerStep(
-            hand_layout=["xhand1"], pretrained=str(tok_dir), allow_unknown=False
-        )
+    with pytest.raises(ValueError, match=r"\['xhand1'\] are not in the tokenizer vocabulary"):
+        UniDexTokStateTokenizerStep(hand_layout=["xhand1"], pretrained=str(tok_dir), allow_unknown=False)
     step = UniDexTokStateTokenizerStep(hand_layout=["xhand1"], pretrained=str(tok_dir))
     out = step.observation({OBS_STATE: torch.zeros(22)})
-    unknown = step.tokenizer.encode(
-        torch.zeros(1, 22), torch.tensor([step.tokenizer.unknown_hand_id])
-    )
+    unknown = step.tokenizer.encode(torch.zeros(1, 22), torch.tensor([step.tokenizer.unknown_hand_id]))
     assert torch.equal(out[OBS_HAND_TOKENS], unknown.flatten())
 
 
@@ -253,9 +199,7 @@ def test_token_preview_shows_codes_and_decoded_state(step, l10_states):
     cfg = step.tokenizer.config
     assert text.count("frame ") == 4  # 2 frames x 2 hands
     assert text.count("  tokens ") == 4 * cfg.num_tokens
-    first_codes = step.observation({OBS_STATE: torch.from_numpy(l10_states[0])})[
-        OBS_HAND_TOKENS
-    ][: cfg.num_groups]
+    first_codes = step.observation({OBS_STATE: torch.from_numpy(l10_states[0])})[OBS_HAND_TOKENS][: cfg.num_groups]
     assert "  tokens " + " ".join(f"{c:2d}" for c in first_codes.tolist()) in text
     assert "input deg" in text and "decoded deg" in text
 

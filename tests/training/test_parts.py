@@ -54,7 +54,9 @@ def test_hand_states_validation():
 
 
 def test_subsample_takes_whole_episodes_first():
-    data = HandStates(np.zeros((100, 22)), np.array(["x"] * 100), np.ones((100, 22), bool), np.repeat(np.arange(10), 10))
+    data = HandStates(
+        np.zeros((100, 22)), np.array(["x"] * 100), np.ones((100, 22), bool), np.repeat(np.arange(10), 10)
+    )
     few = subsample_episodes(data, 0.25, seed=0)
     assert len(few) == 25
     assert len(np.unique(few.episode_index)) == 3  # two whole episodes + 5 frames of a third

@@ -31,16 +31,12 @@ class ACTUdtConfig(ACTConfig):
     # Hand spec name per 22-wide block of observation.state (one name = all blocks). Empty: read from
     # the training dataset (`hand_type` column + `<side>_<joint>` state names) when lerobot-train builds it.
     udt_hand_layout: list[str] = field(default_factory=list)
-    udt_sides: list[str] = field(
-        default_factory=list
-    )  # filled from the dataset's state names
+    udt_sides: list[str] = field(default_factory=list)  # filled from the dataset's state names
     # UniDexTok checkpoint folder or Hub repo id (resolved offline from the HF cache once pulled).
     # None: an untrained `udt_preset` tokenizer (smoke tests only).
     udt_pretrained: str | None = None
     udt_preset: str = "small"
-    udt_representation: str = (
-        "dequantized"  # "dequantized" (H*22 rad) | "embedding" (H*N*codebook_dim)
-    )
+    udt_representation: str = "dequantized"  # "dequantized" (H*22 rad) | "embedding" (H*N*codebook_dim)
     # Optional post-processor: convert predicted UDHM actions to these hands' native command units.
     udt_command_hands: list[str] = field(default_factory=list)
 
@@ -82,9 +78,7 @@ class ACTUdtConfig(ACTConfig):
         self._fill_layout_from_dataset()
         state = self.input_features.get(OBS_STATE)
         if state is None:
-            raise ValueError(
-                f"act_udt needs '{OBS_STATE}' (UDHM hand states) among the dataset features"
-            )
+            raise ValueError(f"act_udt needs '{OBS_STATE}' (UDHM hand states) among the dataset features")
         width = state.shape[0]
         if width % UDHM_DIM:
             raise ValueError(
@@ -104,17 +98,9 @@ class ACTUdtConfig(ACTConfig):
                 f"udt_hand_layout {self.udt_hand_layout} names {len(self.udt_hand_layout)} hands but "
                 f"{OBS_STATE} (width {width}) holds {num_hands}"
             )
-        self.input_features.pop(
-            OBS_HAND_TOKENS, None
-        )  # int64 ids must not reach the normalizer
-        if (
-            OBS_HAND_TOKEN_FEATURES in self.input_features
-        ):  # reloaded config: already sized
+        self.input_features.pop(OBS_HAND_TOKENS, None)  # int64 ids must not reach the normalizer
+        if OBS_HAND_TOKEN_FEATURES in self.input_features:  # reloaded config: already sized
             return super().validate_features()
-        _, env_width = tokenizer_output_dims(
-            self.tokenizer_config(), num_hands, self.udt_representation
-        )
-        self.input_features[OBS_HAND_TOKEN_FEATURES] = PolicyFeature(
-            type=FeatureType.ENV, shape=(env_width,)
-        )
+        _, env_width = tokenizer_output_dims(self.tokenizer_config(), num_hands, self.udt_representation)
+        self.input_features[OBS_HAND_TOKEN_FEATURES] = PolicyFeature(type=FeatureType.ENV, shape=(env_width,))
         super().validate_features()

@@ -19,13 +19,9 @@ from lerobot_unidextok.processor import (
 def make_act_udt_pre_post_processors(
     config: ACTUdtConfig,
     dataset_stats: dict[str, dict[str, torch.Tensor]] | None = None,
-) -> tuple[
-    PolicyProcessorPipeline[dict[str, Any], dict[str, Any]], PolicyProcessorPipeline
-]:
+) -> tuple[PolicyProcessorPipeline[dict[str, Any], dict[str, Any]], PolicyProcessorPipeline]:
     """rename -> UniDexTok -> batch -> device -> normalize / unnormalize -> cpu [-> native commands]."""
-    s = make_default_policy_processor_steps(
-        config, dataset_stats, normalizer_device=config.device
-    )
+    s = make_default_policy_processor_steps(config, dataset_stats, normalizer_device=config.device)
     tokenizer_step = UniDexTokStateTokenizerStep(
         hand_layout=config.udt_hand_layout,
         pretrained=config.udt_pretrained,
@@ -34,11 +30,7 @@ def make_act_udt_pre_post_processors(
     )
     output_steps = [s.unnormalize, s.to_cpu]
     if config.udt_command_hands:
-        output_steps.append(
-            UDHMToNativeCommandStep(
-                hand_layout=config.udt_command_hands, sides=config.udt_sides
-            )
-        )
+        output_steps.append(UDHMToNativeCommandStep(hand_layout=config.udt_command_hands, sides=config.udt_sides))
     return make_policy_processor_pipelines(
         input_steps=[
             s.rename_observations,
