@@ -24,12 +24,12 @@ class TrainConfig:
     init_from: str | None = None  # start from a pretrained checkpoint (folder or repo id)
 
     # --- optimisation -------------------------------------------------------------------------------
-    # small preset, lr 6e-3: 0.915 deg held-out MAE on the demo's 6-hand sample mixture after 4000 steps,
-    # 347 s CPU time on one thread (docs/tokenizer.md)
-    steps: int = 4000
+    # small preset, lr 6e-3: 0.909 deg held-out MAE on the demo's 6-hand sample mixture after 5000 steps,
+    # 339 s wall on one thread at load ~1 (0.951 deg after 4000; docs/tokenizer.md)
+    steps: int = 5000
     batch_size: int = 256
-    # tuned for the CPU presets: 3e-3 gave 1.10 deg after 4000 steps on human+Inspire gestures, 6e-3 gives
-    # 0.915 deg on the 6-hand demo mixture; the paper preset uses 5e-4 (configs/train/paper.yaml)
+    # tuned for the CPU presets: 6e-3 beat 3e-3 on real G1 Inspire recordings (0.411 vs 0.447 deg after 2000
+    # steps) and reaches 0.91 deg on the demo mixture; the paper preset uses 5e-4 (configs/train/paper.yaml)
     lr: float = 6e-3
     min_lr_ratio: float = 0.05  # cosine decays to lr * min_lr_ratio
     warmup_steps: int = 200
