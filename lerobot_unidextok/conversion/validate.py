@@ -262,7 +262,7 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         try:
             from lerobot.datasets import LeRobotDataset
 
-            ds = LeRobotDataset(repo_id or info.get("repo_id") or f"local/{root.name}", root=root)
+            ds = LeRobotDataset(repo_id or info.get("repo_id") or f"local/{root.name}", root=root, video_backend="pyav")  # state-only: skip the video decoder probe
             item = ds[0]
             rep.add(
                 "LeRobotDataset loads",

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import draccus
+import yaml
 
 
 @dataclass
@@ -55,11 +56,13 @@ def _root(cfg: ConvertConfig) -> Path:
 
 
 def _source_options(text: str) -> dict:
+    """The --source_options object. Parsed as YAML, a superset of JSON: draccus hands a flag that looks
+    like a mapping over as the Python repr of the dict it parsed, which YAML's flow syntax also reads."""
     if not text:
         return {}
     try:
-        value = json.loads(text)
-    except json.JSONDecodeError as exc:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
         raise SystemExit(f"error: --source_options must be a JSON object: {exc}") from exc
     if not isinstance(value, dict):
         raise SystemExit(f"error: --source_options must be a JSON object, got {type(value).__name__}")
