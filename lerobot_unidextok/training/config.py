@@ -37,6 +37,11 @@ class TrainConfig:
     betas: tuple[float, float] = (0.9, 0.99)
     grad_clip_norm: float = 1.0
     reseed_every: int = 50  # dead-code re-seeding period in steps (0 disables)
+    # Share of training rows conditioned on the "unknown hand" embedding instead of their own hand
+    # (hand-embedding dropout, as classifier-free guidance drops its condition). Without it that
+    # embedding is never trained and zero-shot tokenisation of unseen hands is meaningless.
+    # Not in the paper, which does not say how its unknown-hand path is trained.
+    unknown_hand_prob: float = 0.05
     seed: int = 0
 
     # --- evaluation and checkpoints ----------------------------------------------------------------
@@ -63,6 +68,8 @@ class TrainConfig:
             raise ValueError(f"fraction must be in (0, 1], got {self.fraction}")
         if self.steps < 1 and self.epochs <= 0:
             raise ValueError(f"steps must be >= 1 (or set epochs > 0), got {self.steps}")
+        if not 0.0 <= self.unknown_hand_prob < 1.0:
+            raise ValueError(f"unknown_hand_prob must be in [0, 1), got {self.unknown_hand_prob}")
         if self.batch_size < 1:
             raise ValueError(f"batch_size must be >= 1, got {self.batch_size}")
         if self.warmup_steps < 0:

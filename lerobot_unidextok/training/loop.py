@@ -141,6 +141,7 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
             usage["usage"],
         )
 
+    dropout_rng = torch.Generator().manual_seed(cfg.seed * 1000 + start + 1)
     t0 = time.perf_counter()
     bar = tqdm(
         range(start, n_steps),
@@ -155,6 +156,9 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
             g["lr"] = lr
         rows = torch.from_numpy(sampler.sample(cfg.batch_size))
         x, m, h = states[rows].to(device), masks[rows].to(device), hand_ids[rows].to(device)  # (B, 22), (B, 22), (B,)
+        if cfg.unknown_hand_prob > 0:  # hand-embedding dropout trains the zero-shot "unknown hand" path
+            drop = torch.rand(h.shape, generator=dropout_rng).to(device) < cfg.unknown_hand_prob  # (B,)
+            h = torch.where(drop, torch.full_like(h, raw_model.unknown_hand_id), h)
 
         out = model(x, h, mask=m)
         optimizer.zero_grad(set_to_none=True)

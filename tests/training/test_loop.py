@@ -83,3 +83,19 @@ def test_add_hands_starts_from_unknown_embedding():
     assert model.config.hand_names == ["human", "new_hand"]
     assert torch.equal(model.hand_embed.weight[1], unknown) and torch.equal(model.hand_embed.weight[2], unknown)
     assert torch.equal(model.encode(x, "new_hand"), before)
+
+
+def test_hand_dropout_trains_the_zero_shot_path(mixture, tmp_path):
+    """Without hand-embedding dropout the 'unknown hand' row is never trained, so an unseen hand's
+    zero-shot reconstruction is arbitrary; with it, the unknown path learns the shared mapping."""
+    train, test = mixture
+    zero_shot = {}
+    for prob in (0.0, 0.2):
+        cfg = _cfg(tmp_path, unknown_hand_prob=prob, output_dir=str(tmp_path / f"p{prob}"), hand_names=["human"])
+        result = train_tokenizer(cfg, train.without("inspire_rh56"), test.only("human"))
+        model = UniDexTok.from_pretrained(result.best_dir)
+        assert not model.knows_hand("inspire_rh56")
+        zero_shot[prob], _ = evaluate_mae_deg(model, test.only("inspire_rh56"), 10_000, 0)
+    assert zero_shot[0.2] < 0.5 * zero_shot[0.0], zero_shot
+    with pytest.raises(ValueError, match="unknown_hand_prob"):
+        _cfg(tmp_path, unknown_hand_prob=1.0)
