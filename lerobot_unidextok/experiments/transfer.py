@@ -69,7 +69,7 @@ def run(cfg: ExperimentConfig) -> dict:
     )
     few_cfg = TrainConfig(
         preset=cfg.preset, init_from=base_info["dir"], fraction=1.0, epochs=cfg.fewshot_epochs, batch_size=cfg.fewshot_batch_size,
-        lr=cfg.fewshot_lr, warmup_steps=1, eval_every=1, save_last_every=10**9, seed=cfg.seed,
+        lr=cfg.fewshot_lr, adapt=cfg.fewshot_adapt, unknown_hand_prob=0.0, warmup_steps=1, eval_every=1, save_last_every=10**9, seed=cfg.seed,
         output_dir=str(Path(cfg.models_dir) / f"fewshot_{hand}_{Path(base_info['dir']).parent.name}"), progress=cfg.progress,
     )  # fmt: skip
     few_res = train_tokenizer(few_cfg, shots, shots)

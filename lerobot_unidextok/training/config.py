@@ -55,6 +55,9 @@ class TrainConfig:
     # When > 0: epochs over `fraction` of the training frames (steps is then derived).
     fraction: float = 1.0
     epochs: float = 0.0
+    # What adaptation trains: "all" parameters, or only the "hand_embedding" (the shared encoder, codebook
+    # and decoder stay as they are, so a few hundred frames cannot overfit them).
+    adapt: str = "all"
 
     # --- runtime ------------------------------------------------------------------------------------
     device: str = "cpu"  # cpu | cuda | cuda:N ; multi-GPU through `accelerate launch`
@@ -70,6 +73,8 @@ class TrainConfig:
             raise ValueError(f"steps must be >= 1 (or set epochs > 0), got {self.steps}")
         if not 0.0 <= self.unknown_hand_prob < 1.0:
             raise ValueError(f"unknown_hand_prob must be in [0, 1), got {self.unknown_hand_prob}")
+        if self.adapt not in ("all", "hand_embedding"):
+            raise ValueError(f"adapt must be 'all' or 'hand_embedding', got {self.adapt!r}")
         if self.batch_size < 1:
             raise ValueError(f"batch_size must be >= 1, got {self.batch_size}")
         if self.warmup_steps < 0:

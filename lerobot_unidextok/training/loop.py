@@ -100,6 +100,8 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
     if unknown:
         model.add_hands(unknown)
     model.train()
+    for name, param in model.named_parameters():
+        param.requires_grad_(cfg.adapt == "all" or name.startswith("hand_embed"))
     optimizer = make_optimizer(model, cfg.lr, cfg.weight_decay, cfg.betas)
 
     n_steps = total_steps(cfg, len(train_data))
@@ -166,7 +168,7 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
         if cfg.grad_clip_norm > 0:
             accelerator.clip_grad_norm_(model.parameters(), cfg.grad_clip_norm)
         optimizer.step()
-        if cfg.reseed_every > 0 and (step + 1) % cfg.reseed_every == 0:
+        if cfg.adapt == "all" and cfg.reseed_every > 0 and (step + 1) % cfg.reseed_every == 0:
             raw_model.quantizer.reseed_dead_codes()
 
         if step % 10 == 0:

@@ -99,3 +99,23 @@ def test_hand_dropout_trains_the_zero_shot_path(mixture, tmp_path):
     assert zero_shot[0.2] < 0.5 * zero_shot[0.0], zero_shot
     with pytest.raises(ValueError, match="unknown_hand_prob"):
         _cfg(tmp_path, unknown_hand_prob=1.0)
+
+
+def test_hand_embedding_adaptation_changes_only_that_row(mixture, tmp_path):
+    """adapt='hand_embedding' leaves the shared encoder, codebook and decoder bit-identical."""
+    train, test = mixture
+    base = train_tokenizer(_cfg(tmp_path, steps=20, eval_every=20, output_dir=str(tmp_path / "base"), hand_names=["human"]),
+                           train.without("inspire_rh56"), test.only("human"))  # fmt: skip
+    few = subsample_episodes(train.only("inspire_rh56"), 0.1, seed=0)
+    cfg = _cfg(tmp_path, init_from=str(base.best_dir), epochs=2, batch_size=32, warmup_steps=1, eval_every=1, lr=1e-2,
+               adapt="hand_embedding", unknown_hand_prob=0.0, reseed_every=1, output_dir=str(tmp_path / "few"))  # fmt: skip
+    result = train_tokenizer(cfg, few, few)
+    before = UniDexTok.from_pretrained(base.best_dir).state_dict()
+    after = UniDexTok.from_pretrained(result.best_dir).state_dict()
+    changed = sorted(k for k in after if k not in before or not torch.equal(before[k], after[k]))
+    assert changed == ["hand_embed.weight"], changed
+    row = UniDexTok.from_pretrained(result.best_dir)._hand_index["inspire_rh56"]
+    assert not torch.equal(after["hand_embed.weight"][row], before["hand_embed.weight"][-1])  # the new row moved
+    torch.testing.assert_close(after["hand_embed.weight"][:row], before["hand_embed.weight"][:row], rtol=0, atol=0)
+    with pytest.raises(ValueError, match="adapt must be"):
+        _cfg(tmp_path, adapt="encoder")
