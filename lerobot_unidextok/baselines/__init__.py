@@ -1,4 +1,6 @@
-"""Baseline hand-state tokenizers (uniform binning, UniHM-style VQ-VAE, FSQ / RVQ) and rate-distortion helpers.
+"""Baseline hand-state tokenizers (uniform binning, UniHM-style VQ-VAE, FSQ / RVQ) and their rates.
+
+Errors are scored with `lerobot_unidextok.evaluation.metrics`, the same code for every method.
 
 Layer 2: imports `constants` and torch only; hands are known by name, limits and masks arrive as data.
 The FSQ / RVQ baselines need the `baselines` extra (vector-quantize-pytorch), imported when built.
@@ -9,6 +11,7 @@ from lerobot_unidextok.baselines.base import (
     StateTokenizer,
     TrainableStateTokenizer,
     bits_per_state,
+    reconstruct,
     tokens_per_state,
 )
 from lerobot_unidextok.baselines.binning import BinningConfig, HandRange, UniformBinning
@@ -17,13 +20,6 @@ from lerobot_unidextok.baselines.quantized_ae import (
     QuantizedAETokenizer,
     fsq_tokenizer,
     rvq_tokenizer,
-)
-from lerobot_unidextok.baselines.rate_distortion import (
-    RateDistortionRow,
-    markdown_table,
-    mpjae_deg,
-    rate_distortion,
-    reconstruct,
 )
 from lerobot_unidextok.baselines.unidextok_adapter import UniDexTokAdapter
 from lerobot_unidextok.baselines.unihm import UNIHM_PRESETS, UniHMConfig, UniHMTokenizer
@@ -35,7 +31,6 @@ __all__ = [
     "QuantizedAEConfig",
     "QuantizedAETokenizer",
     "Rate",
-    "RateDistortionRow",
     "StateTokenizer",
     "TrainableStateTokenizer",
     "UniDexTokAdapter",
@@ -44,9 +39,6 @@ __all__ = [
     "UniformBinning",
     "bits_per_state",
     "fsq_tokenizer",
-    "markdown_table",
-    "mpjae_deg",
-    "rate_distortion",
     "reconstruct",
     "rvq_tokenizer",
     "tokens_per_state",

@@ -110,3 +110,9 @@ def check_hand(hand: str, known: Mapping[str, object], tokenizer: str) -> None:
             f"{tokenizer} does not know hand {hand!r}; it knows {sorted(known)}. "
             "Fit it on data of that hand (or pass the hand's range/mask when building it)."
         )
+
+
+@torch.no_grad()
+def reconstruct(tokenizer: StateTokenizer, states_rad: ArrayLike, hand: str) -> torch.Tensor:
+    """decode(encode(x)) for one hand, `(B, 22)` radians. Score it with `evaluation.metrics`."""
+    return tokenizer.decode(tokenizer.encode(states_rad, hand), hand)

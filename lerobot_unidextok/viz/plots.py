@@ -68,7 +68,7 @@ def plot_per_joint_errors(
 # rate-distortion
 # ---------------------------------------------------------------------------------------------
 def plot_rate_distortion(
-    rows: Sequence[object],
+    rows: Sequence[Mapping[str, object]],
     out_path: str | Path,
     *,
     error: str = "mpjae_deg",
@@ -76,10 +76,10 @@ def plot_rate_distortion(
     title: str = "rate-distortion (held-out states)",
 ) -> Path:
     """Bits per state (x, log2) vs `error` (y), colour = method, marker = hand. `rows` are
-    `RateDistortionRow`s or dicts with method, hand, bits_per_state and the error key."""
-    flat = [r.as_dict() if hasattr(r, "as_dict") else dict(r) for r in rows]
+    dicts with method, hand, bits_per_state and the error key."""
+    flat = [dict(r) for r in rows]
     if not flat:
-        raise ValueError("rows is empty; pass the output of baselines.rate_distortion(...)")
+        raise ValueError("rows is empty; pass one row per (method, hand) with bits_per_state and the error")
     missing = [r.get("method") for r in flat if error not in r]
     if missing:
         raise ValueError(f"rows of {missing} lack the error {error!r}; available keys: {sorted(flat[0])}")

@@ -9,7 +9,6 @@ import pytest
 from matplotlib.image import imread
 
 from lerobot_unidextok import udhm
-from lerobot_unidextok.baselines import RateDistortionRow
 from lerobot_unidextok.viz import (
     GROUND_TRUTH_COLOR,
     UNIDEXTOK_COLOR,
@@ -77,8 +76,8 @@ def test_per_joint_errors(tmp_path: Path) -> None:
 
 def test_rate_distortion(tmp_path: Path) -> None:
     rows = [
-        RateDistortionRow("binning", "human", 22, 22, 176.0, 10, {"mpjae_deg": 0.12}),
-        RateDistortionRow("UniDexTok", "human", 8, 64, 320.0, 10, {"mpjae_deg": 1.5}),
+        {"method": "binning", "hand": "human", "bits_per_state": 176.0, "mpjae_deg": 0.12},
+        {"method": "UniDexTok", "hand": "human", "bits_per_state": 320.0, "mpjae_deg": 1.5},
         {"method": "unihm", "hand": "inspire_rh56", "bits_per_state": 10.0, "mpjae_deg": 6.0},
     ]
     _check_png(plot_rate_distortion(rows, tmp_path / "rd.png", error_label="MPJAE (deg)"))
