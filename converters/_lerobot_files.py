@@ -134,6 +134,11 @@ def list_episodes(root: str | Path) -> list[LeRobotEpisodeRef]:
     return [LeRobotEpisodeRef(str(root), i) for i in indices]
 
 
+def list_all_episodes(input_path: str | Path) -> list[LeRobotEpisodeRef]:
+    """Episodes of every LeRobot dataset found under `input_path`, dataset by dataset."""
+    return [ref for root in find_dataset_roots(input_path) for ref in list_episodes(root)]
+
+
 def _episodes_table_v30(root: Path) -> dict[str, list]:
     """All rows of `meta/episodes/*.parquet`, cached per folder and file state (workers read many episodes)."""
     files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))

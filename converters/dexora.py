@@ -55,10 +55,7 @@ class DexoraSource:
         self.action_key = action_key
 
     def list_episodes(self, input_path: str | Path) -> list[lr.LeRobotEpisodeRef]:
-        refs = []
-        for root in lr.find_dataset_roots(input_path):
-            refs += lr.list_episodes(root)
-        return refs
+        return lr.list_all_episodes(input_path)
 
     def read_episode(self, ref: lr.LeRobotEpisodeRef) -> RawEpisode:
         info = lr.load_info(ref.root)
