@@ -20,6 +20,21 @@ FEATURES = {
 }
 
 
+def add_episode_per_frame(ref, ep: dict) -> None:
+    """One episode through LeRobot's own per-frame writer (the reference)."""
+    for t in range(len(ep["observation.state"])):
+        ref.add_frame(
+            {
+                "observation.state": ep["observation.state"][t],
+                "action": ep["action"][t],
+                "hand_type": ep["hand_type"],
+                "udhm_mask": ep["udhm_mask"][t],
+                "task": ep["task"],
+            }
+        )
+    ref.save_episode()
+
+
 def _episodes():
     rng = np.random.default_rng(3)
     eps = []
@@ -57,17 +72,7 @@ def both(tmp_path_factory):
         use_videos=False,
     )
     for ep in eps:
-        for t in range(len(ep["observation.state"])):
-            ref.add_frame(
-                {
-                    "observation.state": ep["observation.state"][t],
-                    "action": ep["action"][t],
-                    "hand_type": ep["hand_type"],
-                    "udhm_mask": ep["udhm_mask"][t],
-                    "task": ep["task"],
-                }
-            )
-        ref.save_episode()
+        add_episode_per_frame(ref, ep)
     ref.finalize()
 
     w = UdhmDatasetWriter(fast_root, "test/fast", fps=30, features=FEATURES, robot_type="hands")
@@ -156,17 +161,7 @@ def test_data_file_rollover_matches_lerobot(tmp_path):
     w = UdhmDatasetWriter(tmp_path / "f", "t/f", fps=30, features=FEATURES, data_files_size_in_mb=0.01)
     for ep in eps:
         frames = {k: v for k, v in ep.items() if k != "task"}
-        for t in range(len(ep["observation.state"])):
-            ref.add_frame(
-                {
-                    "observation.state": ep["observation.state"][t],
-                    "action": ep["action"][t],
-                    "hand_type": ep["hand_type"],
-                    "udhm_mask": ep["udhm_mask"][t],
-                    "task": ep["task"],
-                }
-            )
-        ref.save_episode()
+        add_episode_per_frame(ref, ep)
         w.add_episode(frames, task=ep["task"])
     ref.finalize()
     w.finalize()
