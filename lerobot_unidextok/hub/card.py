@@ -57,8 +57,43 @@ def eval_table(metrics: dict) -> str:
     return "\n".join(lines)
 
 
+def training_section(state: dict) -> list[str]:
+    """Card lines from a checkpoint's `training_state.json` (written by `unidextok-train`): the hands trained
+    and their coverage mixture, the data, the schedule and how the checkpoint was chosen."""
+    mixture = state.get("mixture") or {}
+    hands = mixture.get("hands") or {}
+    lines = ["## Training", ""]
+    if state.get("datasets"):
+        lines += ["Data (converted UDHM datasets):", "", *[f"- `{d}`" for d in state["datasets"]], ""]
+    if state.get("excluded_hands"):
+        lines += [
+            f"Hands left out of training (zero-shot): {', '.join(f'`{h}`' for h in state['excluded_hands'])}.",
+            "",
+        ]
+    if hands:
+        lines += [
+            "Hands trained, their share of a batch and the coverage mixture of their rows (recorded rows vs "
+            f"states synthesised inside the hand's joint ranges; noise bound {mixture.get('noise_deg')} deg):",
+            "",
+            "| hand | kind | recorded rows | batch share | ranges from | sources |",
+            "|---|---|---|---|---|---|",
+        ]
+        for name, h in hands.items():
+            sources = ", ".join(f"{k} {v:.2f}" for k, v in h.get("sources", {}).items())
+            lines.append(f"| `{name}` | {h.get('kind')} | {h.get('recorded_rows')} | {h.get('share', 0):.2f} | "
+                         f"{h.get('ranges_from')} | {sources} |")  # fmt: skip
+        lines.append("")
+    extra = {k: state[k] for k in ("preset", "steps", "batch_size", "lr", "unknown_hand_prob", "adapt", "init_from",
+                                   "step") if state.get(k) is not None}  # fmt: skip
+    if extra:
+        lines += [", ".join(f"{k}: {v}" for k, v in extra.items()), ""]
+    if state.get("selection") is not None:
+        lines += [f"Checkpoint selection: {state['selection']}", ""]
+    return lines
+
+
 def tokenizer_card(folder: str | Path, repo_id: str, training_data: list[str] | None = None) -> str:
-    """README.md text: hands supported, training data, preset and the evaluation table."""
+    """README.md text: hands supported, training data and mixture, preset and the evaluation table."""
     folder = Path(folder)
     config_path = folder / "config.json"
     if not config_path.is_file():
@@ -71,6 +106,9 @@ def tokenizer_card(folder: str | Path, repo_id: str, training_data: list[str] | 
     preset = infer_preset(config)
     eval_path = find_eval_json(folder)
     table = eval_table(json.loads(eval_path.read_text())) if eval_path else ""
+    state_path = folder / "training_state.json"
+    state = json.loads(state_path.read_text()) if state_path.is_file() else {}
+    trained = list((state.get("mixture") or {}).get("hands") or [])
 
     front = [
         "---",
@@ -87,7 +125,8 @@ def tokenizer_card(folder: str | Path, repo_id: str, training_data: list[str] | 
     body = [
         f"# {repo_id}",
         "",
-        "UniDexTok hand-state tokenizer: 22-DoF UDHM joint angles (radians, divided by pi) of any supported",
+        f"UniDexTok hand-state tokenizer: 22-DoF UDHM joint angles (radians; input normalisation "
+        f"`{config.get('input_norm', 'pi')}`) of any supported",
         (
             f"hand -> {config.get('num_tokens')} tokens x {config.get('num_groups')} groups of "
             f"{config.get('codebook_size')}-entry cosine codebooks, decoded back to angles."
@@ -95,13 +134,22 @@ def tokenizer_card(folder: str | Path, repo_id: str, training_data: list[str] | 
         "",
         "## Hands supported",
         "",
-        *([f"- `{h}`" for h in hands] or ["- (none listed)"]),
+        *(
+            [f"- `{h}`" + ("" if not trained or h in trained else " (in the vocabulary, not trained)") for h in hands]
+            or ["- (none listed)"]
+        ),  # fmt: skip
         '- any other hand through the shared "unknown hand" embedding (zero-shot)',
         "",
-        "## Training data",
-        "",
-        *([f"- `{d}`" for d in training_data] or ["- not recorded in this checkpoint"]),
-        "",
+        *(
+            training_section(state)
+            if state
+            else [
+                "## Training data",
+                "",
+                *([f"- `{d}`" for d in training_data] or ["- not recorded in this checkpoint"]),
+                "",
+            ]
+        ),
         "## Model",
         "",
         f"- preset: `{preset}`",

@@ -33,7 +33,15 @@ class UniDexTokConfig:
     format_version: int = FORMAT_VERSION
 
     # --- input / latent tokens -----------------------------------------------------------------
-    state_dim: int = UDHM_DIM  # 22 UDHM angles per hand, radians; normalised by a fixed pi
+    state_dim: int = UDHM_DIM  # 22 UDHM angles per hand, radians
+    # Input/output normalisation: "pi" divides angles by a fixed pi (paper); "range" maps each UDHM joint's
+    # `joint_range_rad` [lo, hi] onto [-1, 1] (departure, an option; training fills the ranges from the
+    # training hands' registered joint ranges). The loss is in angle / pi units either way.
+    input_norm: str = "pi"
+    joint_range_rad: list[list[float]] | None = None  # (22, 2) [lo, hi] per UDHM joint for input_norm="range"
+    # Departure (option): besides the normalised angles x, the encoder input gets sin / cos(pi/2 * 2^k * x) for
+    # k < fourier_octaves, so encoder groups can quantise fine phases of a joint (0 = the paper's linear input).
+    fourier_octaves: int = 0
     num_tokens: int = 8  # N latent tokens (paper: 8)
     hidden_dim: int = 512  # C token width (paper: 512)
 
@@ -55,7 +63,11 @@ class UniDexTokConfig:
     num_groups: int = 8  # K groups of codebook_dim / K = 32 dims (paper)
     codebook_size: int = 32  # entries per group codebook (paper)
     commitment_weight: float = 0.25  # beta on ||sg[q] - u||^2 (paper)
-    codebook_weight: float = 1.0  # weight of ||q - sg[u]||^2 (paper: 1)
+    codebook_weight: float = 1.0  # weight of ||q - sg[u]||^2 (paper: 1; unused with codebook_update="ema")
+    # How codes move: "gradient" of the codebook loss (paper) or "ema" (exponential moving average of the
+    # unit-norm encoder vectors assigned to each code, as in VQ-VAE-2; departure, an option).
+    codebook_update: str = "gradient"
+    ema_decay: float = 0.99  # decay of the EMA codebook statistics
     entropy_weight: float = 0.0  # optional code-entropy regulariser, off by default (paper: off)
     entropy_temperature: float = 0.1  # softmax temperature over cosine similarities for the entropy term
     # Departure: dead-code re-seeding is not described in the paper. Codes whose usage EMA falls
@@ -64,8 +76,11 @@ class UniDexTokConfig:
     usage_decay: float = 0.99  # EMA decay of per-code usage counts
 
     # --- reconstruction loss ------------------------------------------------------------------------
-    # MSE in normalised angle space over active DoFs (paper) + optional SmoothL1 (paper: weight unknown).
+    # In angle / pi units over active DoFs: MSE (paper) + optional SmoothL1 (paper: weight unknown) + optional
+    # L1 (departure: the reported metric is a mean absolute error).
+    mse_weight: float = 1.0
     smooth_l1_weight: float = 0.0
+    l1_weight: float = 0.0
 
     def __post_init__(self) -> None:
         if self.format_version != FORMAT_VERSION:
@@ -77,13 +92,28 @@ class UniDexTokConfig:
         if self.hidden_dim % self.num_heads != 0:
             raise ValueError(f"hidden_dim={self.hidden_dim} must be divisible by num_heads={self.num_heads}")
         if self.codebook_dim % self.num_groups != 0:
-            raise ValueError(
-                f"codebook_dim={self.codebook_dim} must be divisible by num_groups={self.num_groups}"
-            )
+            raise ValueError(f"codebook_dim={self.codebook_dim} must be divisible by num_groups={self.num_groups}")
+        if self.fourier_octaves < 0:
+            raise ValueError(f"fourier_octaves must be >= 0, got {self.fourier_octaves}")
         for name in ("num_tokens", "hidden_dim", "num_heads", "codebook_size", "state_dim"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         self.hand_names = list(self.hand_names)  # JSON round trip gives lists; keep one type
+        if self.input_norm not in ("pi", "range"):
+            raise ValueError(f"input_norm must be 'pi' or 'range', got {self.input_norm!r}")
+        if self.input_norm == "range":
+            rng = self.joint_range_rad
+            if rng is None or len(rng) != self.state_dim or any(len(r) != 2 or r[0] > r[1] for r in rng):
+                raise ValueError(
+                    f"input_norm='range' needs joint_range_rad: {self.state_dim} [lo, hi] pairs with lo <= hi "
+                    "(unidextok-train fills it from the training hands' joint ranges)"
+                )
+        if self.joint_range_rad is not None:
+            self.joint_range_rad = [[float(a), float(b)] for a, b in self.joint_range_rad]
+        if self.codebook_update not in ("gradient", "ema"):
+            raise ValueError(f"codebook_update must be 'gradient' or 'ema', got {self.codebook_update!r}")
+        if min(self.mse_weight, self.smooth_l1_weight, self.l1_weight) < 0:
+            raise ValueError("mse_weight, smooth_l1_weight and l1_weight must be >= 0")
         if len(set(self.hand_names)) != len(self.hand_names):
             raise ValueError(f"hand_names has duplicates: {self.hand_names}")
 
@@ -109,7 +139,12 @@ PRESETS: dict[str, UniDexTokConfig] = {
     # near zero error like MSE's. Measured on gesture data: 1.56 deg held-out MAE at step 1200 of 2400
     # with it vs 1.86 deg after a full 1200-step run without it (bench: /tmp experiments, see docs/tokenizer.md).
     "small": UniDexTokConfig(
-        num_tokens=8, hidden_dim=64, encoder_depth=2, decoder_depth=2, num_heads=4, mlp_ratio=2.0,
+        num_tokens=8,
+        hidden_dim=64,
+        encoder_depth=2,
+        decoder_depth=2,
+        num_heads=4,
+        mlp_ratio=2.0,
         smooth_l1_weight=1.0,
     ),
     "tiny": UniDexTokConfig(num_tokens=4, hidden_dim=64, encoder_depth=1, decoder_depth=1, num_heads=4),

@@ -6,20 +6,8 @@ import numpy as np
 import pytest
 
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
-from lerobot_unidextok.training import HandMixSampler, HandStates, TrainConfig, subsample_episodes
+from lerobot_unidextok.training import HandStates, TrainConfig, subsample_episodes
 from lerobot_unidextok.training.optim import lr_at, param_groups
-
-
-def test_sampler_follows_hand_weights():
-    hands = np.array(["human"] * 900 + ["inspire_rh56"] * 100)
-    balanced = HandMixSampler(hands, {}, 1.0, seed=0).sample(20_000)
-    assert abs((hands[balanced] == "human").mean() - 0.5) < 0.02
-    weighted = HandMixSampler(hands, {"human": 3.0}, 1.0, seed=0).sample(20_000)
-    assert abs((hands[weighted] == "human").mean() - 0.75) < 0.02
-    only = HandMixSampler(hands, {"inspire_rh56": 1.0}, 0.0, seed=0).sample(1000)
-    assert set(hands[only]) == {"inspire_rh56"}
-    with pytest.raises(ValueError, match="all hand weights are zero"):
-        HandMixSampler(hands, {}, 0.0, seed=0)
 
 
 def test_no_weight_decay_on_codebooks_embeddings_norms_biases():
