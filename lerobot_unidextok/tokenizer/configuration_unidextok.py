@@ -68,6 +68,9 @@ class UniDexTokConfig:
     # unit-norm encoder vectors assigned to each code, as in VQ-VAE-2; departure, an option).
     codebook_update: str = "gradient"
     ema_decay: float = 0.99  # decay of the EMA codebook statistics
+    # How the gradient passes the quantiser: "straight_through" copies it (paper), "rotation" rotates it with the
+    # rotation that maps the encoder vector onto its code (Fifty et al. 2024, the rotation trick; an option).
+    gradient_estimator: str = "straight_through"
     entropy_weight: float = 0.0  # optional code-entropy regulariser, off by default (paper: off)
     entropy_temperature: float = 0.1  # softmax temperature over cosine similarities for the entropy term
     # Departure: dead-code re-seeding is not described in the paper. Codes whose usage EMA falls
@@ -110,6 +113,10 @@ class UniDexTokConfig:
                 )
         if self.joint_range_rad is not None:
             self.joint_range_rad = [[float(a), float(b)] for a, b in self.joint_range_rad]
+        if self.gradient_estimator not in ("straight_through", "rotation"):
+            raise ValueError(
+                f"gradient_estimator must be 'straight_through' or 'rotation', got {self.gradient_estimator!r}"
+            )
         if self.codebook_update not in ("gradient", "ema"):
             raise ValueError(f"codebook_update must be 'gradient' or 'ema', got {self.codebook_update!r}")
         if min(self.mse_weight, self.smooth_l1_weight, self.l1_weight) < 0:

@@ -49,6 +49,7 @@ class FactorizedCosineVQ(nn.Module):
         self.dead_code_threshold = config.dead_code_threshold
         self.usage_decay = config.usage_decay
         self.ema = config.codebook_update == "ema"
+        self.rotation_trick = config.gradient_estimator == "rotation"
         self.ema_decay = config.ema_decay
 
         self.project_in = nn.Linear(config.hidden_dim, config.codebook_dim)
@@ -126,8 +127,15 @@ class FactorizedCosineVQ(nn.Module):
             entropy = per_sample - codebook_entropy
         loss = self.commitment_weight * commitment + self.codebook_weight * codebook + self.entropy_weight * entropy
 
-        # straight-through estimator (exact codes when no gradient is needed)
-        q_st = u + (q - u).detach() if torch.is_grad_enabled() else q  # (B, N, K, d)
+        # gradient estimator (exact codes when no gradient is needed); both give q in the forward pass
+        if not torch.is_grad_enabled():
+            q_st = q  # (B, N, K, d)
+        elif self.rotation_trick:  # R u with R (no gradient) the rotation taking unit u onto unit q
+            ud, qd = u.detach(), q.detach()
+            r = l2norm(ud + qd)  # (B, N, K, d)
+            q_st = u - 2 * r * (u * r).sum(-1, keepdim=True) + 2 * qd * (u * ud).sum(-1, keepdim=True)
+        else:  # straight-through
+            q_st = u + (q - u).detach()  # (B, N, K, d)
         quantized = self.project_out(q_st.flatten(-2))  # (B, N, C)
 
         self._track_usage(indices, u)
