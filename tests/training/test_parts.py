@@ -28,7 +28,7 @@ def test_warmup_then_cosine():
     assert lrs[0] == pytest.approx(1e-5) and lrs[99] == pytest.approx(1e-3)
     assert lrs[100] == pytest.approx(1e-3)
     assert lrs[550] == pytest.approx(1e-4 + 0.9e-3 * 0.5 * (1 + math.cos(math.pi * 0.5)))
-    assert all(a >= b for a, b in zip(lrs[100:], lrs[101:]))
+    assert all(a >= b for a, b in zip(lrs[100:], lrs[101:], strict=False))
     assert lr_at(1000, 1000, 1e-3, 100, 0.1) == pytest.approx(1e-4)
 
 
