@@ -30,10 +30,15 @@ def _files(cfg, name: str) -> dict:
     assert (folder / f"{name}.md").read_text().startswith(f"# {name}")
     result = json.loads((folder / f"{name}.json").read_text())
     assert PROVENANCE_KEYS <= set(result["provenance"])
-    assert result["provenance"]["preset"] == "tiny" and result["provenance"]["seed"] == cfg.seed
+    assert (
+        result["provenance"]["preset"] == "tiny"
+        and result["provenance"]["seed"] == cfg.seed
+    )
     assert result["provenance"]["data"]["synthetic_sample"] is True
     for png in result.get("figures", {}).values():
-        assert Path(png).is_file() and Path(png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert (
+            Path(png).is_file() and Path(png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        )
         assert Path(png).stat().st_size < 300_000
     return result
 
@@ -50,12 +55,19 @@ def test_main_table(tiny_cfg, main_result):
     assert by[("uniform binning", "human")]["bits_per_state"] == 176
     assert by[("uniform binning", "human")]["tokens_per_state"] == 22
     assert by[("UniDexTok", "human")]["bits_per_state"] == 4 * 8 * 5
-    assert by[("FSQ", "human")]["bits_per_state"] == by[("RVQ", "human")]["bits_per_state"] == 320
+    assert (
+        by[("FSQ", "human")]["bits_per_state"]
+        == by[("RVQ", "human")]["bits_per_state"]
+        == 320
+    )
     # binning's error is bounded by half a bin: well under a degree on every hand
     for hand in hands:
         assert by[("uniform binning", hand)]["mpjae_deg"] < 1.0
         for m in methods:
-            assert math.isfinite(by[(m, hand)]["mpjae_deg"]) and by[(m, hand)]["mpjpe_mm"] >= 0
+            assert (
+                math.isfinite(by[(m, hand)]["mpjae_deg"])
+                and by[(m, hand)]["mpjpe_mm"] >= 0
+            )
     assert {
         "rate_distortion_mpjae",
         "per_joint_errors",
@@ -76,14 +88,19 @@ def test_tokenizer_cache_is_reused(tiny_cfg, main_result):
     data = load_data(tiny_cfg)  # the converted sample cache is valid: no new conversion
     fit, select = selection_split(data.train, tiny_cfg.seed)
     _, info = trained_unidextok(tiny_cfg, "all_hands", fit, select)
-    assert info["cached"] is True and info["dir"] == main_result["unidextok_training"]["dir"]
+    assert (
+        info["cached"] is True
+        and info["dir"] == main_result["unidextok_training"]["dir"]
+    )
     _, other = trained_unidextok(
         tiny_cfg, "no_human", fit.without("human"), select.without("human")
     )  # other rows: new model
     assert other["cached"] is False and other["dir"] != info["dir"]
     from dataclasses import replace
 
-    _, changed = trained_unidextok(replace(tiny_cfg, lr=tiny_cfg.lr / 2), "all_hands", fit, select)  # other settings
+    _, changed = trained_unidextok(
+        replace(tiny_cfg, lr=tiny_cfg.lr / 2), "all_hands", fit, select
+    )  # other settings
     assert changed["cached"] is False and changed["dir"] != info["dir"]
 
 
@@ -92,7 +109,9 @@ def test_ablation_human(tiny_cfg, main_result):
     _files(tiny_cfg, "ablation_human")
     hands = [r["hand"] for r in result["rows"]]
     assert "human" not in hands and hands[-1] == "overall"
-    assert result["training"]["with human data"]["cached"] is True  # the main table's tokenizer
+    assert (
+        result["training"]["with human data"]["cached"] is True
+    )  # the main table's tokenizer
     assert "human" not in result["training"]["without human data"]["train_hands"]
     for r in result["rows"]:
         w, wo = r["with human data"]["mpjae_deg"], r["without human data"]["mpjae_deg"]
@@ -102,9 +121,14 @@ def test_ablation_human(tiny_cfg, main_result):
 def test_ablation_mapping(tiny_cfg, main_result):
     result = ablation_mapping.run(tiny_cfg)
     _files(tiny_cfg, "ablation_mapping")
-    assert result["layout_check_max_abs_rad"] < 1e-6  # append-pad rows permuted back == semantic rows
+    assert (
+        result["layout_check_max_abs_rad"] < 1e-6
+    )  # append-pad rows permuted back == semantic rows
     assert result["training"]["semantic"]["cached"] is True
-    assert result["training"]["append_pad"]["train_rows"] == result["training"]["semantic"]["train_rows"]
+    assert (
+        result["training"]["append_pad"]["train_rows"]
+        == result["training"]["semantic"]["train_rows"]
+    )
     assert {"semantic", "append_pad"} <= set(result["rows"][0])
 
 
@@ -152,10 +176,14 @@ def test_probe(tiny_cfg, main_result, real_data_dir):
     assert [r["feature"] for r in sg["rows"]] == list(probe.FEATURES)
     for r in sg["rows"]:
         assert 0 <= r["linear_probe"] <= 1 and 0 <= r["knn_top1"] <= r["knn_top3"] <= 1
-    presets = real_data_dir / "linkerhand-ros2-sdk" / "linkerhand_gui_preset_actions.json"
+    presets = (
+        real_data_dir / "linkerhand-ros2-sdk" / "linkerhand_gui_preset_actions.json"
+    )
     if not presets.is_file():
         pytest.skip("LinkerHand preset file absent")
-    real = probe.run(replace(tiny_cfg, linkerhand_presets=str(presets)))["linkerhand_presets"]
+    real = probe.run(replace(tiny_cfg, linkerhand_presets=str(presets)))[
+        "linkerhand_presets"
+    ]
     assert {"linkerhand_l10", "linkerhand_l20"} <= set(real["hands"]) and {
         "open",
         "fist",
@@ -181,11 +209,19 @@ def test_results_page(tiny_cfg, main_result, tmp_path):
         "probe",
     ):
         assert f"## {name}" in text and f"python experiments/{name}.py" in text
-    result = json.loads((Path(tiny_cfg.output_root) / "main_table" / "main_table.json").read_text())
+    result = json.loads(
+        (Path(tiny_cfg.output_root) / "main_table" / "main_table.json").read_text()
+    )
     first = result["rows"][0]
-    assert f"| {first['hand']} | {first['method']} | {first['tokens_per_state']} |" in text  # numbers from the JSON
+    assert (
+        f"| {first['hand']} | {first['method']} | {first['tokens_per_state']} |" in text
+    )  # numbers from the JSON
     assert result["provenance"]["git_commit"][:12] in text
-    links = [line.split("](")[1].rstrip(")") for line in text.splitlines() if line.startswith("![")]
+    links = [
+        line.split("](")[1].rstrip(")")
+        for line in text.splitlines()
+        if line.startswith("![")
+    ]
     assert links and all((page.parent / link).is_file() for link in links)
 
 
