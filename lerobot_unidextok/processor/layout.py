@@ -24,7 +24,7 @@ from lerobot_unidextok.state_layout import find_udhm_blocks, passthrough_indices
 CONVERSION_META = Path("meta") / "unidextok_conversion.json"
 
 
-def _feature_names(feature: dict) -> list[str]:
+def feature_names(feature: dict) -> list[str]:
     """`names` of a LeRobot feature as a flat list (LeRobot also writes `{"axes": [...]}` or `[[...]]`)."""
     names = feature.get("names") or []
     if isinstance(names, dict):
@@ -163,7 +163,7 @@ def hand_layout_from_dataset(root: str | Path) -> HandLayout:
     features = _read_info(root)["features"]
     if OBS_STATE not in features:
         raise ValueError(f"{root} lacks '{OBS_STATE}'; convert it to UDHM with unidextok-convert")
-    return HandLayout.from_state_names(_feature_names(features[OBS_STATE]), dataset_hand_types(root))
+    return HandLayout.from_state_names(feature_names(features[OBS_STATE]), dataset_hand_types(root))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -256,7 +256,7 @@ class NativeLayout:
         features = _read_info(root)["features"]
         if key not in features:
             return None
-        names = _feature_names(features[key])
+        names = feature_names(features[key])
         if not find_udhm_blocks(names):
             return None
         meta_path = root / CONVERSION_META
