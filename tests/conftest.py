@@ -67,3 +67,11 @@ def g1_like(tmp_path_factory) -> dict:
     from robot_udhm import write_g1_like_dataset
 
     return write_g1_like_dataset(tmp_path_factory.mktemp("g1_like") / "ds")
+
+
+@pytest.fixture(scope="session")
+def g1_like_hands(tmp_path_factory) -> dict:
+    """The hands-only variant of `g1_like`: state and action are the two Inspire UDHM blocks (44 wide)."""
+    from robot_udhm import write_g1_like_dataset
+
+    return write_g1_like_dataset(tmp_path_factory.mktemp("g1_like_hands") / "ds", arms=False)
