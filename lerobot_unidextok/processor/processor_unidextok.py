@@ -223,11 +223,13 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             tok.to(rows.device)
         if self._hand_ids.device != rows.device:
             self._hand_ids = self._hand_ids.to(rows.device)
-        ids = self._hand_ids.repeat(b)  # (B*H,) one id per row, block order within each frame
+        ids = self._hand_ids if b == 1 else self._hand_ids.repeat(b)  # (B*H,) one id per row, block order
         codes = tok.encode(rows.reshape(b * h, UDHM_DIM), ids)  # (B*H, N, K)
         if self.representation == "dequantized":
-            active = self._active.to(rows.device).repeat(b, 1)  # (B*H, 22)
-            view = tok.decode(codes, ids) * active  # (B*H, 22) radians, inactive slots zero
+            if self._active.device != rows.device:
+                self._active = self._active.to(rows.device)
+            decoded = tok.decode(codes, ids).reshape(b, h, UDHM_DIM)  # (B, H, 22) radians
+            view = decoded * self._active  # (B, H, 22), slots a hand does not have set to zero
         else:
             view = tok.quantizer.indices_to_codes(codes).flatten(1)  # (B*H, N*K*d)
         return codes.reshape(b, -1), view.reshape(b, -1).float()
