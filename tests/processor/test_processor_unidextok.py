@@ -327,6 +327,14 @@ def test_token_preview_shows_codes_and_decoded_state(step, states):
     assert "input deg" in text and "decoded deg" in text
 
 
+def test_token_preview_of_a_whole_robot_state(robot_step, step, states):
+    """The preview reshaped the whole state into hand rows, so arm columns showed up as hand angles."""
+    from lerobot_unidextok.processor import token_preview
+
+    whole = torch.cat([torch.full((2, 14), 0.5), states[:2]], dim=1)  # (2, 58)
+    assert token_preview(robot_step, whole) == token_preview(step, states[:2])
+
+
 def test_layout_refuses_a_dataset_that_mixes_hands(tmp_path):
     """A converted LinkerHand sample alternates L10 and L20 episodes: one fixed layout would silently
     tokenise L20 frames as L10, so the layout reader must refuse and name both hands."""
