@@ -33,17 +33,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fixtures
 from robot_udhm import ARM_NAMES, INSPIRE, STATE_NAMES, inspire_states
 
 
-def median_ms(fn, repeats: int) -> tuple[float, float]:
-    """Median (CPU ms, wall ms) per call; CPU time is the clock that survives shared cores."""
-    for _ in range(2):  # warm-up
+def median_ms(fns, repeats: int) -> list[tuple[float, float]]:
+    """Median (CPU ms, wall ms) per call of each function, calls interleaved (f0, f1, f0, f1, ...) so every
+    function sees the same load on shared cores; CPU time is the clock that survives them best."""
+    for fn in fns:  # warm-up
         fn()
-    cpu, wall = [], []
+        fn()
+    cpu, wall = [[] for _ in fns], [[] for _ in fns]
     for _ in range(repeats):
-        c0, t0 = time.process_time(), time.perf_counter()
-        fn()
-        cpu.append(time.process_time() - c0)
-        wall.append(time.perf_counter() - t0)
-    return 1e3 * statistics.median(cpu), 1e3 * statistics.median(wall)
+        for i, fn in enumerate(fns):
+            c0, t0 = time.process_time(), time.perf_counter()
+            fn()
+            cpu[i].append(time.process_time() - c0)
+            wall[i].append(time.perf_counter() - t0)
+    return [(1e3 * statistics.median(c), 1e3 * statistics.median(w)) for c, w in zip(cpu, wall, strict=True)]
 
 
 def main() -> None:
@@ -93,8 +96,7 @@ def main() -> None:
 
             repeats = args.repeats if batch == 1 else args.repeats_large
             with torch.inference_mode():
-                step_ms = median_ms(run_step, repeats)
-                bare_ms = median_ms(run_bare, repeats)
+                step_ms, bare_ms = median_ms([run_step, run_bare], repeats)
             (step_cpu, step_wall), (bare_cpu, _) = step_ms, bare_ms
             n_states = batch * args.num_hands
             print(f"{preset:<7} {batch:>5} {n_states:>6} | {step_cpu:>11.3f} {step_cpu / n_states:>12.4f} "
