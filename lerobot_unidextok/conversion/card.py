@@ -25,6 +25,12 @@ def _short(settings: dict) -> dict:
     return out
 
 
+def lerobot_train_episodes_flag(num_episodes: int, test: list[int]) -> str:
+    """The `lerobot-train` flag that trains on every episode but the test ones (it ignores `splits`)."""
+    train = [i for i in range(num_episodes) if i not in set(test)]
+    return f"--dataset.episodes='{json.dumps(train)}'"
+
+
 def _test_episodes_text(test: list[int]) -> str:
     shown = ", ".join(str(i) for i in test[:20]) + (", ..." if len(test) > 20 else "")
     return f"{len(test)} episode(s): [{shown}]"
@@ -66,8 +72,13 @@ def render_card(
         f"- **Episodes / frames**: {num_episodes} / {num_frames}, in source order (each episode's source is "
         "recorded in `meta/unidextok_conversion.json` `episodes`)",
         f"- **Test episodes** (`test_episodes` in `meta/unidextok_conversion.json`): {_test_episodes_text(test)}. "
-        "`meta/info.json` keeps LeRobot's `splits` (`train` = every episode) because `lerobot-train` ignores "
-        "splits: pass the other episodes with `--dataset.episodes='[...]'` to keep the test ones out of training.",
+        "`meta/info.json` keeps LeRobot's `splits` (`train` = every episode); `lerobot-train` ignores splits, so "
+        "keep the test episodes out of training with "
+        + (
+            f"`{lerobot_train_episodes_flag(num_episodes, test)}`."
+            if num_episodes <= 200
+            else "`--dataset.episodes='[...]'` listing the other episodes."
+        ),
         f"- **Split rule**: {settings.get('split_method', '')} (test fraction {settings.get('test_fraction')})",
         "",
         "## Features",

@@ -17,7 +17,6 @@ pointing at its own `[from_timestamp, to_timestamp)` segment of it (no decoding,
 from __future__ import annotations
 
 import logging
-import os
 import shutil
 from copy import deepcopy
 from pathlib import Path
@@ -60,12 +59,9 @@ NUMERIC_STATS_EXCLUDED = ("image", "video", "string")  # dtypes whose stats come
 
 
 def _copy_file(src: Path, dst: Path) -> None:
-    """Hard link when source and target share a file system, else a byte copy (never re-encoded)."""
+    """A byte copy of a source video file (never decoded or re-encoded)."""
     dst.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        os.link(src, dst)
-    except OSError:
-        shutil.copyfile(src, dst)
+    shutil.copyfile(src, dst)
 
 
 class UdhmDatasetWriter:
