@@ -7,9 +7,9 @@ reader in `converters/<source>.py`:
 |------------|-------------------------------------------------------------------------------------|
 | dexycb     | `<subject>/<capture>/{meta.yml, pose.npz, <serial>/labels_%06d.npz}` + calibration   |
 | egodex     | `<task>/<i>.hdf5`: `transforms/<joint>` (N,4,4) ARKit world frame, `confidences/`    |
-| let        | `<task>/<episode>.json`: ROS topic fields of `/control_robot_hand_position`, `/dexhand/state` |
+| let        | ROS 1 bags `<task>-P4-dex_hand|Linker_Hand_L6/<name>.bag` + annotation sidecar `<name>.json` |
 | dexora     | LeRobot v2.1, 39-D state/action with two XHand1 hands in radians                     |
-| linkerhand | `<task>/<episode>.json`: `/cb_{left,right}_hand_state` and `_control_cmd`, 0-255      |
+| linkerhand | ROS 2 bag folders `<task>/episode_XXXX/` (sqlite3 or MCAP) of the SDK topics, 0-255   |
 | lerobot    | LeRobot v2.1 like a Unitree G1 + Inspire dataset: 26-D, nested names, hands in [0, 1] |
 
 OakInk-v2 stores MANO parameters only; making them needs the licensed MANO model, so no sample is
@@ -48,6 +48,7 @@ TRUTH_FILE = "udhm_truth.npz"  # the UDHM angles each sample was generated from,
 
 # Hand spec names (lerobot_unidextok.hands registry) used by the robot samples.
 HAND_LET = "brainco_revo1"
+HAND_LINKERHAND_L6 = "linkerhand_l6"
 HAND_DEXORA = "xhand1"
 HAND_LINKERHAND = {"L10": "linkerhand_l10", "L20": "linkerhand_l20"}
 HAND_G1 = "inspire_rh56_unitree"
@@ -177,14 +178,17 @@ _README_FORMS = {
     "egodex": "EgoDex layout: <task>/<i>.hdf5 with transforms/<joint> (N,4,4) ARKit world frame (m), "
     "transforms/camera, camera/intrinsic, confidences/<joint> (left out of some files on purpose), and the "
     "task / llm_description attributes. No mp4 videos.",
-    "let": "LET (Kuavo + BrainCo) as a JSON dump of the ROS topics per episode: "
-    "/control_robot_hand_position (left/right_hand_position, 6 x 0-100, 0 = open) and /dexhand/state "
-    "(12 positions, same 0-100 scale, which is UNCONFIRMED for real LET), with header stamps.",
+    "let": "LET (Kuavo 4 Pro) ROS 1 bags in <task>-P4-dex_hand/ (BrainCo) and <task>-P4-Linker_Hand_L6/ folders, "
+    "one gripper bag in a -P4-leju_claw/ folder: /control_robot_hand_position (kuavo_msgs/robotHandPosition, "
+    "uint8 6 + 6, 0 = open, 100 = closed, ~30 Hz), /dexhand/state (JointState l_thumb..r_pinky, same scale, "
+    "~100 Hz), /sensors_data_raw (kuavo_msgs/sensorsData, arms in joint_q[12:26], rad), /kuavo_arm_traj "
+    "(JointState, degrees); jittered stamps, dropped messages; a <bag>.json annotation sidecar per bag.",
     "dexora": "Dexora as a LeRobot v2.1 dataset: 39-D observation.state/action (arms, two XHand1 hands in "
     "radians, head, spine), names in meta/info.json, 20 fps.",
-    "linkerhand": "LinkerHand-Open-World as a JSON dump of the LinkerHand ROS topics per episode: "
-    "/cb_<side>_hand_state and /cb_<side>_hand_control_cmd, one 0-255 value per joint (255 = open); "
-    "even episodes L10 hands (10 values), odd episodes L20 (20 values), named by hand_model.",
+    "linkerhand": "LinkerHand ROS 2 SDK bags (sqlite3; every third episode MCAP): /cb_<side>_hand_state "
+    "(JointState, 0-255 per joint, 255 = open, ~60 Hz), /cb_<side>_hand_control_cmd (~30 Hz), "
+    "/cb_<side>_hand_state_arc (radians) and /cb_<side>_hand_info (JSON hand_joint); even episodes L10 "
+    "hands, odd episodes L20; jittered stamps, dropped messages.",
     "lerobot": "A generic LeRobot v2.1 dataset shaped like a Unitree G1 + two Inspire hands dataset: "
     "26-D state/action with nested names, arms in radians, hands normalised to [0, 1] (1 = open), 30 fps.",
 }
@@ -478,69 +482,61 @@ def _write_egodex(folder: Path, spec: SampleSpec) -> Labels:
 
 
 # ---------------------------------------------------------------------------------------------
-# LET (BrainCo hands on Kuavo), ROS topic fields as JSON
+# LET (Kuavo 4 Pro + BrainCo or LinkerHand L6 hands): ROS 1 bags, see conversion.sample_bags
 # ---------------------------------------------------------------------------------------------
 
-LET_FPS = 30.0
-LET_TASKS = ("pick_fruit-P4-dex_hand", "pour_water-P4-dex_hand")
-LET_JOINTS = ("thumb", "thumb_aux", "index", "middle", "ring", "pinky")
+LET_FPS = 30.0  # rate of the generating gesture track (the bags carry their own, jittered rates)
+LET_TASKS = ("pick_fruit-P4-dex_hand", "pour_water-P4-dex_hand", "clean_desk-P4-Linker_Hand_L6")
+LET_CLAW_TASK = "sort_parts-P4-leju_claw"  # gripper recordings sit next to the dexterous ones; not converted
+
+
+def _kuavo_scale(hand: str, angles_rad: np.ndarray, side: str) -> np.ndarray:
+    """Kuavo's hand topics carry 0-100, 0 = open: BrainCo natively; an L6 as 100 * (1 - sdk / 255)."""
+    if hand == HAND_LINKERHAND_L6:
+        return 100.0 * (1.0 - _to_native(hand, angles_rad, side) / 255.0)
+    return _to_native(hand, angles_rad, side)
 
 
 def _write_let(folder: Path, spec: SampleSpec) -> Labels:
+    from lerobot_unidextok.conversion.sample_bags import sample_at, write_let_bag, write_let_sidecar
+
     labels: Labels = {}
     for ep in _episodes(spec, "let"):
         rng = _rng("let", spec, ep)
         n = _num_frames(rng, spec)
         task = LET_TASKS[ep % len(LET_TASKS)]
+        hand = HAND_LINKERHAND_L6 if task.endswith("Linker_Hand_L6") else HAND_LET
         (folder / task).mkdir(exist_ok=True)
         tracks = _robot_tracks(rng, n, LET_FPS, ("left", "right"))
-        command = {s: _to_native(HAND_LET, tracks[s].angles_rad, s) for s in tracks}  # (T, 6) 0-100
-        state = {s: np.clip(_first_order_lag(command[s], LET_FPS, 0.08), 0.0, 100.0) for s in tracks}
-        stamp0 = 1_700_000_000.0 + ep * 600.0
-        stamps_cmd = stamp0 + np.arange(n) / LET_FPS
-        stamps_state = stamps_cmd + rng.uniform(0.001, 0.01)  # separate clock, slight offset
-        detail = task.split("-")[0].replace("_", " ")
-        payload = {
-            "synthetic": True,
-            "note": SYNTHETIC_NOTE,
-            "format": "unidextok-let-json/1",
-            "task": task,
-            "annotation": {
-                "marks": [
-                    {
-                        "skillAtomic": "grasp",
-                        "enSkillDetail": f"{detail}: grasp",
-                        "startTime": stamp0,
-                        "endTime": stamp0 + n / LET_FPS / 2,
-                    },
-                    {
-                        "skillAtomic": "release",
-                        "enSkillDetail": f"{detail}: release",
-                        "startTime": stamp0 + n / LET_FPS / 2,
-                        "endTime": stamp0 + n / LET_FPS,
-                    },
-                ]
-            },
-            "topics": {
-                "/control_robot_hand_position": {
-                    "stamp_s": stamps_cmd.tolist(),
-                    "left_hand_position": np.round(command["left"]).astype(int).tolist(),
-                    "right_hand_position": np.round(command["right"]).astype(int).tolist(),
-                },
-                "/dexhand/state": {
-                    "stamp_s": stamps_state.tolist(),
-                    "name": [f"left_{j}" for j in LET_JOINTS] + [f"right_{j}" for j in LET_JOINTS],
-                    "position": np.round(np.concatenate([state["left"], state["right"]], axis=1), 2).tolist(),
-                    "velocity": np.round(
-                        np.gradient(np.concatenate([state["left"], state["right"]], axis=1), axis=0) * LET_FPS, 2
-                    ).tolist(),
-                    "effort": np.round(rng.normal(0.2, 0.05, (n, 12)), 3).tolist(),
-                },
-            },
-        }
-        name = f"episode_{ep:04d}.json"
-        (folder / task / name).write_text(json.dumps(payload))
-        labels[f"{task}/{name}"] = _label_entry(tracks)
+        start = 1_700_000_000.0 + ep * 600.0
+        track_t = start + np.arange(n) / LET_FPS
+        native = {s: _kuavo_scale(hand, tracks[s].angles_rad, s) for s in tracks}
+        arms = _arm_motion(rng, n, LET_FPS, 14)
+        name = f"{task.split('-')[0]}_{ep:04d}.bag"
+        write_let_bag(
+            folder / task / name,
+            rng,
+            start,
+            (n - 1) / LET_FPS,
+            lambda t, native=native, track_t=track_t: {s: sample_at(track_t, native[s], t) for s in native},
+            lambda t, arms=arms, track_t=track_t: sample_at(track_t, arms, t),
+        )
+        write_let_sidecar((folder / task / name).with_suffix(".json"), task, start, (n - 1) / LET_FPS)
+        labels[f"{task}/{name}"] = _label_entry(tracks) | {"start_s": start, "hand": hand}
+    # one gripper recording, which the reader must skip
+    rng = _rng("let_claw", spec, 0)
+    (folder / LET_CLAW_TASK).mkdir()
+    n = 40
+    grip = {s: np.full((n, 6), 50.0) for s in ("left", "right")}
+    track_t = 1_690_000_000.0 + np.arange(n) / LET_FPS
+    write_let_bag(
+        folder / LET_CLAW_TASK / "sort_parts_0000.bag",
+        rng,
+        track_t[0],
+        (n - 1) / LET_FPS,
+        lambda t: {s: sample_at(track_t, grip[s], t) for s in grip},
+        lambda t: np.zeros((len(t), 14)),
+    )
     return labels
 
 
@@ -696,7 +692,7 @@ def _write_dexora(folder: Path, spec: SampleSpec) -> Labels:
 
 
 # ---------------------------------------------------------------------------------------------
-# LinkerHand-Open-World, ROS topic fields as JSON
+# LinkerHand: ROS 2 bags of the SDK topics (sqlite3 and MCAP), see conversion.sample_bags
 # ---------------------------------------------------------------------------------------------
 
 LINKERHAND_FPS = 30.0
@@ -704,7 +700,11 @@ LINKERHAND_TASKS = ("grasp_bottle", "handover_cube")
 
 
 def write_linkerhand_episodes(folder: Path, spec: SampleSpec, models: tuple[str, ...] = ("L10", "L20")) -> Labels:
-    """LinkerHand JSON episodes; episode i uses hand model `models[i % len(models)]` (`L10`, `L20`)."""
+    """LinkerHand ROS 2 bag episodes; episode i uses hand model `models[i % len(models)]` and every third
+    episode is stored as MCAP instead of sqlite3."""
+    from lerobot_unidextok import hands as hand_registry
+    from lerobot_unidextok.conversion.sample_bags import sample_at, write_linkerhand_bag
+
     unknown = [m for m in models if m not in HAND_LINKERHAND]
     if not models or unknown:
         raise ValueError(
@@ -719,27 +719,22 @@ def write_linkerhand_episodes(folder: Path, spec: SampleSpec, models: tuple[str,
         task = LINKERHAND_TASKS[ep % len(LINKERHAND_TASKS)]
         (folder / task).mkdir(parents=True, exist_ok=True)
         tracks = _robot_tracks(rng, n, LINKERHAND_FPS, ("left", "right"))
-        stamps = 1_720_000_000.0 + ep * 600.0 + np.arange(n) / LINKERHAND_FPS
-        topics: dict[str, dict] = {}
-        for side in ("left", "right"):
-            cmd = np.round(_to_native(hand, tracks[side].angles_rad, side))
-            state = np.clip(np.round(_first_order_lag(cmd, LINKERHAND_FPS, 0.05)), 0, 255)
-            topics[f"/cb_{side}_hand_control_cmd"] = {"stamp_s": stamps.tolist(), "position": cmd.astype(int).tolist()}
-            topics[f"/cb_{side}_hand_state"] = {
-                "stamp_s": (stamps + 0.004).tolist(),
-                "position": state.astype(int).tolist(),
-            }
-        payload = {
-            "synthetic": True,
-            "note": SYNTHETIC_NOTE,
-            "format": "unidextok-linkerhand-json/1",
-            "hand_model": model,
-            "task": task.replace("_", " "),
-            "topics": topics,
-        }
-        name = f"episode_{ep:04d}.json"
-        (folder / task / name).write_text(json.dumps(payload))
-        labels[f"{task}/{name}"] = _label_entry(tracks)
+        native = {s: _to_native(hand, tracks[s].angles_rad, s) for s in tracks}
+        start = 1_720_000_000.0 + ep * 600.0
+        track_t = start + np.arange(n) / LINKERHAND_FPS
+        spec_h = hand_registry.get(hand)
+        name = f"episode_{ep:04d}"
+        write_linkerhand_bag(
+            folder / task / name,
+            rng,
+            start,
+            (n - 1) / LINKERHAND_FPS,
+            model,
+            lambda t, native=native, track_t=track_t: {s: sample_at(track_t, native[s], t) for s in native},
+            lambda raw, spec_h=spec_h: {s: np.asarray(spec_h.to_radians(v, side=s)) for s, v in raw.items()},
+            mcap=ep % 3 == 2,
+        )
+        labels[f"{task}/{name}"] = _label_entry(tracks) | {"start_s": start, "hand_model": model}
     return labels
 
 

@@ -40,9 +40,9 @@ def teardown_module():
 def g1_sample(tmp_path_factory):
     from lerobot_unidextok.conversion.samples import write_samples
 
-    return write_samples(tmp_path_factory.mktemp("raw"), sources=["lerobot"], episodes_per_source=2, frames_per_episode=20)[
-        "lerobot"
-    ]
+    return write_samples(
+        tmp_path_factory.mktemp("raw"), sources=["lerobot"], episodes_per_source=2, frames_per_episode=20
+    )["lerobot"]
 
 
 def test_unknown_hand_fails_once_before_reading(tmp_path):

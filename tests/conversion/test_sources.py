@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -95,16 +96,56 @@ def test_egodex(samples):
     assert confidences_missing == 2  # the third file was written without confidences/
 
 
-def test_let(samples):
+def _truth(folder) -> dict:
+    return dict(np.load(folder / "udhm_truth.npz"))
+
+
+def _udhm_error_rad(h, truth: np.ndarray) -> float:
+    """Mean |UDHM(native action) - truth| over the hand's active slots, truth projected on what the hand can
+    reach. The frames must line up: the generating track shifted by one frame either way fits worse."""
+    spec = hands.get(h.hand)
+    got = spec.to_udhm(h.action_native, side=h.side)
+    truth = spec.to_udhm(spec.from_udhm(truth.astype(np.float64), side=h.side), side=h.side)
+    active = spec.mask("semantic")
+    n = min(len(got), len(truth)) - 2
+    errors = [float(np.abs(got[1 : n + 1, active] - truth[1 + s : n + 1 + s, active]).mean()) for s in (-1, 0, 1)]
+    assert errors[1] == min(errors), errors  # no frame offset, no stretched time axis
+    return errors[1]
+
+
+def test_let_bags(samples):
+    """LET from its real form, ROS 1 bags: jittered stamps resampled onto an exact 30 fps grid, hands routed
+    by folder (dex_hand -> BrainCo, Linker_Hand_L6 -> LinkerHand L6), arms kept, gripper bags skipped.
+    Catches the old reader, which only read a per-episode JSON no upstream tool writes."""
+    labels, truth = _labels(samples["let"]), _truth(samples["let"])
     for ep in _read_all("let", samples["let"]):
-        assert [h.side for h in ep.hands] == ["left", "right"] and ep.fps == pytest.approx(30.0)
-        assert "grasp" in ep.task
+        key = "/".join(ep.source_file.split("/")[-2:])
+        folder = key.split("/")[0]
+        expected = "linkerhand_l6" if folder.endswith("Linker_Hand_L6") else "brainco_revo1"
+        assert [h.side for h in ep.hands] == ["left", "right"] and ep.fps == 30.0
+        assert "grasp" in ep.task and labels[key]["hand"] == expected
+        rate = ep.source_episode["measured_hz"]["/control_robot_hand_position"]
+        assert abs(rate - 30.0) > 0.02  # the stamps really jitter: a stamp-derived fps would not be an integer
+        assert ep.passthrough["observation.state"].values.shape == (ep.num_frames, 14)
+        assert ep.passthrough["observation.state"].names[0] == "zarm_l1_link"
+        assert np.abs(ep.passthrough["observation.state"].values).max() < np.pi  # radians, not degrees
+        assert np.abs(ep.passthrough["action"].values).max() < np.pi  # /kuavo_arm_traj degrees converted
         for h in ep.hands:
-            assert h.hand == "brainco_revo1" and h.state_native.shape == (ep.num_frames, 6)
-            assert h.action_native.shape == h.state_native.shape
-            assert h.state_native.min() >= 0 and h.state_native.max() <= 100
-            assert np.array_equal(h.action_native, np.round(h.action_native))  # integer 0-100 commands
-            hands.get(h.hand).to_udhm(h.state_native, side=h.side)  # in range for the hand spec
+            assert h.hand == expected and h.state_native.shape == (ep.num_frames, 6)
+            assert h.action_native.shape == h.state_native.shape and h.state_columns[0] == f"{h.side[0]}_thumb"
+            lo, hi = (0, 255) if expected == "linkerhand_l6" else (0, 100)
+            assert h.state_native.min() >= lo and h.state_native.max() <= hi
+            assert _udhm_error_rad(h, truth[f"{key}|{h.side}"]) < 0.012  # uint8 steps of the 0-100 scale
+    assert not any("leju_claw" in r for r in get_source("let")().list_episodes(samples["let"]))
+
+
+def test_let_nearest_interpolation_option(samples):
+    src = get_source("let")(interpolation="nearest")
+    ref = src.list_episodes(samples["let"])[0]
+    a, b = src.read_episode(ref), get_source("let")().read_episode(ref)
+    assert a.num_frames == b.num_frames and not np.array_equal(a.hands[0].state_native, b.hands[0].state_native)
+    with pytest.raises(ValueError, match="interpolation must be one of"):
+        get_source("let")(interpolation="cubic")
 
 
 def test_dexora(samples):
@@ -150,18 +191,25 @@ def test_dexora_slices_by_name_not_position(samples, tmp_path):
         np.testing.assert_array_equal(a.action_native, b.action_native)
 
 
-def test_linkerhand_json_l10_and_l20(samples, tmp_path):
+def test_linkerhand_ros2_bags_l10_and_l20(samples, tmp_path):
+    """LinkerHand from ROS 2 bags (sqlite3 and MCAP) of the SDK topics, model from /cb_<side>_hand_info.
+    Catches the old reader, which only read invented per-episode JSON."""
     episodes = _read_all("linkerhand", samples["linkerhand"])
+    truth = _truth(samples["linkerhand"])
+    storages = set()
     for ep in episodes:
-        number = int(ep.source_file.rsplit("_", 1)[1].split(".")[0])  # episode_0003.json -> 3
+        number = int(ep.source_file.rsplit("_", 1)[1])  # episode_0003 -> 3
         hand, width = ("linkerhand_l10", 10) if number % 2 == 0 else ("linkerhand_l20", 20)  # models alternate
-        assert [h.side for h in ep.hands] == ["left", "right"] and ep.task
-        assert ep.extra["hand_model"] == ("L10" if width == 10 else "L20")
+        assert [h.side for h in ep.hands] == ["left", "right"] and ep.task and ep.fps == 30.0
+        assert ep.extra["hand_model"] == ("L10,L10" if width == 10 else "L20,L20")
+        storages |= {p.suffix for p in Path(ep.source_file).iterdir() if p.suffix in (".db3", ".mcap")}
+        key = "/".join(ep.source_file.split("/")[-2:])
         for h in ep.hands:
             assert h.hand == hand and h.state_native.shape == (ep.num_frames, width)
             assert h.action_native.shape == h.state_native.shape
             assert h.state_native.min() >= 0 and h.state_native.max() <= 255
-            assert np.array_equal(h.state_native, np.round(h.state_native))
+            assert _udhm_error_rad(h, truth[f"{key}|{h.side}"]) < 0.01
+    assert storages == {".db3", ".mcap"}
     write_linkerhand_episodes(tmp_path, SampleSpec(EPISODES, FRAMES, 0), models=("L20",))
     assert {h.hand for ep in _read_all("linkerhand", tmp_path) for h in ep.hands} == {"linkerhand_l20"}
     with pytest.raises(ValueError, match="unknown LinkerHand models"):
