@@ -43,8 +43,8 @@ def test_every_source_written_with_synthetic_labels(samples):
     for name in ("dexora", "lerobot"):
         meta = pq.read_schema(next(samples[name].rglob("episode_000000.parquet"))).metadata
         assert b"SYNTHETIC" in meta[b"unidextok_synthetic"]
-    let_file = next(samples["let"].rglob("episode_*.json"))
-    assert json.loads(let_file.read_text())["synthetic"] is True
+    let_sidecar = next(samples["let"].rglob("*-P4-*/*.json"))  # annotation sidecar next to each bag
+    assert json.loads(let_sidecar.read_text())["synthetic"] is True
 
 
 def test_native_layouts(samples):
@@ -145,9 +145,10 @@ def _truth(folder) -> dict[str, np.ndarray]:
         return {k: npz[k] for k in npz.files}
 
 
-@pytest.mark.parametrize("name", ["let", "dexora", "linkerhand", "lerobot"])
+@pytest.mark.parametrize("name", ["dexora", "lerobot"])
 def test_robot_samples_store_their_udhm_truth(samples, name):
-    """Commands read back from the native files map to the generating UDHM angles (per side, per column)."""
+    """Commands read back from the native files map to the generating UDHM angles (per side, per column).
+    The bag samples (let, linkerhand) are checked against their truth after resampling in test_sources."""
     from lerobot_unidextok import hands
 
     truth = _truth(samples[name])
@@ -162,7 +163,7 @@ def test_robot_samples_store_their_udhm_truth(samples, name):
             got = spec.to_udhm(h.action_native, side=h.side)
             mask = spec.mask()
             # integer commands (0-100, 0-255) quantise; float sources are exact to float32
-            tol = {"let": 0.02, "linkerhand": 0.01}.get(name, 1e-5)
+            tol = 1e-5
             assert np.abs(got[:, mask] - expected[:, mask]).max() < tol
 
 
