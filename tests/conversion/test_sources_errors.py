@@ -215,7 +215,7 @@ def test_lerobot_names_in_dict_form(samples):
 
 def test_dexora_missing_hand_joint_names(samples):
     src, ref = _first("dexora", samples["dexora"])
-    info_path = samples["dexora"] / "meta" / "info.json"
+    info_path = samples["dexora"] / "airbot_pick_and_place" / "meta" / "info.json"
     info = json.loads(info_path.read_text())
     names = info["features"]["observation.state"]["names"]
     names[names.index("right_hand_joint_7_obs")] = "right_hand_joint_seven_obs"
