@@ -33,7 +33,9 @@ def _lerobot_per_frame(episodes, features, root: Path) -> float:
     from lerobot_unidextok.conversion.features import episode_frames
 
     t0 = time.process_time()
-    ds = LeRobotDataset.create("bench/lerobot", fps=30, features=features, root=root, robot_type="udhm", use_videos=False)
+    ds = LeRobotDataset.create(
+        "bench/lerobot", fps=30, features=features, root=root, robot_type="udhm", use_videos=False
+    )
     for ep in episodes:
         arrays = episode_frames(ep)
         for t in range(ep.num_frames):

@@ -1,9 +1,10 @@
 """ROS 1 / ROS 2 bags (and MCAP) for the LET and LinkerHand readers: listing, reading topics, resampling.
 
-Read with `rosbags` (pure Python, no ROS install; the `ros` extra). Message types come from the
-definitions embedded in the bag (ROS 1 connection headers, MCAP schemas); types a bag does not define
-are taken from the ROS 2 Humble / ROS 1 Noetic standard types plus the vendor definitions below
-(`kuavo_msgs`, written from the upstream `.msg` files).
+Read with `rosbags` (pure Python, no ROS install; the `ros` extra). Message types are the ROS 1 Noetic /
+ROS 2 Humble standard types plus the vendor definitions below (`kuavo_msgs`, written from the upstream
+`.msg` files); any other type is taken from the definition the bag embeds (ROS 1 connection headers,
+MCAP schemas, rosbag2 metadata). `sensor_msgs/JointState`, the bulk of hand recordings, is decoded
+straight from its bytes (`decode_joint_state`).
 
 Recorded stamps jitter (a 30 Hz topic measures 30.14 Hz), and LeRobot stores a fixed integer fps, so
 every stream is resampled onto one grid of `fps` frames per second over the time all required topics
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -66,12 +68,38 @@ def list_bags(root: Path, pattern: str = "*") -> list[Path]:
     return sorted(ros2_dirs + files, key=str)
 
 
-def _fallback_typestore(ros1: bool):
+@lru_cache(maxsize=2)
+def _base_typestore(ros1: bool):
+    """The standard types plus the vendor ones, built once per process (building a store costs ~0.2 s)."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
     for name, text in KUAVO_MSGS.items():
         store.register(get_types_from_msg(text, name))
+    return store
+
+
+def _store_for(connections: list, ros1: bool):
+    """A typestore knowing every connection's type: the cached base store, or a copy extended with the
+    definitions a bag embeds for types the base store lacks (or defines differently)."""
+    from rosbags.interfaces import MessageDefinitionFormat
+    from rosbags.typesys import get_types_from_idl, get_types_from_msg
+
+    base = _base_typestore(ros1)
+    missing = [c for c in connections if c.msgtype not in base.fielddefs]
+    if not missing:
+        return base
+    from copy import copy
+
+    store = copy(base)
+    store.fielddefs, store.types, store.cache = dict(base.fielddefs), dict(base.types), {}
+    for conn in missing:
+        if conn.msgdef.format == MessageDefinitionFormat.MSG:
+            store.register(get_types_from_msg(conn.msgdef.data, conn.msgtype))
+        elif conn.msgdef.format == MessageDefinitionFormat.IDL:
+            store.register(get_types_from_idl(conn.msgdef.data))
+        else:
+            raise ValueError(f"type {conn.msgtype} of topic {conn.topic!r} is not defined in the bag nor known")
     return store
 
 
@@ -86,6 +114,61 @@ class Stream:
 
 
 Extractor = Callable[[object], tuple[np.ndarray, tuple[str, ...] | None]]
+JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
+
+
+def joint_state(msg) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Extractor of `sensor_msgs/JointState`: (position, name). `read_streams` decodes this one directly
+    from the serialized bytes (`decode_joint_state`), without building message objects."""
+    return np.asarray(msg.position), tuple(msg.name)
+
+
+def decode_joint_state(
+    raw: bytes | memoryview, ros1: bool, seen: dict | None = None
+) -> tuple[np.ndarray, tuple[str, ...]]:
+    """(position, name) of a serialized `sensor_msgs/JointState`: ROS 1 (packed, little endian) or ROS 2
+    CDR little endian (4-byte encapsulation, fields aligned to their size). Same values as rosbags'
+    deserializer (tests/conversion/test_rosbag.py); raises ValueError on anything else. `seen` (one dict per
+    topic) remembers the frame_id + name bytes of the previous message: a topic repeats them, so later
+    messages skip straight to the positions."""
+    buf = memoryview(raw)
+    if ros1:
+        start, base, align = 12, 0, False  # header: seq, stamp.sec, stamp.nsec
+    else:
+        if bytes(buf[:2]) != b"\x00\x01":
+            raise ValueError("not little-endian CDR")
+        start, base, align = 12, 4, True  # 4-byte encapsulation, then stamp.sec, stamp.nanosec
+    pos = start
+
+    def u32() -> int:
+        nonlocal pos
+        if align:
+            pos += (-(pos - base)) % 4
+        value = int.from_bytes(buf[pos : pos + 4], "little")
+        pos += 4
+        return value
+
+    def string() -> str:
+        nonlocal pos
+        size = u32()
+        text = bytes(buf[pos : pos + size]).decode()
+        pos += size
+        return text.rstrip("\x00")
+
+    if seen and buf[start : seen["end"]] == seen["prefix"]:
+        pos, names = seen["end"], seen["names"]
+    else:
+        string()  # header.frame_id
+        names = tuple(string() for _ in range(u32()))
+        if seen is not None:
+            seen.update(prefix=bytes(buf[start:pos]), end=pos, names=names)
+    count = u32()
+    if align:
+        pos += (-(pos - base)) % 8
+    if pos + 8 * count > len(buf):
+        raise ValueError("JointState.position runs past the message")
+    position = np.frombuffer(buf[pos : pos + 8 * count], dtype="<f8").copy()
+    return position, names
 
 
 def read_streams(path: Path, extractors: dict[str, Extractor]) -> dict[str, Stream]:
@@ -95,40 +178,37 @@ def read_streams(path: Path, extractors: dict[str, Extractor]) -> dict[str, Stre
     stamps with the bag time: `kuavo_dataset.py` `process_rosbag`). Repeated stamps keep the last message.
     """
     require_rosbags()
-    from rosbags.highlevel import AnyReader, AnyReaderError
-    from rosbags.typesys import get_types_from_msg
+    from rosbags.rosbag1 import Reader as Reader1
+    from rosbags.rosbag2 import Reader as Reader2
 
     path = Path(path)
     ros1 = path.suffix == ".bag"
+    rows: dict[str, list] = {t: [] for t in extractors}
+    names: dict[str, tuple[str, ...] | None] = {}
+    seen: dict[str, dict] = {}
     try:
-        reader = AnyReader([path], default_typestore=_fallback_typestore(ros1))
-        reader.open()
-    except (AnyReaderError, OSError, ValueError, KeyError) as exc:
-        raise BagFormatError(f"{path}: unreadable bag ({type(exc).__name__}: {exc})") from exc
-    try:
-        for name, text in KUAVO_MSGS.items():  # types the bag itself does not define
-            if name not in reader.typestore.fielddefs:
-                reader.typestore.register(get_types_from_msg(text, name))
-        connections = [c for c in reader.connections if c.topic in extractors]
-        rows: dict[str, list] = {t: [] for t in extractors}
-        names: dict[str, tuple[str, ...] | None] = {}
-        for conn, timestamp_ns, raw in reader.messages(connections=connections):
-            try:
-                msg = reader.deserialize(raw, conn.msgtype)
-                values, msg_names = extractors[conn.topic](msg)
-            except Exception as exc:  # noqa: BLE001 - any decode/field error names the topic
-                raise BagFormatError(
-                    f"{path}: topic {conn.topic!r} ({conn.msgtype}): {type(exc).__name__}: {exc}"
-                ) from exc
-            rows[conn.topic].append((timestamp_ns, np.asarray(values, dtype=np.float64).reshape(-1)))
-            if msg_names:
-                names[conn.topic] = tuple(msg_names)
+        with (Reader1 if ros1 else Reader2)(path) as reader:
+            connections = [c for c in reader.connections if c.topic in extractors]
+            store = _store_for(connections, ros1)
+            deserialize = store.deserialize_ros1 if ros1 else store.deserialize_cdr
+            for conn, timestamp_ns, raw in reader.messages(connections=connections):
+                try:
+                    if extractors[conn.topic] is joint_state and conn.msgtype == JOINT_STATE_TYPE:
+                        # the hot path: no message objects, repeated names skipped
+                        values, msg_names = decode_joint_state(raw, ros1, seen.setdefault(conn.topic, {}))
+                    else:
+                        values, msg_names = extractors[conn.topic](deserialize(raw, conn.msgtype))
+                except Exception as exc:  # noqa: BLE001 - any decode/field error names the topic
+                    raise BagFormatError(
+                        f"{path}: topic {conn.topic!r} ({conn.msgtype}): {type(exc).__name__}: {exc}"
+                    ) from exc
+                rows[conn.topic].append((timestamp_ns, np.asarray(values, dtype=np.float64).reshape(-1)))
+                if msg_names:
+                    names[conn.topic] = tuple(msg_names)
     except BagFormatError:
         raise
-    except Exception as exc:  # noqa: BLE001 - truncated bags raise from inside rosbags
+    except Exception as exc:  # noqa: BLE001 - truncated or foreign files raise from inside rosbags
         raise BagFormatError(f"{path}: unreadable bag, truncated? ({type(exc).__name__}: {exc})") from exc
-    finally:
-        reader.close()
     out = {}
     for topic, items in rows.items():
         if not items:

@@ -70,10 +70,6 @@ def _command(msg) -> tuple[np.ndarray, None]:
     return np.concatenate([left, right]), None
 
 
-def _joint_state(msg) -> tuple[np.ndarray, tuple[str, ...]]:
-    return np.asarray(msg.position), tuple(msg.name)
-
-
 def _arm_state(msg) -> tuple[np.ndarray, None]:
     q = np.asarray(msg.joint_data.joint_q)
     if q.shape[0] < ARM_SLICE.stop:
@@ -132,7 +128,7 @@ class LETSource:
     def read_episode(self, ref: str) -> RawEpisode:
         path = Path(ref)
         hand = self._hand_of(path)
-        extractors = {COMMAND_TOPIC: _command, STATE_TOPIC: _joint_state}
+        extractors = {COMMAND_TOPIC: _command, STATE_TOPIC: rb.joint_state}
         if self.arms:
             extractors |= {ARM_STATE_TOPIC: _arm_state, ARM_COMMAND_TOPIC: _arm_command}
         streams = rb.read_streams(path, extractors)

@@ -66,10 +66,6 @@ def _model(model: str, where: object) -> tuple[str, int]:
     return MODELS[key]
 
 
-def _positions(msg) -> tuple[np.ndarray, tuple[str, ...]]:
-    return np.asarray(msg.position), tuple(msg.name)
-
-
 def _hand_joint(msg) -> tuple[np.ndarray, tuple[str, ...]]:
     """`/cb_<side>_hand_info` JSON: no values, the model name (`hand_joint`) as the stream's name."""
     return np.zeros(0), (str(json.loads(msg.data).get("hand_joint", "")),)
@@ -152,8 +148,8 @@ class LinkerHandSource:
         extractors = {}
         for side in SIDES:
             extractors |= {
-                state_topic(side): _positions,
-                command_topic(side): _positions,
+                state_topic(side): rb.joint_state,
+                command_topic(side): rb.joint_state,
                 info_topic(side): _hand_joint,
             }
         streams = rb.read_streams(path, extractors)

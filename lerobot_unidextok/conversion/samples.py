@@ -181,9 +181,10 @@ _README_FORMS = {
     "uint8 6 + 6, 0 = open, 100 = closed, ~30 Hz), /dexhand/state (JointState l_thumb..r_pinky, same scale, "
     "~100 Hz), /sensors_data_raw (kuavo_msgs/sensorsData, arms in joint_q[12:26], rad), /kuavo_arm_traj "
     "(JointState, degrees); jittered stamps, dropped messages; a <bag>.json annotation sidecar per bag.",
-    "dexora": "Dexora as LeRobot v2.1 subsets in both upstream naming schemes: airbot_pick_and_place/ with 39-D "
-    "observation.state/action (left_hand_joint_1..12_obs; arms, XHand1 hands in radians, head, spine) and "
-    "airbot_dexterous/ with 36-D states/actions (left_hand_joint_0..11, left_hand_action_0..11), 20 fps.",
+    "dexora": "Dexora as LeRobot v2.1 subsets airbot_pick_and_place/ and airbot_dexterous/ in upstream naming "
+    "scheme 1: 39-D observation.state/action (left_hand_joint_1..12_obs; arms, XHand1 hands in radians, head, "
+    "spine), 20 fps. (write_dexora_episodes(..., scheme=2) writes scheme 2: 36-D states/actions with "
+    "left_hand_joint_0..11 and left_hand_action_0..11.)",
     "linkerhand": "LinkerHand ROS 2 SDK bags (sqlite3; every third episode MCAP): /cb_<side>_hand_state "
     "(JointState, 0-255 per joint, 255 = open, ~60 Hz), /cb_<side>_hand_control_cmd (~30 Hz), "
     "/cb_<side>_hand_state_arc (radians) and /cb_<side>_hand_info (JSON hand_joint); even episodes L10 "
@@ -676,8 +677,12 @@ def dexora_names_v2(kind: str) -> list[str]:
     return names if kind == "states" else [n.replace("joint", "action") for n in names]
 
 
-def _write_dexora(folder: Path, spec: SampleSpec) -> Labels:
-    """Two subsets, one per upstream naming scheme; episodes alternate between them."""
+def write_dexora_episodes(folder: Path, spec: SampleSpec, scheme: int = 1) -> Labels:
+    """Dexora v2.1 subsets in one naming scheme (1: `airbot_config.py`, 2: `airbot_lerobot.py`); episodes
+    alternate between the two subsets. One scheme per dataset: the schemes' arm columns differ, and a
+    converted dataset has one set of columns."""
+    if scheme not in (1, 2):
+        raise ValueError(f"Dexora naming scheme must be 1 or 2, got {scheme!r}")
     labels: Labels = {}
     episodes: dict[str, list] = {subset: [] for subset in DEXORA_SUBSETS}
     for ep in _episodes(spec, "dexora"):
@@ -688,7 +693,7 @@ def _write_dexora(folder: Path, spec: SampleSpec) -> Labels:
         hand = {side: _to_native(HAND_DEXORA, tracks[side].angles_rad, side) for side in ("left", "right")}
         task = DEXORA_TASKS[ep % len(DEXORA_TASKS)]
         subset = DEXORA_SUBSETS[ep % 2]
-        if subset == DEXORA_SUBSETS[0]:  # arm, hand, arm, hand, head, spine
+        if scheme == 1:  # arm, hand, arm, hand, head, spine
             head = np.tile(rng.uniform(-0.1, 0.1, 3), (n, 1))  # head and spine: constant
             action = np.concatenate([arms["left"], hand["left"], arms["right"], hand["right"], head], axis=1)
             keys = ("observation.state", "action")
@@ -701,12 +706,16 @@ def _write_dexora(folder: Path, spec: SampleSpec) -> Labels:
     for subset, eps in episodes.items():
         if not eps:
             continue
-        if subset == DEXORA_SUBSETS[0]:
+        if scheme == 1:
             names = {"observation.state": dexora_names("obs"), "action": dexora_names("")}
         else:
             names = {"states": dexora_names_v2("states"), "actions": dexora_names_v2("actions")}
         _write_lerobot_v21(folder / subset, DEXORA_FPS, "airbot_xhand", names, eps)
     return labels
+
+
+def _write_dexora(folder: Path, spec: SampleSpec) -> Labels:
+    return write_dexora_episodes(folder, spec, scheme=1)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -185,16 +185,23 @@ def test_dexora(samples):
             lo, hi = spec.limits_rad(h.side).T
             assert (h.action_native >= lo - 1e-6).all() and (h.action_native <= hi + 1e-6).all()  # radians
             assert np.abs(h.state_native).max() < 2.0
-    assert keys == {"observation.state", "states"}  # both upstream naming schemes read
+    assert keys == {"observation.state"}
 
 
-def test_dexora_both_naming_schemes_give_the_generating_motion(samples):
+@pytest.mark.parametrize("scheme", [1, 2])
+def test_dexora_both_naming_schemes_give_the_generating_motion(scheme, tmp_path):
     """Scheme 2 (states/actions, joints 0..11, left_hand_action_k) reads like scheme 1. Catches the old
     reader, which accepted only left_hand_joint_1..12[_suffix] in observation.state."""
-    truth = _truth(samples["dexora"])
+    from lerobot_unidextok.conversion.samples import write_dexora_episodes
+
+    labels = write_dexora_episodes(tmp_path, SampleSpec(EPISODES, FRAMES, 3), scheme=scheme)
+    truth = {f"{k}|{s}": v["_angles_rad"][s] for k, v in labels.items() for s in ("left", "right")}
     src = get_source("dexora")()
-    for ref in src.list_episodes(samples["dexora"]):
+    for ref in src.list_episodes(tmp_path):
         ep = src.read_episode(ref)
+        assert ep.native_keys.get("observation.state", "observation.state") == (
+            "states" if scheme == 2 else "observation.state"
+        )
         key = f"{Path(ref.root).name}/episode_{ref.episode_index:06d}"
         for h in ep.hands:
             spec = hands.get("xhand1")
