@@ -48,7 +48,7 @@ def test_every_source_written_with_synthetic_labels(samples):
     assert json.loads(let_sidecar.read_text())["synthetic"] is True
 
 
-def test_native_layouts(samples):
+def test_native_layouts(samples, tmp_path):
     d = samples["dexycb"]
     captures = sorted(d.glob("*/*/meta.yml"))
     assert len(captures) == EPISODES
