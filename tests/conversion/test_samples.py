@@ -64,7 +64,10 @@ def test_native_layouts(samples, tmp_path):
     scheme1 = json.loads((samples["dexora"] / "airbot_pick_and_place" / "meta" / "info.json").read_text())
     assert scheme1["features"]["observation.state"]["shape"] == [39]
     assert scheme1["features"]["action"]["names"][6] == "left_hand_joint_1"
-    scheme2 = json.loads((samples["dexora"] / "airbot_dexterous" / "meta" / "info.json").read_text())
+    from lerobot_unidextok.conversion.samples import SampleSpec, write_dexora_episodes
+
+    write_dexora_episodes(tmp_path, SampleSpec(2, 20, 0), scheme=2)
+    scheme2 = json.loads((tmp_path / "airbot_dexterous" / "meta" / "info.json").read_text())
     assert (
         scheme2["features"]["states"]["shape"] == [36]
         and "left_hand_action_0" in scheme2["features"]["actions"]["names"]
