@@ -171,6 +171,41 @@ def decode_joint_state(
     return position, names
 
 
+def decode_joint_states(raws: list[bytes], ros1: bool) -> tuple[np.ndarray, tuple[str, ...]]:
+    """(N, D) positions of many serialized JointStates of one topic. When every message has the same
+    length and the same frame_id + names (the usual case: a driver publishing at a fixed size), the
+    positions sit at one offset and are read for all messages at once; otherwise message by message."""
+    seen: dict = {}
+    first, names = decode_joint_state(raws[0], ros1, seen)
+    size = len(raws[0])
+    if len(first) and all(len(r) == size for r in raws):
+        block = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), size)
+        start = 12
+        prefix = np.frombuffer(seen["prefix"], dtype=np.uint8)
+        offset = size - _tail_bytes(raws[0], ros1, seen["end"], len(first))
+        if (block[:, start : seen["end"]] == prefix).all():
+            positions = block[:, offset : offset + 8 * len(first)].copy().view("<f8")
+            return positions.astype(np.float64), names
+    rows = [decode_joint_state(r, ros1, seen) for r in raws]
+    widths = {len(v) for v, _ in rows}
+    if len(widths) != 1:
+        raise ValueError(f"messages have different numbers of positions {sorted(widths)}")
+    return np.stack([v for v, _ in rows]), rows[-1][1]
+
+
+def _tail_bytes(raw: bytes, ros1: bool, end: int, count: int) -> int:
+    """Bytes from the first position value to the end of the message (the offset is the same in every
+    message of equal length and prefix)."""
+    pos = end
+    base = 0 if ros1 else 4
+    if not ros1:
+        pos += (-(pos - base)) % 4
+    pos += 4  # position count
+    if not ros1:
+        pos += (-(pos - base)) % 8
+    return len(raw) - pos
+
+
 def read_streams(path: Path, extractors: dict[str, Extractor]) -> dict[str, Stream]:
     """Every message of the `extractors`' topics present in the bag, in log-time order.
 
@@ -185,19 +220,18 @@ def read_streams(path: Path, extractors: dict[str, Extractor]) -> dict[str, Stre
     ros1 = path.suffix == ".bag"
     rows: dict[str, list] = {t: [] for t in extractors}
     names: dict[str, tuple[str, ...] | None] = {}
-    seen: dict[str, dict] = {}
+    joint_raw: dict[str, list] = {}  # JointState topics: (stamp, bytes), decoded together afterwards
     try:
         with (Reader1 if ros1 else Reader2)(path) as reader:
             connections = [c for c in reader.connections if c.topic in extractors]
             store = _store_for(connections, ros1)
             deserialize = store.deserialize_ros1 if ros1 else store.deserialize_cdr
             for conn, timestamp_ns, raw in reader.messages(connections=connections):
+                if extractors[conn.topic] is joint_state and conn.msgtype == JOINT_STATE_TYPE:
+                    joint_raw.setdefault(conn.topic, []).append((timestamp_ns, bytes(raw)))  # the hot path
+                    continue
                 try:
-                    if extractors[conn.topic] is joint_state and conn.msgtype == JOINT_STATE_TYPE:
-                        # the hot path: no message objects, repeated names skipped
-                        values, msg_names = decode_joint_state(raw, ros1, seen.setdefault(conn.topic, {}))
-                    else:
-                        values, msg_names = extractors[conn.topic](deserialize(raw, conn.msgtype))
+                    values, msg_names = extractors[conn.topic](deserialize(raw, conn.msgtype))
                 except Exception as exc:  # noqa: BLE001 - any decode/field error names the topic
                     raise BagFormatError(
                         f"{path}: topic {conn.topic!r} ({conn.msgtype}): {type(exc).__name__}: {exc}"
@@ -209,6 +243,12 @@ def read_streams(path: Path, extractors: dict[str, Extractor]) -> dict[str, Stre
         raise
     except Exception as exc:  # noqa: BLE001 - truncated or foreign files raise from inside rosbags
         raise BagFormatError(f"{path}: unreadable bag, truncated? ({type(exc).__name__}: {exc})") from exc
+    for topic, items in joint_raw.items():
+        try:
+            values, names[topic] = decode_joint_states([r for _, r in items], ros1)
+        except (ValueError, UnicodeDecodeError) as exc:
+            raise BagFormatError(f"{path}: topic {topic!r} ({JOINT_STATE_TYPE}): {type(exc).__name__}: {exc}") from exc
+        rows[topic] = [(t, v) for (t, _), v in zip(items, values, strict=True)]
     out = {}
     for topic, items in rows.items():
         if not items:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lerobot_unidextok.converters._rosbag import decode_joint_state
+from lerobot_unidextok.converters._rosbag import decode_joint_state, decode_joint_states
 
 
 @pytest.mark.parametrize("ros1", [True, False])
@@ -47,3 +47,18 @@ def test_decode_joint_state_matches_rosbags(ros1, frame_id, names, count):
         got, got_names = decode_joint_state(raw, ros1, seen)
         np.testing.assert_array_equal(got, position + k)
         assert got_names == tuple(msg.name)
+    batch = []  # many messages at once: the vectorised path (same size and names) and the fallback
+    for k in range(4):
+        msg.position, msg.name = position * k, list(names) if k < 3 else [n + "y" for n in names]
+        batch.append(
+            bytes(
+                store.serialize_ros1(msg, "sensor_msgs/msg/JointState")
+                if ros1
+                else store.serialize_cdr(msg, "sensor_msgs/msg/JointState")
+            )
+        )
+    for part in (batch[:3], batch):
+        values, _ = decode_joint_states(part, ros1)
+        np.testing.assert_array_equal(
+            values, np.stack([position * k for k in range(len(part))]).reshape(len(part), count)
+        )
