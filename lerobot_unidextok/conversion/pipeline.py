@@ -313,7 +313,7 @@ def plan_episodes(reader, opts: ConvertOptions, input_path: Path) -> _Plan:
     """List the source once and choose the test set; setup errors surface here, before any episode work."""
     try:
         refs = list(reader.list_episodes(input_path))
-    except (ValueError, FileNotFoundError) as exc:
+    except (ValueError, FileNotFoundError, ImportError) as exc:  # ImportError: a missing extra (rosbags, h5py)
         raise SetupError(f"source {opts.source!r} cannot list {input_path}: {exc}") from exc
     if not refs:
         raise SetupError(f"source {opts.source!r} found no episodes under {input_path}; check --input")
