@@ -8,14 +8,15 @@ reader in `converters/<source>.py`:
 | dexycb     | `<subject>/<capture>/{meta.yml, pose.npz, <serial>/labels_%06d.npz}` + calibration   |
 | egodex     | `<task>/<i>.hdf5`: `transforms/<joint>` (N,4,4) ARKit world frame, `confidences/`    |
 | let        | ROS 1 bags `<task>-P4-dex_hand|Linker_Hand_L6/<name>.bag` + annotation sidecar `<name>.json` |
-| dexora     | LeRobot v2.1, 39-D state/action with two XHand1 hands in radians                     |
+| dexora     | LeRobot v2.1 subsets, Dexora naming scheme 1 (scheme 2: `write_dexora_episodes`)      |
 | linkerhand | ROS 2 bag folders `<task>/episode_XXXX/` (sqlite3 or MCAP) of the SDK topics, 0-255   |
 | lerobot    | LeRobot v2.1 like a Unitree G1 + Inspire dataset: 26-D, nested names, hands in [0, 1] |
+| oakink2    | `anno_preview/<seq>.pkl`: `mocap_frame_id_list` (120 Hz ids), `raw_mano` torch tensors |
 
-| oakink2    | `anno_preview/<seq>.pkl`: `mocap_frame_id_list` (120 Hz ids), `raw_mano` torch tensors   |
-
-OakInk-v2 stores MANO pose quaternions only: its sample (written on request, not by default) holds
-quaternions of a flat-hand kinematic chain, and converting it needs MANO or a stand-in layer. Motion: `sample_motion` (named gestures in UDHM, joint coupling, noise); human
+Bags are written by `rosbags`' own writers (`conversion.sample_bags`) with jittered stamps. OakInk-v2
+stores MANO pose quaternions only: its sample (written on request, not by default) holds quaternions of
+a flat-hand kinematic chain, and converting it needs MANO or a stand-in layer. Motion: `sample_motion`
+(named gestures in UDHM, joint coupling, noise); human
 keypoints come from UDHM forward kinematics with varied skeletons (per-person scale and proportions)
 and wrist poses; robot values from the hand specs' `from_udhm`. Every folder has a README,
 `gestures.json` (per-frame gesture labels) and `udhm_truth.npz` (the generating angles), and every data file
