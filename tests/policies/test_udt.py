@@ -204,10 +204,11 @@ def test_lerobot_train_act_and_diffusion_resume_and_reload(tok_dir, g1_like, tmp
 
 @pytest.mark.slow
 def test_real_g1_inspire_select_action_returns_the_native_action(tok_dir, g1_dataset, tmp_path):
-    """Extra check on the real G1 + Inspire episodes converted by the project's converter (skips without them)."""
+    """Real G1 + Inspire episodes converted by unidextok-convert (extra check, skips without ../shared):
+    act_udt returned 12 hand values for a robot that needs 26."""
     from lerobot_unidextok.processor import NativeLayout
 
-    expected = NativeLayout.from_dataset(g1_dataset).native_dim  # 26 once the converter keeps the arms
+    assert NativeLayout.from_dataset(g1_dataset).native_dim == 26  # 14 arm joints + 2 x 6 Inspire values
     ckpt = _train(["--policy.type=act_udt", "--policy.discover_packages_path=lerobot_unidextok",
                    "--dataset.repo_id=test/g1_udhm", f"--dataset.root={g1_dataset}", "--policy.device=cpu",
                    "--policy.push_to_hub=false", f"--policy.udt_pretrained={tok_dir}", "--steps=3", "--batch_size=4",
@@ -229,4 +230,4 @@ print(tuple(a.shape))
     r = subprocess.run([sys.executable, "-c", check], check=False, env=subprocess_env(HF_HOME=str(tmp_path / "hf2")),
                        capture_output=True, text=True, timeout=180)  # fmt: skip
     assert r.returncode == 0, r.stderr[-3000:]
-    assert r.stdout.strip().splitlines()[-1] == f"(3, 1, {expected})"
+    assert r.stdout.strip().splitlines()[-1] == "(3, 1, 26)"
