@@ -290,9 +290,10 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
 def udhm_to_native(states_rad: torch.Tensor | np.ndarray, layout: HandLayout | NativeLayout) -> np.ndarray:
     """(..., D) converted vectors -> the robot's native vectors (float64).
 
-    With a `HandLayout` the input is the UDHM blocks only and the output each hand's native joints,
-    blocks concatenated; with a `NativeLayout` the input is the whole converted vector (passthrough
-    columns + blocks) and the output the robot's full native vector (passthrough copied by name).
+    With a `HandLayout` the input is its state (`state_names`, or the UDHM blocks only when it has none)
+    and the output its passthrough columns, then each hand's native joints in block order; with a
+    `NativeLayout` the input is the converted vector and the output the robot's native vector in the
+    converter's recorded order (passthrough copied by name).
     """
     if isinstance(layout, HandLayout):
         sides = layout.sides or ["right"] * layout.num_hands
