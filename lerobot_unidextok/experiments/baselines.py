@@ -64,6 +64,18 @@ def unihm(cfg: ExperimentConfig, train: HandStates, paired: dict[str, np.ndarray
     return tok
 
 
+UNIHM_RETARGETED, UNIHM_INSERTED = "UniHM (retargeted)", "UniHM-style (semantic insertion)"
+
+
+def unihm_for(cfg: ExperimentConfig, fit: HandStates, pairs) -> tuple[object, str]:
+    """(UniHM tokenizer, its label): trained per robot hand on retargeted human motion when `pairs`
+    (`retargeted.RetargetedPairs`) exist, else on `fit` with semantic insertion as the stand-in."""
+    if pairs is None:
+        return unihm(cfg, fit), UNIHM_INSERTED
+    train = HandStates.concat([pairs.human_train, pairs.train_states()])
+    return unihm(cfg, train, paired={h: pairs.robot_train[h].states_rad for h in pairs.hands}), UNIHM_RETARGETED
+
+
 def pca(cfg: ExperimentConfig, train: HandStates):
     """PCA of each hand's training states to `pca_components` coefficients, `pca_bits` bits each."""
     from lerobot_unidextok.baselines import PCAConfig, PCATokenizer

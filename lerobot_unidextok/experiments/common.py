@@ -188,17 +188,17 @@ def use_real_data(cfg: ExperimentConfig) -> bool:
 
 
 def load_data(cfg: ExperimentConfig, mapping: str = "semantic", datasets: list[str] | None = None) -> ExperimentData:
-    """Train / test rows of `datasets` (default cfg.datasets), else of the real recordings when present
-    (semantic mapping only), else of the converted SYNTHETIC sample data."""
+    """Train / test rows of `datasets` (default cfg.datasets), else of the real recordings when present,
+    else of the converted SYNTHETIC sample data (both converted with `mapping`)."""
     datasets = list(cfg.datasets if datasets is None else datasets)
     if datasets:
         return ExperimentData(
             load_hand_states(datasets, "train"), load_hand_states(datasets, "test"), datasets, False, source="datasets"
         )
-    if mapping == "semantic" and use_real_data(cfg):
+    if use_real_data(cfg):
         from lerobot_unidextok.experiments.real_data import real_train_test
 
-        train, test, sources, clip = real_train_test(cfg)
+        train, test, sources, clip = real_train_test(cfg, mapping)
         return ExperimentData(train, test, sources, False, source="real", clip=clip)
     roots = prepare_sample_data(cfg, mapping)
     names = [str(r) for r in roots]

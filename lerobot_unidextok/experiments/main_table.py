@@ -42,7 +42,7 @@ from lerobot_unidextok.training import HandStates
 logger = logging.getLogger(__name__)
 NAME = "main_table"
 BINNING, FSQ, RVQ = "uniform binning", "FSQ", "RVQ"
-UNIHM_RETARGETED, UNIHM_INSERTED = "UniHM (retargeted)", "UniHM-style (semantic insertion)"
+UNIHM_RETARGETED, UNIHM_INSERTED = B.UNIHM_RETARGETED, B.UNIHM_INSERTED
 METRIC_HEADER = ["MPJAE (deg)", "MPJPE all 21 kp (mm)", "MPJPE 15 finger kp (mm)", "fingertip (mm)"]
 
 
@@ -110,25 +110,19 @@ def run(cfg: ExperimentConfig) -> dict:
 
     # --- UniHM: per robot hand on retargeted human motion (its recipe), else the insertion stand-in --------
     pairs = retargeted_pairs(cfg, data)
-    unihm_tok = None
+    t = time.perf_counter()
+    unihm_tok, unihm_name = B.unihm_for(cfg, fit, pairs)
+    fit_seconds[unihm_name] = round(time.perf_counter() - t, 1)
     if pairs is not None:
-        t = time.perf_counter()
-        unihm_train = HandStates.concat([pairs.human_train, pairs.train_states()])
-        unihm_tok = B.unihm(cfg, unihm_train, paired={h: pairs.robot_train[h].states_rad for h in pairs.hands})
-        fit_seconds[UNIHM_RETARGETED] = round(time.perf_counter() - t, 1)
         rt_test = pairs.test_states()
         pred = reconstruct_baseline(unihm_tok, rt_test)
-        r, overall["a"][UNIHM_RETARGETED] = _rows("a", UNIHM_RETARGETED, pred, rt_test,
-                                                  _rates(unihm_tok, rt_test.hand_names()), "retargeted human motion (train)")  # fmt: skip
-        rows += r
+        r, overall["a"][unihm_name] = _rows("a", unihm_name, pred, rt_test, _rates(unihm_tok, rt_test.hand_names()),
+                                            "retargeted human motion (train)")  # fmt: skip
     else:
-        t = time.perf_counter()
-        tok = B.unihm(cfg, fit)
-        fit_seconds[UNIHM_INSERTED] = round(time.perf_counter() - t, 1)
-        preds_a[UNIHM_INSERTED] = reconstruct_baseline(tok, test)
-        r, overall["a"][UNIHM_INSERTED] = _rows("a", UNIHM_INSERTED, preds_a[UNIHM_INSERTED], test,
-                                                _rates(tok, test.hand_names()), own_label)  # fmt: skip
-        rows += r
+        preds_a[unihm_name] = reconstruct_baseline(unihm_tok, test)
+        r, overall["a"][unihm_name] = _rows("a", unihm_name, preds_a[unihm_name], test,
+                                            _rates(unihm_tok, test.hand_names()), own_label)  # fmt: skip
+    rows += r
 
     # --- protocol (b): everyone on the retargeted held-out human motion ------------------------------------
     retarget_info = None

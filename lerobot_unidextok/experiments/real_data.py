@@ -77,22 +77,25 @@ def real_human(cfg: ExperimentConfig) -> RealHuman:
     return RealHuman(kp, states, segment, test)
 
 
-def g1_inspire(cfg: ExperimentConfig) -> Path:
-    """The real G1 + Inspire recordings converted to a UDHM dataset (once; reused while valid)."""
+def g1_inspire(cfg: ExperimentConfig, mapping: str = "semantic") -> Path:
+    """The real G1 + Inspire recordings converted to a UDHM dataset with `mapping` (once; reused while valid)."""
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
 
     src = cfg.real_dir / G1_FOLDER
     stamp = _sha(json.dumps(sorted((p.name, p.stat().st_size) for p in src.rglob("*") if p.is_file())).encode())
-    root = Path(cfg.data_dir) / f"real_g1_inspire_{stamp}"
+    root = Path(cfg.data_dir) / f"real_g1_inspire_{mapping}_{stamp}"
     if not (root / "meta" / "info.json").is_file():
         convert(ConvertOptions(source="lerobot", input=src, root=root, repo_id="local/real_g1_inspire",
-                               source_options={"hands": G1_HANDS}, overwrite=True, progress=False))  # fmt: skip
+                               source_options={"hands": G1_HANDS}, mapping=mapping, overwrite=True, progress=False))  # fmt: skip
     return root
 
 
-def real_train_test(cfg: ExperimentConfig) -> tuple[HandStates, HandStates, list[str], RealHuman]:
-    """UniDexTok's real data: G1 Inspire (both hands) + the human clip segments; (train, test, sources, clip)."""
-    root = g1_inspire(cfg)
+def real_train_test(
+    cfg: ExperimentConfig, mapping: str = "semantic"
+) -> tuple[HandStates, HandStates, list[str], RealHuman]:
+    """UniDexTok's real data: G1 Inspire (both hands) + the human clip segments; (train, test, sources, clip).
+    The human hand fills all 22 slots, so its rows are the same under either mapping."""
+    root = g1_inspire(cfg, mapping)
     clip = real_human(cfg)
     train = HandStates.concat([load_hand_states([str(root)], "train"), clip.human_states(test=False)])
     test = HandStates.concat([load_hand_states([str(root)], "test"), clip.human_states(test=True)])
