@@ -107,3 +107,21 @@ def test_selection_split_holds_back_whole_episodes():
 def test_reduction_pct():
     assert reduction_pct(10.0, 7.5) == pytest.approx(25.0)
     assert reduction_pct(None, 1.0) is None and reduction_pct(0.0, 1.0) is None
+
+
+def test_pca_verdict_is_per_hand_and_follows_the_rows():
+    """The PCA verdict reads the rows: per hand, not only the row-weighted overall mean (which one hand with
+    many held-out rows can dominate)."""
+    from lerobot_unidextok.experiments.main_table import pca_verdict
+
+    def row(method, hand, mae):
+        return {"protocol": "a", "method": method, "hand": hand, "mpjae_deg": mae, "tokens_per_state": 8,
+                "bits_per_state": 64.0}  # fmt: skip
+
+    rows = [row("UniDexTok", "human", 3.0), row("PCA-8 x 8-bit", "human", 4.0),
+            row("UniDexTok", "robot", 1.2), row("PCA-8 x 8-bit", "robot", 0.1)]  # fmt: skip
+    result = {"pca_method": "PCA-8 x 8-bit", "rows": rows,
+              "overall": {"a": {"UniDexTok": {"mpjae_deg": 1.3}, "PCA-8 x 8-bit": {"mpjae_deg": 0.5}}}}  # fmt: skip
+    (line,) = pca_verdict(result)
+    assert "beats UniDexTok on 1 of 2 hands (robot)" in line and "human 4.00 vs 3.00 deg" in line
+    assert "over all rows 0.50 vs 1.30 deg" in line

@@ -73,7 +73,7 @@ def test_main_table(tiny_cfg, main_result):
             "render_human"} <= set(result["figures"])  # fmt: skip
     assert 0 < result["codebook"]["usage"] <= 1
     md = (Path(tiny_cfg.output_root) / "main_table" / "main_table.md").read_text()
-    assert "MPJPE 15 finger kp (mm)" in md and "Protocol (b) skipped" in md and "PCA-8 x 8-bit (64 bits)" in md
+    assert "MPJPE 15 finger kp (mm)" in md and "Protocol (b) skipped" in md and "PCA-8 x 8-bit beats UniDexTok on" in md
 
 
 def test_main_table_on_real_data(real_cfg):
