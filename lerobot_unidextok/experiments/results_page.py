@@ -59,6 +59,15 @@ def _copy_figures(name: str, figures: dict, image_dir: Path, page: Path) -> list
     return lines
 
 
+def _remove_stale_figures(image_dir: Path, lines: list[str]) -> None:
+    """Delete `<experiment>_*.png` figures of an earlier page that this page no longer links."""
+    linked = {line.split("](")[1].rstrip(")").rsplit("/", 1)[-1] for line in lines if line.startswith("![")}
+    for png in image_dir.glob("*.png"):
+        if png.name not in linked and any(png.name.startswith(f"{name}_") for name in EXPERIMENTS):
+            png.unlink()
+            logger.info("removed stale figure %s", png)
+
+
 DATA_LABELS = {
     "real": "REAL recordings (../shared/data/real)",
     "sample": "SYNTHETIC sample data",
@@ -116,6 +125,7 @@ def build_page(results_dir: str | Path, page: str | Path, image_dir: str | Path 
         ]
         out += _copy_figures(name, r.get("figures", {}), image_dir, page)
         out.append("")
+    _remove_stale_figures(image_dir, out)
     text = "\n".join(out).rstrip() + "\n"
     page.parent.mkdir(parents=True, exist_ok=True)
     page.write_text(text)

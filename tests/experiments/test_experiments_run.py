@@ -234,6 +234,10 @@ def test_results_page(tiny_cfg, main_result, tmp_path):
     assert result["provenance"]["git_commit"][:12] in text
     links = [line.split("](")[1].rstrip(")") for line in text.splitlines() if line.startswith("![")]
     assert links and all((page.parent / link).is_file() for link in links)
+    stale = page.parent / "results" / "main_table_render_no_such_hand.png"  # a figure of an earlier page
+    stale.write_bytes(b"\x89PNG\r\n\x1a\n")
+    build_page(tiny_cfg.output_root, page)
+    assert not stale.exists() and all((page.parent / link).is_file() for link in links)
 
 
 def test_results_page_without_results(tmp_path):
