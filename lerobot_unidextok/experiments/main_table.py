@@ -245,7 +245,7 @@ def markdown(result: dict) -> str:
          "the 5 finger bases are fixed on the palm and always have 0 error, so the 21-keypoint mean is ~15/21 of "
          "the finger mean; the paper does not say which it averages); fingertip error over the 5 tips."),
         "",
-        "## Protocol (a): each method on its own held-out data",
+        "### Protocol (a): each method on its own held-out data",
         "",
         _table(rows_a),
         "",
@@ -256,7 +256,7 @@ def markdown(result: dict) -> str:
     if rows_b:
         lines += [
             "",
-            "## Protocol (b): every tokenizer on the retargeted held-out human motion",
+            "### Protocol (b): every tokenizer on the retargeted held-out human motion",
             "",
             (f"Human motion: {rt['source']}; retargeted with dex-retargeting (vector optimizer) onto "
              f"{', '.join(rt['hands'])}; mean wrist-to-target vector error after retargeting: "
