@@ -23,12 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
-from lerobot_unidextok.conversion.registry import register_source
+from lerobot_unidextok.conversion.registry import SetupError, register_source
 
 HUMAN = "human"
 
 
-class RetargetInputError(ValueError):
+class RetargetInputError(SetupError):
     """The retarget input is not a converted human dataset or keypoint files; the message names the path."""
 
 

@@ -199,17 +199,17 @@ def human_gestures(path: Path) -> dict[str, np.ndarray] | None:
     }
 
 
-def _source_hand(source: str, raw: Path, episode: str) -> str | None:
+def _source_hand(source: str, entry: dict) -> str | None:
+    """The hand spec of a sample episode (the bag samples name theirs in the labels file)."""
     from lerobot_unidextok.conversion import samples
 
     if source in ("dexycb", "egodex"):
         return HUMAN
-    fixed = {"let": samples.HAND_LET, "dexora": samples.HAND_DEXORA, "lerobot": samples.HAND_G1}
-    if source in fixed:
-        return fixed[source]
+    if source == "let":
+        return entry.get("hand", samples.HAND_LET)
     if source == "linkerhand":
-        return samples.HAND_LINKERHAND.get(json.loads((raw / source / episode).read_text()).get("hand_model"))
-    return None
+        return samples.HAND_LINKERHAND.get(entry.get("hand_model"))
+    return {"dexora": samples.HAND_DEXORA, "lerobot": samples.HAND_G1}.get(source)
 
 
 def sample_gestures(raw: Path, max_per_class: int, seed: int) -> dict[str, np.ndarray]:
@@ -225,7 +225,7 @@ def sample_gestures(raw: Path, max_per_class: int, seed: int) -> dict[str, np.nd
         eps = json.loads((folder / LABELS_FILE).read_text())["episodes"]
         truth = np.load(folder / TRUTH_FILE)
         for key, entry in eps.items():
-            hand = _source_hand(source, raw, key)
+            hand = _source_hand(source, entry)
             if hand is None:
                 continue
             for side in ("left", "right"):
