@@ -62,7 +62,7 @@ def git_commit() -> str:
 def provenance(cfg: ExperimentConfig, data: "ExperimentData", seconds: float) -> dict:
     """Data, preset, seed and commit a result came from."""
     return {
-        "data": {"synthetic_sample": data.synthetic, "datasets": [str(d) for d in data.datasets],
+        "data": {"source": data.source, "synthetic_sample": data.synthetic, "datasets": [str(d) for d in data.datasets],
                  "train_rows": len(data.train), "test_rows": len(data.test), "hands": data.train.hand_names()},
         "preset": cfg.preset,
         "seed": cfg.seed,
@@ -106,20 +106,13 @@ def write_result(folder: Path, name: str, result: dict, markdown: str) -> Path:
 
 
 def fmt(x: float | None, digits: int = 2) -> str:
-    return (
-        "-"
-        if x is None or (isinstance(x, float) and math.isnan(x))
-        else f"{x:.{digits}f}"
-    )
+    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
 
 
 def md_table(header: list[str], rows: list[list]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += [
-        "| "
-        + " | ".join(fmt(c) if isinstance(c, float) or c is None else str(c) for c in r)
-        + " |"
-        for r in rows
+        "| " + " | ".join(fmt(c) if isinstance(c, float) or c is None else str(c) for c in r) + " |" for r in rows
     ]
     return "\n".join(lines)
 
@@ -133,22 +126,17 @@ class ExperimentData:
     test: HandStates
     datasets: list[Path | str]
     synthetic: bool
-    raw_dir: Path | None = (
-        None  # raw sample sources (labels for the probe), None for user datasets
-    )
+    raw_dir: Path | None = None  # raw sample sources (labels for the probe), None otherwise
+    source: str = "sample"  # "real" (../shared/data/real), "sample" (SYNTHETIC), "datasets" (--datasets)
+    clip: object | None = None  # real_data.RealHuman: the real human clip and its retargeted hands (real only)
 
 
 def sample_raw_dir(cfg: ExperimentConfig) -> Path:
-    return (
-        Path(cfg.data_dir)
-        / f"raw_e{cfg.sample_episodes}_f{cfg.sample_frames}_s{cfg.seed}"
-    )
+    return Path(cfg.data_dir) / f"raw_e{cfg.sample_episodes}_f{cfg.sample_frames}_s{cfg.seed}"
 
 
 def _valid_dataset(root: Path) -> bool:
-    return (root / "meta" / "info.json").is_file() and any(
-        (root / "data").glob("chunk-*/file-*.parquet")
-    )
+    return (root / "meta" / "info.json").is_file() and any((root / "data").glob("chunk-*/file-*.parquet"))
 
 
 def prepare_sample_data(cfg: ExperimentConfig, mapping: str = "semantic") -> list[Path]:
@@ -182,26 +170,40 @@ def prepare_sample_data(cfg: ExperimentConfig, mapping: str = "semantic") -> lis
     return roots
 
 
-def load_data(
-    cfg: ExperimentConfig, mapping: str = "semantic", datasets: list[str] | None = None
-) -> ExperimentData:
-    """Train / test rows of `datasets` (default cfg.datasets), or of the converted sample data."""
+def use_real_data(cfg: ExperimentConfig) -> bool:
+    """Real recordings unless --data=sample or --datasets is given; --data=real fails when they are absent."""
+    from lerobot_unidextok.experiments.real_data import real_available
+
+    if cfg.datasets or cfg.data == "sample":
+        return False
+    if real_available(cfg):
+        return True
+    if cfg.data == "real":
+        raise FileNotFoundError(
+            f"--data=real but the real recordings are not under {cfg.real_dir} (g1-inspire/, dex-retargeting/); "
+            "set --real_data_dir (or UNIDEXTOK_REAL_DATA) or use --data=sample"
+        )
+    logger.info("real recordings not found under %s: using the SYNTHETIC sample data", cfg.real_dir)
+    return False
+
+
+def load_data(cfg: ExperimentConfig, mapping: str = "semantic", datasets: list[str] | None = None) -> ExperimentData:
+    """Train / test rows of `datasets` (default cfg.datasets), else of the real recordings when present,
+    else of the converted SYNTHETIC sample data (both converted with `mapping`)."""
     datasets = list(cfg.datasets if datasets is None else datasets)
     if datasets:
         return ExperimentData(
-            load_hand_states(datasets, "train"),
-            load_hand_states(datasets, "test"),
-            datasets,
-            False,
+            load_hand_states(datasets, "train"), load_hand_states(datasets, "test"), datasets, False, source="datasets"
         )
+    if use_real_data(cfg):
+        from lerobot_unidextok.experiments.real_data import real_train_test
+
+        train, test, sources, clip = real_train_test(cfg, mapping)
+        return ExperimentData(train, test, sources, False, source="real", clip=clip)
     roots = prepare_sample_data(cfg, mapping)
     names = [str(r) for r in roots]
     return ExperimentData(
-        load_hand_states(names, "train"),
-        load_hand_states(names, "test"),
-        roots,
-        True,
-        sample_raw_dir(cfg),
+        load_hand_states(names, "train"), load_hand_states(names, "test"), roots, True, sample_raw_dir(cfg)
     )
 
 
@@ -233,17 +235,11 @@ def per_hand_states(data: HandStates) -> dict[str, np.ndarray]:
 def _fingerprint(*parts) -> str:
     h = hashlib.sha1()
     for p in parts:
-        h.update(
-            p.tobytes()
-            if isinstance(p, np.ndarray)
-            else json.dumps(p, sort_keys=True, default=str).encode()
-        )
+        h.update(p.tobytes() if isinstance(p, np.ndarray) else json.dumps(p, sort_keys=True, default=str).encode())
     return h.hexdigest()[:12]
 
 
-def train_config(
-    cfg: ExperimentConfig, output_dir: Path, hand_names: list[str]
-) -> TrainConfig:
+def train_config(cfg: ExperimentConfig, output_dir: Path, hand_names: list[str]) -> TrainConfig:
     return TrainConfig(
         preset=cfg.preset, steps=cfg.steps, batch_size=cfg.batch_size, lr=cfg.lr, warmup_steps=cfg.warmup_steps,
         eval_every=cfg.eval_every, save_last_every=10**9, seed=cfg.seed, output_dir=str(output_dir),
@@ -251,17 +247,13 @@ def train_config(
     )  # fmt: skip
 
 
-def trained_unidextok(
-    cfg: ExperimentConfig, tag: str, train: HandStates, select: HandStates
-):
+def trained_unidextok(cfg: ExperimentConfig, tag: str, train: HandStates, select: HandStates):
     """A UniDexTok trained on `train` (checkpoint chosen on `select`), from cache when the same
     configuration and rows were trained before. Returns (model, info dict)."""
     from lerobot_unidextok.tokenizer import UniDexTok
 
     hands = train.hand_names()
-    settings = dataclasses.asdict(
-        train_config(cfg, Path("."), hands)
-    )  # every training setting, incl. defaults
+    settings = dataclasses.asdict(train_config(cfg, Path("."), hands))  # every training setting, incl. defaults
     for volatile in ("output_dir", "progress"):
         settings.pop(volatile)
     key = _fingerprint(
@@ -286,17 +278,11 @@ def trained_unidextok(
     return UniDexTok.from_pretrained(folder / "best"), info
 
 
-def selection_split(
-    train: HandStates, seed: int, fraction: float = 0.1
-) -> tuple[HandStates, HandStates]:
+def selection_split(train: HandStates, seed: int, fraction: float = 0.1) -> tuple[HandStates, HandStates]:
     """(fit rows, checkpoint-selection rows): whole training episodes held back per hand, never test rows."""
     rng = np.random.default_rng(seed)
     pick = np.zeros(len(train), dtype=bool)
-    eps = (
-        train.episode_index
-        if train.episode_index is not None
-        else np.arange(len(train))
-    )
+    eps = train.episode_index if train.episode_index is not None else np.arange(len(train))
     for hand in train.hand_names():
         rows = train.hands == hand
         uniq = np.unique(eps[rows])
@@ -337,25 +323,20 @@ def score(pred_rad: np.ndarray, data: HandStates) -> dict:
     return reconstruction_metrics(pred_rad, data.states_rad, data.hands, data.masks)
 
 
+SUMMARY_KEYS = ("rows", "mpjae_deg", "mpjpe_mm", "mpjpe_fingers_mm", "fingertip_mm")
+
+
 def summary_row(entry: dict) -> dict:
-    return {k: entry[k] for k in ("rows", "mpjae_deg", "mpjpe_mm", "fingertip_mm")}
+    return {k: entry[k] for k in SUMMARY_KEYS}
 
 
 def abs_errors_deg(pred_rad: np.ndarray, data: HandStates) -> np.ndarray:
     """(N, 22) absolute angle errors (deg), NaN on inactive slots (for per-joint error bars)."""
-    err = np.degrees(
-        np.abs(pred_rad.astype(np.float64) - data.states_rad.astype(np.float64))
-    )
+    err = np.degrees(np.abs(pred_rad.astype(np.float64) - data.states_rad.astype(np.float64)))
     return np.where(data.masks, err, np.nan)
 
 
 def reduction_pct(before: float | None, after: float | None) -> float | None:
-    if (
-        before is None
-        or after is None
-        or not before
-        or math.isnan(before)
-        or math.isnan(after)
-    ):
+    if before is None or after is None or not before or math.isnan(before) or math.isnan(after):
         return None
     return 100.0 * (before - after) / before

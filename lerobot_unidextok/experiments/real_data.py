@@ -1,101 +1,106 @@
-"""Real recordings for the generalization experiments: where they are, converted / solved once, and the
-8-bit binning reference on the same frames.
+"""The real recordings in ../shared/data/real as experiment data (the default when the folder is present).
 
-The recordings live beside the checkout in `../shared/data/real` (`UNIDEXTOK_REAL_DATA` points elsewhere);
-they are never copied into the repository.
+- `g1-inspire/`: real Unitree G1 teleoperation, two Inspire hands (LeRobot v2.1), converted once with the
+  `lerobot` source into a UDHM LeRobotDataset under `data_dir` and read back; the converter's episode split.
+- `dex-retargeting/human_joint_right.npy`: one real right hand (MediaPipe world landmarks, 621 frames at
+  30 fps) mapped to UDHM by the human hand spec (UDHM IK). One clip, so it is cut into consecutive segments
+  of `human_segment_s` seconds that act as episodes; the held-out segments are chosen like the converter's
+  episode split (`conversion.pipeline.split_order`, 20 % by sha1 of the segment key).
+The clip's keypoints are also what `experiments.retargeted` retargets onto the robot hands (protocol b).
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
-import os
+import logging
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.experiments.config import ExperimentConfig
 from lerobot_unidextok.training import HandStates, load_hand_states
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
+logger = logging.getLogger(__name__)
+
+HUMAN = "human"
+G1_FOLDER = "g1-inspire"
+HUMAN_CLIP = Path("dex-retargeting") / "human_joint_right.npy"
+HUMAN_CLIP_FPS = 30.0  # upstream video, see ../shared/data/real/README.md
 G1_HANDS = {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}
+SEGMENT_EPISODE_BASE = 100_000  # human segment episode ids, apart from the G1 episode ids
 
 
-def real_data_dir() -> Path:
-    """`$UNIDEXTOK_REAL_DATA`, else `../shared/data/real` next to the checkout; a clear error when absent."""
-    path = Path(os.environ.get("UNIDEXTOK_REAL_DATA", REPO_ROOT.parent / "shared" / "data" / "real"))
-    if not path.is_dir():
-        raise FileNotFoundError(
-            f"real recordings not found at {path}; set UNIDEXTOK_REAL_DATA to a copy of shared/data/real or pass "
-            "your own converted datasets / keypoint files"
-        )
-    return path
+def real_available(cfg: ExperimentConfig) -> bool:
+    return (cfg.real_dir / G1_FOLDER / "meta" / "info.json").is_file() and (cfg.real_dir / HUMAN_CLIP).is_file()
 
 
-def converted_g1(cache_dir: str | Path) -> Path:
-    """The real G1 + Inspire recordings (`g1-inspire`, LeRobot v2.1) converted to UDHM once into `cache_dir`."""
+@dataclass
+class RealHuman:
+    """The real human clip as UDHM, cut into segments."""
+
+    keypoints_m: np.ndarray  # (T, 21, 3)
+    states_rad: np.ndarray  # (T, 22) human UDHM
+    segment: np.ndarray  # (T,) segment id
+    test: np.ndarray  # (T,) bool: frame in a held-out segment
+
+    def human_states(self, test: bool) -> HandStates:
+        rows = self.test == test
+        return HandStates(self.states_rad[rows], np.full(rows.sum(), HUMAN), np.ones((rows.sum(), 22), bool),
+                          SEGMENT_EPISODE_BASE + self.segment[rows])  # fmt: skip
+
+
+def segment_split(num_frames: int, segment_frames: int, test_fraction: float = 0.2) -> tuple[np.ndarray, np.ndarray]:
+    """(segment id per frame, test flag per frame): consecutive segments, the last short one merged."""
+    from lerobot_unidextok.conversion.pipeline import split_order
+
+    n_seg = max(1, num_frames // segment_frames)
+    segment = np.minimum(np.arange(num_frames) // segment_frames, n_seg - 1)
+    _, test_ids = split_order([f"{HUMAN_CLIP.as_posix()}#segment{i:03d}" for i in range(n_seg)], test_fraction)
+    return segment, np.isin(segment, test_ids)
+
+
+def _sha(*parts: bytes) -> str:
+    h = hashlib.sha1()
+    for p in parts:
+        h.update(p)
+    return h.hexdigest()[:12]
+
+
+def real_human(cfg: ExperimentConfig) -> RealHuman:
+    from lerobot_unidextok import hands
+
+    kp = np.load(cfg.real_dir / HUMAN_CLIP).astype(np.float64)  # (T, 21, 3) m
+    states = np.asarray(hands.get(HUMAN).to_udhm(kp, "right"), dtype=np.float64)  # (T, 22) rad
+    segment, test = segment_split(len(kp), max(1, round(cfg.human_segment_s * HUMAN_CLIP_FPS)))
+    return RealHuman(kp, states, segment, test)
+
+
+def g1_inspire(cfg: ExperimentConfig, mapping: str = "semantic") -> Path:
+    """The real G1 + Inspire recordings converted to a UDHM dataset with `mapping` (once; reused while valid)."""
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
 
-    root = Path(cache_dir) / "g1_inspire_udhm"
-    if (root / "meta" / "info.json").is_file() and any((root / "data").glob("chunk-*/file-*.parquet")):
-        return root
-    convert(ConvertOptions(source="lerobot", input=real_data_dir() / "g1-inspire", root=root, repo_id="local/g1_inspire_udhm",
-                           source_options={"hands": G1_HANDS}, overwrite=True, progress=False))  # fmt: skip
+    src = cfg.real_dir / G1_FOLDER
+    stamp = _sha(json.dumps(sorted((p.name, p.stat().st_size) for p in src.rglob("*") if p.is_file())).encode())
+    root = Path(cfg.data_dir) / f"real_g1_inspire_{mapping}_{stamp}"
+    if not (root / "meta" / "info.json").is_file():
+        convert(ConvertOptions(source="lerobot", input=src, root=root, repo_id="local/real_g1_inspire",
+                               source_options={"hands": G1_HANDS}, mapping=mapping, overwrite=True, progress=False))  # fmt: skip
     return root
 
 
-def all_episodes(datasets: list[str]) -> HandStates:
-    """Every episode of the datasets (train and test splits pooled, for k-fold)."""
-    return load_hand_states([str(d) for d in datasets], split=None)
-
-
-# ---------------------------------------------------------------------------------------------
-# human keypoint recordings -> UDHM rows (UDHM IK)
-# ---------------------------------------------------------------------------------------------
-def human_rows_from_keypoints(keypoints_m: np.ndarray, episode: int = 0, side: str = "right") -> HandStates:
-    """(T, 21, 3) MANO-21 keypoints in metres -> human UDHM rows (all 22 DoFs active)."""
-    from lerobot_unidextok import hands
-
-    keypoints_m = np.asarray(keypoints_m, dtype=np.float64)
-    if keypoints_m.ndim != 3 or keypoints_m.shape[1:] != (21, 3):
-        raise ValueError(f"keypoints must be (T, 21, 3) metres in MANO-21 order, got {keypoints_m.shape}")
-    q = np.asarray(hands.get("human").to_udhm(keypoints_m, side=side), dtype=np.float32)
-    n = len(q)
-    return HandStates(q, np.full(n, "human"), np.ones((n, 22), bool), np.full(n, episode), np.zeros(n))
-
-
-def load_keypoints(path: str | Path) -> dict[str, np.ndarray]:
-    """Named (T, 21, 3) keypoint arrays from a `.npy` (one recording) or a MediaPipe fixtures JSON (one
-    array per entry with `world_landmarks_m`, as `mediapipe_hand_fixtures.json`)."""
-    path = Path(path)
-    if path.suffix == ".npy":
-        return {path.stem: np.load(path)}
-    if path.suffix == ".json":
-        raw = json.loads(path.read_text())
-        out = {k.removesuffix(".pbtxt"): np.asarray(v["world_landmarks_m"], np.float64)[None]
-               for k, v in raw.items() if isinstance(v, dict) and "world_landmarks_m" in v}  # fmt: skip
-        if not out:
-            raise ValueError(f"{path}: no entries with world_landmarks_m")
-        return out
-    raise ValueError(f"{path}: expected a .npy of (T, 21, 3) keypoints or a MediaPipe fixtures .json")
-
-
-# ---------------------------------------------------------------------------------------------
-# the no-training reference
-# ---------------------------------------------------------------------------------------------
-def binning_reconstruction(data: HandStates, num_bins: int = 256) -> np.ndarray:
-    """Per-joint uniform binning (RT-2 / OpenVLA, 8 bits at 256 bins) over each hand's registered range
-    (human: the UDHM joint limits): decode(encode(x)) of every row."""
-    from lerobot_unidextok import hands, udhm
-    from lerobot_unidextok.baselines import BinningConfig, HandRange, UniformBinning
-
-    out = np.zeros_like(data.states_rad)
-    for hand in data.hand_names():
-        spec = hands.get(hand)
-        if spec.kind == "keypoints":
-            limits = udhm.JOINT_LIMITS_RAD
-        else:  # union over the hand's sides
-            los, his = zip(*(spec.udhm_limits_rad(s) for s in spec.sides), strict=True)
-            limits = np.stack([np.min(los, 0), np.max(his, 0)], axis=1)
-        binning = UniformBinning({hand: HandRange.from_limits(limits, spec.active_mask)}, BinningConfig(num_bins))
-        rows = data.hands == hand
-        out[rows] = binning.decode(binning.encode(data.states_rad[rows], hand), hand).numpy()
-    return out
+def real_train_test(
+    cfg: ExperimentConfig, mapping: str = "semantic"
+) -> tuple[HandStates, HandStates, list[str], RealHuman]:
+    """UniDexTok's real data: G1 Inspire (both hands) + the human clip segments; (train, test, sources, clip).
+    The human hand fills all 22 slots, so its rows are the same under either mapping."""
+    root = g1_inspire(cfg, mapping)
+    clip = real_human(cfg)
+    train = HandStates.concat([load_hand_states([str(root)], "train"), clip.human_states(test=False)])
+    test = HandStates.concat([load_hand_states([str(root)], "test"), clip.human_states(test=True)])
+    sources = [
+        f"{G1_FOLDER} (converted: {root})",
+        f"{HUMAN_CLIP.as_posix()} (UDHM IK, {cfg.human_segment_s:g} s segments)",
+    ]
+    return train, test, sources, clip

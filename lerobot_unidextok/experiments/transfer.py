@@ -3,14 +3,13 @@ embedding, then few-shot on 6.2 % of its training frames for 2 epochs (the paper
 paper's fine-tuning of the whole tokenizer and as adaptation of the new hand's embedding row only.
 Per-joint MPJAE and per-finger fingertip error tables with the error reduction few-shot brings.
 
-    python experiments/transfer.py                                  # SYNTHETIC sample data
-    # real: base = sample hands without Inspire + the real human clip; target = the real G1 Inspire recordings
-    python experiments/transfer.py --transfer_datasets=path/to/g1_inspire_udhm \\
-        --human_keypoints=../shared/data/real/dex-retargeting/human_joint_right.npy --steps=5000
+    python experiments/transfer.py            # real recordings when present: held out = the G1 Inspire hands
+    python experiments/transfer.py --data=sample
 
-The few-shot frames come from the held-out hand's train-split episodes (whole episodes first); every
-figure is on its test-split episodes, which no model trains on. `fewshot_repeats` draws of the few-shot
-frames give the mean and spread.
+On the real recordings the base tokenizer trains on the real human clip plus the SYNTHETIC sample robot
+hands other than the held-out one (`transfer_sample_hands`). The few-shot frames come from the held-out
+hand's train-split episodes (whole episodes first); every figure is on its test-split episodes, which no
+model trains on; `fewshot_repeats` draws of the few-shot frames give the mean and spread.
 """
 
 import logging
@@ -60,19 +59,16 @@ def holdout_hand(cfg: ExperimentConfig, hands: list[str]) -> str:
     return inspire[0]
 
 
-def target_rows(cfg: ExperimentConfig, data) -> tuple[HandStates, HandStates]:
-    """(few-shot pool, scored rows) of the held-out hand: its train / test episodes."""
-    if cfg.transfer_datasets:
-        return load_hand_states(cfg.transfer_datasets, "train"), load_hand_states(cfg.transfer_datasets, "test")
-    return data.train, data.test
+def other_sample_hands(cfg: ExperimentConfig, data, hand: str) -> HandStates | None:
+    """Train rows of the SYNTHETIC sample robot hands other than `hand` (and the human hand when the data
+    has real human rows), added to the base training data of a run on real recordings."""
+    from lerobot_unidextok.experiments.common import prepare_sample_data
 
-
-def real_human_rows(cfg: ExperimentConfig) -> HandStates | None:
-    from lerobot_unidextok.experiments.real_data import human_rows_from_keypoints, load_keypoints
-
-    parts = [human_rows_from_keypoints(kp, episode=1000 + i)
-             for i, path in enumerate(cfg.human_keypoints) for kp in load_keypoints(path).values()]  # fmt: skip
-    return HandStates.concat(parts) if parts else None
+    if data.synthetic or not cfg.transfer_sample_hands:
+        return None
+    drop = [hand, *(["human"] if "human" in data.train.hand_names() else [])]
+    rows = load_hand_states([str(r) for r in prepare_sample_data(cfg)], "train").without(drop)
+    return rows if len(rows) else None
 
 
 def adapt(cfg: ExperimentConfig, base_dir: str, shots: HandStates, how: str, tag: str):
@@ -93,16 +89,14 @@ def run(cfg: ExperimentConfig) -> dict:
     t0 = time.perf_counter()
     folder = out_dir(cfg, NAME)
     data = load_data(cfg)
-    pool, scored = target_rows(cfg, data)
-    hand = holdout_hand(cfg, sorted(set(data.train.hand_names()) | set(pool.hand_names())))
-    pool, scored = pool.only(hand), cap_rows(scored.only(hand), cfg.max_eval_frames, cfg.seed)
-    if len(pool) == 0 or len(scored) == 0:
-        raise ValueError(f"{hand}: need train-split rows (few-shot) and test-split rows (scores), got "
-                         f"{len(pool)} and {len(scored)}")  # fmt: skip
+    hand = holdout_hand(cfg, data.train.hand_names())
+    pool, scored = data.train.only(hand), cap_rows(data.test.only(hand), cfg.max_eval_frames, cfg.seed)
+    if len(scored) == 0:
+        raise ValueError(f"{hand}: no test-split rows to score")
     base_rows = data.train.without(hand)
-    human = real_human_rows(cfg)
-    if human is not None:
-        base_rows = HandStates.concat([base_rows, human])
+    extra = other_sample_hands(cfg, data, hand)
+    if extra is not None:
+        base_rows = HandStates.concat([base_rows, extra])
     fit, select = selection_split(base_rows, cfg.seed)
     base, base_info = trained_unidextok(cfg, f"without_{hand}", fit, select)
     # reference: the same base data plus the held-out hand's whole train split
@@ -148,8 +142,8 @@ def run(cfg: ExperimentConfig) -> dict:
     fs = repeats[0]
     result = {
         "experiment": NAME, "provenance": provenance(cfg, data, time.perf_counter() - t0), "holdout_hand": hand,
-        "target": {"datasets": list(cfg.transfer_datasets) or "the base data", "pool_rows": len(pool),
-                   "scored_rows": len(scored), "real_human_rows": 0 if human is None else len(human)},
+        "target": {"pool_rows": len(pool), "scored_rows": len(scored), "base_hands": base_rows.hand_names(),
+                   "sample_hands_added": [] if extra is None else extra.hand_names()},
         "fewshot": {"fraction": cfg.fewshot_fraction, "epochs": cfg.fewshot_epochs, "frames": fs["frames"],
                     "of_frames": len(pool), "repeats": cfg.fewshot_repeats, "lr_embedding_row": cfg.fewshot_lr,
                     "lr_whole_tokenizer": cfg.fewshot_lr_all, "steps": fs[f"{FEW_ROW} steps"],
@@ -172,9 +166,9 @@ def run(cfg: ExperimentConfig) -> dict:
 def markdown(result: dict) -> str:
     fs, tgt = result["fewshot"], result["target"]
     lines = [f"# {NAME}", "", (
-        f"Held-out hand: **{result['holdout_hand']}**, scored on {tgt['scored_rows']} rows of test-split episodes "
-        f"(target data: {tgt['datasets']}). Zero-shot = tokenizer trained without it (unknown-hand embedding; "
-        f"{tgt['real_human_rows']} real human rows in its data); few-shot = that tokenizer adapted on {fs['frames']} of "
+        f"Held-out hand: **{result['holdout_hand']}**, scored on {tgt['scored_rows']} rows of test-split episodes. "
+        f"Zero-shot = tokenizer trained without it on {', '.join(tgt['base_hands'])} (unknown-hand embedding; "
+        f"SYNTHETIC sample hands added: {', '.join(tgt['sample_hands_added']) or 'none'}); few-shot = that tokenizer adapted on {fs['frames']} of "
         f"{fs['of_frames']} train-split rows ({100 * fs['fraction']:.1f} %) for {fs['epochs']:g} epochs ({fs['steps']} "
         f"steps), mean +- std over {fs['repeats']} draws of those rows: only the new embedding row (lr "
         f"{fs['lr_embedding_row']:g}) or the whole tokenizer (paper, lr {fs['lr_whole_tokenizer']:g}); reference = "

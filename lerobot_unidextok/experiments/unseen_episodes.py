@@ -137,7 +137,7 @@ def run_fold(cfg: UnseenConfig, name: str, k: int, train: HandStates, test: Hand
 
 
 def binning_fold(k: int, test: HandStates, fit: HandStates, range_n: int) -> dict:
-    from lerobot_unidextok.experiments.real_data import binning_reconstruction
+    from lerobot_unidextok.experiments.unseen_data import binning_reconstruction
 
     unif = range_rows(fit, range_n, seed=1000 + k)
     return {"variant": "binning_8bit", "fold": k, "test_rows": len(test),
@@ -150,7 +150,7 @@ def _key(r: dict) -> tuple:
 
 
 def run(cfg: UnseenConfig) -> dict:
-    from lerobot_unidextok.experiments.real_data import all_episodes, converted_g1
+    from lerobot_unidextok.experiments.unseen_data import all_episodes, converted_g1
 
     unknown = sorted(set(cfg.variants) - set(VARIANTS))
     if unknown:

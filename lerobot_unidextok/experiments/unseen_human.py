@@ -61,7 +61,7 @@ class HumanConfig:
 def load_sets(cfg: HumanConfig) -> dict[str, HandStates]:
     """train / own_rest / synthetic / unseen rows."""
     from lerobot_unidextok.conversion.sample_motion import gesture_track
-    from lerobot_unidextok.experiments.real_data import human_rows_from_keypoints, load_keypoints, real_data_dir
+    from lerobot_unidextok.experiments.unseen_data import human_rows_from_keypoints, load_keypoints, real_data_dir
 
     train_files = cfg.train_keypoints or [str(real_data_dir() / "dex-retargeting" / "human_joint_right.npy")]
     unseen_files = cfg.unseen_keypoints or [str(real_data_dir() / "mediapipe" / "mediapipe_hand_fixtures.json")]
@@ -86,7 +86,7 @@ def run(cfg: HumanConfig) -> dict:
     import torch
 
     from lerobot_unidextok.evaluation import mpjae_deg, reconstruct
-    from lerobot_unidextok.experiments.real_data import binning_reconstruction
+    from lerobot_unidextok.experiments.unseen_data import binning_reconstruction
     from lerobot_unidextok.tokenizer import UniDexTok
     from lerobot_unidextok.training.loop import build_model
 

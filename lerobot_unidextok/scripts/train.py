@@ -32,9 +32,9 @@ logger = logging.getLogger(__name__)
 SUMMARY_KEYS = ("rows", "mpjae_deg", "mpjpe_mm", "fingertip_mm")
 
 
-def _load_split(datasets: list[str], split: str | None) -> HandStates:
+def _load_split(datasets: list[str], split: str | None, holdout: str) -> HandStates:
     try:
-        return load_hand_states(datasets, split=split)
+        return load_hand_states(datasets, split=split, holdout=holdout)
     except ValueError as e:  # a dataset without that split
         if split != "test":
             raise
@@ -63,7 +63,7 @@ def run_kfold(cfg: TrainConfig) -> dict:
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer
     from lerobot_unidextok.tokenizer import UniDexTok
 
-    pooled = load_hand_states(cfg.datasets, split=None)
+    pooled = load_hand_states(cfg.datasets, split=None, holdout=cfg.holdout)
     folds = []
     for k, (train, test) in enumerate(kfold_by_episode(pooled, cfg.folds, seed=cfg.seed)):
         fit, select = _fit_and_select(cfg, train)
@@ -122,8 +122,8 @@ def run(cfg: TrainConfig) -> dict:
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer, write_report
     from lerobot_unidextok.tokenizer import UniDexTok
 
-    train = load_hand_states(cfg.datasets, split="train")
-    test = _load_split(cfg.datasets, "test")
+    train = load_hand_states(cfg.datasets, split="train", holdout=cfg.holdout)
+    test = _load_split(cfg.datasets, "test", cfg.holdout)
     fit, select = _fit_and_select(cfg, train)
     result = train_tokenizer(cfg, fit, select)
     model = UniDexTok.from_pretrained(result.best_dir)

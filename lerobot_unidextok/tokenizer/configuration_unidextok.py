@@ -57,6 +57,9 @@ class UniDexTokConfig:
     # Vocabulary of the hand-type embedding c_h (width C, paper: size not published). One extra row
     # is the "unknown hand" embedding used for hands outside this list (zero-shot).
     hand_names: list[str] = field(default_factory=lambda: list(DEFAULT_HAND_NAMES))
+    # Hands the checkpoint was actually trained on (set by training; [] = not recorded). Vocabulary rows
+    # of other hands were never trained: the processor step refuses them or routes them to "unknown hand".
+    trained_hands: list[str] = field(default_factory=list)
 
     # --- factorised cosine VQ ---------------------------------------------------------------------
     codebook_dim: int = 256  # C -> 256 projection before quantisation (paper)
@@ -79,8 +82,9 @@ class UniDexTokConfig:
     usage_decay: float = 0.99  # EMA decay of per-code usage counts
 
     # --- reconstruction loss ------------------------------------------------------------------------
-    # In angle / pi units over active DoFs: MSE (paper) + optional SmoothL1 (paper: weight unknown) + optional
-    # L1 (departure: the reported metric is a mean absolute error).
+    # In angle / pi units: MSE (paper: plain MSE) + optional SmoothL1 (paper mentions it, weight unknown) +
+    # optional L1 (departure: the reported metric is a mean absolute error). Restricting them to active DoFs
+    # is our choice (padded slots are zero by construction, not targets).
     mse_weight: float = 1.0
     smooth_l1_weight: float = 0.0
     l1_weight: float = 0.0
@@ -102,6 +106,7 @@ class UniDexTokConfig:
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         self.hand_names = list(self.hand_names)  # JSON round trip gives lists; keep one type
+        self.trained_hands = list(self.trained_hands)
         if self.input_norm not in ("pi", "range"):
             raise ValueError(f"input_norm must be 'pi' or 'range', got {self.input_norm!r}")
         if self.input_norm == "range":
