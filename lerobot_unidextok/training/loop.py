@@ -140,6 +140,8 @@ def _train(
     unknown = [h for h in train_data.hand_names() if not model.knows_hand(h)]
     if unknown:
         model.add_hands(unknown)
+    # the hands this checkpoint has been trained on (vocabulary rows of other hands were never trained)
+    model.config.trained_hands = list(dict.fromkeys([*model.config.trained_hands, *train_data.hand_names()]))
     model.train()
     if cfg.adapt != "all":
         model.quantizer.eval()  # no EMA codebook or usage updates: the shared parts stay as they are
