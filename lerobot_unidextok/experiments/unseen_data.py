@@ -12,6 +12,7 @@ import numpy as np
 
 from lerobot_unidextok.training import HandStates, load_hand_states
 
+
 def real_data_dir() -> Path:
     """The real recordings folder; a clear error when it is absent."""
     from lerobot_unidextok.experiments.config import default_real_data_dir

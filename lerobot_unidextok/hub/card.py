@@ -124,7 +124,10 @@ def training_section(state: dict) -> list[str]:
     if state.get("datasets"):
         lines += ["Converted UDHM datasets:", "", *[f"- `{d}`" for d in state["datasets"]], ""]
     if state.get("excluded_hands"):
-        lines += [f"Hands left out of training (zero-shot): {', '.join(f'`{h}`' for h in state['excluded_hands'])}.", ""]
+        lines += [
+            f"Hands left out of training (zero-shot): {', '.join(f'`{h}`' for h in state['excluded_hands'])}.",
+            "",
+        ]
     if hands:
         lines += [
             "Coverage mixture: each hand's share of a batch and of its rows the share of each source (recorded rows, "

@@ -38,7 +38,8 @@ class UniDexTokConfig:
     # `joint_range_rad` [lo, hi] onto [-1, 1] (departure, an option; training fills the ranges from the
     # training hands' registered joint ranges). The loss is in angle / pi units either way.
     input_norm: str = "pi"
-    joint_range_rad: list[list[float]] | None = None  # (22, 2) [lo, hi] per UDHM joint for input_norm="range"
+    # (22, 2) [lo, hi] per UDHM joint for input_norm="range"; None until training fills it (then pi is used)
+    joint_range_rad: list[list[float]] | None = None
     # Departure (option): besides the normalised angles x, the encoder input gets sin / cos(pi/2 * 2^k * x) for
     # k < fourier_octaves, so encoder groups can quantise fine phases of a joint (0 = the paper's linear input).
     fourier_octaves: int = 0
@@ -109,15 +110,11 @@ class UniDexTokConfig:
         self.trained_hands = list(self.trained_hands)
         if self.input_norm not in ("pi", "range"):
             raise ValueError(f"input_norm must be 'pi' or 'range', got {self.input_norm!r}")
-        if self.input_norm == "range":
-            rng = self.joint_range_rad
-            if rng is None or len(rng) != self.state_dim or any(len(r) != 2 or r[0] > r[1] for r in rng):
-                raise ValueError(
-                    f"input_norm='range' needs joint_range_rad: {self.state_dim} [lo, hi] pairs with lo <= hi "
-                    "(unidextok-train fills it from the training hands' joint ranges)"
-                )
         if self.joint_range_rad is not None:
-            self.joint_range_rad = [[float(a), float(b)] for a, b in self.joint_range_rad]
+            rng = self.joint_range_rad
+            if len(rng) != self.state_dim or any(len(r) != 2 or r[0] > r[1] for r in rng):
+                raise ValueError(f"joint_range_rad must be {self.state_dim} [lo, hi] pairs with lo <= hi, got {rng}")
+            self.joint_range_rad = [[float(a), float(b)] for a, b in rng]
         if self.gradient_estimator not in ("straight_through", "rotation"):
             raise ValueError(
                 f"gradient_estimator must be 'straight_through' or 'rotation', got {self.gradient_estimator!r}"
@@ -146,10 +143,11 @@ PRESETS: dict[str, UniDexTokConfig] = {
     # Paper sizes (N=8, C=512); depth/heads are our documented choice (not published).
     "paper": UniDexTokConfig(num_tokens=8, hidden_dim=512, encoder_depth=4, decoder_depth=4, num_heads=8),
     # CPU presets (departure: narrower and shallower than the paper so they train on 2 cores).
-    # small: the paper's 8 tokens, C=64 and MLP ratio 2 so a 10-minute run on 2 shared cores converges.
-    # SmoothL1 weight 1 (paper: SmoothL1 auxiliary, weight unpublished): its gradient does not vanish
-    # near zero error like MSE's. Measured on gesture data: 1.56 deg held-out MAE at step 1200 of 2400
-    # with it vs 1.86 deg after a full 1200-step run without it (bench: /tmp experiments, see docs/tokenizer.md).
+    # small: the paper's 8 tokens and VQ, C=64, 2 + 2 blocks, MLP ratio 2. Tuned on unseen real episodes
+    # (docs/tokenizer.md, experiments/unseen_episodes.py): SmoothL1 weight 1 (paper: weight unpublished),
+    # commitment weight 3 instead of the VQ-VAE 0.25 (the largest single gain: with a weak commitment the
+    # encoder vectors drift far from their codes and the straight-through gradient misleads), and per-joint
+    # range normalisation of the angles (paper: fixed pi).
     "small": UniDexTokConfig(
         num_tokens=8,
         hidden_dim=64,
@@ -158,6 +156,8 @@ PRESETS: dict[str, UniDexTokConfig] = {
         num_heads=4,
         mlp_ratio=2.0,
         smooth_l1_weight=1.0,
+        commitment_weight=3.0,
+        input_norm="range",
     ),
     "tiny": UniDexTokConfig(num_tokens=4, hidden_dim=64, encoder_depth=1, decoder_depth=1, num_heads=4),
 }

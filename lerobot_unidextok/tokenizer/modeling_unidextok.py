@@ -312,11 +312,12 @@ def normalisation(config: UniDexTokConfig) -> tuple[torch.Tensor, torch.Tensor]:
     """(center, scale), each (22,): x_normalised = (x_rad - center) / scale.
 
     "pi": center 0, scale pi (paper). "range": each joint's [lo, hi] onto [-1, 1]; joints with an empty
-    range (no training hand moves them) keep center 0 and scale pi.
+    range (no training hand moves them), and every joint before training fills the ranges, keep center 0 and
+    scale pi.
     """
     center = torch.zeros(config.state_dim)
     scale = torch.full((config.state_dim,), ANGLE_SCALE_RAD)
-    if config.input_norm == "range":
+    if config.input_norm == "range" and config.joint_range_rad is not None:
         rng = torch.tensor(config.joint_range_rad, dtype=torch.float32)  # (22, 2)
         half = (rng[:, 1] - rng[:, 0]) / 2
         moving = half > 1e-6

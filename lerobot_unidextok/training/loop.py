@@ -77,7 +77,7 @@ def build_model(cfg: TrainConfig, train_data: HandStates, **overrides) -> UniDex
         model.add_hands([*cfg.hand_names, *train_data.hand_names()])
         return model
     preset = UniDexTokConfig.from_preset(cfg.preset)
-    if overrides.get("input_norm", preset.input_norm) == "range" and overrides.get("joint_range_rad") is None:
+    if overrides.get("input_norm", preset.input_norm) == "range" and "joint_range_rad" not in overrides:
         overrides["joint_range_rad"] = joint_ranges_rad(train_data)
     return UniDexTok(
         UniDexTokConfig.from_preset(cfg.preset, hand_names=training_vocabulary(cfg, train_data), **overrides)
