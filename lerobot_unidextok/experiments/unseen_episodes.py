@@ -138,7 +138,7 @@ def run_fold(cfg: UnseenConfig, name: str, k: int, train: HandStates, test: Hand
         "test_rows": len(test), "test_episodes": int(len(np.unique(test.episode_keys()))),
         "heldout_deg": _score(reconstruct(best, test.states_rad, test.hands, allow_unknown=True).states_rad, test),
         "range_deg": _score(reconstruct(best, unif.states_rad, unif.hands, allow_unknown=True).states_rad, unif),
-        "git_commit": git_commit(), "settings": {"train": variant.train, "model": variant.model, "steps": cfg.steps},
+        "git_commit": git_commit(), "resolved": resolved_settings(cfg, name),
     }  # fmt: skip
 
 
@@ -151,8 +151,22 @@ def binning_fold(k: int, test: HandStates, fit: HandStates, range_n: int) -> dic
             "range_deg": _score(binning_reconstruction(unif), unif)}  # fmt: skip
 
 
+def resolved_settings(cfg: UnseenConfig, name: str) -> dict:
+    """Every training and model setting of a variant (defaults included): the cache key of its runs."""
+    from lerobot_unidextok.tokenizer import UniDexTokConfig
+
+    variant = VARIANTS[name]
+    train = dataclasses.asdict(_train_config(cfg, variant, Path(".")))
+    for volatile in ("output_dir", "progress", "datasets"):
+        train.pop(volatile)
+    model = dataclasses.asdict(UniDexTokConfig.from_preset(train["preset"], **variant.model))
+    for filled_by_training in ("hand_names", "trained_hands", "joint_range_rad"):
+        model.pop(filled_by_training)
+    return {"train": train, "model": model}
+
+
 def _key(r: dict) -> tuple:
-    return (r["variant"], r["fold"], json.dumps(r.get("settings", {}), sort_keys=True))
+    return (r["variant"], r["fold"], json.dumps(r["resolved"], sort_keys=True, default=str))
 
 
 def run(cfg: UnseenConfig) -> dict:
@@ -172,7 +186,8 @@ def run(cfg: UnseenConfig) -> dict:
     if cache.is_file():
         for line in cache.read_text().splitlines():
             r = json.loads(line)
-            done[_key(r)] = r
+            if "resolved" in r:
+                done[_key(r)] = r
     results = []
     for k in fold_ids:
         train, test = folds[k]
@@ -180,12 +195,7 @@ def run(cfg: UnseenConfig) -> dict:
             if name == "binning_8bit":
                 r = binning_fold(k, test, train, cfg.range_rows)
             else:
-                v = VARIANTS[name]
-                probe = {
-                    "variant": name,
-                    "fold": k,
-                    "settings": {"train": v.train, "model": v.model, "steps": cfg.steps},
-                }
+                probe = {"variant": name, "fold": k, "resolved": resolved_settings(cfg, name)}
                 r = done.get(_key(probe))
                 if r is None:
                     logger.info("training %s on fold %d (%d rows)", name, k, len(train))
