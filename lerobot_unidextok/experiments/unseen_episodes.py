@@ -40,6 +40,7 @@ class Variant:
     note: str
     train: dict = field(default_factory=dict)
     model: dict = field(default_factory=dict)
+    steps_scale: float = 1.0  # steps x this (e.g. half the batch for twice the steps at equal compute)
 
 
 RECORDED_ONLY = {"robot": {"recorded": 1.0}, "human": {"recorded": 1.0}}
@@ -48,6 +49,8 @@ VARIANTS: dict[str, Variant] = {
     "shipped": Variant("TrainConfig defaults, small preset (configs/train/small.yaml)"),
     "no_coverage": Variant("recorded rows only (no coverage samples)", {"coverage": RECORDED_ONLY}),
     "uniform_only": Variant("coverage samples only", {"coverage": {"robot": {"uniform": 1.0}}}),
+    "uniform_0.8": Variant("robot rows: recorded 0.2, uniform 0.8", {"coverage": {"robot": {"recorded": 0.2, "uniform": 0.8}}}),
+    "batch_128": Variant("batch 128 for twice the steps (equal compute)", {"batch_size": 128}, steps_scale=2.0),
     "robot_augment": Variant(
         "robot rows: recorded 0.3, recombine 0.1, noise 0.2, uniform 0.4",
         {"coverage": {"robot": {"recorded": 0.3, "recombine": 0.1, "noise": 0.2, "uniform": 0.4}}},
@@ -88,8 +91,7 @@ def _train_config(cfg: UnseenConfig, variant: Variant, output_dir: Path) -> Trai
     kw = dict(variant.train)
     if "coverage" in kw:
         kw["coverage"] = CoverageConfig(**kw["coverage"])
-    if cfg.steps:
-        kw["steps"] = cfg.steps
+    kw["steps"] = round((cfg.steps or TrainConfig().steps) * variant.steps_scale)
     if cfg.tiny:
         kw |= {"preset": "tiny", "steps": 12, "batch_size": 32, "warmup_steps": 2, "eval_every": 6}
     return TrainConfig(output_dir=str(output_dir), progress=False, save_last_every=10**9, seed=cfg.seed, **kw)
