@@ -30,12 +30,12 @@ _SKELETON_KEYS = {"scale", "bone_lengths_m", "palm_offsets_m", "source", "note"}
 _URDF_KEYS = {"source", "file", "keypoints", "note", *SIDES}
 _URDF_SIDE_KEYS = {"file", "keypoints"}
 # Name templates in `urdf_joint` and keypoint links, expanded per side (vendors prefix names by side).
-_SIDE_TEMPLATES = {"{side}": {"right": "right", "left": "left"}, "{s}": {"right": "r", "left": "l"},
-                   "{S}": {"right": "R", "left": "L"}}  # fmt: skip
+_SIDE_TEMPLATES = {"<side>": {"right": "right", "left": "left"}, "<s>": {"right": "r", "left": "l"},
+                   "<S>": {"right": "R", "left": "L"}}  # fmt: skip
 
 
 def expand_side(name: str, side: str) -> str:
-    """``name`` with ``{side}`` / ``{s}`` / ``{S}`` replaced by right/left, r/l, R/L."""
+    """``name`` with ``<side>`` / ``<s>`` / ``<S>`` replaced by right/left, r/l, R/L."""
     for key, values in _SIDE_TEMPLATES.items():
         name = name.replace(key, values[side])
     return name
