@@ -371,6 +371,14 @@ class HandSpec:
         rad = _clip(rad, _table(t.rad_lo, rad), _table(t.rad_hi, rad))
         return self._rad_to_raw(rad, t)
 
+    def check_units(self, raw: Any, side: str = "right") -> None:
+        """Raise ``hands.NativeUnitsError`` when a stream of native values (..., J) does not look like this
+        spec's units (outside the range, or all within 1 % of one end of it); the message gives the likely fix."""
+        from lerobot_unidextok.hands.units import check_native_units
+
+        self._check_side(side)
+        check_native_units(self, raw.detach().cpu().numpy() if isinstance(raw, torch.Tensor) else raw, side)
+
     # -- kinematics ----------------------------------------------------------------------------------
     def skeleton(self):
         """This hand's ``udhm.Skeleton`` (the default human skeleton scaled, per-finger lengths if given)."""
