@@ -53,7 +53,9 @@ def toy_urdf() -> str:
         pip_mimic = '\n    <mimic joint="ring_mcp" multiplier="1.0"/>' if f == "ring" else ""
         dip_mimic = {"middle": '\n    <mimic joint="middle_pip" multiplier="0.8"/>',
                      "ring": '\n    <mimic joint="ring_pip" multiplier="0.5"/>'}.get(f, "")  # fmt: skip
-        joints.append(_joint(f"{f}_pip", f"{f}_proximal", f"{f}_middle", f"0 0 {BONES[0]}", "0 1 0", 0.0, 1.5, pip_mimic))
+        joints.append(
+            _joint(f"{f}_pip", f"{f}_proximal", f"{f}_middle", f"0 0 {BONES[0]}", "0 1 0", 0.0, 1.5, pip_mimic)
+        )
         joints.append(_joint(f"{f}_dip", f"{f}_middle", f"{f}_distal", f"0 0 {BONES[1]}", "0 1 0", 0.0, 1.5, dip_mimic))
         joints.append(_fixed(f"{f}_tip_fixed", f"{f}_distal", f"{f}_tip", f"0 0 {BONES[2]}"))
     s = 0.04 / math.sqrt(2)
@@ -77,7 +79,9 @@ def toy_spec(*, thumb_swapped=False, index_abd_sign=1, spread_rest=math.pi / 4) 
     joints = []
     for f in FINGER_Y:
         sign = index_abd_sign if f == "index" else 1
-        joints.append(f"  - {{name: {f}_abd, slot: {f}_mcp_abd, sign: {sign}, raw_range: [-0.3, 0.3], rad_at_raw_range: [-0.3, 0.3]}}")
+        joints.append(
+            f"  - {{name: {f}_abd, slot: {f}_mcp_abd, sign: {sign}, raw_range: [-0.3, 0.3], rad_at_raw_range: [-0.3, 0.3]}}"
+        )
         joints.append(f"  - {{name: {f}_mcp, slot: {f}_mcp_flex, raw_range: [0, 1.5], rad_at_raw_range: [0, 1.5]}}")
         if f != "ring":  # ring PIP is a mimic of its MCP in the URDF: not a native joint
             joints.append(f"  - {{name: {f}_pip, slot: {f}_pip_flex, raw_range: [0, 1.5], rad_at_raw_range: [0, 1.5]}}")
@@ -89,8 +93,9 @@ def toy_spec(*, thumb_swapped=False, index_abd_sign=1, spread_rest=math.pi / 4) 
         f"  - {{name: thumb_turn, slot: {turn}, sign: -1, rest_rad: {spread_rest}, raw_range: [-0.5, 0.7],"
         " rad_at_raw_range: [-0.5, 0.7]}"
     )
-    return textwrap.dedent(
-        f"""\
+    return (
+        textwrap.dedent(
+            f"""\
         name: toy_hand
         embodiment: toy_hand
         kind: joints
@@ -106,7 +111,12 @@ def toy_spec(*, thumb_swapped=False, index_abd_sign=1, spread_rest=math.pi / 4) 
             thumb_ip: [thumb_metacarpal, [0, {2 * s}, {2 * s}]]
             thumb_tip: thumb_tip
         """
-    ) + fingers + "\njoints:\n" + "\n".join(joints) + "\n"
+        )
+        + fingers
+        + "\njoints:\n"
+        + "\n".join(joints)
+        + "\n"
+    )
 
 
 @pytest.fixture()
