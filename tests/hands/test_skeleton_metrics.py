@@ -23,7 +23,7 @@ def test_robot_keypoint_errors_use_the_measured_skeleton():
     np.testing.assert_allclose(err, want)
     human = Skeleton.default().scaled(1.5)
     scaled = 1000 * np.linalg.norm(forward_kinematics(pred, human) - forward_kinematics(true, human), axis=-1)
-    assert abs(err.mean() - scaled.mean()) > 0.05 * scaled.mean()
+    assert np.abs(err - scaled).max() > 1.0  # mm: the robot's proportions are not a scaled human's
     report = metrics.reconstruction_metrics(pred, true, np.array(["leap"] * 20))
     assert report["per_hand"]["leap"]["skeleton"].startswith("measured: dexsuite/dex-urdf")
     assert "approximation" in metrics.skeleton_source("linkerhand_l6")
