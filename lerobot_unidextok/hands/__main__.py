@@ -2,6 +2,7 @@
 
     python -m lerobot_unidextok.hands [name ...]                     # native joints and UDHM slots
     python -m lerobot_unidextok.hands check SPEC [--urdf FILE]       # kinematic check, per-joint verdicts
+    python -m lerobot_unidextok.hands check all                      # every registered hand with a URDF
     python -m lerobot_unidextok.hands skeleton SPEC [--write]        # robot skeleton from the URDF
 
 SPEC is a registered hand name or a path to a hand YAML. Without --urdf the spec's ``urdf.file`` is looked
@@ -46,8 +47,20 @@ def _urdf_path(spec, side: str, urdf: str | None, urdf_dir: str | None) -> Path:
 
 
 def _check(args) -> int:
+    from lerobot_unidextok.hands import all_specs
     from lerobot_unidextok.hands.check import check_spec
 
+    if args.spec == "all":  # every registered hand with a URDF: one summary line per hand and side
+        total = agree = 0
+        for spec in (s for s in all_specs() if s.urdf is not None):
+            for side in spec.sides if args.side == "both" else (args.side,):
+                report = check_spec(spec, _urdf_path(spec, side, None, args.urdf_dir), side, num_random=args.random)
+                print(report.summary())
+                for j in report.disagreements:
+                    print(f"    {j.joint}: {j.verdict} (strongest {j.found_slot} {j.found_sign:+d})")
+                total, agree = total + len(report.mapped), agree + len(report.mapped) - len(report.disagreements)
+        print(f"total: {agree}/{total} mapped (hand, side, joint) entries agree with the robots' kinematics")
+        return 0 if agree == total else 1
     spec = _load(args.spec)
     sides = spec.sides if args.side == "both" else (args.side,)
     bad = 0
@@ -109,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     if argv and argv[0] in ("check", "skeleton"):
         parser = argparse.ArgumentParser(prog="python -m lerobot_unidextok.hands " + argv[0], description=__doc__,
                                          formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-        parser.add_argument("spec", help="registered hand name or path to a hand YAML")
+        parser.add_argument("spec", help="registered hand name, path to a hand YAML, or 'all' (check only)")
         parser.add_argument("--urdf", help="the URDF file (default: the spec's urdf.file under --urdf-dir)")
         parser.add_argument("--urdf-dir", help="folder the spec's urdf.file paths are relative to")
         if argv[0] == "check":
