@@ -1,20 +1,30 @@
 """Read LeRobot datasets (v2.1 and v3.0) straight from their parquet and meta files.
 
 Shared by the `dexora`, `linkerhand` and `lerobot` readers. lerobot 0.6 refuses v2.1 datasets, so both
-layouts are read with pyarrow only: v2.1 one `episode_%06d.parquet` per episode, v3.0 many episodes per
-`file-%03d.parquet` located through `meta/episodes/*.parquet`.
+layouts are read with pyarrow only, following LeRobot's own layout code (huggingface/lerobot
+`src/lerobot/datasets/io_utils.py`, `dataset_metadata.py` for v3.0; `scripts/convert_dataset_v21_to_v30.py`
+`legacy_load_*` for v2.1): v2.1 one `episode_%06d.parquet` (and one mp4 per video key) per episode, v3.0
+many episodes per `file-%03d.parquet` / mp4 located through `meta/episodes/*.parquet`.
+
+Besides the hand columns, an episode read here carries what the converted dataset keeps of the robot:
+the other features' Arrow columns unchanged, the video segments and the source's per-episode stats of
+image/video features (which cannot be recomputed without decoding).
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.conversion.episode import VideoSegment
+
 SUPPORTED_VERSIONS = ("v2.0", "v2.1", "v3.0")
+DEFAULT_KEYS = ("timestamp", "frame_index", "episode_index", "index", "task_index")  # rebuilt by the writer
+VISUAL_DTYPES = ("image", "video")
 
 
 class LeRobotFormatError(ValueError):
@@ -146,7 +156,14 @@ def _episodes_table_v30(root: Path) -> dict[str, list]:
     return _episodes_table_cached(str(root), stamp)
 
 
-_EPISODE_COLUMNS = ("episode_index", "tasks", "length", "data/chunk_index", "data/file_index")  # skip the stats
+_EPISODE_COLUMNS = ("episode_index", "tasks", "length", "data/chunk_index", "data/file_index")
+
+
+def _wanted_episode_column(name: str, visual: tuple[str, ...]) -> bool:
+    """Episode metadata columns read: the basics, video segments and the stats of image/video features only."""
+    if name in _EPISODE_COLUMNS or name.startswith("videos/"):
+        return True
+    return name.startswith("stats/") and name.split("/")[1] in visual
 
 
 @lru_cache(maxsize=8)
@@ -157,11 +174,13 @@ def _episodes_table_cached(root_str: str, stamp: tuple) -> dict[str, list]:
     files = [Path(f) for f, _, _ in stamp]
     if not files:
         raise LeRobotFormatError(f"{root / 'meta' / 'episodes'}: no chunk-*/file-*.parquet episode metadata")
+    info = load_info(root)
+    visual = tuple(k for k, ft in info["features"].items() if ft.get("dtype") in VISUAL_DTYPES)
     columns: dict[str, list] = {}
     for f in files:
         try:
             present = pq.read_schema(f).names
-            table = pq.read_table(f, columns=[c for c in _EPISODE_COLUMNS if c in present]).to_pydict()
+            table = pq.read_table(f, columns=[c for c in present if _wanted_episode_column(c, visual)]).to_pydict()
         except Exception as exc:  # noqa: BLE001 - pyarrow raises several types for corrupt files
             raise LeRobotFormatError(f"{f}: unreadable parquet ({exc})") from exc
         for key, values in table.items():
@@ -179,34 +198,54 @@ def _episodes_table_cached(root_str: str, stamp: tuple) -> dict[str, list]:
 
 @dataclass
 class EpisodeColumns:
-    """The vector columns and task of one episode."""
+    """The vector columns, copied columns, videos and task of one episode."""
 
     source_file: str
     fps: float
-    columns: dict[str, np.ndarray]  # feature key -> (T, D) float64
+    columns: dict[str, np.ndarray]  # feature key -> (T, D) in the stored dtype (float32 stays float32)
     task: str
     info: dict
+    copied: dict = field(default_factory=dict)  # feature key -> (T,) pyarrow array, unchanged
+    videos: dict[str, VideoSegment] = field(default_factory=dict)
+    stats: dict[str, dict] = field(default_factory=dict)  # source per-episode stats of image/video features
 
 
-def read_episode(ref: LeRobotEpisodeRef, keys: list[str]) -> EpisodeColumns:
-    """Read the vector features `keys` of one episode as (T, D) arrays, frames in `frame_index` order."""
+def other_features(info: dict, used: set[str]) -> tuple[dict[str, dict], dict[str, dict]]:
+    """(copied, videos): the features of a dataset besides `used` ones and LeRobot's index columns."""
+    copied, videos = {}, {}
+    for key, ft in info["features"].items():
+        if key in used or key in DEFAULT_KEYS:
+            continue
+        (videos if ft.get("dtype") == "video" else copied)[key] = ft
+    return copied, videos
+
+
+def read_episode(
+    ref: LeRobotEpisodeRef, keys: list[str], copy_keys: tuple[str, ...] = (), video_keys: tuple[str, ...] = ()
+) -> EpisodeColumns:
+    """Read the vector features `keys` of one episode as (T, D) arrays, frames in `frame_index` order;
+    `copy_keys` as unchanged Arrow columns and `video_keys` as segments of the source video files."""
     import pyarrow.parquet as pq
 
     root = Path(ref.root)
     info = load_info(root)
     version = info["codebase_version"]
+    meta_row: dict = {}
     if version == "v3.0":
         table = _episodes_table_v30(root)
         row = table["episode_index"].index(ref.episode_index)
-        chunk, file = int(table["data/chunk_index"][row]), int(table["data/file_index"][row])
+        meta_row = {k: v[row] for k, v in table.items()}
+        chunk, file = int(meta_row["data/chunk_index"]), int(meta_row["data/file_index"])
         path = root / info["data_path"].format(chunk_index=chunk, file_index=file)
-        tasks = table.get("tasks", [None] * len(table["episode_index"]))[row]
+        tasks = meta_row.get("tasks")
     else:
         chunk = ref.episode_index // int(info.get("chunks_size", 1000))
         path = root / info["data_path"].format(episode_chunk=chunk, episode_index=ref.episode_index)
         tasks = None
     if not path.is_file():
         raise LeRobotFormatError(f"{path}: data file of episode {ref.episode_index} is missing")
+    vector_keys = list(keys)
+    keys = [*vector_keys, *(k for k in copy_keys if k not in vector_keys)]
     wanted = [*keys, "episode_index", "frame_index", "task_index"]
     try:
         pf = pq.ParquetFile(path)
@@ -231,13 +270,85 @@ def read_episode(ref: LeRobotEpisodeRef, keys: list[str]) -> EpisodeColumns:
         raise LeRobotFormatError(f"{path}: no rows with episode_index == {ref.episode_index}")
     if "frame_index" in data:
         rows = rows[np.argsort(data["frame_index"].to_numpy()[rows], kind="stable")]
-    columns = {key: _vector_column(data[key], rows, path, key, ref.episode_index) for key in keys}
+    import pyarrow as pa
+
+    take = pa.array(rows)
+    copied = {key: _combined(data[key]).take(take) for key in copy_keys}
+    columns = {key: _vector_column(data[key], rows, path, key, ref.episode_index) for key in vector_keys}
     task = _task_text(root, info, tasks, data, rows)
-    return EpisodeColumns(str(path), float(info["fps"]), columns, task, info)
+    fps = float(info["fps"])
+    videos = {key: _video_segment(root, info, ref.episode_index, meta_row, key, len(rows) / fps) for key in video_keys}
+    stats = _source_stats(root, info, ref.episode_index, meta_row, (*copy_keys, *video_keys))
+    return EpisodeColumns(str(path), fps, columns, task, info, copied, videos, stats)
+
+
+def _combined(column):
+    import pyarrow as pa
+
+    return column.combine_chunks() if isinstance(column, pa.ChunkedArray) else column
+
+
+def _video_segment(
+    root: Path, info: dict, episode_index: int, meta_row: dict, key: str, duration_s: float
+) -> VideoSegment:
+    """Where episode `episode_index` of video feature `key` sits in the source files (v3.0 or v2.1)."""
+    if info["codebase_version"] == "v3.0":
+        try:
+            chunk, file = int(meta_row[f"videos/{key}/chunk_index"]), int(meta_row[f"videos/{key}/file_index"])
+            start, end = float(meta_row[f"videos/{key}/from_timestamp"]), float(meta_row[f"videos/{key}/to_timestamp"])
+        except KeyError as exc:
+            raise LeRobotFormatError(f"{root / 'meta' / 'episodes'}: missing column {exc} of video {key!r}") from exc
+        path = root / info["video_path"].format(video_key=key, chunk_index=chunk, file_index=file)
+    else:
+        chunk = episode_index // int(info.get("chunks_size", 1000))
+        path = root / info["video_path"].format(episode_chunk=chunk, video_key=key, episode_index=episode_index)
+        start, end = 0.0, _video_duration_s(path, duration_s)
+    if not path.is_file():
+        raise LeRobotFormatError(f"{path}: video {key!r} of episode {episode_index} is missing")
+    return VideoSegment(str(path), start, end)
+
+
+def _video_duration_s(path: Path, fallback_s: float) -> float:
+    """A v2.1 episode video's duration (LeRobot's own probe, as its v2.1 -> v3.0 converter does)."""
+    if not path.is_file():
+        return fallback_s
+    from lerobot.datasets.video_utils import get_video_duration_in_s
+
+    return float(get_video_duration_in_s(path))
+
+
+def _source_stats(root: Path, info: dict, episode_index: int, meta_row: dict, keys: tuple[str, ...]) -> dict:
+    """The source's per-episode stats of the image/video features among `keys` (v3.0 columns or v2.1 jsonl)."""
+    visual = [k for k in keys if info["features"][k].get("dtype") in VISUAL_DTYPES]
+    if not visual:
+        return {}
+    out: dict[str, dict] = {}
+    if info["codebase_version"] == "v3.0":
+        for key in visual:
+            prefix = f"stats/{key}/"
+            stats = {
+                c[len(prefix) :]: np.asarray(v) for c, v in meta_row.items() if c.startswith(prefix) and v is not None
+            }
+            if stats:
+                out[key] = stats
+        return out
+    by_episode = _episodes_stats_v21(str(root))
+    for key, stats in by_episode.get(episode_index, {}).items():
+        if key in visual:
+            out[key] = {name: np.asarray(value) for name, value in stats.items()}
+    return out
+
+
+@lru_cache(maxsize=8)
+def _episodes_stats_v21(root_str: str) -> dict[int, dict]:
+    path = Path(root_str) / "meta" / "episodes_stats.jsonl"
+    if not path.is_file():
+        return {}
+    return {int(r["episode_index"]): r.get("stats", {}) for r in _read_jsonl(path)}
 
 
 def _vector_column(column, rows: np.ndarray, path: Path, key: str, episode_index: int) -> np.ndarray:
-    """(T, D) float64 of a list / fixed-size-list (or scalar) parquet column at `rows`."""
+    """(T, D) of a list / fixed-size-list (or scalar) parquet column at `rows`, in the stored number type."""
     import pyarrow as pa
 
     column = column.combine_chunks() if isinstance(column, pa.ChunkedArray) else column
@@ -247,10 +358,12 @@ def _vector_column(column, rows: np.ndarray, path: Path, key: str, episode_index
         lengths = set(column.value_lengths().to_numpy(zero_copy_only=False).tolist()) if len(column) else {0}
         if len(lengths) != 1:
             raise LeRobotFormatError(f"{path}: column {key!r} has rows of different lengths {sorted(lengths)}")
-        flat = column.flatten().to_numpy(zero_copy_only=False).astype(np.float64)
+        flat = column.flatten().to_numpy(zero_copy_only=False)
         values = flat.reshape(len(column), -1)
     else:
-        values = column.to_numpy(zero_copy_only=False).astype(np.float64).reshape(len(column), -1)
+        values = column.to_numpy(zero_copy_only=False).reshape(len(column), -1)
+    if not np.issubdtype(values.dtype, np.number) and values.dtype != np.bool_:
+        raise LeRobotFormatError(f"{path}: column {key!r} is not numeric ({column.type})")
     return values[rows]
 
 

@@ -1,7 +1,12 @@
 """DexYCB reader: per-frame `labels_%06d.npz` `joint_3d` of one camera view -> 21 keypoints (m), one hand.
 
-Layout `<root>/<subject>/<capture>/{meta.yml, <serial>/labels_%06d.npz}`; handedness from
+Follows NVlabs/dex-ycb-toolkit `dex_ycb_toolkit/dex_ycb.py` (layout, `meta.yml` fields, `labels_%06d.npz`
+keys): `<root>/<subject>/<capture>/{meta.yml, <serial>/labels_%06d.npz}`; handedness from
 `meta.yml: mano_sides`; frames whose `joint_3d` is all -1 (no hand) are `valid=False`.
+
+Frame rate: the toolkit never states one. The same authors' NVlabs/handover-sim replays DexYCB captures
+with `_TIME_STEP_RAW = 0.04` s between raw frames (`handover/dex_ycb.py`), i.e. **25 fps**, which is the
+default here (`fps=` overrides it).
 """
 
 from __future__ import annotations
@@ -14,7 +19,7 @@ import numpy as np
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
 
-DEXYCB_FPS = 30.0  # unconfirmed upstream (see converters/README.md)
+DEXYCB_FPS = 25.0  # NVlabs/handover-sim handover/dex_ycb.py: _TIME_STEP_RAW = 0.04 s per raw DexYCB frame
 # DexYCB object ids 1..21 (dex-ycb-toolkit `_YCB_CLASSES`), for the task text.
 YCB_CLASSES = (
     "002_master_chef_can", "003_cracker_box", "004_sugar_box", "005_tomato_soup_can", "006_mustard_bottle",

@@ -1,5 +1,11 @@
 """EgoDex reader: one HDF5 per episode, ARKit `transforms/<joint>` (N,4,4) -> 21 keypoints (m) per hand.
 
+Follows apple/ml-egodex `simple_dataset.py` (`SimpleDataset.__getitem__`): transforms in the ARKit world
+frame, optional `confidences/`, and the task text chosen as Apple's loader chooses it: for
+`llm_type == 'reversible'` tasks (recorded both ways) `llm_description` when `which_llm_description` is
+'1', else `llm_description2`; otherwise `llm_description`. (Attributes are compared as text, so an integer
+1 counts as '1'.) 30 Hz pose.
+
 Both hands per file. Keypoints are the translations of the 21 hand joints in the ARKit world frame
 (joint angles do not depend on the frame). `confidences/<joint>` are optional: when present, frames
 whose lowest hand-joint confidence is <= `min_confidence` are `valid=False`. Needs `h5py` (egodex extra).
@@ -22,7 +28,25 @@ KEYPOINT_JOINTS: tuple[str, ...] = (
     "ThumbKnuckle", "ThumbIntermediateBase", "ThumbIntermediateTip", "ThumbTip",
     *(f"{f}Finger{p}" for f in FINGERS for p in ("Knuckle", "IntermediateBase", "IntermediateTip", "Tip")),
 )  # fmt: skip
-TEXT_ATTRS = ("llm_description", "llm_description2", "task")
+
+
+def task_text(attrs) -> str:
+    """The episode's instruction as Apple's loader picks it (module docstring); `task` when no description."""
+    if _text(attrs.get("llm_type")) == "reversible":
+        key = "llm_description" if _text(attrs.get("which_llm_description")).strip() == "1" else "llm_description2"
+    else:
+        key = "llm_description"
+    return _text(attrs.get(key)).strip() or _text(attrs.get("task")).strip()
+
+
+def _text(value: object) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bytes):
+        return value.decode()
+    if isinstance(value, np.generic):
+        value = value.item()
+    return str(value)
 
 
 class EgoDexFormatError(ValueError):
@@ -78,13 +102,12 @@ class EgoDexSource:
             lengths = {h.state_native.shape[0] for h in hands}
             if len(lengths) != 1:
                 raise EgoDexFormatError(f"{path}: hands have different frame counts {sorted(lengths)}")
-            task = ""
-            for attr in TEXT_ATTRS:
-                value = f.attrs.get(attr)
-                if value is not None and str(value).strip():
-                    task = value.decode() if isinstance(value, bytes) else str(value)
-                    break
-            extra = {k: _attr(f.attrs[k]) for k in ("task", "environment", "object", "session_name") if k in f.attrs}
+            task = task_text(f.attrs)
+            extra = {
+                k: _attr(f.attrs[k])
+                for k in ("task", "llm_type", "which_llm_description", "environment", "object", "session_name")
+                if k in f.attrs
+            }
         return RawEpisode(source_file=str(path), fps=EGODEX_FPS, hands=hands, task=task, extra=extra)
 
     def _read_hand(self, f, path: Path, side: str) -> HandStream:

@@ -10,7 +10,14 @@
 when the action feature has them all (else no action). A hand stored in a feature of its own takes
 `{"hand": ..., "state_key": "observation.state.right_hand", "action_key": "action.right_hand"}` (every
 column; names optional). Names are normalised from flat, nested `[[...]]` and dict forms. Both versions
-are read straight from parquet (lerobot 0.6 refuses v2.1).
+are read straight from parquet (lerobot 0.6 refuses v2.1), following LeRobot's layout code (see
+`_lerobot_files`).
+
+The whole robot is kept: every state/action column that belongs to no hand (arms, grippers, base) is a
+passthrough column (source name, source order, stored value), every other feature (images, other
+observations) is copied unchanged and every video feature is copied as a file segment.
+Hand names and columns are checked once against each dataset's `meta/info.json` when the episodes are
+listed, so a typo fails before any episode is read.
 """
 
 from __future__ import annotations
@@ -21,11 +28,12 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
-from lerobot_unidextok.conversion.registry import register_source
+from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode
+from lerobot_unidextok.conversion.registry import check_hand, register_source
 from lerobot_unidextok.converters import _lerobot_files as lr
 
 ALL_COLUMNS = ("*",)  # state_names meaning "every column of the hand's own feature"
+OUT_STATE, OUT_ACTION = "observation.state", "action"  # the converted dataset's vectors
 
 
 @dataclass(frozen=True)
@@ -76,7 +84,7 @@ def parse_hands(hands: dict | str) -> list[HandColumns]:
             hand, sep, prefix = entry.partition(":")
             if not sep or not hand or not prefix:
                 raise ValueError(f"hands[{side!r}] shorthand must be '<hand spec>:<name prefix>', got {entry!r}")
-            out.append(HandColumns(side, hand, prefix=prefix))
+            out.append(HandColumns(side, check_hand(hand, f"hands[{side!r}]"), prefix=prefix))
             continue
         if not isinstance(entry, dict) or "hand" not in entry:
             raise ValueError(f"hands[{side!r}] must be a dict with 'hand' and 'state_names' or 'prefix', got {entry!r}")
@@ -98,7 +106,7 @@ def parse_hands(hands: dict | str) -> list[HandColumns]:
         out.append(
             HandColumns(
                 side,
-                str(entry["hand"]),
+                check_hand(str(entry["hand"]), f"hands[{side!r}]"),
                 state,
                 action,
                 entry.get("prefix"),
@@ -128,18 +136,21 @@ class LeRobotSource:
         self.action_key = action_key
 
     def list_episodes(self, input_path: str | Path) -> list[lr.LeRobotEpisodeRef]:
-        return lr.list_all_episodes(input_path)
+        refs = lr.list_all_episodes(input_path)
+        for root in sorted({r.root for r in refs}):  # setup check: every dataset maps, before any episode work
+            column_plan(lr.load_info(root), root, self.hands, self.state_key, self.action_key)
+        return refs
 
     def read_episode(self, ref: lr.LeRobotEpisodeRef) -> RawEpisode:
         return read_mapped_episode(ref, self.hands, self.state_key, self.action_key)
 
 
-def read_mapped_episode(
-    ref: lr.LeRobotEpisodeRef, hands: list[HandColumns], state_key: str, action_key: str | None
-) -> RawEpisode:
-    """One episode with each hand's state (and action) columns picked by name."""
-    info = lr.load_info(ref.root)
-    info_path = Path(ref.root) / "meta" / "info.json"
+def column_plan(
+    info: dict, root: str | Path, hands: list[HandColumns], state_key: str, action_key: str | None
+) -> tuple[list[tuple], dict[str, list[str]]]:
+    """Per hand (hand, state key, state columns, action key, action columns), and the names of each feature;
+    raises naming the info.json field when a hand's columns are not there."""
+    info_path = Path(root) / "meta" / "info.json"
     names: dict[str, list[str]] = {}
 
     def names_of(key: str, all_columns: bool) -> list[str]:
@@ -148,7 +159,7 @@ def read_mapped_episode(
             if all_columns and feature is not None and feature.get("names") is None:  # unnamed own feature
                 names[key] = [f"{key}[{i}]" for i in range(int(np.prod(feature.get("shape", [0]))))]
             else:
-                names[key] = lr.feature_names(info, key, ref.root)
+                names[key] = lr.feature_names(info, key, root)
         return names[key]
 
     plan = []
@@ -168,15 +179,71 @@ def read_mapped_episode(
         elif h.action_names is not None or h.action_key is not None:
             raise lr.LeRobotFormatError(f"{info_path} features[{a_key!r}]: missing, but {h.side} hand asks for it")
         plan.append((h, s_key, s_cols, a_key if a_cols is not None else None, a_cols))
-    keys = sorted({p[1] for p in plan} | {p[3] for p in plan if p[3]})
-    episode = lr.read_episode(ref, keys)
+    for _, s_key, s_cols, _, _ in plan:  # a column can belong to one hand only
+        if len(set(s_cols)) != len(s_cols):
+            raise lr.LeRobotFormatError(f"{info_path} features[{s_key!r}]: a hand lists a column twice: {s_cols}")
+    taken = [c for _, _, s_cols, _, _ in plan for c in s_cols]
+    if len(set(taken)) != len(taken):
+        raise lr.LeRobotFormatError(
+            f"{info_path}: two hands share columns {sorted({c for c in taken if taken.count(c) > 1})}"
+        )
+    return plan, names
+
+
+def _names_or_indices(info: dict, key: str, root) -> list[str]:
+    """A vector feature's names, or `key[i]` for an unnamed one (its columns still pass through)."""
+    if info["features"][key].get("names") is None:
+        return [f"{key}[{i}]" for i in range(int(np.prod(info["features"][key].get("shape", [0]))))]
+    return lr.feature_names(info, key, root)
+
+
+def read_mapped_episode(
+    ref: lr.LeRobotEpisodeRef, hands: list[HandColumns], state_key: str, action_key: str | None
+) -> RawEpisode:
+    """One episode with each hand's state (and action) columns picked by name, and the rest of the robot:
+    passthrough columns of the shared state/action vectors, other features copied, videos."""
+    info = lr.load_info(ref.root)
+    info_path = str(Path(ref.root) / "meta" / "info.json")
+    plan, names = column_plan(info, ref.root, hands, state_key, action_key)
+    has_action = all(p[4] is not None for p in plan)
+    vectors = {OUT_STATE: state_key}  # output vector -> source feature holding the hands' shared columns
+    if has_action and action_key and action_key in info["features"]:
+        vectors[OUT_ACTION] = action_key
+    used = {p[1] for p in plan} | ({p[3] for p in plan if p[3]} if has_action else set())
+    used |= set(vectors.values())
+    copied_ft, video_ft = lr.other_features(info, used)
+    keys = sorted(used & set(info["features"]))
+    episode = lr.read_episode(ref, keys, tuple(copied_ft), tuple(video_ft))
     streams = []
     for h, s_key, s_cols, a_key, a_cols in plan:
-        state = episode.columns[s_key][:, lr.select_columns(names[s_key], s_cols, str(info_path))]
+        state = episode.columns[s_key][:, lr.select_columns(names[s_key], s_cols, info_path)]
         action = None
-        if a_cols is not None:
-            action = episode.columns[a_key][:, lr.select_columns(names[a_key], a_cols, str(info_path))]
-        streams.append(HandStream(side=h.side, hand=h.hand, state_native=state, action_native=action))
+        if a_cols is not None and has_action:
+            action = episode.columns[a_key][:, lr.select_columns(names[a_key], a_cols, info_path)]
+        streams.append(
+            HandStream(
+                side=h.side,
+                hand=h.hand,
+                state_native=state,
+                action_native=action,
+                state_columns=tuple(s_cols),
+                action_columns=tuple(a_cols) if action is not None else None,
+            )
+        )
+    passthrough, native_names, native_keys = {}, {}, {}
+    for out_key, src_key in vectors.items():
+        if src_key not in info["features"]:
+            continue
+        src_names = names.get(src_key) or _names_or_indices(info, src_key, ref.root)
+        if out_key == OUT_STATE:
+            hand_cols = {c for _, s_key, s_cols, _, _ in plan if s_key == src_key for c in s_cols}
+        else:
+            hand_cols = {c for _, _, _, a_key, a_cols in plan if a_key == src_key for c in a_cols}
+        keep = [i for i, n in enumerate(src_names) if n not in hand_cols]
+        passthrough[out_key] = Passthrough(tuple(src_names[i] for i in keep), episode.columns[src_key][:, keep])
+        native_names[out_key] = list(src_names)
+        if src_key != out_key:
+            native_keys[out_key] = src_key
     return RawEpisode(
         source_file=episode.source_file,
         fps=episode.fps,
@@ -187,4 +254,13 @@ def read_mapped_episode(
             "episode_index": ref.episode_index,
             "codebase_version": info["codebase_version"],
         },
+        passthrough=passthrough,
+        native_names=native_names,
+        native_keys=native_keys,
+        copied=episode.copied,
+        copied_features=copied_ft,
+        copied_stats=episode.stats,
+        videos=episode.videos,
+        video_features=video_ft,
+        source_episode={"source_episode_index": ref.episode_index},
     )

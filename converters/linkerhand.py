@@ -1,17 +1,24 @@
-"""LinkerHand-Open-World reader: 0-255 per joint (255 = open), L6/L10/L20 hands. Schema UNCONFIRMED.
+"""LinkerHand reader: ROS 2 bags (sqlite3 or MCAP) of the LinkerHand ROS 2 SDK topics, or a LeRobot export.
 
-Two accepted forms (strict; errors name the file and the missing field):
-1. Per-episode JSON dump of the LinkerHand ROS topics (the form `conversion.samples` writes):
-   `hand_model` ("L10", "L20", ...), `topics["/cb_<side>_hand_state"]` = {stamp_s, position [T, J]}
-   (-> state) and optional `topics["/cb_<side>_hand_control_cmd"]` (-> action, zero-order hold onto the
-   state stamps). Sides present in the file are read.
-2. A LeRobot-style export (folder with meta/info.json, v2.1 or v3.0): pass `model=` and either `hands=`
-   (as for the `lerobot` source) or rely on names `<side>_hand_<k>` / `<side>_hand_joint_<k>` (k = 0..J-1
-   or 1..J), ordered by k.
+Follows linker-bot/linkerhand-ros2-sdk `doc/Topic-Reference.md` and
+`linker_hand_ros2_sdk/linker_hand_ros2_sdk/linker_hand.py` (the node that publishes them):
+
+- `/cb_<side>_hand_state` (`sensor_msgs/JointState`, `position` 0-255 per joint, 255 = open) -> state;
+- `/cb_<side>_hand_control_cmd` (`sensor_msgs/JointState`, 0-255; the SDK limits it to 30 Hz) -> action;
+- `/cb_<side>_hand_state_arc` / `_control_cmd_arc` carry the same in radians and are not needed;
+- `/cb_<side>_hand_info` (`std_msgs/String`, JSON with `hand_joint`: "L6", "L10", "L20", ...) names the
+  model; without it the model comes from `model=` or from the number of joints (6 -> L6, 10 -> L10,
+  20 -> L20; L7/L21/L25 have no hand spec here).
+- Stamps are bag log times; both hands are resampled onto one `fps` grid (default 30): nearest command,
+  linear (or nearest) state (`_rosbag`).
+
+A LeRobot-style export (folder with meta/info.json, v2.1 or v3.0) is read like the `lerobot` source: pass
+`model=` (names `<side>_hand_<k>` / `<side>_hand_joint_<k>`, k from 0 or 1) or `hands=`.
 """
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -20,37 +27,71 @@ import numpy as np
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
 from lerobot_unidextok.converters import _lerobot_files as lr
-from lerobot_unidextok.converters._topic_json import array_field, field, fps_from_stamps, load_json
+from lerobot_unidextok.converters import _rosbag as rb
 from lerobot_unidextok.converters.lerobot import HandColumns, parse_hands, read_mapped_episode
 
-MODELS: dict[str, tuple[str, int]] = {  # SDK model -> (hand spec name, joints per hand)
+MODELS: dict[str, tuple[str, int]] = {  # SDK model (hand_joint) -> (hand spec name, joints per hand)
     "L6": ("linkerhand_l6", 6),
+    "O6": ("linkerhand_l6", 6),  # same channel layout as the L6 (SDK README)
     "L10": ("linkerhand_l10", 10),
     "L20": ("linkerhand_l20", 20),
 }
+BY_WIDTH = {6: "L6", 10: "L10", 20: "L20"}
+SIDES = ("left", "right")
 _EXPORT_NAME = re.compile(r"^(left|right)[_ ]?hand[_ ]?(?:joint[_ ]?)?(\d+)$", re.IGNORECASE)
 
 
 class LinkerHandFormatError(ValueError):
-    """A LinkerHand file lacks a field or has the wrong shape; the message names both."""
+    """A LinkerHand bag or export lacks a topic/field or has the wrong shape; the message names both."""
 
 
-def _model(model: str, path: object) -> tuple[str, int]:
+def state_topic(side: str) -> str:
+    return f"/cb_{side}_hand_state"
+
+
+def command_topic(side: str) -> str:
+    return f"/cb_{side}_hand_control_cmd"
+
+
+def info_topic(side: str) -> str:
+    return f"/cb_{side}_hand_info"
+
+
+def _model(model: str, where: object) -> tuple[str, int]:
     key = str(model).upper()
     if key not in MODELS:
-        raise LinkerHandFormatError(f"{path}: unknown LinkerHand model {model!r}; known: {sorted(MODELS)}")
+        raise LinkerHandFormatError(
+            f"{where}: LinkerHand model {model!r} has no hand spec here; known models: {sorted(MODELS)}"
+        )
     return MODELS[key]
+
+
+def _hand_joint(msg) -> tuple[np.ndarray, tuple[str, ...]]:
+    """`/cb_<side>_hand_info` JSON: no values, the model name (`hand_joint`) as the stream's name."""
+    return np.zeros(0), (str(json.loads(msg.data).get("hand_joint", "")),)
 
 
 @register_source("linkerhand")
 class LinkerHandSource:
-    license = "CC BY 4.0 (Linkerbot LinkerHand-Open-World dataset)"
-    description = "LinkerHand-Open-World: LinkerHand L6/L10/L20, 0-255 per joint (robot)"
+    license = "CC BY 4.0 (Linkerbot LinkerHand-Open-World dataset); Apache-2.0 SDK topic layout"
+    description = "LinkerHand ROS 2 SDK bags (or LeRobot exports): LinkerHand L6/L10/L20, 0-255 per joint (robot)"
 
-    def __init__(self, model: str | None = None, hands: dict | str | None = None, fps: float | None = None) -> None:
-        self.model = model  # required for LeRobot-style exports; JSON dumps carry hand_model
+    def __init__(
+        self,
+        model: str | None = None,
+        hands: dict | str | None = None,
+        fps: int = 30,
+        interpolation: str = "linear",
+    ) -> None:
+        if model is not None:
+            _model(model, "linkerhand option model")
+        self.model = model
         self.hands = parse_hands(hands) if hands is not None else None
-        self.fps = fps
+        if int(fps) != fps or fps <= 0:
+            raise ValueError(f"fps must be a positive integer, got {fps!r}")
+        if interpolation not in rb.INTERPOLATIONS:
+            raise ValueError(f"interpolation must be one of {rb.INTERPOLATIONS}, got {interpolation!r}")
+        self.fps, self.interpolation = int(fps), interpolation
 
     def list_episodes(self, input_path: str | Path) -> list:
         root = Path(input_path)
@@ -62,17 +103,18 @@ class LinkerHandSource:
                     f"{root}: a LeRobot-style LinkerHand export needs model= (L6/L10/L20) or hands= to map its columns"
                 )
             return [ref for r in lr.find_dataset_roots(root) for ref in lr.list_episodes(r)]
-        if root.is_file():
-            return [str(root)]
-        files = sorted(str(p) for p in root.rglob("*.json") if p.name != "gestures.json")
-        if not files:
-            raise LinkerHandFormatError(f"{root}: no per-episode *.json topic dumps and no meta/info.json found")
-        return files
+        rb.require_rosbags()
+        bags = rb.list_bags(root)
+        if not bags:
+            raise LinkerHandFormatError(
+                f"{root}: no ROS 2 bags (metadata.yaml folders, *.mcap, *.db3) and no meta/info.json"
+            )
+        return [str(b) for b in bags]
 
     def read_episode(self, ref) -> RawEpisode:
         if isinstance(ref, lr.LeRobotEpisodeRef):
             return read_mapped_episode(ref, self._export_hands(ref), "observation.state", "action")
-        return self._read_json(Path(ref))
+        return self._read_bag(Path(ref))
 
     # ----------------------------------------------------------------------------------------- #
     def _export_hands(self, ref: lr.LeRobotEpisodeRef) -> list[HandColumns]:
@@ -102,44 +144,71 @@ class LinkerHandSource:
             out.append(HandColumns(side, spec, state_names=tuple(by_k[k] for k in ks)))
         return out
 
-    def _read_json(self, path: Path) -> RawEpisode:
-        err = LinkerHandFormatError
-        data = load_json(path, err)
-        spec, num = _model(field(data, "hand_model", path, err), path)
-        topics = field(data, "topics", path, err)
-        hands = []
-        stamps_ref = None
-        for side in ("left", "right"):
-            state_topic = f"/cb_{side}_hand_state"
-            if state_topic not in topics:
-                continue
-            where = f"topics[{state_topic!r}]"
-            stamps = array_field(err, topics[state_topic], "stamp_s", path, where, ndim=1)
-            state = array_field(err, topics[state_topic], "position", path, where, ndim=2, width=num)
-            if len(state) != len(stamps):
-                raise err(f"{path}: {where}.position has {len(state)} rows for {len(stamps)} stamps")
-            if stamps_ref is None:
-                stamps_ref = stamps
-            elif len(stamps) != len(stamps_ref):
-                raise err(f"{path}: {where} has {len(stamps)} frames, the other hand {len(stamps_ref)}")
+    def _read_bag(self, path: Path) -> RawEpisode:
+        extractors = {}
+        for side in SIDES:
+            extractors |= {
+                state_topic(side): rb.joint_state,
+                command_topic(side): rb.joint_state,
+                info_topic(side): _hand_joint,
+            }
+        streams = rb.read_streams(path, extractors)
+        sides = [s for s in SIDES if state_topic(s) in streams]
+        if not sides:
+            raise LinkerHandFormatError(f"{path}: missing topic {state_topic('left')!r} or {state_topic('right')!r}")
+        commands = [command_topic(s) in streams for s in sides]
+        if any(commands) and not all(commands):
+            missing = [command_topic(s) for s, c in zip(sides, commands, strict=True) if not c]
+            raise LinkerHandFormatError(f"{path}: missing topic {missing[0]!r} (the other hand has commands)")
+        used = [streams[state_topic(s)] for s in sides] + [streams[command_topic(s)] for s in sides if all(commands)]
+        grid = rb.grid_for(used, self.fps, path)
+        hands, models = [], {}
+        for side in sides:
+            state = rb.resample(streams[state_topic(side)], grid, self.interpolation)
+            model = self._bag_model(streams, side, state.shape[1], path)
+            spec, num = _model(model, path)
+            if state.shape[1] != num:
+                raise LinkerHandFormatError(
+                    f"{path}: {state_topic(side)} position has {state.shape[1]} joints, expected {num} for {model}"
+                )
             action = None
-            cmd_topic = f"/cb_{side}_hand_control_cmd"
-            if cmd_topic in topics:
-                cw = f"topics[{cmd_topic!r}]"
-                c_stamps = array_field(err, topics[cmd_topic], "stamp_s", path, cw, ndim=1)
-                cmd = array_field(err, topics[cmd_topic], "position", path, cw, ndim=2, width=num)
-                if len(cmd) != len(c_stamps):
-                    raise err(f"{path}: {cw}.position has {len(cmd)} rows for {len(c_stamps)} stamps")
-                rows = np.clip(np.searchsorted(c_stamps, stamps, side="right") - 1, 0, len(c_stamps) - 1)
-                action = cmd[rows]
-            hands.append(HandStream(side=side, hand=spec, state_native=state, action_native=action))
-        if not hands:
-            raise err(f"{path}: missing field topics['/cb_left_hand_state'] or topics['/cb_right_hand_state']")
-        fps = self.fps or fps_from_stamps(stamps_ref, path, err)
+            if all(commands):
+                action = rb.resample(streams[command_topic(side)], grid, "nearest")
+                if action.shape[1] != num:
+                    raise LinkerHandFormatError(
+                        f"{path}: {command_topic(side)} position has {action.shape[1]} joints, expected {num}"
+                    )
+            columns = tuple(f"{side}_{model.lower()}_{k}" for k in range(num))
+            hands.append(
+                HandStream(
+                    side,
+                    spec,
+                    state,
+                    action,
+                    state_columns=columns,
+                    action_columns=columns if action is not None else None,
+                )
+            )
+            models[side] = model
+        rates = {t: round(rb.measured_rate_hz(s), 3) for t, s in streams.items() if not t.endswith("_info")}
         return RawEpisode(
             source_file=str(path),
-            fps=fps,
+            fps=float(self.fps),
             hands=hands,
-            task=str(data.get("task", "")),
-            extra={"hand_model": str(data["hand_model"]), "synthetic": bool(data.get("synthetic", False))},
+            task=path.parent.name.replace("_", " ") if path.parent != path else "",
+            extra={"hand_model": ",".join(models[s] for s in sides)},
+            source_episode={"measured_hz": rates, "resampled_fps": self.fps},
+        )
+
+    def _bag_model(self, streams: dict, side: str, width: int, path: Path) -> str:
+        if info_topic(side) in streams and streams[info_topic(side)].names:
+            model = streams[info_topic(side)].names[0].strip()
+            if model:
+                return model
+        if self.model is not None:
+            return self.model
+        if width in BY_WIDTH:
+            return BY_WIDTH[width]
+        raise LinkerHandFormatError(
+            f"{path}: {state_topic(side)} has {width} joints and no {info_topic(side)}; pass model= (L6/L10/L20)"
         )

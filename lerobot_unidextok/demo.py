@@ -216,7 +216,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output folder (default: outputs/demo)")
     parser.add_argument("--quick", action="store_true", help="small data and a short training run (~2 min)")
     parser.add_argument("--preset", default="small", help="tokenizer size preset (paper | small | tiny)")
-    parser.add_argument("--steps", type=int, default=None, help=f"training steps (default: {DEMO_STEPS}, or 300 with --quick)")
+    parser.add_argument(
+        "--steps", type=int, default=None, help=f"training steps (default: {DEMO_STEPS}, or 300 with --quick)"
+    )
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")

@@ -9,13 +9,14 @@ leading/trailing frames where no hand is present are trimmed. Anything that woul
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Literal
+from dataclasses import dataclass, field, replace
+from typing import Any, Literal
 
 import numpy as np
 
-from lerobot_unidextok.constants import SIDES, UDHM_DIM, UDHM_JOINT_NAMES
-from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
+from lerobot_unidextok.constants import SIDES, UDHM_DIM
+from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode, VideoSegment
+from lerobot_unidextok.state_layout import udhm_state_names
 
 Mapping = Literal["semantic", "append_pad"]
 MAPPINGS: tuple[str, ...] = ("semantic", "append_pad")
@@ -47,6 +48,17 @@ class UdhmEpisode:
     absent_hand_frames: int = 0  # hand-frames zero-filled because the hand was not present
     synthetic: bool = False
     extra: dict = field(default_factory=dict)
+    # -- whole robot (see RawEpisode): trimmed like the hand arrays ------------------------------------
+    passthrough: dict[str, Passthrough] = field(default_factory=dict)
+    native_names: dict[str, list[str]] = field(default_factory=dict)
+    native_keys: dict[str, str] = field(default_factory=dict)
+    hand_columns: tuple[tuple[tuple[str, ...] | None, tuple[str, ...] | None], ...] = ()  # (H,) (state, action)
+    copied: dict[str, Any] = field(default_factory=dict)
+    copied_features: dict[str, dict] = field(default_factory=dict)
+    copied_stats: dict[str, dict] = field(default_factory=dict)
+    videos: dict[str, VideoSegment] = field(default_factory=dict)
+    video_features: dict[str, dict] = field(default_factory=dict)
+    source_episode: dict = field(default_factory=dict)
 
     @property
     def num_frames(self) -> int:
@@ -57,14 +69,27 @@ class UdhmEpisode:
         return ",".join(self.hands)
 
     @property
-    def layout(self) -> tuple[tuple[str, ...], bool]:
-        """What must match across a dataset's episodes: block sides and whether actions exist."""
-        return self.sides, self.action_rad is not None
+    def layout(self) -> tuple:
+        """What must match across a dataset's episodes: block sides, actions, passthrough columns, copied
+        features and videos (the dataset's features are set by its first episode)."""
+        return (
+            self.sides,
+            self.action_rad is not None,
+            tuple((k, p.names) for k, p in sorted(self.passthrough.items())),
+            tuple(sorted(self.copied_features)),
+            tuple(sorted(self.videos)),
+        )
+
+    def without_robot(self) -> UdhmEpisode:
+        """The hands-only episode (`--keep=hands`): no passthrough columns, copied features or videos."""
+        return replace(
+            self, passthrough={}, copied={}, copied_features={}, copied_stats={}, videos={}, video_features={}
+        )
 
 
 def state_names(sides: tuple[str, ...] | list[str]) -> list[str]:
     """`<side>_<udhm joint>` names of a (22 * H,) state, blocks in `sides` order."""
-    return [f"{side}_{joint}" for side in sides for joint in UDHM_JOINT_NAMES]
+    return udhm_state_names(list(sides))
 
 
 def _frames(idx: np.ndarray, limit: int = 8) -> str:
@@ -186,6 +211,8 @@ def map_episode(raw: RawEpisode, mapping: str = "semantic") -> UdhmEpisode:
             act = np.asarray(stream.action_native)[first:last]
             actions.append(_map_values(spec, act, stream.side, mapping, "action", src, keep))
 
+    passthrough = _check_passthrough(raw, num, src, has_action=any(has_action))
+    trimmed = (first, last) != (0, num)
     return UdhmEpisode(
         source_file=src,
         fps=float(raw.fps),
@@ -199,7 +226,43 @@ def map_episode(raw: RawEpisode, mapping: str = "semantic") -> UdhmEpisode:
         absent_hand_frames=int((~present[:, first:last]).sum()),
         synthetic=bool(raw.extra.get("synthetic", False)),
         extra=dict(raw.extra),
+        passthrough={k: Passthrough(p.names, p.values[first:last]) for k, p in passthrough.items()},
+        native_names={k: list(v) for k, v in raw.native_names.items()},
+        native_keys=dict(raw.native_keys),
+        hand_columns=tuple((s.state_columns, s.action_columns) for s in raw.hands),
+        copied={k: _slice_column(v, first, last, num, src, k) for k, v in raw.copied.items()},
+        copied_features=dict(raw.copied_features),
+        copied_stats=dict(raw.copied_stats),
+        videos={k: _trim_video(v, first, last, raw.fps) for k, v in raw.videos.items()}
+        if trimmed
+        else dict(raw.videos),
+        video_features=dict(raw.video_features),
+        source_episode=dict(raw.source_episode),
     )
+
+
+def _check_passthrough(raw: RawEpisode, num: int, src: str, has_action: bool) -> dict[str, Passthrough]:
+    """The non-hand columns must be finite-shaped (T, P) blocks of the episode's length."""
+    for key, p in raw.passthrough.items():
+        if p.values.shape[0] != num:
+            raise EpisodeError(src, f"{key} passthrough columns have {p.values.shape[0]} frames, the hands {num}")
+        if key == "action" and not has_action:
+            raise EpisodeError(src, "action passthrough columns given but the hands have no actions")
+    missing = set(raw.copied_features) ^ set(raw.copied)
+    if missing:
+        raise EpisodeError(src, f"copied features and columns disagree: {sorted(missing)}")
+    return raw.passthrough
+
+
+def _slice_column(column, first: int, last: int, num: int, src: str, key: str):
+    if len(column) != num:
+        raise EpisodeError(src, f"copied feature {key!r} has {len(column)} frames, the hands {num}")
+    return column if (first, last) == (0, num) else column.slice(first, last - first)
+
+
+def _trim_video(video: VideoSegment, first: int, last: int, fps: float) -> VideoSegment:
+    """The segment of the kept frames [first, last) (leading/trailing frames without a hand trimmed)."""
+    return VideoSegment(video.path, video.from_s + first / fps, min(video.to_s, video.from_s + last / fps))
 
 
 def to_layout(ep: UdhmEpisode, sides: tuple[str, ...]) -> UdhmEpisode:
@@ -229,17 +292,14 @@ def to_layout(ep: UdhmEpisode, sides: tuple[str, ...]) -> UdhmEpisode:
 
     hands = tuple(ep.hands[blocks[s]] if s in blocks else ep.hands[0] for s in sides)
     absent = num * (len(sides) - len(ep.sides))
-    return UdhmEpisode(
-        source_file=ep.source_file,
-        fps=ep.fps,
-        task=ep.task,
+    columns = {s: ep.hand_columns[blocks[s]] if s in blocks and ep.hand_columns else (None, None) for s in sides}
+    return replace(
+        ep,
         sides=tuple(sides),
         hands=hands,
         state_rad=arrange(ep.state_rad, 0.0),
         mask=arrange(ep.mask, False),
         action_rad=arrange(ep.action_rad, 0.0),
-        trimmed_frames=ep.trimmed_frames,
         absent_hand_frames=ep.absent_hand_frames + absent,
-        synthetic=ep.synthetic,
-        extra=ep.extra,
+        hand_columns=tuple(columns[s] for s in sides),
     )

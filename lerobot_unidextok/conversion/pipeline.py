@@ -1,15 +1,21 @@
-"""Convert a registered source to a UDHM LeRobotDataset v3.0: list -> split -> read+map (pool) -> write.
+"""Convert a registered source to a UDHM LeRobotDataset v3.0: set up -> list -> read+map (pool) -> write.
 
-- Split: deterministic 80/20 by episode. Each episode's key is its ref as a string, relative to the
-  input path; the `round(test_fraction * N)` episodes with the smallest sha1(key) are the test set.
-  Train episodes are written first (in source order), then test ones, so `splits` are two ranges.
+- Setup first: the reader is built from its options and lists its episodes before any episode is read;
+  a bad option, an unknown hand or an empty input stops here once (`SetupError`), with the fix.
+- Order and split: episodes are written in **source order**. The test set is the `round(f * N)`
+  episodes with the smallest sha1 of their key (the ref relative to the input path), chosen over the
+  whole source, so it does not depend on listing order, workers, shards or `max_episodes`. It is
+  recorded, not made a range: `meta/info.json` keeps LeRobot's `{"train": "0:N"}` and
+  `meta/unidextok_conversion.json` lists `test_episodes` and, per episode, its source and split.
+- Whole robot: passthrough columns, copied features and videos of the source go through unchanged
+  (`keep="all"`, default) or are dropped for a hands-only dataset (`keep="hands"`).
 - Reliability: everything is written to `<root>.<name>.tmp-*` next to the target and moved into place
   at the end; an error or Ctrl-C removes the temp folder. An existing target is refused unless
   `overwrite`. Per-episode failures are `EpisodeError(file, reason)`: raised (`on_error="raise"`)
   or skipped and summarised (`on_error="skip"`).
 - Parallel: episodes are read and mapped in a process pool and written in order by this process.
 - Sharding: `shard_index/num_shards` converts one contiguous slice of the ordered episode list;
-  `merge_shards` aggregates shard datasets with LeRobot's `aggregate_datasets` and restores the splits.
+  `merge_shards` aggregates shard datasets with LeRobot's `aggregate_datasets` and merges the records.
 """
 
 from __future__ import annotations
@@ -28,33 +34,33 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from tqdm import tqdm
 
-from lerobot_unidextok.constants import (
-    ACTION,
-    HAND_TYPE_KEY,
-    OBS_STATE,
-    SIDES,
-    UDHM_MASK_KEY,
-)
+from lerobot_unidextok.constants import SIDES
 from lerobot_unidextok.conversion.card import write_card
-from lerobot_unidextok.conversion.mapping import (
-    MAPPINGS,
-    EpisodeError,
-    UdhmEpisode,
-    map_episode,
-    state_names,
-    to_layout,
-)
-from lerobot_unidextok.conversion.registry import CONVERTERS_PACKAGE, get_source
+from lerobot_unidextok.conversion.features import episode_features, episode_frames, native_layout, udhm_features
+from lerobot_unidextok.conversion.mapping import MAPPINGS, EpisodeError, UdhmEpisode, map_episode, to_layout
+from lerobot_unidextok.conversion.registry import CONVERTERS_PACKAGE, SetupError, get_source, make_reader
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 
 logger = logging.getLogger(__name__)
 
+__all__ = [
+    "CONVERSION_SETTINGS_PATH",
+    "ConversionError",
+    "ConvertOptions",
+    "ConvertReport",
+    "SetupError",
+    "convert",
+    "merge_shards",
+    "read_settings",
+    "split_order",
+    "udhm_features",
+]
+
 OnError = Literal["raise", "skip"]
-CONVERSION_SETTINGS_PATH = (
-    "meta/unidextok_conversion.json"  # settings and counts (LeRobot drops unknown info.json keys)
-)
+KEEP = ("all", "hands")
+CONVERSION_SETTINGS_PATH = "meta/unidextok_conversion.json"  # settings, records (LeRobot drops unknown info keys)
+SPLIT_METHOD = "sha1 of episode key (ref relative to --input); the round(f*N) smallest are test; source order kept"
 
 
 @dataclass
@@ -71,8 +77,10 @@ class ConvertOptions:
     num_workers: int = 1  # processes reading + mapping episodes; 1 = in this process
     overwrite: bool = False
     test_fraction: float = 0.2
-    max_episodes: int | None = None  # first N episodes of the ordered list (quick looks)
+    max_episodes: int | None = None  # first N episodes in source order (quick looks)
     sides: tuple[str, ...] | None = None  # block layout, e.g. ("right", "left"); None = source's `sides` or 1st episode
+    fps: int | None = None  # resampling grid of time-stamped sources (bags, keypoint files); None = source default
+    keep: str = "all"  # "all": whole robot (passthrough columns, other features, videos) | "hands": UDHM only
     shard_index: int = 0
     num_shards: int = 1
     progress: bool = True
@@ -83,16 +91,37 @@ class ConvertOptions:
             raise ValueError(f"mapping must be one of {MAPPINGS}, got {self.mapping!r}")
         if self.on_error not in ("raise", "skip"):
             raise ValueError(f"on_error must be 'raise' or 'skip', got {self.on_error!r}")
+        if self.keep not in KEEP:
+            raise ValueError(f"keep must be one of {KEEP}, got {self.keep!r}")
         if self.num_workers < 1:
             raise ValueError(f"num_workers must be >= 1, got {self.num_workers}")
         if not 0.0 <= self.test_fraction < 1.0:
             raise ValueError(f"test_fraction must be in [0, 1), got {self.test_fraction}")
+        if self.fps is not None and (int(self.fps) != self.fps or self.fps <= 0):
+            raise ValueError(f"fps must be a positive integer (LeRobot stores int fps), got {self.fps!r}")
         if self.sides is not None:
             self.sides = tuple(self.sides)
             if not self.sides or len(set(self.sides)) != len(self.sides) or not set(self.sides) <= set(SIDES):
                 raise ValueError(f"sides must be distinct values of {SIDES}, got {self.sides!r}")
         if not 0 <= self.shard_index < self.num_shards:
             raise ValueError(f"need 0 <= shard_index < num_shards, got {self.shard_index}/{self.num_shards}")
+
+    def reader_options(self) -> dict:
+        """The source options, with `fps` passed to sources that resample onto a grid."""
+        options = dict(self.source_options)
+        if self.fps is not None:
+            cls = get_source(self.source)
+            import inspect
+
+            if "fps" not in inspect.signature(cls).parameters:
+                raise SetupError(
+                    f"--fps applies to sources that resample time-stamped streams; {self.source!r} has a fixed "
+                    "frame rate: drop --fps"
+                )
+            if options.get("fps") not in (None, self.fps):
+                raise SetupError(f"--fps={self.fps} and source option fps={options['fps']} disagree; give one")
+            options["fps"] = int(self.fps)
+        return options
 
 
 @dataclass
@@ -148,7 +177,7 @@ _WORKER: dict[str, Any] = {}
 
 def _init_worker(source: str, source_options: dict, mapping: str) -> None:
     _import_sources()
-    _WORKER["reader"] = get_source(source)(**source_options)
+    _WORKER["reader"] = make_reader(source, source_options)
     _WORKER["mapping"] = mapping
 
 
@@ -172,10 +201,10 @@ def _read_and_map(ref: Any) -> UdhmEpisode | EpisodeFailure:
         return EpisodeFailure(raw.source_file, f"{type(exc).__name__}: {exc}")
 
 
-def _iter_results(refs: list, opts: ConvertOptions):
+def _iter_results(refs: list, opts: ConvertOptions, reader_options: dict):
     """Mapped episodes (or failures) in `refs` order; bounded look-ahead in the pool."""
     if opts.num_workers == 1:
-        _init_worker(opts.source, opts.source_options, opts.mapping)
+        _init_worker(opts.source, reader_options, opts.mapping)
         for ref in refs:
             yield _read_and_map(ref)
         return
@@ -195,7 +224,7 @@ def _iter_results(refs: list, opts: ConvertOptions):
         opts.num_workers,
         mp_context=ctx,
         initializer=_init_worker,
-        initargs=(opts.source, opts.source_options, opts.mapping),
+        initargs=(opts.source, reader_options, opts.mapping),
     ) as pool:
         pending: deque = deque()
         it = iter(refs)
@@ -211,35 +240,13 @@ def _iter_results(refs: list, opts: ConvertOptions):
                 fut.cancel()
 
 
-# ---------------------------------------------------------------------------------------------
-# features
-# ---------------------------------------------------------------------------------------------
-def udhm_features(sides: tuple[str, ...], with_action: bool) -> dict[str, dict]:
-    """LeRobot features of the converted-dataset contract for hand blocks `sides`."""
-    names = state_names(sides)
-    dim = len(names)
-    features = {OBS_STATE: {"dtype": "float32", "shape": (dim,), "names": names}}
-    if with_action:
-        features[ACTION] = {"dtype": "float32", "shape": (dim,), "names": names}
-    features[HAND_TYPE_KEY] = {"dtype": "string", "shape": (1,), "names": None}
-    features[UDHM_MASK_KEY] = {"dtype": "bool", "shape": (dim,), "names": names}
-    return features
-
-
-def _episode_frames(ep: UdhmEpisode) -> dict[str, np.ndarray | str]:
-    frames: dict[str, np.ndarray | str] = {
-        OBS_STATE: ep.state_rad,
-        HAND_TYPE_KEY: ep.hand_type,
-        UDHM_MASK_KEY: ep.mask,
-    }
-    if ep.action_rad is not None:
-        frames[ACTION] = ep.action_rad
-    return frames
-
-
 def _int_fps(fps: float, src: str) -> int:
     if abs(fps - round(fps)) > 1e-3:
-        raise EpisodeError(src, f"fps {fps} is not an integer; LeRobot datasets store integer fps")
+        raise EpisodeError(
+            src,
+            f"fps {fps} is not an integer; LeRobot datasets store integer fps: resample the source onto a "
+            "fixed grid (--fps for time-stamped sources)",
+        )
     return round(fps)
 
 
@@ -294,6 +301,36 @@ def _move_into_place(tmp: Path, target: Path, overwrite: bool) -> None:
         tmp.rename(target)
 
 
+@dataclass
+class _Plan:
+    """The ordered work of one run: (ref, key, split) in source order, after max_episodes and sharding."""
+
+    items: list[tuple[Any, str, str]]
+    num_listed: int
+
+
+def plan_episodes(reader, opts: ConvertOptions, input_path: Path) -> _Plan:
+    """List the source once and choose the test set; setup errors surface here, before any episode work."""
+    try:
+        refs = list(reader.list_episodes(input_path))
+    except (ValueError, FileNotFoundError, ImportError) as exc:  # ImportError: a missing extra (rosbags, h5py)
+        raise SetupError(f"source {opts.source!r} cannot list {input_path}: {exc}") from exc
+    if not refs:
+        raise SetupError(f"source {opts.source!r} found no episodes under {input_path}; check --input")
+    keys = [episode_key(r, input_path) for r in refs]
+    _, test_pos = split_order(keys, opts.test_fraction)
+    test = set(test_pos)
+    items = [(ref, key, "test" if i in test else "train") for i, (ref, key) in enumerate(zip(refs, keys, strict=True))]
+    if opts.max_episodes is not None:
+        items = items[: opts.max_episodes]
+    if opts.num_shards > 1:
+        bounds = np.linspace(0, len(items), opts.num_shards + 1).round().astype(int)
+        items = items[bounds[opts.shard_index] : bounds[opts.shard_index + 1]]
+        if not items:
+            raise SetupError(f"shard {opts.shard_index}/{opts.num_shards} is empty ({len(refs)} episodes)")
+    return _Plan(items, len(refs))
+
+
 def convert(opts: ConvertOptions) -> ConvertReport:
     """Convert `opts.source` at `opts.input` into a UDHM LeRobotDataset at `opts.root`."""
     t0 = time.perf_counter()
@@ -305,115 +342,46 @@ def convert(opts: ConvertOptions) -> ConvertReport:
         raise FileNotFoundError(f"--input {input_path} does not exist")
     _import_sources()
     reader_cls = get_source(opts.source)
-    reader = reader_cls(**opts.source_options)
-    refs = list(reader.list_episodes(input_path))
-    if not refs:
-        raise ValueError(f"source {opts.source!r} found no episodes under {input_path}; check --input")
-    train_pos, test_pos = split_order([episode_key(r, input_path) for r in refs], opts.test_fraction)
-    ordered = [(refs[i], "train") for i in train_pos] + [(refs[i], "test") for i in test_pos]
-    if opts.max_episodes is not None:
-        ordered = ordered[: opts.max_episodes]
-    if opts.num_shards > 1:
-        bounds = np.linspace(0, len(ordered), opts.num_shards + 1).round().astype(int)
-        ordered = ordered[bounds[opts.shard_index] : bounds[opts.shard_index + 1]]
-        if not ordered:
-            raise ValueError(f"shard {opts.shard_index}/{opts.num_shards} is empty ({len(refs)} episodes)")
+    reader_options = opts.reader_options()
+    reader = make_reader(opts.source, reader_options)
+    plan = plan_episodes(reader, opts, input_path)
 
     target.parent.mkdir(parents=True, exist_ok=True)
     _remove_stale_temps(target)
     tmp = _temp_dir(target)
-    writer: UdhmDatasetWriter | None = None
-    layout = None
-    failures: list[EpisodeFailure] = []
-    counts = {"train": 0, "test": 0}
-    hands_seen: dict[str, None] = {}
-    stats = {"trimmed_frames": 0, "absent_hand_frames": 0}
-    synthetic = bool(getattr(reader_cls, "synthetic", False)) or input_is_synthetic(input_path)
-    sides = opts.sides or (tuple(reader_cls.sides) if getattr(reader_cls, "sides", None) else None)
-    bar = tqdm(
-        total=len(ordered),
-        desc=f"convert {opts.source}",
-        unit="ep",
-        disable=not opts.progress,
+    state = _RunState(
+        synthetic=bool(getattr(reader_cls, "synthetic", False)) or input_is_synthetic(input_path),
+        sides=opts.sides or (tuple(reader_cls.sides) if getattr(reader_cls, "sides", None) else None),
     )
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(plan.items), desc=f"convert {opts.source}", unit="ep", disable=not opts.progress)
     try:
-        for (ref, split), result in zip(ordered, _iter_results([r for r, _ in ordered], opts), strict=True):
+        results = _iter_results([ref for ref, _, _ in plan.items], opts, reader_options)
+        for (_, key, split), result in zip(plan.items, results, strict=True):
             try:
-                if isinstance(result, EpisodeFailure):
-                    raise EpisodeError(result.source_file, result.reason)
-                fps = _int_fps(result.fps, result.source_file)
-                if sides is not None:
-                    result = to_layout(result, sides)
-                if writer is None:
-                    layout = (result.layout, fps)
-                    writer = UdhmDatasetWriter(
-                        tmp,
-                        opts.repo_id,
-                        fps,
-                        udhm_features(result.sides, result.action_rad is not None),
-                        robot_type="udhm",  # one value for every conversion: aggregate_datasets requires equal robot_type
-                    )
-                elif (result.layout, fps) != layout:
-                    (first_sides, act), f0 = layout
-                    raise EpisodeError(
-                        result.source_file,
-                        f"hand layout sides={result.sides} action={result.action_rad is not None} fps={fps} differs "
-                        f"from the dataset's sides={first_sides} action={act} fps={f0} (set by its first episode); for a "
-                        "source whose episodes are left or right hands pass --sides=right,left",
-                    )
-                if split == "test" and counts["test"] == 0 and writer.num_episodes != counts["train"]:
-                    raise AssertionError("train episodes must precede test episodes")
-                writer.add_episode(_episode_frames(result), task=result.task)
+                state.add(result, key, split, opts, tmp)
             except EpisodeError as exc:
                 if opts.on_error == "raise":
                     raise ConversionError(
                         f"episode {exc.source_file}: {exc.reason}\n(use --on_error=skip to skip bad episodes)"
                     ) from exc
-                failures.append(EpisodeFailure(exc.source_file, exc.reason))
+                state.failures.append(EpisodeFailure(exc.source_file, exc.reason))
                 logger.warning("skipped %s: %s", exc.source_file, exc.reason)
-            else:
-                counts[split] += 1
-                for h in result.hands:
-                    hands_seen[h] = None
-                synthetic |= result.synthetic
-                stats["trimmed_frames"] += result.trimmed_frames
-                stats["absent_hand_frames"] += result.absent_hand_frames
             bar.update(1)
-            elapsed = time.perf_counter() - t0
-            if writer is not None:
+            if state.writer is not None:
+                elapsed = time.perf_counter() - t0
                 bar.set_postfix(
-                    frames=writer.num_frames,
-                    fps=f"{writer.num_frames / max(elapsed, 1e-9):,.0f}",
+                    frames=state.writer.num_frames, fps=f"{state.writer.num_frames / max(elapsed, 1e-9):,.0f}"
                 )
         bar.close()
-        if writer is None:
+        if state.writer is None:
+            first = state.failures[0] if state.failures else None
             raise ConversionError(
-                f"no episode of {opts.source!r} could be converted ({len(failures)} failed); first: "
-                + (f"{failures[0].source_file}: {failures[0].reason}" if failures else "none")
+                f"no episode of {opts.source!r} could be converted ({len(state.failures)} failed); first: "
+                + (f"{first.source_file}: {first.reason}" if first else "none")
             )
-        num_train, num_total = counts["train"], writer.num_episodes
-        splits = {"train": f"0:{num_train}", "test": f"{num_train}:{num_total}"}
-        writer.finalize(splits=splits)
-        (layout_sides, with_action), fps = layout
-        settings = {
-            "source": opts.source,
-            "license": getattr(reader_cls, "license", "unknown"),
-            "description": getattr(reader_cls, "description", ""),
-            "source_options": opts.source_options,
-            "mapping": opts.mapping,
-            "on_error": opts.on_error,
-            "test_fraction": opts.test_fraction,
-            "split_method": "sha1 of episode key (ref relative to --input); smallest round(f*N) are test",
-            "shard": f"{opts.shard_index}/{opts.num_shards}",
-            "max_episodes": opts.max_episodes,
-            "sides": list(layout_sides),
-            "hands": list(hands_seen),
-            "has_action": with_action,
-            "synthetic": synthetic,
-            "skipped_episodes": len(failures),
-            **stats,
-        }
-        _record_settings(tmp, settings)
+        settings = state.finish(opts, reader_cls, plan)
         write_card(
             tmp,
             repo_id=opts.repo_id,
@@ -421,31 +389,137 @@ def convert(opts: ConvertOptions) -> ConvertReport:
             description=getattr(reader_cls, "description", ""),
             license_text=getattr(reader_cls, "license", "unknown"),
             settings=settings,
-            num_episodes=num_total,
-            num_frames=writer.num_frames,
-            splits=splits,
-            failures=[asdict(f) for f in failures],
+            num_episodes=state.writer.num_episodes,
+            num_frames=state.writer.num_frames,
+            features=state.writer.features,
+            failures=[asdict(f) for f in state.failures],
         )
         _move_into_place(tmp, target, opts.overwrite)
     except BaseException:
         bar.close()
-        if writer is not None:
-            writer.abort()
+        if state.writer is not None:
+            state.writer.abort()
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    num_total = state.writer.num_episodes
     report = ConvertReport(
         root=target,
         num_episodes=num_total,
-        num_frames=writer.num_frames,
-        num_train=num_train,
-        num_test=num_total - num_train,
+        num_frames=state.writer.num_frames,
+        num_train=num_total - len(state.test_episodes),
+        num_test=len(state.test_episodes),
         seconds=time.perf_counter() - t0,
-        failures=failures,
-        hands=list(hands_seen),
+        failures=state.failures,
+        hands=list(state.hands_seen),
     )
-    if failures:
-        logger.warning("%d episode(s) skipped:\n%s", len(failures), format_failures(failures))
+    if state.failures:
+        logger.warning("%d episode(s) skipped:\n%s", len(state.failures), format_failures(state.failures))
     return report
+
+
+@dataclass
+class _RunState:
+    """What one conversion run accumulates while it writes episodes in order."""
+
+    synthetic: bool
+    sides: tuple[str, ...] | None
+    writer: UdhmDatasetWriter | None = None
+    layout: tuple | None = None
+    fps: int = 0
+    native: dict = field(default_factory=dict)
+    failures: list[EpisodeFailure] = field(default_factory=list)
+    records: list[dict] = field(default_factory=list)
+    test_episodes: list[int] = field(default_factory=list)
+    hands_seen: dict[str, None] = field(default_factory=dict)
+    counts: dict[str, int] = field(default_factory=lambda: {"trimmed_frames": 0, "absent_hand_frames": 0})
+
+    def add(self, result: UdhmEpisode | EpisodeFailure, key: str, split: str, opts: ConvertOptions, tmp: Path) -> None:
+        if isinstance(result, EpisodeFailure):
+            raise EpisodeError(result.source_file, result.reason)
+        fps = _int_fps(result.fps, result.source_file)
+        if self.sides is not None:
+            result = to_layout(result, self.sides)
+        if opts.keep == "hands":
+            result = result.without_robot()
+        if self.writer is None:
+            self.layout, self.fps = result.layout, fps
+            try:
+                features = episode_features(result)
+            except ValueError as exc:
+                raise EpisodeError(result.source_file, str(exc)) from exc
+            # one robot_type for every conversion: aggregate_datasets requires equal robot_type
+            self.writer = UdhmDatasetWriter(tmp, opts.repo_id, fps, features, robot_type="udhm")
+            self.native = native_layout(result)
+        elif (result.layout, fps) != (self.layout, self.fps):
+            raise EpisodeError(result.source_file, _layout_difference(result, fps, self.layout, self.fps))
+        index = self.writer.add_episode(
+            episode_frames(result),
+            task=result.task,
+            copied=result.copied,
+            videos=result.videos,
+            copied_stats=result.copied_stats,
+        )
+        record = {"episode_index": index, "source": key, "split": split, "length": result.num_frames}
+        record.update(result.source_episode)
+        own_native = native_layout(result)
+        if own_native != self.native:  # mixed hand models: this episode decodes with its own layout
+            record["native_layout"] = own_native
+        self.records.append(record)
+        if split == "test":
+            self.test_episodes.append(index)
+        for h in result.hands:
+            self.hands_seen[h] = None
+        self.synthetic |= result.synthetic
+        self.counts["trimmed_frames"] += result.trimmed_frames
+        self.counts["absent_hand_frames"] += result.absent_hand_frames
+
+    def finish(self, opts: ConvertOptions, reader_cls: type, plan: _Plan) -> dict:
+        total = self.writer.num_episodes
+        self.writer.finalize(splits={"train": f"0:{total}"})  # LeRobot's own convention: one range, all episodes
+        sides, with_action, passthrough, copied, videos = self.layout
+        settings = {
+            "source": opts.source,
+            "license": getattr(reader_cls, "license", "unknown"),
+            "description": getattr(reader_cls, "description", ""),
+            "source_options": opts.source_options,
+            "mapping": opts.mapping,
+            "on_error": opts.on_error,
+            "keep": opts.keep,
+            "fps": self.fps,
+            "test_fraction": opts.test_fraction,
+            "split_method": SPLIT_METHOD,
+            "shard": f"{opts.shard_index}/{opts.num_shards}",
+            "max_episodes": opts.max_episodes,
+            "sides": list(sides),
+            "hands": list(self.hands_seen),
+            "has_action": with_action,
+            "passthrough": {k: list(names) for k, names in passthrough},
+            "copied_features": list(copied),
+            "video_features": list(videos),
+            "synthetic": self.synthetic,
+            "listed_episodes": plan.num_listed,
+            "skipped_episodes": len(self.failures),
+            **self.counts,
+            "num_episodes": total,
+            "test_episodes": self.test_episodes,
+            "native_layout": self.native,
+            "episodes": self.records,
+        }
+        _record_settings(self.writer.root, settings)
+        return settings
+
+
+def _layout_difference(ep: UdhmEpisode, fps: int, layout: tuple, layout_fps: int) -> str:
+    names = ("hand sides", "actions", "passthrough columns", "copied features", "videos")
+    diffs = [f"{n} {a} vs {b}" for n, a, b in zip(names, ep.layout, layout, strict=True) if a != b]
+    if fps != layout_fps:
+        diffs.append(f"fps {fps} vs {layout_fps}")
+    hint = (
+        "; for a source whose episodes are left or right hands pass --sides=right,left"
+        if ep.layout[0] != layout[0]
+        else ""
+    )
+    return f"episode layout differs from the dataset's (set by its first episode): {'; '.join(diffs)}{hint}"
 
 
 def format_failures(failures: list[EpisodeFailure], limit: int = 50) -> str:
@@ -456,11 +530,11 @@ def format_failures(failures: list[EpisodeFailure], limit: int = 50) -> str:
 
 
 def _record_settings(root: Path, settings: dict) -> None:
-    (root / CONVERSION_SETTINGS_PATH).write_text(json.dumps(settings, indent=2, default=str))
+    (root / CONVERSION_SETTINGS_PATH).write_text(json.dumps(settings, indent=1, default=str))
 
 
 def read_settings(root: str | Path) -> dict:
-    """Conversion settings recorded next to the dataset metadata ({} if absent)."""
+    """Conversion settings and records kept next to the dataset metadata ({} if absent)."""
     path = Path(root) / CONVERSION_SETTINGS_PATH
     return json.loads(path.read_text()) if path.is_file() else {}
 
@@ -474,16 +548,22 @@ def merge_shards(
     repo_id: str = "local/udhm",
     overwrite: bool = False,
 ) -> Path:
-    """Aggregate shard datasets (in shard order) with LeRobot's `aggregate_datasets`; restore splits."""
+    """Aggregate shard datasets (in shard order) with LeRobot's `aggregate_datasets`; merge the records.
+
+    Shards are contiguous slices of one source-ordered list, so concatenating them in shard order gives
+    the single-run dataset; episode indices in the records and test lists are offset by the episodes
+    of the shards before.
+    """
     from lerobot.datasets.aggregate import aggregate_datasets
 
     target = Path(root).expanduser().resolve()
     if target.exists() and not overwrite:
         raise FileExistsError(f"{target} already exists; pass overwrite=True or choose another root")
     shard_roots = [Path(r) for r in shard_roots]
-    infos = [json.loads((r / "meta" / "info.json").read_text()) for r in shard_roots]
-    num_train = sum(int(i["splits"]["train"].split(":")[1]) - int(i["splits"]["train"].split(":")[0]) for i in infos)
-    # Shards are contiguous slices of one ordered list (train episodes first), so train stays a prefix.
+    shard_settings = [read_settings(r) for r in shard_roots]
+    missing = [str(r) for r, s in zip(shard_roots, shard_settings, strict=True) if not s]
+    if missing:
+        raise ValueError(f"not converted shards (no {CONVERSION_SETTINGS_PATH}): {missing}")
     tmp = _temp_dir(target)
     try:
         aggregate_datasets(
@@ -495,15 +575,22 @@ def merge_shards(
         path = tmp / "meta" / "info.json"
         info = json.loads(path.read_text())
         total = int(info["total_episodes"])
-        info["splits"] = {"train": f"0:{num_train}", "test": f"{num_train}:{total}"}
+        info["splits"] = {"train": f"0:{total}"}
         path.write_text(json.dumps(info, indent=4))
-        shard_settings = [read_settings(r) for r in shard_roots]
         settings = dict(shard_settings[0])
         settings["shard"] = f"merged {len(shard_roots)} shards"
         for key in ("skipped_episodes", "trimmed_frames", "absent_hand_frames"):
             settings[key] = sum(s.get(key, 0) for s in shard_settings)
         settings["hands"] = sorted({h for s in shard_settings for h in s.get("hands", [])})
         settings["synthetic"] = any(s.get("synthetic", False) for s in shard_settings)
+        offset, records, test = 0, [], []
+        for s in shard_settings:
+            records += [{**r, "episode_index": r["episode_index"] + offset} for r in s.get("episodes", [])]
+            test += [i + offset for i in s.get("test_episodes", [])]
+            offset += int(s.get("num_episodes", 0))
+        if offset != total:
+            raise ValueError(f"shard records count {offset} episodes, the merged dataset {total}")
+        settings.update(num_episodes=total, episodes=records, test_episodes=test)
         _record_settings(tmp, settings)
         write_card(
             tmp,
@@ -514,7 +601,7 @@ def merge_shards(
             settings=settings,
             num_episodes=total,
             num_frames=int(info["total_frames"]),
-            splits=info["splits"],
+            features=info["features"],
         )
         _move_into_place(tmp, target, overwrite)
     except BaseException:

@@ -18,6 +18,7 @@ A source reader lives in `converters/<source>.py` (installed as `lerobot_unidext
 from __future__ import annotations
 
 import importlib
+import inspect
 import logging
 from typing import Any, Protocol, runtime_checkable
 
@@ -99,3 +100,41 @@ def get_source(name: str) -> type:
             f"Register one with @register_source({name!r}) in converters/{name}.py"
         )
     return _SOURCES[name]
+
+
+class SetupError(ValueError):
+    """The conversion cannot start (bad source options, unknown hand, nothing to read): raised once,
+    before any episode is read, with the fix in the message."""
+
+
+def source_options_help(cls: type) -> str:
+    """`name=default` of every option (keyword argument) of a source reader class."""
+    params = [p for p in inspect.signature(cls).parameters.values() if p.kind is not p.VAR_KEYWORD]
+    return ", ".join(f"{p.name}={p.default!r}" if p.default is not p.empty else p.name for p in params) or "none"
+
+
+def make_reader(name: str, options: dict | None = None):
+    """An instance of source `name` with `options`; bad options raise `SetupError` naming the fix."""
+    cls = get_source(name)
+    options = dict(options or {})
+    params = inspect.signature(cls).parameters
+    if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
+        unknown = sorted(set(options) - set(params))
+        if unknown:
+            raise SetupError(
+                f"source {name!r} has no option(s) {unknown}; its options are: {source_options_help(cls)}. "
+                "Pass them as --source_options='{\"option\": value}'"
+            )
+    try:
+        return cls(**options)
+    except (ValueError, TypeError, KeyError) as exc:
+        raise SetupError(f"source {name!r} options {options}: {exc}") from exc
+
+
+def check_hand(name: str, where: str) -> str:
+    """`name` if it is a registered hand spec, else `SetupError` listing the known ones (no per-episode errors)."""
+    from lerobot_unidextok import hands
+
+    if name not in hands.names():
+        raise SetupError(f"{where}: unknown hand {name!r}; known hand specs: {', '.join(hands.names())}")
+    return name

@@ -7,13 +7,16 @@ reader in `converters/<source>.py`:
 |------------|-------------------------------------------------------------------------------------|
 | dexycb     | `<subject>/<capture>/{meta.yml, pose.npz, <serial>/labels_%06d.npz}` + calibration   |
 | egodex     | `<task>/<i>.hdf5`: `transforms/<joint>` (N,4,4) ARKit world frame, `confidences/`    |
-| let        | `<task>/<episode>.json`: ROS topic fields of `/control_robot_hand_position`, `/dexhand/state` |
-| dexora     | LeRobot v2.1, 39-D state/action with two XHand1 hands in radians                     |
-| linkerhand | `<task>/<episode>.json`: `/cb_{left,right}_hand_state` and `_control_cmd`, 0-255      |
+| let        | ROS 1 bags `<task>-P4-dex_hand|Linker_Hand_L6/<name>.bag` + annotation sidecar `<name>.json` |
+| dexora     | LeRobot v2.1 subsets, Dexora naming scheme 1 (scheme 2: `write_dexora_episodes`)      |
+| linkerhand | ROS 2 bag folders `<task>/episode_XXXX/` (sqlite3 or MCAP) of the SDK topics, 0-255   |
 | lerobot    | LeRobot v2.1 like a Unitree G1 + Inspire dataset: 26-D, nested names, hands in [0, 1] |
+| oakink2    | `anno_preview/<seq>.pkl`: `mocap_frame_id_list` (120 Hz ids), `raw_mano` torch tensors |
 
-OakInk-v2 stores MANO parameters only; making them needs the licensed MANO model, so no sample is
-written for it. Motion: `sample_motion` (named gestures in UDHM, joint coupling, noise); human
+Bags are written by `rosbags`' own writers (`conversion.sample_bags`) with jittered stamps. OakInk-v2
+stores MANO pose quaternions only: its sample (written on request, not by default) holds quaternions of
+a flat-hand kinematic chain, and converting it needs MANO or a stand-in layer. Motion: `sample_motion`
+(named gestures in UDHM, joint coupling, noise); human
 keypoints come from UDHM forward kinematics with varied skeletons (per-person scale and proportions)
 and wrist poses; robot values from the hand specs' `from_udhm`. Every folder has a README,
 `gestures.json` (per-frame gesture labels) and `udhm_truth.npz` (the generating angles), and every data file
@@ -42,12 +45,14 @@ SYNTHETIC_NOTE = (
     "not a recording. For converter tests and demos only."
 )
 SAMPLE_SOURCES: tuple[str, ...] = ("dexycb", "egodex", "let", "dexora", "linkerhand", "lerobot")
+# Written only when asked for: converting them needs the licensed MANO model (or a stand-in layer).
 MANO_SOURCES: tuple[str, ...] = ("oakink2",)
 LABELS_FILE = "gestures.json"
 TRUTH_FILE = "udhm_truth.npz"  # the UDHM angles each sample was generated from, per episode and side
 
 # Hand spec names (lerobot_unidextok.hands registry) used by the robot samples.
 HAND_LET = "brainco_revo1"
+HAND_LINKERHAND_L6 = "linkerhand_l6"
 HAND_DEXORA = "xhand1"
 HAND_LINKERHAND = {"L10": "linkerhand_l10", "L20": "linkerhand_l20"}
 HAND_G1 = "inspire_rh56_unitree"
@@ -89,14 +94,8 @@ def write_samples(
     """
     names = list(sources) if sources is not None else list(SAMPLE_SOURCES)
     for name in names:
-        if name in MANO_SOURCES:
-            raise ValueError(
-                f"no sample for {name!r}: its annotations are MANO parameters, and generating or reading "
-                "them needs the licensed MANO model files; install the mano extra and point --mano_assets "
-                "to your licensed MANO files to convert real OakInk-v2 data"
-            )
         if name not in _WRITERS:
-            raise ValueError(f"unknown sample source {name!r}; available: {list(SAMPLE_SOURCES)}")
+            raise ValueError(f"unknown sample source {name!r}; available: {list(SAMPLE_SOURCES) + list(MANO_SOURCES)}")
     if episodes_per_source < 1 or frames_per_episode < 10:
         raise ValueError(
             f"need episodes_per_source >= 1 and frames_per_episode >= 10, got {episodes_per_source}, "
@@ -176,15 +175,24 @@ _README_FORMS = {
     "No colour/depth images or seg masks.",
     "egodex": "EgoDex layout: <task>/<i>.hdf5 with transforms/<joint> (N,4,4) ARKit world frame (m), "
     "transforms/camera, camera/intrinsic, confidences/<joint> (left out of some files on purpose), and the "
-    "task / llm_description attributes. No mp4 videos.",
-    "let": "LET (Kuavo + BrainCo) as a JSON dump of the ROS topics per episode: "
-    "/control_robot_hand_position (left/right_hand_position, 6 x 0-100, 0 = open) and /dexhand/state "
-    "(12 positions, same 0-100 scale, which is UNCONFIRMED for real LET), with header stamps.",
-    "dexora": "Dexora as a LeRobot v2.1 dataset: 39-D observation.state/action (arms, two XHand1 hands in "
-    "radians, head, spine), names in meta/info.json, 20 fps.",
-    "linkerhand": "LinkerHand-Open-World as a JSON dump of the LinkerHand ROS topics per episode: "
-    "/cb_<side>_hand_state and /cb_<side>_hand_control_cmd, one 0-255 value per joint (255 = open); "
-    "even episodes L10 hands (10 values), odd episodes L20 (20 values), named by hand_model.",
+    "task, llm_type, llm_description(2) and which_llm_description ('1' / '2', reversible tasks recorded both "
+    "ways) attributes. No mp4 videos.",
+    "let": "LET (Kuavo 4 Pro) ROS 1 bags in <task>-P4-dex_hand/ (BrainCo) and <task>-P4-Linker_Hand_L6/ folders, "
+    "one gripper bag in a -P4-leju_claw/ folder: /control_robot_hand_position (kuavo_msgs/robotHandPosition, "
+    "uint8 6 + 6, 0 = open, 100 = closed, ~30 Hz), /dexhand/state (JointState l_thumb..r_pinky, same scale, "
+    "~100 Hz), /sensors_data_raw (kuavo_msgs/sensorsData, arms in joint_q[12:26], rad), /kuavo_arm_traj "
+    "(JointState, degrees); jittered stamps, dropped messages; a <bag>.json annotation sidecar per bag.",
+    "dexora": "Dexora as LeRobot v2.1 subsets airbot_pick_and_place/ and airbot_dexterous/ in upstream naming "
+    "scheme 1: 39-D observation.state/action (left_hand_joint_1..12_obs; arms, XHand1 hands in radians, head, "
+    "spine), 20 fps. (write_dexora_episodes(..., scheme=2) writes scheme 2: 36-D states/actions with "
+    "left_hand_joint_0..11 and left_hand_action_0..11.)",
+    "linkerhand": "LinkerHand ROS 2 SDK bags (sqlite3; every third episode MCAP): /cb_<side>_hand_state "
+    "(JointState, 0-255 per joint, 255 = open, ~60 Hz), /cb_<side>_hand_control_cmd (~30 Hz), "
+    "/cb_<side>_hand_state_arc (radians) and /cb_<side>_hand_info (JSON hand_joint); even episodes L10 "
+    "hands, odd episodes L20; jittered stamps, dropped messages.",
+    "oakink2": "OakInk-v2 annotation pickles anno_preview/<seq>.pkl: mocap_frame_id_list (120 Hz ids, one id "
+    "missing in episode 1), frame_id_list (every 4th), raw_mano {id: {rh,lh}__pose_coeffs [1,16,4] wxyz, __tsl, "
+    "__betas as torch tensors} of a flat-hand kinematic chain, not MANO: convert with MANO or a stand-in layer.",
     "lerobot": "A generic LeRobot v2.1 dataset shaped like a Unitree G1 + two Inspire hands dataset: "
     "26-D state/action with nested names, arms in radians, hands normalised to [0, 1] (1 = open), 30 fps.",
 }
@@ -256,7 +264,7 @@ def _robot_tracks(
 # ---------------------------------------------------------------------------------------------
 
 DEXYCB_SERIALS = ("836212060125", "839512060362")
-DEXYCB_FPS = 30.0
+DEXYCB_FPS = 25.0  # raw DexYCB frames are 0.04 s apart (NVlabs/handover-sim)
 _DEXYCB_INTRINSICS = {"fx": 615.0, "fy": 615.0, "ppx": 320.0, "ppy": 240.0}
 
 
@@ -357,9 +365,11 @@ def _write_dexycb(folder: Path, spec: SampleSpec) -> Labels:
 # ---------------------------------------------------------------------------------------------
 
 EGODEX_FPS = 30.0
-EGODEX_TASKS = {
-    "basic_pick_place": "Pick up the object from the table and place it in the bowl.",
-    "stack_cups": "Stack the three cups on top of each other.",
+EGODEX_TASKS = {  # task folder -> (llm_type, llm_description, llm_description2)
+    "basic_pick_place": ("regular", "Pick up the object from the table and place it in the bowl.", ""),
+    "stack_cups": ("regular", "Stack the three cups on top of each other.", ""),
+    # reversible tasks are recorded both ways; which_llm_description ("1" / "2") says which way this one went
+    "add_remove_lid": ("reversible", "Put the lid on the cup.", "Take the lid off the cup."),
 }
 _ARKIT_FINGERS = ("Index", "Middle", "Ring", "Little")
 # EgoDex joint name (without side prefix) -> MANO-21 keypoint index it is read as.
@@ -464,10 +474,13 @@ def _write_egodex(folder: Path, spec: SampleSpec) -> Labels:
             if has_confidences:
                 for name, value in conf.items():
                     f.create_dataset(f"confidences/{name}", data=value)
+            llm_type, text1, text2 = EGODEX_TASKS[task]
             f.attrs["task"] = task
-            f.attrs["llm_description"] = EGODEX_TASKS[task]
-            f.attrs["llm_description2"] = EGODEX_TASKS[task].lower()
-            f.attrs["which_llm_description"] = 1
+            f.attrs["llm_type"] = llm_type
+            f.attrs["llm_description"] = text1
+            if text2:
+                f.attrs["llm_description2"] = text2
+            f.attrs["which_llm_description"] = "2" if (ep // len(task_names)) % 2 == 0 else "1"
             f.attrs["environment"] = "synthetic_table"
             f.attrs["session_name"] = f"synthetic_session_{ep:03d}"
             f.attrs["synthetic"] = True
@@ -478,69 +491,61 @@ def _write_egodex(folder: Path, spec: SampleSpec) -> Labels:
 
 
 # ---------------------------------------------------------------------------------------------
-# LET (BrainCo hands on Kuavo), ROS topic fields as JSON
+# LET (Kuavo 4 Pro + BrainCo or LinkerHand L6 hands): ROS 1 bags, see conversion.sample_bags
 # ---------------------------------------------------------------------------------------------
 
-LET_FPS = 30.0
-LET_TASKS = ("pick_fruit-P4-dex_hand", "pour_water-P4-dex_hand")
-LET_JOINTS = ("thumb", "thumb_aux", "index", "middle", "ring", "pinky")
+LET_FPS = 30.0  # rate of the generating gesture track (the bags carry their own, jittered rates)
+LET_TASKS = ("pick_fruit-P4-dex_hand", "pour_water-P4-dex_hand", "clean_desk-P4-Linker_Hand_L6")
+LET_CLAW_TASK = "sort_parts-P4-leju_claw"  # gripper recordings sit next to the dexterous ones; not converted
+
+
+def _kuavo_scale(hand: str, angles_rad: np.ndarray, side: str) -> np.ndarray:
+    """Kuavo's hand topics carry 0-100, 0 = open: BrainCo natively; an L6 as 100 * (1 - sdk / 255)."""
+    if hand == HAND_LINKERHAND_L6:
+        return 100.0 * (1.0 - _to_native(hand, angles_rad, side) / 255.0)
+    return _to_native(hand, angles_rad, side)
 
 
 def _write_let(folder: Path, spec: SampleSpec) -> Labels:
+    from lerobot_unidextok.conversion.sample_bags import sample_at, write_let_bag, write_let_sidecar
+
     labels: Labels = {}
     for ep in _episodes(spec, "let"):
         rng = _rng("let", spec, ep)
         n = _num_frames(rng, spec)
         task = LET_TASKS[ep % len(LET_TASKS)]
+        hand = HAND_LINKERHAND_L6 if task.endswith("Linker_Hand_L6") else HAND_LET
         (folder / task).mkdir(exist_ok=True)
         tracks = _robot_tracks(rng, n, LET_FPS, ("left", "right"))
-        command = {s: _to_native(HAND_LET, tracks[s].angles_rad, s) for s in tracks}  # (T, 6) 0-100
-        state = {s: np.clip(_first_order_lag(command[s], LET_FPS, 0.08), 0.0, 100.0) for s in tracks}
-        stamp0 = 1_700_000_000.0 + ep * 600.0
-        stamps_cmd = stamp0 + np.arange(n) / LET_FPS
-        stamps_state = stamps_cmd + rng.uniform(0.001, 0.01)  # separate clock, slight offset
-        detail = task.split("-")[0].replace("_", " ")
-        payload = {
-            "synthetic": True,
-            "note": SYNTHETIC_NOTE,
-            "format": "unidextok-let-json/1",
-            "task": task,
-            "annotation": {
-                "marks": [
-                    {
-                        "skillAtomic": "grasp",
-                        "enSkillDetail": f"{detail}: grasp",
-                        "startTime": stamp0,
-                        "endTime": stamp0 + n / LET_FPS / 2,
-                    },
-                    {
-                        "skillAtomic": "release",
-                        "enSkillDetail": f"{detail}: release",
-                        "startTime": stamp0 + n / LET_FPS / 2,
-                        "endTime": stamp0 + n / LET_FPS,
-                    },
-                ]
-            },
-            "topics": {
-                "/control_robot_hand_position": {
-                    "stamp_s": stamps_cmd.tolist(),
-                    "left_hand_position": np.round(command["left"]).astype(int).tolist(),
-                    "right_hand_position": np.round(command["right"]).astype(int).tolist(),
-                },
-                "/dexhand/state": {
-                    "stamp_s": stamps_state.tolist(),
-                    "name": [f"left_{j}" for j in LET_JOINTS] + [f"right_{j}" for j in LET_JOINTS],
-                    "position": np.round(np.concatenate([state["left"], state["right"]], axis=1), 2).tolist(),
-                    "velocity": np.round(
-                        np.gradient(np.concatenate([state["left"], state["right"]], axis=1), axis=0) * LET_FPS, 2
-                    ).tolist(),
-                    "effort": np.round(rng.normal(0.2, 0.05, (n, 12)), 3).tolist(),
-                },
-            },
-        }
-        name = f"episode_{ep:04d}.json"
-        (folder / task / name).write_text(json.dumps(payload))
-        labels[f"{task}/{name}"] = _label_entry(tracks)
+        start = 1_700_000_000.0 + ep * 600.0
+        track_t = start + np.arange(n) / LET_FPS
+        native = {s: _kuavo_scale(hand, tracks[s].angles_rad, s) for s in tracks}
+        arms = _arm_motion(rng, n, LET_FPS, 14)
+        name = f"{task.split('-')[0]}_{ep:04d}.bag"
+        write_let_bag(
+            folder / task / name,
+            rng,
+            start,
+            (n - 1) / LET_FPS,
+            lambda t, native=native, track_t=track_t: {s: sample_at(track_t, native[s], t) for s in native},
+            lambda t, arms=arms, track_t=track_t: sample_at(track_t, arms, t),
+        )
+        write_let_sidecar((folder / task / name).with_suffix(".json"), task, start, (n - 1) / LET_FPS)
+        labels[f"{task}/{name}"] = _label_entry(tracks) | {"start_s": start, "hand": hand}
+    # one gripper recording, which the reader must skip
+    rng = _rng("let_claw", spec, 0)
+    (folder / LET_CLAW_TASK).mkdir()
+    n = 40
+    grip = {s: np.full((n, 6), 50.0) for s in ("left", "right")}
+    track_t = 1_690_000_000.0 + np.arange(n) / LET_FPS
+    write_let_bag(
+        folder / LET_CLAW_TASK / "sort_parts_0000.bag",
+        rng,
+        track_t[0],
+        (n - 1) / LET_FPS,
+        lambda t: {s: sample_at(track_t, grip[s], t) for s in grip},
+        lambda t: np.zeros((len(t), 14)),
+    )
     return labels
 
 
@@ -651,52 +656,71 @@ DEXORA_FPS = 20.0
 DEXORA_TASKS = ("Pick up the toy and place it in the basket.", "Open the drawer with the left hand.")
 
 
+DEXORA_SUBSETS = ("airbot_pick_and_place", "airbot_dexterous")  # one per naming scheme
+
+
 def dexora_names(suffix: str) -> list[str]:
-    """The 39 Dexora-style names: left arm, left hand, right arm, right hand (converter order), head, spine."""
+    """Scheme 1 (Dexora `dataprocess/airbot_config.py`), 39 names: left arm, left hand, right arm, right hand,
+    head, spine; joints numbered from 1, state names end in `_obs`, action names have no suffix."""
+    end = f"_{suffix}" if suffix else ""
     names: list[str] = []
     for side in ("left", "right"):
-        names += [f"{side}_arm_joint_{i}_{suffix}" for i in range(1, 7)]
-        names += [f"{side}_hand_joint_{i}_{suffix}" for i in range(1, 13)]
+        names += [f"{side}_arm_joint_{i}{end}" for i in range(1, 7)]
+        names += [f"{side}_hand_joint_{i}{end}" for i in range(1, 13)]
     return names + ["head_joint_1", "head_joint_2", "spine_joint"]
 
 
-def _write_dexora(folder: Path, spec: SampleSpec) -> Labels:
+def dexora_names_v2(kind: str) -> list[str]:
+    """Scheme 2 (Dexora `dataprocess/airbot_lerobot.py`, features "states" / "actions"), 36 names: both arms,
+    then both hands, numbered from 0; actions replace "joint" by "action"."""
+    names = [f"{side}_arm_joint_{i}" for side in ("left", "right") for i in range(6)]
+    names += [f"{side}_hand_joint_{i}" for side in ("left", "right") for i in range(12)]
+    return names if kind == "states" else [n.replace("joint", "action") for n in names]
+
+
+def write_dexora_episodes(folder: Path, spec: SampleSpec, scheme: int = 1) -> Labels:
+    """Dexora v2.1 subsets in one naming scheme (1: `airbot_config.py`, 2: `airbot_lerobot.py`); episodes
+    alternate between the two subsets. One scheme per dataset: the schemes' arm columns differ, and a
+    converted dataset has one set of columns."""
+    if scheme not in (1, 2):
+        raise ValueError(f"Dexora naming scheme must be 1 or 2, got {scheme!r}")
     labels: Labels = {}
-    episodes = []
+    episodes: dict[str, list] = {subset: [] for subset in DEXORA_SUBSETS}
     for ep in _episodes(spec, "dexora"):
         rng = _rng("dexora", spec, ep)
         n = _num_frames(rng, spec)
         tracks = _robot_tracks(rng, n, DEXORA_FPS, ("left", "right"))
-        blocks = []
-        for side in ("left", "right"):
-            blocks += [_arm_motion(rng, n, DEXORA_FPS, 6), _to_native(HAND_DEXORA, tracks[side].angles_rad, side)]
-        blocks.append(np.tile(rng.uniform(-0.1, 0.1, 3), (n, 1)))  # head and spine: constant
-        action = np.concatenate(blocks, axis=1)  # (T, 39) commands
+        arms = {side: _arm_motion(rng, n, DEXORA_FPS, 6) for side in ("left", "right")}
+        hand = {side: _to_native(HAND_DEXORA, tracks[side].angles_rad, side) for side in ("left", "right")}
+        task = DEXORA_TASKS[ep % len(DEXORA_TASKS)]
+        subset = DEXORA_SUBSETS[ep % 2]
+        if scheme == 1:  # arm, hand, arm, hand, head, spine
+            head = np.tile(rng.uniform(-0.1, 0.1, 3), (n, 1))  # head and spine: constant
+            action = np.concatenate([arms["left"], hand["left"], arms["right"], hand["right"], head], axis=1)
+            keys = ("observation.state", "action")
+        else:  # arm, arm, hand, hand
+            action = np.concatenate([arms["left"], arms["right"], hand["left"], hand["right"]], axis=1)
+            keys = ("states", "actions")
         state = _first_order_lag(action, DEXORA_FPS, 0.06)  # joints follow the commands
-        episodes.append(({"observation.state": state, "action": action}, DEXORA_TASKS[ep % len(DEXORA_TASKS)]))
-        labels[f"episode_{ep:06d}"] = _label_entry(tracks)
-    _write_lerobot_v21(
-        folder,
-        DEXORA_FPS,
-        "airbot_xhand",
-        {"observation.state": dexora_names("obs"), "action": dexora_names("action")},
-        episodes,
-    )
-    modality = {
-        "state": {
-            "left_arm": {"start": 0, "end": 6},
-            "left_hand": {"start": 6, "end": 18},
-            "right_arm": {"start": 18, "end": 24},
-            "right_hand": {"start": 24, "end": 36},
-            "head_spine": {"start": 36, "end": 39},
-        }
-    }
-    (folder / "meta" / "modality.json").write_text(json.dumps({**modality, "action": modality["state"]}, indent=2))
+        labels[f"{subset}/episode_{len(episodes[subset]):06d}"] = _label_entry(tracks)
+        episodes[subset].append(({keys[0]: state, keys[1]: action}, task))
+    for subset, eps in episodes.items():
+        if not eps:
+            continue
+        if scheme == 1:
+            names = {"observation.state": dexora_names("obs"), "action": dexora_names("")}
+        else:
+            names = {"states": dexora_names_v2("states"), "actions": dexora_names_v2("actions")}
+        _write_lerobot_v21(folder / subset, DEXORA_FPS, "airbot_xhand", names, eps)
     return labels
 
 
+def _write_dexora(folder: Path, spec: SampleSpec) -> Labels:
+    return write_dexora_episodes(folder, spec, scheme=1)
+
+
 # ---------------------------------------------------------------------------------------------
-# LinkerHand-Open-World, ROS topic fields as JSON
+# LinkerHand: ROS 2 bags of the SDK topics (sqlite3 and MCAP), see conversion.sample_bags
 # ---------------------------------------------------------------------------------------------
 
 LINKERHAND_FPS = 30.0
@@ -704,7 +728,11 @@ LINKERHAND_TASKS = ("grasp_bottle", "handover_cube")
 
 
 def write_linkerhand_episodes(folder: Path, spec: SampleSpec, models: tuple[str, ...] = ("L10", "L20")) -> Labels:
-    """LinkerHand JSON episodes; episode i uses hand model `models[i % len(models)]` (`L10`, `L20`)."""
+    """LinkerHand ROS 2 bag episodes; episode i uses hand model `models[i % len(models)]` and every third
+    episode is stored as MCAP instead of sqlite3."""
+    from lerobot_unidextok import hands as hand_registry
+    from lerobot_unidextok.conversion.sample_bags import sample_at, write_linkerhand_bag
+
     unknown = [m for m in models if m not in HAND_LINKERHAND]
     if not models or unknown:
         raise ValueError(
@@ -719,27 +747,22 @@ def write_linkerhand_episodes(folder: Path, spec: SampleSpec, models: tuple[str,
         task = LINKERHAND_TASKS[ep % len(LINKERHAND_TASKS)]
         (folder / task).mkdir(parents=True, exist_ok=True)
         tracks = _robot_tracks(rng, n, LINKERHAND_FPS, ("left", "right"))
-        stamps = 1_720_000_000.0 + ep * 600.0 + np.arange(n) / LINKERHAND_FPS
-        topics: dict[str, dict] = {}
-        for side in ("left", "right"):
-            cmd = np.round(_to_native(hand, tracks[side].angles_rad, side))
-            state = np.clip(np.round(_first_order_lag(cmd, LINKERHAND_FPS, 0.05)), 0, 255)
-            topics[f"/cb_{side}_hand_control_cmd"] = {"stamp_s": stamps.tolist(), "position": cmd.astype(int).tolist()}
-            topics[f"/cb_{side}_hand_state"] = {
-                "stamp_s": (stamps + 0.004).tolist(),
-                "position": state.astype(int).tolist(),
-            }
-        payload = {
-            "synthetic": True,
-            "note": SYNTHETIC_NOTE,
-            "format": "unidextok-linkerhand-json/1",
-            "hand_model": model,
-            "task": task.replace("_", " "),
-            "topics": topics,
-        }
-        name = f"episode_{ep:04d}.json"
-        (folder / task / name).write_text(json.dumps(payload))
-        labels[f"{task}/{name}"] = _label_entry(tracks)
+        native = {s: _to_native(hand, tracks[s].angles_rad, s) for s in tracks}
+        start = 1_720_000_000.0 + ep * 600.0
+        track_t = start + np.arange(n) / LINKERHAND_FPS
+        spec_h = hand_registry.get(hand)
+        name = f"episode_{ep:04d}"
+        write_linkerhand_bag(
+            folder / task / name,
+            rng,
+            start,
+            (n - 1) / LINKERHAND_FPS,
+            model,
+            lambda t, native=native, track_t=track_t: {s: sample_at(track_t, native[s], t) for s in native},
+            lambda raw, spec_h=spec_h: {s: np.asarray(spec_h.to_radians(v, side=s)) for s, v in raw.items()},
+            mcap=ep % 3 == 2,
+        )
+        labels[f"{task}/{name}"] = _label_entry(tracks) | {"start_s": start, "hand_model": model}
     return labels
 
 
@@ -780,7 +803,100 @@ def _write_lerobot(folder: Path, spec: SampleSpec) -> Labels:
     return labels
 
 
+# ---------------------------------------------------------------------------------------------
+# OakInk-v2: anno_preview/<seq>.pkl with MANO quaternions at the 120 Hz mocap rate
+# ---------------------------------------------------------------------------------------------
+
+OAKINK2_MOCAP_FPS = 120.0  # mocap frame ids tick at 120 Hz (OakInk2-PreviewTool); images every 4th id
+
+
+def _axis_angle_quat(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """(T, 4) wxyz quaternions rotating by `angle` (T,) about unit `axis` (3,)."""
+    axis = np.asarray(axis, dtype=np.float64) / np.linalg.norm(axis)
+    half = 0.5 * np.asarray(angle, dtype=np.float64)
+    return np.concatenate([np.cos(half)[:, None], np.sin(half)[:, None] * axis[None]], axis=1)
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    w1, x1, y1, z1 = a.T
+    w2, x2, y2, z2 = b.T
+    return np.stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2], axis=1)  # fmt: skip
+
+
+def _mano_pose_quats(angles_rad: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """(T, 16, 4) wxyz: a flat-hand chain along +x, fingers flexing about +y and spreading about +z, in the
+    MANO-native joint order (wrist; index, middle, pinky, ring, thumb x 3)."""
+    from lerobot_unidextok.constants import UDHM_INDEX
+
+    num = len(angles_rad)
+    a = lambda name: angles_rad[:, UDHM_INDEX[name]]
+    y, z = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    quats = np.zeros((num, 16, 4))
+    quats[:, 0] = _axis_angle_quat(z, np.full(num, rng.uniform(-0.3, 0.3)))  # global wrist orientation
+    for finger, first in (("index", 1), ("middle", 4), ("pinky", 7), ("ring", 10)):
+        quats[:, first] = _quat_mul(
+            _axis_angle_quat(z, a(f"{finger}_mcp_abd")), _axis_angle_quat(y, a(f"{finger}_mcp_flex"))
+        )
+        quats[:, first + 1] = _axis_angle_quat(y, a(f"{finger}_pip_flex"))
+        quats[:, first + 2] = _axis_angle_quat(y, a(f"{finger}_dip_flex"))
+    quats[:, 13] = _quat_mul(
+        _axis_angle_quat(z, a("thumb_cmc_spread")), _axis_angle_quat(np.array([1.0, 0.0, 1.0]), a("thumb_cmc_flex"))
+    )
+    quats[:, 14] = _axis_angle_quat(y, a("thumb_mcp_flex"))
+    quats[:, 15] = _axis_angle_quat(y, a("thumb_ip_flex"))
+    return quats.astype(np.float32)
+
+
+def _write_oakink2(folder: Path, spec: SampleSpec) -> Labels:
+    import pickle
+
+    import torch
+
+    labels: Labels = {}
+    (folder / "anno_preview").mkdir()
+    for ep in _episodes(spec, "oakink2"):
+        rng = _rng("oakink2", spec, ep)
+        n = _num_frames(rng, spec)
+        tracks = _robot_tracks(rng, n, OAKINK2_MOCAP_FPS, ("right", "left"))
+        first = 3000 + 500 * ep
+        ids = list(range(first, first + n))
+        if ep == 1:  # a mocap frame the annotation lacks: the reader keeps the clock and marks it absent
+            ids.pop(n // 2)
+        raw_mano = {}
+        pose = {p: _mano_pose_quats(tracks[s].angles_rad, rng) for s, p in (("right", "rh"), ("left", "lh"))}
+        tsl = {p: np.array([0.25 if p == "rh" else -0.25, 0.1, 0.5]) + np.cumsum(rng.normal(0, 5e-4, (n, 3)), 0)
+               for p in ("rh", "lh")}  # fmt: skip
+        betas = {p: rng.normal(0, 0.5, 10).astype(np.float32) for p in ("rh", "lh")}
+        for fid in ids:
+            t = fid - first
+            raw_mano[fid] = {
+                f"{p}__{k}": torch.from_numpy(np.asarray(v, dtype=np.float32)[None])
+                for p in ("rh", "lh")
+                for k, v in (("pose_coeffs", pose[p][t]), ("tsl", tsl[p][t]), ("betas", betas[p]))
+            }
+        seq = f"scene_0{ep % 4 + 1}__A00{ep % 3 + 1}++seq__{ep:04d}__2023-0{ep % 9 + 1}-01-10-00-00"
+        anno = {
+            "cam_def": {},
+            "cam_selection": [],
+            "frame_id_list": ids[::4],  # 30 fps images
+            "cam_intr": {},
+            "cam_extr": {},
+            "mocap_frame_id_list": ids,
+            "obj_list": [],
+            "obj_transf": {},
+            "raw_smplx": {},
+            "raw_mano": raw_mano,
+            "synthetic": True,
+        }
+        with open(folder / "anno_preview" / f"{seq}.pkl", "wb") as f:
+            pickle.dump(anno, f)
+        labels[f"anno_preview/{seq}.pkl"] = _label_entry(tracks)
+    return labels
+
+
 _WRITERS: dict[str, Callable[[Path, SampleSpec], Labels]] = {
+    "oakink2": _write_oakink2,
     "dexycb": _write_dexycb,
     "egodex": _write_egodex,
     "let": _write_let,

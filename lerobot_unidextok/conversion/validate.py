@@ -1,8 +1,11 @@
 """Check an existing converted UDHM dataset against the converted-dataset contract.
 
-Checks: format version, features (names, dtypes, shapes), frame/episode counts, hand_type names,
-mask consistency (zeros where masked, masks equal to the hand specs' masks), value limits, splits,
-card, and that `LeRobotDataset(repo_id, root=...)` loads it and returns a frame.
+Checks: format version, features (UDHM blocks found by name after any passthrough columns, dtypes,
+shapes), frame/episode counts, hand_type names, mask consistency (zeros where masked, masks equal to the
+hand specs' masks), value limits, LeRobot `splits` ranges, the recorded test episodes, the native layout,
+card, and that `LeRobotDataset(repo_id, root=...)` loads it and returns a frame. Every failed or warned
+check says why. Datasets edited by `lerobot-edit-dataset` (no card, no conversion record) get warnings,
+not failures: they still train and evaluate (`data.splits`).
 """
 
 from __future__ import annotations
@@ -19,12 +22,11 @@ from lerobot_unidextok.constants import (
     ACTION,
     HAND_TYPE_KEY,
     OBS_STATE,
-    SIDES,
     UDHM_DIM,
-    UDHM_JOINT_NAMES,
     UDHM_MASK_KEY,
 )
 from lerobot_unidextok.conversion.mapping import ANGLE_BOUND_RAD
+from lerobot_unidextok.state_layout import find_udhm_blocks, udhm_state_names
 
 LIMIT_TOL_RAD = 1e-3
 
@@ -68,6 +70,28 @@ def _names(ft: dict) -> list[str]:
     return list(next(iter(names.values()))) if isinstance(names, dict) else list(names)
 
 
+def _native_layout_problems(layout: dict, feats: dict) -> list[str]:
+    """What in `native_layout` does not fit the dataset's features (names to decode back to the robot)."""
+    problems = []
+    for key, entry in layout.items():
+        if key not in feats:
+            problems.append(f"{key}: not a feature of the dataset")
+            continue
+        names = list(entry.get("names", []))
+        hand_cols = [c for h in entry.get("hands", []) for c in h.get("columns", [])]
+        if not set(hand_cols) <= set(names):
+            problems.append(f"{key}: hand columns {sorted(set(hand_cols) - set(names))[:4]} not in names")
+        converted = _names(feats[key])
+        passthrough = [n for n in names if n not in set(hand_cols)]
+        if converted[: len(passthrough)] != passthrough:
+            problems.append(f"{key}: passthrough columns {passthrough[:4]}... are not the first converted columns")
+        sides = [h.get("side") for h in entry.get("hands", [])]
+        blocks = [b.side for b in find_udhm_blocks(converted)]
+        if not set(sides) <= set(blocks):
+            problems.append(f"{key}: hands {sides} have no UDHM block in {blocks}")
+    return problems
+
+
 def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = True) -> ValidationReport:
     """Validate the converted dataset at `root`; never raises on a bad dataset, reports instead."""
     from lerobot_unidextok import hands as hand_registry
@@ -95,17 +119,22 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         return rep
     dim = int(st["shape"][0])
     names = _names(st)
-    num_hands = dim // UDHM_DIM
-    sides = [n.split("_", 1)[0] for n in names[::UDHM_DIM]]
-    expected = [f"{s}_{j}" for s in sides for j in UDHM_JOINT_NAMES]
+    try:
+        blocks = find_udhm_blocks(names) if len(names) == dim else []
+        why = "" if blocks else f"{len(names)} names for {dim} values; no complete '<side>_<udhm joint>' block"
+    except ValueError as exc:
+        blocks, why = [], str(exc)
+    num_hands = len(blocks)
+    sides = [b.side for b in blocks]
+    udhm_names = udhm_state_names(sides)
+    passthrough = [n for i, n in enumerate(names) if not any(b.start <= i < b.stop for b in blocks)]
+    contiguous = bool(blocks) and all(b.start == len(passthrough) + k * UDHM_DIM for k, b in enumerate(blocks))
     rep.add(
-        "state names <side>_<udhm joint>",
-        dim % UDHM_DIM == 0
-        and num_hands in (1, 2)
-        and names == expected
-        and set(sides) <= set(SIDES)
-        and len(set(sides)) == len(sides),
-        f"{num_hands} block(s): {sides}",
+        "state: passthrough columns then UDHM blocks",
+        num_hands in (1, 2) and contiguous,
+        f"{len(passthrough)} passthrough + {num_hands} block(s) {sides}"
+        if num_hands in (1, 2) and contiguous
+        else why or f"blocks {sides} must follow all passthrough columns, one or two hands",
     )
     for key, dtype in ((ACTION, "float32"), (UDHM_MASK_KEY, "bool")):
         ft = feats.get(key)
@@ -116,11 +145,26 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
                 "absent" if key == ACTION else "missing",
             )
             continue
-        rep.add(
-            f"{key} feature",
-            ft.get("dtype") == dtype and list(ft["shape"]) == [dim] and _names(ft) == names,
-            f"{ft.get('dtype')} {ft['shape']}",
+        ft_names = _names(ft)
+        if key == UDHM_MASK_KEY:
+            ok = ft.get("dtype") == dtype and list(ft["shape"]) == [UDHM_DIM * num_hands] and ft_names == udhm_names
+            rep.add(f"{key} feature", ok, f"{ft.get('dtype')} {ft['shape']}, names = the UDHM block names")
+            continue
+        try:
+            a_blocks = find_udhm_blocks(ft_names)
+        except ValueError as exc:
+            rep.add(f"{key} feature", False, str(exc))
+            continue
+        if not a_blocks:  # an action copied unchanged (the hands have no commands)
+            rep.add(f"{key} feature", True, "no UDHM block: copied from the source", warning=False)
+            continue
+        a_pass = len(ft_names) - UDHM_DIM * len(a_blocks)
+        ok = (
+            ft.get("dtype") == dtype
+            and [b.side for b in a_blocks] == sides
+            and all(b.start == a_pass + k * UDHM_DIM for k, b in enumerate(a_blocks))
         )
+        rep.add(f"{key} feature", ok, f"{ft.get('dtype')} {ft['shape']}: {a_pass} passthrough + blocks {sides}")
     ht = feats.get(HAND_TYPE_KEY)
     rep.add(
         "hand_type feature",
@@ -132,7 +176,8 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
 
     # -- data ----------------------------------------------------------------------------------------
     files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
-    cols = [OBS_STATE, UDHM_MASK_KEY, HAND_TYPE_KEY, "episode_index"] + ([ACTION] if ACTION in feats else [])
+    action_udhm = ACTION in feats and bool(find_udhm_blocks(_names(feats[ACTION])))
+    cols = [OBS_STATE, UDHM_MASK_KEY, HAND_TYPE_KEY, "episode_index"] + ([ACTION] if action_udhm else [])
     try:
         table = pq.read_table(files, columns=cols) if files else None
     except Exception as exc:  # noqa: BLE001
@@ -156,11 +201,12 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
 
     def arr(key, dtype):
         col = table.column(key).combine_chunks()
-        return col.flatten().to_numpy(zero_copy_only=False).astype(dtype).reshape(n, num_hands, UDHM_DIM)
+        flat = col.flatten().to_numpy(zero_copy_only=False).astype(dtype).reshape(n, -1)
+        return flat[:, flat.shape[1] - UDHM_DIM * num_hands :].reshape(n, num_hands, UDHM_DIM)  # blocks come last
 
     state = arr(OBS_STATE, np.float32)
     mask = arr(UDHM_MASK_KEY, bool)
-    action = arr(ACTION, np.float32) if ACTION in feats else None
+    action = arr(ACTION, np.float32) if action_udhm else None
     for key, values in ((OBS_STATE, state), (ACTION, action)):
         if values is None:
             continue
@@ -232,18 +278,44 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
 
     # -- splits ----------------------------------------------------------------------------------
     splits = info.get("splits", {})
-    try:
-        tr = [int(x) for x in splits["train"].split(":")]
-        te = [int(x) for x in splits["test"].split(":")]
-        ok = tr[0] == 0 and tr[1] == te[0] and te[1] == total_eps and tr[1] >= tr[0] and te[1] >= te[0]
-        detail = f"train {splits['train']} test {splits['test']} of {total_eps}"
-    except (KeyError, ValueError, AttributeError):
-        ok, detail = (
-            False,
-            f"splits must be {{'train': 'a:b', 'test': 'c:d'}}, got {splits}",
-        )
-    rep.add("splits train/test cover episodes", ok, detail)
-    rep.add("dataset card README.md", (root / "README.md").is_file(), "")
+    bad = []
+    for name, value in (splits or {}).items():
+        try:
+            a, b = (int(x) for x in str(value).split(":"))
+            if not 0 <= a <= b <= total_eps:
+                bad.append(f"{name}={value} outside 0:{total_eps}")
+        except ValueError:
+            bad.append(f"{name}={value!r} is not 'a:b'")
+    rep.add(
+        "meta/info.json splits (LeRobot ranges)",
+        bool(splits) and not bad,
+        "; ".join(bad) if bad else (f"{splits}" if splits else "no splits"),
+    )
+    from lerobot_unidextok.data.splits import recorded_split
+
+    recorded, why = recorded_split(root, info)
+    rep.add(
+        "recorded test episodes",
+        recorded is not None,
+        f"{len(recorded.test)} of {total_eps} ({recorded.origin})"
+        if recorded is not None
+        else f"{why}; train/eval fall back to --holdout=hash (a deterministic 20 % by episode hash)",
+        warning=recorded is None,
+    )
+    settings = json.loads(settings_path.read_text()) if settings_path.is_file() else {}
+    layout = settings.get("native_layout")
+    if layout:
+        problems = _native_layout_problems(layout, feats)
+        rep.add("native layout", not problems, "; ".join(problems) or f"{sorted(layout)}")
+    has_card = (root / "README.md").is_file()
+    rep.add(
+        "dataset card README.md",
+        has_card,
+        ""
+        if has_card
+        else "missing (lerobot-edit-dataset drops it): the source, license and settings are not documented",
+        warning=not has_card,
+    )
     for rel in ("meta/stats.json", "meta/tasks.parquet"):
         rep.add(rel, (root / rel).is_file(), "")
     ep_files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
@@ -262,7 +334,9 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         try:
             from lerobot.datasets import LeRobotDataset
 
-            ds = LeRobotDataset(repo_id or info.get("repo_id") or f"local/{root.name}", root=root, video_backend="pyav")  # state-only: skip the video decoder probe
+            ds = LeRobotDataset(
+                repo_id or info.get("repo_id") or f"local/{root.name}", root=root, video_backend="pyav"
+            )  # state-only: skip the video decoder probe
             item = ds[0]
             rep.add(
                 "LeRobotDataset loads",

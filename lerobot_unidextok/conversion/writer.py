@@ -1,17 +1,23 @@
-"""Fast LeRobotDataset v3.0 writer for state-only datasets: whole episodes in, same files out.
+"""Fast LeRobotDataset v3.0 writer: whole episodes in, the same files as LeRobot's writer out.
 
-Writes what LeRobot 0.6.1's `add_frame`/`save_episode`/`finalize` writes for datasets without images
-(same parquet schema incl. the `huggingface` features metadata, one row group per episode, data/episodes
-file roll-over at `data_files_size_in_mb`, episodes metadata columns, tasks.parquet, info.json, stats.json
-with q01..q99), but from whole-episode arrays with pyarrow: no per-frame dicts, no `datasets.map`.
-LeRobot's own helpers are reused for info/tasks/stats serialisation. Differences (by design): the
-parquet `huggingface` metadata carries no random fingerprint, and dataset stats are aggregated once
-over all episodes instead of pairwise per episode (equal up to float rounding).
+Writes what LeRobot 0.6.1's `add_frame`/`save_episode`/`finalize` writes (same parquet schema incl. the
+`huggingface` features metadata, one row group per episode, data/episodes file roll-over at
+`data_files_size_in_mb`, episodes metadata columns, tasks.parquet, info.json, stats.json with q01..q99),
+but from whole-episode arrays with pyarrow: no per-frame dicts, no `datasets.map`. LeRobot's own helpers
+are reused for info/tasks/stats serialisation. Differences (by design): the parquet `huggingface` metadata
+carries no random fingerprint, and dataset stats are aggregated once over all episodes instead of pairwise
+per episode (equal up to float rounding).
+
+Features copied from a source dataset (images, other observations, videos) are taken as they are: their
+Arrow columns go into the data files unchanged (cast to the schema type only), and each source video
+file is copied once, byte for byte, into `videos/<key>/chunk-XXX/file-YYY.mp4`, with every episode
+pointing at its own `[from_timestamp, to_timestamp)` segment of it (no decoding, no re-encoding).
 """
 
 from __future__ import annotations
 
 import logging
+import shutil
 from copy import deepcopy
 from pathlib import Path
 
@@ -49,11 +55,22 @@ def _lerobot():
     )
 
 
+NUMERIC_STATS_EXCLUDED = ("image", "video", "string")  # dtypes whose stats come from the source, not computed
+
+
+def _copy_file(src: Path, dst: Path) -> None:
+    """A byte copy of a source video file (never decoded or re-encoded)."""
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(src, dst)
+
+
 class UdhmDatasetWriter:
-    """Write a state-only LeRobotDataset v3.0 episode by episode from whole arrays.
+    """Write a LeRobotDataset v3.0 episode by episode from whole arrays.
 
     Usage: `w = UdhmDatasetWriter(root, repo_id, fps, features)`; `w.add_episode({...}, task)` per
     episode; `w.finalize(splits=...)`. `root` must not exist (like `LeRobotDataset.create`).
+    Features the writer computes from arrays are 1-D numeric or string; `copied` features (any dtype and
+    shape, e.g. images) arrive as Arrow columns, `video` features as source file segments.
     """
 
     def __init__(
@@ -76,26 +93,23 @@ class UdhmDatasetWriter:
         ) = _lerobot()
         if int(fps) != fps or fps <= 0:
             raise ValueError(f"fps must be a positive integer (LeRobot stores int fps), got {fps!r}")
-        for key, ft in features.items():
+        for key in features:
             if key in default_features:
                 raise ValueError(f"feature {key!r} is written by the writer itself; remove it from features")
             if "/" in key:
                 raise ValueError(f"feature key {key!r} contains '/', which LeRobot forbids; rename it")
-            if ft["dtype"] in ("image", "video"):
-                raise ValueError(f"feature {key!r} is {ft['dtype']}: this writer handles state-only datasets")
-            if len(ft["shape"]) != 1:
-                raise ValueError(f"feature {key!r} shape {ft['shape']}: only 1-D features are supported")
         self.root = Path(root)
         self.repo_id = repo_id
         self.root.mkdir(parents=True, exist_ok=False)
         self.features = {**deepcopy(features), **default_features}
         for ft in self.features.values():
             ft["shape"] = tuple(ft["shape"])
+        self.video_keys = [k for k, ft in features.items() if ft["dtype"] == "video"]
         self.info = feature_utils.create_empty_dataset_info(
             dataset_metadata.CODEBASE_VERSION,
             int(fps),
             self.features,
-            use_videos=False,
+            use_videos=bool(self.video_keys),
             robot_type=robot_type,
             chunks_size=chunks_size,
             data_files_size_in_mb=data_files_size_in_mb,
@@ -105,6 +119,8 @@ class UdhmDatasetWriter:
         self._utils = utils
         self._aggregate_stats = compute_stats.aggregate_stats
         self.schema: pa.Schema = feature_utils.get_hf_features_from_features(self.features).arrow_schema
+        self._video_files: dict[tuple[str, str], tuple[int, int]] = {}  # (key, source path) -> (chunk, file)
+        self._video_next: dict[str, tuple[int, int]] = {k: (0, 0) for k in self.video_keys}
         self.fps = int(fps)
         self.tasks: dict[str, int] = {}
         self.num_episodes = 0
@@ -152,18 +168,32 @@ class UdhmDatasetWriter:
             )
         self._file_start_frame = self.num_frames
 
-    def add_episode(self, frames: dict[str, np.ndarray], task: str) -> int:
-        """Append one episode. `frames`: every user feature as (T, *shape) arrays of its dtype
-        (strings may be one value for the whole episode). Returns the episode index."""
+    def add_episode(
+        self,
+        frames: dict[str, np.ndarray],
+        task: str,
+        copied: dict[str, pa.Array] | None = None,
+        videos: dict | None = None,
+        copied_stats: dict[str, dict] | None = None,
+    ) -> int:
+        """Append one episode. `frames`: the features this writer builds, as (T, *shape) arrays of their
+        dtype (strings may be one value for the whole episode); `copied`: the other features as Arrow
+        columns taken unchanged; `videos`: {key: VideoSegment} of each video feature; `copied_stats`: the
+        source's per-episode stats of copied features the writer cannot compute (images, videos).
+        Returns the episode index."""
         if self._finalized:
             raise RuntimeError("writer already finalized")
-        missing = [k for k in self.features if k not in DEFAULT_KEYS and k not in frames]
-        extra = [k for k in frames if k not in self.features or k in DEFAULT_KEYS]
+        copied, videos, copied_stats = copied or {}, videos or {}, copied_stats or {}
+        given = set(frames) | set(copied) | set(videos)
+        missing = [k for k in self.features if k not in DEFAULT_KEYS and k not in given]
+        extra = [k for k in given if k not in self.features or k in DEFAULT_KEYS]
+        extra += [k for k in videos if k in self.features and k not in self.video_keys]
         if missing or extra:
             raise ValueError(f"episode features mismatch: missing {missing}, unexpected {extra}")
         if not isinstance(task, str):
             raise TypeError(f"task must be a str, got {type(task).__name__}")
         lengths = {k: np.asarray(v).shape[0] for k, v in frames.items() if np.asarray(v).ndim > 0}
+        lengths.update({k: len(v) for k, v in copied.items()})
         num = next(iter(lengths.values()), 0)
         if num == 0 or any(n != num for n in lengths.values()):
             raise ValueError(f"episode arrays must share a non-zero length, got {lengths}")
@@ -182,7 +212,7 @@ class UdhmDatasetWriter:
         }
         columns = []
         ep_arrays = {}
-        for key in self.features:
+        for key in self.schema.names:  # video features have no data column
             if key in DEFAULT_KEYS:
                 values = default[key]
                 columns.append(
@@ -191,6 +221,27 @@ class UdhmDatasetWriter:
                         type=self.schema.field(key).type,
                     )
                 )
+            elif key in copied:
+                column = copied[key]
+                column = column.combine_chunks() if isinstance(column, pa.ChunkedArray) else column
+                try:
+                    column = column.cast(self.schema.field(key).type)
+                except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as exc:
+                    raise ValueError(
+                        f"copied feature {key!r}: column type {column.type} does not fit the feature "
+                        f"{self.features[key]['dtype']} {self.features[key]['shape']} ({exc})"
+                    ) from exc
+                columns.append(column)
+                ft = self.features[key]
+                if ft["dtype"] not in NUMERIC_STATS_EXCLUDED and len(ft["shape"]) == 1:  # stats as LeRobot computes
+                    flat = (
+                        column.flatten()
+                        if pa.types.is_list(column.type) or pa.types.is_fixed_size_list(column.type)
+                        else column
+                    )
+                    values = flat.to_numpy(zero_copy_only=False)
+                    ep_arrays[key] = values.reshape(num, -1) if ft["shape"] != (1,) else values.reshape(num)
+                continue
             else:
                 values = frames[key]
                 columns.append(self._column(key, values, num))
@@ -222,6 +273,9 @@ class UdhmDatasetWriter:
             {k: (v if np.asarray(v).ndim > 0 else np.full(num, v)) for k, v in ep_arrays.items()},
             self.features,
         )
+        for key, st in copied_stats.items():  # images / videos: the source's own per-episode stats
+            if key in self.features and key not in stats:
+                stats[key] = {name: np.asarray(value) for name, value in st.items()}
         self._episode_stats.append(stats)
         if len(self._episode_stats) >= STATS_FOLD_EPISODES:  # count-weighted, so folding in blocks is exact
             self._episode_stats = [self._aggregate_stats(self._episode_stats)]
@@ -234,6 +288,8 @@ class UdhmDatasetWriter:
             "dataset_from_index": self.num_frames,
             "dataset_to_index": self.num_frames + num,
         }
+        for key in self.video_keys:
+            row.update(self._add_video(key, videos[key]))
         for key, st in stats.items():
             for name, value in st.items():
                 row[f"stats/{key}/{name}"] = value.tolist()
@@ -241,6 +297,25 @@ class UdhmDatasetWriter:
         self.num_episodes += 1
         self.num_frames += num
         return ep_index
+
+    # -- videos ----------------------------------------------------------------------------------
+    def _add_video(self, key: str, segment) -> dict:
+        """Copy the segment's source file once (byte for byte) and point the episode at its time range."""
+        src = Path(segment.path)
+        if (key, str(src)) not in self._video_files:
+            if not src.is_file():
+                raise ValueError(f"video {key!r}: source file {src} is missing")
+            chunk, file = self._video_next[key]
+            _copy_file(src, self.root / self.info.video_path.format(video_key=key, chunk_index=chunk, file_index=file))
+            self._video_files[(key, str(src))] = (chunk, file)
+            self._video_next[key] = self._utils.update_chunk_file_indices(chunk, file, self.info.chunks_size)
+        chunk, file = self._video_files[(key, str(src))]
+        return {
+            f"videos/{key}/chunk_index": chunk,
+            f"videos/{key}/file_index": file,
+            f"videos/{key}/from_timestamp": float(segment.from_s),
+            f"videos/{key}/to_timestamp": float(segment.to_s),
+        }
 
     # -- episodes metadata -----------------------------------------------------------------------
     def _add_meta_row(self, row: dict) -> None:

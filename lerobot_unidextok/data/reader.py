@@ -1,6 +1,8 @@
 """Read a converted UDHM LeRobotDataset (v3.0) into per-hand rows with pyarrow, no per-frame Python.
 
 Each frame of an H-hand dataset gives H rows (frame-major: frame 0 hand 0, frame 0 hand 1, ...).
+The UDHM blocks are found by name (`state_layout.find_udhm_blocks`) inside a state that may also hold
+the robot's other columns (arms, grippers); the train/test split comes from `data.splits`.
 """
 
 from __future__ import annotations
@@ -20,11 +22,10 @@ from lerobot_unidextok.constants import (
     HAND_TYPE_KEY,
     OBS_STATE,
     UDHM_DIM,
-    UDHM_JOINT_NAMES,
     UDHM_MASK_KEY,
 )
-
-SPLITS = ("train", "test")
+from lerobot_unidextok.data.splits import HOLDOUTS, SPLITS, EpisodeSplit, SplitError, resolve_split
+from lerobot_unidextok.state_layout import UdhmBlock, find_udhm_blocks
 
 
 @dataclass
@@ -95,25 +96,37 @@ def split_episode_range(info: dict, split: str) -> tuple[int, int]:
     return a, b
 
 
-def _block_sides(info: dict) -> list[str]:
-    """Side of each 22-block of observation.state from its names ("<side>_<udhm joint>")."""
-    ft = info["features"].get(OBS_STATE)
+def _names(info: dict, key: str) -> list[str]:
+    ft = info["features"].get(key)
     if ft is None:
-        raise ValueError(f"dataset has no {OBS_STATE!r} feature; is it a UDHM conversion?")
-    dim = int(ft["shape"][0])
-    if dim % UDHM_DIM:
-        raise ValueError(f"{OBS_STATE} has {dim} values, not a multiple of {UDHM_DIM}: not a UDHM dataset")
+        return []
     names = ft.get("names") or []
     if isinstance(names, dict):  # LeRobot also allows {"axes": [...]}
         names = next(iter(names.values()))
-    sides = []
-    for b in range(dim // UDHM_DIM):
-        block = list(names[b * UDHM_DIM : (b + 1) * UDHM_DIM])
-        side = block[0].split("_", 1)[0] if block else ""
-        if [n.split("_", 1)[-1] for n in block] != list(UDHM_JOINT_NAMES):
-            raise ValueError(f"{OBS_STATE} block {b} names are not '<side>_<udhm joint>' in UDHM order: {block[:3]}...")
-        sides.append(side)
-    return sides
+    return [str(n) for n in names]
+
+
+def udhm_blocks(info: dict, key: str = OBS_STATE) -> list[UdhmBlock]:
+    """The UDHM blocks of a vector feature, found by name; a clear error when there are none."""
+    ft = info["features"].get(key)
+    if ft is None:
+        raise ValueError(f"dataset has no {key!r} feature; is it a UDHM conversion?")
+    names = _names(info, key)
+    dim = int(ft["shape"][0])
+    if len(names) != dim:
+        raise ValueError(f"{key} has {dim} values but {len(names)} names; UDHM blocks are found by name")
+    blocks = find_udhm_blocks(names)
+    if not blocks:
+        raise ValueError(
+            f"{key} has no UDHM block (22 names '<side>_<udhm joint>', e.g. right_thumb_cmc_flex); "
+            "convert the dataset with unidextok-convert first"
+        )
+    return blocks
+
+
+def _block_sides(info: dict) -> list[str]:
+    """Side of each UDHM block of observation.state, in vector order."""
+    return [b.side for b in udhm_blocks(info)]
 
 
 def _fixed_list_to_numpy(col: pa.ChunkedArray, width: int, dtype) -> np.ndarray:
@@ -126,44 +139,77 @@ def _fixed_list_to_numpy(col: pa.ChunkedArray, width: int, dtype) -> np.ndarray:
     return arr.reshape(len(col), width)
 
 
+def _columns_of_blocks(column: pa.ChunkedArray, width: int, blocks: list[UdhmBlock], dtype) -> np.ndarray:
+    """(N, 22 * H) of the blocks' columns of a (N, width) list column."""
+    values = _fixed_list_to_numpy(column, width, dtype)
+    index = np.concatenate([np.arange(b.start, b.stop) for b in blocks])
+    return values if len(index) == width else values[:, index]
+
+
 def load_udhm_frames(
     root: str | Path | None = None,
     repo_id: str | None = None,
     split: str | None = None,
     drop_absent: bool = True,
+    holdout: str = "auto",
 ) -> UdhmFrames:
     """Load a converted dataset's hand states as per-hand rows.
 
-    split: "train" | "test" (episode ranges from meta/info.json `splits`) or None for all episodes.
+    split: "train" | "test" | "all" (or None): episodes from the recorded split, see `data.splits`.
+    holdout: "auto" | "recorded" | "hash": what to do for datasets without a recorded test split
+        (e.g. after `lerobot-edit-dataset`), see `data.splits`.
     drop_absent: drop rows whose mask is all False (a hand not present in that frame, zero-filled).
     """
     if split is not None and split not in SPLITS:
         raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
+    if holdout not in HOLDOUTS:
+        raise ValueError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
     root = _resolve_root(root, repo_id)
     info = read_info(root)
-    sides = _block_sides(info)
-    num_hands = len(sides)
-    width = UDHM_DIM * num_hands
+    blocks = udhm_blocks(info)
+    sides = [b.side for b in blocks]
+    num_hands = len(blocks)
+    state_width = int(info["features"][OBS_STATE]["shape"][0])
 
     files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
     if not files:
         raise FileNotFoundError(f"no data parquet files under {root / 'data'}")
     columns = [OBS_STATE, UDHM_MASK_KEY, HAND_TYPE_KEY, "episode_index", "frame_index"]
-    has_action = ACTION in info["features"]
-    if has_action:
-        columns.append(ACTION)
+    action_blocks = None
+    if ACTION in info["features"]:
+        try:
+            action_blocks = udhm_blocks(info, ACTION)
+        except ValueError:
+            action_blocks = None  # an action without UDHM blocks (copied unchanged from the source)
+        if action_blocks is not None:
+            if [b.side for b in action_blocks] != sides:
+                raise ValueError(
+                    f"{ACTION} UDHM blocks {[b.side for b in action_blocks]} differ from {OBS_STATE} {sides}"
+                )
+            columns.append(ACTION)
     table = pa.concat_tables(pq.read_table(f, columns=columns) for f in files)
-    if split is not None:
-        a, b = split_episode_range(info, split)
-        ep = table.column("episode_index")
-        table = table.filter(pc.and_(pc.greater_equal(ep, a), pc.less(ep, b)))
+    episode_split: EpisodeSplit | None = None
+    if split not in (None, "all"):
+        episode_split = resolve_split(root, info, holdout)
+        wanted = episode_split.episodes(split)
+        if not len(wanted):
+            raise SplitError(
+                f"{root} has no {split} episodes ({episode_split.origin}: {len(episode_split.test)} test of "
+                f"{episode_split.num_episodes}); use split='all'"
+            )
+        table = table.filter(pc.is_in(table.column("episode_index"), value_set=pa.array(wanted, pa.int64())))
 
     n = table.num_rows
-    states = _fixed_list_to_numpy(table.column(OBS_STATE), width, np.float32).reshape(n * num_hands, UDHM_DIM)
+    width = UDHM_DIM * num_hands
+    states = _columns_of_blocks(table.column(OBS_STATE), state_width, blocks, np.float32).reshape(
+        n * num_hands, UDHM_DIM
+    )
     masks = _fixed_list_to_numpy(table.column(UDHM_MASK_KEY), width, np.bool_).reshape(n * num_hands, UDHM_DIM)
     actions = None
-    if has_action:
-        actions = _fixed_list_to_numpy(table.column(ACTION), width, np.float32).reshape(n * num_hands, UDHM_DIM)
+    if action_blocks is not None:
+        action_width = int(info["features"][ACTION]["shape"][0])
+        actions = _columns_of_blocks(table.column(ACTION), action_width, action_blocks, np.float32)
+        actions = actions.reshape(n * num_hands, UDHM_DIM)
 
     # hand_type: split each distinct string once, then gather by dictionary index.
     ht = table.column(HAND_TYPE_KEY).combine_chunks().dictionary_encode()

@@ -35,17 +35,13 @@ def run(cfg: ExperimentConfig) -> dict:
                          "Add a converted human dataset (DexYCB, EgoDex, OakInk-v2) to --datasets")  # fmt: skip
     robots = [h for h in data.test.hand_names() if h != HUMAN]
     if not robots:
-        raise ValueError(
-            "ablation_human evaluates robot hands; the held-out split has none. Add a robot dataset"
-        )
+        raise ValueError("ablation_human evaluates robot hands; the held-out split has none. Add a robot dataset")
     test = cap_rows(data.test.only(robots), cfg.max_eval_frames, cfg.seed)
     fit, select = selection_split(data.train, cfg.seed)
     runs = {WITH: (fit, select), WITHOUT: (fit.without(HUMAN), select.without(HUMAN))}
     reports, infos = {}, {}
     for label, (tr, sel) in runs.items():
-        model, infos[label] = trained_unidextok(
-            cfg, "all_hands" if label == WITH else "no_human", tr, sel
-        )
+        model, infos[label] = trained_unidextok(cfg, "all_hands" if label == WITH else "no_human", tr, sel)
         reports[label] = score(reconstruct_unidextok(model, test)[0], test)
 
     rows = []

@@ -74,18 +74,12 @@ def _datasets(cfg: ExperimentConfig, mapping: str) -> ExperimentData:
     roots = []
     for item in cfg.raw_sources:
         source, path = item.split("=", 1)
-        root = (
-            Path(cfg.data_dir)
-            / f"{mapping}_user"
-            / f"{source}_{abs(hash(path)) % 10**8}"
-        )
+        root = Path(cfg.data_dir) / f"{mapping}_user" / f"{source}_{abs(hash(path)) % 10**8}"
         if not (root / "meta" / "info.json").is_file():
             convert(ConvertOptions(source=source, input=path, root=root, repo_id=f"local/{source}_{mapping}", mapping=mapping,
                                    overwrite=True, progress=cfg.progress))  # fmt: skip
         roots.append(str(root))
-    return ExperimentData(
-        load_hand_states(roots, "train"), load_hand_states(roots, "test"), roots, False
-    )
+    return ExperimentData(load_hand_states(roots, "train"), load_hand_states(roots, "test"), roots, False)
 
 
 def run(cfg: ExperimentConfig) -> dict:
@@ -96,9 +90,7 @@ def run(cfg: ExperimentConfig) -> dict:
     if len(sem_test) != len(data["append_pad"].test) or not np.array_equal(
         sem_test.hands, data["append_pad"].test.hands
     ):
-        raise ValueError(
-            "the two conversions disagree on the held-out frames; convert the same raw sources both ways"
-        )
+        raise ValueError("the two conversions disagree on the held-out frames; convert the same raw sources both ways")
     keep = cap_rows(
         HandStates(
             sem_test.states_rad,
@@ -110,41 +102,27 @@ def run(cfg: ExperimentConfig) -> dict:
         cfg.seed,
     ).episode_index
     check = to_semantic(data["append_pad"].test.states_rad[keep], sem_test.hands[keep])
-    layout_error = float(
-        np.abs(check - sem_test.states_rad[keep]).max()
-    )  # 0 when the permutation is right
+    layout_error = float(np.abs(check - sem_test.states_rad[keep]).max())  # 0 when the permutation is right
     reports, infos, mpjae_native = {}, {}, {}
     for m in MAPPINGS:
         fit, select = selection_split(data[m].train, cfg.seed)
-        model, infos[m] = trained_unidextok(
-            cfg, f"all_hands_{m}" if m != "semantic" else "all_hands", fit, select
-        )
+        model, infos[m] = trained_unidextok(cfg, f"all_hands_{m}" if m != "semantic" else "all_hands", fit, select)
         test = data[m].test.select(keep)
         pred = reconstruct_unidextok(model, test)[0]
-        mpjae_native[m] = score(
-            pred, test
-        )  # angles in the layout the model saw (native DoFs)
+        mpjae_native[m] = score(pred, test)  # angles in the layout the model saw (native DoFs)
         sem_pred = pred if m == "semantic" else to_semantic(pred, test.hands)
         reports[m] = score(sem_pred, sem_test.select(keep))
     rows = []
     for hand in [*sem_test.hand_names(), "overall"]:
-        pick = (
-            (lambda r: r["overall"])
-            if hand == "overall"
-            else (lambda r, h=hand: r["per_hand"][h])
-        )
+        pick = (lambda r: r["overall"]) if hand == "overall" else (lambda r, h=hand: r["per_hand"][h])
         entry = {"hand": hand}
         for m in MAPPINGS:
             entry[m] = {
                 **summary_row(pick(reports[m])),
                 "mpjae_deg": pick(mpjae_native[m])["mpjae_deg"],
             }
-        entry["mpjae_reduction_pct"] = reduction_pct(
-            entry["append_pad"]["mpjae_deg"], entry["semantic"]["mpjae_deg"]
-        )
-        entry["mpjpe_reduction_pct"] = reduction_pct(
-            entry["append_pad"]["mpjpe_mm"], entry["semantic"]["mpjpe_mm"]
-        )
+        entry["mpjae_reduction_pct"] = reduction_pct(entry["append_pad"]["mpjae_deg"], entry["semantic"]["mpjae_deg"])
+        entry["mpjpe_reduction_pct"] = reduction_pct(entry["append_pad"]["mpjpe_mm"], entry["semantic"]["mpjpe_mm"])
         rows.append(entry)
     result = {"experiment": NAME, "provenance": provenance(cfg, data["semantic"], time.perf_counter() - t0),
               "rows": rows, "training": infos, "layout_check_max_abs_rad": layout_error, "figures": {}}  # fmt: skip

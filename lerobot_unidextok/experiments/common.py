@@ -106,20 +106,13 @@ def write_result(folder: Path, name: str, result: dict, markdown: str) -> Path:
 
 
 def fmt(x: float | None, digits: int = 2) -> str:
-    return (
-        "-"
-        if x is None or (isinstance(x, float) and math.isnan(x))
-        else f"{x:.{digits}f}"
-    )
+    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
 
 
 def md_table(header: list[str], rows: list[list]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += [
-        "| "
-        + " | ".join(fmt(c) if isinstance(c, float) or c is None else str(c) for c in r)
-        + " |"
-        for r in rows
+        "| " + " | ".join(fmt(c) if isinstance(c, float) or c is None else str(c) for c in r) + " |" for r in rows
     ]
     return "\n".join(lines)
 
@@ -133,22 +126,15 @@ class ExperimentData:
     test: HandStates
     datasets: list[Path | str]
     synthetic: bool
-    raw_dir: Path | None = (
-        None  # raw sample sources (labels for the probe), None for user datasets
-    )
+    raw_dir: Path | None = None  # raw sample sources (labels for the probe), None for user datasets
 
 
 def sample_raw_dir(cfg: ExperimentConfig) -> Path:
-    return (
-        Path(cfg.data_dir)
-        / f"raw_e{cfg.sample_episodes}_f{cfg.sample_frames}_s{cfg.seed}"
-    )
+    return Path(cfg.data_dir) / f"raw_e{cfg.sample_episodes}_f{cfg.sample_frames}_s{cfg.seed}"
 
 
 def _valid_dataset(root: Path) -> bool:
-    return (root / "meta" / "info.json").is_file() and any(
-        (root / "data").glob("chunk-*/file-*.parquet")
-    )
+    return (root / "meta" / "info.json").is_file() and any((root / "data").glob("chunk-*/file-*.parquet"))
 
 
 def prepare_sample_data(cfg: ExperimentConfig, mapping: str = "semantic") -> list[Path]:
@@ -182,9 +168,7 @@ def prepare_sample_data(cfg: ExperimentConfig, mapping: str = "semantic") -> lis
     return roots
 
 
-def load_data(
-    cfg: ExperimentConfig, mapping: str = "semantic", datasets: list[str] | None = None
-) -> ExperimentData:
+def load_data(cfg: ExperimentConfig, mapping: str = "semantic", datasets: list[str] | None = None) -> ExperimentData:
     """Train / test rows of `datasets` (default cfg.datasets), or of the converted sample data."""
     datasets = list(cfg.datasets if datasets is None else datasets)
     if datasets:
@@ -233,17 +217,11 @@ def per_hand_states(data: HandStates) -> dict[str, np.ndarray]:
 def _fingerprint(*parts) -> str:
     h = hashlib.sha1()
     for p in parts:
-        h.update(
-            p.tobytes()
-            if isinstance(p, np.ndarray)
-            else json.dumps(p, sort_keys=True, default=str).encode()
-        )
+        h.update(p.tobytes() if isinstance(p, np.ndarray) else json.dumps(p, sort_keys=True, default=str).encode())
     return h.hexdigest()[:12]
 
 
-def train_config(
-    cfg: ExperimentConfig, output_dir: Path, hand_names: list[str]
-) -> TrainConfig:
+def train_config(cfg: ExperimentConfig, output_dir: Path, hand_names: list[str]) -> TrainConfig:
     return TrainConfig(
         preset=cfg.preset, steps=cfg.steps, batch_size=cfg.batch_size, lr=cfg.lr, warmup_steps=cfg.warmup_steps,
         eval_every=cfg.eval_every, save_last_every=10**9, seed=cfg.seed, output_dir=str(output_dir),
@@ -251,17 +229,13 @@ def train_config(
     )  # fmt: skip
 
 
-def trained_unidextok(
-    cfg: ExperimentConfig, tag: str, train: HandStates, select: HandStates
-):
+def trained_unidextok(cfg: ExperimentConfig, tag: str, train: HandStates, select: HandStates):
     """A UniDexTok trained on `train` (checkpoint chosen on `select`), from cache when the same
     configuration and rows were trained before. Returns (model, info dict)."""
     from lerobot_unidextok.tokenizer import UniDexTok
 
     hands = train.hand_names()
-    settings = dataclasses.asdict(
-        train_config(cfg, Path("."), hands)
-    )  # every training setting, incl. defaults
+    settings = dataclasses.asdict(train_config(cfg, Path("."), hands))  # every training setting, incl. defaults
     for volatile in ("output_dir", "progress"):
         settings.pop(volatile)
     key = _fingerprint(
@@ -286,17 +260,11 @@ def trained_unidextok(
     return UniDexTok.from_pretrained(folder / "best"), info
 
 
-def selection_split(
-    train: HandStates, seed: int, fraction: float = 0.1
-) -> tuple[HandStates, HandStates]:
+def selection_split(train: HandStates, seed: int, fraction: float = 0.1) -> tuple[HandStates, HandStates]:
     """(fit rows, checkpoint-selection rows): whole training episodes held back per hand, never test rows."""
     rng = np.random.default_rng(seed)
     pick = np.zeros(len(train), dtype=bool)
-    eps = (
-        train.episode_index
-        if train.episode_index is not None
-        else np.arange(len(train))
-    )
+    eps = train.episode_index if train.episode_index is not None else np.arange(len(train))
     for hand in train.hand_names():
         rows = train.hands == hand
         uniq = np.unique(eps[rows])
@@ -343,19 +311,11 @@ def summary_row(entry: dict) -> dict:
 
 def abs_errors_deg(pred_rad: np.ndarray, data: HandStates) -> np.ndarray:
     """(N, 22) absolute angle errors (deg), NaN on inactive slots (for per-joint error bars)."""
-    err = np.degrees(
-        np.abs(pred_rad.astype(np.float64) - data.states_rad.astype(np.float64))
-    )
+    err = np.degrees(np.abs(pred_rad.astype(np.float64) - data.states_rad.astype(np.float64)))
     return np.where(data.masks, err, np.nan)
 
 
 def reduction_pct(before: float | None, after: float | None) -> float | None:
-    if (
-        before is None
-        or after is None
-        or not before
-        or math.isnan(before)
-        or math.isnan(after)
-    ):
+    if before is None or after is None or not before or math.isnan(before) or math.isnan(after):
         return None
     return 100.0 * (before - after) / before

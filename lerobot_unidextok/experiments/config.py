@@ -18,9 +18,7 @@ class ExperimentConfig:
     raw_sources: list[str] = field(default_factory=list)
     sample_episodes: int = 10  # per sample source
     sample_frames: int = 150  # per sample episode (+-20 %)
-    data_dir: str = (
-        "outputs/experiments/_data"  # converted sample cache, reused when valid
-    )
+    data_dir: str = "outputs/experiments/_data"  # converted sample cache, reused when valid
 
     # --- UniDexTok training (each configuration trained once, cached under models_dir) --------------
     preset: str = "small"
@@ -33,9 +31,7 @@ class ExperimentConfig:
 
     # --- baselines ----------------------------------------------------------------------------------
     unihm_preset: str = "cpu"
-    unihm_teacher_steps: int = (
-        400  # cut from the cpu preset's 1200 to fit the 5-minute budget
-    )
+    unihm_teacher_steps: int = 400  # cut from the cpu preset's 1200 to fit the 5-minute budget
     unihm_rounds: int = 2
     unihm_round_steps: int = 30  # distil and align steps per round
     unihm_finetune_steps: int = 80
@@ -54,12 +50,8 @@ class ExperimentConfig:
     fewshot_adapt: str = "hand_embedding"  # "all" parameters or only the new "hand_embedding"
 
     # --- probe --------------------------------------------------------------------------------------
-    linkerhand_presets: str = (
-        "/work/shared/data/real/linkerhand-ros2-sdk/linkerhand_gui_preset_actions.json"
-    )
-    probe_max_per_class: int = (
-        400  # held gesture frames per (gesture, hand) kept for the probe
-    )
+    linkerhand_presets: str = "/work/shared/data/real/linkerhand-ros2-sdk/linkerhand_gui_preset_actions.json"
+    probe_max_per_class: int = 400  # held gesture frames per (gesture, hand) kept for the probe
 
     # --- output -------------------------------------------------------------------------------------
     output_root: str = "outputs/experiments"
@@ -75,9 +67,7 @@ class ExperimentConfig:
                 f"{self.sample_episodes}, {self.sample_frames}"
             )
         if not 0.0 < self.fewshot_fraction <= 1.0:
-            raise ValueError(
-                f"fewshot_fraction must be in (0, 1], got {self.fewshot_fraction}"
-            )
+            raise ValueError(f"fewshot_fraction must be in (0, 1], got {self.fewshot_fraction}")
         for item in self.raw_sources:
             if "=" not in item:
                 raise ValueError(f"raw_sources items are 'source=path', got {item!r}")
@@ -85,9 +75,7 @@ class ExperimentConfig:
     @classmethod
     def from_preset(cls, name: str, **overrides) -> "ExperimentConfig":
         if name not in PRESETS:
-            raise ValueError(
-                f"unknown experiment preset {name!r}; choose one of {sorted(PRESETS)}"
-            )
+            raise ValueError(f"unknown experiment preset {name!r}; choose one of {sorted(PRESETS)}")
         return replace(PRESETS[name], **overrides)
 
 
@@ -120,17 +108,11 @@ def _convert(value: str, typ) -> object:
     return typ(value)
 
 
-def parse_config(
-    argv: list[str] | None = None, description: str = ""
-) -> ExperimentConfig:
+def parse_config(argv: list[str] | None = None, description: str = "") -> ExperimentConfig:
     """`--tiny`, `--config_path=file.yaml` and `--<field>=<value>` for every ExperimentConfig field."""
     parser = argparse.ArgumentParser(description=description)
-    parser.add_argument(
-        "--tiny", action="store_true", help="the tiny preset (tests, seconds)"
-    )
-    parser.add_argument(
-        "--config_path", default=None, help="YAML file of ExperimentConfig fields"
-    )
+    parser.add_argument("--tiny", action="store_true", help="the tiny preset (tests, seconds)")
+    parser.add_argument("--config_path", default=None, help="YAML file of ExperimentConfig fields")
     hints = typing.get_type_hints(ExperimentConfig)
     for f in fields(ExperimentConfig):
         parser.add_argument(f"--{f.name}", default=None, help=f"{hints[f.name]}")
@@ -142,9 +124,7 @@ def parse_config(
         loaded = yaml.safe_load(Path(args.config_path).read_text()) or {}
         unknown = sorted(set(loaded) - set(hints))
         if unknown:
-            raise ValueError(
-                f"{args.config_path}: unknown fields {unknown}; known: {sorted(hints)}"
-            )
+            raise ValueError(f"{args.config_path}: unknown fields {unknown}; known: {sorted(hints)}")
         values.update(loaded)
     for f in fields(ExperimentConfig):
         raw = getattr(args, f.name)

@@ -46,9 +46,7 @@ def run(cfg: ExperimentConfig) -> dict:
         UNIDEXTOK: {
             h: (
                 model.config.num_tokens,
-                model.config.num_tokens
-                * model.config.num_groups
-                * np.log2(model.config.codebook_size),
+                model.config.num_tokens * model.config.num_groups * np.log2(model.config.codebook_size),
             )
             for h in test.hand_names()
         }
@@ -69,10 +67,7 @@ def run(cfg: ExperimentConfig) -> dict:
             continue
         fit_seconds[method] = round(time.perf_counter() - t, 1)
         preds[method] = reconstruct_baseline(tok, test)
-        rates[method] = {
-            h: (tok.rate(h).tokens_per_state, tok.rate(h).bits_per_state)
-            for h in test.hand_names()
-        }
+        rates[method] = {h: (tok.rate(h).tokens_per_state, tok.rate(h).bits_per_state) for h in test.hand_names()}
         logger.info("%s fitted in %.1f s", method, fit_seconds[method])
 
     # --- scores: one evaluation code for all --------------------------------------------------------
@@ -105,9 +100,7 @@ def run(cfg: ExperimentConfig) -> dict:
     baseline_for_render = UNIHM if UNIHM in preds else BINNING
     for hand in test.hand_names():
         rows_h = np.flatnonzero(test.hands == hand)
-        pick = np.sort(
-            rng.choice(rows_h, size=min(cfg.render_samples, len(rows_h)), replace=False)
-        )
+        pick = np.sort(rng.choice(rows_h, size=min(cfg.render_samples, len(rows_h)), replace=False))
         figures[f"render_{hand}"] = str(viz.plot_hand_reconstructions(
             test.states_rad[pick], {UNIDEXTOK: preds[UNIDEXTOK][pick], baseline_for_render: preds[baseline_for_render][pick]},
             hand, folder / f"render_{hand}.png", title=f"{hand}: ground truth (light) vs {UNIDEXTOK} (green) vs {baseline_for_render} (red)"))  # fmt: skip
@@ -160,14 +153,11 @@ def wins(rows: list[dict]) -> list[str]:
         hr = [r for r in rows if r["hand"] == hand]
         best = min(hr, key=lambda r: r["mpjae_deg"])
         ours = next((r for r in hr if r["method"] == UNIDEXTOK), None)
-        line = f"- {hand}: lowest MPJAE {best['method']} ({best['mpjae_deg']:.2f} deg at {best['bits_per_state']:g} bits)"
+        line = (
+            f"- {hand}: lowest MPJAE {best['method']} ({best['mpjae_deg']:.2f} deg at {best['bits_per_state']:g} bits)"
+        )
         if ours is not None:
-            budget = [
-                r
-                for r in hr
-                if r["bits_per_state"] <= ours["bits_per_state"]
-                and r["method"] != best["method"]
-            ]
+            budget = [r for r in hr if r["bits_per_state"] <= ours["bits_per_state"] and r["method"] != best["method"]]
             learned = [r for r in budget if r["method"] != BINNING]
             if learned:
                 b2 = min(learned, key=lambda r: r["mpjae_deg"])

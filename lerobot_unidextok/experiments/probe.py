@@ -55,22 +55,16 @@ def features(model, states_rad: np.ndarray, hands: np.ndarray) -> dict[str, np.n
     for i in range(0, len(states_rad), 2048):
         x = torch.as_tensor(states_rad[i : i + 2048], dtype=torch.float32)  # (B, 22)
         h = [str(s) for s in hands[i : i + 2048]]
-        c = model.hand_embed(
-            model.hand_ids(h, x.shape[0], allow_unknown=True)
-        )  # (B, C)
+        c = model.hand_embed(model.hand_ids(h, x.shape[0], allow_unknown=True))  # (B, C)
         z = model._encode_latent(x, c)  # (B, N, C)
-        zq = model.quantizer.get_output_from_indices(
-            model.encode(x, h, allow_unknown=True)
-        )  # (B, N, C)
+        zq = model.quantizer.get_output_from_indices(model.encode(x, h, allow_unknown=True))  # (B, N, C)
         out["input angles"].append((x / np.pi).numpy())
         out["encoder embedding"].append(z.flatten(1).numpy())
         out["quantized features"].append(zq.flatten(1).numpy())
     return {k: np.concatenate(v).astype(np.float64) for k, v in out.items()}
 
 
-def knn_topk(
-    train_x: np.ndarray, train_y: np.ndarray, test_x: np.ndarray, test_y: np.ndarray
-) -> dict[str, float]:
+def knn_topk(train_x: np.ndarray, train_y: np.ndarray, test_x: np.ndarray, test_y: np.ndarray) -> dict[str, float]:
     """Cosine nearest neighbours: top-1 = the nearest one's label is right; top-3 = the right label is among
     the 3 nearest neighbours' labels."""
     a = train_x / np.linalg.norm(train_x, axis=1, keepdims=True).clip(1e-12)
@@ -110,43 +104,30 @@ def linear_probe(
 
     def closure():
         opt.zero_grad()
-        loss = (
-            torch.nn.functional.cross_entropy(lin(xt), yt)
-            + 1e-3 * lin.weight.pow(2).sum()
-        )
+        loss = torch.nn.functional.cross_entropy(lin(xt), yt) + 1e-3 * lin.weight.pow(2).sum()
         loss.backward()
         return loss
 
     opt.step(closure)
     with torch.no_grad():
-        pred = (
-            lin(torch.as_tensor((test_x - mu) / sd, dtype=torch.float32))
-            .argmax(1)
-            .numpy()
-        )
+        pred = lin(torch.as_tensor((test_x - mu) / sd, dtype=torch.float32)).argmax(1).numpy()
     return float((classes[pred] == test_y).mean())
 
 
 # ---------------------------------------------------------------------------------------------
 # labelled sets
 # ---------------------------------------------------------------------------------------------
-def _source_hand(source: str, raw: Path, episode: str) -> str | None:
+def _source_hand(source: str, entry: dict) -> str | None:
+    """The hand spec of a sample episode (the bag samples name theirs in the labels file)."""
     from lerobot_unidextok.conversion import samples
 
     if source in ("dexycb", "egodex"):
         return HUMAN
-    fixed = {
-        "let": samples.HAND_LET,
-        "dexora": samples.HAND_DEXORA,
-        "lerobot": samples.HAND_G1,
-    }
-    if source in fixed:
-        return fixed[source]
+    if source == "let":
+        return entry.get("hand", samples.HAND_LET)
     if source == "linkerhand":
-        return samples.HAND_LINKERHAND.get(
-            json.loads((raw / source / episode).read_text()).get("hand_model")
-        )
-    return None
+        return samples.HAND_LINKERHAND.get(entry.get("hand_model"))
+    return {"dexora": samples.HAND_DEXORA, "lerobot": samples.HAND_G1}.get(source)
 
 
 def sample_gestures(raw: Path, max_per_class: int, seed: int) -> dict[str, np.ndarray]:
@@ -166,25 +147,19 @@ def sample_gestures(raw: Path, max_per_class: int, seed: int) -> dict[str, np.nd
         eps = json.loads((folder / LABELS_FILE).read_text())["episodes"]
         truth = np.load(folder / TRUTH_FILE)
         for key, entry in eps.items():
-            hand = _source_hand(source, raw, key)
+            hand = _source_hand(source, entry)
             if hand is None:
                 continue
             for side in ("left", "right"):
                 if side not in entry or f"{key}|{side}" not in truth:
                     continue
                 q = truth[f"{key}|{side}"].astype(np.float64)  # (T, 22) rad
-                held = np.array(entry[f"{side}_holding"], bool) & (
-                    np.array(entry[side]) != ""
-                )
+                held = np.array(entry[f"{side}_holding"], bool) & (np.array(entry[side]) != "")
                 if not held.any():
                     continue
                 if hand != HUMAN:  # the gesture as this robot records it
                     spec = registry.get(hand)
-                    q = np.asarray(
-                        spec.to_udhm(
-                            spec.from_udhm(q, side), side, on_out_of_range="clip"
-                        )
-                    )
+                    q = np.asarray(spec.to_udhm(spec.from_udhm(q, side), side, on_out_of_range="clip"))
                 states.append(q[held])
                 hands += [hand] * int(held.sum())
                 labels += [lab for lab, h in zip(entry[side], held, strict=True) if h]
@@ -204,22 +179,16 @@ def sample_gestures(raw: Path, max_per_class: int, seed: int) -> dict[str, np.nd
     for lab in np.unique(out["labels"]):
         for hand in np.unique(out["hands"]):
             rows = np.flatnonzero((out["labels"] == lab) & (out["hands"] == hand))
-            keep.append(
-                rng.choice(rows, size=min(max_per_class, len(rows)), replace=False)
-            )
+            keep.append(rng.choice(rows, size=min(max_per_class, len(rows)), replace=False))
     keep = np.sort(np.concatenate(keep))
     return {k: v[keep] for k, v in out.items()}
 
 
-def episode_split(
-    episodes: np.ndarray, seed: int, test_fraction: float = 0.3
-) -> np.ndarray:
+def episode_split(episodes: np.ndarray, seed: int, test_fraction: float = 0.3) -> np.ndarray:
     """Boolean test mask: whole episodes, ~30 % of them."""
     uniq = np.unique(episodes)
     rng = np.random.default_rng(seed)
-    test_eps = rng.choice(
-        uniq, size=max(1, round(test_fraction * len(uniq))), replace=False
-    )
+    test_eps = rng.choice(uniq, size=max(1, round(test_fraction * len(uniq))), replace=False)
     return np.isin(episodes, test_eps)
 
 
@@ -236,21 +205,11 @@ def linkerhand_presets(path: Path) -> dict[str, np.ndarray] | None:
         spec = registry.get(hand)
         for name, raw in presets.items():
             if name in PRESET_CANON and len(raw) == spec.num_native:
-                states.append(
-                    np.asarray(
-                        spec.to_udhm(
-                            np.asarray(raw, np.float64), "right", on_out_of_range="clip"
-                        )
-                    )
-                )
+                states.append(np.asarray(spec.to_udhm(np.asarray(raw, np.float64), "right", on_out_of_range="clip")))
                 hands.append(hand)
                 labels.append(PRESET_CANON[name])
     labels_arr, hands_arr = np.array(labels), np.array(hands)
-    shared = [
-        lab
-        for lab in np.unique(labels_arr)
-        if len(np.unique(hands_arr[labels_arr == lab])) >= 2
-    ]
+    shared = [lab for lab in np.unique(labels_arr) if len(np.unique(hands_arr[labels_arr == lab])) >= 2]
     keep = np.isin(labels_arr, shared)
     return {
         "states": np.stack(states)[keep],
@@ -281,17 +240,13 @@ def run(cfg: ExperimentConfig) -> dict:
         feats = features(model, g["states"], g["hands"])
         robot_q = test & (g["hands"] != HUMAN)
         human_g = ~test & (g["hands"] == HUMAN)
-        robot_q &= np.isin(
-            g["labels"], g["labels"][human_g]
-        )  # only gestures the human gallery contains
+        robot_q &= np.isin(g["labels"], g["labels"][human_g])  # only gestures the human gallery contains
         rows = []
         for kind, x in feats.items():
             row = {"feature": kind, "linear_probe": linear_probe(x[~test], g["labels"][~test], x[test], g["labels"][test], cfg.seed),
                    **knn_topk(x[~test], g["labels"][~test], x[test], g["labels"][test])}  # fmt: skip
             if robot_q.any() and human_g.any():
-                cross = knn_topk(
-                    x[human_g], g["labels"][human_g], x[robot_q], g["labels"][robot_q]
-                )
+                cross = knn_topk(x[human_g], g["labels"][human_g], x[robot_q], g["labels"][robot_q])
                 row.update(
                     {
                         "human_to_robot_top1": cross["knn_top1"],
@@ -304,9 +259,7 @@ def run(cfg: ExperimentConfig) -> dict:
                                      "chance": 1.0 / len(set(g["labels"].tolist()))}  # fmt: skip
     else:
         result["sample_gestures"] = None
-        logger.info(
-            "user datasets carry no gesture labels: sample-gesture probe skipped"
-        )
+        logger.info("user datasets carry no gesture labels: sample-gesture probe skipped")
 
     presets = linkerhand_presets(Path(cfg.linkerhand_presets))
     if presets is None or len(presets["labels"]) == 0:
@@ -320,9 +273,7 @@ def run(cfg: ExperimentConfig) -> dict:
         rows = []
         for kind, x in feats.items():
             hits1, hits3 = [], []
-            for hand in np.unique(
-                presets["hands"]
-            ):  # leave one hand out: gallery = the other models
+            for hand in np.unique(presets["hands"]):  # leave one hand out: gallery = the other models
                 q, gal = presets["hands"] == hand, presets["hands"] != hand
                 r = knn_topk(x[gal], presets["labels"][gal], x[q], presets["labels"][q])
                 hits1.append(r["knn_top1"] * q.sum())
@@ -355,9 +306,7 @@ def markdown(result: dict) -> str:
                               [[r["feature"], r["linear_probe"], r["knn_top1"], r["knn_top3"], r.get("human_to_robot_top1"),
                                 r.get("human_to_robot_top3")] for r in sg["rows"]]))  # fmt: skip
     else:
-        lines.append(
-            "Sample-gesture probe skipped (user datasets carry no gesture labels)."
-        )
+        lines.append("Sample-gesture probe skipped (user datasets carry no gesture labels).")
     lp = result.get("linkerhand_presets")
     lines.append("")
     if lp:

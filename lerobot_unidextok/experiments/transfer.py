@@ -34,15 +34,11 @@ ZERO, FEW, FULL = "zero-shot", "few-shot", "in training (reference)"
 def holdout_hand(cfg: ExperimentConfig, hands: list[str]) -> str:
     if cfg.holdout_hand:
         if cfg.holdout_hand not in hands:
-            raise ValueError(
-                f"--holdout_hand={cfg.holdout_hand!r} is not in the data; hands: {hands}"
-            )
+            raise ValueError(f"--holdout_hand={cfg.holdout_hand!r} is not in the data; hands: {hands}")
         return cfg.holdout_hand
     inspire = [h for h in hands if "inspire" in h]
     if not inspire:
-        raise ValueError(
-            f"no Inspire hand in the data ({hands}); pass --holdout_hand=<one of them>"
-        )
+        raise ValueError(f"no Inspire hand in the data ({hands}); pass --holdout_hand=<one of them>")
     return inspire[0]
 
 
@@ -56,17 +52,13 @@ def run(cfg: ExperimentConfig) -> dict:
     test = cap_rows(data.test.only(hand), cfg.max_eval_frames, cfg.seed)
     fit, select = selection_split(data.train, cfg.seed)
 
-    base, base_info = trained_unidextok(
-        cfg, f"without_{hand}", fit.without(hand), select.without(hand)
-    )
+    base, base_info = trained_unidextok(cfg, f"without_{hand}", fit.without(hand), select.without(hand))
     full, full_info = trained_unidextok(cfg, "all_hands", fit, select)
     reports = {ZERO: score(reconstruct_unidextok(base, test)[0], test)}
 
     # few-shot: the first fraction of the held-out hand's training frames (whole episodes first);
     # the checkpoint is chosen on those same frames, so no held-out frame is seen before scoring
-    shots = subsample_episodes(
-        data.train.only(hand), cfg.fewshot_fraction, seed=cfg.seed
-    )
+    shots = subsample_episodes(data.train.only(hand), cfg.fewshot_fraction, seed=cfg.seed)
     few_cfg = TrainConfig(
         preset=cfg.preset, init_from=base_info["dir"], fraction=1.0, epochs=cfg.fewshot_epochs, batch_size=cfg.fewshot_batch_size,
         lr=cfg.fewshot_lr, adapt=cfg.fewshot_adapt, unknown_hand_prob=0.0, warmup_steps=1, eval_every=1, save_last_every=10**9, seed=cfg.seed,
@@ -79,9 +71,7 @@ def run(cfg: ExperimentConfig) -> dict:
 
     per_joint = {}
     for joint in reports[ZERO]["per_hand"][hand]["per_joint_deg"]:
-        z, f = (
-            reports[k]["per_hand"][hand]["per_joint_deg"][joint] for k in (ZERO, FEW)
-        )
+        z, f = (reports[k]["per_hand"][hand]["per_joint_deg"][joint] for k in (ZERO, FEW))
         per_joint[joint] = {
             ZERO: z,
             FEW: f,
@@ -90,9 +80,7 @@ def run(cfg: ExperimentConfig) -> dict:
         }
     per_finger = {}
     for tip in (KEYPOINT_NAMES[i] for i in FINGERTIP_INDICES):
-        z, f = (
-            reports[k]["per_hand"][hand]["per_keypoint_mm"][tip] for k in (ZERO, FEW)
-        )
+        z, f = (reports[k]["per_hand"][hand]["per_keypoint_mm"][tip] for k in (ZERO, FEW))
         per_finger[tip] = {
             ZERO: z,
             FEW: f,

@@ -4,6 +4,7 @@
         --root=out/linkerhand_udhm --num_workers=2 --on_error=skip
     unidextok-convert --source=dexycb --input=raw/dexycb --sides=right,left --root=out/dexycb_udhm
     unidextok-convert --source=lerobot --input=raw/g1 --source_options='{"hands": {...}}' --root=...
+    unidextok-convert --source=let --input=raw/let_bags --fps=30 --root=...   # bags resampled onto 30 fps
     unidextok-convert --validate=true --root=out/linkerhand_udhm
     unidextok-convert --config_path=convert.yaml          # same fields in a YAML/JSON file
     unidextok-convert --list_sources=true
@@ -35,6 +36,8 @@ class ConvertConfig:
     # -- how ----------------------------------------------------------------------------------------
     mapping: str = "semantic"  # "semantic" (joint -> named UDHM slot) | "append_pad" (ablation)
     sides: str = ""  # block layout, e.g. "right,left" for sources whose episodes are left or right hands
+    fps: int | None = None  # frame grid for time-stamped sources (ROS bags, keypoint files); None = source default
+    keep: str = "all"  # "all": the whole robot (arms, other features, videos) | "hands": UDHM blocks only
     num_workers: int = 1  # processes reading + mapping episodes
     on_error: str = "raise"  # "raise": stop at the first bad episode | "skip": skip, report at the end
     test_fraction: float = 0.2  # share of episodes in the deterministic test split
@@ -83,23 +86,25 @@ def run(cfg: ConvertConfig) -> int:
     if not cfg.validate:
         if not cfg.source or not cfg.input:
             raise SystemExit("error: --source and --input are required (or --validate=true / --list_sources=true)")
-        opts = pipeline.ConvertOptions(
-            source=cfg.source,
-            input=cfg.input,
-            root=root,
-            repo_id=cfg.repo_id,
-            source_options=_source_options(cfg.source_options),
-            mapping=cfg.mapping,
-            on_error=cfg.on_error,
-            num_workers=cfg.num_workers,
-            overwrite=cfg.overwrite,
-            test_fraction=cfg.test_fraction,
-            max_episodes=cfg.max_episodes,
-            shard_index=cfg.shard_index,
-            num_shards=cfg.num_shards,
-            sides=tuple(s.strip() for s in cfg.sides.split(",") if s.strip()) or None,
-        )
         try:
+            opts = pipeline.ConvertOptions(
+                source=cfg.source,
+                input=cfg.input,
+                root=root,
+                repo_id=cfg.repo_id,
+                source_options=_source_options(cfg.source_options),
+                mapping=cfg.mapping,
+                on_error=cfg.on_error,
+                num_workers=cfg.num_workers,
+                overwrite=cfg.overwrite,
+                test_fraction=cfg.test_fraction,
+                max_episodes=cfg.max_episodes,
+                shard_index=cfg.shard_index,
+                num_shards=cfg.num_shards,
+                sides=tuple(s.strip() for s in cfg.sides.split(",") if s.strip()) or None,
+                fps=cfg.fps,
+                keep=cfg.keep,
+            )
             report = pipeline.convert(opts)
         except (
             pipeline.ConversionError,
@@ -119,6 +124,7 @@ def run(cfg: ConvertConfig) -> int:
     validation = validate_dataset(root, repo_id=cfg.repo_id)
     if cfg.validate or not validation.ok:
         print(validation.table())
+    _print_train_episodes(root)
     if not validation.ok:
         return 2
     if cfg.push_to_hub:
@@ -127,6 +133,17 @@ def run(cfg: ConvertConfig) -> int:
         commit = push(str(root), cfg.repo_id, "dataset", private=cfg.private)
         print(f"pushed {root} -> {cfg.repo_id} (tag v3.0) @ {commit}")
     return 0
+
+
+def _print_train_episodes(root: Path) -> None:
+    """How to keep the recorded test episodes out of `lerobot-train` (which ignores info.json splits)."""
+    from lerobot_unidextok.conversion.card import lerobot_train_episodes_flag
+    from lerobot_unidextok.conversion.pipeline import read_settings
+
+    settings = read_settings(root)
+    if settings.get("test_episodes") and int(settings.get("num_episodes", 0)) <= 2000:
+        flag = lerobot_train_episodes_flag(int(settings["num_episodes"]), settings["test_episodes"])
+        print(f"lerobot-train without the {len(settings['test_episodes'])} test episodes: {flag}")
 
 
 @draccus.wrap()

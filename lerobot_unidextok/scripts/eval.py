@@ -18,6 +18,7 @@ class EvalConfig:
     checkpoint: str = ""  # tokenizer folder (config.json + model.safetensors) or Hub repo id
     datasets: list[str] = field(default_factory=list)  # converted UDHM datasets: local roots or repo ids
     split: str = "test"  # train | test | all
+    holdout: str = "auto"  # datasets without a recorded test split (lerobot-edit-dataset): auto | recorded | hash
     hands: list[str] = field(default_factory=list)  # evaluate only these hands (empty = all)
     output: str = "outputs/unidextok_eval/eval"  # path stem of the .json / .md report
     device: str = "cpu"
@@ -32,7 +33,7 @@ def run(cfg: EvalConfig) -> dict:
         raise SystemExit("error: --checkpoint is required (a folder with config.json + model.safetensors or a repo id)")
     if cfg.split not in ("train", "test", "all"):
         raise SystemExit(f"error: --split must be train, test or all, got {cfg.split!r}")
-    data = load_hand_states(cfg.datasets, split=None if cfg.split == "all" else cfg.split)
+    data = load_hand_states(cfg.datasets, split=None if cfg.split == "all" else cfg.split, holdout=cfg.holdout)
     if cfg.hands:
         data = data.only(cfg.hands)
         if len(data) == 0:

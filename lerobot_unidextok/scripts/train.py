@@ -23,8 +23,8 @@ def run(cfg: TrainConfig) -> dict:
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer, write_report
     from lerobot_unidextok.tokenizer import UniDexTok
 
-    train = load_hand_states(cfg.datasets, split="train")
-    test = load_hand_states(cfg.datasets, split="test")
+    train = load_hand_states(cfg.datasets, split="train", holdout=cfg.holdout)
+    test = load_hand_states(cfg.datasets, split="test", holdout=cfg.holdout)
     if cfg.exclude_hands:
         train = train.without(cfg.exclude_hands)
     train = subsample_episodes(train, cfg.fraction, seed=cfg.seed)

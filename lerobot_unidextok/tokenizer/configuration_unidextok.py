@@ -77,9 +77,7 @@ class UniDexTokConfig:
         if self.hidden_dim % self.num_heads != 0:
             raise ValueError(f"hidden_dim={self.hidden_dim} must be divisible by num_heads={self.num_heads}")
         if self.codebook_dim % self.num_groups != 0:
-            raise ValueError(
-                f"codebook_dim={self.codebook_dim} must be divisible by num_groups={self.num_groups}"
-            )
+            raise ValueError(f"codebook_dim={self.codebook_dim} must be divisible by num_groups={self.num_groups}")
         for name in ("num_tokens", "hidden_dim", "num_heads", "codebook_size", "state_dim"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
@@ -109,7 +107,12 @@ PRESETS: dict[str, UniDexTokConfig] = {
     # near zero error like MSE's. Measured on gesture data: 1.56 deg held-out MAE at step 1200 of 2400
     # with it vs 1.86 deg after a full 1200-step run without it (bench: /tmp experiments, see docs/tokenizer.md).
     "small": UniDexTokConfig(
-        num_tokens=8, hidden_dim=64, encoder_depth=2, decoder_depth=2, num_heads=4, mlp_ratio=2.0,
+        num_tokens=8,
+        hidden_dim=64,
+        encoder_depth=2,
+        decoder_depth=2,
+        num_heads=4,
+        mlp_ratio=2.0,
         smooth_l1_weight=1.0,
     ),
     "tiny": UniDexTokConfig(num_tokens=4, hidden_dim=64, encoder_depth=1, decoder_depth=1, num_heads=4),

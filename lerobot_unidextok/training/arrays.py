@@ -70,8 +70,9 @@ class HandStates:
         return HandStates(frames.states_rad, frames.hands, frames.masks, frames.episode_index)
 
 
-def load_hand_states(datasets: list[str], split: str | None) -> HandStates:
-    """Per-hand rows of one split of several converted datasets (local roots or repo ids)."""
+def load_hand_states(datasets: list[str], split: str | None, holdout: str = "auto") -> HandStates:
+    """Per-hand rows of one split of several converted datasets (local roots or repo ids); `holdout` says
+    what a dataset without a recorded test split gives (`lerobot_unidextok.data.splits`)."""
     from pathlib import Path
 
     from lerobot_unidextok.data import load_udhm_frames
@@ -81,9 +82,9 @@ def load_hand_states(datasets: list[str], split: str | None) -> HandStates:
     parts = []
     for ds in datasets:
         if Path(ds).expanduser().is_dir():
-            frames = load_udhm_frames(root=Path(ds).expanduser(), split=split)
+            frames = load_udhm_frames(root=Path(ds).expanduser(), split=split, holdout=holdout)
         else:
-            frames = load_udhm_frames(repo_id=ds, split=split)
+            frames = load_udhm_frames(repo_id=ds, split=split, holdout=holdout)
         parts.append(HandStates.from_frames(frames))
     return HandStates.concat(parts)
 

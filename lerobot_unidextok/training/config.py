@@ -10,6 +10,7 @@ class TrainConfig:
     # --- data -------------------------------------------------------------------------------------
     # Converted UDHM LeRobotDatasets: local roots, or repo ids resolved in HF_LEROBOT_HOME.
     datasets: list[str] = field(default_factory=list)
+    holdout: str = "auto"  # datasets without a recorded test split: auto (hash fallback, warned) | recorded | hash
     # Share of each hand in a batch (relative weights). Hands not listed get `default_hand_weight`.
     hand_weights: dict[str, float] = field(default_factory=dict)
     # 1.0 for every hand = balanced mixing; set 0 to train only on the hands listed in hand_weights.

@@ -49,12 +49,12 @@ def test_validate_reports_ok_and_catches_corruption(raw, tmp_path, capsys):
 
     info_path = root / "meta/info.json"
     info = json.loads(info_path.read_text())
-    info["splits"] = {"train": "0:3"}
-    info["features"]["observation.state"]["names"][0] = "right_wrist_yaw"
+    info["splits"] = {"train": "0:9"}  # beyond the 5 episodes
+    info["features"]["observation.state"]["names"][16] = "right_wrist_yaw"  # breaks the first UDHM block
     info_path.write_text(json.dumps(info))
     assert run(ConvertConfig(validate=True, root=str(root), repo_id="lab/let")) == 2
     out = capsys.readouterr().out
-    assert "FAIL  state names" in out and "INVALID" in out
+    assert "FAIL  state: passthrough columns then UDHM blocks" in out and "INVALID" in out
 
 
 def test_bad_flags_exit_with_message(tmp_path, capsys):
@@ -103,6 +103,7 @@ def test_entry_point_config_file_flags_and_push_to_hub(raw, tmp_path, capsys):
         )
         assert r.returncode == 0, r.stderr[-2000:]
         assert "5 episodes (4 train / 1 test)" in r.stdout and "frames/s" in r.stdout and "pushed" in r.stdout
+        assert "lerobot-train without the 1 test episodes: --dataset.episodes=" in r.stdout
         repo = hub.repos[("dataset", "lab/let_udhm")]
         assert "v3.0" in repo.tags
         files = repo.commits[repo.tags["v3.0"]]
@@ -113,10 +114,8 @@ def test_entry_point_config_file_flags_and_push_to_hub(raw, tmp_path, capsys):
             "data/chunk-000/file-000.parquet",
         } <= set(files)
         assert b"SYNTHETIC" in files["README.md"]
-    assert json.loads((root / "meta/info.json").read_text())["splits"] == {
-        "train": "0:4",
-        "test": "4:5",
-    }
+    assert json.loads((root / "meta/info.json").read_text())["splits"] == {"train": "0:5"}
+    assert len(json.loads((root / "meta/unidextok_conversion.json").read_text())["test_episodes"]) == 1
     assert json.loads((root / "meta/unidextok_conversion.json").read_text())["on_error"] == "skip"  # flag beat file
 
     # re-running onto the existing dataset refuses clearly

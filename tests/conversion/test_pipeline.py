@@ -9,7 +9,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from lerobot_unidextok import hands
-from lerobot_unidextok.constants import UDHM_DIM
+from lerobot_unidextok.constants import UDHM_DIM, UDHM_JOINT_NAMES
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.pipeline import (
     ConversionError,
@@ -63,58 +63,47 @@ def _data(root):
 # robot source
 # ---------------------------------------------------------------------------------------------
 def test_robot_source_contract_and_round_trip(samples, linker):
+    """Episodes keep the source order (episode i = i-th listed file) and the test split is recorded, not
+    reordered. Catches the old pipeline, which wrote train episodes first and then the test ones."""
     from lerobot.datasets import LeRobotDataset
 
     root, report = linker
-    assert (report.num_episodes, report.num_train, report.num_test) == (
-        6,
-        5,
-        1,
-    )  # round(0.2 * 6) = 1
+    assert (report.num_episodes, report.num_train, report.num_test) == (6, 5, 1)  # round(0.2 * 6) = 1
     ds = LeRobotDataset("t/linker", root=root)
     assert ds.num_episodes == 6 and ds.fps == 30
     names = ds.meta.features["observation.state"]["names"]
     sides = [names[0].split("_")[0], names[UDHM_DIM].split("_")[0]]
     assert sorted(sides) == ["left", "right"] and names[6] == f"{sides[0]}_index_mcp_flex"
     assert ds.meta.features["action"]["dtype"] == "float32"
-    assert ds.meta.info.splits == {"train": "0:5", "test": "5:6"}
+    assert ds.meta.info.splits == {"train": "0:6"}  # LeRobot's own convention, valid for its tools
     assert validate_dataset(root).ok
 
-    # every written frame equals the hand spec's mapping of the raw values, and maps back to them
     src = get_source("linkerhand")()
     refs = src.list_episodes(samples["linkerhand"])
     settings = read_settings(root)
     assert settings["source"] == "linkerhand" and settings["synthetic"] is True
+    keys = [str(r).replace(str(samples["linkerhand"]) + "/", "") for r in refs]
+    _, test_pos = split_order(keys, 0.2)
+    assert settings["test_episodes"] == test_pos  # same rule as before, now a list of indices
+    assert [r["source"] for r in settings["episodes"]] == keys  # source order, each source recorded
+    assert [r["split"] for r in settings["episodes"]] == ["test" if i in test_pos else "train" for i in range(6)]
     frames = load_udhm_frames(root)
-    raws = {src.read_episode(r).source_file: src.read_episode(r) for r in refs}
-    checked = 0
-    for ep_index in range(6):
+    for ep_index, ref in enumerate(refs):  # episode i is the i-th source file, value for value
+        raw = src.read_episode(ref)
         state = frames.states_rad[frames.episode_index == ep_index].reshape(-1, 2, UDHM_DIM)
-        matches = []
-        for raw in raws.values():
-            if raw.num_frames != state.shape[0]:
-                continue
-            by_side = {h.side: h for h in raw.hands}
-            spec = hands.get(by_side[sides[0]].hand)
-            expect = np.stack(
-                [hands.get(by_side[s].hand).to_udhm(by_side[s].state_native, side=s) for s in sides],
-                axis=1,
-            )
-            if np.allclose(expect, state, atol=1e-6):
-                assert list(frames.hands[frames.episode_index == ep_index][:2]) == [by_side[s].hand for s in sides]
-                native = np.asarray(spec.from_udhm(state[:, 0].astype(np.float64), side=sides[0]))
-                active = [i for i, j in enumerate(spec.joints) if j.slot is not None]
-                np.testing.assert_allclose(
-                    native[:, active],
-                    by_side[sides[0]].state_native[:, active],
-                    atol=1e-3,
-                )  # SDK units
-                matches.append(raw.source_file)
-        assert len(matches) == 1
-        checked += 1
-    assert checked == 6
+        by_side = {h.side: h for h in raw.hands}
+        expect = np.stack([hands.get(by_side[s].hand).to_udhm(by_side[s].state_native, side=s) for s in sides], axis=1)
+        np.testing.assert_allclose(state, expect, atol=1e-6)
+        assert list(frames.hands[frames.episode_index == ep_index][:2]) == [by_side[s].hand for s in sides]
+        spec = hands.get(by_side[sides[0]].hand)
+        native = np.asarray(spec.from_udhm(state[:, 0].astype(np.float64), side=sides[0]))
+        active = [i for i, j in enumerate(spec.joints) if j.slot is not None]
+        np.testing.assert_allclose(native[:, active], by_side[sides[0]].state_native[:, active], atol=1e-3)  # SDK units
+    test = load_udhm_frames(root, split="test")
+    assert set(test.episode_index) == set(test_pos)
     card = (root / "README.md").read_text()
     assert "linkerhand" in card and "SYNTHETIC" in card and "license" in card.lower() and "linkerhand_l" in card
+    assert "--dataset.episodes" in card  # how to keep the test episodes out of lerobot-train
 
 
 def test_split_deterministic_and_worker_independent(samples, linker, tmp_path):
@@ -131,10 +120,8 @@ def test_split_deterministic_and_worker_independent(samples, linker, tmp_path):
         )
     )
     assert _data(root).equals(_data(again))
-    assert json.loads((again / "meta/info.json").read_text())["splits"] == {
-        "train": "0:5",
-        "test": "5:6",
-    }
+    assert json.loads((again / "meta/info.json").read_text())["splits"] == {"train": "0:6"}
+    assert read_settings(again)["test_episodes"] == read_settings(root)["test_episodes"]
 
     keys = [f"ep_{i}" for i in range(50)]
     train, test = split_order(keys, 0.2)
@@ -185,7 +172,10 @@ def test_shards_merge_equals_single_run(samples, linker, tmp_path):
         shards.append(shard)
     merged = merge_shards(shards, tmp_path / "merged", repo_id="t/merged")
     info = json.loads((merged / "meta/info.json").read_text())
-    assert info["splits"] == {"train": "0:5", "test": "5:6"} and info["total_episodes"] == 6
+    assert info["splits"] == {"train": "0:6"} and info["total_episodes"] == 6
+    single_settings, merged_settings = read_settings(root), read_settings(merged)
+    assert merged_settings["test_episodes"] == single_settings["test_episodes"]
+    assert [r["source"] for r in merged_settings["episodes"]] == [r["source"] for r in single_settings["episodes"]]
     single, both = _data(root), _data(merged)
     for col in (
         "observation.state",
@@ -366,55 +356,62 @@ def teardown_module():
 # real data
 # ---------------------------------------------------------------------------------------------
 def test_real_g1_inspire_end_to_end(real_data_dir, tmp_path):
-    """Real Unitree G1 + two Inspire hands (LeRobot v2.1, hands normalised 0-1) -> UDHM v3.0."""
+    """Real Unitree G1 + two Inspire hands (LeRobot v2.1, hands normalised 0-1) -> UDHM v3.0 that keeps the
+    whole robot: the 14 arm columns bit-identical before 2 x 22 UDHM columns, source episode order, source
+    episode recorded. Catches the old converter, which dropped the arms and reordered episodes."""
+    import pyarrow.parquet as pq
     from lerobot.datasets import LeRobotDataset
 
     hands_opt = {
         "left": "inspire_rh56_unitree:kLeftHand",
         "right": "inspire_rh56_unitree:kRightHand",
     }
+    src_root = real_data_dir / "g1-inspire"
     root = tmp_path / "g1"
     report = convert(
         ConvertOptions(
             source="lerobot",
-            input=real_data_dir / "g1-inspire",
+            input=src_root,
             root=root,
             repo_id="t/g1",
             source_options={"hands": hands_opt},
             progress=False,
         )
     )
-    assert (
-        report.num_episodes,
-        report.num_frames,
-        report.num_train,
-        report.num_test,
-    ) == (10, 4236, 8, 2)
+    assert (report.num_episodes, report.num_frames, report.num_train, report.num_test) == (10, 4236, 8, 2)
     ds = LeRobotDataset("t/g1", root=root)
-    assert ds.num_frames == 4236 and ds.meta.features["action"]["shape"] == (44,)
+    source_info = json.loads((src_root / "meta/info.json").read_text())
+    source_names = source_info["features"]["observation.state"]["names"][0]  # nested [[...]] in the source
+    arms = source_names[:14]
+    for key in ("observation.state", "action"):
+        names = ds.meta.features[key]["names"]
+        assert ds.meta.features[key]["shape"] == (58,) and names[:14] == arms
+        assert names[14:] == [f"{s}_{j}" for s in ("left", "right") for j in UDHM_JOINT_NAMES]
     assert ds[0]["task"] == "Pick up the yellow bottle on the table."
     assert validate_dataset(root).ok
-    assert read_settings(root)["synthetic"] is False
-    assert "SYNTHETIC" not in (root / "README.md").read_text()
+    settings = read_settings(root)
+    assert settings["synthetic"] is False and "SYNTHETIC" not in (root / "README.md").read_text()
+    assert [r["source_episode_index"] for r in settings["episodes"]] == list(range(10))  # source order, recorded
+    assert len(settings["test_episodes"]) == 2
+    layout = settings["native_layout"]["observation.state"]
+    assert layout["names"] == source_names and [h["columns"][0] for h in layout["hands"]] == [
+        "kLeftHandPinky",
+        "kRightHandPinky",
+    ]
 
-    # same numbers as the hand spec applied to the raw parquet values
-    src = get_source("lerobot")(hands=hands_opt)
-    refs = src.list_episodes(real_data_dir / "g1-inspire")
-    raws = {src.read_episode(r).num_frames: src.read_episode(r) for r in refs[:3]}
-    frames = load_udhm_frames(root, drop_absent=False)
+    converted = pq.read_table(sorted((root / "data").rglob("*.parquet")))
+    episode = converted["episode_index"].to_numpy()
     spec = hands.get("inspire_rh56_unitree")
-    sides = [n.split("_")[0] for n in ds.meta.features["observation.state"]["names"][::UDHM_DIM]]
     for ep_index in range(10):
-        state = frames.states_rad[frames.episode_index == ep_index].reshape(-1, len(sides), UDHM_DIM)
-        raw = raws.get(state.shape[0])
-        if raw is None:
-            continue
-        by_side = {h.side: h for h in raw.hands}
-        expect = np.stack([spec.to_udhm(by_side[s].state_native, side=s) for s in sides], axis=1)
-        if np.allclose(expect, state, atol=1e-6):
-            break
-    else:
-        pytest.fail("no converted episode equals the hand spec applied to the raw G1 values")
+        source = pq.read_table(src_root / f"data/chunk-000/episode_{ep_index:06d}.parquet")
+        for key in ("observation.state", "action"):
+            raw = np.stack(source[key].to_numpy(zero_copy_only=False))  # (T, 26) float32
+            out = np.stack(converted[key].to_numpy(zero_copy_only=False)[episode == ep_index])  # (T, 58)
+            assert out.dtype == raw.dtype == np.float32
+            np.testing.assert_array_equal(out[:, :14].view(np.uint32), raw[:, :14].view(np.uint32))  # bit-identical
+            for b, (side, cols) in enumerate((("left", slice(14, 20)), ("right", slice(20, 26)))):
+                expect = spec.to_udhm(raw[:, cols].astype(np.float64), side=side)
+                np.testing.assert_allclose(out[:, 14 + 22 * b : 36 + 22 * b], expect, atol=1e-6)
 
 
 def test_append_pad_mapping_and_stale_temp_cleanup(samples, tmp_path):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -47,7 +48,8 @@ def test_dexycb(samples):
     for ep in _read_all("dexycb", samples["dexycb"]):
         (hand,) = ep.hands
         meta = yaml.safe_load(open(f"{ep.source_file}/meta.yml"))
-        assert hand.side == meta["mano_sides"][0] and hand.hand == "human" and ep.fps == 30.0
+        # 25 fps: handover-sim (same authors) steps raw DexYCB frames by 0.04 s; the old reader said 30
+        assert hand.side == meta["mano_sides"][0] and hand.hand == "human" and ep.fps == 25.0
         assert hand.state_native.shape == (meta["num_frames"], 21, 3)
         key = "/".join(ep.source_file.split("/")[-2:])
         assert hand.valid.tolist() == [lab != "" for lab in labels[key][hand.side]]
@@ -95,27 +97,118 @@ def test_egodex(samples):
     assert confidences_missing == 2  # the third file was written without confidences/
 
 
-def test_let(samples):
+def _truth(folder) -> dict:
+    return dict(np.load(folder / "udhm_truth.npz"))
+
+
+def _udhm_error_rad(h, truth: np.ndarray) -> float:
+    """Mean |UDHM(native action) - truth| over the hand's active slots, truth projected on what the hand can
+    reach. The frames must line up: the generating track shifted by one frame either way fits worse."""
+    spec = hands.get(h.hand)
+    got = spec.to_udhm(h.action_native, side=h.side)
+    truth = spec.to_udhm(spec.from_udhm(truth.astype(np.float64), side=h.side), side=h.side)
+    active = spec.mask("semantic")
+    n = min(len(got), len(truth)) - 2
+    errors = [float(np.abs(got[1 : n + 1, active] - truth[1 + s : n + 1 + s, active]).mean()) for s in (-1, 0, 1)]
+    assert errors[1] == min(errors), errors  # no frame offset, no stretched time axis
+    return errors[1]
+
+
+def test_egodex_task_text_as_apples_loader(samples):
+    """Reversible EgoDex tasks are recorded both ways; Apple's loader takes llm_description2 unless
+    which_llm_description is '1'. Catches the old reader, which always took llm_description (the reverse task)."""
+    import h5py
+
+    seen = set()
+    for ep in _read_all("egodex", samples["egodex"]):
+        with h5py.File(ep.source_file, "r") as f:
+            attrs = {k: f.attrs[k] for k in f.attrs}
+        if attrs.get("llm_type") == "reversible":
+            key = "llm_description" if attrs["which_llm_description"] == "1" else "llm_description2"
+            seen.add(key)
+        else:
+            key = "llm_description"
+        assert ep.task == attrs[key]
+    assert "llm_description2" in seen  # the sample has a reversible episode recorded the other way
+
+
+def test_let_bags(samples):
+    """LET from its real form, ROS 1 bags: jittered stamps resampled onto an exact 30 fps grid, hands routed
+    by folder (dex_hand -> BrainCo, Linker_Hand_L6 -> LinkerHand L6), arms kept, gripper bags skipped.
+    Catches the old reader, which only read a per-episode JSON no upstream tool writes."""
+    labels, truth = _labels(samples["let"]), _truth(samples["let"])
     for ep in _read_all("let", samples["let"]):
-        assert [h.side for h in ep.hands] == ["left", "right"] and ep.fps == pytest.approx(30.0)
-        assert "grasp" in ep.task
+        key = "/".join(ep.source_file.split("/")[-2:])
+        folder = key.split("/")[0]
+        expected = "linkerhand_l6" if folder.endswith("Linker_Hand_L6") else "brainco_revo1"
+        assert [h.side for h in ep.hands] == ["left", "right"] and ep.fps == 30.0
+        assert "grasp" in ep.task and labels[key]["hand"] == expected
+        rate = ep.source_episode["measured_hz"]["/control_robot_hand_position"]
+        assert abs(rate - 30.0) > 0.02  # the stamps really jitter: a stamp-derived fps would not be an integer
+        assert ep.passthrough["observation.state"].values.shape == (ep.num_frames, 14)
+        assert ep.passthrough["observation.state"].names[0] == "zarm_l1_link"
+        assert np.abs(ep.passthrough["observation.state"].values).max() < np.pi  # radians, not degrees
+        assert np.abs(ep.passthrough["action"].values).max() < np.pi  # /kuavo_arm_traj degrees converted
         for h in ep.hands:
-            assert h.hand == "brainco_revo1" and h.state_native.shape == (ep.num_frames, 6)
-            assert h.action_native.shape == h.state_native.shape
-            assert h.state_native.min() >= 0 and h.state_native.max() <= 100
-            assert np.array_equal(h.action_native, np.round(h.action_native))  # integer 0-100 commands
-            hands.get(h.hand).to_udhm(h.state_native, side=h.side)  # in range for the hand spec
+            assert h.hand == expected and h.state_native.shape == (ep.num_frames, 6)
+            assert h.action_native.shape == h.state_native.shape and h.state_columns[0] == f"{h.side[0]}_thumb"
+            lo, hi = (0, 255) if expected == "linkerhand_l6" else (0, 100)
+            assert h.state_native.min() >= lo and h.state_native.max() <= hi
+            assert _udhm_error_rad(h, truth[f"{key}|{h.side}"]) < 0.012  # uint8 steps of the 0-100 scale
+    assert not any("leju_claw" in r for r in get_source("let")().list_episodes(samples["let"]))
+
+
+def test_let_nearest_interpolation_option(samples):
+    src = get_source("let")(interpolation="nearest")
+    ref = src.list_episodes(samples["let"])[0]
+    a, b = src.read_episode(ref), get_source("let")().read_episode(ref)
+    assert a.num_frames == b.num_frames and not np.array_equal(a.hands[0].state_native, b.hands[0].state_native)
+    with pytest.raises(ValueError, match="interpolation must be one of"):
+        get_source("let")(interpolation="cubic")
 
 
 def test_dexora(samples):
     spec = hands.get("xhand1")
-    for ep in _read_all("dexora", samples["dexora"]):
+    episodes = _read_all("dexora", samples["dexora"])
+    keys = set()
+    for ep in episodes:
         assert ep.fps == 20.0 and ep.task
+        keys.add(ep.native_keys.get("observation.state", "observation.state"))
+        pt = ep.passthrough["observation.state"]
+        assert pt.names[:2] in (
+            ("left_arm_joint_1_obs", "left_arm_joint_2_obs"),
+            ("left_arm_joint_0", "left_arm_joint_1"),
+        )
+        assert pt.values.shape[1] in (15, 12)  # 2 x 6 arm joints (+ head, spine in scheme 1)
         for h in ep.hands:
             assert h.hand == "xhand1" and h.state_native.shape == (ep.num_frames, 12)
             lo, hi = spec.limits_rad(h.side).T
             assert (h.action_native >= lo - 1e-6).all() and (h.action_native <= hi + 1e-6).all()  # radians
             assert np.abs(h.state_native).max() < 2.0
+    assert keys == {"observation.state"}
+
+
+@pytest.mark.parametrize("scheme", [1, 2])
+def test_dexora_both_naming_schemes_give_the_generating_motion(scheme, tmp_path):
+    """Scheme 2 (states/actions, joints 0..11, left_hand_action_k) reads like scheme 1. Catches the old
+    reader, which accepted only left_hand_joint_1..12[_suffix] in observation.state."""
+    from lerobot_unidextok.conversion.samples import write_dexora_episodes
+
+    labels = write_dexora_episodes(tmp_path, SampleSpec(EPISODES, FRAMES, 3), scheme=scheme)
+    truth = {f"{k}|{s}": v["_angles_rad"][s] for k, v in labels.items() for s in ("left", "right")}
+    src = get_source("dexora")()
+    for ref in src.list_episodes(tmp_path):
+        ep = src.read_episode(ref)
+        assert ep.native_keys.get("observation.state", "observation.state") == (
+            "states" if scheme == 2 else "observation.state"
+        )
+        key = f"{Path(ref.root).name}/episode_{ref.episode_index:06d}"
+        for h in ep.hands:
+            spec = hands.get("xhand1")
+            q = truth[f"{key}|{h.side}"].astype(np.float64)
+            expected = spec.to_udhm(spec.from_udhm(q, side=h.side), side=h.side)
+            got = spec.to_udhm(h.action_native, side=h.side)
+            assert np.abs(got - expected)[:, spec.mask()].max() < 1e-5
 
 
 def test_dexora_slices_by_name_not_position(samples, tmp_path):
@@ -126,7 +219,7 @@ def test_dexora_slices_by_name_not_position(samples, tmp_path):
     import pyarrow.parquet as pq
 
     root = tmp_path / "dexora"
-    shutil.copytree(samples["dexora"], root)
+    shutil.copytree(samples["dexora"] / "airbot_pick_and_place", root)
     info = json.loads((root / "meta" / "info.json").read_text())
     names = info["features"]["observation.state"]["names"]
     perm = np.random.default_rng(0).permutation(len(names))
@@ -143,25 +236,33 @@ def test_dexora_slices_by_name_not_position(samples, tmp_path):
             else:
                 cols[key] = table[key]
         pq.write_table(pa.table(cols), path)
-    before = _read_all("dexora", samples["dexora"])[0]
-    after = _read_all("dexora", root)[0]
+    src = get_source("dexora")()
+    before = src.read_episode(src.list_episodes(samples["dexora"] / "airbot_pick_and_place")[0])
+    after = src.read_episode(src.list_episodes(root)[0])
     for a, b in zip(before.hands, after.hands, strict=True):
         np.testing.assert_array_equal(a.state_native, b.state_native)
         np.testing.assert_array_equal(a.action_native, b.action_native)
 
 
-def test_linkerhand_json_l10_and_l20(samples, tmp_path):
+def test_linkerhand_ros2_bags_l10_and_l20(samples, tmp_path):
+    """LinkerHand from ROS 2 bags (sqlite3 and MCAP) of the SDK topics, model from /cb_<side>_hand_info.
+    Catches the old reader, which only read invented per-episode JSON."""
     episodes = _read_all("linkerhand", samples["linkerhand"])
+    truth = _truth(samples["linkerhand"])
+    storages = set()
     for ep in episodes:
-        number = int(ep.source_file.rsplit("_", 1)[1].split(".")[0])  # episode_0003.json -> 3
+        number = int(ep.source_file.rsplit("_", 1)[1])  # episode_0003 -> 3
         hand, width = ("linkerhand_l10", 10) if number % 2 == 0 else ("linkerhand_l20", 20)  # models alternate
-        assert [h.side for h in ep.hands] == ["left", "right"] and ep.task
-        assert ep.extra["hand_model"] == ("L10" if width == 10 else "L20")
+        assert [h.side for h in ep.hands] == ["left", "right"] and ep.task and ep.fps == 30.0
+        assert ep.extra["hand_model"] == ("L10,L10" if width == 10 else "L20,L20")
+        storages |= {p.suffix for p in Path(ep.source_file).iterdir() if p.suffix in (".db3", ".mcap")}
+        key = "/".join(ep.source_file.split("/")[-2:])
         for h in ep.hands:
             assert h.hand == hand and h.state_native.shape == (ep.num_frames, width)
             assert h.action_native.shape == h.state_native.shape
             assert h.state_native.min() >= 0 and h.state_native.max() <= 255
-            assert np.array_equal(h.state_native, np.round(h.state_native))
+            assert _udhm_error_rad(h, truth[f"{key}|{h.side}"]) < 0.01
+    assert storages == {".db3", ".mcap"}
     write_linkerhand_episodes(tmp_path, SampleSpec(EPISODES, FRAMES, 0), models=("L20",))
     assert {h.hand for ep in _read_all("linkerhand", tmp_path) for h in ep.hands} == {"linkerhand_l20"}
     with pytest.raises(ValueError, match="unknown LinkerHand models"):
@@ -262,11 +363,12 @@ def test_dexora_sample_converts_with_lerobots_v21_to_v30_script(samples, tmp_pat
     from lerobot.scripts.convert_dataset_v21_to_v30 import convert_dataset
 
     root = tmp_path / "dexora"
-    shutil.copytree(samples["dexora"], root)
+    shutil.copytree(samples["dexora"] / "airbot_pick_and_place", root)
     convert_dataset(repo_id="local/dexora_sample", root=root, push_to_hub=False)  # in place, v2.1 -> root_old
     assert json.loads((root / "meta" / "info.json").read_text())["codebase_version"] == "v3.0"
-    v21 = _read_all("dexora", samples["dexora"])
-    v30 = _read_all("dexora", root)
+    src = get_source("dexora")()
+    v21 = [src.read_episode(r) for r in src.list_episodes(samples["dexora"] / "airbot_pick_and_place")]
+    v30 = [src.read_episode(r) for r in src.list_episodes(root)]
     for a, b in zip(v21, v30, strict=True):
         assert a.task == b.task and a.fps == b.fps and a.num_frames == b.num_frames
         for ha, hb in zip(a.hands, b.hands, strict=True):
@@ -314,3 +416,56 @@ def test_egodex_valid_mask_matches_labels(samples):
         for h in ep.hands:
             present = [lab != "" for lab in labels[key][h.side]]
             assert (h.valid.tolist() if h.valid is not None else [True] * ep.num_frames) == present
+
+
+@pytest.fixture(scope="module")
+def oakink2(tmp_path_factory):
+    return write_samples(tmp_path_factory.mktemp("oak"), sources=["oakink2"], episodes_per_source=2,
+                         frames_per_episode=40, seed=1)["oakink2"]  # fmt: skip
+
+
+STANDIN = "mano_standin:make_layer"  # tests/fixtures: MANO's interface without the licensed model
+
+
+def test_oakink2_mocap_ids_are_120hz(oakink2):
+    """OakInk-v2 mocap ids tick at 120 Hz (FPS_MOCAP in OakInk2-PreviewTool): every id is a frame at 120 fps,
+    or every k-th at 120/k. Catches the old reader, which declared 30 fps (episodes played 4x slow)."""
+    import pickle
+
+    import torch
+    from mano_standin import make_layer
+
+    src = get_source("oakink2")(mano_layer=STANDIN)
+    refs = src.list_episodes(oakink2)
+    assert len(refs) == 2
+    for ref in refs:
+        ep = src.read_episode(ref)
+        anno = pickle.load(open(ref, "rb"))
+        ids = anno["mocap_frame_id_list"]
+        assert ep.fps == 120.0 and ep.num_frames == max(ids) - min(ids) + 1
+        for h in ep.hands:
+            assert h.valid.sum() == len(ids)  # a missing id is a frame without hands, not a shorter clock
+            fid = ids[len(ids) // 3]
+            prefix = "rh" if h.side == "right" else "lh"
+            entry = anno["raw_mano"][fid]
+            joints = make_layer(h.side)(entry[f"{prefix}__pose_coeffs"], entry[f"{prefix}__betas"])[0]
+            expect = (joints + entry[f"{prefix}__tsl"]).numpy()  # joints + tsl, as seg_3d.py
+            np.testing.assert_allclose(h.state_native[fid - min(ids)], expect, atol=1e-6)
+            assert isinstance(entry[f"{prefix}__tsl"], torch.Tensor)
+    quarter = get_source("oakink2")(mano_layer=STANDIN, subsample=4).read_episode(refs[0])
+    full = src.read_episode(refs[0])
+    assert quarter.fps == 30.0 and quarter.num_frames == (full.num_frames + 3) // 4
+    np.testing.assert_array_equal(quarter.hands[0].state_native, full.hands[0].state_native[::4])
+    with pytest.raises(ValueError, match=r"subsample must divide the 120 Hz .* use one of \[1, 2, 3, 4, 5, 6, 8"):
+        get_source("oakink2")(subsample=7)
+
+
+def test_oakink2_converts_at_120fps(oakink2, tmp_path):
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.data import load_udhm_frames
+
+    report = convert(ConvertOptions(source="oakink2", input=oakink2, root=tmp_path / "oak", progress=False,
+                                    source_options={"mano_layer": STANDIN}))  # fmt: skip
+    frames = load_udhm_frames(tmp_path / "oak")
+    assert report.num_episodes == 2 and frames.fps == 120 and set(frames.side) == {"right", "left"}
+    assert np.isfinite(frames.states_rad).all()

@@ -97,38 +97,51 @@ def test_egodex_partial_confidences(samples):
         src.read_episode(ref)
 
 
-# --------------------------------------------------------------------------------------------- JSON topic dumps
-def test_let_truncated_and_missing_fields(samples):
+# --------------------------------------------------------------------------------------------- ROS bags
+def test_let_truncated_bag_and_missing_topic(samples, tmp_path):
+    from pathlib import Path
+
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
     src, ref = _first("let", samples["let"])
-    from pathlib import Path
-
-    path = Path(ref)
-    data = json.loads(path.read_text())
-    del data["topics"]["/control_robot_hand_position"]["right_hand_position"]
-    path.write_text(json.dumps(data))
-    with pytest.raises(ValueError, match=r"episode_0000\.json: missing field .*'right_hand_position'"):
+    _truncate(Path(ref), 0.4)
+    with pytest.raises(ValueError, match=r"\.bag: (unreadable bag|topic)"):
         src.read_episode(ref)
-    _truncate(path)
-    with pytest.raises(ValueError, match=r"episode_0000\.json: not valid JSON"):
-        src.read_episode(ref)
+    store = get_typestore(Stores.ROS1_NOETIC)  # a bag with the hand state but no command topic
+    bag = tmp_path / "x-P4-dex_hand" / "only_state.bag"
+    bag.parent.mkdir()
+    js = store.types["sensor_msgs/msg/JointState"]
+    hdr, stamp = store.types["std_msgs/msg/Header"], store.types["builtin_interfaces/msg/Time"]
+    with Writer(bag) as w:
+        conn = w.add_connection("/dexhand/state", "sensor_msgs/msg/JointState", typestore=store)
+        for k in range(5):
+            msg = js(header=hdr(seq=k, stamp=stamp(sec=k, nanosec=0), frame_id=""), name=[], position=np.zeros(12),
+                     velocity=np.zeros(0), effort=np.zeros(0))  # fmt: skip
+            w.write(conn, k * 10**9, store.serialize_ros1(msg, "sensor_msgs/msg/JointState"))
+    with pytest.raises(ValueError, match=r"only_state\.bag: missing topic '/control_robot_hand_position'"):
+        src.read_episode(str(bag))
 
 
-def test_linkerhand_wrong_width_and_model(samples):
-    src, ref = _first("linkerhand", samples["linkerhand"])
-    from pathlib import Path
+def test_let_unknown_folder_needs_hand_option(samples, tmp_path):
+    import shutil
 
-    path = Path(ref)
-    data = json.loads(path.read_text())
-    data["hand_model"] = "L20"  # L10 values under an L20 label: 10 columns where 20 are expected
-    path.write_text(json.dumps(data))
-    with pytest.raises(
-        ValueError, match=r"'/cb_left_hand_state'.*'position' has shape \(\d+, 10\), expected \(T, 20\)"
-    ):
-        src.read_episode(ref)
-    del data["hand_model"]
-    path.write_text(json.dumps(data))
-    with pytest.raises(ValueError, match=r"missing field 'hand_model'"):
-        src.read_episode(ref)
+    src, ref = _first("let", samples["let"])
+    odd = tmp_path / "odd" / "some_task" / "a.bag"
+    odd.parent.mkdir(parents=True)
+    shutil.copy(ref, odd)
+    with pytest.raises(ValueError, match=r"cannot tell the hand of .*a\.bag .*pass hand=brainco_revo1"):
+        get_source("let")().list_episodes(tmp_path / "odd")
+    (ep_ref,) = get_source("let")(hand="brainco_revo1").list_episodes(tmp_path / "odd")
+    assert get_source("let")(hand="brainco_revo1").read_episode(ep_ref).hands[0].hand == "brainco_revo1"
+
+
+def test_linkerhand_wrong_width_for_model(samples):
+    src = get_source("linkerhand")(model="L20")
+    refs = src.list_episodes(samples["linkerhand"])
+    bag = next(r for r in refs if r.endswith("episode_0000"))
+    ep = src.read_episode(bag)  # the bag's /cb_<side>_hand_info says L10: it wins over the option
+    assert ep.extra["hand_model"] == "L10,L10"
 
 
 def test_linkerhand_lerobot_export(samples, tmp_path):
@@ -202,7 +215,7 @@ def test_lerobot_names_in_dict_form(samples):
 
 def test_dexora_missing_hand_joint_names(samples):
     src, ref = _first("dexora", samples["dexora"])
-    info_path = samples["dexora"] / "meta" / "info.json"
+    info_path = samples["dexora"] / "airbot_pick_and_place" / "meta" / "info.json"
     info = json.loads(info_path.read_text())
     names = info["features"]["observation.state"]["names"]
     names[names.index("right_hand_joint_7_obs")] = "right_hand_joint_seven_obs"

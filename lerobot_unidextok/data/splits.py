@@ -1,0 +1,137 @@
+"""Which episodes of a dataset are test episodes: recorded by the conversion, or a deterministic fallback.
+
+A converted dataset keeps its episodes in source order and records its test episodes in
+`meta/unidextok_conversion.json` (`test_episodes`); `meta/info.json` keeps LeRobot's `{"train": "0:N"}`.
+Datasets edited by LeRobot's `lerobot-edit-dataset` (split, delete_episodes) lose or invalidate that
+record (episodes are renumbered, the file is not carried over), and datasets from elsewhere never had
+one. `holdout` chooses what happens then:
+
+- `"recorded"`: the recorded test episodes (conversion record still valid for the dataset, or a
+  `"test"` range in `meta/info.json` `splits`); a dataset without them is an error saying so.
+- `"hash"`: ignore records; the test episodes are the `round(0.2 * N)` episodes with the smallest
+  sha1 of `episode_<index:06d>` (deterministic, needs no metadata).
+- `"auto"` (default): recorded when there is a valid record, else `"hash"` with a warning.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+logger = logging.getLogger(__name__)
+
+HOLDOUTS = ("auto", "recorded", "hash")
+SPLITS = ("train", "test", "all")
+CONVERSION_SETTINGS = "meta/unidextok_conversion.json"
+HASH_TEST_FRACTION = 0.2
+
+
+class SplitError(ValueError):
+    """The requested split cannot be given for this dataset; the message says why and what to choose."""
+
+
+@dataclass(frozen=True)
+class EpisodeSplit:
+    """Test episode indices of a dataset and where they come from."""
+
+    num_episodes: int
+    test: tuple[int, ...]
+    origin: str  # "conversion record", "meta/info.json splits", "episode hash"
+
+    def episodes(self, split: str | None) -> np.ndarray:
+        """Sorted episode indices of `split` ("train", "test", "all" / None)."""
+        if split in (None, "all"):
+            return np.arange(self.num_episodes)
+        test = np.asarray(sorted(self.test), dtype=np.int64)
+        if split == "test":
+            return test
+        if split == "train":
+            return np.setdiff1d(np.arange(self.num_episodes), test)
+        raise SplitError(f"split must be one of {SPLITS} or None, got {split!r}")
+
+
+def hash_test_episodes(num_episodes: int, fraction: float = HASH_TEST_FRACTION) -> tuple[int, ...]:
+    """The `round(fraction * N)` episode indices with the smallest sha1 of `episode_<index:06d>` (none if N = 1)."""
+    num_test = round(fraction * num_episodes) if num_episodes > 1 else 0
+    ranked = sorted(range(num_episodes), key=lambda i: hashlib.sha1(f"episode_{i:06d}".encode()).hexdigest())
+    return tuple(sorted(ranked[:num_test]))
+
+
+def episode_lengths(root: Path) -> dict[int, int] | None:
+    """{episode index: length} from `meta/episodes/*.parquet` (None when absent)."""
+    import pyarrow.parquet as pq
+
+    files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
+    if not files:
+        return None
+    table = pq.read_table(files, columns=["episode_index", "length"])
+    return dict(zip(table["episode_index"].to_pylist(), table["length"].to_pylist(), strict=True))
+
+
+def recorded_split(root: Path, info: dict) -> tuple[EpisodeSplit | None, str]:
+    """The dataset's own record of its test episodes, or (None, why there is none usable)."""
+    total = int(info.get("total_episodes", 0))
+    path = root / CONVERSION_SETTINGS
+    why = f"no {CONVERSION_SETTINGS}"
+    if path.is_file():
+        settings = json.loads(path.read_text())
+        test = settings.get("test_episodes")
+        records = settings.get("episodes") or []
+        lengths = episode_lengths(root)
+        recorded_lengths = {int(r["episode_index"]): int(r["length"]) for r in records if "length" in r}
+        if test is None:
+            why = f"{CONVERSION_SETTINGS} has no test_episodes (converted by an older version)"
+        elif int(settings.get("num_episodes", -1)) != total or (
+            lengths is not None and recorded_lengths and recorded_lengths != lengths
+        ):
+            why = (
+                f"{CONVERSION_SETTINGS} describes {settings.get('num_episodes')} episodes but the dataset has "
+                f"{total} (or other episode lengths): it was edited after conversion (e.g. lerobot-edit-dataset)"
+            )
+        elif any(not 0 <= int(i) < total for i in test):
+            why = f"{CONVERSION_SETTINGS} test_episodes {test} reach beyond the {total} episodes"
+        else:
+            return EpisodeSplit(total, tuple(int(i) for i in test), "conversion record"), ""
+    splits = info.get("splits") or {}
+    if "test" in splits:
+        try:
+            a, b = (int(x) for x in str(splits["test"]).split(":"))
+        except ValueError:
+            return None, f"{why}; meta/info.json splits['test'] = {splits['test']!r} is not 'a:b'"
+        if 0 <= a <= b <= total:
+            return EpisodeSplit(total, tuple(range(a, b)), "meta/info.json splits"), ""
+        return None, f"{why}; meta/info.json splits['test'] = {splits['test']!r} is outside 0:{total}"
+    return None, f"{why}, and meta/info.json splits {sorted(splits)} have no 'test'"
+
+
+def resolve_split(root: str | Path, info: dict, holdout: str = "auto") -> EpisodeSplit:
+    """The test episodes of the dataset at `root` under the `holdout` policy (module docstring)."""
+    if holdout not in HOLDOUTS:
+        raise SplitError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
+    root = Path(root)
+    total = int(info.get("total_episodes", 0))
+    if holdout == "hash":
+        return EpisodeSplit(total, hash_test_episodes(total), "episode hash")
+    split, why = recorded_split(root, info)
+    if split is not None:
+        return split
+    if holdout == "recorded":
+        raise SplitError(
+            f"{root} records no test episodes ({why}). Choose: --holdout=hash to hold out a deterministic "
+            f"{HASH_TEST_FRACTION:.0%} of its episodes, --split=all to use every episode, or pass a dataset "
+            "converted by unidextok-convert"
+        )
+    logger.warning(
+        "%s records no test episodes (%s); holding out %d of %d episodes by episode hash (--holdout=hash). "
+        "Pass --holdout=recorded to require a recorded split or --split=all to use every episode.",
+        root,
+        why,
+        len(hash_test_episodes(total)),
+        total,
+    )
+    return EpisodeSplit(total, hash_test_episodes(total), "episode hash")

@@ -1,0 +1,83 @@
+"""Setup mistakes (unknown hand, option typo, wrong columns, --fps on a fixed-rate source) fail once,
+before any episode is read, with the fix in the message; nothing is written."""
+
+from __future__ import annotations
+
+import pytest
+
+from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+from lerobot_unidextok.conversion.registry import SetupError, register_source, unregister_source
+from lerobot_unidextok.scripts.convert import ConvertConfig, run
+
+READS: list[str] = []
+
+
+@register_source("_counting_test")
+class CountingSource:
+    """Counts episode reads: a setup error must come before any."""
+
+    license = "test"
+    description = "records read_episode calls"
+
+    def __init__(self, hand: str = "linkerhand_l10") -> None:
+        from lerobot_unidextok.conversion.registry import check_hand
+
+        self.hand = check_hand(hand, "--source_options hand")
+
+    def list_episodes(self, input_path):
+        return ["a", "b", "c"]
+
+    def read_episode(self, ref):
+        READS.append(ref)
+        raise AssertionError("no episode may be read after a setup error")
+
+
+def teardown_module():
+    unregister_source("_counting_test")
+
+
+@pytest.fixture
+def g1_sample(tmp_path_factory):
+    from lerobot_unidextok.conversion.samples import write_samples
+
+    return write_samples(
+        tmp_path_factory.mktemp("raw"), sources=["lerobot"], episodes_per_source=2, frames_per_episode=20
+    )["lerobot"]
+
+
+def test_unknown_hand_fails_once_before_reading(tmp_path):
+    """Catches the old behaviour: an unknown hand name failed every episode with '--on_error=skip'."""
+    READS.clear()
+    with pytest.raises(SetupError) as err:
+        convert(ConvertOptions(source="_counting_test", input=tmp_path, root=tmp_path / "out",
+                               source_options={"hand": "linkerhand_l99"}, on_error="skip", progress=False))  # fmt: skip
+    text = str(err.value)
+    assert "unknown hand 'linkerhand_l99'" in text and "linkerhand_l10" in text and "--on_error" not in text
+    assert READS == [] and not (tmp_path / "out").exists()
+
+
+def test_option_typo_names_the_valid_options(tmp_path):
+    """Catches the old behaviour: a misspelt option was a TypeError traceback from the reader class."""
+    with pytest.raises(SetupError, match=r"has no option\(s\) \['hnad'\]; its options are: hand='linkerhand_l10'"):
+        convert(ConvertOptions(source="_counting_test", input=tmp_path, root=tmp_path / "out",
+                               source_options={"hnad": "x"}, progress=False))  # fmt: skip
+    assert READS == []
+
+
+def test_lerobot_source_checks_hands_and_columns_at_setup(g1_sample, tmp_path, capsys):
+    bad_hand = {"hands": {"left": "inspyre_rh56:kLeftHand"}}
+    assert run(ConvertConfig(source="lerobot", input=str(g1_sample), root=str(tmp_path / "a"),
+                             source_options=str(bad_hand))) == 1  # fmt: skip
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "unknown hand 'inspyre_rh56'" in err and "Traceback" not in err
+    bad_prefix = {"hands": {"left": "inspire_rh56_unitree:kLeftHnd"}}
+    with pytest.raises(SetupError, match=r"cannot list .*no names start with prefix 'kLeftHnd'; available names"):
+        convert(ConvertOptions(source="lerobot", input=g1_sample, root=tmp_path / "b", source_options=bad_prefix,
+                               progress=False))  # fmt: skip
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_fps_flag_only_for_time_stamped_sources(g1_sample, tmp_path):
+    with pytest.raises(SetupError, match="fixed frame rate: drop --fps"):
+        convert(ConvertOptions(source="lerobot", input=g1_sample, root=tmp_path / "c", fps=25,
+                               source_options={"hands": {"left": "inspire_rh56_unitree:kLeftHand"}}, progress=False))  # fmt: skip
