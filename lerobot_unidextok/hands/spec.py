@@ -270,6 +270,11 @@ class HandSpec:
         self._check_side(side)
         return {j.name: j.sides[side].slot for j in self.joints}
 
+    def slot_indices(self, side: str = "right") -> np.ndarray:
+        """(A,) UDHM index of each joint with a slot, in native order (``append_pad`` position k holds slot k)."""
+        self._require_joints("slot_indices")
+        return self._side_table(side).slot_idx.copy()
+
     def rest_rad(self, side: str = "right") -> np.ndarray:
         """(J,) joint angles (rad) at which each joint's UDHM slot reads 0."""
         return self._side_table(side).rest.copy()
