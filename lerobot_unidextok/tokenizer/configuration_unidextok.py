@@ -67,7 +67,8 @@ class UniDexTokConfig:
     usage_decay: float = 0.99  # EMA decay of per-code usage counts
 
     # --- reconstruction loss ------------------------------------------------------------------------
-    # MSE in normalised angle space over active DoFs (paper) + optional SmoothL1 (paper: weight unknown).
+    # MSE in normalised angle space (paper: plain MSE). Restricting it to active DoFs is our choice (padded
+    # slots are zero by construction, not targets). Optional SmoothL1 (paper mentions it, weight unknown).
     smooth_l1_weight: float = 0.0
 
     def __post_init__(self) -> None:
