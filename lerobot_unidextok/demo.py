@@ -118,17 +118,19 @@ def demo_train(out: Path, roots: dict[str, Path], preset: str, steps: int, seed:
     from lerobot_unidextok.evaluation import evaluate_tokenizer, write_report
     from lerobot_unidextok.tokenizer import UniDexTok
     from lerobot_unidextok.training import TrainConfig, load_hand_states, train_tokenizer
+    from lerobot_unidextok.training.splits import split_by_episode
 
-    _banner(f"4. UniDexTok: train the `{preset}` preset on the converted mixture, evaluate on the held-out split")
+    _banner(f"4. UniDexTok: train the `{preset}` preset on the converted mixture, evaluate on held-out episodes")
     datasets = [str(r) for r in roots.values()]
-    train_data = load_hand_states(datasets, split="train")
-    test_data = load_hand_states(datasets, split="test")
-    print(f"{len(train_data):,} training rows, {len(test_data):,} held-out rows, hands: "
-          f"{', '.join(train_data.hand_names())}")  # fmt: skip
     cfg = TrainConfig(datasets=datasets, preset=preset, steps=steps, seed=seed, output_dir=str(out / "training"),
                       eval_every=max(50, steps // 8), save_last_every=steps)  # fmt: skip
-    result = train_tokenizer(cfg, train_data, test_data)
-    print(f"trained {result.steps} steps in {result.seconds:.0f} s; best held-out joint MAE "
+    # as unidextok-train: whole training episodes choose the checkpoint, the test episodes are only scored
+    train_data, select_data = split_by_episode(load_hand_states(datasets, split="train"), cfg.select_fraction, seed)
+    test_data = load_hand_states(datasets, split="test")
+    print(f"{len(train_data):,} training rows, {len(select_data):,} checkpoint-selection rows, {len(test_data):,} "
+          f"test rows (other episodes), hands: {', '.join(train_data.hand_names())}")  # fmt: skip
+    result = train_tokenizer(cfg, train_data, select_data)
+    print(f"trained {result.steps} steps in {result.seconds:.0f} s; best selection-episode joint MAE "
           f"{result.best_mae_deg:.3f} deg at step {result.best_step}")  # fmt: skip
     model = UniDexTok.from_pretrained(result.best_dir)
     tok_dir = out / "tokenizer"

@@ -67,10 +67,14 @@ class ExperimentConfig:
     fewshot_fraction: float = 0.062  # paper: 6.2 % of the held-out hand's frames
     fewshot_epochs: float = 2.0
     fewshot_batch_size: int = 64
-    # Few-shot trains only the new hand's embedding row (shared encoder/codebook/decoder frozen); lr picked from
-    # {5e-4, 1e-2, 5e-2} on the synthetic transfer run (2.45 / 2.29 / 4.36 deg; all-parameter adaptation: 3.08 / 23 / 173).
+    # lr of the embedding-row adaptation (shared encoder/codebook/decoder frozen); picked from {5e-4, 1e-2, 5e-2} on
+    # the synthetic transfer run (2.45 / 2.29 / 4.36 deg; all-parameter adaptation: 3.08 / 23 / 173).
     fewshot_lr: float = 1e-2
-    fewshot_adapt: str = "hand_embedding"  # "all" parameters or only the new "hand_embedding"
+    # lr of the paper's few-shot fine-tuning of the whole tokenizer (transfer runs both adaptations)
+    fewshot_lr_all: float = 5e-4
+    fewshot_repeats: int = 3  # few-shot draws (different episodes of the held-out hand): mean and spread
+    # On real recordings, add the SYNTHETIC sample robot hands (not the held-out one) to the base training data
+    transfer_sample_hands: bool = True
 
     # --- probe --------------------------------------------------------------------------------------
     # LinkerHand vendor presets (JSON); empty = <real_data_dir>/linkerhand-ros2-sdk/linkerhand_gui_preset_actions.json

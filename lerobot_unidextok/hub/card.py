@@ -115,6 +115,41 @@ def _front(library: str, tags: list[str], datasets: list[str]) -> list[str]:
     return [*front, "---", CARD_MARKER, ""]
 
 
+def training_section(state: dict) -> list[str]:
+    """Card lines from a checkpoint's `training_state.json` (written by `unidextok-train`): the data, the hands
+    trained and their coverage mixture, the schedule, how the checkpoint was chosen."""
+    mixture = state.get("mixture") or {}
+    hands = mixture.get("hands") or {}
+    lines = ["## Training", ""]
+    if state.get("datasets"):
+        lines += ["Converted UDHM datasets:", "", *[f"- `{d}`" for d in state["datasets"]], ""]
+    if state.get("excluded_hands"):
+        lines += [
+            f"Hands left out of training (zero-shot): {', '.join(f'`{h}`' for h in state['excluded_hands'])}.",
+            "",
+        ]
+    if hands:
+        lines += [
+            "Coverage mixture: each hand's share of a batch and of its rows the share of each source (recorded rows, "
+            f"or states synthesised inside the hand's joint ranges; noise bound {mixture.get('noise_deg')} deg):",
+            "",
+            "| hand | kind | recorded rows | batch share | ranges from | sources |",
+            "|---|---|---|---|---|---|",
+        ]
+        for name, h in hands.items():
+            sources = ", ".join(f"{k} {v:.2f}" for k, v in h.get("sources", {}).items())
+            lines.append(f"| `{name}` | {h.get('kind')} | {h.get('recorded_rows')} | {h.get('share', 0):.2f} | "
+                         f"{h.get('ranges_from')} | {sources} |")  # fmt: skip
+        lines.append("")
+    keys = ("preset", "steps", "batch_size", "lr", "unknown_hand_prob", "adapt", "init_from", "fraction", "step")
+    extra = {k: state[k] for k in keys if state.get(k) is not None}
+    if extra:
+        lines += [", ".join(f"{k}: {v}" for k, v in extra.items()), ""]
+    if state.get("selection") is not None:
+        lines += [f"Checkpoint selection: {state['selection']}", ""]
+    return lines
+
+
 def tokenizer_card(folder: str | Path, repo_id: str, training_data: list[str] | None = None) -> str:
     """README.md text: hands trained (and the others of the vocabulary), training data, preset, evaluation."""
     folder = Path(folder)
@@ -127,6 +162,8 @@ def tokenizer_card(folder: str | Path, repo_id: str, training_data: list[str] | 
     preset = infer_preset(config)
     eval_path = find_eval_json(folder)
     table = eval_table(json.loads(eval_path.read_text())) if eval_path else ""
+    state_path = folder / "training_state.json"
+    state = json.loads(state_path.read_text()) if state_path.is_file() else {}
     if trained:
         hands = [f"- `{h}`" for h in trained]
         untrained = [h for h in vocabulary if h not in trained]
@@ -147,7 +184,8 @@ def tokenizer_card(folder: str | Path, repo_id: str, training_data: list[str] | 
     body = [
         f"# {repo_id}",
         "",
-        "UniDexTok hand-state tokenizer: 22-DoF UDHM joint angles (radians, divided by pi) of a dexterous",
+        f"UniDexTok hand-state tokenizer: 22-DoF UDHM joint angles (radians; input normalisation "
+        f"`{config.get('input_norm', 'pi')}`) of a dexterous",
         (
             f"hand -> {config.get('num_tokens')} tokens x {config.get('num_groups')} groups of "
             f"{config.get('codebook_size')}-entry cosine codebooks, decoded back to angles."
@@ -162,6 +200,7 @@ def tokenizer_card(folder: str | Path, repo_id: str, training_data: list[str] | 
         "",
         *([f"- `{d}`" for d in training_data] or ["- not recorded in this checkpoint"]),
         "",
+        *(training_section(state) if state.get("mixture") else []),
         "## Model",
         "",
         f"- preset: `{preset}`",

@@ -1,5 +1,6 @@
 """`unidextok-eval`: per-hand MPJAE / MPJPE / fingertip error and codebook usage of a tokenizer.
 
+    unidextok-eval --checkpoint=outputs/small --datasets='[data/sample_mixture]'   # a run folder: uses best/
     unidextok-eval --checkpoint=outputs/small/best --datasets='[data/sample_mixture]'
     unidextok-eval --checkpoint=me/unidextok-small --datasets='[me/inspire_udhm]' --split=test
 
@@ -9,19 +10,37 @@ Writes <output>.json and <output>.md and prints the table.
 
 import logging
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import draccus
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass
 class EvalConfig:
-    checkpoint: str = ""  # tokenizer folder (config.json + model.safetensors) or Hub repo id
+    # tokenizer folder (config.json + model.safetensors), a `unidextok-train` run folder (its best/), or a repo id
+    checkpoint: str = ""
     datasets: list[str] = field(default_factory=list)  # converted UDHM datasets: local roots or repo ids
     split: str = "test"  # train | test | all
     holdout: str = "auto"  # datasets without a recorded test split (lerobot-edit-dataset): auto | recorded | hash
     hands: list[str] = field(default_factory=list)  # evaluate only these hands (empty = all)
     output: str = "outputs/unidextok_eval/eval"  # path stem of the .json / .md report
     device: str = "cpu"
+
+
+def resolve_checkpoint(checkpoint: str) -> str:
+    """A checkpoint folder, the `best/` of a `unidextok-train` run folder, or a Hub repo id (unchanged)."""
+    path = Path(checkpoint).expanduser()
+    if not path.is_dir() or (path / "config.json").is_file():
+        return checkpoint
+    if (path / "best" / "config.json").is_file():
+        logger.info("%s is a training run folder: evaluating its best/ checkpoint", path)
+        return str(path / "best")
+    raise SystemExit(
+        f"error: {path} holds no tokenizer: expected config.json + model.safetensors, or a unidextok-train run "
+        "folder with best/ (pass that folder or its best/)"
+    )
 
 
 def run(cfg: EvalConfig) -> dict:
@@ -38,9 +57,10 @@ def run(cfg: EvalConfig) -> dict:
         data = data.only(cfg.hands)
         if len(data) == 0:
             raise SystemExit(f"error: no rows for hands {cfg.hands} in {cfg.datasets}")
-    model = UniDexTok.from_pretrained(cfg.checkpoint).to(cfg.device)
+    checkpoint = resolve_checkpoint(cfg.checkpoint)
+    model = UniDexTok.from_pretrained(checkpoint).to(cfg.device)
     report = evaluate_tokenizer(model, data)
-    report["checkpoint"], report["datasets"], report["split"] = cfg.checkpoint, cfg.datasets, cfg.split
+    report["checkpoint"], report["datasets"], report["split"] = checkpoint, cfg.datasets, cfg.split
     md = write_report(report, cfg.output)
     print(md)
     return report

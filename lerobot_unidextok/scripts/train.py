@@ -2,42 +2,154 @@
 
     unidextok-train --config_path=configs/train/small.yaml --datasets='[data/sample_mixture]'
     unidextok-train --preset=tiny --steps=300 --datasets='[me/dexycb_udhm]' --output_dir=outputs/tiny
+    # zero-shot: leave a hand out (it is not in the vocabulary; unidextok-eval scores it zero-shot)
+    unidextok-train --config_path=configs/train/small.yaml --datasets='[...]' --exclude_hands='[inspire_rh56_unitree]'
     # few-shot: 6 % of an unseen hand's frames for 2 epochs, starting from a trained tokenizer
-    unidextok-train --init_from=outputs/small/best --datasets='[data/inspire]' --fraction=0.062 --epochs=2
+    unidextok-train --config_path=configs/train/fewshot.yaml --init_from=outputs/small/best --datasets='[data/inspire]'
+    # small datasets: also k-fold over episodes (mean and spread of the held-out figures)
+    unidextok-train --config_path=configs/train/small.yaml --datasets='[data/g1]' --folds=5
     # multi-GPU: accelerate launch --num_processes=4 -m lerobot_unidextok.scripts.train --device=cuda ...
 
-Writes output_dir/best (lowest held-out joint MAE in degrees), output_dir/last (resume), and the
-per-hand evaluation of best as output_dir/eval.{json,md}.
+Training uses each dataset's train-split episodes; `select_fraction` of them (whole episodes) choose the
+checkpoint; the figures come from the test-split episodes, which training never sees. Writes
+output_dir/best (use this one), output_dir/last (resume with --resume=true), each with a model card
+(README.md), and the per-hand evaluation of best on the test episodes as output_dir/eval.{json,md}.
 """
 
+import dataclasses
+import json
 import logging
 from pathlib import Path
 
 import draccus
+import numpy as np
 
 from lerobot_unidextok.training import TrainConfig, load_hand_states, subsample_episodes, train_tokenizer
+from lerobot_unidextok.training.arrays import HandStates
+from lerobot_unidextok.training.splits import kfold_by_episode, split_by_episode
+
+logger = logging.getLogger(__name__)
+SUMMARY_KEYS = ("rows", "mpjae_deg", "mpjpe_mm", "fingertip_mm")
+
+
+def _load_split(datasets: list[str], split: str | None, holdout: str) -> HandStates:
+    try:
+        return load_hand_states(datasets, split=split, holdout=holdout)
+    except ValueError as e:  # a dataset without that split
+        if split != "test":
+            raise
+        logger.warning("no test episodes (%s); the held-out figures come from --folds only", e)
+        return HandStates(np.zeros((0, 22)), np.zeros(0, str), np.zeros((0, 22), bool), np.zeros(0), np.zeros(0))
+
+
+def _fit_and_select(cfg: TrainConfig, train: HandStates) -> tuple[HandStates, HandStates]:
+    """Held-out selection episodes first, then the few-shot fraction of the rest."""
+    if cfg.exclude_hands:
+        train = train.without(cfg.exclude_hands)
+    fit, select = split_by_episode(train, cfg.select_fraction, seed=cfg.seed)
+    return subsample_episodes(fit, cfg.fraction, seed=cfg.seed), select
+
+
+def _summary(report: dict) -> dict:
+    """{hand: {rows, mpjae_deg, mpjpe_mm, fingertip_mm, zero_shot}} + overall, from `evaluate_tokenizer`."""
+    out = {h: {**{k: e[k] for k in SUMMARY_KEYS}, "zero_shot": e.get("zero_shot", False)}
+           for h, e in report["per_hand"].items()}  # fmt: skip
+    out["overall"] = {k: report["overall"][k] for k in SUMMARY_KEYS}
+    return out
+
+
+def run_kfold(cfg: TrainConfig) -> dict:
+    """`cfg.folds` models, each trained without one fold of episodes (all splits pooled) and scored on it."""
+    from lerobot_unidextok.evaluation.report import evaluate_tokenizer
+    from lerobot_unidextok.tokenizer import UniDexTok
+
+    pooled = load_hand_states(cfg.datasets, split=None, holdout=cfg.holdout)
+    folds = []
+    for k, (train, test) in enumerate(kfold_by_episode(pooled, cfg.folds, seed=cfg.seed)):
+        fit, select = _fit_and_select(cfg, train)
+        fold_cfg = dataclasses.replace(cfg, output_dir=str(Path(cfg.output_dir) / "folds" / f"fold_{k}"), resume=False)
+        result = train_tokenizer(fold_cfg, fit, select)
+        report = evaluate_tokenizer(UniDexTok.from_pretrained(result.best_dir), test)
+        folds.append({"fold": k, "test_episodes": int(len(np.unique(test.episode_keys()))),
+                      "train_rows": len(fit), "test_rows": len(test), "per_hand": _summary(report)})  # fmt: skip
+    hands = sorted({h for f in folds for h in f["per_hand"]})
+    summary = {}
+    for hand in hands:
+        per = [f["per_hand"][hand] for f in folds if hand in f["per_hand"]]
+        summary[hand] = {"folds": len(per), "rows": int(sum(p["rows"] for p in per))}
+        for key in SUMMARY_KEYS[1:]:
+            vals = np.array([p[key] for p in per], dtype=np.float64)
+            summary[hand] |= {key: float(vals.mean()), f"{key}_std": float(vals.std(ddof=1)) if len(vals) > 1 else 0.0,
+                              f"{key}_min": float(vals.min()), f"{key}_max": float(vals.max())}  # fmt: skip
+    return {"folds": cfg.folds, "seed": cfg.seed, "per_fold": folds, "summary": summary}
+
+
+def kfold_markdown(kfold: dict) -> str:
+    lines = [f"k-fold over episodes ({kfold['folds']} folds): MPJAE (deg) on each fold's episodes, mean +- std "
+             "over folds [min, max]", "", "| hand | folds | rows | MPJAE (deg) | MPJPE (mm) | fingertip (mm) |",
+             "|---|---|---|---|---|---|"]  # fmt: skip
+    for hand, s in kfold["summary"].items():
+        lines.append(f"| {hand} | {s['folds']} | {s['rows']} | {s['mpjae_deg']:.3f} +- {s['mpjae_deg_std']:.3f} "
+                     f"[{s['mpjae_deg_min']:.3f}, {s['mpjae_deg_max']:.3f}] | {s['mpjpe_mm']:.3f} | "
+                     f"{s['fingertip_mm']:.3f} |")  # fmt: skip
+    return "\n".join(lines)
+
+
+def write_cards(cfg: TrainConfig, test_summary: dict | None, kfold: dict | None) -> None:
+    """eval.json (held-out figures) + training_state.json details + README.md in best/ and last/."""
+    from lerobot_unidextok.hub.card import tokenizer_card
+
+    results = {}
+    for hand, s in (test_summary or {}).items():
+        results[f"test episodes: {hand}"] = s
+    for hand, s in ((kfold or {}).get("summary") or {}).items():
+        results[f"{kfold['folds']}-fold episodes: {hand}"] = {k: s[k] for k in ("rows", "mpjae_deg", "mpjae_deg_std",
+                                                                               "mpjpe_mm", "fingertip_mm")}  # fmt: skip
+    for name in ("best", "last"):
+        folder = Path(cfg.output_dir) / name
+        if not (folder / "config.json").is_file():
+            continue
+        state_path = folder / "training_state.json"
+        state = json.loads(state_path.read_text()) if state_path.is_file() else {}
+        state |= {"datasets": list(cfg.datasets), "excluded_hands": list(cfg.exclude_hands), "fraction": cfg.fraction}
+        state_path.write_text(json.dumps(state, indent=2))
+        (folder / "eval.json").write_text(json.dumps({"results": results}, indent=2))
+        (folder / "README.md").write_text(tokenizer_card(folder, Path(cfg.output_dir).name))
 
 
 def run(cfg: TrainConfig) -> dict:
-    """Load splits, train, evaluate the selected checkpoint; returns the evaluation report."""
+    """Load splits, train, evaluate the selected checkpoint on test episodes (and k-fold); returns the report."""
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer, write_report
     from lerobot_unidextok.tokenizer import UniDexTok
 
     train = load_hand_states(cfg.datasets, split="train", holdout=cfg.holdout)
-    test = load_hand_states(cfg.datasets, split="test", holdout=cfg.holdout)
-    if cfg.exclude_hands:
-        train = train.without(cfg.exclude_hands)
-    train = subsample_episodes(train, cfg.fraction, seed=cfg.seed)
-    result = train_tokenizer(cfg, train, test)
+    test = _load_split(cfg.datasets, "test", cfg.holdout)
+    fit, select = _fit_and_select(cfg, train)
+    result = train_tokenizer(cfg, fit, select)
     model = UniDexTok.from_pretrained(result.best_dir)
-    report = evaluate_tokenizer(model, test)
+    report = evaluate_tokenizer(model, test) if len(test) else {"per_hand": {}, "overall": {}}
     report["training"] = {
-        "best_step": result.best_step, "best_mae_deg": result.best_mae_deg, "steps": result.steps,
-        "seconds": result.seconds, "train_rows": len(train), "test_rows": len(test), "preset": cfg.preset,
-        "excluded_hands": cfg.exclude_hands, "fraction": cfg.fraction,
+        "best_step": result.best_step, "select_mae_deg": result.best_mae_deg, "steps": result.steps,
+        "seconds": result.seconds, "train_rows": len(fit), "select_rows": len(select), "test_rows": len(test),
+        "preset": cfg.preset, "excluded_hands": cfg.exclude_hands, "fraction": cfg.fraction,
+        "hands_trained": fit.hand_names(), "vocabulary": list(model.config.hand_names),
     }  # fmt: skip
-    md = write_report(report, Path(cfg.output_dir) / "eval")
+    kfold = run_kfold(cfg) if cfg.folds else None
+    if kfold:
+        report["kfold"] = kfold
+    out = Path(cfg.output_dir)
+    md = write_report(report, out / "eval") if len(test) else "no test episodes in these datasets"
+    if kfold:
+        md += "\n\n" + kfold_markdown(kfold)
+        (out / "kfold.json").write_text(json.dumps(kfold, indent=2))
+        (out / "kfold.md").write_text(kfold_markdown(kfold) + "\n")
+    write_cards(cfg, _summary(report) if len(test) else None, kfold)
     print(md)
+    print(
+        f"\nCheckpoints in {out}:\n  {out / 'best'}  <- use this one (unidextok-eval --checkpoint={out}, "
+        f"UniDexTok.from_pretrained('{out / 'best'}'), unidextok-push)\n  {out / 'last'}  <- resume training "
+        "with --resume=true"
+    )
     return report
 
 

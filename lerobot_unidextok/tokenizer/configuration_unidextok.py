@@ -33,7 +33,16 @@ class UniDexTokConfig:
     format_version: int = FORMAT_VERSION
 
     # --- input / latent tokens -----------------------------------------------------------------
-    state_dim: int = UDHM_DIM  # 22 UDHM angles per hand, radians; normalised by a fixed pi
+    state_dim: int = UDHM_DIM  # 22 UDHM angles per hand, radians
+    # Input/output normalisation: "pi" divides angles by a fixed pi (paper); "range" maps each UDHM joint's
+    # `joint_range_rad` [lo, hi] onto [-1, 1] (departure, an option; training fills the ranges from the
+    # training hands' registered joint ranges). The loss is in angle / pi units either way.
+    input_norm: str = "pi"
+    # (22, 2) [lo, hi] per UDHM joint for input_norm="range"; None until training fills it (then pi is used)
+    joint_range_rad: list[list[float]] | None = None
+    # Departure (option): besides the normalised angles x, the encoder input gets sin / cos(pi/2 * 2^k * x) for
+    # k < fourier_octaves, so encoder groups can quantise fine phases of a joint (0 = the paper's linear input).
+    fourier_octaves: int = 0
     num_tokens: int = 8  # N latent tokens (paper: 8)
     hidden_dim: int = 512  # C token width (paper: 512)
 
@@ -58,7 +67,14 @@ class UniDexTokConfig:
     num_groups: int = 8  # K groups of codebook_dim / K = 32 dims (paper)
     codebook_size: int = 32  # entries per group codebook (paper)
     commitment_weight: float = 0.25  # beta on ||sg[q] - u||^2 (paper)
-    codebook_weight: float = 1.0  # weight of ||q - sg[u]||^2 (paper: 1)
+    codebook_weight: float = 1.0  # weight of ||q - sg[u]||^2 (paper: 1; unused with codebook_update="ema")
+    # How codes move: "gradient" of the codebook loss (paper) or "ema" (exponential moving average of the
+    # unit-norm encoder vectors assigned to each code, as in VQ-VAE-2; departure, an option).
+    codebook_update: str = "gradient"
+    ema_decay: float = 0.99  # decay of the EMA codebook statistics
+    # How the gradient passes the quantiser: "straight_through" copies it (paper), "rotation" rotates it with the
+    # rotation that maps the encoder vector onto its code (Fifty et al. 2024, the rotation trick; an option).
+    gradient_estimator: str = "straight_through"
     entropy_weight: float = 0.0  # optional code-entropy regulariser, off by default (paper: off)
     entropy_temperature: float = 0.1  # softmax temperature over cosine similarities for the entropy term
     # Departure: dead-code re-seeding is not described in the paper. Codes whose usage EMA falls
@@ -67,9 +83,12 @@ class UniDexTokConfig:
     usage_decay: float = 0.99  # EMA decay of per-code usage counts
 
     # --- reconstruction loss ------------------------------------------------------------------------
-    # MSE in normalised angle space (paper: plain MSE). Restricting it to active DoFs is our choice (padded
-    # slots are zero by construction, not targets). Optional SmoothL1 (paper mentions it, weight unknown).
+    # In angle / pi units: MSE (paper: plain MSE) + optional SmoothL1 (paper mentions it, weight unknown) +
+    # optional L1 (departure: the reported metric is a mean absolute error). Restricting them to active DoFs
+    # is our choice (padded slots are zero by construction, not targets).
+    mse_weight: float = 1.0
     smooth_l1_weight: float = 0.0
+    l1_weight: float = 0.0
 
     def __post_init__(self) -> None:
         if self.format_version != FORMAT_VERSION:
@@ -82,11 +101,28 @@ class UniDexTokConfig:
             raise ValueError(f"hidden_dim={self.hidden_dim} must be divisible by num_heads={self.num_heads}")
         if self.codebook_dim % self.num_groups != 0:
             raise ValueError(f"codebook_dim={self.codebook_dim} must be divisible by num_groups={self.num_groups}")
+        if self.fourier_octaves < 0:
+            raise ValueError(f"fourier_octaves must be >= 0, got {self.fourier_octaves}")
         for name in ("num_tokens", "hidden_dim", "num_heads", "codebook_size", "state_dim"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         self.hand_names = list(self.hand_names)  # JSON round trip gives lists; keep one type
         self.trained_hands = list(self.trained_hands)
+        if self.input_norm not in ("pi", "range"):
+            raise ValueError(f"input_norm must be 'pi' or 'range', got {self.input_norm!r}")
+        if self.joint_range_rad is not None:
+            rng = self.joint_range_rad
+            if len(rng) != self.state_dim or any(len(r) != 2 or r[0] > r[1] for r in rng):
+                raise ValueError(f"joint_range_rad must be {self.state_dim} [lo, hi] pairs with lo <= hi, got {rng}")
+            self.joint_range_rad = [[float(a), float(b)] for a, b in rng]
+        if self.gradient_estimator not in ("straight_through", "rotation"):
+            raise ValueError(
+                f"gradient_estimator must be 'straight_through' or 'rotation', got {self.gradient_estimator!r}"
+            )
+        if self.codebook_update not in ("gradient", "ema"):
+            raise ValueError(f"codebook_update must be 'gradient' or 'ema', got {self.codebook_update!r}")
+        if min(self.mse_weight, self.smooth_l1_weight, self.l1_weight) < 0:
+            raise ValueError("mse_weight, smooth_l1_weight and l1_weight must be >= 0")
         if len(set(self.hand_names)) != len(self.hand_names):
             raise ValueError(f"hand_names has duplicates: {self.hand_names}")
 
@@ -107,10 +143,11 @@ PRESETS: dict[str, UniDexTokConfig] = {
     # Paper sizes (N=8, C=512); depth/heads are our documented choice (not published).
     "paper": UniDexTokConfig(num_tokens=8, hidden_dim=512, encoder_depth=4, decoder_depth=4, num_heads=8),
     # CPU presets (departure: narrower and shallower than the paper so they train on 2 cores).
-    # small: the paper's 8 tokens, C=64 and MLP ratio 2 so a 10-minute run on 2 shared cores converges.
-    # SmoothL1 weight 1 (paper: SmoothL1 auxiliary, weight unpublished): its gradient does not vanish
-    # near zero error like MSE's. Measured on gesture data: 1.56 deg held-out MAE at step 1200 of 2400
-    # with it vs 1.86 deg after a full 1200-step run without it (bench: /tmp experiments, see docs/tokenizer.md).
+    # small: the paper's 8 tokens and VQ, C=64, 2 + 2 blocks, MLP ratio 2. Tuned on unseen real episodes
+    # (docs/tokenizer.md, experiments/unseen_episodes.py): SmoothL1 weight 1 (paper: weight unpublished),
+    # commitment weight 3 instead of the VQ-VAE 0.25 (the largest single gain: with a weak commitment the
+    # encoder vectors drift far from their codes and the straight-through gradient misleads), and per-joint
+    # range normalisation of the angles (paper: fixed pi).
     "small": UniDexTokConfig(
         num_tokens=8,
         hidden_dim=64,
@@ -119,6 +156,8 @@ PRESETS: dict[str, UniDexTokConfig] = {
         num_heads=4,
         mlp_ratio=2.0,
         smooth_l1_weight=1.0,
+        commitment_weight=3.0,
+        input_norm="range",
     ),
     "tiny": UniDexTokConfig(num_tokens=4, hidden_dim=64, encoder_depth=1, decoder_depth=1, num_heads=4),
 }

@@ -5,6 +5,7 @@ annotation of `__init__` to rebuild the config from config.json.
 """
 
 import json
+import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -53,7 +54,7 @@ class UniDexTok(
         # hand-type embedding c_h; last row = "unknown hand"
         self.hand_embed = nn.Embedding(len(config.hand_names) + 1, c)
         # encoder
-        self.input_proj = nn.Linear(config.state_dim, n * c)
+        self.input_proj = nn.Linear(config.state_dim * (1 + 2 * config.fourier_octaves), n * c)
         self.enc_pos = nn.Parameter(torch.zeros(1, n, c))
         self.encoder = nn.ModuleList(
             AdaLNBlock(c, config.num_heads, config.mlp_ratio, config.dropout) for _ in range(config.encoder_depth)
@@ -68,6 +69,10 @@ class UniDexTok(
         )
         self.dec_norm = AdaLNFinalNorm(c)
         self.head = nn.Linear(n * c, config.state_dim)
+        # angle normalisation (derived from the config, not saved): x_normalised = (x_rad - center) / scale
+        center, scale = normalisation(config)
+        self.register_buffer("norm_center", center, persistent=False)  # (22,)
+        self.register_buffer("norm_scale", scale, persistent=False)  # (22,)
         self.initialize_weights()
 
     # -----------------------------------------------------------------------------------------
@@ -137,7 +142,11 @@ class UniDexTok(
     # -----------------------------------------------------------------------------------------
     def _encode_latent(self, x_rad: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
         b = x_rad.shape[0]
-        x = x_rad / ANGLE_SCALE_RAD  # (B, 22) normalised by a fixed pi
+        x = (x_rad - self.norm_center) / self.norm_scale  # (B, 22) normalised (fixed pi in the paper)
+        if self.config.fourier_octaves:
+            freqs = (math.pi / 2) * 2.0 ** torch.arange(self.config.fourier_octaves, device=x.device)  # (F,)
+            phase = (x.unsqueeze(-1) * freqs).flatten(1)  # (B, 22 F)
+            x = torch.cat([x, phase.sin(), phase.cos()], dim=-1)  # (B, 22 (1 + 2F))
         z = self.input_proj(x).view(b, self.config.num_tokens, self.config.hidden_dim)  # (B, N, C)
         z = z + self.enc_pos  # (B, N, C)
         for block in self.encoder:
@@ -150,7 +159,7 @@ class UniDexTok(
             z = block(z, c)  # (B, N, C)
         z = self.dec_norm(z, c)  # (B, N, C)
         x_hat = self.head(z.flatten(1))  # (B, 22) normalised
-        return x_hat
+        return x_hat * self.norm_scale + self.norm_center  # (B, 22) radians
 
     def forward(
         self,
@@ -165,10 +174,10 @@ class UniDexTok(
         c = self.hand_embed(self.hand_ids(hand, b, allow_unknown))  # (B, C)
         z = self._encode_latent(x_rad, c)  # (B, N, C)
         zq, indices, vq_loss = self.quantizer(z)  # (B, N, C), (B, N, K), ()
-        x_hat = self._decode_latent(zq, c)  # (B, 22) normalised
-        recon_loss = self.reconstruction_loss(x_hat, x_rad / ANGLE_SCALE_RAD, mask)
+        x_hat_rad = self._decode_latent(zq, c)  # (B, 22)
+        recon_loss = self.reconstruction_loss(x_hat_rad / ANGLE_SCALE_RAD, x_rad / ANGLE_SCALE_RAD, mask)
         return UniDexTokOutput(
-            states_rad=x_hat * ANGLE_SCALE_RAD,
+            states_rad=x_hat_rad,
             indices=indices,
             loss=recon_loss + vq_loss,
             recon_loss=recon_loss,
@@ -176,7 +185,7 @@ class UniDexTok(
         )
 
     def reconstruction_loss(self, x_hat: torch.Tensor, x: torch.Tensor, mask: torch.Tensor | None) -> torch.Tensor:
-        """MSE (+ SmoothL1) in normalised space over active DoFs only; padded slots are not targets."""
+        """MSE (+ SmoothL1, + L1) in angle / pi units over active DoFs only; padded slots are not targets."""
         if mask is None:
             w = torch.ones_like(x)  # (B, 22)
         else:
@@ -185,10 +194,15 @@ class UniDexTok(
                 raise ValueError(f"mask must have the states' shape {tuple(x.shape)}, got {tuple(mask.shape)}")
             w = mask.to(x.dtype)  # (B, 22)
         denom = w.sum().clamp_min(1.0)
-        loss = ((x_hat - x) ** 2 * w).sum() / denom
-        if self.config.smooth_l1_weight > 0:
+        cfg, diff = self.config, x_hat - x  # (B, 22)
+        loss = x.new_zeros(())
+        if cfg.mse_weight > 0:
+            loss = loss + cfg.mse_weight * (diff**2 * w).sum() / denom
+        if cfg.smooth_l1_weight > 0:
             sl1 = F.smooth_l1_loss(x_hat, x, reduction="none", beta=0.01)  # (B, 22)
-            loss = loss + self.config.smooth_l1_weight * (sl1 * w).sum() / denom
+            loss = loss + cfg.smooth_l1_weight * (sl1 * w).sum() / denom
+        if cfg.l1_weight > 0:
+            loss = loss + cfg.l1_weight * (diff.abs() * w).sum() / denom
         return loss
 
     # -----------------------------------------------------------------------------------------
@@ -222,7 +236,7 @@ class UniDexTok(
         codes = codes.long()
         c = self.hand_embed(self.hand_ids(hand, codes.shape[0], allow_unknown))  # (B, C)
         zq = self.quantizer.get_output_from_indices(codes)  # (B, N, C)
-        return self._decode_latent(zq, c) * ANGLE_SCALE_RAD  # (B, 22) radians
+        return self._decode_latent(zq, c)  # (B, 22) radians
 
     @torch.no_grad()
     def add_hands(self, names: Sequence[str]) -> list[str]:
@@ -292,6 +306,24 @@ class UniDexTok(
         model = cls._load_as_safetensor(model, _fetch(hf_constants.SAFETENSORS_SINGLE_FILE), map_location, strict)
         model.eval()
         return model
+
+
+def normalisation(config: UniDexTokConfig) -> tuple[torch.Tensor, torch.Tensor]:
+    """(center, scale), each (22,): x_normalised = (x_rad - center) / scale.
+
+    "pi": center 0, scale pi (paper). "range": each joint's [lo, hi] onto [-1, 1]; joints with an empty
+    range (no training hand moves them), and every joint before training fills the ranges, keep center 0 and
+    scale pi.
+    """
+    center = torch.zeros(config.state_dim)
+    scale = torch.full((config.state_dim,), ANGLE_SCALE_RAD)
+    if config.input_norm == "range" and config.joint_range_rad is not None:
+        rng = torch.tensor(config.joint_range_rad, dtype=torch.float32)  # (22, 2)
+        half = (rng[:, 1] - rng[:, 0]) / 2
+        moving = half > 1e-6
+        center = torch.where(moving, rng.mean(1), center)
+        scale = torch.where(moving, half, scale)
+    return center, scale
 
 
 def count_parameters(model: nn.Module) -> int:

@@ -1,5 +1,8 @@
 """Factorised cosine vector quantiser: C -> codebook_dim, K groups, one small codebook per group.
 
+Codes learn from the codebook loss (paper) or, with `codebook_update="ema"`, as the running mean of the
+unit-norm encoder vectors assigned to them (VQ-VAE-2 style; the codebook is then not a gradient target).
+
 Dead codes: the quantiser keeps an EMA of how often each code is picked. `reseed_dead_codes()`
 (called by the training loop after an optimiser step) replaces codes whose usage EMA is below
 `dead_code_threshold / codebook_size` with random encoder features of the last training batch, so
@@ -45,6 +48,9 @@ class FactorizedCosineVQ(nn.Module):
         self.entropy_temperature = config.entropy_temperature
         self.dead_code_threshold = config.dead_code_threshold
         self.usage_decay = config.usage_decay
+        self.ema = config.codebook_update == "ema"
+        self.rotation_trick = config.gradient_estimator == "rotation"
+        self.ema_decay = config.ema_decay
 
         self.project_in = nn.Linear(config.hidden_dim, config.codebook_dim)
         self.project_out = nn.Linear(config.codebook_dim, config.hidden_dim)
@@ -57,6 +63,10 @@ class FactorizedCosineVQ(nn.Module):
             persistent=False,
         )
         self.register_buffer("last_features", torch.empty(0), persistent=False)
+        if self.ema:  # running sums of assigned vectors and counts (training statistics, not saved)
+            self.codebooks.requires_grad_(False)
+            self.register_buffer("ema_sum", torch.empty(0), persistent=False)
+            self.register_buffer("ema_count", torch.empty(0), persistent=False)
         self.last_perplexity = float("nan")
         self.last_usage = float("nan")
 
@@ -107,7 +117,7 @@ class FactorizedCosineVQ(nn.Module):
 
         # losses: beta * commitment + codebook term (+ optional entropy)
         commitment = F.mse_loss(u, q.detach())
-        codebook = F.mse_loss(q, u.detach())
+        codebook = F.mse_loss(q, u.detach()) if not self.ema else z.new_zeros(())
         entropy = z.new_zeros(())
         if self.entropy_weight > 0:
             probs = (sim / self.entropy_temperature).softmax(dim=-1)  # (B, N, K, S)
@@ -117,11 +127,20 @@ class FactorizedCosineVQ(nn.Module):
             entropy = per_sample - codebook_entropy
         loss = self.commitment_weight * commitment + self.codebook_weight * codebook + self.entropy_weight * entropy
 
-        # straight-through estimator (exact codes when no gradient is needed)
-        q_st = u + (q - u).detach() if torch.is_grad_enabled() else q  # (B, N, K, d)
+        # gradient estimator (exact codes when no gradient is needed); both give q in the forward pass
+        if not torch.is_grad_enabled():
+            q_st = q  # (B, N, K, d)
+        elif self.rotation_trick:  # R u with R (no gradient) the rotation taking unit u onto unit q
+            ud, qd = u.detach(), q.detach()
+            r = l2norm(ud + qd)  # (B, N, K, d)
+            q_st = u - 2 * r * (u * r).sum(-1, keepdim=True) + 2 * qd * (u * ud).sum(-1, keepdim=True)
+        else:  # straight-through
+            q_st = u + (q - u).detach()  # (B, N, K, d)
         quantized = self.project_out(q_st.flatten(-2))  # (B, N, C)
 
         self._track_usage(indices, u)
+        if self.ema and self.training and torch.is_grad_enabled():
+            self._ema_update(indices, u)
         if return_loss_breakdown:
             return quantized, indices, loss, LossBreakdown(commitment, codebook, entropy)
         return quantized, indices, loss
@@ -143,6 +162,20 @@ class FactorizedCosineVQ(nn.Module):
             self.last_features = u.detach().reshape(-1, self.num_groups, self.group_dim)  # (M, K, d)
 
     @torch.no_grad()
+    def _ema_update(self, indices: torch.Tensor, u: torch.Tensor) -> None:
+        """codebook <- EMA of the mean unit-norm vector assigned to each code (groups independent)."""
+        flat_u = u.detach().reshape(-1, self.num_groups, self.group_dim).transpose(0, 1)  # (K, M, d)
+        onehot = F.one_hot(indices.reshape(-1, self.num_groups).T, self.codebook_size).to(u.dtype)  # (K, M, S)
+        counts = onehot.sum(1)  # (K, S)
+        sums = torch.einsum("kms,kmd->ksd", onehot, flat_u)  # (K, S, d)
+        if self.ema_sum.numel() == 0:
+            self.ema_count = torch.ones_like(counts)
+            self.ema_sum = l2norm(self.codebooks.data).clone()
+        self.ema_count.mul_(self.ema_decay).add_(counts, alpha=1 - self.ema_decay)
+        self.ema_sum.mul_(self.ema_decay).add_(sums, alpha=1 - self.ema_decay)
+        self.codebooks.data.copy_(self.ema_sum / self.ema_count.clamp_min(1e-5).unsqueeze(-1))
+
+    @torch.no_grad()
     def reseed_dead_codes(self) -> int:
         """Re-seed rarely used codes from the last training batch; returns how many were replaced."""
         if self.dead_code_threshold <= 0 or self.last_features.numel() == 0:
@@ -159,6 +192,9 @@ class FactorizedCosineVQ(nn.Module):
             pick = torch.randint(0, feats.shape[0], (slots.numel(),), device=feats.device)
             self.codebooks.data[k, slots] = feats[pick, k] * self.codebooks.data[k].norm(dim=-1).mean()
             self.usage_ema[k, slots] = 1.0 / self.codebook_size
+            if self.ema and self.ema_sum.numel():
+                self.ema_sum[k, slots] = feats[pick, k]
+                self.ema_count[k, slots] = 1.0
         return n_dead
 
     def codebook_usage(self) -> dict[str, float]:

@@ -1,11 +1,10 @@
 """Tokenizer training (layer 5): config, in-memory rows and hand mixing, optimiser, loop, checkpoints."""
 
-from lerobot_unidextok.training.arrays import HandMixSampler, HandStates, load_hand_states, subsample_episodes
+from lerobot_unidextok.training.arrays import HandStates, load_hand_states, subsample_episodes
 from lerobot_unidextok.training.config import TrainConfig
 from lerobot_unidextok.training.loop import TrainResult, build_model, evaluate_mae_deg, train_tokenizer
 
 __all__ = [
-    "HandMixSampler",
     "HandStates",
     "TrainConfig",
     "TrainResult",

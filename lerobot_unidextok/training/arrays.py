@@ -9,12 +9,14 @@ from lerobot_unidextok.constants import UDHM_DIM
 
 @dataclass
 class HandStates:
-    """Rows of one hand state each: (N, 22) radians, (N,) hand names, (N, 22) active-DoF masks."""
+    """Rows of one hand state each: (N, 22) radians, (N,) hand names, (N, 22) active-DoF masks, and where
+    known the episode of each row and the dataset it came from (position in the loaded list)."""
 
     states_rad: np.ndarray
     hands: np.ndarray
     masks: np.ndarray
     episode_index: np.ndarray | None = None
+    dataset_index: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.states_rad = np.asarray(self.states_rad, dtype=np.float32)
@@ -29,15 +31,28 @@ class HandStates:
             raise ValueError(f"masks must be {self.states_rad.shape}, got {self.masks.shape}")
         if not np.isfinite(self.states_rad).all():
             raise ValueError("states_rad contains NaN/inf; drop or fill those frames first")
-        if self.episode_index is not None:
-            self.episode_index = np.asarray(self.episode_index, dtype=np.int64)
+        for name in ("episode_index", "dataset_index"):
+            value = getattr(self, name)
+            if value is not None:
+                value = np.asarray(value, dtype=np.int64)
+                if value.shape != (n,):
+                    raise ValueError(f"{name} must be (N,) = ({n},), got {value.shape}")
+                setattr(self, name, value)
 
     def __len__(self) -> int:
         return len(self.states_rad)
 
+    def episode_keys(self) -> np.ndarray:
+        """(N,) int64 id of each row's episode, unique across datasets (dataset index in the high bits)."""
+        if self.episode_index is None:
+            raise ValueError("these rows carry no episode index")
+        ds = np.zeros_like(self.episode_index) if self.dataset_index is None else self.dataset_index
+        return (ds << 32) + self.episode_index
+
     def select(self, rows: np.ndarray) -> "HandStates":
         ep = None if self.episode_index is None else self.episode_index[rows]
-        return HandStates(self.states_rad[rows], self.hands[rows], self.masks[rows], ep)
+        ds = None if self.dataset_index is None else self.dataset_index[rows]
+        return HandStates(self.states_rad[rows], self.hands[rows], self.masks[rows], ep, ds)
 
     def only(self, hands: list[str] | str) -> "HandStates":
         hands = [hands] if isinstance(hands, str) else hands
@@ -54,20 +69,25 @@ class HandStates:
     def concat(parts: list["HandStates"]) -> "HandStates":
         if not parts:
             raise ValueError("nothing to concatenate: no hand-state arrays given")
-        eps = None
+        eps = ds = None
         if all(p.episode_index is not None for p in parts):
             eps = np.concatenate([p.episode_index for p in parts])
+        if all(p.dataset_index is not None for p in parts):
+            ds = np.concatenate([p.dataset_index for p in parts])
         return HandStates(
             np.concatenate([p.states_rad for p in parts]),
             np.concatenate([p.hands for p in parts]),
             np.concatenate([p.masks for p in parts]),
             eps,
+            ds,
         )
 
     @staticmethod
-    def from_frames(frames) -> "HandStates":
-        """From `lerobot_unidextok.data.UdhmFrames`."""
-        return HandStates(frames.states_rad, frames.hands, frames.masks, frames.episode_index)
+    def from_frames(frames, dataset_index: int = 0) -> "HandStates":
+        """From `lerobot_unidextok.data.UdhmFrames`; `dataset_index` tells datasets apart in `episode_keys`."""
+        n = len(frames.states_rad)
+        return HandStates(frames.states_rad, frames.hands, frames.masks, frames.episode_index,
+                          np.full(n, dataset_index, dtype=np.int64))  # fmt: skip
 
 
 def load_hand_states(datasets: list[str], split: str | None, holdout: str = "auto") -> HandStates:
@@ -80,12 +100,12 @@ def load_hand_states(datasets: list[str], split: str | None, holdout: str = "aut
     if not datasets:
         raise ValueError("no datasets given: pass --datasets='[path/or/repo_id, ...]'")
     parts = []
-    for ds in datasets:
+    for i, ds in enumerate(datasets):
         if Path(ds).expanduser().is_dir():
             frames = load_udhm_frames(root=Path(ds).expanduser(), split=split, holdout=holdout)
         else:
             frames = load_udhm_frames(repo_id=ds, split=split, holdout=holdout)
-        parts.append(HandStates.from_frames(frames))
+        parts.append(HandStates.from_frames(frames, dataset_index=i))
     return HandStates.concat(parts)
 
 
@@ -100,12 +120,13 @@ def subsample_episodes(data: HandStates, fraction: float, seed: int = 0) -> Hand
     for hand in data.hand_names():
         rows = np.flatnonzero(data.hands == hand)
         if data.episode_index is not None:
-            eps = np.unique(data.episode_index[rows])
+            keys = data.episode_keys()
+            eps = np.unique(keys[rows])
             rng.shuffle(eps)
             taken = []
             target = max(1, int(round(fraction * len(rows))))
             for ep in eps:  # whole episodes first, then a slice of the last one
-                ep_rows = rows[data.episode_index[rows] == ep]
+                ep_rows = rows[keys[rows] == ep]
                 taken.append(ep_rows[: target - sum(map(len, taken))])
                 if sum(map(len, taken)) >= target:
                     break
@@ -113,21 +134,3 @@ def subsample_episodes(data: HandStates, fraction: float, seed: int = 0) -> Hand
         else:
             keep.append(rng.choice(rows, size=max(1, int(round(fraction * len(rows)))), replace=False))
     return data.select(np.sort(np.concatenate(keep)))
-
-
-class HandMixSampler:
-    """Draws batches of row indices with a fixed share per hand (relative weights)."""
-
-    def __init__(self, hands: np.ndarray, weights: dict[str, float], default_weight: float, seed: int) -> None:
-        names, inverse, counts = np.unique(hands, return_inverse=True, return_counts=True)
-        w = np.array([weights.get(n, default_weight) for n in names], dtype=np.float64)
-        if w.sum() <= 0:
-            raise ValueError(f"all hand weights are zero for hands {names.tolist()}; give at least one a weight > 0")
-        share = w / w.sum()
-        self.hand_share = dict(zip(names.tolist(), share.tolist(), strict=True))
-        self.p = share[inverse] / counts[inverse]  # per-row probability
-        self.p /= self.p.sum()
-        self.rng = np.random.default_rng(seed)
-
-    def sample(self, batch_size: int) -> np.ndarray:
-        return self.rng.choice(len(self.p), size=batch_size, p=self.p)

@@ -2,6 +2,8 @@
 
 from dataclasses import dataclass, field
 
+from lerobot_unidextok.training.coverage import CoverageConfig
+
 
 @dataclass
 class TrainConfig:
@@ -17,6 +19,9 @@ class TrainConfig:
     default_hand_weight: float = 1.0
     # Hands dropped from training (kept in evaluation): the zero-shot protocol.
     exclude_hands: list[str] = field(default_factory=list)
+    # Coverage training: per hand kind, the weights of recorded rows vs states synthesised inside the hand's
+    # joint ranges (training/coverage.py). `--coverage.robot='{"recorded": 1.0}'` trains on recordings only.
+    coverage: CoverageConfig = field(default_factory=CoverageConfig)
 
     # --- model ------------------------------------------------------------------------------------
     preset: str = "small"  # UniDexTokConfig preset: paper | small | tiny
@@ -46,6 +51,12 @@ class TrainConfig:
     seed: int = 0
 
     # --- evaluation and checkpoints ----------------------------------------------------------------
+    # Share of each hand's training-split episodes held out (whole episodes) to choose `best`; the reported
+    # figures come from the datasets' test episodes. 0 = no selection, `best` is the final model.
+    select_fraction: float = 0.1
+    # k-fold over episodes (small datasets): when >= 2, also train `folds` models, each scored on the episodes
+    # of one fold (train + test splits pooled), and report mean and spread (output_dir/kfold.{json,md}).
+    folds: int = 0
     eval_every: int = 250
     eval_max_frames: int = 20000  # held-out rows used for checkpoint selection (all if fewer)
     output_dir: str = "outputs/unidextok"
@@ -76,6 +87,10 @@ class TrainConfig:
             raise ValueError(f"unknown_hand_prob must be in [0, 1), got {self.unknown_hand_prob}")
         if self.adapt not in ("all", "hand_embedding"):
             raise ValueError(f"adapt must be 'all' or 'hand_embedding', got {self.adapt!r}")
+        if not 0.0 <= self.select_fraction < 1.0:
+            raise ValueError(f"select_fraction must be in [0, 1), got {self.select_fraction}")
+        if self.folds == 1 or self.folds < 0:
+            raise ValueError(f"folds must be 0 (off) or >= 2, got {self.folds}")
         if self.batch_size < 1:
             raise ValueError(f"batch_size must be >= 1, got {self.batch_size}")
         if self.warmup_steps < 0:

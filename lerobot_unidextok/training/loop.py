@@ -13,13 +13,14 @@ from tqdm.auto import tqdm
 from lerobot_unidextok.evaluation.metrics import mpjae_deg
 from lerobot_unidextok.evaluation.reconstruct import codebook_usage, reconstruct
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
-from lerobot_unidextok.training.arrays import HandMixSampler, HandStates
+from lerobot_unidextok.training.arrays import HandStates
 from lerobot_unidextok.training.checkpoint import (
     load_optimizer_state,
     load_training_state,
     save_checkpoint,
 )
 from lerobot_unidextok.training.config import TrainConfig
+from lerobot_unidextok.training.coverage import MixtureSampler
 from lerobot_unidextok.training.optim import lr_at, make_optimizer
 
 logger = logging.getLogger(__name__)
@@ -30,23 +31,57 @@ class TrainResult:
     """Where the selected checkpoint is and how training went."""
 
     best_dir: Path
-    best_mae_deg: float
+    best_mae_deg: float  # on the selection rows; nan without them
     best_step: int
     steps: int
     seconds: float
     history: list[dict] = field(default_factory=list)  # one entry per evaluation
 
 
-def build_model(cfg: TrainConfig, train_data: HandStates) -> UniDexTok:
-    """A fresh model from the preset, or `init_from` with any new training hands added."""
-    hands = train_data.hand_names()
+def training_vocabulary(cfg: TrainConfig, train_data: HandStates) -> list[str]:
+    """Hand vocabulary of a new model: the hands explicitly requested (`hand_names`) then the training hands.
+
+    The preset's default list is not used, so a hand left out of training (`exclude_hands`, zero-shot) is
+    not in the vocabulary and goes through the unknown-hand embedding.
+    """
+    clash = sorted(set(cfg.hand_names) & set(cfg.exclude_hands))
+    if clash:
+        raise ValueError(
+            f"hands {clash} are both requested in hand_names and excluded by exclude_hands; a hand excluded for "
+            "zero-shot must not get its own (untrained) embedding row: drop it from one of the two"
+        )
+    return list(dict.fromkeys([*cfg.hand_names, *train_data.hand_names()]))
+
+
+def joint_ranges_rad(train_data: HandStates) -> list[list[float]]:
+    """(22, 2) per-joint [lo, hi] covering every training hand's joint range (registry) and recorded rows."""
+    from lerobot_unidextok.training.coverage import hand_ranges_rad
+
+    lo, hi = train_data.states_rad.min(0).astype(np.float64), train_data.states_rad.max(0).astype(np.float64)
+    for hand in train_data.hand_names():
+        rows = train_data.hands == hand
+        mask = train_data.masks[rows].any(0)
+        hlo, hhi, _ = hand_ranges_rad(hand, mask, train_data.states_rad[rows])
+        lo, hi = np.minimum(lo, hlo.min(0)), np.maximum(hi, hhi.max(0))
+    return [[float(a), float(b)] for a, b in zip(lo, hi, strict=True)]
+
+
+def build_model(cfg: TrainConfig, train_data: HandStates, **overrides) -> UniDexTok:
+    """A fresh model from the preset (with `overrides` of its fields), or `init_from` with new training hands.
+
+    Vocabulary: `training_vocabulary`. With `input_norm="range"` the joint ranges come from the training
+    hands (`joint_ranges_rad`) unless given.
+    """
     if cfg.init_from:
         model = UniDexTok.from_pretrained(cfg.init_from)
-        model.add_hands([*cfg.hand_names, *hands])
+        model.add_hands([*cfg.hand_names, *train_data.hand_names()])
         return model
-    names = list(cfg.hand_names) or list(UniDexTokConfig.from_preset(cfg.preset).hand_names)
-    names += [h for h in hands if h not in names]
-    return UniDexTok(UniDexTokConfig.from_preset(cfg.preset, hand_names=names))
+    preset = UniDexTokConfig.from_preset(cfg.preset)
+    if overrides.get("input_norm", preset.input_norm) == "range" and "joint_range_rad" not in overrides:
+        overrides["joint_range_rad"] = joint_ranges_rad(train_data)
+    return UniDexTok(
+        UniDexTokConfig.from_preset(cfg.preset, hand_names=training_vocabulary(cfg, train_data), **overrides)
+    )
 
 
 def evaluate_mae_deg(model: UniDexTok, data: HandStates, max_frames: int, seed: int) -> tuple[float, dict]:
@@ -65,22 +100,28 @@ def total_steps(cfg: TrainConfig, num_train_rows: int) -> int:
 
 
 def train_tokenizer(
-    cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, model: UniDexTok | None = None
+    cfg: TrainConfig, train_data: HandStates, eval_data: HandStates | None, model: UniDexTok | None = None
 ) -> TrainResult:
-    """Train (or adapt) a tokenizer; keeps the checkpoint with the lowest held-out joint MAE (deg)."""
+    """Train (or adapt) a tokenizer.
 
-    if len(train_data) == 0 or len(eval_data) == 0:
-        raise ValueError(f"need training and held-out rows, got {len(train_data)} and {len(eval_data)}")
+    `eval_data`: held-out rows (whole episodes the model never trains on) that choose `output_dir/best`, the
+    checkpoint with the lowest joint MAE (deg). None or empty: no selection, `best` is the final model.
+    """
+
+    if len(train_data) == 0:
+        raise ValueError("need training rows, got none")
     threads_before = torch.get_num_threads()
     if cfg.num_threads > 0:
         torch.set_num_threads(cfg.num_threads)
     try:
-        return _train(cfg, train_data, eval_data, model)
+        return _train(cfg, train_data, eval_data if eval_data is not None and len(eval_data) else None, model)
     finally:
         torch.set_num_threads(threads_before)
 
 
-def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, model: UniDexTok | None) -> TrainResult:
+def _train(
+    cfg: TrainConfig, train_data: HandStates, eval_data: HandStates | None, model: UniDexTok | None
+) -> TrainResult:
     from accelerate import Accelerator
 
     accelerator = Accelerator(cpu=cfg.device == "cpu")
@@ -99,9 +140,16 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
     unknown = [h for h in train_data.hand_names() if not model.knows_hand(h)]
     if unknown:
         model.add_hands(unknown)
+    # the hands this checkpoint has been trained on (vocabulary rows of other hands were never trained)
+    model.config.trained_hands = list(dict.fromkeys([*model.config.trained_hands, *train_data.hand_names()]))
     model.train()
+    if cfg.adapt != "all":
+        model.quantizer.eval()  # no EMA codebook or usage updates: the shared parts stay as they are
     for name, param in model.named_parameters():
-        param.requires_grad_(cfg.adapt == "all" or name.startswith("hand_embed"))
+        trainable = cfg.adapt == "all" or name.startswith("hand_embed")
+        if name == "quantizer.codebooks" and model.config.codebook_update == "ema":
+            trainable = False  # moved by the EMA update, not by the optimiser
+        param.requires_grad_(trainable)
     optimizer = make_optimizer(model, cfg.lr, cfg.weight_decay, cfg.betas)
 
     n_steps = total_steps(cfg, len(train_data))
@@ -113,27 +161,35 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
     model, optimizer = accelerator.prepare(model, optimizer)
     raw_model: UniDexTok = accelerator.unwrap_model(model)
 
-    sampler = HandMixSampler(
-        train_data.hands,
+    sampler = MixtureSampler(
+        train_data,
         cfg.hand_weights,
         cfg.default_hand_weight,
+        cfg.coverage,
         seed=cfg.seed * 1000 + start + accelerator.process_index,
     )
-    logger.info("training %d steps on %d rows; hand shares %s", n_steps, len(train_data), sampler.hand_share)
-    states = torch.as_tensor(train_data.states_rad)
-    masks = torch.as_tensor(train_data.masks)
-    hand_ids = torch.tensor([raw_model._hand_index[h] for h in train_data.hands.tolist()])
+    mixture = sampler.describe()
+    logger.info("training %d steps on %d recorded rows; mixture %s", n_steps, len(train_data), mixture)
+    hand_id_of = torch.tensor([raw_model._hand_index[h] for h in sampler.hand_names])  # sampler hand -> model id
     device = accelerator.device
+    # what this run trained on; saved with every checkpoint (training_state.json) for the model card
+    about = {
+        "preset": cfg.preset, "init_from": cfg.init_from, "adapt": cfg.adapt, "steps": n_steps,
+        "batch_size": cfg.batch_size, "lr": cfg.lr, "unknown_hand_prob": cfg.unknown_hand_prob,
+        "hands_trained": sampler.hand_names, "mixture": mixture,
+        "selection": {"rows": len(eval_data), "hands": eval_data.hand_names()} if eval_data is not None
+        else "none: best = the final model",
+    }  # fmt: skip
 
     def _evaluate(step: int) -> None:
         nonlocal best_mae, best_step
-        if not accelerator.is_main_process:
+        if not accelerator.is_main_process or eval_data is None:
             return
         mae, usage = evaluate_mae_deg(raw_model, eval_data, cfg.eval_max_frames, cfg.seed)
         history.append({"step": step, "eval_mae_deg": mae, **{f"eval_{k}": v for k, v in usage.items()}})
         if mae < best_mae:
             best_mae, best_step = mae, step
-            save_checkpoint(raw_model, best_dir, state={"step": step, "eval_mae_deg": mae})
+            save_checkpoint(raw_model, best_dir, state={"step": step, "eval_mae_deg": mae, **about})
         logger.info(
             "step %d: held-out MAE %.3f deg (best %.3f @ %d), usage %.2f",
             step,
@@ -156,8 +212,10 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
         lr = lr_at(step, n_steps, cfg.lr, cfg.warmup_steps, cfg.min_lr_ratio)
         for g in optimizer.param_groups:
             g["lr"] = lr
-        rows = torch.from_numpy(sampler.sample(cfg.batch_size))
-        x, m, h = states[rows].to(device), masks[rows].to(device), hand_ids[rows].to(device)  # (B, 22), (B, 22), (B,)
+        batch = sampler.sample(cfg.batch_size)
+        x = torch.from_numpy(batch.states_rad).to(device)  # (B, 22)
+        m = torch.from_numpy(batch.masks).to(device)  # (B, 22)
+        h = hand_id_of[torch.from_numpy(batch.hands)].to(device)  # (B,)
         if cfg.unknown_hand_prob > 0:  # hand-embedding dropout trains the zero-shot "unknown hand" path
             drop = torch.rand(h.shape, generator=dropout_rng).to(device) < cfg.unknown_hand_prob  # (B,)
             h = torch.where(drop, torch.full_like(h, raw_model.unknown_hand_id), h)
@@ -185,10 +243,14 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
         if accelerator.is_main_process and ((step + 1) % cfg.save_last_every == 0 or step + 1 == n_steps):
             save_checkpoint(
                 raw_model, last_dir, optimizer,
-                {"step": step + 1, "best_mae_deg": best_mae, "best_step": best_step, "history": history},
+                {"step": step + 1, "best_mae_deg": best_mae, "best_step": best_step, "history": history, **about},
             )  # fmt: skip
     bar.close()
     if start >= n_steps and not history:
         _evaluate(n_steps)
+    if eval_data is None and accelerator.is_main_process:  # no held-out rows: the final model is kept
+        best_step = n_steps
+        save_checkpoint(raw_model, best_dir, state={"step": n_steps, "eval_mae_deg": None, **about})
     accelerator.wait_for_everyone()
+    best_mae = best_mae if math.isfinite(best_mae) else float("nan")
     return TrainResult(best_dir, best_mae, best_step, n_steps, time.perf_counter() - t0, history)

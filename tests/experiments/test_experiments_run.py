@@ -157,13 +157,17 @@ def test_transfer(tiny_cfg, main_result):
     hand = result["holdout_hand"]
     assert "inspire" in hand
     assert hand not in result["training"]["base_without_holdout"]["train_hands"]
+    assert hand in result["training"]["reference_with_holdout"]["train_hands"]
     fs = result["fewshot"]
     assert fs["frames"] == max(1, round(tiny_cfg.fewshot_fraction * fs["of_frames"]))
     assert set(result["summary"]) == {
         "zero-shot",
-        "few-shot",
+        "few-shot, embedding row",
+        "few-shot, whole tokenizer (paper)",
         "in training (reference)",
     }
+    for label in ("few-shot, embedding row", "few-shot, whole tokenizer (paper)"):
+        assert len(result["summary"][label]["mpjae_deg_repeats"]) == tiny_cfg.fewshot_repeats
     assert set(result["per_finger_tip_mm"]) == {
         "thumb_tip",
         "index_tip",

@@ -187,3 +187,55 @@ def test_missing_weights_is_a_clear_error(tmp_path):
     (tmp_path / "model.safetensors").unlink()
     with pytest.raises(FileNotFoundError, match="model.safetensors"):
         UniDexTok.from_pretrained(tmp_path)
+
+
+def test_range_normalisation_maps_each_joint_range_onto_unit_interval(tmp_path):
+    """input_norm="range": the encoder sees (x - center) / half-range per joint; joints without a range keep
+    pi; the decoder output comes back in radians; the ranges travel in config.json."""
+    ranges = [[0.0, 0.0]] * UDHM_DIM
+    ranges[6] = [0.0, 1.7]  # index MCP flexion of an Inspire hand
+    ranges[0] = [-0.1, 0.5]
+    torch.manual_seed(0)
+    model = UniDexTok(UniDexTokConfig.from_preset("tiny", input_norm="range", joint_range_rad=ranges)).eval()
+    assert model.norm_center[6].item() == pytest.approx(0.85) and model.norm_scale[6].item() == pytest.approx(0.85)
+    assert model.norm_center[0].item() == pytest.approx(0.2) and model.norm_scale[0].item() == pytest.approx(0.3)
+    assert model.norm_scale[3].item() == pytest.approx(math.pi) and model.norm_center[3].item() == 0.0
+    seen = {}
+
+    def keep_input(module, inputs, output) -> None:
+        seen["x"] = inputs[0]
+
+    model.input_proj.register_forward_hook(keep_input)
+    x = torch.zeros(1, UDHM_DIM)
+    x[0, 6], x[0, 0], x[0, 3] = 1.7, -0.1, math.pi / 2
+    model.encode(x, "human")
+    assert seen["x"][0, 6].item() == pytest.approx(1.0) and seen["x"][0, 0].item() == pytest.approx(-1.0)
+    assert seen["x"][0, 3].item() == pytest.approx(0.5)
+    model.save_pretrained(tmp_path)
+    loaded = UniDexTok.from_pretrained(tmp_path)
+    assert loaded.config.joint_range_rad == model.config.joint_range_rad
+    codes = model.encode(x, "human")
+    torch.testing.assert_close(loaded.decode(codes, "human"), model.decode(codes, "human"), rtol=0, atol=0)
+    with pytest.raises(ValueError, match="joint_range_rad must be 22"):
+        UniDexTokConfig(input_norm="range", joint_range_rad=[[0.0, 1.0]])
+
+
+def test_loss_terms_follow_their_weights():
+    torch.manual_seed(0)
+    x = _states(6)
+    base = UniDexTok(UniDexTokConfig.from_preset("tiny"))
+    out = base(x, "human")
+    d = out.states_rad / math.pi - x / math.pi
+    torch.testing.assert_close(out.recon_loss, (d**2).mean())
+    l1 = UniDexTok(UniDexTokConfig.from_preset("tiny", mse_weight=0.0, l1_weight=2.0))
+    l1.load_state_dict(base.state_dict())
+    torch.testing.assert_close(l1(x, "human").recon_loss, 2.0 * d.abs().mean())
+    with pytest.raises(ValueError, match=">= 0"):
+        UniDexTokConfig(l1_weight=-1.0)
+
+
+def test_fourier_features_widen_the_input_projection():
+    torch.manual_seed(0)
+    model = UniDexTok(UniDexTokConfig.from_preset("tiny", fourier_octaves=3))
+    assert model.input_proj.in_features == UDHM_DIM * 7
+    assert model(_states(2), "human").states_rad.shape == (2, UDHM_DIM)

@@ -93,3 +93,41 @@ def test_bad_indices_raise(vq):
         vq.check_indices(torch.zeros(2, 4, 7, dtype=torch.long))
     with pytest.raises(ValueError, match=r"\[0, 31\]"):
         vq.check_indices(torch.full((2, 4, 8), 32))
+
+
+def test_rotation_trick_forward_is_the_code_and_gradient_is_rotated():
+    """The rotation-trick option: same forward value as straight-through, a different gradient to the input."""
+    cfg = UniDexTokConfig.from_preset("tiny")
+    grads = {}
+    for estimator in ("straight_through", "rotation"):
+        torch.manual_seed(0)
+        vq = FactorizedCosineVQ(UniDexTokConfig.from_preset("tiny", gradient_estimator=estimator))
+        z = torch.randn(8, 4, 64, requires_grad=True)
+        quantized, indices, _ = vq(z)
+        with torch.no_grad():
+            exact = vq.get_output_from_indices(indices)
+        torch.testing.assert_close(quantized, exact, rtol=0, atol=1e-5)
+        quantized.pow(3).sum().backward()
+        grads[estimator] = z.grad.clone()
+    assert not torch.allclose(grads["rotation"], grads["straight_through"])
+    assert cfg.gradient_estimator == "straight_through"  # the paper's estimator stays the default
+
+
+def test_ema_codebook_moves_toward_assigned_vectors_without_gradient():
+    torch.manual_seed(0)
+    vq = FactorizedCosineVQ(UniDexTokConfig.from_preset("tiny", codebook_update="ema", ema_decay=0.5))
+    assert not vq.codebooks.requires_grad
+    z = torch.randn(64, 4, 64)
+    before = torch.nn.functional.normalize(vq.codebooks.detach().clone(), dim=-1)
+    _, indices, loss, parts = vq(z, return_loss_breakdown=True)
+    assert parts.codebook.item() == 0.0  # no codebook loss term
+    u = torch.nn.functional.normalize(vq.project_in(z).view(64, 4, 8, 32), dim=-1).detach()
+    # a used code: its new direction is closer to the mean of its assigned vectors than before
+    k, s = 0, int(indices[..., 0].flatten().mode().values)
+    target = torch.nn.functional.normalize(u[..., 0, :][indices[..., 0] == s].mean(0), dim=-1)
+    after = torch.nn.functional.normalize(vq.codebooks[k, s], dim=-1)
+    assert (after @ target) > (before[k, s] @ target)
+    vq.eval()  # eval forward leaves the codebook alone
+    frozen = vq.codebooks.clone()
+    vq(torch.randn(8, 4, 64))
+    assert torch.equal(frozen, vq.codebooks)

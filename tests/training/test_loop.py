@@ -59,6 +59,7 @@ def test_few_shot_adds_the_hand_and_adapts(mixture, tmp_path):
     base = train_tokenizer(base_cfg, train.without("inspire_rh56"), test.only("human"))
     model = UniDexTok.from_pretrained(base.best_dir)
     assert not model.knows_hand("inspire_rh56") and model.knows_hand("human")
+    assert model.config.trained_hands == ["human"]
     # zero-shot: the unseen hand goes through the unknown-hand embedding
     zero_shot, _ = evaluate_mae_deg(model, test.only("inspire_rh56"), 10_000, 0)
 
@@ -70,6 +71,7 @@ def test_few_shot_adds_the_hand_and_adapts(mixture, tmp_path):
     assert result.steps == int(np.ceil(4 * len(few) / 32))
     adapted = UniDexTok.from_pretrained(result.best_dir)
     assert adapted.knows_hand("inspire_rh56")
+    assert adapted.config.trained_hands == ["human", "inspire_rh56"]  # the base's hands plus the adapted one
     assert result.best_mae_deg < zero_shot
 
 

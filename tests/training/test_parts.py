@@ -6,20 +6,8 @@ import numpy as np
 import pytest
 
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
-from lerobot_unidextok.training import HandMixSampler, HandStates, TrainConfig, subsample_episodes
+from lerobot_unidextok.training import HandStates, TrainConfig, subsample_episodes
 from lerobot_unidextok.training.optim import lr_at, param_groups
-
-
-def test_sampler_follows_hand_weights():
-    hands = np.array(["human"] * 900 + ["inspire_rh56"] * 100)
-    balanced = HandMixSampler(hands, {}, 1.0, seed=0).sample(20_000)
-    assert abs((hands[balanced] == "human").mean() - 0.5) < 0.02
-    weighted = HandMixSampler(hands, {"human": 3.0}, 1.0, seed=0).sample(20_000)
-    assert abs((hands[weighted] == "human").mean() - 0.75) < 0.02
-    only = HandMixSampler(hands, {"inspire_rh56": 1.0}, 0.0, seed=0).sample(1000)
-    assert set(hands[only]) == {"inspire_rh56"}
-    with pytest.raises(ValueError, match="all hand weights are zero"):
-        HandMixSampler(hands, {}, 0.0, seed=0)
 
 
 def test_no_weight_decay_on_codebooks_embeddings_norms_biases():
@@ -40,7 +28,7 @@ def test_warmup_then_cosine():
     assert lrs[0] == pytest.approx(1e-5) and lrs[99] == pytest.approx(1e-3)
     assert lrs[100] == pytest.approx(1e-3)
     assert lrs[550] == pytest.approx(1e-4 + 0.9e-3 * 0.5 * (1 + math.cos(math.pi * 0.5)))
-    assert all(a >= b for a, b in zip(lrs[100:], lrs[101:]))
+    assert all(a >= b for a, b in zip(lrs[100:], lrs[101:], strict=False))
     assert lr_at(1000, 1000, 1e-3, 100, 0.1) == pytest.approx(1e-4)
 
 

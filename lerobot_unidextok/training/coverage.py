@@ -1,0 +1,256 @@
+"""Coverage training: batches that mix recorded rows with states synthesised inside each hand's joint ranges.
+
+A tokenizer trained only on the few poses of its recordings memorises them: on unseen episodes of the same
+robot it is many times worse than per-joint binning (docs/tokenizer.md). Coverage samples fill the joint
+space the recordings leave empty.
+
+Mixing semantics of `MixtureSampler.sample` (one batch):
+
+1. each row picks a hand with the hand shares (`hand_weights`, relative; balanced by default);
+2. then a source with that hand kind's source weights (`CoverageConfig.robot` or `.human`, relative);
+3. then the source makes the row:
+
+   - `recorded`: a recorded row of that hand, as is;
+   - `uniform`: every active DoF uniform inside the hand's joint range (robot hands: the registered range of
+     one of its sides, from `hands.get(name).udhm_limits_rad(side)`; human: the UDHM joint limits);
+     inactive slots stay 0;
+   - `recombine`: each finger (thumb, index, middle, ring, pinky joint groups) from a different recorded row;
+   - `noise`: a recorded row plus uniform noise of at most `noise_deg` per active DoF, clipped to the range;
+   - `interpolate`: a random point on the segment between two recorded rows.
+
+Every synthesised row keeps the active-DoF mask of the recorded rows it came from (`uniform`: the hand's
+mask), so padded slots are never targets. Hands without a registered spec use the range of their recorded
+rows (logged once).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lerobot_unidextok.constants import UDHM_DIM, UDHM_JOINT_NAMES
+from lerobot_unidextok.training.arrays import HandStates
+
+logger = logging.getLogger(__name__)
+
+SOURCES: tuple[str, ...] = ("recorded", "uniform", "recombine", "noise", "interpolate")
+# UDHM joint -> finger group (0 thumb, 1 index, 2 middle, 3 ring, 4 pinky) for per-finger recombination
+FINGER_OF_JOINT: np.ndarray = np.array(
+    [("thumb", "index", "middle", "ring", "pinky").index(n.split("_", 1)[0]) for n in UDHM_JOINT_NAMES]
+)
+
+
+@dataclass
+class CoverageConfig:
+    """Source weights of the training mixture per hand kind (relative; a hand's rows follow them)."""
+
+    # Robot hands: recorded rows and uniform samples inside the registered joint ranges.
+    robot: dict[str, float] = field(default_factory=lambda: {"recorded": 0.5, "uniform": 0.5})
+    # The human hand: 22 independent uniform DoFs are implausible poses, so mostly plausible augmentations
+    # of the recorded poses plus a share of uniform samples.
+    human: dict[str, float] = field(
+        default_factory=lambda: {"recorded": 0.3, "recombine": 0.2, "noise": 0.2, "interpolate": 0.1, "uniform": 0.2}
+    )
+    noise_deg: float = 5.0  # bound of the uniform per-DoF noise of the `noise` source
+
+    def __post_init__(self) -> None:
+        for kind in ("robot", "human"):
+            weights = getattr(self, kind)
+            unknown = sorted(set(weights) - set(SOURCES))
+            if unknown:
+                raise ValueError(f"coverage.{kind}: unknown sources {unknown}; choose from {list(SOURCES)}")
+            if any(w < 0 for w in weights.values()) or sum(weights.values()) <= 0:
+                raise ValueError(f"coverage.{kind} weights must be >= 0 with a positive sum, got {weights}")
+        if self.noise_deg < 0:
+            raise ValueError(f"coverage.noise_deg must be >= 0, got {self.noise_deg}")
+
+    @classmethod
+    def recorded_only(cls) -> CoverageConfig:
+        """No coverage: recorded rows only (the behaviour before coverage training)."""
+        return cls(robot={"recorded": 1.0}, human={"recorded": 1.0})
+
+
+# ---------------------------------------------------------------------------------------------
+# per-hand tables
+# ---------------------------------------------------------------------------------------------
+def is_human(hand: str) -> bool:
+    """True for hands whose native data are keypoints (the human hand)."""
+    from lerobot_unidextok import hands
+
+    try:
+        return hands.get(hand).kind == "keypoints"
+    except KeyError:
+        return False
+
+
+def hand_ranges_rad(hand: str, mask: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
+    """(S, 22) lower and upper bounds (one row per side) of `hand` whose rows use active-DoF `mask`, and
+    where they came from: "registry", "udhm_limits" (human) or "recorded" (unregistered hand or a layout
+    the registry does not describe)."""
+    from lerobot_unidextok import hands, udhm
+
+    try:
+        spec = hands.get(hand)
+    except KeyError:
+        spec = None
+    if spec is not None and spec.kind == "keypoints":
+        lo, hi = udhm.JOINT_LIMITS_RAD[:, 0], udhm.JOINT_LIMITS_RAD[:, 1]
+        return lo[None] * mask, hi[None] * mask, "udhm_limits"
+    if spec is not None:
+        for mapping in ("semantic", "append_pad"):
+            if np.array_equal(spec.mask(mapping), mask):
+                los, his = [], []
+                for side in spec.sides:
+                    lo, hi = spec.udhm_limits_rad(side)
+                    if mapping == "append_pad":  # same values packed at the front in native order
+                        order = spec._slot_idx
+                        lo = np.concatenate([lo[order], np.zeros(UDHM_DIM - len(order))])
+                        hi = np.concatenate([hi[order], np.zeros(UDHM_DIM - len(order))])
+                    los.append(lo)
+                    his.append(hi)
+                return np.stack(los), np.stack(his), "registry"
+    logger.warning(
+        "coverage: hand %r has no registered joint ranges for its mask; sampling inside its recorded range", hand
+    )
+    return rows.min(0, keepdims=True) * mask, rows.max(0, keepdims=True) * mask, "recorded"
+
+
+@dataclass
+class _Hand:
+    """Recorded rows of one hand and what the sources need."""
+
+    name: str
+    rows: np.ndarray  # (n, 22) float32
+    masks: np.ndarray  # (n, 22) bool
+    mask: np.ndarray  # (22,) bool, the most common row mask
+    lo: np.ndarray  # (S, 22) per-side lower bounds
+    hi: np.ndarray  # (S, 22) per-side upper bounds
+    ranges_from: str
+    source_p: np.ndarray  # (len(SOURCES),) source probabilities
+
+    @property
+    def box(self) -> tuple[np.ndarray, np.ndarray]:
+        """(22,) union of the per-side ranges."""
+        return self.lo.min(0), self.hi.max(0)
+
+
+@dataclass
+class Batch:
+    states_rad: np.ndarray  # (B, 22) float32
+    masks: np.ndarray  # (B, 22) bool
+    hands: np.ndarray  # (B,) int64, index into `MixtureSampler.hand_names`
+    sources: np.ndarray  # (B,) int64, index into SOURCES
+
+
+# ---------------------------------------------------------------------------------------------
+# main class
+# ---------------------------------------------------------------------------------------------
+class MixtureSampler:
+    """Draws training batches: hand by hand share, then source by the hand kind's source weights."""
+
+    def __init__(
+        self,
+        data: HandStates,
+        hand_weights: dict[str, float] | None = None,
+        default_weight: float = 1.0,
+        coverage: CoverageConfig | None = None,
+        seed: int = 0,
+    ) -> None:
+        if len(data) == 0:
+            raise ValueError("no training rows: the sampler needs at least one recorded row per hand")
+        coverage = coverage or CoverageConfig()
+        self.coverage = coverage
+        self.hand_names = data.hand_names()
+        w = np.array([(hand_weights or {}).get(h, default_weight) for h in self.hand_names], dtype=np.float64)
+        if w.sum() <= 0:
+            raise ValueError(f"all hand weights are zero for hands {self.hand_names}; give at least one a weight > 0")
+        self.hand_p = w / w.sum()
+        self.hands: list[_Hand] = []
+        for name in self.hand_names:
+            sel = data.hands == name
+            rows, masks = data.states_rad[sel], data.masks[sel]
+            uniq, inverse, counts = np.unique(masks, axis=0, return_inverse=True, return_counts=True)
+            mask = uniq[counts.argmax()]
+            lo, hi, ranges_from = hand_ranges_rad(name, mask, rows)
+            weights = coverage.human if is_human(name) else coverage.robot
+            p = np.array([weights.get(s, 0.0) for s in SOURCES], dtype=np.float64)
+            self.hands.append(_Hand(name, rows, masks, mask, lo.astype(np.float32), hi.astype(np.float32),
+                                    ranges_from, p / p.sum()))  # fmt: skip
+        self.noise_rad = np.float32(np.radians(coverage.noise_deg))
+        self.rng = np.random.default_rng(seed)
+
+    # -----------------------------------------------------------------------------------------
+    # what the mixture is (training state, model card)
+    # -----------------------------------------------------------------------------------------
+    def describe(self) -> dict:
+        """Per hand: its share of a batch, its kind, where its ranges come from and its source shares."""
+        return {
+            "noise_deg": self.coverage.noise_deg,
+            "hands": {
+                h.name: {
+                    "share": float(p),
+                    "kind": "human" if is_human(h.name) else "robot",
+                    "recorded_rows": len(h.rows),
+                    "ranges_from": h.ranges_from,
+                    "sources": {s: float(q) for s, q in zip(SOURCES, h.source_p, strict=True) if q > 0},
+                }
+                for h, p in zip(self.hands, self.hand_p, strict=True)
+            },
+        }
+
+    # -----------------------------------------------------------------------------------------
+    # sampling
+    # -----------------------------------------------------------------------------------------
+    def sample(self, batch_size: int) -> Batch:
+        rng = self.rng
+        hand_of_row = rng.choice(len(self.hands), size=batch_size, p=self.hand_p)  # (B,)
+        x = np.zeros((batch_size, UDHM_DIM), dtype=np.float32)
+        m = np.zeros((batch_size, UDHM_DIM), dtype=bool)
+        src = np.zeros(batch_size, dtype=np.int64)
+        for k, hand in enumerate(self.hands):
+            rows_k = np.flatnonzero(hand_of_row == k)
+            if rows_k.size == 0:
+                continue
+            src_k = rng.choice(len(SOURCES), size=rows_k.size, p=hand.source_p)
+            src[rows_k] = src_k
+            for s, name in enumerate(SOURCES):
+                out = rows_k[src_k == s]
+                if out.size:
+                    x[out], m[out] = getattr(self, f"_{name}")(hand, out.size)
+        return Batch(x, m, hand_of_row.astype(np.int64), src)
+
+    def _pick(self, hand: _Hand, n: int) -> np.ndarray:
+        return self.rng.integers(len(hand.rows), size=n)
+
+    def _recorded(self, hand: _Hand, n: int) -> tuple[np.ndarray, np.ndarray]:
+        i = self._pick(hand, n)
+        return hand.rows[i], hand.masks[i]
+
+    def _uniform(self, hand: _Hand, n: int) -> tuple[np.ndarray, np.ndarray]:
+        side = self.rng.integers(len(hand.lo), size=n)
+        lo, hi = hand.lo[side], hand.hi[side]  # (n, 22)
+        x = lo + (hi - lo) * self.rng.random((n, UDHM_DIM), dtype=np.float32)
+        mask = np.broadcast_to(hand.mask, x.shape).copy()
+        return np.where(mask, x, 0.0).astype(np.float32), mask
+
+    def _recombine(self, hand: _Hand, n: int) -> tuple[np.ndarray, np.ndarray]:
+        donors = self.rng.integers(len(hand.rows), size=(n, int(FINGER_OF_JOINT.max()) + 1))  # (n, 5)
+        i = donors[:, FINGER_OF_JOINT]  # (n, 22): the row each joint comes from
+        j = np.arange(UDHM_DIM)
+        return hand.rows[i, j], hand.masks[i, j]
+
+    def _noise(self, hand: _Hand, n: int) -> tuple[np.ndarray, np.ndarray]:
+        x, mask = self._recorded(hand, n)
+        lo, hi = hand.box
+        noisy = x + self.rng.uniform(-self.noise_rad, self.noise_rad, size=x.shape).astype(np.float32)
+        noisy = np.clip(noisy, np.minimum(lo, x), np.maximum(hi, x))  # recorded rows may sit on a bound
+        return np.where(mask, noisy, x).astype(np.float32), mask
+
+    def _interpolate(self, hand: _Hand, n: int) -> tuple[np.ndarray, np.ndarray]:
+        a, b = self._pick(hand, n), self._pick(hand, n)
+        t = self.rng.random((n, 1), dtype=np.float32)
+        x = hand.rows[a] + t * (hand.rows[b] - hand.rows[a])
+        mask = hand.masks[a] & hand.masks[b]
+        return np.where(mask, x, 0.0).astype(np.float32), mask
