@@ -5,7 +5,8 @@ huggingface/lerobot: a `PipelineStep` whose `run(data, rank, world_size)` conver
 `world_size` (`ConvertShard`: `pipeline.convert` with `shard_index=rank, num_shards=world_size`: a
 contiguous slice of the source-ordered episode list, the test split chosen over the whole source), and
 an executor with one task that depends on the first and merges the shards in order (`MergeShards`:
-`pipeline.merge_shards`, i.e. LeRobot's `aggregate_datasets` plus our records), then validates.
+`pipeline.merge_shards`, i.e. LeRobot's `aggregate_datasets` plus our records). Each shard task
+validates its shard before it is marked complete.
 
 Use `conversion.sharded.convert_with_executor` (set-up checks, resume guard); `build_executors` alone
 constructs the executors without running anything (e.g. to inspect a Slurm script). datatrove is an
@@ -51,6 +52,7 @@ class ConvertShard(PipelineStep):
 
     def run(self, data=None, rank: int = 0, world_size: int = 1):
         from lerobot_unidextok.conversion.pipeline import convert
+        from lerobot_unidextok.conversion.validate import validate_dataset
 
         root = shard_roots(self.shards_dir, world_size)[rank]
         # overwrite: a shard written by an attempt that died before datatrove marked it complete is redone
@@ -58,6 +60,9 @@ class ConvertShard(PipelineStep):
             **{**self.options, "root": root, "shard_index": rank, "num_shards": world_size, "overwrite": True}
         )
         report = convert(opts)
+        check = validate_dataset(root, load=False)  # the data checks; the shard fits this task's memory
+        if not check.ok:
+            raise RuntimeError(f"shard {rank}/{world_size} at {root} failed validation:\n{check.table()}")
         self.stat_update("episodes", value=report.num_episodes, unit="shard")
         self.stat_update("frames", value=report.num_frames, unit="shard")
         self.stat_update("skipped_episodes", value=len(report.failures), unit="shard")
@@ -66,7 +71,11 @@ class ConvertShard(PipelineStep):
 
 
 class MergeShards(PipelineStep):
-    """One task: merge the shards in order into the target, validate it, then remove the shards."""
+    """One task: merge the shards in order into the target (records and episode counts checked), then
+    remove the shards.
+
+    Each shard was validated by its own task (`validate_dataset(load=False)`); the merged dataset is not
+    read again here (it may not fit one machine's memory): `unidextok-convert --validate=true --root=...`."""
 
     name = "merge shards"
     type = "UDHM"
@@ -87,7 +96,6 @@ class MergeShards(PipelineStep):
 
     def run(self, data=None, rank: int = 0, world_size: int = 1):
         from lerobot_unidextok.conversion.pipeline import merge_shards
-        from lerobot_unidextok.conversion.validate import validate_dataset
 
         if rank != 0:
             return
@@ -96,9 +104,6 @@ class MergeShards(PipelineStep):
         if missing:
             raise FileNotFoundError(f"shard datasets missing (did every convert task finish?): {missing}")
         target = merge_shards(shards, self.root, self.repo_id, overwrite=self.overwrite)
-        report = validate_dataset(target, repo_id=self.repo_id)
-        if not report.ok:
-            raise RuntimeError(f"merged dataset {target} failed validation:\n{report.table()}")
         info = json.loads((target / "meta" / "info.json").read_text())
         self.stat_update("episodes", value=int(info["total_episodes"]), unit="dataset")
         self.stat_update("frames", value=int(info["total_frames"]), unit="dataset")

@@ -201,7 +201,9 @@ def convert_cli(cfg: ConvertConfig) -> int:
 
 
 def main() -> None:
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    # force: importing lerobot already gave the root logger a WARNING handler (a module-level logging.debug
+    # call in lerobot.utils.import_utils), which would make this a no-op and hide our INFO lines
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", force=True)
     for noisy in ("httpx", "lerobot.datasets.utils"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
     sys.exit(convert_cli())

@@ -17,6 +17,11 @@ class TrainConfig:
     default_hand_weight: float = 1.0
     # Hands dropped from training (kept in evaluation): the zero-shot protocol.
     exclude_hands: list[str] = field(default_factory=list)
+    # Training data larger than memory: read the rows from a memory-mapped per-hand store on disk
+    # (`data.open_row_store`, built once from the datasets and reused while they are unchanged) instead
+    # of loading every frame; same hand mixing. Held-out rows: up to `eval_max_frames`, drawn at random.
+    streaming: bool = False
+    row_store_dir: str = ""  # where the stores go; default <output_dir>/row_store
 
     # --- model ------------------------------------------------------------------------------------
     preset: str = "small"  # UniDexTokConfig preset: paper | small | tiny
@@ -61,7 +66,10 @@ class TrainConfig:
     adapt: str = "all"
 
     # --- runtime ------------------------------------------------------------------------------------
-    device: str = "cpu"  # cpu | cuda | cuda:N ; multi-GPU through `accelerate launch`
+    # cpu | cuda | cuda:N. Several processes: `accelerate launch --multi_gpu --num_processes=N -m
+    # lerobot_unidextok.scripts.train ...` (also on CPU with --device=cpu: gloo) or `torchrun`; each process
+    # draws its own `batch_size` rows, so the effective batch is batch_size x N (docs/tokenizer.md)
+    device: str = "cpu"
     # torch CPU threads while training (0 = torch default). 1 by default: these models are small and
     # extra intra-op threads slow training down ~10x on busy shared CPUs (measured).
     num_threads: int = 1
@@ -76,6 +84,11 @@ class TrainConfig:
             raise ValueError(f"unknown_hand_prob must be in [0, 1), got {self.unknown_hand_prob}")
         if self.adapt not in ("all", "hand_embedding"):
             raise ValueError(f"adapt must be 'all' or 'hand_embedding', got {self.adapt!r}")
+        if self.streaming and self.fraction < 1.0:
+            raise ValueError(
+                "--streaming is for large training sets; few-shot (--fraction < 1) trains on a few episodes "
+                "in memory: drop --streaming"
+            )
         if self.batch_size < 1:
             raise ValueError(f"batch_size must be >= 1, got {self.batch_size}")
         if self.warmup_steps < 0:

@@ -1,4 +1,5 @@
-"""The tokenizer training loop over in-memory per-hand rows (single process or `accelerate launch`)."""
+"""The tokenizer training loop over per-hand rows, in memory or memory-mapped (one process, or several
+through `accelerate launch` / `torchrun`: see `training/distributed.py`)."""
 
 import logging
 import math
@@ -10,16 +11,19 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from lerobot_unidextok.data.rowstore import HandRowStore
 from lerobot_unidextok.evaluation.metrics import mpjae_deg
 from lerobot_unidextok.evaluation.reconstruct import codebook_usage, reconstruct
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
-from lerobot_unidextok.training.arrays import HandMixSampler, HandStates
+from lerobot_unidextok.training.arrays import HandStates
+from lerobot_unidextok.training.batches import make_batches
 from lerobot_unidextok.training.checkpoint import (
     load_optimizer_state,
     load_training_state,
     save_checkpoint,
 )
 from lerobot_unidextok.training.config import TrainConfig
+from lerobot_unidextok.training.distributed import broadcast_from_main, check_replicas
 from lerobot_unidextok.training.optim import lr_at, make_optimizer
 
 logger = logging.getLogger(__name__)
@@ -37,7 +41,7 @@ class TrainResult:
     history: list[dict] = field(default_factory=list)  # one entry per evaluation
 
 
-def build_model(cfg: TrainConfig, train_data: HandStates) -> UniDexTok:
+def build_model(cfg: TrainConfig, train_data: HandStates | HandRowStore) -> UniDexTok:
     """A fresh model from the preset, or `init_from` with any new training hands added."""
     hands = train_data.hand_names()
     if cfg.init_from:
@@ -58,16 +62,18 @@ def evaluate_mae_deg(model: UniDexTok, data: HandStates, max_frames: int, seed: 
     return mpjae_deg(rec.states_rad, data.states_rad, data.masks), codebook_usage(rec.codes, model.config.codebook_size)
 
 
-def total_steps(cfg: TrainConfig, num_train_rows: int) -> int:
-    if cfg.epochs > 0:
-        return max(1, math.ceil(cfg.epochs * num_train_rows / cfg.batch_size))
+def total_steps(cfg: TrainConfig, num_train_rows: int, num_processes: int = 1) -> int:
+    if cfg.epochs > 0:  # an epoch = the training rows once at the effective batch size
+        return max(1, math.ceil(cfg.epochs * num_train_rows / (cfg.batch_size * num_processes)))
     return cfg.steps
 
 
 def train_tokenizer(
-    cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, model: UniDexTok | None = None
+    cfg: TrainConfig, train_data: HandStates | HandRowStore, eval_data: HandStates, model: UniDexTok | None = None
 ) -> TrainResult:
-    """Train (or adapt) a tokenizer; keeps the checkpoint with the lowest held-out joint MAE (deg)."""
+    """Train (or adapt) a tokenizer; keeps the checkpoint with the lowest held-out joint MAE (deg).
+
+    `train_data`: in-memory rows, or a memory-mapped `data.HandRowStore` (same hand mixing)."""
 
     if len(train_data) == 0 or len(eval_data) == 0:
         raise ValueError(f"need training and held-out rows, got {len(train_data)} and {len(eval_data)}")
@@ -80,7 +86,9 @@ def train_tokenizer(
         torch.set_num_threads(threads_before)
 
 
-def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, model: UniDexTok | None) -> TrainResult:
+def _train(
+    cfg: TrainConfig, train_data: HandStates | HandRowStore, eval_data: HandStates, model: UniDexTok | None
+) -> TrainResult:
     from accelerate import Accelerator
 
     accelerator = Accelerator(cpu=cfg.device == "cpu")
@@ -104,7 +112,7 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
         param.requires_grad_(cfg.adapt == "all" or name.startswith("hand_embed"))
     optimizer = make_optimizer(model, cfg.lr, cfg.weight_decay, cfg.betas)
 
-    n_steps = total_steps(cfg, len(train_data))
+    n_steps = total_steps(cfg, len(train_data), accelerator.num_processes)
     start, best_mae, best_step, history = 0, float("inf"), -1, []
     if cfg.resume:
         load_optimizer_state(optimizer, last_dir)
@@ -113,16 +121,15 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
     model, optimizer = accelerator.prepare(model, optimizer)
     raw_model: UniDexTok = accelerator.unwrap_model(model)
 
-    sampler = HandMixSampler(
-        train_data.hands,
-        cfg.hand_weights,
-        cfg.default_hand_weight,
-        seed=cfg.seed * 1000 + start + accelerator.process_index,
+    batches = make_batches(  # each process draws its own batches
+        train_data, cfg.hand_weights, cfg.default_hand_weight, seed=cfg.seed * 1000 + start + accelerator.process_index
     )
-    logger.info("training %d steps on %d rows; hand shares %s", n_steps, len(train_data), sampler.hand_share)
-    states = torch.as_tensor(train_data.states_rad)
-    masks = torch.as_tensor(train_data.masks)
-    hand_ids = torch.tensor([raw_model._hand_index[h] for h in train_data.hands.tolist()])
+    logger.info(
+        "training %d steps on %d rows; hand shares %s; batch %d x %d processes = %d",
+        n_steps, len(train_data), batches.hand_share, cfg.batch_size, accelerator.num_processes,
+        cfg.batch_size * accelerator.num_processes,
+    )  # fmt: skip
+    hand_id_of = torch.tensor([raw_model._hand_index[h] for h in batches.hand_names])  # batch hand -> model id
     device = accelerator.device
 
     def _evaluate(step: int) -> None:
@@ -143,7 +150,7 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
             usage["usage"],
         )
 
-    dropout_rng = torch.Generator().manual_seed(cfg.seed * 1000 + start + 1)
+    dropout_rng = torch.Generator().manual_seed(cfg.seed * 1000 + start + 1 + 7919 * accelerator.process_index)
     t0 = time.perf_counter()
     bar = tqdm(
         range(start, n_steps),
@@ -156,8 +163,10 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
         lr = lr_at(step, n_steps, cfg.lr, cfg.warmup_steps, cfg.min_lr_ratio)
         for g in optimizer.param_groups:
             g["lr"] = lr
-        rows = torch.from_numpy(sampler.sample(cfg.batch_size))
-        x, m, h = states[rows].to(device), masks[rows].to(device), hand_ids[rows].to(device)  # (B, 22), (B, 22), (B,)
+        batch = batches.sample(cfg.batch_size)
+        x = torch.from_numpy(batch.states_rad).to(device)  # (B, 22)
+        m = torch.from_numpy(batch.masks).to(device)  # (B, 22)
+        h = hand_id_of[torch.from_numpy(batch.hands)].to(device)  # (B,)
         if cfg.unknown_hand_prob > 0:  # hand-embedding dropout trains the zero-shot "unknown hand" path
             drop = torch.rand(h.shape, generator=dropout_rng).to(device) < cfg.unknown_hand_prob  # (B,)
             h = torch.where(drop, torch.full_like(h, raw_model.unknown_hand_id), h)
@@ -170,6 +179,7 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
         optimizer.step()
         if cfg.adapt == "all" and cfg.reseed_every > 0 and (step + 1) % cfg.reseed_every == 0:
             raw_model.quantizer.reseed_dead_codes()
+            broadcast_from_main(raw_model.quantizer)  # re-seeded from each process's own batch: keep process 0's
 
         if step % 10 == 0:
             with torch.no_grad():
@@ -181,6 +191,7 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
                 lr=f"{lr:.1e}",
             )
         if (step + 1) % cfg.eval_every == 0 or step + 1 == n_steps:
+            check_replicas(raw_model, step + 1)  # every process; raises if the copies drifted apart
             _evaluate(step + 1)
         if accelerator.is_main_process and ((step + 1) % cfg.save_last_every == 0 or step + 1 == n_steps):
             save_checkpoint(
