@@ -150,7 +150,7 @@ def build_row_store(
     split: str | None,
     folder: str | Path,
     holdout: str = "auto",
-    batch_rows: int = 16384,
+    batch_rows: int = 4096,
 ) -> HandRowStore:
     """Stream the datasets' rows of `split` into a store at `folder` (replaced atomically when it exists)."""
     roots = _roots(datasets)
