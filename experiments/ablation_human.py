@@ -1,4 +1,4 @@
-"""`python experiments/ablation_human.py [--tiny] [--datasets=a,b] [--config_path=configs/experiments/default.yaml] [--<field>=<value>]`"""
+"""`python experiments/ablation_human.py [--config_path=configs/experiments/<default|tiny|longer>.yaml] [--data=auto|real|sample] [--datasets='[a,b]'] [--<field>=<value>]`"""
 
 from lerobot_unidextok.experiments.ablation_human import main
 

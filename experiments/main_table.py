@@ -1,4 +1,4 @@
-"""`python experiments/main_table.py [--tiny] [--datasets=a,b] [--config_path=configs/experiments/default.yaml] [--<field>=<value>]`"""
+"""`python experiments/main_table.py [--config_path=configs/experiments/<default|tiny|longer>.yaml] [--data=auto|real|sample] [--datasets='[a,b]'] [--<field>=<value>]`"""
 
 from lerobot_unidextok.experiments.main_table import main
 

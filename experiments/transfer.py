@@ -1,4 +1,4 @@
-"""`python experiments/transfer.py [--tiny] [--datasets=a,b] [--config_path=configs/experiments/default.yaml] [--<field>=<value>]`"""
+"""`python experiments/transfer.py [--config_path=configs/experiments/<default|tiny|longer>.yaml] [--data=auto|real|sample] [--datasets='[a,b]'] [--<field>=<value>]`"""
 
 from lerobot_unidextok.experiments.transfer import main
 

@@ -195,9 +195,9 @@ def demo_lerobot(out: Path, roots: dict[str, Path]) -> None:
     root = roots.get("lerobot") or next(iter(roots.values()))
     ds = LeRobotDataset(f"demo/{root.name}_udhm", root=root, video_backend="pyav")  # state-only: no decoder probe
     layout = hand_layout_from_dataset(root)
-    step = UniDexTokStateTokenizerStep(hand_layout=layout.hands, pretrained=str(out / "tokenizer"))
+    step = UniDexTokStateTokenizerStep.from_dataset(root, pretrained=str(out / "tokenizer"))  # blocks found by name
     pipeline = PolicyProcessorPipeline(steps=[step], name="policy_preprocessor")
-    frames = torch.stack([ds[i]["observation.state"] for i in (0, len(ds) // 2)])  # (2, 22 * H)
+    frames = torch.stack([ds[i]["observation.state"] for i in (0, len(ds) // 2)])  # (2, D): passthrough + 22 * H
     processed = pipeline({"observation.state": frames})
     print(f"dataset {root.name}: {len(ds)} frames, layout {layout.hands}; processor output keys: "
           f"{sorted(k for k in processed if k.startswith('observation'))}")  # fmt: skip

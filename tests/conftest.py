@@ -58,3 +58,20 @@ def l10_dataset(real_data_dir, tmp_path_factory) -> Path:
     from linkerhand_udhm import write_l10_dataset
 
     return write_l10_dataset(tmp_path_factory.mktemp("l10") / "ds", real_data_dir)
+
+
+@pytest.fixture(scope="session")
+def g1_like(tmp_path_factory) -> dict:
+    """A synthetic whole-robot dataset in the converted contract: 14 G1 arm joints + 2 Inspire UDHM blocks,
+    with `native_layout` (tests/fixtures/robot_udhm.py); {"root", "native_state", "native_action"}."""
+    from robot_udhm import write_g1_like_dataset
+
+    return write_g1_like_dataset(tmp_path_factory.mktemp("g1_like") / "ds")
+
+
+@pytest.fixture(scope="session")
+def g1_like_hands(tmp_path_factory) -> dict:
+    """The hands-only variant of `g1_like`: state and action are the two Inspire UDHM blocks (44 wide)."""
+    from robot_udhm import write_g1_like_dataset
+
+    return write_g1_like_dataset(tmp_path_factory.mktemp("g1_like_hands") / "ds", arms=False)

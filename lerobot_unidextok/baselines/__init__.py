@@ -1,4 +1,4 @@
-"""Baseline hand-state tokenizers (uniform binning, UniHM-style VQ-VAE, FSQ / RVQ) and their rates.
+"""Baseline hand-state tokenizers (uniform binning, PCA + binning, UniHM-style VQ-VAE, FSQ / RVQ) and their rates.
 
 Errors are scored with `lerobot_unidextok.evaluation.metrics`, the same code for every method.
 
@@ -15,6 +15,7 @@ from lerobot_unidextok.baselines.base import (
     tokens_per_state,
 )
 from lerobot_unidextok.baselines.binning import BinningConfig, HandRange, UniformBinning
+from lerobot_unidextok.baselines.pca import PCAConfig, PCATokenizer
 from lerobot_unidextok.baselines.quantized_ae import (
     QuantizedAEConfig,
     QuantizedAETokenizer,
@@ -28,6 +29,8 @@ __all__ = [
     "UNIHM_PRESETS",
     "BinningConfig",
     "HandRange",
+    "PCAConfig",
+    "PCATokenizer",
     "QuantizedAEConfig",
     "QuantizedAETokenizer",
     "Rate",

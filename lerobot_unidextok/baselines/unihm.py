@@ -7,7 +7,9 @@ choice where the original is unclear is listed in `docs/baselines.md`.
 Schedule (`UniHMTokenizer.fit`):
 1. teacher: one Conv1d encoder over the UDHM vector (1-channel sequence), shared codebook, one decoder
    per hand; loss = sum over decoders of L1 + UniHM's VQ loss. Human states are also decoded into every
-   robot hand through semantic insertion (the UDHM analogue of UniHM's retargeted pairs).
+   robot hand: into the robot state retargeted from the same human frame when `paired` is given (UniHM's
+   recipe: DexYCB retargeted to each robot with dex-retargeting), else into the human state semantically
+   inserted into the robot's slots (a stand-in when no retargeted pairs exist).
 2. students (every hand but the teacher hand): distil L1(z_student, z_teacher), then code alignment
    L1(q(z_s), q(z_t)) + VQ loss with a frozen codebook, repeated in rounds with LR x 0.8^i.
 3. fine-tune each student inside the frozen codebook + decoder with L1 reconstruction.
@@ -249,6 +251,7 @@ class UniHMTokenizer(nn.Module):
         self.students = nn.ModuleDict()
         self.decoders = nn.ModuleDict()
         self.masks: dict[str, torch.Tensor] = {}
+        self._paired: dict[str, torch.Tensor] = {}  # retargeted robot states paired with teacher rows (fit)
 
     # --- public API -------------------------------------------------------------------------
     def rate(self, hand: str) -> Rate:
@@ -281,8 +284,17 @@ class UniHMTokenizer(nn.Module):
         return x_norm * ANGLE_SCALE_RAD * self.masks[hand]  # (B, 22) rad, inactive slots zero
 
     # --- training ---------------------------------------------------------------------------
-    def fit(self, train_states: Mapping[str, ArrayLike], masks: Mapping[str, ArrayLike] | None = None) -> dict:
-        """Train teacher, students and fine-tuning on `{hand: (N, 22) rad}`; returns per-phase loss lists."""
+    def fit(
+        self,
+        train_states: Mapping[str, ArrayLike],
+        masks: Mapping[str, ArrayLike] | None = None,
+        paired: Mapping[str, ArrayLike] | None = None,
+    ) -> dict:
+        """Train teacher, students and fine-tuning on `{hand: (N, 22) rad}`; returns per-phase loss lists.
+
+        `paired[hand]` (N_teacher, 22): the robot state retargeted from each row of the teacher hand's states
+        (row for row), UniHM's training pairs.
+        """
         cfg = self.config
         if not train_states:
             raise ValueError("UniHMTokenizer.fit needs states of at least one hand: {'human': (N, 22) radians, ...}")
@@ -304,9 +316,23 @@ class UniHMTokenizer(nn.Module):
         self.decoders = nn.ModuleDict({hand: UniHMDecoder(cfg) for hand in states})
         student_hands = [hand for hand in states if hand != cfg.teacher_hand]
         self.students = nn.ModuleDict({hand: UniHMEncoder(cfg) for hand in student_hands})
-        # robot slot ranges for semantic insertion of human states (the UDHM analogue of retargeting)
+        # robot slot ranges for semantic insertion of human states (used where no retargeted pairs are given)
         self._ranges = {hand: (s.min(0).values, s.max(0).values) for hand, s in states.items()}
         norm = {hand: self._normalise(s, hand) for hand, s in states.items()}
+        self._paired = {}
+        for hand, pair in (paired or {}).items():
+            pair = as_states(pair, f"paired[{hand!r}]")
+            if (
+                hand not in states
+                or cfg.teacher_hand not in states
+                or pair.shape[0] != states[cfg.teacher_hand].shape[0]
+            ):
+                raise ValueError(
+                    f"paired[{hand!r}] must hold one retargeted state per {cfg.teacher_hand!r} training row "
+                    f"({states[cfg.teacher_hand].shape[0] if cfg.teacher_hand in states else 0}) of a hand in train_states; "
+                    f"got {tuple(pair.shape)}"
+                )
+            self._paired[hand] = self._normalise(pair, hand)
         self.train()
         history = {"teacher": self._fit_teacher(norm, generator)}
         history.update(self._fit_students(norm, generator))
@@ -317,14 +343,22 @@ class UniHMTokenizer(nn.Module):
         check_hand(hand, self.masks, self.name)
         return states_rad / ANGLE_SCALE_RAD * self.masks[hand]  # (B, 22)
 
+    def _robot_target(self, human_norm: torch.Tensor, idx: torch.Tensor, hand: str) -> torch.Tensor:
+        """The robot state paired with human rows `idx`: retargeted if given, else semantically inserted."""
+        if hand in self._paired:
+            return self._paired[hand][idx]
+        return self._insert(human_norm, hand)
+
     def _insert(self, human_norm: torch.Tensor, hand: str) -> torch.Tensor:
         """Human state -> hand's active slots, clipped to the range the hand shows in training."""
         lower, upper = self._ranges[hand]
         return torch.clamp(human_norm, lower / ANGLE_SCALE_RAD, upper / ANGLE_SCALE_RAD) * self.masks[hand]
 
     def _batch(self, norm: dict[str, torch.Tensor], hand: str, generator: torch.Generator) -> torch.Tensor:
-        data = norm[hand]
-        return data[torch.randint(data.shape[0], (self.config.batch_size,), generator=generator)]
+        return norm[hand][self._indices(norm, hand, generator)]
+
+    def _indices(self, norm: dict[str, torch.Tensor], hand: str, generator: torch.Generator) -> torch.Tensor:
+        return torch.randint(norm[hand].shape[0], (self.config.batch_size,), generator=generator)
 
     def _l1(self, pred: torch.Tensor, target: torch.Tensor, hand: str) -> torch.Tensor:
         mask = self.masks[hand]
@@ -339,17 +373,18 @@ class UniHMTokenizer(nn.Module):
         recent: list[torch.Tensor] = []
         losses = []
         for step in tqdm(range(cfg.teacher_steps), desc="UniHM teacher", disable=not cfg.progress):
-            batches = {hand: self._batch(norm, hand, generator) for hand in norm}
+            idx = {hand: self._indices(norm, hand, generator) for hand in norm}
+            batches = {hand: norm[hand][i] for hand, i in idx.items()}
             z = self.teacher(torch.cat(list(batches.values())))  # (H*B, D)
             z_q, _, vq_loss = self.quantizer(z)
-            chunks = dict(zip(batches, z_q.split(cfg.batch_size)))
+            chunks = dict(zip(batches, z_q.split(cfg.batch_size), strict=True))
             loss = vq_loss
             for hand, x in batches.items():
                 loss = loss + self._l1(self.decoders[hand](chunks[hand]), x, hand)
             if human is not None:  # UniHM's multi-decoder loss: every robot decodes the human code
                 for hand in norm:
                     if hand != human:
-                        target = self._insert(batches[human], hand)
+                        target = self._robot_target(batches[human], idx[human], hand)
                         loss = loss + self._l1(self.decoders[hand](chunks[human]), target, hand)
             opt.zero_grad()
             opt_codebook.zero_grad()
@@ -369,8 +404,9 @@ class UniHMTokenizer(nn.Module):
         human = self.config.teacher_hand
         if human not in norm:
             return own, own
-        human_batch = self._batch(norm, human, generator)
-        return torch.cat([own, self._insert(human_batch, hand)]), torch.cat([own, human_batch])
+        idx = self._indices(norm, human, generator)
+        human_batch = norm[human][idx]
+        return torch.cat([own, self._robot_target(human_batch, idx, hand)]), torch.cat([own, human_batch])
 
     def _fit_students(self, norm: dict[str, torch.Tensor], generator: torch.Generator) -> dict[str, list[float]]:
         cfg = self.config

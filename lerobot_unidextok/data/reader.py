@@ -8,7 +8,6 @@ the robot's other columns (arms, grippers); the train/test split comes from `dat
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -64,14 +63,10 @@ class UdhmFrames:
 def _resolve_root(root: str | Path | None, repo_id: str | None) -> Path:
     if root is None:
         if repo_id is None:
-            raise ValueError("give root= (a converted dataset folder) or repo_id= (looked up in $HF_LEROBOT_HOME)")
-        home = Path(
-            os.environ.get(
-                "HF_LEROBOT_HOME",
-                Path(os.environ.get("HF_HOME", "~/.cache/huggingface")) / "lerobot",
-            )
-        )
-        root = home.expanduser() / repo_id
+            raise ValueError("give root= (a converted dataset folder) or repo_id= (looked up in the local caches)")
+        from lerobot_unidextok.utils.hf_cache import dataset_root
+
+        root = dataset_root(repo_id)  # $HF_LEROBOT_HOME/<repo_id>, then the HF cache (unidextok-pull)
     root = Path(root)
     if not (root / "meta" / "info.json").is_file():
         raise FileNotFoundError(

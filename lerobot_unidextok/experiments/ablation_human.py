@@ -59,10 +59,12 @@ def run(cfg: ExperimentConfig) -> dict:
 
 
 def markdown(result: dict) -> str:
-    header = ["robot hand", "MPJAE with (deg)", "MPJAE without (deg)", "MPJAE reduction %", "MPJPE with (mm)",
-              "MPJPE without (mm)", "MPJPE reduction %"]  # fmt: skip
+    header = ["robot hand", "MPJAE with (deg)", "MPJAE without (deg)", "MPJAE reduction %", "MPJPE all 21 kp with (mm)",
+              "MPJPE all 21 kp without (mm)", "MPJPE reduction %", "MPJPE 15 finger kp with (mm)",
+              "MPJPE 15 finger kp without (mm)"]  # fmt: skip
     body = [[r["hand"], r[WITH]["mpjae_deg"], r[WITHOUT]["mpjae_deg"], r["mpjae_reduction_pct"], r[WITH]["mpjpe_mm"],
-             r[WITHOUT]["mpjpe_mm"], r["mpjpe_reduction_pct"]] for r in result["rows"]]  # fmt: skip
+             r[WITHOUT]["mpjpe_mm"], r["mpjpe_reduction_pct"], r[WITH].get("mpjpe_fingers_mm"),
+             r[WITHOUT].get("mpjpe_fingers_mm")] for r in result["rows"]]  # fmt: skip
     return "\n".join([f"# {NAME}", "", ("UniDexTok trained with vs without human-hand rows (same steps, seed and robot "
                       "rows), scored on robot hands' held-out states. Reduction = (without - with) / without."), "",
                       md_table(header, body)])  # fmt: skip

@@ -131,10 +131,12 @@ def run(cfg: ExperimentConfig) -> dict:
 
 
 def markdown(result: dict) -> str:
-    header = ["hand", "MPJAE semantic (deg)", "MPJAE append-pad (deg)", "MPJAE reduction %", "MPJPE semantic (mm)",
-              "MPJPE append-pad (mm)", "MPJPE reduction %"]  # fmt: skip
+    header = ["hand", "MPJAE semantic (deg)", "MPJAE append-pad (deg)", "MPJAE reduction %", "MPJPE all 21 kp semantic (mm)",
+              "MPJPE all 21 kp append-pad (mm)", "MPJPE reduction %", "MPJPE 15 finger kp semantic (mm)",
+              "MPJPE 15 finger kp append-pad (mm)"]  # fmt: skip
     body = [[r["hand"], r["semantic"]["mpjae_deg"], r["append_pad"]["mpjae_deg"], r["mpjae_reduction_pct"],
-             r["semantic"]["mpjpe_mm"], r["append_pad"]["mpjpe_mm"], r["mpjpe_reduction_pct"]] for r in result["rows"]]  # fmt: skip
+             r["semantic"]["mpjpe_mm"], r["append_pad"]["mpjpe_mm"], r["mpjpe_reduction_pct"],
+             r["semantic"].get("mpjpe_fingers_mm"), r["append_pad"].get("mpjpe_fingers_mm")] for r in result["rows"]]  # fmt: skip
     return "\n".join([f"# {NAME}", "", ("Same raw sources converted with semantic insertion and with append-and-pad, one "
                       "UniDexTok each (same steps and seed). Reduction = (append-pad - semantic) / append-pad. "
                       f"Layout check (max |permuted append-pad - semantic| on held-out states): "

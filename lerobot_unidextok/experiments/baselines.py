@@ -47,7 +47,9 @@ def binning(train: HandStates):
     return UniformBinning({h: hand_range(h, train, m) for h, m in masks.items()})
 
 
-def unihm(cfg: ExperimentConfig, train: HandStates):
+def unihm(cfg: ExperimentConfig, train: HandStates, paired: dict[str, np.ndarray] | None = None):
+    """UniHM-style VQ-VAE on `train`; `paired[hand]` = the robot rows retargeted from `train`'s human rows
+    (row for row), UniHM's own recipe. Without pairs, human rows reach the robot decoders by semantic insertion."""
     from lerobot_unidextok.baselines import UniHMConfig, UniHMTokenizer
 
     ucfg = UniHMConfig.from_preset(
@@ -58,6 +60,27 @@ def unihm(cfg: ExperimentConfig, train: HandStates):
         kmeans_every=max(1, cfg.unihm_teacher_steps // 3),
     )  # fmt: skip
     tok = UniHMTokenizer(ucfg)
+    tok.fit(per_hand_states(train), hand_masks(train), paired=paired)
+    return tok
+
+
+UNIHM_RETARGETED, UNIHM_INSERTED = "UniHM (retargeted)", "UniHM-style (semantic insertion)"
+
+
+def unihm_for(cfg: ExperimentConfig, fit: HandStates, pairs) -> tuple[object, str]:
+    """(UniHM tokenizer, its label): trained per robot hand on retargeted human motion when `pairs`
+    (`retargeted.RetargetedPairs`) exist, else on `fit` with semantic insertion as the stand-in."""
+    if pairs is None:
+        return unihm(cfg, fit), UNIHM_INSERTED
+    train = HandStates.concat([pairs.human_train, pairs.train_states()])
+    return unihm(cfg, train, paired={h: pairs.robot_train[h].states_rad for h in pairs.hands}), UNIHM_RETARGETED
+
+
+def pca(cfg: ExperimentConfig, train: HandStates):
+    """PCA of each hand's training states to `pca_components` coefficients, `pca_bits` bits each."""
+    from lerobot_unidextok.baselines import PCAConfig, PCATokenizer
+
+    tok = PCATokenizer(PCAConfig(num_components=cfg.pca_components, bits=cfg.pca_bits))
     tok.fit(per_hand_states(train), hand_masks(train))
     return tok
 

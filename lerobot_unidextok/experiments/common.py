@@ -62,7 +62,7 @@ def git_commit() -> str:
 def provenance(cfg: ExperimentConfig, data: "ExperimentData", seconds: float) -> dict:
     """Data, preset, seed and commit a result came from."""
     return {
-        "data": {"synthetic_sample": data.synthetic, "datasets": [str(d) for d in data.datasets],
+        "data": {"source": data.source, "synthetic_sample": data.synthetic, "datasets": [str(d) for d in data.datasets],
                  "train_rows": len(data.train), "test_rows": len(data.test), "hands": data.train.hand_names()},
         "preset": cfg.preset,
         "seed": cfg.seed,
@@ -126,7 +126,9 @@ class ExperimentData:
     test: HandStates
     datasets: list[Path | str]
     synthetic: bool
-    raw_dir: Path | None = None  # raw sample sources (labels for the probe), None for user datasets
+    raw_dir: Path | None = None  # raw sample sources (labels for the probe), None otherwise
+    source: str = "sample"  # "real" (../shared/data/real), "sample" (SYNTHETIC), "datasets" (--datasets)
+    clip: object | None = None  # real_data.RealHuman: the real human clip and its retargeted hands (real only)
 
 
 def sample_raw_dir(cfg: ExperimentConfig) -> Path:
@@ -168,24 +170,40 @@ def prepare_sample_data(cfg: ExperimentConfig, mapping: str = "semantic") -> lis
     return roots
 
 
+def use_real_data(cfg: ExperimentConfig) -> bool:
+    """Real recordings unless --data=sample or --datasets is given; --data=real fails when they are absent."""
+    from lerobot_unidextok.experiments.real_data import real_available
+
+    if cfg.datasets or cfg.data == "sample":
+        return False
+    if real_available(cfg):
+        return True
+    if cfg.data == "real":
+        raise FileNotFoundError(
+            f"--data=real but the real recordings are not under {cfg.real_dir} (g1-inspire/, dex-retargeting/); "
+            "set --real_data_dir (or UNIDEXTOK_REAL_DATA) or use --data=sample"
+        )
+    logger.info("real recordings not found under %s: using the SYNTHETIC sample data", cfg.real_dir)
+    return False
+
+
 def load_data(cfg: ExperimentConfig, mapping: str = "semantic", datasets: list[str] | None = None) -> ExperimentData:
-    """Train / test rows of `datasets` (default cfg.datasets), or of the converted sample data."""
+    """Train / test rows of `datasets` (default cfg.datasets), else of the real recordings when present,
+    else of the converted SYNTHETIC sample data (both converted with `mapping`)."""
     datasets = list(cfg.datasets if datasets is None else datasets)
     if datasets:
         return ExperimentData(
-            load_hand_states(datasets, "train"),
-            load_hand_states(datasets, "test"),
-            datasets,
-            False,
+            load_hand_states(datasets, "train"), load_hand_states(datasets, "test"), datasets, False, source="datasets"
         )
+    if use_real_data(cfg):
+        from lerobot_unidextok.experiments.real_data import real_train_test
+
+        train, test, sources, clip = real_train_test(cfg, mapping)
+        return ExperimentData(train, test, sources, False, source="real", clip=clip)
     roots = prepare_sample_data(cfg, mapping)
     names = [str(r) for r in roots]
     return ExperimentData(
-        load_hand_states(names, "train"),
-        load_hand_states(names, "test"),
-        roots,
-        True,
-        sample_raw_dir(cfg),
+        load_hand_states(names, "train"), load_hand_states(names, "test"), roots, True, sample_raw_dir(cfg)
     )
 
 
@@ -305,8 +323,11 @@ def score(pred_rad: np.ndarray, data: HandStates) -> dict:
     return reconstruction_metrics(pred_rad, data.states_rad, data.hands, data.masks)
 
 
+SUMMARY_KEYS = ("rows", "mpjae_deg", "mpjpe_mm", "mpjpe_fingers_mm", "fingertip_mm")
+
+
 def summary_row(entry: dict) -> dict:
-    return {k: entry[k] for k in ("rows", "mpjae_deg", "mpjpe_mm", "fingertip_mm")}
+    return {k: entry[k] for k in SUMMARY_KEYS}
 
 
 def abs_errors_deg(pred_rad: np.ndarray, data: HandStates) -> np.ndarray:

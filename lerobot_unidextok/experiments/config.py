@@ -1,10 +1,20 @@
-"""Typed experiment configuration with named presets, read from YAML and `--field=value` flags."""
+"""Typed experiment configuration, parsed with draccus like the CLIs in `scripts/` (dotted flags,
+`--config_path=configs/experiments/<size>.yaml`, `--help`)."""
 
-import argparse
 import dataclasses
-import typing
-from dataclasses import dataclass, field, fields, replace
+import os
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+
+import draccus
+
+DATA_CHOICES = ("auto", "real", "sample")
+# The project root's sibling `shared/data/real` (referred to as ../shared/data/real); UNIDEXTOK_REAL_DATA overrides.
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+
+
+def default_real_data_dir() -> str:
+    return os.environ.get("UNIDEXTOK_REAL_DATA", str(PROJECT_ROOT.parent / "shared" / "data" / "real"))
 
 
 @dataclass
@@ -12,13 +22,24 @@ class ExperimentConfig:
     """What every experiment shares: data, tokenizer training size, baseline sizes, outputs."""
 
     # --- data ---------------------------------------------------------------------------------------
-    # Converted UDHM datasets (local roots or repo ids); empty = the built-in SYNTHETIC sample data.
+    # auto: the real recordings in real_data_dir when present, else the SYNTHETIC sample; real | sample force one.
+    data: str = "auto"
+    # Folder of the real recordings (../shared/data/real beside the checkout; env UNIDEXTOK_REAL_DATA); empty = that.
+    real_data_dir: str = ""
+    # Folder (or file) of robot URDFs for retargeting the real human motion (empty = ../shared/data/urdf).
+    urdf_dir: str = ""
+    # Robot hands the real human motion is retargeted onto (protocol b, UniHM's training data).
+    retarget_hands: list[str] = field(
+        default_factory=lambda: ["linkerhand_l10", "linkerhand_l20", "xhand1", "inspire_rh56_unitree"]
+    )
+    human_segment_s: float = 2.0  # the real human clip is cut into episodes of this length (s)
+    # Converted UDHM datasets (local roots or repo ids) instead of the default data; overrides `data`.
     datasets: list[str] = field(default_factory=list)
     # Raw sources for ablation_mapping on real data, "source=path" (converted both ways); empty = samples.
     raw_sources: list[str] = field(default_factory=list)
     sample_episodes: int = 10  # per sample source
     sample_frames: int = 150  # per sample episode (+-20 %)
-    data_dir: str = "outputs/experiments/_data"  # converted sample cache, reused when valid
+    data_dir: str = "outputs/experiments/_data"  # converted data cache, reused when valid
 
     # --- UniDexTok training (each configuration trained once, cached under models_dir) --------------
     preset: str = "small"
@@ -38,6 +59,8 @@ class ExperimentConfig:
     qae_preset: str = "cpu"
     qae_steps: int = 600  # FSQ / RVQ steps (cpu preset: 2000)
     with_qae: bool = True  # FSQ / RVQ (needs vector-quantize-pytorch)
+    pca_components: int = 8  # PCA baseline: components = tokens per state (UniDexTok: 8)
+    pca_bits: int = 8  # bits per PCA coefficient (8 x 8 = 64 bits per state)
 
     # --- transfer -----------------------------------------------------------------------------------
     holdout_hand: str = ""  # empty = the first hand whose name contains "inspire"
@@ -50,7 +73,10 @@ class ExperimentConfig:
     fewshot_adapt: str = "hand_embedding"  # "all" parameters or only the new "hand_embedding"
 
     # --- probe --------------------------------------------------------------------------------------
-    linkerhand_presets: str = "/work/shared/data/real/linkerhand-ros2-sdk/linkerhand_gui_preset_actions.json"
+    # LinkerHand vendor presets (JSON); empty = <real_data_dir>/linkerhand-ros2-sdk/linkerhand_gui_preset_actions.json
+    linkerhand_presets: str = ""
+    # Labelled real human gestures (MediaPipe HandLandmarker results); empty = <real_data_dir>/mediapipe/...
+    human_gestures: str = ""
     probe_max_per_class: int = 400  # held gesture frames per (gesture, hand) kept for the probe
 
     # --- output -------------------------------------------------------------------------------------
@@ -66,11 +92,36 @@ class ExperimentConfig:
                 f"need steps >= 1, sample_episodes >= 2, sample_frames >= 10; got {self.steps}, "
                 f"{self.sample_episodes}, {self.sample_frames}"
             )
+        if self.data not in DATA_CHOICES:
+            raise ValueError(f"data must be one of {DATA_CHOICES}, got {self.data!r}")
         if not 0.0 < self.fewshot_fraction <= 1.0:
             raise ValueError(f"fewshot_fraction must be in (0, 1], got {self.fewshot_fraction}")
+        if self.human_segment_s <= 0:
+            raise ValueError(f"human_segment_s must be > 0, got {self.human_segment_s}")
         for item in self.raw_sources:
             if "=" not in item:
                 raise ValueError(f"raw_sources items are 'source=path', got {item!r}")
+
+    # --- resolved paths -----------------------------------------------------------------------------
+    @property
+    def real_dir(self) -> Path:
+        return Path(self.real_data_dir or default_real_data_dir())
+
+    @property
+    def urdf_root(self) -> Path:
+        return Path(self.urdf_dir) if self.urdf_dir else self.real_dir.parent / "urdf"
+
+    @property
+    def linkerhand_presets_path(self) -> Path:
+        if self.linkerhand_presets:
+            return Path(self.linkerhand_presets)
+        return self.real_dir / "linkerhand-ros2-sdk" / "linkerhand_gui_preset_actions.json"
+
+    @property
+    def human_gestures_path(self) -> Path:
+        if self.human_gestures:
+            return Path(self.human_gestures)
+        return self.real_dir / "mediapipe" / "mediapipe_hand_fixtures.json"
 
     @classmethod
     def from_preset(cls, name: str, **overrides) -> "ExperimentConfig":
@@ -80,9 +131,10 @@ class ExperimentConfig:
 
 
 PRESETS: dict[str, ExperimentConfig] = {
-    # Sample data, ~3-5 minutes per experiment on 2 shared CPU cores.
+    # ~3-5 minutes per experiment on 2 shared CPU cores (configs/experiments/default.yaml).
     "default": ExperimentConfig(),
-    # Tests: seconds. Tiny tokenizer and baselines on 2 episodes x 40 frames per source.
+    # Tests: seconds. Tiny tokenizer and baselines on 3 episodes x 30 frames per source
+    # (configs/experiments/tiny.yaml holds the same values for the command line).
     "tiny": ExperimentConfig(
         sample_episodes=3, sample_frames=30, preset="tiny", steps=20, batch_size=64, warmup_steps=2, eval_every=10,
         unihm_preset="tiny", unihm_teacher_steps=20, unihm_rounds=1, unihm_round_steps=3, unihm_finetune_steps=5,
@@ -92,48 +144,11 @@ PRESETS: dict[str, ExperimentConfig] = {
 }  # fmt: skip
 
 
-def _convert(value: str, typ) -> object:
-    origin = typing.get_origin(typ)
-    if origin is list:
-        value = value.strip()
-        if value.startswith("["):
-            value = value[1:-1]
-        return [v.strip().strip("'\"") for v in value.split(",") if v.strip()]
-    if typ is bool:
-        if value.lower() in ("1", "true", "yes"):
-            return True
-        if value.lower() in ("0", "false", "no"):
-            return False
-        raise ValueError(f"expected true/false, got {value!r}")
-    return typ(value)
-
-
 def parse_config(argv: list[str] | None = None, description: str = "") -> ExperimentConfig:
-    """`--tiny`, `--config_path=file.yaml` and `--<field>=<value>` for every ExperimentConfig field."""
-    parser = argparse.ArgumentParser(description=description)
-    parser.add_argument("--tiny", action="store_true", help="the tiny preset (tests, seconds)")
-    parser.add_argument("--config_path", default=None, help="YAML file of ExperimentConfig fields")
-    hints = typing.get_type_hints(ExperimentConfig)
-    for f in fields(ExperimentConfig):
-        parser.add_argument(f"--{f.name}", default=None, help=f"{hints[f.name]}")
-    args = parser.parse_args(argv)
-    values: dict[str, object] = {}
-    if args.config_path:
-        import yaml
-
-        loaded = yaml.safe_load(Path(args.config_path).read_text()) or {}
-        unknown = sorted(set(loaded) - set(hints))
-        if unknown:
-            raise ValueError(f"{args.config_path}: unknown fields {unknown}; known: {sorted(hints)}")
-        values.update(loaded)
-    for f in fields(ExperimentConfig):
-        raw = getattr(args, f.name)
-        if raw is not None:
-            try:
-                values[f.name] = _convert(raw, hints[f.name])
-            except ValueError as e:
-                raise ValueError(f"--{f.name}={raw!r}: {e}") from e
-    return ExperimentConfig.from_preset("tiny" if args.tiny else "default", **values)
+    """draccus, like the CLIs: `--config_path=configs/experiments/tiny.yaml` and `--<field>=<value>` for every
+    field (lists as `--datasets='[a,b]'`); `--help` lists the fields with their comments. `description` is
+    accepted for callers that pass their docstring; draccus takes the help text from the field comments."""
+    return draccus.parse(ExperimentConfig, args=argv)
 
 
 def config_dict(cfg: ExperimentConfig) -> dict:

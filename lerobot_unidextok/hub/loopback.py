@@ -3,7 +3,8 @@
 Implements the endpoints huggingface_hub 1.x uses for `create_repo`, `upload_folder` (preupload with
 `uploadMode: "regular"`, NDJSON commit), tags, refs, `repo_info`, tree listing, `whoami` and file
 download (`resolve`, with the ETag / X-Repo-Commit / Content-Length headers `hf_hub_download` needs).
-Repositories live in memory. It binds 127.0.0.1 only and shuts itself down after `lifetime_s`.
+Repositories live in memory. It binds 127.0.0.1 only and stops when its `with` block ends (or on
+`stop()`); `lifetime_s` optionally stops it earlier as a safety net for long-lived demo processes.
 Not a general Hub: no LFS/Xet, no pull requests, no pagination.
 """
 
@@ -317,7 +318,7 @@ class _Handler(BaseHTTPRequestHandler):
 
 
 class LoopbackHub:
-    """In-memory Hub on 127.0.0.1; `with LoopbackHub() as hub: ... HF_ENDPOINT=hub.url`."""
+    """In-memory Hub on 127.0.0.1; `with LoopbackHub() as hub: ... HF_ENDPOINT=hub.url` (stops at the end)."""
 
     class _Server(ThreadingHTTPServer):
         daemon_threads = True
@@ -325,12 +326,12 @@ class LoopbackHub:
 
     def __init__(
         self,
-        lifetime_s: float = 600.0,
+        lifetime_s: float | None = None,
         token: str | None = None,
         user: str = "loopback",
     ) -> None:
-        if lifetime_s <= 0:
-            raise ValueError(f"lifetime_s must be > 0, got {lifetime_s}")
+        if lifetime_s is not None and lifetime_s <= 0:
+            raise ValueError(f"lifetime_s must be > 0 (or None: until stop()), got {lifetime_s}")
         self.lifetime_s, self.token, self.user = lifetime_s, token, user
         self.repos: dict[tuple[str, str], _Repo] = {}
         self.lock = threading.Lock()
@@ -355,7 +356,8 @@ class LoopbackHub:
             kwargs={"poll_interval": 0.1},
             daemon=True,
         ).start()
-        threading.Thread(target=self._watchdog, daemon=True).start()
+        if self.lifetime_s is not None:
+            threading.Thread(target=self._watchdog, daemon=True).start()
         logger.info("loopback hub listening on %s", self.url)
         return self
 

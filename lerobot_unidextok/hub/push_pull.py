@@ -13,6 +13,9 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from lerobot_unidextok.hub.card import card_status, model_card, with_training_data
+from lerobot_unidextok.utils.hf_cache import DATASET_REVISIONS, cached_repo_snapshot, hub_cache, lerobot_home
+
 logger = logging.getLogger(__name__)
 
 REPO_TYPES = ("model", "dataset")
@@ -46,13 +49,21 @@ def detect_repo_type(local_dir: Path) -> str:
     )
 
 
-def cache_dir() -> str | None:
-    """HF_HUB_CACHE, else $HF_HOME/hub, else huggingface_hub's default (None)."""
-    if os.environ.get("HF_HUB_CACHE"):
-        return os.environ["HF_HUB_CACHE"]
-    if os.environ.get("HF_HOME"):
-        return str(Path(os.environ["HF_HOME"]) / "hub")
-    return None
+def cache_dir() -> str:
+    """HF_HUB_CACHE, else $HF_HOME/hub, else huggingface_hub's default (~/.cache/huggingface/hub)."""
+    return str(hub_cache())
+
+
+def checkpoint_folder(local_dir: Path) -> Path:
+    """The folder to upload for `local_dir`: itself, or the checkpoint inside a training run folder
+    (unidextok-train: `best/`; lerobot-train: `checkpoints/last/pretrained_model/`, or `pretrained_model/`)."""
+    if (local_dir / "config.json").is_file() or (local_dir / "meta" / "info.json").is_file():
+        return local_dir
+    for inner in ("best", "pretrained_model", "checkpoints/last/pretrained_model"):
+        if (local_dir / inner / "config.json").is_file():
+            logger.info("%s is a training run: uploading its checkpoint %s", local_dir, local_dir / inner)
+            return local_dir / inner
+    return local_dir
 
 
 def push(
@@ -67,8 +78,10 @@ def push(
 ) -> str:
     """Upload a folder; returns the commit id.
 
-    Models get a generated model card unless the folder already has README.md; datasets must be
-    LeRobot v3.0 and get the `v3.0` tag LeRobot resolves on download.
+    Models get a generated card (tokenizer or policy card) when the folder has none or only
+    huggingface_hub's generic one; a card written by this package (e.g. by unidextok-train) is kept, with
+    `training_data` filled in; a hand-written card is kept as it is. A training run folder uploads its
+    checkpoint. Datasets must be LeRobot v3.0 and get the `v3.0` tag LeRobot resolves.
     """
     from huggingface_hub import HfApi
     from huggingface_hub.errors import RevisionNotFoundError
@@ -76,6 +89,7 @@ def push(
     local_dir = Path(local_dir)
     if not local_dir.is_dir():
         raise FileNotFoundError(f"{local_dir} is not a folder; pass the checkpoint or dataset directory")
+    local_dir = checkpoint_folder(local_dir)
     repo_type = repo_type or detect_repo_type(local_dir)
     _check_repo(repo_id, repo_type)
     if _offline():
@@ -91,13 +105,25 @@ def push(
                     f"{local_dir} is LeRobot dataset {info.get('codebase_version')!r}; only "
                     f"{DATASET_CODEBASE_TAG} is supported: re-convert it with unidextok-convert"
                 )
-        elif not (local_dir / "README.md").is_file():
-            from lerobot_unidextok.hub.card import tokenizer_card
-
-            # Stage a copy so the user's folder is not modified.
-            upload_dir = Path(staging) / "repo"
-            shutil.copytree(local_dir, upload_dir)
-            (upload_dir / "README.md").write_text(tokenizer_card(local_dir, repo_id, training_data))
+        else:
+            readme = local_dir / "README.md"
+            status = card_status(readme)
+            card = None
+            if status in ("missing", "generic"):  # write our card (tokenizer or policy)
+                card = model_card(local_dir, repo_id, training_data)
+            elif status == "ours" and training_data:  # e.g. unidextok-train's card: add the data repo ids
+                card = with_training_data(readme.read_text(), training_data)
+            elif status == "custom" and training_data:
+                logger.warning(
+                    "%s is a hand-written README: uploaded unchanged, without --training_data %s (delete it to "
+                    "get a generated card)",
+                    readme,
+                    training_data,
+                )
+            if card is not None:  # staged, so the user's folder is not modified
+                upload_dir = Path(staging) / "repo"
+                shutil.copytree(local_dir, upload_dir, ignore=shutil.ignore_patterns(".cache"))
+                (upload_dir / "README.md").write_text(card)
 
         api.create_repo(repo_id, repo_type=repo_type, private=private, exist_ok=True)
         commit = api.upload_folder(
@@ -126,8 +152,9 @@ def pull(
 ) -> Path:
     """Download a repo into the standard HF cache (snapshot_download); returns the snapshot folder.
 
-    Afterwards `UniDexTok.from_pretrained(repo_id)` works with HF_HUB_OFFLINE=1, and a pulled
-    dataset loads with `LeRobotDataset(repo_id, root=<returned path>)`.
+    Afterwards `UniDexTok.from_pretrained(repo_id)` works with HF_HUB_OFFLINE=1; a pulled dataset is
+    linked at `$HF_LEROBOT_HOME/<repo_id>`, so `LeRobotDataset(repo_id)`, `lerobot-train
+    --dataset.repo_id=...`, `unidextok-train/-eval --datasets=[repo_id]` and `cached_snapshot` all find it.
     """
     from huggingface_hub import snapshot_download
 
@@ -148,31 +175,45 @@ def pull(
         endpoint=_endpoint(endpoint),
     )
     logger.info("pulled %s %s into %s", repo_type, repo_id, path)
+    if repo_type == "dataset":
+        link = link_into_lerobot_home(repo_id, Path(path))
+        if link is not None:
+            logger.info("linked %s -> %s: LeRobotDataset(%r) finds it without root", link, path, repo_id)
     return Path(path)
 
 
 def cached_snapshot(repo_id: str, repo_type: str = "model", revision: str | None = None) -> Path:
-    """The cached snapshot of `repo_id` without any network access; clear error when absent."""
-    from huggingface_hub import snapshot_download
-    from huggingface_hub.errors import LocalEntryNotFoundError
+    """The cached snapshot of `repo_id` without any network access; clear error when absent.
 
+    Datasets are pulled at tag `v3.0`, so without `revision` that tag is tried before `main`.
+    """
     _check_repo(repo_id, repo_type)
-    try:
-        return Path(
-            snapshot_download(
-                repo_id,
-                repo_type=repo_type,
-                revision=revision,
-                cache_dir=cache_dir(),
-                local_files_only=True,
-            )
-        )
-    except LocalEntryNotFoundError as err:
+    revisions = (revision,) if revision else (DATASET_REVISIONS if repo_type == "dataset" else ("main",))
+    snapshot = cached_repo_snapshot(hub_cache(), repo_id, repo_type, revisions)
+    if snapshot is None:
         flag = "" if repo_type == "model" else f" --repo_type={repo_type}"
         raise FileNotFoundError(
-            f"{repo_type} {repo_id} is not in the local HF cache ({cache_dir() or 'default'}): run "
-            f"`unidextok-pull --repo_id={repo_id}{flag}` (or unset HF_HUB_OFFLINE) first"
-        ) from err
+            f"{repo_type} {repo_id} (revision {' or '.join(revisions)}) is not in the local HF cache "
+            f"({cache_dir()}): run `unidextok-pull --repo_id={repo_id}{flag}` (or unset HF_HUB_OFFLINE) first"
+        )
+    return snapshot
+
+
+def link_into_lerobot_home(repo_id: str, snapshot: Path) -> Path | None:
+    """Make a pulled dataset visible to LeRobot by repo id: `$HF_LEROBOT_HOME/<repo_id>` -> the snapshot.
+
+    Then `LeRobotDataset(repo_id)` and `lerobot-train --dataset.repo_id=<repo_id>` find it without `root`
+    and offline. An existing real folder there is left alone (returns None).
+    """
+    link = lerobot_home() / repo_id
+    if link.is_symlink():
+        link.unlink()
+    elif link.exists():
+        logger.info("%s exists and is not a link from unidextok-pull: left as it is", link)
+        return None
+    link.parent.mkdir(parents=True, exist_ok=True)
+    link.symlink_to(snapshot, target_is_directory=True)
+    return link
 
 
 def cache_via_loopback(local_dir: str | Path, repo_id: str, repo_type: str | None = None) -> Path:
@@ -184,6 +225,6 @@ def cache_via_loopback(local_dir: str | Path, repo_id: str, repo_type: str | Non
     from lerobot_unidextok.hub.loopback import LoopbackHub
 
     repo_type = repo_type or detect_repo_type(Path(local_dir))
-    with LoopbackHub(lifetime_s=300) as hub:
+    with LoopbackHub() as hub:  # stops when the block ends
         push(local_dir, repo_id, repo_type, endpoint=hub.url)
         return pull(repo_id, repo_type, endpoint=hub.url)

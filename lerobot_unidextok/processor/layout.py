@@ -1,29 +1,53 @@
-"""Which hand sits in which 22-wide block of `observation.state` (no lerobot import here)."""
+"""Where the hands sit in a converted state / action vector, and how to get back to the robot's own vector.
+
+No lerobot import here. A converted vector is `[passthrough columns] + [one 22-wide UDHM block per hand]`
+(docs/architecture.md, "Converted dataset contract"); blocks are found by name with
+`state_layout.find_udhm_blocks`, never by position.
+
+- `HandLayout`: hand spec name, side and columns of each UDHM block of `observation.state` (the pre-processor).
+- `NativeLayout`: converted `action` -> the robot's native action vector (the post-processor): passthrough
+  columns copied by name, each hand's native columns from `hands.get(hand).from_udhm(block, side)`.
+"""
 
 from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
-from lerobot_unidextok.constants import (
-    HAND_TYPE_KEY,
-    OBS_STATE,
-    SIDES,
-    UDHM_DIM,
-    UDHM_JOINT_NAMES,
-)
+import numpy as np
+
+from lerobot_unidextok.constants import ACTION, HAND_TYPE_KEY, OBS_STATE, SIDES, UDHM_DIM
+from lerobot_unidextok.state_layout import find_udhm_blocks, passthrough_indices
+
+CONVERSION_META = Path("meta") / "unidextok_conversion.json"
+
+
+def feature_names(feature: dict) -> list[str]:
+    """`names` of a LeRobot feature as a flat list (LeRobot also writes `{"axes": [...]}` or `[[...]]`)."""
+    names = feature.get("names") or []
+    if isinstance(names, dict):
+        names = next(iter(names.values()), [])
+    if len(names) == 1 and isinstance(names[0], list):
+        names = names[0]
+    return [str(n) for n in names]
 
 
 @dataclass
 class HandLayout:
-    """Hand spec name and side of each UDHM block, in block order."""
+    """Hand spec name and side of each UDHM block, in block order, and where the blocks sit in the state.
+
+    `state_names` empty: the state is exactly the blocks (22 * H wide, a hands-only dataset). Otherwise the
+    blocks are found by name among `state_names` and every other column is passthrough (arms, grippers...).
+    """
 
     hands: list[str]  # hand spec names, e.g. ["inspire_rh56", "inspire_rh56"] or ["human"]
     sides: list[str] = field(default_factory=list)  # "right" | "left" per block; [] = unknown
+    state_names: list[str] = field(default_factory=list)  # names of the whole state vector; [] = blocks only
 
     def __post_init__(self) -> None:
-        self.hands, self.sides = list(self.hands), list(self.sides)
+        self.hands, self.sides, self.state_names = list(self.hands), list(self.sides), list(self.state_names)
         if not self.hands:
             raise ValueError("HandLayout needs at least one hand name, e.g. HandLayout(['human'])")
         if self.sides and len(self.sides) != len(self.hands):
@@ -31,6 +55,17 @@ class HandLayout:
         bad = [s for s in self.sides if s not in SIDES]
         if bad:
             raise ValueError(f"sides must be in {SIDES}, got {bad}")
+        if self.state_names:
+            blocks = find_udhm_blocks(self.state_names)
+            if len(blocks) != len(self.hands):
+                raise ValueError(
+                    f"the state names hold {len(blocks)} UDHM blocks ({[b.side for b in blocks]}) but the layout "
+                    f"names {len(self.hands)} hands {self.hands}; give one hand spec per block"
+                )
+            block_sides = [b.side for b in blocks]
+            if self.sides and self.sides != block_sides:
+                raise ValueError(f"sides {self.sides} disagree with the state names' blocks {block_sides}")
+            self.sides = block_sides
 
     @property
     def num_hands(self) -> int:
@@ -38,61 +73,77 @@ class HandLayout:
 
     @property
     def state_dim(self) -> int:
-        return UDHM_DIM * self.num_hands
+        """Width of the whole state vector (passthrough + blocks)."""
+        return len(self.state_names) if self.state_names else UDHM_DIM * self.num_hands
+
+    @property
+    def block_columns(self) -> np.ndarray:
+        """(22 * H,) int64: state columns of the UDHM blocks, block after block."""
+        if not self.state_names:
+            return np.arange(UDHM_DIM * self.num_hands)
+        return np.concatenate([np.arange(b.start, b.stop) for b in find_udhm_blocks(self.state_names)])
+
+    @property
+    def passthrough_names(self) -> list[str]:
+        return [self.state_names[i] for i in passthrough_indices(self.state_names)] if self.state_names else []
 
     def check_width(self, width: int, key: str = OBS_STATE) -> None:
         """Raise a ValueError naming the fix when `width` is not this layout's state width."""
-        if width != self.state_dim:
-            known = ", ".join(f"{UDHM_DIM * h} ({h} hand{'s' * (h > 1)})" for h in (1, 2))
+        if width == self.state_dim:
+            return
+        if self.state_names:
             raise ValueError(
-                f"{key} has width {width}, which matches no UDHM layout for hands {self.hands} "
-                f"(expected {self.state_dim}; known widths: {known}). Convert the dataset to UDHM with "
-                "unidextok-convert, or set hand_layout to one hand name per 22-wide block"
+                f"{key} has width {width}, but this step was set up for {self.state_dim} columns "
+                f"({len(self.passthrough_names)} passthrough + {self.num_hands} UDHM blocks for hands {self.hands}); "
+                "feed the same state layout as the dataset the step was built from (state_names)"
             )
+        known = ", ".join(f"{UDHM_DIM * h} ({h} hand{'s' * (h > 1)})" for h in (1, 2))
+        raise ValueError(
+            f"{key} has width {width}, which matches no UDHM layout for hands {self.hands} "
+            f"(expected {self.state_dim}; known widths: {known}). Convert the dataset to UDHM with "
+            "unidextok-convert, or set hand_layout to one hand name per 22-wide block; a whole-robot state "
+            "(arms + hands) needs state_names (UniDexTokStateTokenizerStep.from_dataset reads them)"
+        )
 
     @classmethod
     def from_state_names(cls, names: list[str], hands: list[str] | str) -> HandLayout:
-        """Layout from `<side>_<udhm joint>` feature names; `hands` is one name or one per block."""
+        """Layout from feature names holding `<side>_<udhm joint>` blocks; `hands` is one name or one per block."""
         names = list(names)
-        if len(names) % UDHM_DIM or not names:
+        blocks = find_udhm_blocks(names)
+        if not blocks:
             raise ValueError(
-                f"{len(names)} state names match no UDHM layout (need 22 per hand); "
-                "is this a dataset written by unidextok-convert?"
+                f"none of the {len(names)} state names is a '<side>_<udhm joint>' UDHM column (e.g. "
+                f"{names[:3]}...): is this a dataset written by unidextok-convert?"
             )
-        sides = []
-        for b in range(len(names) // UDHM_DIM):
-            block = names[b * UDHM_DIM : (b + 1) * UDHM_DIM]
-            side = block[0].split("_", 1)[0]
-            expected = [f"{side}_{j}" for j in UDHM_JOINT_NAMES]
-            if side not in SIDES or block != expected:
-                raise ValueError(
-                    f"state names of block {b} are not '<side>_<udhm joint>' in UDHM order: "
-                    f"got {block[:3]}..., expected {expected[:3]}..."
-                )
-            sides.append(side)
-        hands = [hands] * len(sides) if isinstance(hands, str) else list(hands)
-        if len(hands) != len(sides):
-            raise ValueError(f"{len(hands)} hand names for {len(sides)} UDHM blocks ({sides})")
-        return cls(hands=hands, sides=sides)
+        hands = [hands] * len(blocks) if isinstance(hands, str) else list(hands)
+        if len(hands) != len(blocks):
+            raise ValueError(f"{len(hands)} hand names for {len(blocks)} UDHM blocks ({[b.side for b in blocks]})")
+        return cls(hands=hands, sides=[b.side for b in blocks], state_names=names)
 
 
-def hand_layout_from_dataset(root: str | Path) -> HandLayout:
-    """Layout of a converted UDHM dataset folder: sides from state names, hands from `hand_type`."""
-    import pyarrow.parquet as pq
-
-    root = Path(root)
+# ---------------------------------------------------------------------------------------------
+# reading a converted dataset folder
+# ---------------------------------------------------------------------------------------------
+def _read_info(root: Path) -> dict:
     info_path = root / "meta" / "info.json"
     if not info_path.is_file():
         raise FileNotFoundError(f"{info_path} not found: pass the root folder of a LeRobotDataset v3.0")
-    features = json.loads(info_path.read_text())["features"]
-    if OBS_STATE not in features or HAND_TYPE_KEY not in features:
-        raise ValueError(f"{root} lacks '{OBS_STATE}' or '{HAND_TYPE_KEY}'; convert it to UDHM with unidextok-convert")
+    return json.loads(info_path.read_text())
+
+
+def dataset_hand_types(root: str | Path) -> list[str]:
+    """Hand spec name of each UDHM block of a converted dataset (from its `hand_type` column)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.parquet as pq
+
+    root = Path(root)
+    features = _read_info(root)["features"]
+    if HAND_TYPE_KEY not in features:
+        raise ValueError(f"{root} has no '{HAND_TYPE_KEY}' column; convert it to UDHM with unidextok-convert")
     files = sorted((root / "data").rglob("*.parquet"))
     if not files:
         raise FileNotFoundError(f"no data parquet under {root / 'data'}")
-    import pyarrow as pa
-    import pyarrow.compute as pc
-
     column = pa.concat_arrays([pq.read_table(f, columns=[HAND_TYPE_KEY]).column(0).combine_chunks() for f in files])
     if pa.types.is_list(column.type) or pa.types.is_fixed_size_list(column.type):
         column = pc.list_flatten(column)
@@ -103,4 +154,118 @@ def hand_layout_from_dataset(root: str | Path) -> HandLayout:
             "frame with one fixed layout. Convert each hand into its own dataset (e.g. --max_episodes or "
             "separate inputs), or pass hand_layout explicitly if one layout is really meant for all frames"
         )
-    return HandLayout.from_state_names(features[OBS_STATE]["names"], str(hand_types[0]).split(","))
+    return str(hand_types[0]).split(",")
+
+
+def hand_layout_from_dataset(root: str | Path) -> HandLayout:
+    """Layout of a converted dataset folder: blocks and sides from the state names, hands from `hand_type`."""
+    root = Path(root)
+    features = _read_info(root)["features"]
+    if OBS_STATE not in features:
+        raise ValueError(f"{root} lacks '{OBS_STATE}'; convert it to UDHM with unidextok-convert")
+    return HandLayout.from_state_names(feature_names(features[OBS_STATE]), dataset_hand_types(root))
+
+
+# ---------------------------------------------------------------------------------------------
+# back to the robot's native vector
+# ---------------------------------------------------------------------------------------------
+@dataclass
+class NativeLayout:
+    """Converted vector (passthrough + UDHM blocks, `names`) -> the robot's native vector (`native_names`).
+
+    `hands`: one `{"side", "hand", "columns"}` per UDHM block; `columns` are the native names that
+    `hands.get(hand).from_udhm(block, side)` fills, in that order. Every other native name must be a
+    passthrough column of `names` and is copied unchanged.
+    """
+
+    names: list[str]
+    native_names: list[str]
+    hands: list[dict[str, Any]]
+
+    def __post_init__(self) -> None:
+        from lerobot_unidextok import hands as hand_registry
+
+        self.names, self.native_names = list(self.names), list(self.native_names)
+        self.hands = [dict(h, columns=list(h["columns"])) for h in self.hands]
+        blocks = {b.side: b for b in find_udhm_blocks(self.names)}
+        native_index = {n: i for i, n in enumerate(self.native_names)}
+        pass_names = [self.names[i] for i in passthrough_indices(self.names)]
+        hand_columns = {c for h in self.hands for c in h["columns"]}
+        self._decoders = []  # (spec, side, block slice, native indices)
+        for h in self.hands:
+            spec = hand_registry.get(h["hand"])
+            if h["side"] not in blocks:
+                raise ValueError(f"native layout names a {h['side']} hand, but the vector has blocks {sorted(blocks)}")
+            missing = [c for c in h["columns"] if c not in native_index]
+            if missing or len(h["columns"]) != spec.num_native:
+                raise ValueError(
+                    f"native columns of the {h['side']} {h['hand']} ({len(h['columns'])}) must be {spec.num_native} "
+                    f"names of the native vector; missing: {missing}"
+                )
+            self._decoders.append((spec, h["side"], blocks[h["side"]].slice, [native_index[c] for c in h["columns"]]))
+        copy = [n for n in self.native_names if n not in hand_columns]
+        unknown = [n for n in copy if n not in pass_names]
+        if unknown:
+            raise ValueError(f"native columns {unknown[:5]} are neither a hand column nor a passthrough column")
+        self._copy_src = np.array([self.names.index(n) for n in copy], dtype=np.int64)
+        self._copy_dst = np.array([native_index[n] for n in copy], dtype=np.int64)
+
+    @property
+    def native_dim(self) -> int:
+        return len(self.native_names)
+
+    def to_native(self, x: np.ndarray) -> np.ndarray:
+        """(..., len(names)) converted values -> (..., len(native_names)) native values (float64)."""
+        x = np.asarray(x, dtype=np.float64)
+        if x.shape[-1] != len(self.names):
+            raise ValueError(f"expected a vector of width {len(self.names)} (converted action), got {x.shape}")
+        out = np.empty((*x.shape[:-1], self.native_dim), dtype=np.float64)
+        out[..., self._copy_dst] = x[..., self._copy_src]
+        for spec, side, block, dst in self._decoders:
+            out[..., dst] = np.asarray(spec.from_udhm(x[..., block], side))
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"names": self.names, "native_names": self.native_names, "hands": self.hands}
+
+    @classmethod
+    def from_hands(cls, hands: list[str], sides: list[str], names: list[str] | None = None) -> NativeLayout:
+        """Native = passthrough columns of `names` then each hand's native joints (`<side>_<joint>`), block order."""
+        from lerobot_unidextok import hands as hand_registry
+        from lerobot_unidextok.state_layout import udhm_state_names
+
+        names = list(names) if names else udhm_state_names(sides)
+        entries = [
+            {"side": s, "hand": h, "columns": [f"{s}_{j}" for j in hand_registry.get(h).joint_names]}
+            for h, s in zip(hands, sides, strict=True)
+        ]
+        native = [names[i] for i in passthrough_indices(names)] + [c for e in entries for c in e["columns"]]
+        return cls(names=names, native_names=native, hands=entries)
+
+    @classmethod
+    def from_dataset(cls, root: str | Path, key: str = ACTION) -> NativeLayout | None:
+        """The layout of `key` in a converted dataset, or None when it cannot be decoded to robot units.
+
+        Read from `meta/unidextok_conversion.json` "native_layout" when the converter recorded it; otherwise
+        derived (passthrough, then each hand's native joints). None when `key` has no UDHM block or a block
+        belongs to a hand without native joints (the human hand's native form is keypoints, not commands).
+        """
+        from lerobot_unidextok import hands as hand_registry
+
+        root = Path(root)
+        features = _read_info(root)["features"]
+        if key not in features:
+            return None
+        names = feature_names(features[key])
+        if not find_udhm_blocks(names):
+            return None
+        meta_path = root / CONVERSION_META
+        recorded = json.loads(meta_path.read_text()).get("native_layout", {}).get(key) if meta_path.is_file() else None
+        if recorded:
+            if any(hand_registry.get(h["hand"]).kind != "joints" for h in recorded["hands"]):
+                return None
+            return cls(names=names, native_names=recorded["names"], hands=recorded["hands"])
+        hand_types = dataset_hand_types(root)
+        if any(hand_registry.get(h).kind != "joints" for h in hand_types):
+            return None
+        return cls.from_hands(hand_types, [b.side for b in find_udhm_blocks(names)], names)

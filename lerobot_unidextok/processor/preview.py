@@ -13,12 +13,12 @@ from lerobot_unidextok.processor.processor_unidextok import UniDexTokStateTokeni
 def token_preview(step: UniDexTokStateTokenizerStep, states_rad: torch.Tensor, joints: int = 6) -> str:
     """Per frame and hand: the N x K codes, then input vs decoded angles (deg) of the first `joints`
     active DoFs, and the mean abs error over the hand's active DoFs."""
-    states_rad = torch.as_tensor(states_rad).reshape(-1, step.layout.state_dim)  # (B, 22*H)
-    tokens, view = step.tokenize(states_rad)  # (B, H*N*K), (B, F)
+    states_rad = torch.as_tensor(states_rad).reshape(-1, step.layout.state_dim)  # (B, D) whole states
+    tokens, _ = step.tokenize(states_rad)  # (B, H*N*K)
     cfg = step.tokenizer.config
     num_hands = step.layout.num_hands
     codes = tokens.reshape(len(states_rad), num_hands, cfg.num_tokens, cfg.num_groups)  # (B, H, N, K)
-    rows = states_rad.reshape(-1, num_hands, UDHM_DIM)  # (B, H, 22)
+    rows = step.hand_blocks(states_rad)  # (B, H, 22) the UDHM blocks, radians
     ids = step._hand_ids.repeat(len(states_rad))  # (B*H,)
     decoded = step.tokenizer.decode(codes.reshape(-1, cfg.num_tokens, cfg.num_groups), ids)  # (B*H, 22)
     decoded = decoded.reshape(-1, num_hands, UDHM_DIM)  # (B, H, 22)

@@ -3,18 +3,20 @@
 The only module of the package that imports `lerobot.processor`. Registry names contain no '/'
 (a '/' breaks `save_pretrained` of stateful steps in lerobot 0.6).
 
+The state may be a whole robot: only the UDHM blocks (found by name) are tokenised.
 Keys written by `UniDexTokStateTokenizerStep`:
 - `observation.hand_tokens`: int64 `(H * N * K,)` codes, ordered (hand, token, group).
 - `observation.environment_state`: float32 view for policies, `representation=`
   "dequantized" -> the decoded UDHM state, radians `(H * 22,)`;
   "embedding"   -> the unit-norm code vectors `(H * N * codebook_dim,)`.
-Both keep the input's batch dimension (or its absence) and device.
+Both keep the input's leading shape ((), (B,), (B, T)) and device.
 """
 
 from __future__ import annotations
 
 import logging
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -33,7 +35,14 @@ from lerobot_unidextok.constants import (
     OBS_STATE,
     UDHM_DIM,
 )
-from lerobot_unidextok.processor.layout import HandLayout
+from lerobot_unidextok.processor.guards import (
+    RANGE_CHECKS,
+    check_ranges,
+    check_registry,
+    layout_bounds,
+    untrained_hands,
+)
+from lerobot_unidextok.processor.layout import HandLayout, NativeLayout, hand_layout_from_dataset
 from lerobot_unidextok.tokenizer import PRESETS, UniDexTok, UniDexTokConfig
 
 logger = logging.getLogger(__name__)
@@ -80,23 +89,36 @@ def tokenizer_output_dims(config: UniDexTokConfig, num_hands: int, representatio
 # ---------------------------------------------------------------------------------------------
 # pre-processor step
 # ---------------------------------------------------------------------------------------------
+def trained_hands(config: UniDexTokConfig) -> list[str]:
+    """Hands the tokenizer was trained on when its checkpoint records them ([] = not recorded)."""
+    return list(getattr(config, "trained_hands", None) or [])
+
+
 @ProcessorStepRegistry.register(STEP_NAME)
 @dataclass
 class UniDexTokStateTokenizerStep(ObservationProcessorStep):
-    """Tokenise UDHM hand states in `observation.state` into int64 codes plus a float view.
+    """Tokenise the UDHM hand blocks of `observation.state` into int64 codes plus a float view.
+
+    The state may be hands only (22 * H) or a whole robot (arms, grippers... then the blocks, `state_names`
+    says which columns are which); only the blocks are tokenised, the state itself passes unchanged. Any
+    leading shape works: (D,), (B, D), temporal stacks (B, T, D).
 
     The tokenizer comes from `tokenizer_config` (+ weights through `load_state_dict`, as the
     pipeline does on reload), else from `pretrained` (folder or Hub repo id), else from `preset`
     with random weights (benchmarks, tests).
     """
 
-    hand_layout: list[str] = field(default_factory=lambda: ["human"])  # hand spec name per 22-wide block
+    hand_layout: list[str] = field(default_factory=lambda: ["human"])  # hand spec name per UDHM block
+    state_names: list[str] = field(default_factory=list)  # names of the whole state; [] = blocks only
     pretrained: str | None = None  # checkpoint folder or Hub repo id
     embed_weights: bool = True  # save tokenizer weights with the pipeline; False = keep only `pretrained`
     tokenizer_config: dict[str, Any] | None = None  # UniDexTokConfig fields (written by get_config)
     preset: str = "small"  # used only without pretrained/tokenizer_config
     representation: str = "dequantized"  # "dequantized" | "embedding"
-    allow_unknown: bool = True  # hands outside the tokenizer vocabulary use its "unknown hand" embedding
+    # Hands the tokenizer has no trained embedding for: False = refuse (ValueError naming them);
+    # True = tokenise them zero-shot with the tokenizer's "unknown hand" embedding (logged once).
+    allow_unknown: bool = False
+    range_check: str = "raise"  # states outside the hands' ranges (degrees, normalised): raise | warn | off
     input_key: str = OBS_STATE
     token_key: str = OBS_HAND_TOKENS
     features_key: str = OBS_HAND_TOKEN_FEATURES
@@ -105,11 +127,17 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     _layout: HandLayout | None = field(default=None, init=False, repr=False)
     _hand_ids: torch.Tensor | None = field(default=None, init=False, repr=False)  # (H,) tokenizer hand ids
     _active: torch.Tensor | None = field(default=None, init=False, repr=False)  # (H, 22) bool
+    _columns: torch.Tensor | None = field(default=None, init=False, repr=False)  # (22*H,) block columns
+    _bounds: tuple[torch.Tensor, torch.Tensor] | None = field(default=None, init=False, repr=False)  # (H, 22) x2
 
     def __post_init__(self) -> None:
         if self.representation not in REPRESENTATIONS:
             raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {self.representation!r}")
-        self._layout = HandLayout(self.hand_layout)
+        if self.range_check not in RANGE_CHECKS:
+            raise ValueError(f"range_check must be one of {RANGE_CHECKS}, got {self.range_check!r}")
+        self.hand_layout, self.state_names = list(self.hand_layout), list(self.state_names)
+        check_registry(self.hand_layout)  # before any weights are loaded or anything is logged
+        self._layout = HandLayout(self.hand_layout, state_names=self.state_names)
         if self.tokenizer_config is not None and (self.embed_weights or self.pretrained is None):
             self._tokenizer = UniDexTok(UniDexTokConfig(**self.tokenizer_config)).eval()
         elif self.pretrained is not None:
@@ -117,26 +145,40 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
         else:
             if self.preset not in PRESETS:
                 raise ValueError(f"unknown preset {self.preset!r}; choose one of {sorted(PRESETS)}")
-            logger.warning(
-                "UniDexTok step built from preset %r with untrained weights",
-                self.preset,
-            )
+            logger.warning("UniDexTok step built from preset %r with untrained weights", self.preset)
             self._tokenizer = UniDexTok(UniDexTokConfig.from_preset(self.preset)).eval()
         self.tokenizer_config = asdict(self._tokenizer.config)
-        unknown = sorted(set(self.hand_layout) - set(self._tokenizer.config.hand_names))
-        if unknown and not self.allow_unknown:
+        cfg = self._tokenizer.config
+        unseen = untrained_hands(self.hand_layout, cfg.hand_names, trained_hands(cfg))
+        if unseen and not self.allow_unknown:
+            seen = trained_hands(cfg) or cfg.hand_names
             raise ValueError(
-                f"hands {unknown} are not in the tokenizer vocabulary {self._tokenizer.config.hand_names}; "
-                "set allow_unknown=True (zero-shot 'unknown hand' embedding) or use a tokenizer trained on them"
+                f"the tokenizer was not trained on hands {unseen} (it knows {seen}), so their tokens would be "
+                "meaningless. Use a tokenizer trained or few-shot adapted on them (unidextok-train --init_from), "
+                "or set allow_unknown=True (--policy.udt_allow_unknown=true) to tokenise them zero-shot with the "
+                "tokenizer's unknown-hand embedding"
             )
-        if unknown:
+        if unseen:
             logger.warning(
-                "hands %s are not in the tokenizer vocabulary: using its unknown-hand embedding",
-                unknown,
+                "hands %s were never trained in this tokenizer: tokenising them zero-shot with its unknown-hand "
+                "embedding (allow_unknown=True)",
+                unseen,
             )
-        self._hand_ids = torch.tensor([self._tokenizer._name_to_id(h, True) for h in self.hand_layout])
+        ids = [
+            cfg.hand_names.index(h) if h not in unseen else self._tokenizer.unknown_hand_id for h in self.hand_layout
+        ]
+        self._hand_ids = torch.tensor(ids)
         # (H, 22) active-DoF masks: decoded values on slots a hand does not have are zeroed, as in the data.
         self._active = torch.as_tensor(np.stack([hands.get(h).active_mask for h in self.hand_layout]))
+        columns = self._layout.block_columns
+        self._columns = None if np.array_equal(columns, np.arange(self._layout.state_dim)) else torch.as_tensor(columns)
+        self._bounds = layout_bounds(self.hand_layout, self._layout.sides)
+
+    @classmethod
+    def from_dataset(cls, root: str | Path, **kwargs: Any) -> UniDexTokStateTokenizerStep:
+        """A step for a converted dataset folder: hands, sides and state columns read from it."""
+        layout = hand_layout_from_dataset(root)
+        return cls(hand_layout=layout.hands, state_names=layout.state_names, **kwargs)
 
     @property
     def tokenizer(self) -> UniDexTok:
@@ -149,29 +191,45 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
         return self._layout
 
     # ----------------------------------------------------------------------------------------- core
-    @torch.no_grad()
-    def tokenize(self, states_rad: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(B, 22 * H) radians -> ((B, H*N*K) int64 tokens, (B, F) float32 view), on the input's device."""
-        b, width = states_rad.shape
+    def hand_blocks(self, states: torch.Tensor) -> torch.Tensor:
+        """(B, D) whole states -> (B, H, 22) UDHM blocks, radians; checks width, NaN and ranges."""
+        b, width = states.shape
         self.layout.check_width(width, self.input_key)
-        if not torch.isfinite(states_rad).all():
-            bad = (~torch.isfinite(states_rad)).nonzero()[0].tolist()
+        if not torch.isfinite(states).all():
+            bad = (~torch.isfinite(states)).nonzero()[0].tolist()
             raise ValueError(
                 f"{self.input_key} contains NaN/inf (first at [batch, dim] = {bad}); drop or fill those "
                 "frames (e.g. mask untracked hands in the converter) before tokenising"
             )
+        if self._columns is not None:
+            if self._columns.device != states.device:
+                self._columns = self._columns.to(states.device)
+            states = states.index_select(1, self._columns)  # (B, 22*H)
+        rows = states.float().reshape(b, self.layout.num_hands, UDHM_DIM)  # (B, H, 22)
+        if self.range_check != "off":
+            lo, hi = self._bounds
+            if lo.device != rows.device:
+                self._bounds = lo, hi = lo.to(rows.device), hi.to(rows.device)
+            check_ranges(rows, lo, hi, self.hand_layout, self.input_key, self.range_check)
+        return rows
+
+    @torch.no_grad()
+    def tokenize(self, states: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(B, D) states -> ((B, H*N*K) int64 tokens, (B, F) float32 view), on the input's device."""
+        rows = self.hand_blocks(states)  # (B, H, 22)
+        b, h = rows.shape[:2]
         tok = self.tokenizer
-        if tok.enc_pos.device != states_rad.device:
-            tok.to(states_rad.device)
-        h = self.layout.num_hands
-        rows = states_rad.float().reshape(b * h, UDHM_DIM)  # (B*H, 22)
-        if self._hand_ids.device != states_rad.device:
-            self._hand_ids = self._hand_ids.to(states_rad.device)
-        ids = self._hand_ids.repeat(b)  # (B*H,) one id per row, block order within each frame
-        codes = tok.encode(rows, ids)  # (B*H, N, K)
+        if tok.enc_pos.device != rows.device:
+            tok.to(rows.device)
+        if self._hand_ids.device != rows.device:
+            self._hand_ids = self._hand_ids.to(rows.device)
+        ids = self._hand_ids if b == 1 else self._hand_ids.repeat(b)  # (B*H,) one id per row, block order
+        codes = tok.encode(rows.reshape(b * h, UDHM_DIM), ids)  # (B*H, N, K)
         if self.representation == "dequantized":
-            active = self._active.to(states_rad.device).repeat(b, 1)  # (B*H, 22)
-            view = tok.decode(codes, ids) * active  # (B*H, 22) radians, inactive slots zero
+            if self._active.device != rows.device:
+                self._active = self._active.to(rows.device)
+            decoded = tok.decode(codes, ids).reshape(b, h, UDHM_DIM)  # (B, H, 22) radians
+            view = decoded * self._active  # (B, H, 22), slots a hand does not have set to zero
         else:
             view = tok.quantizer.indices_to_codes(codes).flatten(1)  # (B*H, N*K*d)
         return codes.reshape(b, -1), view.reshape(b, -1).float()
@@ -180,13 +238,12 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
         if self.input_key not in observation:
             raise KeyError(f"{STEP_NAME} needs '{self.input_key}' in the observation, got {sorted(observation)}")
         state = torch.as_tensor(observation[self.input_key])
-        if state.ndim not in (1, 2):
-            raise ValueError(f"{self.input_key} must be (D,) or (B, D), got shape {tuple(state.shape)}")
-        tokens, view = self.tokenize(state.reshape(-1, state.shape[-1]))  # (B, T), (B, F)
-        if state.ndim == 1:
-            tokens, view = tokens[0], view[0]
-        observation[self.token_key] = tokens
-        observation[self.features_key] = view
+        if state.ndim == 0:
+            raise ValueError(f"{self.input_key} must be (D,), (B, D) or (B, T, D), got a scalar")
+        lead = state.shape[:-1]  # () | (B,) | (B, T): kept on both outputs
+        tokens, view = self.tokenize(state.reshape(-1, state.shape[-1]))  # (prod(lead), T), (prod(lead), F)
+        observation[self.token_key] = tokens.reshape(*lead, tokens.shape[-1])
+        observation[self.features_key] = view.reshape(*lead, view.shape[-1])
         return observation
 
     # ----------------------------------------------------------------------------------------- contract
@@ -202,12 +259,14 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     def get_config(self) -> dict[str, Any]:
         return {
             "hand_layout": list(self.hand_layout),
+            "state_names": list(self.state_names),
             "pretrained": self.pretrained,
             "embed_weights": self.embed_weights,
             "tokenizer_config": self.tokenizer_config if self.embed_weights or self.pretrained is None else None,
             "preset": self.preset,
             "representation": self.representation,
             "allow_unknown": self.allow_unknown,
+            "range_check": self.range_check,
             "input_key": self.input_key,
             "token_key": self.token_key,
             "features_key": self.features_key,
@@ -226,56 +285,83 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
 
 
 # ---------------------------------------------------------------------------------------------
-# decoding side: UDHM states / tokens -> a robot hand's native command units
+# decoding side: UDHM states / tokens -> a robot's native command units
 # ---------------------------------------------------------------------------------------------
-def udhm_to_native(states_rad: torch.Tensor | np.ndarray, layout: HandLayout) -> np.ndarray:
-    """(B, 22 * H) or (22 * H,) UDHM radians -> native commands of `layout`'s hands, blocks concatenated."""
-    from lerobot_unidextok import hands as hand_registry
+def udhm_to_native(states_rad: torch.Tensor | np.ndarray, layout: HandLayout | NativeLayout) -> np.ndarray:
+    """(..., D) converted vectors -> the robot's native vectors (float64).
 
-    x = torch.as_tensor(states_rad).detach().cpu().numpy().astype(np.float64)
-    squeeze = x.ndim == 1
-    x = x.reshape(-1, x.shape[-1])
-    layout.check_width(x.shape[-1], "UDHM state")
-    sides = layout.sides or ["right"] * layout.num_hands
-    out = [
-        np.asarray(hand_registry.get(name).from_udhm(x[:, i * UDHM_DIM : (i + 1) * UDHM_DIM], side))
-        for i, (name, side) in enumerate(zip(layout.hands, sides, strict=True))
-    ]
-    native = np.concatenate([o.reshape(x.shape[0], -1) for o in out], axis=-1)  # (B, sum native dims)
-    return native[0] if squeeze else native
+    With a `HandLayout` the input is its state (`state_names`, or the UDHM blocks only when it has none)
+    and the output its passthrough columns, then each hand's native joints in block order; with a
+    `NativeLayout` the input is the converted vector and the output the robot's native vector in the
+    converter's recorded order (passthrough copied by name).
+    """
+    if isinstance(layout, HandLayout):
+        sides = layout.sides or ["right"] * layout.num_hands
+        layout = NativeLayout.from_hands(layout.hands, sides, layout.state_names or None)
+    return layout.to_native(torch.as_tensor(states_rad).detach().cpu().numpy())
 
 
 def tokens_to_native(tokens: torch.Tensor, tokenizer: UniDexTok, layout: HandLayout) -> np.ndarray:
-    """(B, H*N*K) or (H*N*K,) codes -> decoded UDHM -> native commands (see `udhm_to_native`)."""
+    """(B, H*N*K) or (H*N*K,) codes -> decoded UDHM -> each hand's native commands (see `udhm_to_native`)."""
     tokens = torch.as_tensor(tokens)
     squeeze = tokens.ndim == 1
     b = 1 if squeeze else tokens.shape[0]
     cfg = tokenizer.config
     codes = tokens.reshape(b * layout.num_hands, cfg.num_tokens, cfg.num_groups)  # (B*H, N, K)
     states = tokenizer.decode(codes, layout.hands * b, allow_unknown=True).reshape(b, -1)  # (B, 22*H)
-    native = udhm_to_native(states, layout)
+    native = udhm_to_native(states, HandLayout(layout.hands, layout.sides))
     return native[0] if squeeze else native
 
 
 @ProcessorStepRegistry.register(NATIVE_STEP_NAME)
 @dataclass
 class UDHMToNativeCommandStep(PolicyActionProcessorStep):
-    """Post-processor: a predicted UDHM action (B, 22 * H) -> the robot hands' native command units."""
+    """Post-processor: a predicted converted action (..., D) -> the robot's native action (..., D_native).
+
+    Whole robot: `names` (the converted action's names), `native_names` and `native_hands` (one
+    `{"side", "hand", "columns"}` per block) as in `meta/unidextok_conversion.json` "native_layout";
+    passthrough columns (arms...) are copied unchanged, hands go to native units via the hand registry.
+    Hands only (`names` empty): the action is the UDHM blocks of `hand_layout` / `sides`, the output each
+    hand's native joints in block order.
+    """
 
     hand_layout: list[str] = field(default_factory=lambda: ["inspire_rh56"])  # hand spec per block
     sides: list[str] = field(default_factory=list)  # side per block; [] = all right
+    names: list[str] = field(default_factory=list)  # converted action names (whole robot)
+    native_names: list[str] = field(default_factory=list)  # native action names, in the robot's order
+    native_hands: list[dict[str, Any]] = field(default_factory=list)  # {"side", "hand", "columns"} per block
+
+    _native: NativeLayout | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
-        self._layout = HandLayout(self.hand_layout, self.sides)
+        if self.names:
+            self._native = NativeLayout(self.names, self.native_names, self.native_hands)
+        else:
+            sides = list(self.sides) or ["right"] * len(self.hand_layout)
+            self._native = NativeLayout.from_hands(list(self.hand_layout), sides)
+
+    @classmethod
+    def from_layout(cls, layout: NativeLayout) -> UDHMToNativeCommandStep:
+        return cls(
+            hand_layout=[h["hand"] for h in layout.hands],
+            sides=[h["side"] for h in layout.hands],
+            names=layout.names,
+            native_names=layout.native_names,
+            native_hands=layout.hands,
+        )
+
+    @property
+    def layout(self) -> NativeLayout:
+        assert self._native is not None
+        return self._native
 
     def action(self, action: torch.Tensor) -> torch.Tensor:
-        native = udhm_to_native(action, self._layout)
-        return torch.as_tensor(native, dtype=torch.float32, device=torch.as_tensor(action).device)
+        action = torch.as_tensor(action)
+        native = self.layout.to_native(action.detach().cpu().numpy())
+        return torch.as_tensor(native, dtype=torch.float32, device=action.device)
 
     def native_dim(self) -> int:
-        from lerobot_unidextok import hands as hand_registry
-
-        return sum(len(hand_registry.get(h).joint_names) for h in self.hand_layout)
+        return self.layout.native_dim
 
     def transform_features(
         self, features: dict[PipelineFeatureType, dict[str, PolicyFeature]]
@@ -286,4 +372,10 @@ class UDHMToNativeCommandStep(PolicyActionProcessorStep):
         return {**features, PipelineFeatureType.ACTION: acts}
 
     def get_config(self) -> dict[str, Any]:
-        return {"hand_layout": list(self.hand_layout), "sides": list(self.sides)}
+        return {
+            "hand_layout": list(self.hand_layout),
+            "sides": list(self.sides),
+            "names": list(self.names),
+            "native_names": list(self.native_names),
+            "native_hands": [dict(h) for h in self.native_hands],
+        }

@@ -1,8 +1,9 @@
 """`unidextok-push` / `unidextok-pull`: share tokenizer checkpoints and converted datasets.
 
-    unidextok-push --local_dir=outputs/tok --repo_id=me/unidextok-small
+    unidextok-push --local_dir=outputs/tok --repo_id=me/unidextok-small --training_data='[me/dexycb_udhm]'
+    unidextok-push --local_dir=outputs/train/act_udt --repo_id=me/act-udt-g1   # policy run: policy card
     unidextok-pull --repo_id=me/unidextok-small            # then HF_HUB_OFFLINE=1 works
-    unidextok-pull --repo_id=me/dexycb_udhm --repo_type=dataset
+    unidextok-pull --repo_id=me/dexycb_udhm --repo_type=dataset   # also linked at $HF_LEROBOT_HOME/<repo_id>
 
 HF_ENDPOINT, HF_TOKEN, HF_HOME / HF_HUB_CACHE are honoured.
 """
@@ -13,11 +14,14 @@ from dataclasses import dataclass, field
 import draccus
 
 from lerobot_unidextok.hub import pull, push
+from lerobot_unidextok.utils.cli import run_cli
 
 
 @dataclass
 class PushConfig:
-    local_dir: str = ""  # checkpoint folder (config.json + model.safetensors) or LeRobotDataset v3.0 folder
+    # tokenizer or policy checkpoint (config.json + model.safetensors), a training run folder (its best/ or
+    # checkpoints/last/pretrained_model/ is pushed), or a LeRobotDataset v3.0 folder
+    local_dir: str = ""
     repo_id: str = ""  # namespace/name on the Hub
     repo_type: str | None = None  # "model" | "dataset"; detected from the folder when omitted
     private: bool = False
@@ -57,13 +61,16 @@ def pull_cli(cfg: PullConfig) -> None:
     print(path)
 
 
-def push_main() -> None:
-    logging.basicConfig(level=logging.INFO)
+def _setup_logging() -> None:
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     logging.getLogger("httpx").setLevel(logging.WARNING)
-    push_cli()
+
+
+def push_main() -> None:
+    _setup_logging()
+    run_cli(push_cli)
 
 
 def pull_main() -> None:
-    logging.basicConfig(level=logging.INFO)
-    logging.getLogger("httpx").setLevel(logging.WARNING)
-    pull_cli()
+    _setup_logging()
+    run_cli(pull_cli)

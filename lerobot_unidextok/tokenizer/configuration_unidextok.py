@@ -49,6 +49,9 @@ class UniDexTokConfig:
     # Vocabulary of the hand-type embedding c_h (width C, paper: size not published). One extra row
     # is the "unknown hand" embedding used for hands outside this list (zero-shot).
     hand_names: list[str] = field(default_factory=lambda: list(DEFAULT_HAND_NAMES))
+    # Hands the checkpoint was actually trained on (set by training; [] = not recorded). Vocabulary rows
+    # of other hands were never trained: the processor step refuses them or routes them to "unknown hand".
+    trained_hands: list[str] = field(default_factory=list)
 
     # --- factorised cosine VQ ---------------------------------------------------------------------
     codebook_dim: int = 256  # C -> 256 projection before quantisation (paper)
@@ -64,7 +67,8 @@ class UniDexTokConfig:
     usage_decay: float = 0.99  # EMA decay of per-code usage counts
 
     # --- reconstruction loss ------------------------------------------------------------------------
-    # MSE in normalised angle space over active DoFs (paper) + optional SmoothL1 (paper: weight unknown).
+    # MSE in normalised angle space (paper: plain MSE). Restricting it to active DoFs is our choice (padded
+    # slots are zero by construction, not targets). Optional SmoothL1 (paper mentions it, weight unknown).
     smooth_l1_weight: float = 0.0
 
     def __post_init__(self) -> None:
@@ -82,6 +86,7 @@ class UniDexTokConfig:
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         self.hand_names = list(self.hand_names)  # JSON round trip gives lists; keep one type
+        self.trained_hands = list(self.trained_hands)
         if len(set(self.hand_names)) != len(self.hand_names):
             raise ValueError(f"hand_names has duplicates: {self.hand_names}")
 

@@ -205,6 +205,13 @@ class UniDexTok(
         return sim.argmax(dim=-1)  # (B, N, K) int64
 
     @torch.no_grad()
+    def embed(self, states_rad: torch.Tensor, hand: HandArg, allow_unknown: bool = False) -> torch.Tensor:
+        """(B, 22) radians -> (B, N, C) continuous encoder output before quantisation (features for probes)."""
+        x_rad = self._check_states(states_rad)  # (B, 22)
+        c = self.hand_embed(self.hand_ids(hand, x_rad.shape[0], allow_unknown))  # (B, C)
+        return self._encode_latent(x_rad, c)  # (B, N, C)
+
+    @torch.no_grad()
     def decode(self, codes: torch.Tensor, hand: HandArg, allow_unknown: bool = False) -> torch.Tensor:
         """(B, N, K) int codes -> (B, 22) radians."""
         codes = torch.as_tensor(codes, device=self.enc_pos.device)

@@ -74,3 +74,23 @@ def test_bad_input_errors(fitted) -> None:
         UniHMTokenizer(UniHMConfig.from_preset("tiny")).fit({})
     with pytest.raises(ValueError, match="unknown UniHM preset"):
         UniHMConfig.from_preset("huge")
+
+
+def test_retargeted_pairs_are_the_robot_decoder_targets(train_states, masks) -> None:
+    """With `paired`, the robot decoder learns to decode the human code into the retargeted robot state
+    (UniHM's recipe), not into the semantically inserted human state (the old stand-in)."""
+    human = train_states["human"]
+    # "retargeted" robot states: flexion reversed, so they differ from the human state inserted into the slots
+    target = (1.2 - human) * torch.as_tensor(masks["inspire_rh56"])
+    cfg = UniHMConfig.from_preset("tiny", teacher_steps=150, lr=3e-3, kmeans_first_step=30, kmeans_every=60)
+    errors = {}
+    for paired in (True, False):
+        tok = UniHMTokenizer(cfg)
+        tok.fit({"human": human, "inspire_rh56": target}, masks, paired={"inspire_rh56": target} if paired else None)
+        with torch.no_grad():
+            code = tok.encode(human, "human")  # teacher code of each human frame
+            out = tok.decode(code, "inspire_rh56")  # decoded by the robot's decoder
+        errors[paired] = float((out - target).abs()[:, masks["inspire_rh56"].bool()].mean())
+    assert errors[True] < 0.5 * errors[False], errors
+    with pytest.raises(ValueError, match="one retargeted state per 'human' training row"):
+        UniHMTokenizer(cfg).fit({"human": human, "inspire_rh56": target}, masks, paired={"inspire_rh56": target[:5]})

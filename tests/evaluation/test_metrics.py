@@ -97,3 +97,23 @@ def test_bad_inputs_raise():
         mpjae_deg(true, true, np.ones((2, 21), bool))
     with pytest.raises(ValueError, match="one hand per row"):
         keypoint_errors_mm(true, true, np.array(["human"]))
+
+
+@pytest.mark.parametrize("hand", ["human", "inspire_rh56_unitree", "xhand1"])
+def test_finger_keypoints_are_exactly_the_ones_the_joints_move(hand):
+    """FK of any angle error moves the 15 finger keypoints and never the wrist or the 5 finger bases, so the
+    21-keypoint MPJPE is exactly 15/21 of the finger MPJPE (the dilution the paper's figure may or may not
+    contain; catches a finger set that includes a palm point or misses a moving one)."""
+    from lerobot_unidextok.evaluation.metrics import FINGER_KEYPOINT_INDICES, mpjpe_fingers_mm
+
+    rng = np.random.default_rng(1)
+    true = _true(40)
+    pred = true + rng.normal(0, 0.2, true.shape)
+    hands = np.array([hand] * 40)
+    kp = keypoint_errors_mm(pred, true, hands)
+    moving = np.flatnonzero(kp.max(0) > 1e-6)
+    assert moving.tolist() == list(FINGER_KEYPOINT_INDICES) and len(moving) == 15
+    assert mpjpe_fingers_mm(pred, true, hands) * 15 == pytest.approx(mpjpe_mm(pred, true, hands) * 21, rel=1e-9)
+    rep = reconstruction_metrics(pred, true, hands)["overall"]
+    assert rep["mpjpe_fingers_mm"] == pytest.approx(mpjpe_fingers_mm(pred, true, hands))
+    assert rep["mpjpe_fingers_mm"] > rep["mpjpe_mm"]

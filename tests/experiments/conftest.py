@@ -7,13 +7,36 @@ from lerobot_unidextok.experiments import ExperimentConfig
 
 @pytest.fixture(scope="session")
 def tiny_cfg(tmp_path_factory) -> ExperimentConfig:
+    """The tiny preset on the SYNTHETIC sample (explicitly: the default would pick the real recordings), with
+    no real files and no URDFs, so these tests run the same with or without ../shared."""
     root = tmp_path_factory.mktemp("experiments")
     return ExperimentConfig.from_preset(
         "tiny",
+        data="sample",
         output_root=str(root / "out"),
         data_dir=str(root / "_data"),
         models_dir=str(root / "_models"),
-        linkerhand_presets=str(root / "absent.json"),
+        real_data_dir=str(root / "no_real_data"),
+        urdf_dir=str(root / "no_urdfs"),
+    )
+
+
+@pytest.fixture(scope="session")
+def real_cfg(tmp_path_factory, real_data_dir) -> ExperimentConfig:
+    """The tiny preset on the real recordings (G1 Inspire, the real human clip retargeted onto three hands)."""
+    pytest.importorskip("dex_retargeting", reason="the retarget extra (dex-retargeting) is not installed")
+    if not (real_data_dir.parent / "urdf").is_dir():
+        pytest.skip("robot URDFs (../shared/data/urdf) absent")
+    root = tmp_path_factory.mktemp("experiments_real")
+    return ExperimentConfig.from_preset(
+        "tiny",
+        data="real",
+        real_data_dir=str(real_data_dir),
+        retarget_hands=["linkerhand_l10", "linkerhand_l20", "inspire_rh56_unitree"],
+        with_qae=False,
+        output_root=str(root / "out"),
+        data_dir=str(root / "_data"),
+        models_dir=str(root / "_models"),
     )
 
 

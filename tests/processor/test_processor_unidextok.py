@@ -1,23 +1,26 @@
-"""The UniDexTok processor step inside LeRobot pipelines, on real LinkerHand L10 preset poses."""
+"""The UniDexTok processor step inside LeRobot pipelines, on synthetic whole-robot and hands-only states.
+
+Fixtures live in the repository (tests/fixtures/robot_udhm.py, written independently of the package's
+constants); the real LinkerHand presets in ../shared are an extra check that skips without them.
+"""
 
 import json
+import logging
 
 import numpy as np
 import pytest
 import torch
-from lerobot.configs.types import FeatureType, PipelineFeatureType, PolicyFeature
-from lerobot.processor import PolicyProcessorPipeline, ProcessorStepRegistry
+from lerobot.configs.types import FeatureType, NormalizationMode, PipelineFeatureType, PolicyFeature
+from lerobot.processor import NormalizerProcessorStep, PolicyProcessorPipeline, ProcessorStepRegistry
+from robot_udhm import ARM_NAMES, INSPIRE, NATIVE_NAMES, STATE_NAMES, UDHM_JOINTS, inspire_states
 
 from lerobot_unidextok import hands
-from lerobot_unidextok.constants import (
-    OBS_HAND_TOKEN_FEATURES,
-    OBS_HAND_TOKENS,
-    OBS_STATE,
-)
+from lerobot_unidextok.constants import OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE
 from lerobot_unidextok.processor import (
     NATIVE_STEP_NAME,
     STEP_NAME,
     HandLayout,
+    NativeLayout,
     UDHMToNativeCommandStep,
     UniDexTokStateTokenizerStep,
     hand_layout_from_dataset,
@@ -26,20 +29,32 @@ from lerobot_unidextok.processor import (
 )
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 
-L10 = ["linkerhand_l10", "linkerhand_l10"]
+PAIR = [INSPIRE, INSPIRE]
 
 
 @pytest.fixture(scope="module")
 def tok_dir(tmp_path_factory):
     torch.manual_seed(0)
     path = tmp_path_factory.mktemp("tok") / "unidextok-tiny"
-    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["human", "linkerhand_l10"])).save_pretrained(path)
+    cfg = UniDexTokConfig.from_preset("tiny", hand_names=["human", INSPIRE, "linkerhand_l10"])
+    UniDexTok(cfg).save_pretrained(path)
     return path
 
 
 @pytest.fixture(scope="module")
 def step(tok_dir):
-    return UniDexTokStateTokenizerStep(hand_layout=L10, pretrained=str(tok_dir))
+    return UniDexTokStateTokenizerStep(hand_layout=PAIR, pretrained=str(tok_dir))
+
+
+@pytest.fixture(scope="module")
+def states():
+    """(40, 44) float32 UDHM radians: left then right Inspire block."""
+    return torch.from_numpy(inspire_states(40, seed=3))
+
+
+@pytest.fixture(scope="module")
+def robot_step(tok_dir):
+    return UniDexTokStateTokenizerStep(hand_layout=PAIR, state_names=STATE_NAMES, pretrained=str(tok_dir))
 
 
 def test_registered_names_have_no_slash():
@@ -48,81 +63,107 @@ def test_registered_names_have_no_slash():
     assert "/" not in STEP_NAME + NATIVE_STEP_NAME
 
 
-def test_tokens_and_dequantized_view_match_the_tokenizer(step, l10_states):
-    x = torch.from_numpy(l10_states)  # (P, 44)
-    out = step.observation({OBS_STATE: x})
+def test_tokens_and_dequantized_view_match_the_tokenizer(step, states):
+    out = step.observation({OBS_STATE: states})
     tokens, view = out[OBS_HAND_TOKENS], out[OBS_HAND_TOKEN_FEATURES]
     cfg = step.tokenizer.config
-    assert tokens.dtype == torch.int64 and tokens.shape == (
-        len(x),
-        2 * cfg.num_tokens * cfg.num_groups,
-    )
-    assert view.dtype == torch.float32 and view.shape == (len(x), 44)
+    assert tokens.dtype == torch.int64 and tokens.shape == (len(states), 2 * cfg.num_tokens * cfg.num_groups)
+    assert view.dtype == torch.float32 and view.shape == (len(states), 44)
     assert int(tokens.min()) >= 0 and int(tokens.max()) < cfg.codebook_size
-    # per hand: encode the right block with the right hand name, decode it back
-    right_codes = step.tokenizer.encode(x[:, :22], "linkerhand_l10")  # (P, N, K)
-    left_codes = step.tokenizer.encode(x[:, 22:], "linkerhand_l10")
-    assert torch.equal(tokens, torch.cat([right_codes.flatten(1), left_codes.flatten(1)], dim=1))
+    # per hand: encode each block with the hand name, decode it back
+    left = step.tokenizer.encode(states[:, :22], INSPIRE)  # (B, N, K)
+    right = step.tokenizer.encode(states[:, 22:], INSPIRE)
+    assert torch.equal(tokens, torch.cat([left.flatten(1), right.flatten(1)], dim=1))
     # the dequantized view is the decoded state on the hand's active DoFs and zero elsewhere, like the data
-    active = torch.as_tensor(hands.get("linkerhand_l10").active_mask)
-    decoded = step.tokenizer.decode(right_codes, "linkerhand_l10")
-    assert torch.equal(view[:, :22], decoded * active)
-    assert torch.all(view[:, :22][:, ~active] == 0) and torch.any(decoded[:, ~active] != 0)
+    active = torch.zeros(22, dtype=torch.bool)
+    active[[UDHM_JOINTS.index(j) for j in ("pinky_mcp_flex", "thumb_cmc_spread", "index_mcp_flex")]] = True
+    decoded = step.tokenizer.decode(left, INSPIRE)
+    assert torch.equal(view[:, :22][:, active], decoded[:, active])
+    assert torch.all(view[:, UDHM_JOINTS.index("index_pip_flex")] == 0)
+    assert torch.any(decoded[:, UDHM_JOINTS.index("index_pip_flex")] != 0)
 
 
-def test_unbatched_equals_batched_row_inside_pipeline(step, l10_states):
+def test_unbatched_equals_batched_row_inside_pipeline(step, states):
     pipe = PolicyProcessorPipeline(steps=[step], name="policy_preprocessor")
-    x = torch.from_numpy(l10_states)
-    batched = pipe({OBS_STATE: x})
-    single = pipe({OBS_STATE: x[2]})
+    batched = pipe({OBS_STATE: states})
+    single = pipe({OBS_STATE: states[2]})
     assert single[OBS_HAND_TOKENS].shape == batched[OBS_HAND_TOKENS].shape[1:]
     assert torch.equal(single[OBS_HAND_TOKENS], batched[OBS_HAND_TOKENS][2])
     torch.testing.assert_close(single[OBS_HAND_TOKEN_FEATURES], batched[OBS_HAND_TOKEN_FEATURES][2])
 
 
-def test_embedding_representation_width_and_features(tok_dir, l10_states):
-    step = UniDexTokStateTokenizerStep(hand_layout=L10, pretrained=str(tok_dir), representation="embedding")
+def test_temporal_stack_keeps_its_shape(step, states):
+    """Diffusion-style stacked observations (B, T, D) failed with 'must be (D,) or (B, D)'."""
+    stacked = states[:24].reshape(8, 3, 44)  # (B, T, D)
+    out = step.observation({OBS_STATE: stacked})
+    flat = step.observation({OBS_STATE: states[:24]})
+    assert out[OBS_HAND_TOKENS].shape == (8, 3, flat[OBS_HAND_TOKENS].shape[-1])
+    assert torch.equal(out[OBS_HAND_TOKENS].reshape(24, -1), flat[OBS_HAND_TOKENS])
+    assert torch.equal(out[OBS_HAND_TOKEN_FEATURES].reshape(24, -1), flat[OBS_HAND_TOKEN_FEATURES])
+
+
+def test_whole_robot_state_tokenises_only_the_hand_blocks(robot_step, step, states):
+    """A 58-wide G1 state (14 arm joints + 2 blocks) used to fail on width; arms must not affect tokens."""
+    arms = torch.randn(len(states), 14) * 0.3
+    whole = torch.cat([arms, states], dim=1)  # names = STATE_NAMES
+    out = robot_step.observation({OBS_STATE: whole})
+    hands_only = step.observation({OBS_STATE: states})
+    assert torch.equal(out[OBS_HAND_TOKENS], hands_only[OBS_HAND_TOKENS])
+    assert torch.equal(out[OBS_HAND_TOKEN_FEATURES], hands_only[OBS_HAND_TOKEN_FEATURES])
+    assert torch.equal(out[OBS_STATE], whole)  # the state itself passes unchanged
+    other_arms = robot_step.observation({OBS_STATE: torch.cat([arms + 0.2, states], dim=1)})
+    assert torch.equal(other_arms[OBS_HAND_TOKENS], out[OBS_HAND_TOKENS])
+    # blocks found by name, not position: hands first, arms after gives the same tokens
+    moved = UniDexTokStateTokenizerStep(hand_layout=PAIR, state_names=STATE_NAMES[14:] + ARM_NAMES,
+                                        tokenizer_config=robot_step.tokenizer_config)  # fmt: skip
+    moved.load_state_dict(robot_step.state_dict())
+    assert torch.equal(moved.observation({OBS_STATE: torch.cat([states, arms], 1)})[OBS_HAND_TOKENS],
+                       out[OBS_HAND_TOKENS])  # fmt: skip
+    with pytest.raises(ValueError, match=r"width 44, but this step was set up for 58 columns \(14 passthrough"):
+        robot_step.observation({OBS_STATE: states})
+
+
+def test_embedding_representation_width_and_features(tok_dir, states):
+    step = UniDexTokStateTokenizerStep(hand_layout=PAIR, pretrained=str(tok_dir), representation="embedding")
     cfg = step.tokenizer.config
-    out = step.observation({OBS_STATE: torch.from_numpy(l10_states)})
-    view = out[OBS_HAND_TOKEN_FEATURES]
-    assert view.shape == (len(l10_states), 2 * cfg.num_tokens * cfg.codebook_dim)
-    # unit-norm code vectors per (hand, token, group)
-    norms = view.reshape(len(l10_states), -1, cfg.group_dim).norm(dim=-1)
+    view = step.observation({OBS_STATE: states})[OBS_HAND_TOKEN_FEATURES]
+    assert view.shape == (len(states), 2 * cfg.num_tokens * cfg.codebook_dim)
+    norms = view.reshape(len(states), -1, cfg.group_dim).norm(dim=-1)  # unit-norm code vectors
     torch.testing.assert_close(norms, torch.ones_like(norms))
     feats = step.transform_features(
         {PipelineFeatureType.OBSERVATION: {OBS_STATE: PolicyFeature(FeatureType.STATE, (44,))}}
     )
     obs = feats[PipelineFeatureType.OBSERVATION]
     assert obs[OBS_HAND_TOKEN_FEATURES] == PolicyFeature(FeatureType.ENV, (view.shape[1],))
-    assert obs[OBS_HAND_TOKENS].shape == (out[OBS_HAND_TOKENS].shape[1],)
+    assert obs[OBS_HAND_TOKENS].shape == (2 * cfg.num_tokens * cfg.num_groups,)
     assert OBS_STATE in obs
 
 
-def test_pipeline_save_and_reload_is_bit_exact(step, l10_states, tmp_path):
-    pipe = PolicyProcessorPipeline(steps=[step], name="policy_preprocessor")
+def test_pipeline_save_and_reload_is_bit_exact(robot_step, states, tmp_path):
+    pipe = PolicyProcessorPipeline(steps=[robot_step], name="policy_preprocessor")
     pipe.save_pretrained(tmp_path)
     saved = json.loads((tmp_path / "policy_preprocessor.json").read_text())
     assert saved["steps"][0]["registry_name"] == STEP_NAME
-    assert saved["steps"][0]["config"]["hand_layout"] == L10
+    assert saved["steps"][0]["config"]["hand_layout"] == PAIR
+    assert saved["steps"][0]["config"]["state_names"] == STATE_NAMES
     assert (tmp_path / f"policy_preprocessor_step_0_{STEP_NAME}.safetensors").is_file()
     # reload without the original checkpoint folder: weights come from the pipeline's safetensors
     saved["steps"][0]["config"]["pretrained"] = "/nonexistent/checkpoint"
     (tmp_path / "policy_preprocessor.json").write_text(json.dumps(saved))
     again = PolicyProcessorPipeline.from_pretrained(tmp_path, config_filename="policy_preprocessor.json")
-    x = torch.from_numpy(l10_states)
+    x = torch.cat([torch.zeros(len(states), 14), states], dim=1)
     a, b = pipe({OBS_STATE: x}), again({OBS_STATE: x})
     assert torch.equal(a[OBS_HAND_TOKENS], b[OBS_HAND_TOKENS])
     assert torch.equal(a[OBS_HAND_TOKEN_FEATURES], b[OBS_HAND_TOKEN_FEATURES])
 
 
-def test_reference_only_pipeline_reloads_from_checkpoint_folder(tok_dir, l10_states, tmp_path):
-    step = UniDexTokStateTokenizerStep(hand_layout=L10, pretrained=str(tok_dir), embed_weights=False)
+def test_reference_only_pipeline_reloads_from_checkpoint_folder(tok_dir, states, tmp_path):
+    step = UniDexTokStateTokenizerStep(hand_layout=PAIR, pretrained=str(tok_dir), embed_weights=False)
     assert step.state_dict() == {} and step.get_config()["tokenizer_config"] is None
     pipe = PolicyProcessorPipeline(steps=[step], name="policy_preprocessor")
     pipe.save_pretrained(tmp_path)
     again = PolicyProcessorPipeline.from_pretrained(tmp_path, config_filename="policy_preprocessor.json")
-    x = torch.from_numpy(l10_states)
-    assert torch.equal(pipe({OBS_STATE: x})[OBS_HAND_TOKENS], again({OBS_STATE: x})[OBS_HAND_TOKENS])
+    assert torch.equal(pipe({OBS_STATE: states})[OBS_HAND_TOKENS], again({OBS_STATE: states})[OBS_HAND_TOKENS])
 
 
 def test_bad_width_names_the_fix(step):
@@ -132,11 +173,43 @@ def test_bad_width_names_the_fix(step):
         step.observation({OBS_STATE: torch.zeros(22)})  # one hand where the layout has two
 
 
-def test_nan_names_the_frame(step, l10_states):
-    x = torch.from_numpy(l10_states.copy())
+def test_nan_names_the_frame(step, states):
+    x = states.clone()
     x[1, 5] = float("nan")
     with pytest.raises(ValueError, match=r"NaN/inf \(first at \[batch, dim\] = \[1, 5\]\)"):
         step.observation({OBS_STATE: x})
+
+
+def test_degrees_are_refused(step, states):
+    """A state in degrees (90 for a right angle) used to be tokenised without a word."""
+    with pytest.raises(ValueError, match=r"look like degrees.*deg2rad"):
+        step.observation({OBS_STATE: torch.rad2deg(states)})
+
+
+@pytest.mark.parametrize("mode", [NormalizationMode.MEAN_STD, NormalizationMode.MIN_MAX])
+def test_step_after_the_normalizer_is_refused(step, states, mode):
+    """Placed after LeRobot's normalizer the step tokenised z-scores (decoded states reached -7 rad)."""
+    x = states.numpy()
+    stats = {OBS_STATE: {"mean": x.mean(0), "std": x.std(0), "min": x.min(0), "max": x.max(0)}}
+    norm = NormalizerProcessorStep(features={OBS_STATE: PolicyFeature(FeatureType.STATE, (44,))},
+                                   norm_map={FeatureType.STATE: mode}, stats=stats)  # fmt: skip
+    wrong = PolicyProcessorPipeline(steps=[norm, step], name="policy_preprocessor")
+    with pytest.raises(ValueError, match=r"looks normalised.*before `normalizer_processor`"):
+        wrong({OBS_STATE: states})
+    right = PolicyProcessorPipeline(steps=[step, norm], name="policy_preprocessor")
+    assert right({OBS_STATE: states})[OBS_HAND_TOKENS].shape[0] == len(states)
+
+
+def test_range_check_warn_and_off(tok_dir, states, caplog):
+    deg = torch.rad2deg(states)
+    warn = UniDexTokStateTokenizerStep(hand_layout=PAIR, pretrained=str(tok_dir), range_check="warn")
+    with caplog.at_level(logging.WARNING):
+        warn.observation({OBS_STATE: deg})
+    assert "look like degrees" in caplog.text
+    off = UniDexTokStateTokenizerStep(hand_layout=PAIR, pretrained=str(tok_dir), range_check="off")
+    assert off.observation({OBS_STATE: deg})[OBS_HAND_TOKENS].shape[0] == len(states)
+    with pytest.raises(ValueError, match="range_check must be one of"):
+        UniDexTokStateTokenizerStep(hand_layout=PAIR, pretrained=str(tok_dir), range_check="maybe")
 
 
 def test_checkpoint_missing_offline_names_unidextok_pull():
@@ -144,64 +217,122 @@ def test_checkpoint_missing_offline_names_unidextok_pull():
         UniDexTokStateTokenizerStep(hand_layout=["human"], pretrained="nobody/missing-tokenizer")
 
 
-def test_layout_from_converted_dataset(l10_dataset):
-    layout = hand_layout_from_dataset(l10_dataset)
-    assert layout == HandLayout(hands=L10, sides=["right", "left"])
-    with pytest.raises(ValueError, match="not '<side>_<udhm joint>'"):
-        HandLayout.from_state_names([f"j{i}" for i in range(22)], "human")
-    with pytest.raises(ValueError, match="match no UDHM layout"):
-        HandLayout.from_state_names(["right_thumb_cmc_flex"] * 10, "human")
-
-
-def test_udhm_to_native_recovers_real_presets(real_data_dir, l10_states):
-    import yaml
-
-    presets = yaml.safe_load((real_data_dir / "linkerhand-ros2-sdk" / "L10_positions.yaml").read_text())
-    right = {p["ACTION_NAME"]: p["POSITION"] for p in presets["RIGHT_HAND"]}
-    left = {p["ACTION_NAME"]: p["POSITION"] for p in presets["LEFT_HAND"]}
-    raw = np.array([right[n] + left[n] for n in right if n in left], dtype=np.float64)  # (P, 20)
-    layout = HandLayout(L10, ["right", "left"])
-    native = udhm_to_native(torch.from_numpy(l10_states), layout)
-    assert native.shape == raw.shape
-    np.testing.assert_allclose(native, raw, atol=0.5)  # float32 UDHM round trip, 0-255 units
-    post = UDHMToNativeCommandStep(hand_layout=L10, sides=["right", "left"])
-    np.testing.assert_allclose(post.action(torch.from_numpy(l10_states)).numpy(), raw, atol=0.5)
-    assert post.native_dim() == 2 * hands.get("linkerhand_l10").num_native
-
-
-def test_tokens_to_native_shape_and_limits(step, l10_states):
-    tokens = step.observation({OBS_STATE: torch.from_numpy(l10_states)})[OBS_HAND_TOKENS]
-    native = tokens_to_native(tokens, step.tokenizer, HandLayout(L10, ["right", "left"]))
-    assert native.shape == (len(l10_states), 20)
-    assert native.min() >= 0 and native.max() <= 255  # clipped to the SDK range
-    assert tokens_to_native(tokens[0], step.tokenizer, HandLayout(L10, ["right", "left"])).shape == (20,)
-
-
-@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
-def test_device_follows_input(step, l10_states):
-    out = step.observation({OBS_STATE: torch.from_numpy(l10_states).cuda()})
-    assert out[OBS_HAND_TOKENS].device.type == "cuda"
-
-
-def test_hand_outside_vocabulary_needs_allow_unknown(tok_dir):
-    with pytest.raises(ValueError, match=r"\['xhand1'\] are not in the tokenizer vocabulary"):
-        UniDexTokStateTokenizerStep(hand_layout=["xhand1"], pretrained=str(tok_dir), allow_unknown=False)
-    step = UniDexTokStateTokenizerStep(hand_layout=["xhand1"], pretrained=str(tok_dir))
+def test_hand_outside_vocabulary_is_refused_or_zero_shot(tok_dir, caplog):
+    with pytest.raises(ValueError, match=r"not trained on hands \['xhand1'\].*allow_unknown=True"):
+        UniDexTokStateTokenizerStep(hand_layout=["xhand1"], pretrained=str(tok_dir))
+    with caplog.at_level(logging.WARNING):
+        step = UniDexTokStateTokenizerStep(hand_layout=["xhand1"], pretrained=str(tok_dir), allow_unknown=True)
+    assert "['xhand1'] were never trained" in caplog.text and "unknown-hand embedding" in caplog.text
     out = step.observation({OBS_STATE: torch.zeros(22)})
     unknown = step.tokenizer.encode(torch.zeros(1, 22), torch.tensor([step.tokenizer.unknown_hand_id]))
     assert torch.equal(out[OBS_HAND_TOKENS], unknown.flatten())
 
 
-def test_token_preview_shows_codes_and_decoded_state(step, l10_states):
+def test_vocabulary_hand_never_trained_is_refused(tmp_path, caplog):
+    """A tokenizer trained on one hand listed all 11 vocabulary hands and ran 'shadow' silently."""
+    torch.manual_seed(0)
+    cfg = UniDexTokConfig.from_preset("tiny", trained_hands=[INSPIRE])  # default vocabulary: 11 hands
+    assert "shadow" in cfg.hand_names
+    UniDexTok(cfg).save_pretrained(tmp_path / "tok")
+    with pytest.raises(ValueError, match=r"not trained on hands \['shadow'\] \(it knows \['inspire_rh56_unitree'\]\)"):
+        UniDexTokStateTokenizerStep(hand_layout=["shadow"] * 2, pretrained=str(tmp_path / "tok"))
+    step = UniDexTokStateTokenizerStep(hand_layout=["shadow"], pretrained=str(tmp_path / "tok"), allow_unknown=True)
+    assert step._hand_ids.tolist() == [step.tokenizer.unknown_hand_id]  # not the untrained 'shadow' row
+    assert UniDexTokStateTokenizerStep(hand_layout=[INSPIRE], pretrained=str(tmp_path / "tok"))._hand_ids.tolist() == [
+        cfg.hand_names.index(INSPIRE)
+    ]
+
+
+def test_hand_without_spec_fails_before_logging(tok_dir, caplog):
+    """An unknown hand logged 'using its unknown-hand embedding' and then raised anyway."""
+    with caplog.at_level(logging.INFO), pytest.raises(ValueError, match=r"\['mystery'\] have no hand spec"):
+        UniDexTokStateTokenizerStep(hand_layout=["mystery"], pretrained=str(tok_dir), allow_unknown=True)
+    assert "unknown-hand embedding" not in caplog.text
+
+
+def test_layout_from_converted_whole_robot_dataset(g1_like):
+    layout = hand_layout_from_dataset(g1_like["root"])
+    assert layout.hands == PAIR and layout.sides == ["left", "right"]
+    assert layout.state_names == STATE_NAMES and layout.passthrough_names == ARM_NAMES
+    np.testing.assert_array_equal(layout.block_columns, np.arange(14, 58))
+    step = UniDexTokStateTokenizerStep.from_dataset(g1_like["root"], preset="tiny")
+    assert step.layout.state_dim == 58
+    with pytest.raises(ValueError, match="none of the 22 state names"):
+        HandLayout.from_state_names([f"j{i}" for i in range(22)], "human")
+    with pytest.raises(ValueError, match="incomplete or out of order"):
+        HandLayout.from_state_names(["right_thumb_cmc_flex"] * 10, "human")
+
+
+def test_native_layout_decodes_the_dataset_action_back_to_the_robot(g1_like):
+    """Decoding returns the 26-wide G1 vector: arms bit-identical, hands back in Unitree's [0, 1] units."""
+    from lerobot.datasets import LeRobotDataset
+
+    layout = NativeLayout.from_dataset(g1_like["root"])
+    assert layout.native_names == NATIVE_NAMES and layout.native_dim == 26
+    ds = LeRobotDataset("test/g1_like_udhm", root=g1_like["root"])
+    actions = torch.stack([ds[i]["action"] for i in range(len(ds))])  # (N, 58)
+    native = layout.to_native(actions.numpy())
+    expected = g1_like["native_action"]
+    assert native.shape == expected.shape == (len(ds), 26)
+    np.testing.assert_array_equal(native[:, :14].astype(np.float32), expected[:, :14])  # arms untouched
+    np.testing.assert_allclose(native[:, 14:], expected[:, 14:], atol=1e-5)  # float32 UDHM round trip
+    post = UDHMToNativeCommandStep.from_layout(layout)
+    chunk = post.action(actions[:12].reshape(2, 6, 58))  # (B, T, D) action chunks keep their shape
+    assert chunk.shape == (2, 6, 26) and chunk.dtype == torch.float32
+    again = UDHMToNativeCommandStep(**json.loads(json.dumps(post.get_config())))
+    torch.testing.assert_close(again.action(actions[:3]), torch.as_tensor(native[:3], dtype=torch.float32))
+    feats = post.transform_features({PipelineFeatureType.ACTION: {"action": PolicyFeature(FeatureType.ACTION, (58,))}})
+    assert feats[PipelineFeatureType.ACTION]["action"].shape == (26,)
+
+
+def test_native_layout_without_recorded_layout_is_derived(g1_like, tmp_path):
+    import shutil
+
+    root = tmp_path / "ds"
+    shutil.copytree(g1_like["root"], root)
+    (root / "meta" / "unidextok_conversion.json").unlink()
+    layout = NativeLayout.from_dataset(root)
+    assert layout.native_names[:14] == ARM_NAMES
+    assert layout.native_names[14:20] == [f"left_{j}" for j in hands.get(INSPIRE).joint_names]
+    x = np.concatenate([np.zeros((1, 14)), inspire_states(1)], axis=1)
+    np.testing.assert_allclose(
+        layout.to_native(x)[0, 14:], udhm_to_native(x[:, 14:], HandLayout(PAIR, ["left", "right"]))[0]
+    )
+
+
+def test_tokens_to_native_shape_and_limits(step, states):
+    tokens = step.observation({OBS_STATE: states})[OBS_HAND_TOKENS]
+    layout = HandLayout(PAIR, ["left", "right"])
+    native = tokens_to_native(tokens, step.tokenizer, layout)
+    assert native.shape == (len(states), 12)
+    assert native.min() >= 0 and native.max() <= 1  # clipped to Unitree's [0, 1]
+    assert tokens_to_native(tokens[0], step.tokenizer, layout).shape == (12,)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_device_follows_input(step, states):
+    out = step.observation({OBS_STATE: states.cuda()})
+    assert out[OBS_HAND_TOKENS].device.type == "cuda"
+
+
+def test_token_preview_shows_codes_and_decoded_state(step, states):
     from lerobot_unidextok.processor import token_preview
 
-    text = token_preview(step, torch.from_numpy(l10_states[:2]))
+    text = token_preview(step, states[:2])
     cfg = step.tokenizer.config
     assert text.count("frame ") == 4  # 2 frames x 2 hands
     assert text.count("  tokens ") == 4 * cfg.num_tokens
-    first_codes = step.observation({OBS_STATE: torch.from_numpy(l10_states[0])})[OBS_HAND_TOKENS][: cfg.num_groups]
+    first_codes = step.observation({OBS_STATE: states[0]})[OBS_HAND_TOKENS][: cfg.num_groups]
     assert "  tokens " + " ".join(f"{c:2d}" for c in first_codes.tolist()) in text
     assert "input deg" in text and "decoded deg" in text
+
+
+def test_token_preview_of_a_whole_robot_state(robot_step, step, states):
+    """The preview reshaped the whole state into hand rows, so arm columns showed up as hand angles."""
+    from lerobot_unidextok.processor import token_preview
+
+    whole = torch.cat([torch.full((2, 14), 0.5), states[:2]], dim=1)  # (2, 58)
+    assert token_preview(robot_step, whole) == token_preview(step, states[:2])
 
 
 def test_layout_refuses_a_dataset_that_mixes_hands(tmp_path):
@@ -215,3 +346,23 @@ def test_layout_refuses_a_dataset_that_mixes_hands(tmp_path):
     assert {"linkerhand_l10", "linkerhand_l20"} <= set(report.hands)
     with pytest.raises(ValueError, match="mixes hand layouts.*linkerhand_l10.*linkerhand_l20"):
         hand_layout_from_dataset(report.root)
+
+
+# ---------------------------------------------------------------------------------------------
+# extra checks on real data (skip without ../shared)
+# ---------------------------------------------------------------------------------------------
+def test_udhm_to_native_recovers_real_l10_presets(real_data_dir, tok_dir):
+    import yaml
+    from linkerhand_udhm import l10_preset_states
+
+    l10_states = l10_preset_states(real_data_dir)  # (P, 44) right + left presets
+    presets = yaml.safe_load((real_data_dir / "linkerhand-ros2-sdk" / "L10_positions.yaml").read_text())
+    right = {p["ACTION_NAME"]: p["POSITION"] for p in presets["RIGHT_HAND"]}
+    left = {p["ACTION_NAME"]: p["POSITION"] for p in presets["LEFT_HAND"]}
+    raw = np.array([right[n] + left[n] for n in right if n in left], dtype=np.float64)  # (P, 20)
+    layout = HandLayout(["linkerhand_l10"] * 2, ["right", "left"])
+    np.testing.assert_allclose(udhm_to_native(torch.from_numpy(l10_states), layout), raw, atol=0.5)
+    post = UDHMToNativeCommandStep(hand_layout=["linkerhand_l10"] * 2, sides=["right", "left"])
+    np.testing.assert_allclose(post.action(torch.from_numpy(l10_states)).numpy(), raw, atol=0.5)
+    step = UniDexTokStateTokenizerStep(hand_layout=["linkerhand_l10"] * 2, pretrained=str(tok_dir))
+    assert step.observation({OBS_STATE: torch.from_numpy(l10_states)})[OBS_HAND_TOKENS].shape[0] == len(raw)

@@ -1,0 +1,177 @@
+"""`<type>_udt`: a stock LeRobot policy whose pre-processor tokenises the hand blocks with UniDexTok.
+
+    lerobot-train --policy.type=diffusion_udt --policy.discover_packages_path=lerobot_unidextok \
+        --policy.udt_pretrained=lab/unidextok-small --dataset.repo_id=lab/g1_udhm --dataset.root=data/g1_udhm
+
+Why one generic wrapper and not one file trio per policy, a token-writing command or an injecting entry point
+(lerobot 0.6.1): a policy *type* is the only thing `lerobot-train` flags and config files can select
+that also decides the processors (`make_<type>_pre_post_processors`), and its processors are saved into
+every checkpoint, so `--policy.path` resume, `lerobot-eval` and the stock factory reload all get the step
+back without any code of ours in the loop. Features written into the dataset would leave inference
+without the step; an injecting entry point would not be `lerobot-train`. So each `<type>_udt` is the stock
+config class plus the `udt_*` fields below, the stock model class unchanged (`modeling_udt`), and the stock
+processors with the UniDexTok step inserted before batching (`processor_udt`): one implementation for
+every wrapped type. `udt_config_class("<type>")` wraps another stock type the same way.
+
+What the wrapper adds to the stock config, in `validate_features` (run when the policy is built):
+- the hand layout, sides and state column names from the training dataset (`hand_type` + state names),
+  so a whole-robot state (arms + hands) works: only the UDHM blocks are tokenised;
+- `observation.environment_state` (ENV, not normalised) sized for the token view, which ACT / Diffusion /
+  VQ-BeT take as their environment state next to `observation.state`;
+- the native action layout, so `select_action` (through the post-processor) returns the robot's own action.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import lerobot.policies  # noqa: F401  (registers the stock config classes this module wraps)
+from lerobot.configs.policies import PreTrainedConfig
+from lerobot.configs.types import FeatureType, PolicyFeature
+
+from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE, UDHM_DIM
+from lerobot_unidextok.processor import (
+    RANGE_CHECKS,
+    REPRESENTATIONS,
+    HandLayout,
+    NativeLayout,
+    load_tokenizer,
+    tokenizer_output_dims,
+)
+from lerobot_unidextok.processor.layout import dataset_hand_types, feature_names
+from lerobot_unidextok.state_layout import find_udhm_blocks
+
+logger = logging.getLogger(__name__)
+
+UDT_SUFFIX = "_udt"
+UDT_CONFIGS: dict[str, type[PreTrainedConfig]] = {}  # "<type>_udt" -> config class
+
+
+@dataclass
+class UdtFields:
+    """The `udt_*` fields every `<type>_udt` config adds to its stock config."""
+
+    # --- UniDexTok step -----------------------------------------------------------------------------
+    # UniDexTok checkpoint folder or Hub repo id (resolved offline from the HF cache once pulled).
+    # None: an untrained `udt_preset` tokenizer (smoke tests only).
+    udt_pretrained: str | None = None
+    udt_preset: str = "small"
+    udt_representation: str = "dequantized"  # "dequantized" (H*22 rad) | "embedding" (H*N*codebook_dim)
+    # Hand spec name per UDHM block of observation.state (one name = all blocks). Empty: read from the
+    # training dataset (`hand_type` column) when lerobot-train builds the policy.
+    udt_hand_layout: list[str] = field(default_factory=list)
+    udt_sides: list[str] = field(default_factory=list)  # filled from the dataset's state names
+    udt_state_names: list[str] = field(default_factory=list)  # observation.state names (filled from the dataset)
+    # Hands the tokenizer was not trained on: false = refuse; true = zero-shot "unknown hand" embedding.
+    udt_allow_unknown: bool = False
+    udt_range_check: str = "raise"  # states outside the hands' ranges (degrees, normalised): raise | warn | off
+    # Decode predicted actions back to the robot's native action (arms copied, hands in native units)
+    # when the dataset's hands have native joints; the layout is read from the dataset.
+    udt_native_action: bool = True
+    udt_native_layout: dict[str, Any] = field(default_factory=dict)  # {"names", "native_names", "hands"}
+    # Accepted (and ignored) so `--policy.discover_packages_path=lerobot_unidextok` also works with
+    # `--policy.path=<checkpoint>`, where LeRobot passes every --policy.* flag to the loaded config.
+    discover_packages_path: str | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.udt_representation not in REPRESENTATIONS:
+            raise ValueError(f"udt_representation must be one of {REPRESENTATIONS}, got {self.udt_representation!r}")
+        if self.udt_range_check not in RANGE_CHECKS:
+            raise ValueError(f"udt_range_check must be one of {RANGE_CHECKS}, got {self.udt_range_check!r}")
+
+    # ----------------------------------------------------------------------------------------------
+    def tokenizer_config(self):
+        """The UniDexTokConfig the step will use (config.json of udt_pretrained, else the preset)."""
+        from lerobot_unidextok.tokenizer import UniDexTokConfig
+
+        if self.udt_pretrained is None:
+            return UniDexTokConfig.from_preset(self.udt_preset)
+        local = Path(self.udt_pretrained) / "config.json"
+        if local.is_file():
+            return UniDexTokConfig(**json.loads(local.read_text()))
+        return load_tokenizer(self.udt_pretrained).config
+
+    def _fill_from_dataset(self) -> None:
+        """Hand layout, state names and native action layout from the dataset lerobot-train loaded."""
+        meta = getattr(self, "_runtime_dataset_meta", None)
+        if meta is None or self.udt_state_names:
+            return
+        if OBS_HAND_TOKEN_FEATURES in meta.features:
+            raise ValueError(
+                f"the dataset already has '{OBS_HAND_TOKEN_FEATURES}', which the UniDexTok step writes; drop or "
+                f"rename it (lerobot-edit-dataset), or train the stock --policy.type={self.base_type}"
+            )
+        names = feature_names(meta.features.get(OBS_STATE, {}))
+        hands = self.udt_hand_layout or dataset_hand_types(meta.root)
+        if len(hands) == 1:
+            hands = hands * max(1, len(find_udhm_blocks(names)))
+        layout = HandLayout.from_state_names(names, hands)
+        self.udt_hand_layout, self.udt_sides, self.udt_state_names = layout.hands, layout.sides, layout.state_names
+        native = NativeLayout.from_dataset(meta.root, ACTION) if self.udt_native_action else None
+        self.udt_native_layout = native.to_dict() if native is not None else {}
+        logger.info(
+            "%s: hands %s (sides %s), %d passthrough state columns, native action %s, from %s",
+            self.type, layout.hands, layout.sides, len(layout.passthrough_names),
+            f"{native.native_dim} wide" if native else "not decoded", meta.root,
+        )  # fmt: skip
+
+    def validate_features(self) -> None:
+        self._fill_from_dataset()
+        state = self.input_features.get(OBS_STATE)
+        if state is None:
+            raise ValueError(f"{self.type} needs '{OBS_STATE}' (UDHM hand states) among the dataset features")
+        width = state.shape[0]
+        if not self.udt_hand_layout:
+            raise ValueError(
+                f"{self.type}: set --policy.udt_hand_layout='[<hand>, ...]' (one hand spec per UDHM block), "
+                "or train on a dataset converted with unidextok-convert (its hand_type column names the hands)"
+            )
+        if not self.udt_state_names:  # hands-only state given without a dataset: 22 columns per hand
+            if width % UDHM_DIM:
+                raise ValueError(
+                    f"{OBS_STATE} has width {width}, which matches no UDHM layout (22 per hand); train on a "
+                    "dataset converted with unidextok-convert, whose state names say where the hand blocks are"
+                )
+            if len(self.udt_hand_layout) == 1:
+                self.udt_hand_layout = self.udt_hand_layout * (width // UDHM_DIM)
+        elif len(self.udt_state_names) != width:
+            raise ValueError(f"udt_state_names has {len(self.udt_state_names)} names for a {width}-wide {OBS_STATE}")
+        num_hands = len(self.udt_hand_layout)
+        if not self.udt_state_names and num_hands * UDHM_DIM != width:
+            raise ValueError(
+                f"udt_hand_layout {self.udt_hand_layout} names {num_hands} hands but {OBS_STATE} (width {width}) "
+                f"holds {width // UDHM_DIM}"
+            )
+        self.input_features.pop(OBS_HAND_TOKENS, None)  # int64 ids must not reach the normalizer
+        if OBS_HAND_TOKEN_FEATURES not in self.input_features:  # a reloaded config has it already
+            _, env_width = tokenizer_output_dims(self.tokenizer_config(), num_hands, self.udt_representation)
+            self.input_features[OBS_HAND_TOKEN_FEATURES] = PolicyFeature(type=FeatureType.ENV, shape=(env_width,))
+        super().validate_features()
+
+
+def udt_config_class(base_type: str) -> type[PreTrainedConfig]:
+    """Register `<base_type>_udt`: the stock config class of `base_type` plus `UdtFields`; returns it."""
+    udt_type = base_type + UDT_SUFFIX
+    if udt_type in UDT_CONFIGS:
+        return UDT_CONFIGS[udt_type]
+    base = PreTrainedConfig.get_choice_class(base_type)
+    name = base.__name__.removesuffix("Config") + "UdtConfig"  # ACTConfig -> ACTUdtConfig (-> ACTUdtPolicy)
+    doc = f"LeRobot's `{base_type}` policy on UniDexTok hand tokens (`--policy.type={udt_type}`)."
+    namespace = {"__module__": __name__, "__qualname__": name, "__doc__": doc}
+    cls = dataclass(type(name, (UdtFields, base), namespace))
+    cls.base_type, cls.udt_type = base_type, udt_type  # plain class attributes, not config fields
+    PreTrainedConfig.register_subclass(udt_type)(cls)
+    globals()[name] = cls  # modeling_udt / processor_udt find it by name, pickles resolve it
+    UDT_CONFIGS[udt_type] = cls
+    return cls
+
+
+# The stock types wrapped by default: state-based policies that take `observation.environment_state`.
+ACTUdtConfig = udt_config_class("act")
+DiffusionUdtConfig = udt_config_class("diffusion")
+VQBeTUdtConfig = udt_config_class("vqbet")

@@ -1,0 +1,50 @@
+"""`unidextok-view`: look at a converted episode: 3D UDHM hands from FK next to the native values and,
+with a tokenizer, the tokens and the decoded hand. Writes an .mp4 / .gif, or a rerun recording (.rrd).
+
+    unidextok-view --dataset=data/g1_udhm --episode=0 --output=outputs/view/g1_ep0.mp4
+    unidextok-view --dataset=lab/g1_udhm --tokenizer=lab/unidextok-small --output=outputs/view/ep0.gif --stride=3
+    unidextok-view --dataset=data/g1_udhm --output=outputs/view/ep0.rrd   # rerun-sdk: pip install 'lerobot[viz]'
+        then: rerun outputs/view/ep0.rrd
+"""
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import draccus
+
+from lerobot_unidextok.utils.cli import run_cli
+
+
+@dataclass
+class ViewConfig:
+    dataset: str = ""  # converted dataset folder, or a repo id pulled to this machine
+    episode: int = 0  # episode_index to show
+    tokenizer: str | None = None  # UniDexTok folder or repo id: adds tokens and the decoded hand
+    output: str = "outputs/view/episode.mp4"  # .mp4 | .gif | .rrd (rerun recording)
+    stride: int = 1  # show every stride-th frame (the video plays at fps / stride)
+    max_frames: int = 300  # at most this many frames after the stride
+    camera: str = "oblique"  # 3D view: side | oblique | palm
+
+
+@draccus.wrap()
+def view_cli(cfg: ViewConfig) -> None:
+    from lerobot_unidextok.viz.episode import VIDEO_SUFFIXES, load_episode, write_rerun, write_video
+
+    if not cfg.dataset:
+        raise ValueError("--dataset is required: a converted dataset folder or a pulled repo id")
+    suffix = Path(cfg.output).suffix.lower()
+    if suffix not in (*VIDEO_SUFFIXES, ".rrd"):
+        raise ValueError(f"--output must end in .mp4, .gif or .rrd, got {cfg.output!r}")
+    view = load_episode(cfg.dataset, cfg.episode, cfg.tokenizer, cfg.stride, cfg.max_frames)
+    path = write_rerun(view, cfg.output) if suffix == ".rrd" else write_video(view, cfg.output, cfg.camera)
+    print(f"wrote {path} ({view.num_frames} frames, hands {view.hands}, sides {view.sides})")
+
+
+def main() -> None:
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    run_cli(view_cli)
+
+
+if __name__ == "__main__":
+    main()

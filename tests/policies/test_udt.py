@@ -1,0 +1,233 @@
+"""`<type>_udt`: stock LeRobot policies on UniDexTok hand tokens from lerobot-train flags or a config file.
+
+The slow tests run the real `lerobot-train` CLI in subprocesses on a synthetic whole-robot dataset in the
+converted contract (tests/fixtures/robot_udhm.py: 14 G1 arm joints + two Inspire hands), resume with
+`--policy.path`, and reload every checkpoint in a fresh process with LeRobot's stock factory.
+"""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+from lerobot.configs.policies import PreTrainedConfig
+from lerobot.configs.types import FeatureType, PolicyFeature
+from linkerhand_udhm import subprocess_env
+from robot_udhm import INSPIRE, NATIVE_NAMES, STATE_NAMES, to_converted
+
+from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_STATE
+from lerobot_unidextok.policies import UDT_CONFIGS, ACTUdtConfig, DiffusionUdtConfig
+from lerobot_unidextok.policies.udt.processor_udt import make_udt_pre_post_processors
+from lerobot_unidextok.processor import NATIVE_STEP_NAME, STEP_NAME
+from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
+
+REPO = Path(__file__).resolve().parents[2]
+BIN = Path(sys.executable).parent
+TINY_ACT = ["--policy.chunk_size=4", "--policy.n_action_steps=4", "--policy.dim_model=32", "--policy.n_heads=2",
+            "--policy.dim_feedforward=64", "--policy.n_encoder_layers=1", "--policy.n_decoder_layers=1",
+            "--policy.use_vae=false"]  # fmt: skip
+TINY_DIFFUSION = ["--policy.down_dims=[16,32]", "--policy.horizon=8", "--policy.n_action_steps=4",
+                  "--policy.num_inference_steps=2", "--policy.diffusion_step_embed_dim=16"]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def tok_dir(tmp_path_factory):
+    torch.manual_seed(2)
+    path = tmp_path_factory.mktemp("tok") / "unidextok-tiny"
+    cfg = UniDexTokConfig.from_preset("tiny", hand_names=["human", "linkerhand_l10", INSPIRE])
+    UniDexTok(cfg).save_pretrained(path)
+    return path
+
+
+class _Meta:
+    """What make_policy hands the config: the dataset metadata (LeRobotDatasetMetadata)."""
+
+    def __init__(self, root: Path):
+        from lerobot.datasets import LeRobotDatasetMetadata
+
+        self._meta = LeRobotDatasetMetadata("test/g1_like_udhm", root=root)
+        self.root, self.features = self._meta.root, self._meta.features
+
+
+def _config(cls, tok_dir, width: int = 44, **kw):
+    return cls(
+        input_features={OBS_STATE: PolicyFeature(FeatureType.STATE, (width,))},
+        output_features={ACTION: PolicyFeature(FeatureType.ACTION, (width,))},
+        udt_pretrained=str(tok_dir), device="cpu", **kw,
+    )  # fmt: skip
+
+
+def _from_dataset(cls, tok_dir, root: Path, **kw):
+    cfg = _config(cls, tok_dir, width=len(STATE_NAMES), **kw)
+    cfg._runtime_dataset_meta = _Meta(root)
+    cfg.validate_features()
+    return cfg
+
+
+def test_every_wrapped_type_resolves_through_the_stock_factory():
+    from lerobot.policies.factory import _make_processors_from_policy_config, get_policy_class
+
+    assert {"act_udt", "diffusion_udt", "vqbet_udt"} <= set(UDT_CONFIGS)
+    for udt_type, cls in UDT_CONFIGS.items():
+        base = udt_type.removesuffix("_udt")
+        assert PreTrainedConfig.get_choice_class(udt_type) is cls
+        assert isinstance(cls(), PreTrainedConfig.get_choice_class(base))
+        policy_cls = get_policy_class(udt_type)
+        assert policy_cls.__name__ == cls.__name__.replace("Config", "Policy")
+        assert issubclass(policy_cls, get_policy_class(base)) and policy_cls.name == udt_type
+    cfg = _config(ACTUdtConfig, None, udt_hand_layout=[INSPIRE])
+    cfg.udt_pretrained = None
+    cfg.udt_preset = "tiny"
+    cfg.validate_features()
+    pre, _ = _make_processors_from_policy_config(cfg)  # LeRobot resolves make_act_udt_pre_post_processors
+    assert STEP_NAME in [getattr(type(s), "_registry_name", "") for s in pre.steps]
+
+
+def test_config_adds_env_state_of_the_tokenizer_width(tok_dir):
+    cfg = _config(ACTUdtConfig, tok_dir, udt_hand_layout=[INSPIRE])
+    cfg.validate_features()
+    assert cfg.udt_hand_layout == [INSPIRE] * 2  # one name broadcast to both blocks
+    assert cfg.input_features[OBS_HAND_TOKEN_FEATURES] == PolicyFeature(FeatureType.ENV, (44,))
+    emb = _config(ACTUdtConfig, tok_dir, udt_hand_layout=[INSPIRE], udt_representation="embedding")
+    emb.validate_features()
+    assert emb.input_features[OBS_HAND_TOKEN_FEATURES].shape == (2 * 4 * 256,)  # H * N * codebook_dim
+
+
+def test_config_errors_name_the_fix(tok_dir, g1_like):
+    with pytest.raises(ValueError, match="width 30, which matches no UDHM layout"):
+        _config(ACTUdtConfig, tok_dir, width=30, udt_hand_layout=["human"]).validate_features()
+    with pytest.raises(ValueError, match="udt_hand_layout"):
+        _config(ACTUdtConfig, tok_dir).validate_features()
+    with pytest.raises(ValueError, match="udt_range_check must be one of"):
+        ACTUdtConfig(udt_range_check="sometimes")
+    meta = _Meta(g1_like["root"])
+    meta.features = {**meta.features, OBS_HAND_TOKEN_FEATURES: {"dtype": "float32", "shape": (3,), "names": None}}
+    cfg = _config(ACTUdtConfig, tok_dir, width=58)
+    cfg._runtime_dataset_meta = meta
+    with pytest.raises(ValueError, match="already has 'observation.environment_state'"):
+        cfg.validate_features()
+
+
+def test_whole_robot_layout_comes_from_the_dataset(tok_dir, g1_like):
+    """act_udt demanded a hands-only state: a G1 state (14 arms + 2 blocks) must train and decode to 26."""
+    cfg = _from_dataset(DiffusionUdtConfig, tok_dir, g1_like["root"])
+    assert cfg.udt_hand_layout == [INSPIRE, INSPIRE] and cfg.udt_sides == ["left", "right"]
+    assert cfg.udt_state_names == STATE_NAMES
+    assert cfg.udt_native_layout["native_names"] == NATIVE_NAMES
+    assert cfg.input_features[OBS_HAND_TOKEN_FEATURES].shape == (44,)
+    pre, post = make_udt_pre_post_processors(cfg)
+    names = [type(s).__name__ for s in pre.steps]
+    assert names.index("UniDexTokStateTokenizerStep") < names.index("AddBatchDimensionProcessorStep")
+    assert names.index("UniDexTokStateTokenizerStep") < names.index("NormalizerProcessorStep")
+    state = torch.from_numpy(to_converted(g1_like["native_state"][:6])).float()
+    out = pre({OBS_STATE: state[0]})  # one unbatched frame, as at inference
+    assert out[OBS_HAND_TOKEN_FEATURES].shape == (1, 44)
+    stacked = pre({OBS_STATE: state.reshape(3, 2, 58)})  # (B, n_obs_steps, D) as diffusion trains
+    assert stacked[OBS_HAND_TOKEN_FEATURES].shape == (3, 2, 44)
+    actions = torch.from_numpy(to_converted(g1_like["native_action"][:2])).float()  # (2, 58) converted
+    native = post(actions)
+    assert native.shape == (2, 26)
+    torch.testing.assert_close(native, torch.from_numpy(g1_like["native_action"][:2]).float(), atol=1e-5, rtol=0)
+    assert post.steps[-1]._registry_name == NATIVE_STEP_NAME
+    off = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"], udt_native_action=False)
+    assert make_udt_pre_post_processors(off)[1](torch.zeros(2, 58)).shape == (2, 58)
+
+
+# ---------------------------------------------------------------------------------------------
+# the real lerobot-train CLI
+# ---------------------------------------------------------------------------------------------
+def _train(args: list[str], out: Path, hf: Path) -> Path:
+    base = [str(BIN / "lerobot-train"), "--num_workers=0", f"--output_dir={out}", "--log_freq=1", "--save_freq=3"]
+    r = subprocess.run(base + args, env=subprocess_env(HF_HOME=str(hf)), check=False, capture_output=True,
+                       text=True, timeout=600)  # fmt: skip
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
+    return out / "checkpoints" / "last" / "pretrained_model"
+
+
+RELOAD = """
+import sys, torch
+from lerobot.configs.parser import load_plugin
+load_plugin("lerobot_unidextok")  # what --policy.discover_packages_path does in LeRobot's CLIs
+from lerobot.configs.policies import PreTrainedConfig
+from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+from lerobot.datasets import LeRobotDataset
+ds = LeRobotDataset("test/g1_like_udhm", root=sys.argv[1])
+for path in sys.argv[2:]:
+    cfg = PreTrainedConfig.from_pretrained(path)
+    policy = get_policy_class(cfg.type).from_pretrained(path).eval()
+    pre, post = make_pre_post_processors(cfg, pretrained_path=path)
+    acts = [post(policy.select_action(pre({"observation.state": ds[i]["observation.state"]}))) for i in (0, 5, 70)]
+    a = torch.stack(acts)  # (3, 1, 26)
+    assert torch.isfinite(a).all(), a
+    hands = a[..., 14:]
+    assert hands.min() >= 0 and hands.max() <= 1, hands  # Inspire in Unitree's [0, 1] units
+    print(cfg.type, type(policy).__name__, tuple(a.shape))
+"""
+
+
+@pytest.mark.slow
+def test_lerobot_train_act_and_diffusion_resume_and_reload(tok_dir, g1_like, tmp_path):
+    """`--policy.type=act` failed (no image / env state) and diffusion failed on stacked states; resuming
+    with `--policy.path` rejected `--policy.discover_packages_path`. Both from flags / config file only."""
+    root, hf = g1_like["root"], tmp_path / "hf"
+    data = ["--dataset.repo_id=test/g1_like_udhm", f"--dataset.root={root}", f"--policy.udt_pretrained={tok_dir}"]
+    plugin = "--policy.discover_packages_path=lerobot_unidextok"
+    # ACT from the shipped config file, overridden by flags
+    act = _train([f"--config_path={REPO / 'configs/lerobot/act_udt.yaml'}", plugin, *data, "--steps=3",
+                  "--batch_size=4", "--num_workers=0", *TINY_ACT], tmp_path / "act", hf)  # fmt: skip
+    # Diffusion from flags only (n_obs_steps=2: the step sees (B, 2, 58) states)
+    diff = _train(["--policy.type=diffusion_udt", plugin, *data, "--policy.device=cpu", "--policy.push_to_hub=false",
+                   "--steps=3", "--batch_size=4", "--wandb.enable=false", *TINY_DIFFUSION], tmp_path / "diff", hf)  # fmt: skip
+    for ckpt, udt_type in ((act, "act_udt"), (diff, "diffusion_udt")):
+        cfg = json.loads((ckpt / "config.json").read_text())
+        assert cfg["type"] == udt_type and cfg["udt_state_names"] == STATE_NAMES
+        pre = [s["registry_name"] for s in json.loads((ckpt / "policy_preprocessor.json").read_text())["steps"]]
+        assert pre.index(STEP_NAME) < pre.index("to_batch_processor") < pre.index("normalizer_processor")
+        post = [s["registry_name"] for s in json.loads((ckpt / "policy_postprocessor.json").read_text())["steps"]]
+        assert post[-1] == NATIVE_STEP_NAME
+    # resume the diffusion policy from its checkpoint with the same plugin flag
+    resumed = _train([f"--policy.path={diff}", plugin, *data[:2], "--policy.device=cpu", "--policy.push_to_hub=false",
+                      "--steps=3", "--batch_size=4", "--wandb.enable=false"], tmp_path / "resumed", hf)  # fmt: skip
+    assert json.loads((resumed / "config.json").read_text())["type"] == "diffusion_udt"
+    # a fresh process reloads each checkpoint with the stock factory and returns the robot's 26-wide action
+    r = subprocess.run([sys.executable, "-c", RELOAD, str(root), str(act), str(diff), str(resumed)], check=False,
+                       env=subprocess_env(HF_HOME=str(tmp_path / "hf2")), capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert [line for line in r.stdout.splitlines() if "Policy (" in line] == [
+        "act_udt ACTUdtPolicy (3, 1, 26)",
+        "diffusion_udt DiffusionUdtPolicy (3, 1, 26)",
+        "diffusion_udt DiffusionUdtPolicy (3, 1, 26)",
+    ]
+
+
+@pytest.mark.slow
+def test_real_g1_inspire_select_action_returns_the_native_action(tok_dir, g1_dataset, tmp_path):
+    """Real G1 + Inspire episodes converted by unidextok-convert (extra check, skips without ../shared):
+    act_udt returned 12 hand values for a robot that needs 26."""
+    from lerobot_unidextok.processor import NativeLayout
+
+    assert NativeLayout.from_dataset(g1_dataset).native_dim == 26  # 14 arm joints + 2 x 6 Inspire values
+    ckpt = _train(["--policy.type=act_udt", "--policy.discover_packages_path=lerobot_unidextok",
+                   "--dataset.repo_id=test/g1_udhm", f"--dataset.root={g1_dataset}", "--policy.device=cpu",
+                   "--policy.push_to_hub=false", f"--policy.udt_pretrained={tok_dir}", "--steps=3", "--batch_size=4",
+                   "--wandb.enable=false", *TINY_ACT], tmp_path / "train", tmp_path / "hf")  # fmt: skip
+    check = f"""
+import lerobot_unidextok, torch
+from lerobot.configs.policies import PreTrainedConfig
+from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+from lerobot.datasets import LeRobotDataset
+path = "{ckpt}"
+cfg = PreTrainedConfig.from_pretrained(path)
+policy = get_policy_class(cfg.type).from_pretrained(path).eval()
+pre, post = make_pre_post_processors(cfg, pretrained_path=path)
+ds = LeRobotDataset("test/g1_udhm", root="{g1_dataset}")
+a = torch.stack([post(policy.select_action(pre({{"observation.state": ds[i]["observation.state"]}}))) for i in (0, 100, 700)])
+assert torch.isfinite(a).all()
+print(tuple(a.shape))
+"""
+    r = subprocess.run([sys.executable, "-c", check], check=False, env=subprocess_env(HF_HOME=str(tmp_path / "hf2")),
+                       capture_output=True, text=True, timeout=180)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert r.stdout.strip().splitlines()[-1] == "(3, 1, 26)"
