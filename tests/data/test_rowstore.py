@@ -117,7 +117,7 @@ def test_bad_rows_are_a_clear_error_and_leave_no_store(datasets, tmp_path):
 
 
 def test_building_a_store_holds_one_piece_in_memory_not_the_dataset(datasets, tmp_path):
-    """Peak numpy memory (tracemalloc) while building from 256-frame pieces stays a small fraction of what
+    """Peak numpy memory (tracemalloc) while building from 64-frame pieces stays a small fraction of what
     load_udhm_frames allocates for the same dataset."""
     root = datasets[0]
     tracemalloc.start()
@@ -126,7 +126,7 @@ def test_building_a_store_holds_one_piece_in_memory_not_the_dataset(datasets, tm
     del frames
     tracemalloc.stop()
     tracemalloc.start()
-    build_row_store([root], "all", tmp_path / "store", batch_rows=256)
+    build_row_store([root], "all", tmp_path / "store", batch_rows=64)
     _, streamed = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    assert streamed < 0.25 * whole, (streamed, whole)
+    assert streamed < 0.2 * whole, (streamed, whole)  # 2,400 frames, 64 per piece: about 0.1 measured
