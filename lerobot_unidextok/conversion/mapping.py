@@ -119,6 +119,7 @@ def _map_values(
     if not present.any():
         return out
     try:
+        spec.check_units(sel, side)  # wrong units (a tiny corner of the range, or beyond it): likely fix
         udhm = np.asarray(spec.to_udhm(sel, side=side, mapping=mapping), dtype=np.float64)
     except EpisodeError:
         raise

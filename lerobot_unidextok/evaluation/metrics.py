@@ -71,7 +71,8 @@ def per_joint_mae_deg(pred_rad: np.ndarray, true_rad: np.ndarray, masks: np.ndar
 # keypoint space: UDHM forward kinematics with each hand's skeleton
 # ---------------------------------------------------------------------------------------------
 def hand_skeleton(name: str):
-    """The `udhm.Skeleton` of a registered hand; the default human skeleton for unregistered names."""
+    """The `udhm.Skeleton` of a registered hand (a robot's measured from its URDF where the spec has one);
+    the default human skeleton for unregistered names. `skeleton_source` says which one a figure used."""
     from lerobot_unidextok import hands as hand_registry
     from lerobot_unidextok.udhm.skeleton import Skeleton
 
@@ -81,6 +82,16 @@ def hand_skeleton(name: str):
         logger.warning("hand %r is not in the hand registry; scoring keypoints with the default human skeleton", name)
         return Skeleton.default()
     return spec.skeleton()
+
+
+def skeleton_source(name: str) -> str:
+    """Which skeleton keypoint metrics of hand `name` use (printed next to MPJPE / fingertip figures)."""
+    from lerobot_unidextok import hands as hand_registry
+
+    try:
+        return hand_registry.get(name).skeleton_spec.describe()
+    except (KeyError, ValueError):
+        return "default human skeleton (hand not in the registry)"
 
 
 def keypoint_errors_mm(
@@ -155,5 +166,5 @@ def reconstruction_metrics(
     everything = np.ones(len(hands), dtype=bool)
     return {
         "overall": _summary(everything),
-        "per_hand": {str(h): _summary(hands == h) for h in np.unique(hands)},
+        "per_hand": {str(h): _summary(hands == h) | {"skeleton": skeleton_source(str(h))} for h in np.unique(hands)},
     }

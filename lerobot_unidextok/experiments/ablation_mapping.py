@@ -43,15 +43,7 @@ def append_to_semantic_perm(hand: str) -> np.ndarray | None:
     spec = registry.get(hand)
     if spec.kind == "keypoints":
         return None
-    n = int(spec.mask("append_pad").sum())
-    perm = np.empty(n, dtype=int)
-    for k in range(n):
-        e = np.zeros(22)
-        e[k] = 0.3
-        lo = spec.to_udhm(spec.from_udhm(-e, mapping="append_pad"), mapping="semantic")
-        hi = spec.to_udhm(spec.from_udhm(e, mapping="append_pad"), mapping="semantic")
-        perm[k] = int(np.argmax(np.abs(np.asarray(hi) - np.asarray(lo))))
-    return perm
+    return spec.slot_indices("right")  # append_pad position k holds the k-th active joint, i.e. this slot
 
 
 def to_semantic(states_rad: np.ndarray, hands: np.ndarray) -> np.ndarray:

@@ -4,11 +4,22 @@ from lerobot_unidextok import hands
 spec = hands.get("linkerhand_l10")
 state = spec.to_udhm(raw, side="right")      # (..., 10) SDK 0-255 -> (..., 22) rad
 raw = spec.from_udhm(state, side="right")    # -> (..., 10), clipped to the joint limits
+spec.check_units(episode_raw, side="right")  # NativeUnitsError with the likely fix for wrong units
+Kinematic check against a URDF: `hands.check.check_spec` / `python -m lerobot_unidextok.hands check`.
 """
 
 from lerobot_unidextok.hands.loading import SpecError, load_spec, spec_from_dict
 from lerobot_unidextok.hands.registry import SPECS_DIR, UnknownHandError, all_specs, describe, get, names
-from lerobot_unidextok.hands.spec import CoupledJoint, HandSpec, JointSide, JointSpec, SkeletonSpec
+from lerobot_unidextok.hands.spec import (
+    CoupledJoint,
+    HandSpec,
+    JointSide,
+    JointSpec,
+    SkeletonSpec,
+    UrdfKeypoint,
+    UrdfSpec,
+)
+from lerobot_unidextok.hands.units import NativeUnitsError
 
 __all__ = [
     "SPECS_DIR",
@@ -16,9 +27,12 @@ __all__ = [
     "HandSpec",
     "JointSide",
     "JointSpec",
+    "NativeUnitsError",
     "SkeletonSpec",
     "SpecError",
     "UnknownHandError",
+    "UrdfKeypoint",
+    "UrdfSpec",
     "all_specs",
     "describe",
     "get",

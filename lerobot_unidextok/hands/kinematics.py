@@ -10,9 +10,14 @@ from lerobot_unidextok.hands.spec import Array, SkeletonSpec
 
 
 def skeleton_for(spec: SkeletonSpec):
-    """``udhm.Skeleton``: the default human skeleton times ``spec.scale``; per-finger bone lengths override."""
+    """``udhm.Skeleton``: the measured one (palm offsets + bone lengths, canonicalised) when the spec has it,
+    else the default human skeleton times ``spec.scale`` with per-finger bone lengths overriding."""
     from lerobot_unidextok.udhm.skeleton import Skeleton
 
+    if spec.measured:
+        offsets = np.array([spec.palm_offsets_m[f] for f in FINGERS], dtype=np.float64)  # (5, 3)
+        bones = np.array([spec.bone_lengths_m[f] for f in FINGERS], dtype=np.float64)  # (5, 3)
+        return Skeleton(offsets, bones).canonicalized()
     skel = Skeleton.default().scaled(spec.scale)
     if not spec.bone_lengths_m:
         return skel

@@ -8,17 +8,37 @@ from typing import Any
 
 import yaml
 
-from lerobot_unidextok.constants import FINGERS, SIDES, UDHM_INDEX
-from lerobot_unidextok.hands.spec import CoupledJoint, HandSpec, JointSide, JointSpec, SkeletonSpec
+from lerobot_unidextok.constants import FINGERS, KEYPOINT_NAMES, SIDES, UDHM_INDEX
+from lerobot_unidextok.hands.spec import (
+    CoupledJoint,
+    HandSpec,
+    JointSide,
+    JointSpec,
+    SkeletonSpec,
+    UrdfKeypoint,
+    UrdfSpec,
+)
 
 _TOP_KEYS = {
     "name", "embodiment", "kind", "description", "source", "sides", "native_units",
-    "joints", "coupled", "skeleton",
+    "joints", "coupled", "skeleton", "urdf",
 }  # fmt: skip
-_JOINT_KEYS = {"name", "slot", "raw_range", "rad_at_raw_range", "sign", "default_raw", "note", "judgement", *SIDES}
-_SIDE_KEYS = {"raw_range", "rad_at_raw_range", "sign", "default_raw"}
+_SIDE_KEYS = {"slot", "raw_range", "rad_at_raw_range", "sign", "rest_rad", "default_raw", "urdf_joint"}
+_JOINT_KEYS = {"name", "note", "judgement", *_SIDE_KEYS, *SIDES}
 _COUPLED_KEYS = {"joint", "follows", "ratio", "offset_rad", "note"}
-_SKELETON_KEYS = {"scale", "bone_lengths_m", "note"}
+_SKELETON_KEYS = {"scale", "bone_lengths_m", "palm_offsets_m", "source", "note"}
+_URDF_KEYS = {"source", "file", "keypoints", "note", *SIDES}
+_URDF_SIDE_KEYS = {"file", "keypoints"}
+# Name templates in `urdf_joint` and keypoint links, expanded per side (vendors prefix names by side).
+_SIDE_TEMPLATES = {"<side>": {"right": "right", "left": "left"}, "<s>": {"right": "r", "left": "l"},
+                   "<S>": {"right": "R", "left": "L"}}  # fmt: skip
+
+
+def expand_side(name: str, side: str) -> str:
+    """``name`` with ``<side>`` / ``<s>`` / ``<S>`` replaced by right/left, r/l, R/L."""
+    for key, values in _SIDE_TEMPLATES.items():
+        name = name.replace(key, values[side])
+    return name
 
 
 class SpecError(ValueError):
@@ -68,7 +88,10 @@ def spec_from_dict(data: Any, source: str = "<dict>", path: Path | None = None) 
         for i, jd in enumerate(raw_joints):
             joints.append(_joint(jd, f"joints[{i}]", sides, fail))
         _unique([j.name for j in joints], "joints[].name", fail)
-        _unique([j.slot for j in joints if j.slot is not None], "joints[].slot", fail)
+        for side in sides:
+            _unique([j.sides[side].slot for j in joints if j.sides[side].slot is not None], "joints[].slot", fail)
+            if side != sides[0]:
+                _same_slots(joints, sides[0], side, fail)
     elif data.get("joints"):
         raise fail("joints", "a kind 'keypoints' hand takes MANO-21 keypoints and lists no joints")
 
@@ -84,6 +107,7 @@ def spec_from_dict(data: Any, source: str = "<dict>", path: Path | None = None) 
         source=str(data.get("source", "")).strip(),
         coupled=coupled,
         skeleton_spec=_skeleton(data.get("skeleton") or {}, fail),
+        urdf=_urdf(data["urdf"], sides, fail) if data.get("urdf") is not None else None,
         path=path,
     )
 
@@ -102,8 +126,6 @@ def _joint(jd: Any, where: str, sides: list[str], fail) -> JointSpec:
     if "slot" not in jd:
         raise fail(f"{where}.slot", "missing; give a UDHM joint name or null for a dropped joint")
     slot = jd["slot"]
-    if slot is not None and slot not in UDHM_INDEX:
-        raise fail(f"{where}.slot", f"{slot!r} is not a UDHM joint; use one of {list(UDHM_INDEX)} or null")
     per_side = {}
     for side in sides:
         override = jd.get(side) or {}
@@ -111,7 +133,7 @@ def _joint(jd: Any, where: str, sides: list[str], fail) -> JointSpec:
             raise fail(f"{where}.{side}", f"expected a mapping, got {override!r}")
         _no_unknown(override, _SIDE_KEYS, f"{where}.{side}", fail)
         merged = {k: jd[k] for k in _SIDE_KEYS if k in jd} | override
-        per_side[side] = _joint_side(merged, f"{where}[{side}]", slot, fail)
+        per_side[side] = _joint_side(merged, f"{where}[{side}]", side, fail)
     for side in SIDES:
         if side in jd and side not in sides:
             raise fail(f"{where}.{side}", f"side {side!r} is not in this hand's sides {sides}")
@@ -124,7 +146,10 @@ def _joint(jd: Any, where: str, sides: list[str], fail) -> JointSpec:
     )
 
 
-def _joint_side(d: dict, where: str, slot: str | None, fail) -> JointSide:
+def _joint_side(d: dict, where: str, side: str, fail) -> JointSide:
+    slot = d["slot"]
+    if slot is not None and slot not in UDHM_INDEX:
+        raise fail(f"{where}.slot", f"{slot!r} is not a UDHM joint; use one of {list(UDHM_INDEX)} or null")
     for key in ("raw_range", "rad_at_raw_range"):
         if key not in d:
             raise fail(f"{where}.{key}", "missing (give it on the joint or under each side)")
@@ -140,7 +165,33 @@ def _joint_side(d: dict, where: str, slot: str | None, fail) -> JointSide:
     default_raw = d.get("default_raw", _raw_at_zero_rad(raw, rad))
     if not isinstance(default_raw, int | float) or not raw[0] <= default_raw <= raw[1]:
         raise fail(f"{where}.default_raw", f"{default_raw!r} must be a number inside raw_range {list(raw)}")
-    return JointSide(raw_range=raw, rad_at_raw_range=rad, sign=float(sign), default_raw=float(default_raw))
+    rest = _number(d.get("rest_rad", 0.0), f"{where}.rest_rad", fail)
+    urdf_joint = d.get("urdf_joint")
+    if urdf_joint is not None:
+        urdf_joint = expand_side(_string(urdf_joint, f"{where}.urdf_joint", fail), side)
+    return JointSide(
+        raw_range=raw,
+        rad_at_raw_range=rad,
+        sign=float(sign),
+        default_raw=float(default_raw),
+        slot=slot,
+        rest_rad=rest,
+        urdf_joint=urdf_joint,
+    )
+
+
+def _same_slots(joints: list[JointSpec], first: str, side: str, fail) -> None:
+    """Every side fills the same UDHM slots and drops the same joints (only the assignment may differ)."""
+    for j in joints:
+        if (j.sides[first].slot is None) != (j.sides[side].slot is None):
+            raise fail(f"joints ({j.name}).slot", f"dropped on one side only ({first} vs {side}); drop it on both")
+    a = {j.sides[first].slot for j in joints} - {None}
+    b = {j.sides[side].slot for j in joints} - {None}
+    if a != b:
+        raise fail(
+            "joints[].slot",
+            f"sides fill different UDHM slots: {sorted(a - b)} only on {first}, {sorted(b - a)} only on {side}",
+        )
 
 
 def _raw_at_zero_rad(raw: tuple[float, float], rad: tuple[float, float]) -> float:
@@ -174,20 +225,84 @@ def _skeleton(s: Any, fail) -> SkeletonSpec:
     scale = _number(s.get("scale", 1.0), "skeleton.scale", fail)
     if not scale > 0:
         raise fail("skeleton.scale", f"{scale} must be > 0")
-    bones = s.get("bone_lengths_m")
-    parsed = None
-    if bones is not None:
-        if not isinstance(bones, dict) or set(bones) - set(FINGERS):
-            raise fail("skeleton.bone_lengths_m", f"must map finger names {list(FINGERS)} to 3 lengths in metres")
-        parsed = {}
-        for finger, lengths in bones.items():
-            if not isinstance(lengths, list) or len(lengths) != 3:
-                raise fail(f"skeleton.bone_lengths_m.{finger}", f"{lengths!r} must be 3 lengths in metres")
-            vals = tuple(_number(v, f"skeleton.bone_lengths_m.{finger}", fail) for v in lengths)
-            if any(not 0 < v < 0.5 for v in vals):
-                raise fail(f"skeleton.bone_lengths_m.{finger}", f"{list(vals)} must be in (0, 0.5) m")
-            parsed[finger] = vals
-    return SkeletonSpec(scale=scale, bone_lengths_m=parsed, note=str(s.get("note", "")).strip())
+    bones = _per_finger(s.get("bone_lengths_m"), "skeleton.bone_lengths_m", (0.0, 0.5), fail)
+    offsets = _per_finger(s.get("palm_offsets_m"), "skeleton.palm_offsets_m", (-0.5, 0.5), fail)
+    if offsets is not None:
+        if set(offsets) != set(FINGERS) or bones is None or set(bones) != set(FINGERS):
+            raise fail(
+                "skeleton.palm_offsets_m",
+                f"a measured skeleton needs palm_offsets_m and bone_lengths_m for every finger {list(FINGERS)}",
+            )
+        if "scale" in s and scale != 1.0:
+            raise fail("skeleton.scale", "a measured skeleton (palm_offsets_m) takes no scale")
+    return SkeletonSpec(
+        scale=scale,
+        bone_lengths_m=bones,
+        palm_offsets_m=offsets,
+        source=str(s.get("source", "")).strip(),
+        note=str(s.get("note", "")).strip(),
+    )
+
+
+def _per_finger(v: Any, field: str, bounds: tuple[float, float], fail) -> dict[str, tuple] | None:
+    """finger -> 3 numbers in metres within ``bounds`` (bone lengths must also be > 0)."""
+    if v is None:
+        return None
+    if not isinstance(v, dict) or set(v) - set(FINGERS):
+        raise fail(field, f"must map finger names {list(FINGERS)} to 3 values in metres")
+    parsed = {}
+    for finger, values in v.items():
+        if not isinstance(values, list) or len(values) != 3:
+            raise fail(f"{field}.{finger}", f"{values!r} must be 3 values in metres")
+        vals = tuple(_number(x, f"{field}.{finger}", fail) for x in values)
+        if any(not bounds[0] < x < bounds[1] for x in vals):
+            raise fail(f"{field}.{finger}", f"{list(vals)} must be in ({bounds[0]:g}, {bounds[1]:g}) m")
+        parsed[finger] = vals
+    return parsed
+
+
+def _urdf(u: Any, sides: list[str], fail) -> UrdfSpec:
+    """The `urdf:` block: source, file per side and the 21 keypoints as links (+ offsets), per side."""
+    if not isinstance(u, dict):
+        raise fail("urdf", f"expected a mapping, got {u!r}")
+    _no_unknown(u, _URDF_KEYS, "urdf", fail)
+    files, keypoints = {}, {}
+    for side in sides:
+        override = u.get(side) or {}
+        if not isinstance(override, dict):
+            raise fail(f"urdf.{side}", f"expected a mapping, got {override!r}")
+        _no_unknown(override, _URDF_SIDE_KEYS, f"urdf.{side}", fail)
+        file = override.get("file", u.get("file"))
+        if file is None:
+            raise fail(f"urdf.{side}.file", "missing: the URDF file of this side (relative to a URDF folder)")
+        files[side] = expand_side(_string(file, f"urdf.{side}.file", fail), side)
+        merged = dict(u.get("keypoints") or {}) | dict(override.get("keypoints") or {})
+        missing = [k for k in KEYPOINT_NAMES if k not in merged]
+        unknown = sorted(set(merged) - set(KEYPOINT_NAMES))
+        if missing or unknown:
+            raise fail(
+                f"urdf.{side}.keypoints",
+                f"must give every MANO-21 keypoint {list(KEYPOINT_NAMES)}; missing {missing}, unknown {unknown}",
+            )
+        keypoints[side] = tuple(_keypoint(merged[k], f"urdf.keypoints.{k}", side, fail) for k in KEYPOINT_NAMES)
+    return UrdfSpec(
+        source=_string(u.get("source", ""), "urdf.source", fail),
+        files=files,
+        keypoints=keypoints,
+        note=str(u.get("note", "")).strip(),
+    )
+
+
+def _keypoint(v: Any, field: str, side: str, fail) -> UrdfKeypoint:
+    """``link`` or ``[link, [x, y, z]]`` (offset in metres in the link frame)."""
+    if isinstance(v, str):
+        return UrdfKeypoint(expand_side(_string(v, field, fail), side))
+    if isinstance(v, list) and len(v) == 2 and isinstance(v[0], str) and isinstance(v[1], list) and len(v[1]) == 3:
+        offset = tuple(_number(x, field, fail) for x in v[1])
+        if any(abs(x) > 0.5 for x in offset):
+            raise fail(field, f"offset {list(offset)} must be in metres (|x| <= 0.5)")
+        return UrdfKeypoint(expand_side(_string(v[0], field, fail), side), offset)
+    raise fail(field, f"{v!r} must be a link name or [link, [x, y, z]] with the offset in metres")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -53,9 +53,13 @@ def describe_spec(spec: HandSpec) -> str:
     if spec.kind == "keypoints":
         return head + "\n   MANO-21 keypoints -> all 22 UDHM slots by inverse kinematics; back by FK"
     side = "right" if "right" in spec.sides else spec.sides[0]
-    rows = [("#", "native joint", f"raw range ({side})", "rad at raw ends", "sign", "UDHM slot", "")]
+    other = next((x for x in spec.sides if x != side), None)
+    rows = [("#", "native joint", f"raw range ({side})", "rad at raw ends", "sign", "rest rad", "UDHM slot", "")]
     for i, j in enumerate(spec.joints):
         js = j.sides[side]
+        slot = js.slot or "- (dropped)"
+        if other is not None and j.sides[other].slot != js.slot:
+            slot += f" ({other}: {j.sides[other].slot})"
         rows.append(
             (
                 str(i),
@@ -63,7 +67,8 @@ def describe_spec(spec: HandSpec) -> str:
                 f"{js.raw_range[0]:g}..{js.raw_range[1]:g}",
                 f"{js.rad_at_raw_range[0]:+.3f}..{js.rad_at_raw_range[1]:+.3f}",
                 f"{js.sign:+.0f}",
-                j.slot or "- (dropped)",
+                f"{js.rest_rad:+.3f}" if js.rest_rad else "",
+                slot,
                 "judgement" if j.judgement else "",
             )
         )

@@ -1,7 +1,10 @@
 """HandSpec: one hand's native joints, their conversion to radians and their UDHM slots.
 
 Conversions are linear per native joint and side: ``rad = offset + scale * raw``; then semantic
-insertion ``udhm[slot] = sign * rad``. Everything is batched over leading dims, numpy or torch.
+insertion ``udhm[slot] = sign * (rad - rest_rad)``, where ``rest_rad`` is the joint angle at which the
+robot's geometry reads UDHM zero for that slot (0 for most joints; the thumb base of most robot hands sits
+far from UDHM zero). Slot, sign and rest may differ per side. Everything is batched over leading dims,
+numpy or torch.
 """
 
 from __future__ import annotations
@@ -34,12 +37,15 @@ _RANGE_TOL = 1e-6
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class JointSide:
-    """One native joint on one side: raw range, its radian image and the UDHM sign."""
+    """One native joint on one side: raw range, its radian image, UDHM slot, sign and rest angle."""
 
     raw_range: tuple[float, float]  # (raw_a, raw_b), raw_a < raw_b
     rad_at_raw_range: tuple[float, float]  # radians at raw_a and raw_b (direction included)
-    sign: float  # +1 or -1: udhm[slot] = sign * rad
+    sign: float  # +1 or -1: udhm[slot] = sign * (rad - rest_rad)
     default_raw: float  # what from_udhm writes for a dropped joint
+    slot: str | None = None  # UDHM slot on this side (None = dropped)
+    rest_rad: float = 0.0  # joint angle (rad) at which the UDHM slot reads 0
+    urdf_joint: str | None = None  # the URDF joint this native joint drives (kinematic check); None = none
 
     @property
     def scale(self) -> float:
@@ -56,13 +62,20 @@ class JointSide:
 
 @dataclass(frozen=True)
 class JointSpec:
-    """One native joint: name, UDHM slot (None = dropped) and per-side conversion."""
+    """One native joint: name, default UDHM slot (None = dropped) and per-side conversion.
+
+    ``slot`` is the YAML's joint-level slot; a side may override it (``sides[side].slot``), e.g. the left
+    Allegro file, whose joints 8-11 are the index. A joint dropped on one side is dropped on all.
+    """
 
     name: str
     slot: str | None
     sides: dict[str, JointSide]
     note: str = ""
     judgement: str = ""  # non-empty = a judgement call, with its reason
+
+    def slot_for(self, side: str) -> str | None:
+        return self.sides[side].slot
 
 
 @dataclass(frozen=True)
@@ -78,10 +91,49 @@ class CoupledJoint:
 
 @dataclass(frozen=True)
 class SkeletonSpec:
-    """Hand dimensions: a scale of the default human skeleton, optional per-finger bone lengths."""
+    """Hand dimensions: measured (palm offsets + bone lengths, e.g. from the URDF) or a scaled human skeleton.
+
+    With ``palm_offsets_m`` (every finger) the skeleton is exactly the measured one; otherwise the default
+    human skeleton times ``scale``, with optional per-finger ``bone_lengths_m`` overrides.
+    """
 
     scale: float = 1.0
     bone_lengths_m: dict[str, tuple[float, float, float]] | None = None  # finger -> 3 segments
+    palm_offsets_m: dict[str, tuple[float, float, float]] | None = None  # finger -> base offset from the wrist
+    source: str = ""  # where measured values come from (URDF file and the command that derived them)
+    note: str = ""
+
+    @property
+    def measured(self) -> bool:
+        return self.palm_offsets_m is not None
+
+    def describe(self) -> str:
+        """One line saying which skeleton this is (printed next to keypoint metrics)."""
+        if self.measured:
+            return f"measured: {self.source or 'palm offsets and bone lengths in the spec'}"
+        base = "default human skeleton" + ("" if self.scale == 1.0 else f" x {self.scale:g}")
+        return base + (" with per-finger bone lengths" if self.bone_lengths_m else "") + " (approximation)"
+
+
+@dataclass(frozen=True)
+class UrdfKeypoint:
+    """A MANO-21 keypoint on a robot: a URDF link's frame and an offset (m) in that frame."""
+
+    link: str
+    offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class UrdfSpec:
+    """Where the hand's URDF is and how its links give the 21 MANO keypoints, per side.
+
+    ``files[side]`` is a path relative to a URDF folder (the project's checks use ``../shared/data/urdf``,
+    laid out ``<upstream folder>/<file>``); users pass their own file to the check command.
+    """
+
+    source: str
+    files: dict[str, str]
+    keypoints: dict[str, tuple[UrdfKeypoint, ...]]  # side -> 21 keypoints in MANO-21 order
     note: str = ""
 
 
@@ -136,6 +188,8 @@ class _SideTable:
     rad_lo: np.ndarray  # (J,)
     rad_hi: np.ndarray  # (J,)
     default_raw: np.ndarray  # (J,)
+    rest: np.ndarray  # (J,) rest_rad
+    slot_idx: np.ndarray  # (A,) UDHM index of each active joint (native order of `_active_joint_idx`)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -160,6 +214,7 @@ class HandSpec:
     source: str = ""
     coupled: tuple[CoupledJoint, ...] = ()
     skeleton_spec: SkeletonSpec = field(default_factory=SkeletonSpec)
+    urdf: UrdfSpec | None = None
     path: Path | None = None
 
     # -- structure ------------------------------------------------------------------------------
@@ -178,8 +233,11 @@ class HandSpec:
 
     @cached_property
     def _slot_idx(self) -> np.ndarray:
-        """UDHM index of each joint with a slot (same order as ``_active_joint_idx``)."""
-        return np.array([UDHM_INDEX[j.slot] for j in self.joints if j.slot is not None], dtype=np.int64)
+        """UDHM index of each joint with a slot on the first side (same order as ``_active_joint_idx``).
+
+        The set of slots is the same on every side (checked on load); only the assignment may differ.
+        """
+        return self._tables[self.sides[0]].slot_idx
 
     @property
     def num_active(self) -> int:
@@ -206,9 +264,20 @@ class HandSpec:
             mask[: self.num_active] = True
         return mask
 
-    def slot_map(self) -> dict[str, str | None]:
-        """Native joint name -> UDHM slot name (None = dropped)."""
-        return {j.name: j.slot for j in self.joints}
+    def slot_map(self, side: str | None = None) -> dict[str, str | None]:
+        """Native joint name -> UDHM slot name (None = dropped) on ``side`` (default: the first side)."""
+        side = side or self.sides[0]
+        self._check_side(side)
+        return {j.name: j.sides[side].slot for j in self.joints}
+
+    def slot_indices(self, side: str = "right") -> np.ndarray:
+        """(A,) UDHM index of each joint with a slot, in native order (``append_pad`` position k holds slot k)."""
+        self._require_joints("slot_indices")
+        return self._side_table(side).slot_idx.copy()
+
+    def rest_rad(self, side: str = "right") -> np.ndarray:
+        """(J,) joint angles (rad) at which each joint's UDHM slot reads 0."""
+        return self._side_table(side).rest.copy()
 
     def limits_rad(self, side: str = "right") -> np.ndarray:
         """(J, 2) joint limits in radians for ``side``."""
@@ -229,10 +298,11 @@ class HandSpec:
         """(22,) lower and upper UDHM bounds reachable by this hand (0 on inactive slots)."""
         self._require_joints("udhm_limits_rad")
         t = self._side_table(side)
-        a, s = self._active_joint_idx, t.sign[self._active_joint_idx]
+        a = self._active_joint_idx
+        s, rest = t.sign[a], t.rest[a]
         lo, hi = np.zeros(UDHM_DIM), np.zeros(UDHM_DIM)
-        ends = np.stack([s * t.rad_lo[a], s * t.rad_hi[a]])
-        lo[self._slot_idx], hi[self._slot_idx] = ends.min(0), ends.max(0)
+        ends = np.stack([s * (t.rad_lo[a] - rest), s * (t.rad_hi[a] - rest)])
+        lo[t.slot_idx], hi[t.slot_idx] = ends.min(0), ends.max(0)
         return lo, hi
 
     # -- native <-> radians -----------------------------------------------------------------------
@@ -280,9 +350,9 @@ class HandSpec:
         rad = self.to_radians(raw, side, on_out_of_range)  # (..., J)
         t = self._side_table(side)
         a = self._active_joint_idx
-        values = rad[..., a] * _table(t.sign[a], rad)  # (..., A)
+        values = (rad[..., a] - _table(t.rest[a], rad)) * _table(t.sign[a], rad)  # (..., A)
         out = _zeros((*rad.shape[:-1], UDHM_DIM), rad)  # (..., 22)
-        target = self._slot_idx if mapping == "semantic" else np.arange(len(a))
+        target = t.slot_idx if mapping == "semantic" else np.arange(len(a))
         out[..., target] = values
         return out
 
@@ -300,11 +370,19 @@ class HandSpec:
             return self._udhm_to_keypoints(state, side)
         t = self._side_table(side)
         a = self._active_joint_idx
-        source = self._slot_idx if mapping == "semantic" else np.arange(len(a))
+        source = t.slot_idx if mapping == "semantic" else np.arange(len(a))
         rad = _zeros((*state.shape[:-1], self.num_native), state) + _table(t.offset + t.scale * t.default_raw, state)
-        rad[..., a] = state[..., source] * _table(t.sign[a], state)
+        rad[..., a] = state[..., source] * _table(t.sign[a], state) + _table(t.rest[a], state)
         rad = _clip(rad, _table(t.rad_lo, rad), _table(t.rad_hi, rad))
         return self._rad_to_raw(rad, t)
+
+    def check_units(self, raw: Any, side: str = "right") -> None:
+        """Raise ``hands.NativeUnitsError`` when a stream of native values (..., J) does not look like this
+        spec's units (outside the range, or all within 1 % of one end of it); the message gives the likely fix."""
+        from lerobot_unidextok.hands.units import check_native_units
+
+        self._check_side(side)
+        check_native_units(self, raw.detach().cpu().numpy() if isinstance(raw, torch.Tensor) else raw, side)
 
     # -- kinematics ----------------------------------------------------------------------------------
     def skeleton(self):
@@ -342,7 +420,10 @@ class HandSpec:
         tables = {}
         for side in self.sides:
             js = [j.sides[side] for j in self.joints]
-            col = lambda f: np.array([f(x) for x in js], dtype=np.float64)  # noqa: E731
+
+            def col(f, js=js) -> np.ndarray:
+                return np.array([f(x) for x in js], dtype=np.float64)
+
             tables[side] = _SideTable(
                 raw_lo=col(lambda x: x.raw_range[0]),
                 raw_hi=col(lambda x: x.raw_range[1]),
@@ -352,6 +433,8 @@ class HandSpec:
                 rad_lo=col(lambda x: x.limits_rad[0]),
                 rad_hi=col(lambda x: x.limits_rad[1]),
                 default_raw=col(lambda x: x.default_raw),
+                rest=col(lambda x: x.rest_rad),
+                slot_idx=np.array([UDHM_INDEX[x.slot] for x in js if x.slot is not None], dtype=np.int64),
             )
         return tables
 

@@ -14,8 +14,9 @@ every finger is the same chain of elementary Rodrigues rotations with six slots
     p_1 = base + R_1 e_z L_1,  p_2 = p_1 + R_2 e_z L_2,  p_3 = p_2 + R_3 e_z L_3
 Zero pose: all fingers (and the thumb) straight along +z in the palm plane: flat hand, fingers together.
 Flexion > 0 moves toward +x (palm), abduction > 0 toward +y (thumb side).
-Thumb: abd1 = CMC spread (in the palm plane), flex1 = CMC flexion (out of the palm plane, palmar
-abduction). R_1 is then turned by a fixed -90 deg about the CMC->MCP axis (AXIAL_PRONATION_RAD), so the
+Thumb: abd1 = CMC spread (in the palm plane, about the palm normal), flex1 = CMC flexion (out of the
+palm plane, palmar abduction); vendor names such as "thumb pitch/yaw" do not tell which is which (see
+AXIAL_PRONATION_RAD). R_1 is then turned by a fixed -90 deg about the CMC->MCP axis (AXIAL_PRONATION_RAD), so the
 thumb plane follows the CMC->MCP direction: MCP/IP flexion moves the tip across the palm toward the
 little finger, MCP abduction moves it toward the palm side. Pinky twist > 0 rotates the pinky frame about wrist -> pinky MCP so that
 its flexion plane tilts toward the thumb (palm cupping); the MCP itself stays put.
@@ -69,8 +70,12 @@ CHAIN_ACTIVE = CHAIN_SLOTS < _Z  # (5, 6) which slots are real DoFs
 # Thumb: -90 deg, the anatomical convention that thumb MCP/IP flexion happens in a plane parallel
 # to the palm (the tip moves across the palm toward the little finger) while abduction is
 # perpendicular to it; the thumbnail sits at ~90 deg to the fingernails (Kapandji, "The Physiology
-# of the Joints" vol. 1). Thumb CMC keeps the robot-hand convention: flex = out of the palm plane
-# toward the palm side (palmar abduction, "thumb pitch"), spread = in the palm plane ("thumb yaw").
+# of the Joints" vol. 1). Thumb CMC: flex = the thumb swinging out of the palm plane to the palm side
+# (palmar abduction, rotation about the local lateral axis), spread = rotation inside the palm plane about
+# the palm normal, > 0 away from the index. These are geometric definitions, not vendor joint names: on
+# robot hands the joint whose axis runs along the fingers (called yaw, rotation, roll or bend by vendors)
+# drives thumb_cmc_flex, and the joint about the palm normal drives thumb_cmc_spread (usually with sign -1,
+# toward the index), whatever it is called; `python -m lerobot_unidextok.hands check` measures it per hand.
 # The finger chains have none.
 AXIAL_PRONATION_RAD = np.array([-np.pi / 2, 0.0, 0.0, 0.0, 0.0])  # (5,)
 AXIAL_PRONATION_RAD.setflags(write=False)

@@ -161,3 +161,78 @@ def test_bad_side_and_mapping():
 def test_human_has_no_joint_radians():
     with pytest.raises(ValueError, match="keypoints"):
         hands.get("human").to_radians(np.zeros(22))
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 11 spec format: per-side slots and signs, rest offsets, URDF keypoint maps
+# ---------------------------------------------------------------------------------------------
+TWO_SIDED = textwrap.dedent(
+    """\
+    name: two_sided
+    embodiment: two_sided
+    kind: joints
+    sides: [right, left]
+    native_units: rad
+    joints:
+      - name: a
+        slot: index_mcp_abd
+        raw_range: [-0.5, 0.5]
+        rad_at_raw_range: [-0.5, 0.5]
+        sign: -1
+        left: {slot: ring_mcp_abd, sign: 1}
+      - name: b
+        slot: ring_mcp_abd
+        raw_range: [0.2, 1.4]
+        rad_at_raw_range: [0.2, 1.4]
+        rest_rad: 1.0
+        left: {slot: index_mcp_abd, rest_rad: 0.5}
+    """
+)
+
+
+def test_per_side_slot_sign_and_rest_offset(tmp_path):
+    """udhm[slot(side)] = sign(side) * (rad - rest_rad(side)); from_udhm inverts it (caught the old format,
+    which had one slot per joint for both sides and no rest offset)."""
+    spec = hands.load_spec(_write(tmp_path, TWO_SIDED, "two_sided"))
+    raw = np.array([[0.3, 1.2]])
+    right, left = spec.to_udhm(raw, "right"), spec.to_udhm(raw, "left")
+    assert right[0, 5] == pytest.approx(-0.3) and right[0, 13] == pytest.approx(0.2)  # index, ring abd
+    assert left[0, 13] == pytest.approx(0.3) and left[0, 5] == pytest.approx(0.7)
+    np.testing.assert_allclose(spec.from_udhm(right, "right"), raw)
+    np.testing.assert_allclose(spec.from_udhm(left, "left"), raw)
+    assert spec.slot_map("left") == {"a": "ring_mcp_abd", "b": "index_mcp_abd"}
+    np.testing.assert_allclose(spec.rest_rad("left"), [0.0, 0.5])
+    lo, hi = spec.udhm_limits_rad("right")
+    assert (lo[13], hi[13]) == pytest.approx((-0.8, 0.4))
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "match"),
+    [
+        ("left: {slot: ring_mcp_abd, sign: 1}", "left: {slot: middle_mcp_abd, sign: 1}", "fill different UDHM slots"),
+        ("left: {slot: ring_mcp_abd, sign: 1}", "left: {slot: null}", "dropped on one side only"),
+        ("left: {slot: index_mcp_abd, rest_rad: 0.5}", "left: {slot: ring_mcp_abd}", "joints\\[\\].slot"),
+        ("rest_rad: 1.0", "rest_rad: one", "rest_rad"),
+    ],
+)
+def test_per_side_mistakes_are_named(tmp_path, old, new, match):
+    with pytest.raises(hands.SpecError, match=match):
+        hands.load_spec(_write(tmp_path, TWO_SIDED.replace(old, new), "two_sided"))
+
+
+def test_urdf_block_expands_side_templates_and_needs_every_keypoint(tmp_path):
+    from lerobot_unidextok.constants import KEYPOINT_NAMES
+
+    kps = "".join(f"\n    {k}: <side>_{k}_link" for k in KEYPOINT_NAMES)
+    block = f"urdf:\n  source: test\n  file: hands/<S>_hand.urdf\n  keypoints:{kps}\n  left:\n    keypoints:\n      wrist: [L_base, [0, 0, -0.01]]\n"
+    text = TWO_SIDED.replace("joints:\n", block + "joints:\n").replace(
+        "    sign: -1\n", "    sign: -1\n    urdf_joint: <s>_a\n", 1
+    )
+    spec = hands.load_spec(_write(tmp_path, text, "two_sided"))
+    assert spec.urdf.files == {"right": "hands/R_hand.urdf", "left": "hands/L_hand.urdf"}
+    assert spec.urdf.keypoints["right"][0].link == "right_wrist_link"
+    assert spec.urdf.keypoints["left"][0] == hands.UrdfKeypoint("L_base", (0.0, 0.0, -0.01))
+    assert spec.urdf.keypoints["left"][4].link == "left_thumb_tip_link"
+    assert spec.joints[0].sides["left"].urdf_joint == "l_a"
+    with pytest.raises(hands.SpecError, match="missing \\['pinky_tip'\\]"):
+        hands.load_spec(_write(tmp_path, text.replace("\n    pinky_tip: <side>_pinky_tip_link", ""), "two_sided"))

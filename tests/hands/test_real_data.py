@@ -39,10 +39,15 @@ def presets(real_data_dir):
 
 
 def _flex_fraction(spec: hands.HandSpec, state: np.ndarray, digit: str, side: str = "right") -> float:
-    """Flexion of a digit's base joint as a fraction of the hand's maximum for it."""
-    slot = "thumb_cmc_flex" if digit == "thumb" else f"{digit}_mcp_flex"
-    _, hi = spec.udhm_limits_rad(side)
-    return float(state[UDHM_INDEX[slot]] / hi[UDHM_INDEX[slot]])
+    """Flexion of a digit's bending joint as a fraction of the hand's range for it (0 = open end).
+
+    The LinkerHand thumb "flex" channels curl the thumb; the URDF check puts them in thumb_mcp_flex (the
+    thumb's CMC slots are its swing out of and inside the palm plane).
+    """
+    slot = "thumb_mcp_flex" if digit == "thumb" else f"{digit}_mcp_flex"
+    lo, hi = spec.udhm_limits_rad(side)
+    i = UDHM_INDEX[slot]
+    return float((state[i] - lo[i]) / (hi[i] - lo[i]))
 
 
 def _check_gesture(spec, state, extended, side, where):
@@ -146,6 +151,8 @@ def _hand_columns(names: list[str], side: str) -> list[int]:
 
 
 def test_g1_inspire_episodes_map_into_joint_limits(g1):
+    """Every frame maps inside the spec's UDHM limits. Robot thumbs are not held to the human limits: the
+    URDF check puts the Inspire thumb's open pose at a CMC spread of about 60 deg (rest offset)."""
     names, episodes = g1
     spec = hands.get("inspire_rh56_unitree")
     total = 0
@@ -154,13 +161,23 @@ def test_g1_inspire_episodes_map_into_joint_limits(g1):
         lo, hi = spec.udhm_limits_rad(side)
         for ep in episodes:
             for key in ("observation.state", "action"):
+                spec.check_units(ep[key][:, cols], side)  # the real normalised data passes the units guard
                 state = spec.to_udhm(ep[key][:, cols], side)  # raises on any value outside [0, 1]
                 assert (state >= lo - 1e-9).all() and (state <= hi + 1e-9).all()
-                active = spec.active_mask
-                assert (state[:, active] >= JOINT_LIMITS_RAD[active, 0]).all()
-                assert (state[:, active] <= JOINT_LIMITS_RAD[active, 1]).all()
+                fingers = [UDHM_INDEX[f"{f}_mcp_flex"] for f in FINGERS4]
+                assert (state[:, fingers] >= JOINT_LIMITS_RAD[fingers, 0]).all()
+                assert (state[:, fingers] <= JOINT_LIMITS_RAD[fingers, 1]).all()
                 total += len(state)
     assert total == 2 * 2 * 4236
+
+
+def test_g1_inspire_through_the_register_spec_is_caught(g1):
+    """Issue 11 item 5: Unitree's 0-1 values through the 0-1000 `inspire_rh56` spec used to convert into a
+    hand held closed and validate; the units guard now raises and names the Unitree spec as the fix."""
+    names, episodes = g1
+    values = episodes[0]["observation.state"][:, _hand_columns(names, "right")]
+    with pytest.raises(hands.NativeUnitsError, match="inspire_rh56_unitree"):
+        hands.get("inspire_rh56").check_units(values, "right")
 
 
 def test_g1_inspire_grasp_flexes_right_hand_fingers(g1):
@@ -193,8 +210,8 @@ def test_allegro_home_pose_maps_into_limits(real_data_dir):
     state = spec.to_udhm(rad)  # raises if the vendor home pose were outside the URDF limits
     assert state[UDHM_INDEX["index_mcp_abd"]] == pytest.approx(0.0)
     assert state[UDHM_INDEX["index_pip_flex"]] == pytest.approx(np.deg2rad(45))
-    assert state[UDHM_INDEX["thumb_cmc_spread"]] == pytest.approx(np.deg2rad(60))
-    np.testing.assert_allclose(spec.from_udhm(state), rad, atol=1e-12)
+    active = np.array([j.slot is not None for j in spec.joints])  # joint 13 (thumb axial twist) is dropped
+    np.testing.assert_allclose(spec.from_udhm(state)[active], rad[active], atol=1e-12)
 
 
 def test_linkerhand_l6_channel_order_matches_linker_sim_decoder(real_data_dir):

@@ -1,0 +1,161 @@
+"""A robot hand's URDF as MANO-21 keypoints: forward kinematics by `yourdfpy` (optional extra ``urdf``).
+
+    hand = UrdfHand.load("allegro_hand_right.urdf", spec.urdf.keypoints["right"])
+    keypoints_m = hand.keypoints_m([{"joint_1.0": 0.5}, ...])   # (N, 21, 3) in the URDF base frame
+
+Each keypoint is a link frame plus a fixed offset in that frame (``UrdfKeypoint``), so the map from a
+robot to the 21 anatomical points is data in the hand's YAML. Joints not given in a configuration stay at
+0 clipped into their limits. Mimic joints follow their leader (``full_cfg``; chains of mimics are resolved
+to the root leader); they are posed explicitly, so a check can also move a leader with its followers held.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from lerobot_unidextok.constants import KEYPOINT_NAMES
+from lerobot_unidextok.hands.spec import UrdfKeypoint
+
+logger = logging.getLogger(__name__)
+
+
+def require_yourdfpy():
+    """The yourdfpy module, or an ImportError naming the extra that installs it."""
+    try:
+        import yourdfpy
+    except ImportError as err:  # pragma: no cover - exercised only without the extra
+        raise ImportError(
+            "the URDF kinematic check needs yourdfpy: pip install 'lerobot-unidextok[urdf]' (or pip install yourdfpy)"
+        ) from err
+    return yourdfpy
+
+
+@dataclass
+class UrdfHand:
+    """A loaded URDF (no meshes) and the 21 keypoints defined on its links."""
+
+    path: Path
+    model: object  # yourdfpy.URDF with a scene graph, every movable joint actuated (mimic tags removed)
+    keypoints: tuple[UrdfKeypoint, ...]  # 21, MANO-21 order
+    mimics: dict[str, tuple[str, float, float]]  # follower -> (root leader, multiplier, offset)
+
+    @classmethod
+    def load(cls, path: str | Path, keypoints: tuple[UrdfKeypoint, ...]) -> UrdfHand:
+        """Parse ``path`` (meshes are not loaded: kinematics only) and check that every keypoint link exists."""
+        yourdfpy = require_yourdfpy()
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"URDF not found: {path}")
+        if len(keypoints) != len(KEYPOINT_NAMES):
+            raise ValueError(f"need {len(KEYPOINT_NAMES)} keypoints in MANO-21 order, got {len(keypoints)}")
+        logging.getLogger("yourdfpy").setLevel(logging.ERROR)  # dangling mesh paths are expected
+        parsed = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False)
+        _flatten_mimic_chains(parsed.robot)
+        mimics = {}
+        for joint in parsed.robot.joints:
+            if joint.mimic is not None:
+                m = joint.mimic
+                mimics[joint.name] = (m.joint, 1.0 if m.multiplier is None else m.multiplier, m.offset or 0.0)
+                joint.mimic = None  # posed explicitly by full_cfg
+        model = yourdfpy.URDF(robot=parsed.robot, build_scene_graph=True, load_meshes=False)
+        missing = [(n, k.link) for n, k in zip(KEYPOINT_NAMES, keypoints, strict=True) if k.link not in model.link_map]
+        if missing:
+            raise ValueError(
+                f"{path.name}: keypoint link(s) not in the URDF: "
+                + ", ".join(f"{n} -> {link!r}" for n, link in missing)
+                + f"; links are {sorted(model.link_map)}"
+            )
+        return cls(path, model, tuple(keypoints), mimics)
+
+    # -- joints ------------------------------------------------------------------------------------
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Independent (non-mimic) movable joints, URDF order."""
+        return tuple(n for n in self.model.actuated_joint_names if n not in self.mimics)
+
+    def limits_rad(self, joint: str) -> tuple[float, float]:
+        """(lower, upper) of an actuated joint; (-inf, inf) when the URDF gives none."""
+        j = self.model.joint_map[joint]
+        lim = j.limit
+        lo = lim.lower if lim is not None and lim.lower is not None else -np.inf
+        hi = lim.upper if lim is not None and lim.upper is not None else np.inf
+        return float(lo), float(hi)
+
+    def rest_cfg(self) -> dict[str, float]:
+        """Every independent joint at 0 clipped into its limits."""
+        return {n: float(np.clip(0.0, *self.limits_rad(n))) for n in self.joint_names}
+
+    def full_cfg(self, cfg: dict[str, float]) -> dict[str, float]:
+        """Independent joints (missing ones at rest) plus every mimic joint from its leader."""
+        unknown = sorted(set(cfg) - set(self.joint_names))
+        if unknown:
+            raise ValueError(
+                f"{self.path.name}: not independent joints of this URDF: {unknown}; joints: {self.joint_names}"
+            )
+        full = self.rest_cfg() | cfg
+        for follower, (leader, mult, offset) in self.mimics.items():
+            full[follower] = mult * full[leader] + offset
+        return full
+
+    # -- forward kinematics ------------------------------------------------------------------------
+    def keypoints_m(self, cfgs: list[dict[str, float]], followers: bool = True) -> np.ndarray:
+        """(N, 21, 3) keypoints in metres in the URDF base frame, one row per configuration.
+
+        A configuration maps independent joint names to radians; missing joints take ``rest_cfg()`` and
+        mimic joints follow (``followers=True``). With ``followers=False`` each configuration must give
+        every movable joint (e.g. ``full_cfg`` of another pose with one leader changed).
+        """
+        if followers:
+            cfgs = [self.full_cfg(c) for c in cfgs]
+        base = self.model.base_link
+        offsets = np.array([(*k.offset_m, 1.0) for k in self.keypoints])  # (21, 4) homogeneous
+        out = np.empty((len(cfgs), len(self.keypoints), 3))
+        for i, cfg in enumerate(cfgs):
+            self.model.update_cfg(cfg)
+            for k, kp in enumerate(self.keypoints):
+                tf = self.model.get_transform(frame_to=kp.link, frame_from=base)  # (4, 4) link -> base
+                out[i, k] = (tf @ offsets[k])[:3]
+        return out
+
+    def link_origins_m(self, cfg: dict[str, float] | None = None) -> dict[str, np.ndarray]:
+        """Every link origin (m, base frame) at ``cfg`` (default: rest): for writing a keypoint map."""
+        self.model.update_cfg(self.full_cfg(cfg or {}))
+        base = self.model.base_link
+        return {n: self.model.get_transform(frame_to=n, frame_from=base)[:3, 3].copy() for n in self.model.link_map}
+
+
+def _flatten_mimic_chains(robot) -> None:
+    """Point every mimic joint at the root of its mimic chain (yourdfpy follows one level only).
+
+    b = m1 a + o1 and c = m2 b + o2 give c = (m2 m1) a + (m2 o1 + o2).
+    """
+    by_name = {j.name: j for j in robot.joints}
+    for joint in robot.joints:
+        seen = {joint.name}
+        while joint.mimic is not None:
+            leader = by_name.get(joint.mimic.joint)
+            if leader is None or leader.mimic is None:
+                break
+            if leader.name in seen:
+                raise ValueError(f"URDF mimic joints form a cycle through {sorted(seen)}")
+            seen.add(leader.name)
+            m1, o1 = leader.mimic.multiplier or 1.0, leader.mimic.offset or 0.0
+            m2, o2 = joint.mimic.multiplier or 1.0, joint.mimic.offset or 0.0
+            joint.mimic.joint = leader.mimic.joint
+            joint.mimic.multiplier, joint.mimic.offset = m2 * m1, m2 * o1 + o2
+
+
+def measure_skeleton(hand: UrdfHand, side: str = "right"):
+    """The ``udhm.Skeleton`` (right-hand canonical frame) of the URDF at its rest configuration.
+
+    Bone lengths are distances between consecutive keypoints (joint centres), palm offsets the base
+    keypoints in the palm frame UDHM fits to wrist and index/middle/ring MCP; left hands are mirrored.
+    """
+    from lerobot_unidextok.udhm.skeleton import Skeleton
+
+    keypoints_m = hand.keypoints_m([{}])  # (1, 21, 3)
+    return Skeleton.from_keypoints(keypoints_m, per_frame=False, side=side)

@@ -1,0 +1,56 @@
+"""Issue 11 item 5: wrong native units raise with the likely fix, before anything converts silently."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lerobot_unidextok import hands
+from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
+from lerobot_unidextok.conversion.mapping import EpisodeError, map_episode
+
+
+def _grasp(num: int = 120, seed: int = 0) -> np.ndarray:
+    """Normalised 0-1 Inspire-like values (1 = open): a hand closing and opening, with noise."""
+    t = np.linspace(0, 1, num)[:, None]
+    closing = 1.0 - 0.7 * np.sin(np.pi * t) ** 2
+    return np.clip(closing + np.random.default_rng(seed).normal(0, 0.02, (num, 6)), 0, 1)
+
+
+def test_normalised_values_through_the_register_spec_raise():
+    """Before issue 11 these converted into a hand held closed (all values < 1 of 1000) and validated."""
+    values = _grasp()
+    with pytest.raises(hands.NativeUnitsError) as err:
+        hands.get("inspire_rh56").check_units(values, "right")
+    msg = str(err.value)
+    assert "multiply by 1000" in msg and "'inspire_rh56_unitree'" in msg and "1% of the lower end" in msg
+    hands.get("inspire_rh56_unitree").check_units(values, "right")  # the right spec accepts them
+    hands.get("inspire_rh56").check_units(1000 * values, "left")  # and the register spec the registers
+
+
+def test_degrees_where_radians_are_expected_raise():
+    spec = hands.get("xhand1")
+    lim = spec.limits_rad("right")
+    rad = np.random.default_rng(1).uniform(lim[:, 0], lim[:, 1], size=(80, spec.num_native))
+    spec.check_units(rad, "right")
+    with pytest.raises(hands.NativeUnitsError, match="np.deg2rad"):
+        spec.check_units(np.degrees(rad), "right")
+
+
+def test_a_hand_held_still_at_one_end_is_not_flagged():
+    """An idle hand resting open for a whole episode is data, not a units error (nothing moves)."""
+    hands.get("inspire_rh56").check_units(np.full((50, 6), 1000.0), "right")
+
+
+def test_conversion_stops_the_episode_with_the_fix():
+    values = _grasp()
+    raw = RawEpisode(
+        source_file="g1_episode.parquet",
+        fps=30.0,
+        hands=[HandStream(side="right", hand="inspire_rh56", state_native=values, action_native=values)],
+        task="pick",
+    )
+    with pytest.raises(EpisodeError, match="inspire_rh56_unitree"):
+        map_episode(raw)
+    ok = RawEpisode("g1_episode.parquet", 30.0, [HandStream("right", "inspire_rh56_unitree", values, values)])
+    assert map_episode(ok).state_rad.shape == (120, 22)
