@@ -79,12 +79,13 @@ def test_training_on_a_row_store_learns_like_in_memory(converted, tmp_path):
     store = open_row_store([converted], "train", tmp_path / "store")
     rows = load_hand_states([str(converted)], "train")
     held_out = load_hand_states([str(converted)], "test")
-    cfg = dict(preset="tiny", steps=150, batch_size=64, lr=3e-3, warmup_steps=10, eval_every=75, save_last_every=75,
-               progress=False)  # fmt: skip
+    cfg = dict(preset="tiny", steps=300, batch_size=64, lr=3e-3, warmup_steps=10, eval_every=150,
+               save_last_every=300, progress=False)  # fmt: skip
     torch.manual_seed(0)
     untrained, _ = evaluate_mae_deg(build_model(TrainConfig(**cfg), rows), held_out, 10_000, 0)
     streamed = train_tokenizer(TrainConfig(**cfg, output_dir=str(tmp_path / "s")), store, held_out)
     in_memory = train_tokenizer(TrainConfig(**cfg, output_dir=str(tmp_path / "m")), rows, held_out)
-    assert streamed.best_mae_deg < 0.5 * untrained and in_memory.best_mae_deg < 0.5 * untrained
+    # untrained ~160 deg; after 300 steps both ~7-9 deg (two seeds measured: 7.8 vs 6.9, 7.7 vs 8.9)
+    assert streamed.best_mae_deg < 0.1 * untrained and in_memory.best_mae_deg < 0.1 * untrained
     assert streamed.best_mae_deg < 1.5 * in_memory.best_mae_deg, (streamed.best_mae_deg, in_memory.best_mae_deg)
     assert (tmp_path / "s" / "best" / "model.safetensors").is_file()
