@@ -1,7 +1,7 @@
 """Peak memory of tokenizer training against dataset size: in memory (`load_hand_states`, every frame) vs
 streaming (`--streaming=true`: memory-mapped per-hand row store), at 1x and 10x the `make demo` sample.
 
-    .venv/bin/python benchmarks/bench_train_memory.py [--scales 1,10] [--steps 100]
+    .venv/bin/python benchmarks/bench_train_memory.py [--scales 1,10] [--steps 100] [--eval_max_frames 2000]
 
 1x = the demo's sample mixture (the 6 sample sources, 10 episodes x ~150 frames each: human, Inspire,
 BrainCo, LinkerHand L10/L20, XHand); 10x = 100 episodes per source. The samples are written and converted
@@ -10,6 +10,8 @@ steps, evaluation once). Reported: its max RSS (`wait4`; includes the pages of t
 it touched, which the kernel can drop and re-read) and its peak anonymous RSS (sampled from /proc: the
 arrays and tensors it holds). A process that imports the same modules and builds the model, without
 data, gives the fixed part (baseline); the growth from one scale to the next is what the data costs.
+Both modes select checkpoints on `--eval_max_frames` held-out rows; streaming also writes its final
+report on those rows, while the in-memory path loads every held-out frame and reports on all of them.
 """
 
 from __future__ import annotations
@@ -86,6 +88,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scales", default="1,10", help="dataset sizes in units of the demo sample")
     parser.add_argument("--steps", type=int, default=100)
+    parser.add_argument("--eval_max_frames", type=int, default=2000, help="held-out rows for checkpoint selection")
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING)
     scales = [int(s) for s in args.scales.split(",")]
@@ -101,7 +104,8 @@ def main() -> None:
                 cmd = [sys.executable, "-m", "lerobot_unidextok.scripts.train", f"--datasets=[{','.join(roots)}]",
                        "--preset=tiny", f"--steps={args.steps}", "--batch_size=256", f"--eval_every={args.steps}",
                        f"--save_last_every={args.steps}", "--warmup_steps=10", "--progress=false",
-                       f"--streaming={str(streaming).lower()}", f"--output_dir={out}"]  # fmt: skip
+                       f"--streaming={str(streaming).lower()}", f"--eval_max_frames={args.eval_max_frames}",
+                       f"--output_dir={out}"]  # fmt: skip
                 load = os.getloadavg()[0]
                 peak, anon, cpu, wall = _measure(cmd)
                 mode = "streaming" if streaming else "in memory"
