@@ -572,6 +572,7 @@ def merge_shards(
             roots=shard_roots,
             aggr_root=tmp,
         )
+        _restate_bookkeeping_stats(tmp)
         path = tmp / "meta" / "info.json"
         info = json.loads(path.read_text())
         total = int(info["total_episodes"])
@@ -608,3 +609,33 @@ def merge_shards(
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return target
+
+
+BOOKKEEPING_KEYS = ("index", "episode_index", "task_index")
+
+
+def _restate_bookkeeping_stats(root: Path) -> None:
+    """meta/stats.json of `index`, `episode_index`, `task_index` from the merged per-episode stats.
+
+    LeRobot 0.6.1's `aggregate_datasets` re-numbers these columns and shifts their per-episode stats in
+    meta/episodes, but writes meta/stats.json from the shards' own stats.json, which describe the
+    shard-local numbers (a 2-shard merge had index mean 54 instead of 108). Aggregating the corrected
+    per-episode stats once, as a single-run conversion does, gives the single-run values.
+    """
+    import pyarrow.parquet as pq
+    from lerobot.datasets.compute_stats import aggregate_stats
+    from lerobot.datasets.io_utils import load_stats, write_stats
+
+    stats = load_stats(root) or {}
+    keys = [k for k in BOOKKEEPING_KEYS if k in stats]
+    if not keys:
+        return
+    files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
+    names = [f"stats/{k}/{n}" for k in keys for n in stats[k]]
+    table = pq.read_table(files, columns=names)
+    # each cell is a one-value list (scalar features): (E, 1) per column
+    values = {c: table.column(c).combine_chunks().flatten().to_numpy().reshape(table.num_rows, 1) for c in names}
+    per_episode = [{k: {n: values[f"stats/{k}/{n}"][e] for n in stats[k]} for k in keys} for e in range(table.num_rows)]
+    if per_episode:
+        stats.update(aggregate_stats(per_episode))
+        write_stats(stats, root)

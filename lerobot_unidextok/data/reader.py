@@ -8,6 +8,7 @@ the robot's other columns (arms, grippers); the train/test split comes from `dat
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -141,36 +142,26 @@ def _columns_of_blocks(column: pa.ChunkedArray, width: int, blocks: list[UdhmBlo
     return values if len(index) == width else values[:, index]
 
 
-def load_udhm_frames(
-    root: str | Path | None = None,
-    repo_id: str | None = None,
-    split: str | None = None,
-    drop_absent: bool = True,
-    holdout: str = "auto",
-) -> UdhmFrames:
-    """Load a converted dataset's hand states as per-hand rows.
+@dataclass
+class _Layout:
+    """What turns a table of a dataset's rows into per-hand rows: its UDHM blocks and columns."""
 
-    split: "train" | "test" | "all" (or None): episodes from the recorded split, see `data.splits`.
-    holdout: "auto" | "recorded" | "hash": what to do for datasets without a recorded test split
-        (e.g. after `lerobot-edit-dataset`), see `data.splits`.
-    drop_absent: drop rows whose mask is all False (a hand not present in that frame, zero-filled).
-    """
-    if split is not None and split not in SPLITS:
-        raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
-    if holdout not in HOLDOUTS:
-        raise ValueError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
-    root = _resolve_root(root, repo_id)
-    info = read_info(root)
+    blocks: list[UdhmBlock]
+    state_width: int
+    action_blocks: list[UdhmBlock] | None
+    action_width: int
+    columns: list[str]
+
+    @property
+    def sides(self) -> list[str]:
+        return [b.side for b in self.blocks]
+
+
+def _layout(info: dict) -> _Layout:
     blocks = udhm_blocks(info)
     sides = [b.side for b in blocks]
-    num_hands = len(blocks)
-    state_width = int(info["features"][OBS_STATE]["shape"][0])
-
-    files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
-    if not files:
-        raise FileNotFoundError(f"no data parquet files under {root / 'data'}")
     columns = [OBS_STATE, UDHM_MASK_KEY, HAND_TYPE_KEY, "episode_index", "frame_index"]
-    action_blocks = None
+    action_blocks, action_width = None, 0
     if ACTION in info["features"]:
         try:
             action_blocks = udhm_blocks(info, ACTION)
@@ -182,28 +173,47 @@ def load_udhm_frames(
                     f"{ACTION} UDHM blocks {[b.side for b in action_blocks]} differ from {OBS_STATE} {sides}"
                 )
             columns.append(ACTION)
-    table = pa.concat_tables(pq.read_table(f, columns=columns) for f in files)
-    episode_split: EpisodeSplit | None = None
-    if split not in (None, "all"):
-        episode_split = resolve_split(root, info, holdout)
-        wanted = episode_split.episodes(split)
-        if not len(wanted):
-            raise SplitError(
-                f"{root} has no {split} episodes ({episode_split.origin}: {len(episode_split.test)} test of "
-                f"{episode_split.num_episodes}); use split='all'"
-            )
-        table = table.filter(pc.is_in(table.column("episode_index"), value_set=pa.array(wanted, pa.int64())))
+            action_width = int(info["features"][ACTION]["shape"][0])
+    return _Layout(blocks, int(info["features"][OBS_STATE]["shape"][0]), action_blocks, action_width, columns)
 
+
+def _data_files(root: Path) -> list[Path]:
+    files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
+    if not files:
+        raise FileNotFoundError(f"no data parquet files under {root / 'data'}")
+    return files
+
+
+def _split_episodes(root: Path, info: dict, split: str | None, holdout: str) -> np.ndarray | None:
+    """Episode indices of `split` (None: every episode); a clear error for an empty split."""
+    if split is not None and split not in SPLITS:
+        raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
+    if holdout not in HOLDOUTS:
+        raise ValueError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
+    if split in (None, "all"):
+        return None
+    episode_split: EpisodeSplit = resolve_split(root, info, holdout)
+    wanted = episode_split.episodes(split)
+    if not len(wanted):
+        raise SplitError(
+            f"{root} has no {split} episodes ({episode_split.origin}: {len(episode_split.test)} test of "
+            f"{episode_split.num_episodes}); use split='all'"
+        )
+    return wanted
+
+
+def _frames_of_table(table: pa.Table, layout: _Layout, info: dict, drop_absent: bool) -> UdhmFrames:
+    """Per-hand rows of a table of dataset rows (frame-major), no per-frame Python."""
+    num_hands = len(layout.blocks)
     n = table.num_rows
     width = UDHM_DIM * num_hands
-    states = _columns_of_blocks(table.column(OBS_STATE), state_width, blocks, np.float32).reshape(
+    states = _columns_of_blocks(table.column(OBS_STATE), layout.state_width, layout.blocks, np.float32).reshape(
         n * num_hands, UDHM_DIM
     )
     masks = _fixed_list_to_numpy(table.column(UDHM_MASK_KEY), width, np.bool_).reshape(n * num_hands, UDHM_DIM)
     actions = None
-    if action_blocks is not None:
-        action_width = int(info["features"][ACTION]["shape"][0])
-        actions = _columns_of_blocks(table.column(ACTION), action_width, action_blocks, np.float32)
+    if layout.action_blocks is not None:
+        actions = _columns_of_blocks(table.column(ACTION), layout.action_width, layout.action_blocks, np.float32)
         actions = actions.reshape(n * num_hands, UDHM_DIM)
 
     # hand_type: split each distinct string once, then gather by dictionary index.
@@ -224,7 +234,7 @@ def load_udhm_frames(
         hands=hands,
         masks=masks,
         episode_index=rep(table.column("episode_index").to_numpy()).astype(np.int64),
-        side=np.tile(np.array(sides, dtype=str), n),
+        side=np.tile(np.array(layout.sides, dtype=str), n),
         frame_index=rep(table.column("frame_index").to_numpy()).astype(np.int64),
         actions_rad=actions,
         fps=float(info.get("fps", 0)),
@@ -235,3 +245,63 @@ def load_udhm_frames(
         if not present.all():
             frames = frames.select(present)
     return frames
+
+
+def _keep_episodes(table: pa.Table, wanted: np.ndarray | None) -> pa.Table:
+    if wanted is None:
+        return table
+    return table.filter(pc.is_in(table.column("episode_index"), value_set=pa.array(wanted, pa.int64())))
+
+
+def load_udhm_frames(
+    root: str | Path | None = None,
+    repo_id: str | None = None,
+    split: str | None = None,
+    drop_absent: bool = True,
+    holdout: str = "auto",
+) -> UdhmFrames:
+    """Load a converted dataset's hand states as per-hand rows.
+
+    split: "train" | "test" | "all" (or None): episodes from the recorded split, see `data.splits`.
+    holdout: "auto" | "recorded" | "hash": what to do for datasets without a recorded test split
+        (e.g. after `lerobot-edit-dataset`), see `data.splits`.
+    drop_absent: drop rows whose mask is all False (a hand not present in that frame, zero-filled).
+    Everything is read into memory; `iter_udhm_frames` reads the same rows in bounded pieces.
+    """
+    if split is not None and split not in SPLITS:
+        raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
+    if holdout not in HOLDOUTS:
+        raise ValueError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
+    root = _resolve_root(root, repo_id)
+    info = read_info(root)
+    layout = _layout(info)
+    files = _data_files(root)
+    wanted = _split_episodes(root, info, split, holdout)
+    table = pa.concat_tables(pq.read_table(f, columns=layout.columns) for f in files)
+    return _frames_of_table(_keep_episodes(table, wanted), layout, info, drop_absent)
+
+
+def iter_udhm_frames(
+    root: str | Path | None = None,
+    repo_id: str | None = None,
+    split: str | None = None,
+    drop_absent: bool = True,
+    holdout: str = "auto",
+    batch_rows: int = 65536,
+) -> Iterator[UdhmFrames]:
+    """The rows of `load_udhm_frames`, in the same order, in pieces of at most `batch_rows` dataset frames
+    (parquet record batches), so memory is bounded by one piece whatever the dataset size."""
+    if split is not None and split not in SPLITS:
+        raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
+    if holdout not in HOLDOUTS:
+        raise ValueError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
+    root = _resolve_root(root, repo_id)
+    info = read_info(root)
+    layout = _layout(info)
+    files = _data_files(root)
+    wanted = _split_episodes(root, info, split, holdout)
+    for path in files:
+        for batch in pq.ParquetFile(path).iter_batches(batch_size=batch_rows, columns=layout.columns):
+            table = _keep_episodes(pa.Table.from_batches([batch]), wanted)
+            if table.num_rows:
+                yield _frames_of_table(table, layout, info, drop_absent)

@@ -8,6 +8,10 @@
     unidextok-convert --validate=true --root=out/linkerhand_udhm
     unidextok-convert --config_path=convert.yaml          # same fields in a YAML/JSON file
     unidextok-convert --list_sources=true
+    # datatrove: 8 shards, 2 at a time on this machine, then one merge (pip install 'lerobot-unidextok[datatrove]')
+    unidextok-convert --source=egodex --input=raw/egodex --root=out/egodex_udhm --executor=local --tasks=8 --workers=2
+    # Slurm: an array job of 64 shard tasks and a merge job after it (configs/convert/slurm.yaml)
+    unidextok-convert --config_path=configs/convert/slurm.yaml --input=/data/egodex --root=/scratch/egodex_udhm
 
 --push_to_hub=true uploads the result (HF_ENDPOINT / HF_TOKEN honoured) and tags it v3.0.
 """
@@ -16,11 +20,13 @@ import json
 import logging
 import os
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import draccus
 import yaml
+
+from lerobot_unidextok.conversion.sharded import EXECUTORS, SlurmOptions
 
 
 @dataclass
@@ -42,8 +48,17 @@ class ConvertConfig:
     on_error: str = "raise"  # "raise": stop at the first bad episode | "skip": skip, report at the end
     test_fraction: float = 0.2  # share of episodes in the deterministic test split
     max_episodes: int | None = None  # convert only the first N episodes (quick looks)
-    shard_index: int = 0  # convert one contiguous shard of the episode list (multi-machine runs)
+    shard_index: int = 0  # convert one contiguous shard of the episode list (multi-machine runs by hand)
     num_shards: int = 1
+    # -- past one machine: datatrove (pip install 'lerobot-unidextok[datatrove]') -------------------------
+    # "pool": this process, --num_workers reader processes | "local" / "slurm": datatrove's Local/Slurm
+    # PipelineExecutor, --tasks shard conversions (each with --num_workers processes), then one merge
+    executor: str = "pool"
+    tasks: int = 2  # shards = datatrove tasks (capped at the number of episodes)
+    workers: int = -1  # datatrove tasks running at the same time (-1: all)
+    logging_dir: str = ""  # datatrove run folder (logs, completions, shards); default <root>.datatrove
+    keep_shards: bool = False  # keep the shard datasets after the merge
+    slurm: SlurmOptions = field(default_factory=SlurmOptions)  # --slurm.partition=... --slurm.time=...
     # -- modes --------------------------------------------------------------------------------------
     validate: bool = False  # validate the dataset at --root instead of converting
     push_to_hub: bool = False  # upload the dataset to --repo_id after converting (or validating)
@@ -75,7 +90,6 @@ def _source_options(text: str) -> dict:
 def run(cfg: ConvertConfig) -> int:
     """Run the CLI config; returns the process exit code."""
     from lerobot_unidextok.conversion import pipeline, registry
-    from lerobot_unidextok.conversion.validate import validate_dataset
 
     if cfg.list_sources:
         for name in registry.available_sources():
@@ -105,12 +119,15 @@ def run(cfg: ConvertConfig) -> int:
                 fps=cfg.fps,
                 keep=cfg.keep,
             )
+            if cfg.executor != "pool":
+                return _run_executor(cfg, opts)
             report = pipeline.convert(opts)
         except (
             pipeline.ConversionError,
             FileExistsError,
             FileNotFoundError,
             ValueError,
+            RuntimeError,
         ) as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 1
@@ -121,6 +138,13 @@ def run(cfg: ConvertConfig) -> int:
         )
         if report.failures:
             print(f"skipped {len(report.failures)} episode(s):\n{pipeline.format_failures(report.failures)}")
+    return _after_conversion(cfg, root)
+
+
+def _after_conversion(cfg: ConvertConfig, root: Path) -> int:
+    """Validate (table when asked or invalid), print the lerobot-train flag, push when asked."""
+    from lerobot_unidextok.conversion.validate import validate_dataset
+
     validation = validate_dataset(root, repo_id=cfg.repo_id)
     if cfg.validate or not validation.ok:
         print(validation.table())
@@ -133,6 +157,31 @@ def run(cfg: ConvertConfig) -> int:
         commit = push(str(root), cfg.repo_id, "dataset", private=cfg.private)
         print(f"pushed {root} -> {cfg.repo_id} (tag v3.0) @ {commit}")
     return 0
+
+
+def _run_executor(cfg: ConvertConfig, opts) -> int:
+    """--executor=local|slurm: shards on datatrove, then the merge (local) or both jobs submitted (slurm)."""
+    from lerobot_unidextok.conversion.sharded import ExecutorOptions, convert_with_executor
+
+    if cfg.executor not in EXECUTORS:
+        raise ValueError(f"--executor must be pool, {' or '.join(EXECUTORS)}; got {cfg.executor!r}")
+    if cfg.shard_index != 0 or cfg.num_shards != 1:
+        raise ValueError("--executor chooses the shards (--tasks); drop --shard_index/--num_shards")
+    ex = ExecutorOptions(
+        executor=cfg.executor,
+        tasks=cfg.tasks,
+        workers=cfg.workers,
+        logging_dir=cfg.logging_dir or None,
+        keep_shards=cfg.keep_shards,
+        slurm=cfg.slurm,
+    )
+    root = convert_with_executor(opts, ex)
+    if cfg.executor == "slurm":
+        print(f"submitted the shard tasks and the merge into {root} (squeue lists them)")
+        return 0
+    info = json.loads((root / "meta" / "info.json").read_text())
+    print(f"wrote {root}: {info['total_episodes']} episodes, {info['total_frames']} frames (datatrove local executor)")
+    return _after_conversion(cfg, root)
 
 
 def _print_train_episodes(root: Path) -> None:
@@ -152,7 +201,9 @@ def convert_cli(cfg: ConvertConfig) -> int:
 
 
 def main() -> None:
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    # force: importing lerobot already gave the root logger a WARNING handler (a module-level logging.debug
+    # call in lerobot.utils.import_utils), which would make this a no-op and hide our INFO lines
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", force=True)
     for noisy in ("httpx", "lerobot.datasets.utils"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
     sys.exit(convert_cli())

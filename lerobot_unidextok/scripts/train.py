@@ -8,7 +8,11 @@
     unidextok-train --config_path=configs/train/fewshot.yaml --init_from=outputs/small/best --datasets='[data/inspire]'
     # small datasets: also k-fold over episodes (mean and spread of the held-out figures)
     unidextok-train --config_path=configs/train/small.yaml --datasets='[data/g1]' --folds=5
-    # multi-GPU: accelerate launch --num_processes=4 -m lerobot_unidextok.scripts.train --device=cuda ...
+    # training data larger than memory: a memory-mapped per-hand row store instead of loading every frame
+    unidextok-train --config_path=configs/train/small.yaml --datasets='[...]' --streaming=true
+    # several processes (effective batch = batch_size x processes); on CPU too (--device=cpu, gloo):
+    accelerate launch --multi_gpu --num_processes=4 -m lerobot_unidextok.scripts.train --device=cuda ...
+    torchrun --nproc_per_node=2 -m lerobot_unidextok.scripts.train --device=cpu ...
 
 Training uses each dataset's train-split episodes; `select_fraction` of them (whole episodes) choose the
 checkpoint; the figures come from the test-split episodes, which training never sees. Writes
@@ -24,9 +28,10 @@ from pathlib import Path
 import draccus
 import numpy as np
 
+from lerobot_unidextok.data.rowstore import HandRowStore
 from lerobot_unidextok.training import TrainConfig, load_hand_states, subsample_episodes, train_tokenizer
 from lerobot_unidextok.training.arrays import HandStates
-from lerobot_unidextok.training.splits import kfold_by_episode, split_by_episode
+from lerobot_unidextok.training.splits import kfold_by_episode, split_by_episode, split_store_by_episode
 
 logger = logging.getLogger(__name__)
 SUMMARY_KEYS = ("rows", "mpjae_deg", "mpjpe_mm", "fingertip_mm")
@@ -117,22 +122,55 @@ def write_cards(cfg: TrainConfig, test_summary: dict | None, kfold: dict | None)
         (folder / "README.md").write_text(tokenizer_card(folder, Path(cfg.output_dir).name))
 
 
+def load_splits(cfg: TrainConfig) -> tuple[HandStates | HandRowStore, HandStates, HandStates]:
+    """(training rows, checkpoint-selection rows, test rows) of `cfg.datasets`.
+
+    In memory: every frame. With `cfg.streaming`: training rows from a memory-mapped row store (built by the
+    main process first), and up to `eval_max_frames` rows each for selection and test."""
+    if not cfg.streaming:
+        train = load_hand_states(cfg.datasets, split="train", holdout=cfg.holdout)
+        test = _load_split(cfg.datasets, "test", cfg.holdout)
+        fit, select = _fit_and_select(cfg, train)
+        return fit, select, test
+    from accelerate import PartialState
+
+    from lerobot_unidextok.data import open_row_store
+
+    folder = Path(cfg.row_store_dir or Path(cfg.output_dir) / "row_store")
+    with PartialState(cpu=cfg.device == "cpu").main_process_first():  # one process builds, the others open
+        train = open_row_store(cfg.datasets, "train", folder / "train", cfg.holdout)
+        test = open_row_store(cfg.datasets, "test", folder / "test", cfg.holdout)
+    if cfg.exclude_hands:
+        train = train.without(cfg.exclude_hands)
+    fit, select = split_store_by_episode(train, cfg.select_fraction, cfg.eval_max_frames, seed=cfg.seed)
+    rows = test.sample_rows(cfg.eval_max_frames, seed=cfg.seed)
+    return fit, select, HandStates(rows["states_rad"], rows["hands"], rows["masks"], rows["episode_index"],
+                                   rows["dataset_index"])  # fmt: skip
+
+
 def run(cfg: TrainConfig) -> dict:
-    """Load splits, train, evaluate the selected checkpoint on test episodes (and k-fold); returns the report."""
+    """Load splits, train, evaluate the selected checkpoint on test episodes (and k-fold); returns the report
+    (in the main process; {} in the others of a multi-process run, which only train)."""
+    from accelerate import PartialState
+
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer, write_report
     from lerobot_unidextok.tokenizer import UniDexTok
 
-    train = load_hand_states(cfg.datasets, split="train", holdout=cfg.holdout)
-    test = _load_split(cfg.datasets, "test", cfg.holdout)
-    fit, select = _fit_and_select(cfg, train)
+    if cfg.folds and PartialState().num_processes > 1:
+        raise ValueError("--folds trains its fold models one after another in one process: launch without "
+                         "accelerate/torchrun, or drop --folds")  # fmt: skip
+    fit, select, test = load_splits(cfg)
     result = train_tokenizer(cfg, fit, select)
+    if not PartialState().is_main_process:
+        return {}
     model = UniDexTok.from_pretrained(result.best_dir)
     report = evaluate_tokenizer(model, test) if len(test) else {"per_hand": {}, "overall": {}}
     report["training"] = {
         "best_step": result.best_step, "select_mae_deg": result.best_mae_deg, "steps": result.steps,
         "seconds": result.seconds, "train_rows": len(fit), "select_rows": len(select), "test_rows": len(test),
         "preset": cfg.preset, "excluded_hands": cfg.exclude_hands, "fraction": cfg.fraction,
-        "hands_trained": fit.hand_names(), "vocabulary": list(model.config.hand_names),
+        "hands_trained": fit.hand_names(), "vocabulary": list(model.config.hand_names), "streaming": cfg.streaming,
+        "processes": PartialState().num_processes,
     }  # fmt: skip
     kfold = run_kfold(cfg) if cfg.folds else None
     if kfold:
@@ -159,7 +197,9 @@ def train_cli(cfg: TrainConfig) -> None:
 
 
 def main() -> None:
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    # force: importing lerobot already gave the root logger a WARNING handler (a module-level logging.debug
+    # call in lerobot.utils.import_utils), which would make this a no-op and hide our INFO lines
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s", force=True)
     train_cli()
 
 

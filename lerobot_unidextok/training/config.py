@@ -22,6 +22,12 @@ class TrainConfig:
     # Coverage training: per hand kind, the weights of recorded rows vs states synthesised inside the hand's
     # joint ranges (training/coverage.py). `--coverage.robot='{"recorded": 1.0}'` trains on recordings only.
     coverage: CoverageConfig = field(default_factory=CoverageConfig)
+    # Training data larger than memory: read the rows from a memory-mapped per-hand store on disk
+    # (`data.open_row_store`, built once from the datasets and reused while they are unchanged) instead
+    # of loading every frame; same mixing and coverage. Checkpoint selection: up to `eval_max_frames` rows of
+    # the held-out (select_fraction) training episodes; the test figures: up to `eval_max_frames` test rows.
+    streaming: bool = False
+    row_store_dir: str = ""  # where the stores go; default <output_dir>/row_store
 
     # --- model ------------------------------------------------------------------------------------
     preset: str = "small"  # UniDexTokConfig preset: paper | small | tiny
@@ -72,7 +78,10 @@ class TrainConfig:
     adapt: str = "all"
 
     # --- runtime ------------------------------------------------------------------------------------
-    device: str = "cpu"  # cpu | cuda | cuda:N ; multi-GPU through `accelerate launch`
+    # cpu | cuda | cuda:N. Several processes: `accelerate launch --multi_gpu --num_processes=N -m
+    # lerobot_unidextok.scripts.train ...` (also on CPU with --device=cpu: gloo) or `torchrun`; each process
+    # draws its own `batch_size` rows, so the effective batch is batch_size x N (docs/tokenizer.md)
+    device: str = "cpu"
     # torch CPU threads while training (0 = torch default). 1 by default: these models are small and
     # extra intra-op threads slow training down ~10x on busy shared CPUs (measured).
     num_threads: int = 1
@@ -91,6 +100,13 @@ class TrainConfig:
             raise ValueError(f"select_fraction must be in [0, 1), got {self.select_fraction}")
         if self.folds == 1 or self.folds < 0:
             raise ValueError(f"folds must be 0 (off) or >= 2, got {self.folds}")
+        if self.streaming and self.fraction < 1.0:
+            raise ValueError(
+                "--streaming is for large training sets; few-shot (--fraction < 1) trains on a few episodes "
+                "in memory: drop --streaming"
+            )
+        if self.streaming and self.folds:
+            raise ValueError("--folds is for small datasets, held in memory: drop --streaming or --folds")
         if self.batch_size < 1:
             raise ValueError(f"batch_size must be >= 1, got {self.batch_size}")
         if self.warmup_steps < 0:

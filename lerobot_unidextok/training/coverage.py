@@ -31,10 +31,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lerobot_unidextok.constants import UDHM_DIM, UDHM_JOINT_NAMES
+from lerobot_unidextok.data.rowstore import HandRowStore
 from lerobot_unidextok.training.arrays import HandStates
 
 logger = logging.getLogger(__name__)
 
+PROFILE_ROWS = 100_000  # rows read to find a hand's common mask (and an unregistered hand's range)
 SOURCES: tuple[str, ...] = ("recorded", "uniform", "recombine", "noise", "interpolate")
 # UDHM joint -> finger group (0 thumb, 1 index, 2 middle, 3 ring, 4 pinky) for per-finger recombination
 FINGER_OF_JOINT: np.ndarray = np.array(
@@ -122,8 +124,9 @@ class _Hand:
     """Recorded rows of one hand and what the sources need."""
 
     name: str
-    rows: np.ndarray  # (n, 22) float32
+    rows: np.ndarray  # (n, 22) float32, in memory or memory-mapped
     masks: np.ndarray  # (n, 22) bool
+    take: np.ndarray | None  # (k,) the rows that may be drawn (a view of a store), or None for all n
     mask: np.ndarray  # (22,) bool, the most common row mask
     lo: np.ndarray  # (S, 22) per-side lower bounds
     hi: np.ndarray  # (S, 22) per-side upper bounds
@@ -131,9 +134,24 @@ class _Hand:
     source_p: np.ndarray  # (len(SOURCES),) source probabilities
 
     @property
+    def count(self) -> int:
+        return len(self.rows) if self.take is None else len(self.take)
+
+    @property
     def box(self) -> tuple[np.ndarray, np.ndarray]:
         """(22,) union of the per-side ranges."""
         return self.lo.min(0), self.hi.max(0)
+
+
+def recorded_tables(data: HandStates | HandRowStore):
+    """(hand, rows, masks, take) per hand: in-memory copies, or a store's memory maps and its view's rows."""
+    if isinstance(data, HandRowStore):
+        for name in data.hand_names():
+            yield name, data.hands[name].states_rad, data.hands[name].masks, data.rows_of(name)
+        return
+    for name in data.hand_names():
+        sel = data.hands == name
+        yield name, data.states_rad[sel], data.masks[sel], None
 
 
 @dataclass
@@ -152,7 +170,7 @@ class MixtureSampler:
 
     def __init__(
         self,
-        data: HandStates,
+        data: HandStates | HandRowStore,
         hand_weights: dict[str, float] | None = None,
         default_weight: float = 1.0,
         coverage: CoverageConfig | None = None,
@@ -167,19 +185,23 @@ class MixtureSampler:
         if w.sum() <= 0:
             raise ValueError(f"all hand weights are zero for hands {self.hand_names}; give at least one a weight > 0")
         self.hand_p = w / w.sum()
+        self.rng = np.random.default_rng(seed)
         self.hands: list[_Hand] = []
-        for name in self.hand_names:
-            sel = data.hands == name
-            rows, masks = data.states_rad[sel], data.masks[sel]
-            uniq, inverse, counts = np.unique(masks, axis=0, return_inverse=True, return_counts=True)
+        for name, rows, masks, take in recorded_tables(data):
+            # the common mask and (unregistered hands) the recorded range, from at most PROFILE_ROWS rows
+            n = len(rows) if take is None else len(take)
+            if n == 0:
+                raise ValueError(f"hand {name!r} has no training rows; drop it or give it recorded rows")
+            profile = np.sort(self.rng.choice(n, PROFILE_ROWS, replace=False)) if n > PROFILE_ROWS else np.arange(n)
+            profile = profile if take is None else take[profile]
+            uniq, counts = np.unique(np.asarray(masks[profile]), axis=0, return_counts=True)
             mask = uniq[counts.argmax()]
-            lo, hi, ranges_from = hand_ranges_rad(name, mask, rows)
+            lo, hi, ranges_from = hand_ranges_rad(name, mask, np.asarray(rows[profile]))
             weights = coverage.human if is_human(name) else coverage.robot
             p = np.array([weights.get(s, 0.0) for s in SOURCES], dtype=np.float64)
-            self.hands.append(_Hand(name, rows, masks, mask, lo.astype(np.float32), hi.astype(np.float32),
+            self.hands.append(_Hand(name, rows, masks, take, mask, lo.astype(np.float32), hi.astype(np.float32),
                                     ranges_from, p / p.sum()))  # fmt: skip
         self.noise_rad = np.float32(np.radians(coverage.noise_deg))
-        self.rng = np.random.default_rng(seed)
 
     # -----------------------------------------------------------------------------------------
     # what the mixture is (training state, model card)
@@ -192,7 +214,7 @@ class MixtureSampler:
                 h.name: {
                     "share": float(p),
                     "kind": "human" if is_human(h.name) else "robot",
-                    "recorded_rows": len(h.rows),
+                    "recorded_rows": h.count,
                     "ranges_from": h.ranges_from,
                     "sources": {s: float(q) for s, q in zip(SOURCES, h.source_p, strict=True) if q > 0},
                 }
@@ -221,12 +243,14 @@ class MixtureSampler:
                     x[out], m[out] = getattr(self, f"_{name}")(hand, out.size)
         return Batch(x, m, hand_of_row.astype(np.int64), src)
 
-    def _pick(self, hand: _Hand, n: int) -> np.ndarray:
-        return self.rng.integers(len(hand.rows), size=n)
+    def _pick(self, hand: _Hand, size) -> np.ndarray:
+        """Uniform row indices into `hand.rows` (its view's rows where it has one)."""
+        i = self.rng.integers(hand.count, size=size)
+        return i if hand.take is None else hand.take[i]
 
     def _recorded(self, hand: _Hand, n: int) -> tuple[np.ndarray, np.ndarray]:
         i = self._pick(hand, n)
-        return hand.rows[i], hand.masks[i]
+        return np.asarray(hand.rows[i]), np.asarray(hand.masks[i])
 
     def _uniform(self, hand: _Hand, n: int) -> tuple[np.ndarray, np.ndarray]:
         side = self.rng.integers(len(hand.lo), size=n)
@@ -236,10 +260,10 @@ class MixtureSampler:
         return np.where(mask, x, 0.0).astype(np.float32), mask
 
     def _recombine(self, hand: _Hand, n: int) -> tuple[np.ndarray, np.ndarray]:
-        donors = self.rng.integers(len(hand.rows), size=(n, int(FINGER_OF_JOINT.max()) + 1))  # (n, 5)
+        donors = self._pick(hand, (n, int(FINGER_OF_JOINT.max()) + 1))  # (n, 5)
         i = donors[:, FINGER_OF_JOINT]  # (n, 22): the row each joint comes from
         j = np.arange(UDHM_DIM)
-        return hand.rows[i, j], hand.masks[i, j]
+        return np.asarray(hand.rows[i, j]), np.asarray(hand.masks[i, j])
 
     def _noise(self, hand: _Hand, n: int) -> tuple[np.ndarray, np.ndarray]:
         x, mask = self._recorded(hand, n)
@@ -251,6 +275,7 @@ class MixtureSampler:
     def _interpolate(self, hand: _Hand, n: int) -> tuple[np.ndarray, np.ndarray]:
         a, b = self._pick(hand, n), self._pick(hand, n)
         t = self.rng.random((n, 1), dtype=np.float32)
-        x = hand.rows[a] + t * (hand.rows[b] - hand.rows[a])
-        mask = hand.masks[a] & hand.masks[b]
+        ra, rb = np.asarray(hand.rows[a]), np.asarray(hand.rows[b])
+        x = ra + t * (rb - ra)
+        mask = np.asarray(hand.masks[a]) & np.asarray(hand.masks[b])
         return np.where(mask, x, 0.0).astype(np.float32), mask

@@ -1,4 +1,5 @@
-"""The tokenizer training loop over in-memory per-hand rows (single process or `accelerate launch`)."""
+"""The tokenizer training loop over per-hand rows, in memory or memory-mapped (one process, or several
+through `accelerate launch` / `torchrun`: see `training/distributed.py`)."""
 
 import logging
 import math
@@ -10,6 +11,8 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from lerobot_unidextok.constants import UDHM_DIM
+from lerobot_unidextok.data.rowstore import HandRowStore
 from lerobot_unidextok.evaluation.metrics import mpjae_deg
 from lerobot_unidextok.evaluation.reconstruct import codebook_usage, reconstruct
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
@@ -20,7 +23,8 @@ from lerobot_unidextok.training.checkpoint import (
     save_checkpoint,
 )
 from lerobot_unidextok.training.config import TrainConfig
-from lerobot_unidextok.training.coverage import MixtureSampler
+from lerobot_unidextok.training.coverage import MixtureSampler, hand_ranges_rad, recorded_tables
+from lerobot_unidextok.training.distributed import broadcast_from_main, check_replicas
 from lerobot_unidextok.training.optim import lr_at, make_optimizer
 
 logger = logging.getLogger(__name__)
@@ -53,20 +57,24 @@ def training_vocabulary(cfg: TrainConfig, train_data: HandStates) -> list[str]:
     return list(dict.fromkeys([*cfg.hand_names, *train_data.hand_names()]))
 
 
-def joint_ranges_rad(train_data: HandStates) -> list[list[float]]:
-    """(22, 2) per-joint [lo, hi] covering every training hand's joint range (registry) and recorded rows."""
-    from lerobot_unidextok.training.coverage import hand_ranges_rad
-
-    lo, hi = train_data.states_rad.min(0).astype(np.float64), train_data.states_rad.max(0).astype(np.float64)
-    for hand in train_data.hand_names():
-        rows = train_data.hands == hand
-        mask = train_data.masks[rows].any(0)
-        hlo, hhi, _ = hand_ranges_rad(hand, mask, train_data.states_rad[rows])
+def joint_ranges_rad(train_data: HandStates | HandRowStore, chunk_rows: int = 1 << 20) -> list[list[float]]:
+    """(22, 2) per-joint [lo, hi] covering every training hand's joint range (registry) and recorded rows
+    (read in chunks of `chunk_rows`, so a memory-mapped store is never loaded whole)."""
+    lo, hi = np.full(UDHM_DIM, np.inf), np.full(UDHM_DIM, -np.inf)
+    for hand, rows, masks, take in recorded_tables(train_data):
+        index = np.arange(len(rows)) if take is None else take
+        mask = np.zeros(UDHM_DIM, dtype=bool)
+        for start in range(0, len(index), chunk_rows):
+            part = index[start : start + chunk_rows]
+            x = np.asarray(rows[part], dtype=np.float64)  # (n, 22)
+            lo, hi = np.minimum(lo, x.min(0)), np.maximum(hi, x.max(0))
+            mask |= np.asarray(masks[part]).any(0)
+        hlo, hhi, _ = hand_ranges_rad(hand, mask, x)  # `x` only matters for unregistered hands, inside lo..hi
         lo, hi = np.minimum(lo, hlo.min(0)), np.maximum(hi, hhi.max(0))
     return [[float(a), float(b)] for a, b in zip(lo, hi, strict=True)]
 
 
-def build_model(cfg: TrainConfig, train_data: HandStates, **overrides) -> UniDexTok:
+def build_model(cfg: TrainConfig, train_data: HandStates | HandRowStore, **overrides) -> UniDexTok:
     """A fresh model from the preset (with `overrides` of its fields), or `init_from` with new training hands.
 
     Vocabulary: `training_vocabulary`. With `input_norm="range"` the joint ranges come from the training
@@ -93,14 +101,14 @@ def evaluate_mae_deg(model: UniDexTok, data: HandStates, max_frames: int, seed: 
     return mpjae_deg(rec.states_rad, data.states_rad, data.masks), codebook_usage(rec.codes, model.config.codebook_size)
 
 
-def total_steps(cfg: TrainConfig, num_train_rows: int) -> int:
-    if cfg.epochs > 0:
-        return max(1, math.ceil(cfg.epochs * num_train_rows / cfg.batch_size))
+def total_steps(cfg: TrainConfig, num_train_rows: int, num_processes: int = 1) -> int:
+    if cfg.epochs > 0:  # an epoch = the training rows once at the effective batch size
+        return max(1, math.ceil(cfg.epochs * num_train_rows / (cfg.batch_size * num_processes)))
     return cfg.steps
 
 
 def train_tokenizer(
-    cfg: TrainConfig, train_data: HandStates, eval_data: HandStates | None, model: UniDexTok | None = None
+    cfg: TrainConfig, train_data: HandStates | HandRowStore, eval_data: HandStates | None, model: UniDexTok | None = None
 ) -> TrainResult:
     """Train (or adapt) a tokenizer.
 
@@ -120,7 +128,7 @@ def train_tokenizer(
 
 
 def _train(
-    cfg: TrainConfig, train_data: HandStates, eval_data: HandStates | None, model: UniDexTok | None
+    cfg: TrainConfig, train_data: HandStates | HandRowStore, eval_data: HandStates | None, model: UniDexTok | None
 ) -> TrainResult:
     from accelerate import Accelerator
 
@@ -152,7 +160,7 @@ def _train(
         param.requires_grad_(trainable)
     optimizer = make_optimizer(model, cfg.lr, cfg.weight_decay, cfg.betas)
 
-    n_steps = total_steps(cfg, len(train_data))
+    n_steps = total_steps(cfg, len(train_data), accelerator.num_processes)
     start, best_mae, best_step, history = 0, float("inf"), -1, []
     if cfg.resume:
         load_optimizer_state(optimizer, last_dir)
@@ -166,10 +174,14 @@ def _train(
         cfg.hand_weights,
         cfg.default_hand_weight,
         cfg.coverage,
-        seed=cfg.seed * 1000 + start + accelerator.process_index,
+        seed=cfg.seed * 1000 + start + accelerator.process_index,  # each process draws its own batches
     )
     mixture = sampler.describe()
-    logger.info("training %d steps on %d recorded rows; mixture %s", n_steps, len(train_data), mixture)
+    logger.info(
+        "training %d steps on %d recorded rows; batch %d x %d processes = %d; mixture %s",
+        n_steps, len(train_data), cfg.batch_size, accelerator.num_processes,
+        cfg.batch_size * accelerator.num_processes, mixture,
+    )  # fmt: skip
     hand_id_of = torch.tensor([raw_model._hand_index[h] for h in sampler.hand_names])  # sampler hand -> model id
     device = accelerator.device
     # what this run trained on; saved with every checkpoint (training_state.json) for the model card
@@ -199,7 +211,7 @@ def _train(
             usage["usage"],
         )
 
-    dropout_rng = torch.Generator().manual_seed(cfg.seed * 1000 + start + 1)
+    dropout_rng = torch.Generator().manual_seed(cfg.seed * 1000 + start + 1 + 7919 * accelerator.process_index)
     t0 = time.perf_counter()
     bar = tqdm(
         range(start, n_steps),
@@ -228,6 +240,7 @@ def _train(
         optimizer.step()
         if cfg.adapt == "all" and cfg.reseed_every > 0 and (step + 1) % cfg.reseed_every == 0:
             raw_model.quantizer.reseed_dead_codes()
+            broadcast_from_main(raw_model.quantizer)  # re-seeded from each process's own batch: keep process 0's
 
         if step % 10 == 0:
             with torch.no_grad():
@@ -239,6 +252,7 @@ def _train(
                 lr=f"{lr:.1e}",
             )
         if (step + 1) % cfg.eval_every == 0 or step + 1 == n_steps:
+            check_replicas(raw_model, step + 1)  # every process; raises if the copies drifted apart
             _evaluate(step + 1)
         if accelerator.is_main_process and ((step + 1) % cfg.save_last_every == 0 or step + 1 == n_steps):
             save_checkpoint(

@@ -14,10 +14,15 @@ from lerobot_unidextok.training import HandStates
 from lerobot_unidextok.training.coverage import SOURCES, CoverageConfig, MixtureSampler
 
 DEG = math.pi / 180
-# inspire_rh56_unitree (Unitree convention): fingers [0, 1.7] rad, thumb bend [0, 0.5], thumb rotation [-0.1, 1.3]
+# inspire_rh56_unitree (Unitree convention): fingers [0, 1.7] rad, thumb bend [0, 0.5], thumb rotation [-0.1, 1.3].
+# UDHM = sign * (rad - rest) (docs/hands.md); from the URDF check (#11): thumb rotation -> thumb_cmc_flex, sign +1,
+# rest -0.33 rad right / -0.24 left; thumb bend -> thumb_cmc_spread, sign -1, rest 1.048 right / 1.08 left.
+# Expected: the union of both sides' boxes.
 INSPIRE = {
     "pinky_mcp_flex": (0.0, 1.7), "ring_mcp_flex": (0.0, 1.7), "middle_mcp_flex": (0.0, 1.7),
-    "index_mcp_flex": (0.0, 1.7), "thumb_cmc_flex": (0.0, 0.5), "thumb_cmc_spread": (-0.1, 1.3),
+    "index_mcp_flex": (0.0, 1.7),
+    "thumb_cmc_flex": (min(-0.1 + 0.33, -0.1 + 0.24), max(1.3 + 0.33, 1.3 + 0.24)),
+    "thumb_cmc_spread": (min(1.048 - 0.5, 1.08 - 0.5), max(1.048, 1.08)),
 }  # fmt: skip
 # a few human UDHM limits (udhm/joints.py cites AAOS / Hume et al.): index MCP flex -45..100 deg, PIP -10..120
 HUMAN = {"index_mcp_flex": (-45 * DEG, 100 * DEG), "index_pip_flex": (-10 * DEG, 120 * DEG),
@@ -147,9 +152,12 @@ def test_append_pad_layout_and_unregistered_hands():
     batch = sampler.sample(4000)
     pad = batch.hands == sampler.hand_names.index("inspire_rh56_unitree")
     x = batch.states_rad[pad]
-    # append_pad packs native order: little, ring, middle, index (0..1.7), thumb bend (0..0.5), rotation
-    assert x[:, :4].max() <= 1.7 + 1e-6 and x[:, :4].max() > 1.6 and x[:, 4].max() <= 0.5 + 1e-6
-    assert x[:, 5].min() >= -0.1 - 1e-6 and (x[:, 6:] == 0).all()
+    # append_pad packs the UDHM values in native order: little, ring, middle, index (0..1.7), thumb bend
+    # (as thumb_cmc_spread, INSPIRE above), thumb rotation (as thumb_cmc_flex)
+    assert x[:, :4].max() <= 1.7 + 1e-6 and x[:, :4].max() > 1.6
+    (s_lo, s_hi), (f_lo, f_hi) = INSPIRE["thumb_cmc_spread"], INSPIRE["thumb_cmc_flex"]
+    assert x[:, 4].min() >= s_lo - 1e-6 and x[:, 4].max() <= s_hi + 1e-6
+    assert x[:, 5].min() >= f_lo - 1e-6 and x[:, 5].max() <= f_hi + 1e-6 and (x[:, 6:] == 0).all()
     lab = batch.states_rad[~pad]  # no registered spec: the recorded range
     assert lab.min() >= 0.2 - 1e-6 and lab.max() <= 0.3 + 1e-6
     assert sampler.describe()["hands"]["my_lab_hand"]["ranges_from"] == "recorded"

@@ -1,0 +1,160 @@
+"""Sharded conversion on a datatrove executor: options, set-up checks, resume guard (no datatrove import).
+
+    from lerobot_unidextok.conversion import ConvertOptions
+    from lerobot_unidextok.conversion.sharded import ExecutorOptions, convert_with_executor
+    convert_with_executor(ConvertOptions(source="egodex", input="raw/egodex", root="out/egodex_udhm"),
+                          ExecutorOptions(executor="local", tasks=8, workers=2))
+
+`convert_with_executor` checks the set-up once in this process (source options, hands, input, existing
+target: the same `SetupError`s as `convert`), caps the tasks at the number of episodes, then runs the
+datatrove pipeline of `conversion.datatrove`: `tasks` shard conversions and one merge.
+
+- `executor="local"`: datatrove's `LocalPipelineExecutor` (`tasks` shards, `workers` at a time) here.
+- `executor="slurm"`: datatrove's `SlurmPipelineExecutor`: one sbatch array job for the shards and a
+  merge job that depends on it (`afterok`). Returns once both are submitted.
+
+Everything of a run lives in `logging_dir` (default `<root>.datatrove` beside the target): datatrove's
+logs, stats and completion markers (`convert/`, `merge/`), the shard datasets (`shards/`, deleted after
+a successful merge unless `keep_shards`) and `run_settings.json`. Re-running the same command resumes
+(datatrove skips completed tasks); a re-run with other settings on the same `logging_dir` is refused.
+`overwrite=True` starts from scratch and replaces an existing target only when the merge is done.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import logging
+import shutil
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from lerobot_unidextok.conversion.pipeline import ConvertOptions, SetupError, _import_sources, plan_episodes
+from lerobot_unidextok.conversion.registry import make_reader
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["EXECUTORS", "ExecutorOptions", "SlurmOptions", "convert_with_executor", "logging_dir_of"]
+
+EXECUTORS = ("local", "slurm")
+RUN_SETTINGS = "run_settings.json"  # the settings of the run that owns a logging_dir (resume guard)
+DATATROVE_MISSING = (
+    "--executor=local|slurm needs datatrove, an optional extra: pip install 'lerobot-unidextok[datatrove]' "
+    "(or pip install 'datatrove>=0.10,<0.11')"
+)
+
+
+@dataclass
+class SlurmOptions:
+    """Fields of datatrove's `SlurmPipelineExecutor` for the shard job (the merge job: same, one task)."""
+
+    partition: str = ""  # required for executor="slurm" (`sinfo` lists them)
+    time: str = "04:00:00"  # time limit of one task
+    cpus_per_task: int = 2  # give each task as many as --num_workers
+    mem_per_cpu_gb: int = 2
+    job_name: str = "unidextok-convert"
+    qos: str = "normal"
+    # shell line(s) that put `launch_pickled_pipeline` (datatrove) on the PATH of the compute nodes;
+    # empty = activate the venv running this command (when it runs in one)
+    env_command: str = ""
+    sbatch_args: dict[str, str] = field(default_factory=dict)  # extra #SBATCH lines, e.g. {"account": "lab"}
+    max_array_size: int = 1001  # the cluster's MaxArraySize; more tasks become several array jobs
+
+
+@dataclass
+class ExecutorOptions:
+    """How to run a sharded conversion on datatrove."""
+
+    executor: str = "local"  # "local" | "slurm"
+    tasks: int = 2  # shards = datatrove tasks; capped at the number of episodes
+    workers: int = -1  # tasks running at the same time (-1: all)
+    logging_dir: str | None = None  # default "<root>.datatrove" beside the target
+    keep_shards: bool = False  # keep the shard datasets after the merge
+    slurm: SlurmOptions = field(default_factory=SlurmOptions)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.slurm, dict):
+            self.slurm = SlurmOptions(**self.slurm)
+        if self.executor not in EXECUTORS:
+            raise ValueError(f"executor must be one of {EXECUTORS}, got {self.executor!r}")
+        if self.tasks < 1:
+            raise ValueError(f"tasks must be >= 1, got {self.tasks}")
+        if self.workers == 0 or self.workers < -1:
+            raise ValueError(f"workers must be >= 1 (or -1: all tasks at once), got {self.workers}")
+        if self.executor == "slurm" and not self.slurm.partition:
+            raise ValueError("executor='slurm' needs a partition: --slurm.partition=<name> (sinfo lists them)")
+
+
+def logging_dir_of(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
+    """The run's folder: `cfg.logging_dir`, else `<root>.datatrove` beside the target."""
+    if cfg.logging_dir:
+        return Path(cfg.logging_dir).expanduser().resolve()
+    target = Path(opts.root).expanduser().resolve()
+    return target.parent / f"{target.name}.datatrove"
+
+
+def _run_settings(opts: ConvertOptions, cfg: ExecutorOptions, num_shards: int) -> dict[str, Any]:
+    """What a re-run must share to resume from a logging_dir (not workers, Slurm fields or overwrite)."""
+    keep = ("source", "input", "root", "repo_id", "source_options", "mapping", "on_error", "test_fraction",
+            "max_episodes", "sides", "fps", "keep")  # fmt: skip
+    settings = {k: v for k, v in asdict(opts).items() if k in keep}
+    settings.update(
+        input=str(Path(opts.input).expanduser().resolve()),
+        root=str(Path(opts.root).expanduser().resolve()),
+        executor=cfg.executor,
+        num_shards=num_shards,
+    )
+    return json.loads(json.dumps(settings, default=str))
+
+
+def _claim_logging_dir(logs: Path, settings: dict, overwrite: bool) -> None:
+    path = logs / RUN_SETTINGS
+    if overwrite and logs.exists():
+        shutil.rmtree(logs)
+    if path.is_file():
+        before = json.loads(path.read_text())
+        if before != settings:
+            changed = sorted(k for k in settings.keys() | before.keys() if settings.get(k) != before.get(k))
+            raise SetupError(
+                f"{logs} holds a run with other settings ({', '.join(changed)} differ): resume it with the same "
+                "settings, pass --overwrite=true to start again, or choose another --logging_dir"
+            )
+        logger.info("resuming the run in %s: completed tasks are skipped", logs)
+    logs.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(settings, indent=1))
+
+
+def convert_with_executor(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
+    """Set up once here, then convert the shards and merge them (local) or submit both jobs (Slurm).
+
+    Returns the target folder (for Slurm: where the merge job will write it).
+    """
+    if opts.shard_index != 0 or opts.num_shards != 1:
+        raise ValueError("with an executor each task converts one shard: leave shard_index/num_shards unset")
+    try:
+        dt = importlib.import_module("lerobot_unidextok.conversion.datatrove")
+    except ImportError as exc:
+        raise SetupError(f"{DATATROVE_MISSING}; {exc}") from exc
+    target = Path(opts.root).expanduser().resolve()
+    if target.exists() and not opts.overwrite:
+        raise FileExistsError(f"{target} already exists; pass --overwrite=true to replace it, or choose another --root")
+    input_path = Path(opts.input).expanduser()
+    if not input_path.exists():
+        raise FileNotFoundError(f"--input {input_path} does not exist")
+    _import_sources()
+    plan = plan_episodes(make_reader(opts.source, opts.reader_options()), opts, input_path)
+    num_shards = min(cfg.tasks, len(plan.items))
+    if num_shards < cfg.tasks:
+        logger.warning("%d tasks for %d episodes: running %d tasks", cfg.tasks, len(plan.items), num_shards)
+
+    logs = logging_dir_of(opts, cfg)
+    _claim_logging_dir(logs, _run_settings(opts, cfg, num_shards), opts.overwrite)
+    convert_exec, merge_exec = dt.build_executors(opts, cfg, num_shards)
+    merge_exec.run()  # runs (local) or submits (Slurm) its dependency, the shard conversions, first
+    if cfg.executor == "slurm":
+        logger.info(
+            "submitted Slurm job %s (convert, %d tasks) and %s (merge, after it); logs in %s",
+            convert_exec.job_id, num_shards, merge_exec.job_id, logs,
+        )  # fmt: skip
+    return target
