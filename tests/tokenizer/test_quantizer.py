@@ -53,8 +53,40 @@ def test_commitment_loss_weights_follow_config():
     z = torch.randn(8, 4, 64)
     _, _, loss, parts = vq(z, return_loss_breakdown=True)
     torch.testing.assert_close(loss, 0.25 * parts.commitment + 1.0 * parts.codebook)
-    # commitment and codebook terms have the same value, different gradients
+    # commitment and codebook terms have the same value, different gradients (see the gradient test)
     torch.testing.assert_close(parts.commitment, parts.codebook)
+
+
+def _loss_grads(beta: float, codebook_weight: float) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Gradients of the VQ loss alone w.r.t. (input z, projection weight, codebooks) for one fixed model/input."""
+    torch.manual_seed(0)
+    vq = FactorizedCosineVQ(
+        UniDexTokConfig.from_preset("tiny", commitment_weight=beta, codebook_weight=codebook_weight)
+    )
+    z = torch.randn(8, 4, 64, generator=torch.Generator().manual_seed(1), requires_grad=True)
+    _, _, loss = vq(z)
+    grad_z, grad_proj, grad_cb = torch.autograd.grad(loss, [z, vq.project_in.weight, vq.codebooks])
+    return grad_z, grad_proj, grad_cb
+
+
+def test_vq_loss_gradients_encoder_gets_beta_codebook_gets_one():
+    """The commitment term (weight beta) moves only the encoder side, the codebook term (weight 1) only the codes.
+
+    Catches: beta applied to the codebook term instead of the commitment term, the stop-gradient on the
+    wrong side (commitment = mse(sg[u], q) or codebook = mse(sg[q], u)), or either term dropped."""
+    ref_z, ref_proj, ref_cb = _loss_grads(1.0, 1.0)
+    assert ref_z.abs().sum() > 0 and ref_proj.abs().sum() > 0 and ref_cb.abs().sum() > 0
+    z, proj, cb = _loss_grads(0.25, 1.0)  # the paper's weights
+    torch.testing.assert_close(z, 0.25 * ref_z, rtol=1e-5, atol=1e-9)  # encoder side scales with beta
+    torch.testing.assert_close(proj, 0.25 * ref_proj, rtol=1e-5, atol=1e-9)
+    torch.testing.assert_close(cb, ref_cb, rtol=0, atol=0)  # the codebook does not see beta
+    z, proj, cb = _loss_grads(1.0, 3.0)
+    torch.testing.assert_close(z, ref_z, rtol=0, atol=0)  # the encoder does not see the codebook weight
+    torch.testing.assert_close(cb, 3.0 * ref_cb, rtol=1e-5, atol=1e-9)
+    z, _, cb = _loss_grads(0.0, 1.0)
+    assert torch.count_nonzero(z) == 0 and torch.equal(cb, ref_cb)  # beta = 0: no gradient to the encoder
+    z, _, cb = _loss_grads(1.0, 0.0)
+    assert torch.count_nonzero(cb) == 0 and torch.equal(z, ref_z)  # no codebook term: codes get no gradient
 
 
 def test_entropy_regulariser_changes_loss_when_enabled():
