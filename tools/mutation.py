@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import functools
 import io
 import json
 import os
@@ -49,6 +50,7 @@ import tempfile
 import time
 import tokenize
 from collections import defaultdict
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -261,7 +263,7 @@ def _preload() -> None:
     import lerobot.processor  # noqa: F401
 
 
-def _run_child(src_root: Path, args: list[str], result_file: Path | None, cov_files: list[str] | None) -> int:
+def _run_child(src_root: Path, args: list[str], make_plugin: Callable[[], object]) -> int:
     """Fork; in the child, import the package from `src_root` and run pytest. Returns the child's pid."""
     pid = os.fork()
     if pid:
@@ -276,11 +278,21 @@ def _run_child(src_root: Path, args: list[str], result_file: Path | None, cov_fi
         os.dup2(devnull, 2)
         import pytest
 
-        plugins = [_Recorder(result_file, cov_files)] if result_file else []
-        code = int(pytest.main(["-p", "no:cacheprovider", "-q", "-o", "addopts=--import-mode=importlib", *args],
-                               plugins=plugins))  # fmt: skip
+        base = ["-p", "no:cacheprovider", "-q", "-o", "addopts=--import-mode=importlib"]
+        code = int(pytest.main([*base, *args], plugins=[make_plugin()]))
     finally:
         os._exit(code)
+
+
+class _Select:
+    """pytest plugin for a mutant: run only `tests` (node ids), in that order."""
+
+    def __init__(self, tests: list[str]) -> None:
+        self.order = {t: i for i, t in enumerate(tests)}
+
+    def pytest_collection_modifyitems(self, items, config):  # noqa: ANN001
+        keep = sorted((i for i in items if i.nodeid in self.order), key=lambda i: self.order[i.nodeid])
+        items[:] = keep
 
 
 class _Recorder:
@@ -374,7 +386,9 @@ def run_module(module: str, src_root: Path, args: argparse.Namespace, work: Path
     # baseline: which tests cover which line, and how long each takes
     t0 = time.monotonic()
     baseline_file = work / f"baseline-{module.replace('/', '_')}.json"
-    pid = _run_child(src_root, list(test_paths), baseline_file, [str(p) for p in copies.values()])
+    pid = _run_child(
+        src_root, list(test_paths), functools.partial(_Recorder, baseline_file, [str(p) for p in copies.values()])
+    )
     code, _ = _wait(pid, args.baseline_timeout)
     result.baseline_s = time.monotonic() - t0
     if not baseline_file.is_file():
@@ -412,7 +426,8 @@ def run_module(module: str, src_root: Path, args: argparse.Namespace, work: Path
             copies[mutant.path].write_text(mutant.apply(original))
             try:
                 budget = args.timeout_factor * sum(durations.get(t, 1.0) for t in tests) + 30.0
-                code, _ = _wait(_run_child(src_root, ["-x", *tests], None, None), budget)
+                files = sorted({t.split("::")[0] for t in tests})
+                code, _ = _wait(_run_child(src_root, ["-x", *files], functools.partial(_Select, tests)), budget)
             finally:
                 copies[mutant.path].write_text(original)
             if code is None:
