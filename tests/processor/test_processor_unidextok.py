@@ -300,13 +300,20 @@ def test_native_layout_without_recorded_layout_is_derived(g1_like, tmp_path):
     )
 
 
-def test_tokens_to_native_shape_and_limits(step, states):
+def test_tokens_to_native_decodes_each_block_with_its_side(step, states):
+    """tokens -> decode per block -> that block's side of the hand spec (the old check, values in [0, 1],
+    held by clipping alone). Catches blocks decoded with the wrong side or in the wrong order."""
     tokens = step.observation({OBS_STATE: states})[OBS_HAND_TOKENS]
     layout = HandLayout(PAIR, ["left", "right"])
     native = tokens_to_native(tokens, step.tokenizer, layout)
+    cfg = step.tokenizer.config
+    codes = tokens.reshape(len(states), 2, cfg.num_tokens, cfg.num_groups)
+    spec = hands.get(INSPIRE)
+    want = np.concatenate([spec.from_udhm(step.tokenizer.decode(codes[:, k], INSPIRE).numpy(), side=side)
+                           for k, side in enumerate(["left", "right"])], axis=1)  # fmt: skip
     assert native.shape == (len(states), 12)
-    assert native.min() >= 0 and native.max() <= 1  # clipped to Unitree's [0, 1]
-    assert tokens_to_native(tokens[0], step.tokenizer, layout).shape == (12,)
+    np.testing.assert_allclose(native, want, atol=1e-6)
+    np.testing.assert_allclose(tokens_to_native(tokens[0], step.tokenizer, layout), want[0], atol=1e-6)
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
