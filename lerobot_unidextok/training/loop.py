@@ -16,6 +16,7 @@ from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 from lerobot_unidextok.training.arrays import HandMixSampler, HandStates
 from lerobot_unidextok.training.checkpoint import (
     load_optimizer_state,
+    load_resume_tensors,
     load_training_state,
     save_checkpoint,
 )
@@ -113,11 +114,12 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
     model, optimizer = accelerator.prepare(model, optimizer)
     raw_model: UniDexTok = accelerator.unwrap_model(model)
 
+    # seeded as at step 0 also when resuming: the saved generator states (below) continue the same streams
     sampler = HandMixSampler(
         train_data.hands,
         cfg.hand_weights,
         cfg.default_hand_weight,
-        seed=cfg.seed * 1000 + start + accelerator.process_index,
+        seed=cfg.seed * 1000 + accelerator.process_index,
     )
     logger.info("training %d steps on %d rows; hand shares %s", n_steps, len(train_data), sampler.hand_share)
     states = torch.as_tensor(train_data.states_rad)
@@ -143,7 +145,22 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
             usage["usage"],
         )
 
-    dropout_rng = torch.Generator().manual_seed(cfg.seed * 1000 + start + 1)
+    dropout_rng = torch.Generator().manual_seed(cfg.seed * 1000 + 1)
+    if cfg.resume:  # continue the random streams where the checkpoint left them: resume == uninterrupted run
+        saved = load_resume_tensors(last_dir)
+        if "sampler_rng" in state and saved:
+            sampler.rng.bit_generator.state = state["sampler_rng"]
+            torch.set_rng_state(saved["torch_rng"])
+            dropout_rng.set_state(saved["dropout_rng"])
+            raw_model.quantizer.usage_ema.copy_(saved["usage_ema"])
+        else:
+            logger.warning("%s has no random-generator state (older checkpoint): the resumed run draws other "
+                           "batches than an uninterrupted one would", last_dir)  # fmt: skip
+
+    def _resume_tensors() -> dict[str, torch.Tensor]:
+        return {"torch_rng": torch.get_rng_state(), "dropout_rng": dropout_rng.get_state(),
+                "usage_ema": raw_model.quantizer.usage_ema}  # fmt: skip
+
     t0 = time.perf_counter()
     bar = tqdm(
         range(start, n_steps),
@@ -185,7 +202,9 @@ def _train(cfg: TrainConfig, train_data: HandStates, eval_data: HandStates, mode
         if accelerator.is_main_process and ((step + 1) % cfg.save_last_every == 0 or step + 1 == n_steps):
             save_checkpoint(
                 raw_model, last_dir, optimizer,
-                {"step": step + 1, "best_mae_deg": best_mae, "best_step": best_step, "history": history},
+                {"step": step + 1, "best_mae_deg": best_mae, "best_step": best_step, "history": history,
+                 "sampler_rng": sampler.rng.bit_generator.state},
+                _resume_tensors(),
             )  # fmt: skip
     bar.close()
     if start >= n_steps and not history:
