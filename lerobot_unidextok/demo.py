@@ -206,6 +206,11 @@ def demo_lerobot(out: Path, roots: dict[str, Path]) -> None:
     print(token_preview(step, frames))
 
     repo_id = "demo/unidextok-small"
+    if os.environ.get("HF_HUB_OFFLINE", "0").upper() in ("1", "ON", "YES", "TRUE"):
+        # huggingface_hub refuses every transfer under HF_HUB_OFFLINE, loopback ones included
+        print("\nlocal hub cache step skipped: HF_HUB_OFFLINE is set (unset it to publish the tokenizer into the "
+              "local hub cache through a loopback Hub on 127.0.0.1; nothing leaves the machine)")  # fmt: skip
+        return
     snapshot = cache_via_loopback(out / "tokenizer", repo_id)
     reloaded = UniDexTok.from_pretrained(repo_id, local_files_only=True)
     same = all(torch.equal(a, b) for a, b in zip(reloaded.state_dict().values(), step.tokenizer.state_dict().values()))

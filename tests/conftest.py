@@ -30,11 +30,21 @@ REAL_DATA_DIR = Path(os.environ.get("UNIDEXTOK_REAL_DATA", REPO_ROOT.parent / "s
 
 @pytest.fixture(scope="session")
 def real_data_dir() -> Path:
-    """The real recordings kept beside the checkout (../shared/data/real); skips when absent."""
+    """The real recordings kept beside the checkout (../shared/data/real): skips when the folder is absent,
+    fails when it is present but incomplete."""
     if not REAL_DATA_DIR.is_dir():
         pytest.skip(
             f"real hand recordings not found at {REAL_DATA_DIR}; "
             "set UNIDEXTOK_REAL_DATA to a copy of shared/data/real to run these tests"
+        )
+    from real_data import missing_real_data  # tests/fixtures/real_data.py
+
+    missing = missing_real_data(REAL_DATA_DIR)
+    if missing:
+        pytest.fail(
+            f"{REAL_DATA_DIR} is present but incomplete, missing {missing}: copy the whole shared/data/real "
+            "folder (or point UNIDEXTOK_REAL_DATA at a complete copy, or at a path that does not exist to skip)",
+            pytrace=False,
         )
     return REAL_DATA_DIR
 

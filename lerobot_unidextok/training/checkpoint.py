@@ -8,12 +8,18 @@ from safetensors.torch import load_file, save_file
 
 TRAINING_STATE = "training_state.json"
 OPTIMIZER_STATE = "optimizer.safetensors"
+RESUME_STATE = "resume_state.safetensors"  # random generators and quantiser statistics, for an exact resume
 
 
 def save_checkpoint(
-    model, directory: Path, optimizer: torch.optim.Optimizer | None = None, state: dict | None = None
+    model,
+    directory: Path,
+    optimizer: torch.optim.Optimizer | None = None,
+    state: dict | None = None,
+    resume_tensors: dict[str, torch.Tensor] | None = None,
 ) -> Path:
-    """Write config.json + model.safetensors (+ optimiser tensors and a JSON training state)."""
+    """Write config.json + model.safetensors (+ optimiser tensors, a JSON training state and the tensors
+    an exact resume needs beyond the weights: random generator states, non-persistent statistics)."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     model.save_pretrained(directory)
@@ -25,9 +31,17 @@ def save_checkpoint(
                 t = value if isinstance(value, torch.Tensor) else torch.tensor(value)
                 tensors[f"{i}.{key}"] = t.detach().cpu().contiguous()
         save_file(tensors, directory / OPTIMIZER_STATE)
+    if resume_tensors is not None:
+        save_file({k: v.detach().cpu().contiguous() for k, v in resume_tensors.items()}, directory / RESUME_STATE)
     if state is not None:
         (directory / TRAINING_STATE).write_text(json.dumps(state, indent=2))
     return directory
+
+
+def load_resume_tensors(directory: Path) -> dict[str, torch.Tensor]:
+    """The `resume_tensors` of `save_checkpoint`; empty for checkpoints written before they were saved."""
+    path = Path(directory) / RESUME_STATE
+    return load_file(path) if path.is_file() else {}
 
 
 def load_optimizer_state(optimizer: torch.optim.Optimizer, directory: Path) -> None:

@@ -19,6 +19,7 @@ from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 from lerobot_unidextok.training.arrays import HandStates
 from lerobot_unidextok.training.checkpoint import (
     load_optimizer_state,
+    load_resume_tensors,
     load_training_state,
     save_checkpoint,
 )
@@ -169,12 +170,13 @@ def _train(
     model, optimizer = accelerator.prepare(model, optimizer)
     raw_model: UniDexTok = accelerator.unwrap_model(model)
 
+    # seeded as at step 0 also when resuming: the saved generator states (below) continue the same streams
     sampler = MixtureSampler(
         train_data,
         cfg.hand_weights,
         cfg.default_hand_weight,
         cfg.coverage,
-        seed=cfg.seed * 1000 + start + accelerator.process_index,  # each process draws its own batches
+        seed=cfg.seed * 1000 + accelerator.process_index,  # each process draws its own batches
     )
     mixture = sampler.describe()
     logger.info(
@@ -211,7 +213,26 @@ def _train(
             usage["usage"],
         )
 
-    dropout_rng = torch.Generator().manual_seed(cfg.seed * 1000 + start + 1 + 7919 * accelerator.process_index)
+    dropout_rng = torch.Generator().manual_seed(cfg.seed * 1000 + 1 + 7919 * accelerator.process_index)
+    if cfg.resume:  # continue the random streams where the checkpoint left them: resume == uninterrupted run
+        saved = load_resume_tensors(last_dir)
+        if "sampler_rng" in state and saved and accelerator.num_processes == 1:
+            sampler.rng.bit_generator.state = state["sampler_rng"]
+            torch.set_rng_state(saved["torch_rng"])
+            dropout_rng.set_state(saved["dropout_rng"])
+            raw_model.quantizer.usage_ema.copy_(saved["usage_ema"])
+        else:  # only process 0's streams are saved: each process restarts its own from (seed, step, process)
+            offset = cfg.seed * 1000 + 7919 * accelerator.process_index + 104729 * start
+            sampler.rng = np.random.default_rng(offset)
+            dropout_rng.manual_seed(offset + 1)
+            logger.warning("%s: resuming with fresh random streams (%s): the resumed run draws other batches than "
+                           "an uninterrupted one would", last_dir,
+                           "several processes" if saved else "older checkpoint")  # fmt: skip
+
+    def _resume_tensors() -> dict[str, torch.Tensor]:
+        return {"torch_rng": torch.get_rng_state(), "dropout_rng": dropout_rng.get_state(),
+                "usage_ema": raw_model.quantizer.usage_ema}  # fmt: skip
+
     t0 = time.perf_counter()
     bar = tqdm(
         range(start, n_steps),
@@ -257,7 +278,9 @@ def _train(
         if accelerator.is_main_process and ((step + 1) % cfg.save_last_every == 0 or step + 1 == n_steps):
             save_checkpoint(
                 raw_model, last_dir, optimizer,
-                {"step": step + 1, "best_mae_deg": best_mae, "best_step": best_step, "history": history, **about},
+                {"step": step + 1, "best_mae_deg": best_mae, "best_step": best_step, "history": history, **about,
+                 "sampler_rng": sampler.rng.bit_generator.state},
+                _resume_tensors(),
             )  # fmt: skip
     bar.close()
     if start >= n_steps and not history:

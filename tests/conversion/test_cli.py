@@ -81,7 +81,7 @@ def test_entry_point_config_file_flags_and_push_to_hub(raw, tmp_path, capsys):
     cfg = tmp_path / "convert.yaml"
     cfg.write_text(f"source: let\ninput: {raw}\nrepo_id: lab/let_udhm\nroot: {root}\non_error: raise\n")
     token = "hf_loopback_convert"
-    with LoopbackHub(lifetime_s=240, token=token) as hub:
+    with LoopbackHub(token=token) as hub:  # stops when the block ends, not after a fixed time
         env = _env(
             HF_ENDPOINT=hub.url,
             HF_TOKEN=token,

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -15,6 +17,7 @@ from lerobot_unidextok.conversion.pipeline import (
     ConversionError,
     ConvertOptions,
     convert,
+    episode_key,
     merge_shards,
     read_settings,
     split_order,
@@ -106,28 +109,52 @@ def test_robot_source_contract_and_round_trip(samples, linker):
     assert "--dataset.episodes" in card  # how to keep the test episodes out of lerobot-train
 
 
-def test_split_deterministic_and_worker_independent(samples, linker, tmp_path):
+def test_split_deterministic_worker_and_folder_independent(samples, linker, tmp_path):
+    """The same input moved to another folder and converted with 2 workers gives the same data and split.
+
+    Catches: hashing the absolute episode path (`episode_key` keeping the input folder), which moves the
+    test set whenever the input folder moves."""
     root, _ = linker
+    moved = tmp_path / "elsewhere" / "copy_of_linkerhand"
+    shutil.copytree(samples["linkerhand"], moved)
     again = tmp_path / "again"
-    convert(
-        ConvertOptions(
-            source="linkerhand",
-            input=samples["linkerhand"],
-            root=again,
-            repo_id="t/linker",
-            num_workers=2,
-            progress=False,
-        )
-    )
+    convert(ConvertOptions(source="linkerhand", input=moved, root=again, repo_id="t/linker", num_workers=2,
+                           progress=False))  # fmt: skip
     assert _data(root).equals(_data(again))
     assert json.loads((again / "meta/info.json").read_text())["splits"] == {"train": "0:6"}
-    assert read_settings(again)["test_episodes"] == read_settings(root)["test_episodes"]
+    first, second = read_settings(root), read_settings(again)
+    assert second["test_episodes"] == first["test_episodes"]
+    keys = [r["source"] for r in first["episodes"]]
+    assert keys == [r["source"] for r in second["episodes"]]  # keys relative to --input, not absolute paths
+    assert not any(str(samples["linkerhand"]) in k or str(moved) in k for k in keys), keys
 
-    keys = [f"ep_{i}" for i in range(50)]
+
+def test_episode_key_drops_the_input_folder(tmp_path):
+    """Catches: a key that keeps the absolute path (the split would change when the input folder moves)."""
+    for folder in (tmp_path / "a", tmp_path / "b" / "c"):
+        assert episode_key(folder / "run1" / "episode_3.bag", folder) == str(Path("run1") / "episode_3.bag")
+    assert episode_key("/data/x/ep.h5", "/data/x/") == "ep.h5"
+
+
+def test_split_golden_keys_smallest_hashes():
+    """A golden split for fixed keys: the test set is the round(0.2 * N) keys with the SMALLEST sha1.
+
+    Recipe of the golden list: sorted(keys, key=lambda k: hashlib.sha1(k.encode()).hexdigest())[:4] for the
+    20 keys below. Catches: the largest hashes instead of the smallest, another hash, rounding down/up,
+    or returning positions in hash order instead of input order."""
+    keys = [f"episode_{i:03d}.bag" for i in range(20)]
     train, test = split_order(keys, 0.2)
-    assert len(test) == 10 and sorted(train + test) == list(range(50))
-    _train_rev, test_rev = split_order(keys[::-1], 0.2)
-    assert sorted(keys[::-1][i] for i in test_rev) == sorted(keys[i] for i in test)  # order-independent
+    assert test == [1, 10, 14, 18]
+    assert train == [i for i in range(20) if i not in (1, 10, 14, 18)]
+    assert split_order(keys, 0.1)[1] == [14, 18]  # the 2 smallest hashes of the same ranking
+    assert split_order(keys, 0.12)[1] == [14, 18]  # round(2.4) = 2
+    assert split_order(keys, 0.13)[1] == [10, 14, 18]  # round(2.6) = 3
+    assert split_order(keys[:1], 0.5) == ([0], [])  # a single episode is never held out
+    assert split_order(keys, 0.0) == (list(range(20)), [])
+    # order-independent: the same keys shuffled select the same episodes
+    shuffled = keys[::-1]
+    _, test_rev = split_order(shuffled, 0.2)
+    assert sorted(shuffled[i] for i in test_rev) == sorted(keys[i] for i in test)
 
 
 def test_existing_target_refused_then_overwritten(samples, linker, tmp_path):

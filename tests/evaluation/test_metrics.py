@@ -117,3 +117,37 @@ def test_finger_keypoints_are_exactly_the_ones_the_joints_move(hand):
     rep = reconstruction_metrics(pred, true, hands)["overall"]
     assert rep["mpjpe_fingers_mm"] == pytest.approx(mpjpe_fingers_mm(pred, true, hands))
     assert rep["mpjpe_fingers_mm"] > rep["mpjpe_mm"]
+
+
+def test_per_joint_and_active_dofs_follow_each_row_mask():
+    """A joint active in some rows only is averaged over those rows; a hand's active DoFs are the joints
+    active in ANY of its rows; rows without any active joint give nan, not an error.
+
+    Catches `any` -> `all` in the per-joint table, in `active_dofs` and in the empty-mask guard."""
+    true = _true(4)
+    pred = true.copy()
+    pred[:, 0] += np.radians([1.0, 3.0, 5.0, 7.0])  # thumb_cmc_flex errors per row
+    pred[:, 1] += math.radians(2.0)
+    mask = np.zeros_like(true, dtype=bool)
+    mask[:2, 0] = True  # thumb_cmc_flex active in rows 0 and 1 only
+    mask[:, 1] = True  # thumb_cmc_spread active everywhere
+    table = per_joint_mae_deg(pred, true, mask)
+    assert table == pytest.approx({"thumb_cmc_flex": 2.0, "thumb_cmc_spread": 2.0})
+    out = reconstruction_metrics(pred, true, np.array(["leap"] * 4), mask)
+    assert out["per_hand"]["leap"]["active_dofs"] == 2
+    assert out["overall"]["mpjae_deg"] == pytest.approx((1.0 + 3.0 + 4 * 2.0) / 6)
+    empty = np.zeros_like(mask)
+    assert math.isnan(mpjae_deg(pred, true, empty))
+    assert per_joint_mae_deg(pred, true, empty) == {}
+    assert math.isnan(reconstruction_metrics(pred, true, np.array(["leap"] * 4), empty)["overall"]["mpjae_deg"])
+
+
+def test_each_shape_check_alone_raises():
+    """Each of the three shape conditions raises on its own (catches `or` -> `and` between them)."""
+    true = _true(3)
+    with pytest.raises(ValueError, match=r"\(N, 22\)"):
+        mpjae_deg(true[:2], true)  # rows differ, both (N, 22)
+    with pytest.raises(ValueError, match=r"\(N, 22\)"):
+        mpjae_deg(true[0], true[0])  # same shape, 1-D
+    with pytest.raises(ValueError, match=r"\(N, 22\)"):
+        mpjae_deg(np.zeros((3, 21)), np.zeros((3, 21)))  # same shape, 2-D, wrong width

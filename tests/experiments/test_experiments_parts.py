@@ -84,15 +84,22 @@ def test_human_clip_segments_split_like_the_converter():
 
 @pytest.mark.parametrize("hand", ["inspire_rh56_unitree", "linkerhand_l10", "xhand1", "brainco_revo1"])
 def test_append_pad_permutation_matches_the_spec(hand):
+    """append_pad position k holds semantic slot perm[k], on poses whose active values all differ.
+
+    The old check compared the two mappings of UDHM zero (all zeros), which any permutation passes."""
     from lerobot_unidextok import hands
 
     spec = hands.get(hand)
     perm = append_to_semantic_perm(hand)
     assert sorted(perm.tolist()) == np.flatnonzero(spec.mask("semantic")).tolist()
-    raw = spec.from_udhm(np.zeros(22))
+    lo, hi = spec.raw_range("right").T
+    raw = np.random.default_rng(0).uniform(lo, hi, size=(16, len(lo)))  # (16, J) native values
     sem = np.asarray(spec.to_udhm(raw, mapping="semantic"))
     app = np.asarray(spec.to_udhm(raw, mapping="append_pad"))
-    assert np.allclose(sem[perm], app[: len(perm)])
+    active = sem[:, perm]  # (16, A)
+    assert np.abs(np.diff(np.sort(active, axis=1), axis=1)).min() > 1e-6  # distinct values: order is visible
+    np.testing.assert_array_equal(active, app[:, : len(perm)])
+    assert np.count_nonzero(app[:, len(perm) :]) == 0  # padded tail
     assert append_to_semantic_perm("human") is None
 
 

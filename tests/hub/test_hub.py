@@ -51,10 +51,17 @@ def run_cli(args: list[str], **env: str) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=180)  # fmt: skip
 
 
+def _files(root: Path) -> dict[str, bytes]:
+    """Relative POSIX path -> content of every file under `root` (snapshot symlinks followed)."""
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
 def test_round_trip_tokenizer_and_dataset(hub, tok_dir, g1_like_hands, tmp_path):
     """Pulls resolve by repo id everywhere: cached_snapshot(dataset) failed right after the documented pull
     (tag v3.0), and unidextok-train/-eval only looked in $HF_HOME/lerobot; the generic README of a
-    saved tokenizer was uploaded instead of the documented card, ignoring --training_data."""
+    saved tokenizer was uploaded instead of the documented card, ignoring --training_data.
+    The pulled dataset is compared file by file, byte for byte (catches a push or pull that drops, renames
+    or rewrites a file: the old check counted files only)."""
     cache = tmp_path / "hf-fresh"
     cli = f"""
 import sys
@@ -76,6 +83,12 @@ for argv, main in [
     assert lines[0].startswith("pushed") and lines[1].startswith("pushed")
     model_snapshot, ds_snapshot = Path(lines[-2]), Path(lines[-1])
     assert "v3.0" in hub.repos[("dataset", "lab/g1_udhm")].tags  # LeRobot resolves this tag
+    # every file of the dataset comes back byte for byte (the pull is checked by content, not by count)
+    local, pulled = _files(g1_like_hands["root"]), _files(ds_snapshot)
+    assert set(pulled) - set(local) <= {"README.md", ".gitattributes"}, sorted(set(pulled) - set(local))
+    assert any(name.endswith(".parquet") for name in local) and "meta/unidextok_conversion.json" in local
+    changed = [name for name, data in local.items() if pulled.get(name) != data]
+    assert not changed, changed
     assert card_status(tok_dir / "README.md") == "generic"  # the card is staged, the user's folder untouched
     assert model_snapshot.is_relative_to(cache / "hub") and ds_snapshot.is_relative_to(cache / "hub")
     card = (model_snapshot / "README.md").read_text()

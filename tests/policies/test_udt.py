@@ -153,16 +153,28 @@ load_plugin("lerobot_unidextok")  # what --policy.discover_packages_path does in
 from lerobot.configs.policies import PreTrainedConfig
 from lerobot.policies.factory import get_policy_class, make_pre_post_processors
 from lerobot.datasets import LeRobotDataset
+from lerobot.processor import TransitionKey
+import numpy as np
+from lerobot_unidextok.processor import NativeLayout
 ds = LeRobotDataset("test/g1_like_udhm", root=sys.argv[1])
+layout = NativeLayout.from_dataset(sys.argv[1])
 for path in sys.argv[2:]:
     cfg = PreTrainedConfig.from_pretrained(path)
     policy = get_policy_class(cfg.type).from_pretrained(path).eval()
     pre, post = make_pre_post_processors(cfg, pretrained_path=path)
-    acts = [post(policy.select_action(pre({"observation.state": ds[i]["observation.state"]}))) for i in (0, 5, 70)]
+    acts = []
+    for i in (0, 5, 70):
+        raw = policy.select_action(pre({"observation.state": ds[i]["observation.state"]}))
+        stages = list(post.step_through(raw))  # ..., unnormalised converted action, native action
+        converted, native = stages[-2][TransitionKey.ACTION], stages[-1][TransitionKey.ACTION]
+        assert converted.shape[-1] == 58 and torch.equal(post(raw), native)
+        # the native action is the dataset's recorded layout applied to the converted action: arms copied,
+        # each Inspire block decoded with its own side's table
+        want = layout.to_native(converted.detach().cpu().numpy())
+        assert np.abs(native.numpy() - want).max() < 1e-5, (native, want)
+        acts.append(native)
     a = torch.stack(acts)  # (3, 1, 26)
     assert torch.isfinite(a).all(), a
-    hands = a[..., 14:]
-    assert hands.min() >= 0 and hands.max() <= 1, hands  # Inspire in Unitree's [0, 1] units
     print(cfg.type, type(policy).__name__, tuple(a.shape))
 """
 
@@ -170,7 +182,9 @@ for path in sys.argv[2:]:
 @pytest.mark.slow
 def test_lerobot_train_act_and_diffusion_resume_and_reload(tok_dir, g1_like, tmp_path):
     """`--policy.type=act` failed (no image / env state) and diffusion failed on stacked states; resuming
-    with `--policy.path` rejected `--policy.discover_packages_path`. Both from flags / config file only."""
+    with `--policy.path` rejected `--policy.discover_packages_path`. Both from flags / config file only.
+    The reloaded post-processor's native action equals the dataset's native layout applied to the policy's
+    converted action (the old check, hands in [0, 1], held by clipping alone)."""
     root, hf = g1_like["root"], tmp_path / "hf"
     data = ["--dataset.repo_id=test/g1_like_udhm", f"--dataset.root={root}", f"--policy.udt_pretrained={tok_dir}"]
     plugin = "--policy.discover_packages_path=lerobot_unidextok"

@@ -300,13 +300,20 @@ def test_native_layout_without_recorded_layout_is_derived(g1_like, tmp_path):
     )
 
 
-def test_tokens_to_native_shape_and_limits(step, states):
+def test_tokens_to_native_decodes_each_block_with_its_side(step, states):
+    """tokens -> decode per block -> that block's side of the hand spec (the old check, values in [0, 1],
+    held by clipping alone). Catches blocks decoded with the wrong side or in the wrong order."""
     tokens = step.observation({OBS_STATE: states})[OBS_HAND_TOKENS]
     layout = HandLayout(PAIR, ["left", "right"])
     native = tokens_to_native(tokens, step.tokenizer, layout)
+    cfg = step.tokenizer.config
+    codes = tokens.reshape(len(states), 2, cfg.num_tokens, cfg.num_groups)
+    spec = hands.get(INSPIRE)
+    want = np.concatenate([spec.from_udhm(step.tokenizer.decode(codes[:, k], INSPIRE).numpy(), side=side)
+                           for k, side in enumerate(["left", "right"])], axis=1)  # fmt: skip
     assert native.shape == (len(states), 12)
-    assert native.min() >= 0 and native.max() <= 1  # clipped to Unitree's [0, 1]
-    assert tokens_to_native(tokens[0], step.tokenizer, layout).shape == (12,)
+    np.testing.assert_allclose(native, want, atol=1e-6)
+    np.testing.assert_allclose(tokens_to_native(tokens[0], step.tokenizer, layout), want[0], atol=1e-6)
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
@@ -346,6 +353,93 @@ def test_layout_refuses_a_dataset_that_mixes_hands(tmp_path):
     assert {"linkerhand_l10", "linkerhand_l20"} <= set(report.hands)
     with pytest.raises(ValueError, match="mixes hand layouts.*linkerhand_l10.*linkerhand_l20"):
         hand_layout_from_dataset(report.root)
+
+
+# ---------------------------------------------------------------------------------------------
+# mixed-hand layouts: each block is tokenised and decoded with its own hand
+# ---------------------------------------------------------------------------------------------
+MIXED = ["human", "linkerhand_l10", INSPIRE]
+
+
+@pytest.fixture(scope="module")
+def hand_aware_tok_dir(tmp_path_factory):
+    """A tokenizer whose output depends on the hand. A freshly built one does not (adaLN-Zero starts every
+    block as the identity, so the hand embedding has no effect): its conditioning layers get random weights."""
+    torch.manual_seed(7)
+    model = UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=MIXED))
+    with torch.no_grad():
+        for name, param in model.named_parameters():
+            if "adaLN_modulation" in name or name == "hand_embed.weight":
+                param.normal_(0.0, 0.5)
+    path = tmp_path_factory.mktemp("tok_mixed") / "unidextok-tiny"
+    model.save_pretrained(path)
+    return path
+
+
+def _block(hand: str, side: str, frames: int, seed: int) -> torch.Tensor:
+    """(frames, 22) float32 UDHM radians of `hand` from uniformly drawn native values (human: in-limit angles)."""
+    rng = np.random.default_rng(seed)
+    spec = hands.get(hand)
+    if hand == "human":
+        from lerobot_unidextok import udhm
+
+        return torch.from_numpy(udhm.sample_angles(rng, (frames,), margin=0.05).astype(np.float32))
+    lo, hi = spec.raw_range(side).T
+    raw = rng.uniform(lo + 0.02 * (hi - lo), hi - 0.02 * (hi - lo), size=(frames, len(lo)))
+    return torch.from_numpy(np.asarray(spec.to_udhm(raw, side=side), dtype=np.float32))
+
+
+@pytest.mark.parametrize("layout", [MIXED[:2], MIXED[1::-1], MIXED], ids=["human+l10", "l10+human", "three-blocks"])
+def test_mixed_hand_blocks_are_tokenised_with_their_own_hand(hand_aware_tok_dir, layout):
+    """Tokens of block i are encode(block_i, hand_i); the view is decode(...) masked by hand_i's active DoFs.
+
+    Catches: blocks tokenised with one hand id for all (`_hand_ids` repeated in the wrong order, e.g.
+    `repeat_interleave` instead of `repeat`, or hands swapped across blocks), a mask taken from the wrong
+    block, blocks read in the wrong order. Every earlier layout had the same hand in both blocks."""
+    sides = ["right", "left", "right"]
+    blocks = [_block(h, sides[i], 12, seed=i) for i, h in enumerate(layout)]
+    x = torch.cat(blocks, dim=1)  # (12, 22 * H)
+    step = UniDexTokStateTokenizerStep(hand_layout=layout, pretrained=str(hand_aware_tok_dir))
+    out = step.observation({OBS_STATE: x})
+    tok = step.tokenizer
+    codes = [tok.encode(b, h) for b, h in zip(blocks, layout, strict=True)]  # (12, N, K) each
+    assert torch.equal(out[OBS_HAND_TOKENS], torch.cat([c.flatten(1) for c in codes], dim=1))
+    # the hand matters for this tokenizer, so the comparison above can fail
+    assert not torch.equal(tok.encode(blocks[0], layout[1]), codes[0])
+    for i, (hand, c) in enumerate(zip(layout, codes, strict=True)):
+        view = out[OBS_HAND_TOKEN_FEATURES][:, 22 * i : 22 * (i + 1)]
+        active = torch.from_numpy(hands.get(hand).active_mask)
+        assert torch.equal(view[:, active], tok.decode(c, hand)[:, active])
+        assert torch.count_nonzero(view[:, ~active]) == 0
+    # one frame at a time gives the same tokens as the batch (ids per row in block order for B = 1 too)
+    assert torch.equal(step.observation({OBS_STATE: x[3]})[OBS_HAND_TOKENS], out[OBS_HAND_TOKENS][3])
+
+
+def test_mixed_whole_robot_state_and_native_decoding(hand_aware_tok_dir):
+    """Arms + a left human hand + a right L10: blocks found by name, decoded per hand and side.
+
+    Catches: `udhm_to_native` decoding every block with the first hand's spec or the other side's table
+    (the per-side rest offsets of the Inspire hand differ between left and right)."""
+    from robot_udhm import ARM_NAMES
+
+    names = ARM_NAMES + [f"left_{j}" for j in UDHM_JOINTS] + [f"right_{j}" for j in UDHM_JOINTS]
+    human, l10 = _block("human", "left", 10, seed=1), _block("linkerhand_l10", "right", 10, seed=2)
+    x = torch.cat([torch.randn(10, 14) * 0.3, human, l10], dim=1)  # (10, 58)
+    step = UniDexTokStateTokenizerStep(hand_layout=["human", "linkerhand_l10"], state_names=names,
+                                       pretrained=str(hand_aware_tok_dir))  # fmt: skip
+    expected = torch.cat([step.tokenizer.encode(human, "human").flatten(1),
+                          step.tokenizer.encode(l10, "linkerhand_l10").flatten(1)], dim=1)  # fmt: skip
+    assert torch.equal(step.observation({OBS_STATE: x})[OBS_HAND_TOKENS], expected)
+
+    inspire_left, l10_right = _block(INSPIRE, "left", 10, seed=3), _block("linkerhand_l10", "right", 10, seed=4)
+    layout = HandLayout([INSPIRE, "linkerhand_l10"], ["left", "right"])
+    native = udhm_to_native(torch.cat([inspire_left, l10_right], dim=1), layout)
+    want = np.concatenate([hands.get(INSPIRE).from_udhm(inspire_left.numpy(), side="left"),
+                           hands.get("linkerhand_l10").from_udhm(l10_right.numpy(), side="right")], axis=1)  # fmt: skip
+    assert native.shape == (10, 6 + 10)
+    np.testing.assert_allclose(native, want, atol=1e-5)
+    wrong_side = hands.get(INSPIRE).from_udhm(inspire_left.numpy(), side="right")
+    assert np.abs(wrong_side - want[:, :6]).max() > 0.01  # sides matter, so the comparison above can fail
 
 
 # ---------------------------------------------------------------------------------------------

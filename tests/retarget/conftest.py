@@ -17,7 +17,4 @@ def human_clip(real_data_dir):
     """(T, 21, 3) m: the real right-hand MediaPipe clip (dex-retargeting's example), MANO wrist frame."""
     import numpy as np
 
-    path = real_data_dir / "dex-retargeting" / "human_joint_right.npy"
-    if not path.is_file():
-        pytest.skip(f"{path} absent")
-    return np.load(path)
+    return np.load(real_data_dir / "dex-retargeting" / "human_joint_right.npy")  # listed in REAL_DATA_FILES

@@ -1,5 +1,7 @@
 """Invariants of the factorised cosine VQ."""
 
+import math
+
 import pytest
 import torch
 
@@ -53,8 +55,40 @@ def test_commitment_loss_weights_follow_config():
     z = torch.randn(8, 4, 64)
     _, _, loss, parts = vq(z, return_loss_breakdown=True)
     torch.testing.assert_close(loss, 0.25 * parts.commitment + 1.0 * parts.codebook)
-    # commitment and codebook terms have the same value, different gradients
+    # commitment and codebook terms have the same value, different gradients (see the gradient test)
     torch.testing.assert_close(parts.commitment, parts.codebook)
+
+
+def _loss_grads(beta: float, codebook_weight: float) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Gradients of the VQ loss alone w.r.t. (input z, projection weight, codebooks) for one fixed model/input."""
+    torch.manual_seed(0)
+    vq = FactorizedCosineVQ(
+        UniDexTokConfig.from_preset("tiny", commitment_weight=beta, codebook_weight=codebook_weight)
+    )
+    z = torch.randn(8, 4, 64, generator=torch.Generator().manual_seed(1), requires_grad=True)
+    _, _, loss = vq(z)
+    grad_z, grad_proj, grad_cb = torch.autograd.grad(loss, [z, vq.project_in.weight, vq.codebooks])
+    return grad_z, grad_proj, grad_cb
+
+
+def test_vq_loss_gradients_encoder_gets_beta_codebook_gets_one():
+    """The commitment term (weight beta) moves only the encoder side, the codebook term (weight 1) only the codes.
+
+    Catches: beta applied to the codebook term instead of the commitment term, the stop-gradient on the
+    wrong side (commitment = mse(sg[u], q) or codebook = mse(sg[q], u)), or either term dropped."""
+    ref_z, ref_proj, ref_cb = _loss_grads(1.0, 1.0)
+    assert ref_z.abs().sum() > 0 and ref_proj.abs().sum() > 0 and ref_cb.abs().sum() > 0
+    z, proj, cb = _loss_grads(0.25, 1.0)  # the paper's weights
+    torch.testing.assert_close(z, 0.25 * ref_z, rtol=1e-5, atol=1e-9)  # encoder side scales with beta
+    torch.testing.assert_close(proj, 0.25 * ref_proj, rtol=1e-5, atol=1e-9)
+    torch.testing.assert_close(cb, ref_cb, rtol=0, atol=0)  # the codebook does not see beta
+    z, proj, cb = _loss_grads(1.0, 3.0)
+    torch.testing.assert_close(z, ref_z, rtol=0, atol=0)  # the encoder does not see the codebook weight
+    torch.testing.assert_close(cb, 3.0 * ref_cb, rtol=1e-5, atol=1e-9)
+    z, _, cb = _loss_grads(0.0, 1.0)
+    assert torch.count_nonzero(z) == 0 and torch.equal(cb, ref_cb)  # beta = 0: no gradient to the encoder
+    z, _, cb = _loss_grads(1.0, 0.0)
+    assert torch.count_nonzero(cb) == 0 and torch.equal(z, ref_z)  # no codebook term: codes get no gradient
 
 
 def test_entropy_regulariser_changes_loss_when_enabled():
@@ -131,3 +165,115 @@ def test_ema_codebook_moves_toward_assigned_vectors_without_gradient():
     frozen = vq.codebooks.clone()
     vq(torch.randn(8, 4, 64))
     assert torch.equal(frozen, vq.codebooks)
+
+
+# ---------------------------------------------------------------------------------------------
+# worked examples on a toy quantiser: 1 group of 2 codes in 2-D, whose numbers follow by hand
+# ---------------------------------------------------------------------------------------------
+def _toy_vq(**kw) -> FactorizedCosineVQ:
+    """Codes e0 = (1, 0) and e1 = (0, 1) with norms 2 and 4; project_in keeps the first two input dims."""
+    cfg = UniDexTokConfig.from_preset("tiny", codebook_dim=2, num_groups=1, codebook_size=2, **kw)
+    vq = FactorizedCosineVQ(cfg)
+    with torch.no_grad():
+        vq.project_in.weight.zero_()
+        vq.project_in.weight[0, 0] = vq.project_in.weight[1, 1] = 1.0
+        vq.project_in.bias.zero_()
+        vq.codebooks.copy_(torch.tensor([[[2.0, 0.0], [0.0, 4.0]]]))
+    return vq
+
+
+def _rows(*codes: int) -> torch.Tensor:
+    """(1, len(codes), 64) tokens pointing exactly at the given codes (0 -> e0, 1 -> e1)."""
+    z = torch.zeros(1, len(codes), 64)
+    for i, c in enumerate(codes):
+        z[0, i, c] = 1.0
+    return z
+
+
+def _h(*p: float) -> float:
+    return -sum(x * math.log(x) for x in p if x > 0)
+
+
+def test_entropy_term_worked_example():
+    """entropy = mean per-token entropy of softmax(cos / T) - entropy of the batch-average distribution.
+
+    Tokens (e0, e1 | e0, e0) in a batch of 2 x 2, T = 0.5: each token's distribution is (a, 1 - a) or
+    (1 - a, a) with a = e^2 / (e^2 + 1); the batch average is (3a + (1 - a), 3(1 - a) + a) / 4. Catches a
+    temperature that multiplies, a flipped sign, the average taken per token instead of over the batch."""
+    vq = _toy_vq(entropy_weight=1.0, entropy_temperature=0.5)
+    z = torch.cat([_rows(0, 1), _rows(0, 0)])  # (2, 2, 64)
+    _, indices, loss, parts = vq(z, return_loss_breakdown=True)
+    assert indices.flatten().tolist() == [0, 1, 0, 0]
+    a = math.exp(2) / (math.exp(2) + 1)
+    avg = ((3 * a + (1 - a)) / 4, (3 * (1 - a) + a) / 4)
+    assert parts.entropy.item() == pytest.approx(_h(a, 1 - a) - _h(*avg), rel=1e-5)
+    assert parts.commitment.item() == pytest.approx(0.0, abs=1e-12)  # inputs sit on their codes
+    assert loss.item() == pytest.approx(parts.entropy.item(), rel=1e-5)
+
+
+def test_usage_and_perplexity_worked_example():
+    """3 tokens on code 0 and 1 on code 1: usage 1, perplexity exp(H(3/4, 1/4)); one token alone: usage 1/2,
+    perplexity 1. Catches a count normaliser floor of 2, a wrong log clamp, codes counted along the wrong axis."""
+    vq = _toy_vq().eval()
+    with torch.no_grad():
+        vq(torch.cat([_rows(0, 1), _rows(0, 0)]))
+    assert vq.codebook_usage() == pytest.approx({"usage": 1.0, "perplexity": math.exp(_h(0.75, 0.25))})
+    with torch.no_grad():
+        vq(_rows(1))
+    assert vq.codebook_usage() == pytest.approx({"usage": 0.5, "perplexity": 1.0})
+
+
+def test_usage_ema_updates_in_training_only():
+    """Fresh EMA = 1/S per code; a training batch moves it by (1 - decay) towards the batch's code shares;
+    eval batches leave it (and the stored features) alone."""
+    vq = _toy_vq(usage_decay=0.9)
+    torch.testing.assert_close(vq.usage_ema, torch.full((1, 2), 0.5))
+    vq.eval()
+    vq(torch.cat([_rows(0, 1), _rows(0, 0)]))
+    torch.testing.assert_close(vq.usage_ema, torch.full((1, 2), 0.5))
+    assert vq.last_features.numel() == 0
+    vq.train()
+    vq(torch.cat([_rows(0, 1), _rows(0, 0)]))
+    torch.testing.assert_close(vq.usage_ema, torch.tensor([[0.9 * 0.5 + 0.1 * 0.75, 0.9 * 0.5 + 0.1 * 0.25]]))
+    assert vq.last_features.shape == (4, 1, 2)
+
+
+def test_reseed_threshold_boundary_and_scale():
+    """A code is dead when its usage EMA is strictly below threshold / S; exactly at it, it lives. A re-seeded
+    code is a batch feature scaled to the mean code norm (here (2 + 4) / 2 = 3) and its EMA restarts at 1/S."""
+    vq = _toy_vq(dead_code_threshold=0.5)
+    assert vq.reseed_dead_codes() == 0  # no training batch seen yet: nothing to seed from
+    vq.train()
+    vq(_rows(0, 0, 0))  # features all e0
+    with torch.no_grad():
+        vq.usage_ema.copy_(torch.tensor([[0.25, 0.2499]]))  # threshold / S = 0.25
+    before = vq.codebooks.detach().clone()
+    assert vq.reseed_dead_codes() == 1
+    torch.testing.assert_close(vq.codebooks[0, 0], before[0, 0], rtol=0, atol=0)  # at the threshold: kept
+    torch.testing.assert_close(vq.codebooks[0, 1], torch.tensor([3.0, 0.0]))  # e0 feature x mean norm 3
+    torch.testing.assert_close(vq.usage_ema, torch.tensor([[0.25, 0.5]]))
+    assert vq.reseed_dead_codes() == 0  # nobody dead any more
+    off = _toy_vq(dead_code_threshold=0.0).train()
+    off(_rows(0, 0))
+    with torch.no_grad():
+        off.usage_ema.zero_()
+    assert off.reseed_dead_codes() == 0
+
+
+def test_training_forward_value_is_the_code():
+    """With gradients on, the straight-through output still equals decoding the chosen codes."""
+    torch.manual_seed(0)
+    vq = FactorizedCosineVQ(UniDexTokConfig.from_preset("tiny")).train()
+    z = torch.randn(4, 4, 64, requires_grad=True)
+    quantized, indices, _ = vq(z)
+    torch.testing.assert_close(quantized, vq.get_output_from_indices(indices), rtol=1e-5, atol=1e-6)
+
+
+def test_negative_indices_raise(vq):
+    codes = torch.zeros(2, 4, 8, dtype=torch.long)
+    codes[1, 2, 3] = -1
+    with pytest.raises(ValueError, match=r"\[0, 31\]"):
+        vq.check_indices(codes)
+    vq.check_indices(torch.full((2, 4, 8), 31))  # the largest valid code passes
+    with pytest.raises(ValueError, match="integer"):
+        vq.check_indices(torch.zeros(2, 4, 8))

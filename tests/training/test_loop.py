@@ -47,6 +47,64 @@ def test_resume_continues_from_last_checkpoint(mixture, tmp_path):
     assert json.loads((tmp_path / "run" / "last" / "training_state.json").read_text())["step"] == 30
 
 
+class _Interrupt(Exception):
+    """Stands in for a crash or a kill right after a checkpoint was written."""
+
+
+def _run_interrupted(cfg: TrainConfig, train, test, stop_at: int, monkeypatch, model=None) -> None:
+    """Train with `cfg`, stopping as if killed right after `last/` was saved at step `stop_at`."""
+    from lerobot_unidextok.training import loop
+
+    original = loop.save_checkpoint
+
+    def save_then_stop(model, directory, optimizer=None, state=None, *rest):
+        out = original(model, directory, optimizer, state, *rest)
+        if optimizer is not None and state["step"] == stop_at:
+            raise _Interrupt
+        return out
+
+    monkeypatch.setattr(loop, "save_checkpoint", save_then_stop)
+    with pytest.raises(_Interrupt):
+        train_tokenizer(cfg, train, test, model)
+    monkeypatch.setattr(loop, "save_checkpoint", original)
+
+
+def _checkpoint(folder) -> dict:
+    from safetensors.torch import load_file
+
+    return {"model": load_file(folder / "model.safetensors"), "optim": load_file(folder / "optimizer.safetensors"),
+            "state": json.loads((folder / "training_state.json").read_text())}  # fmt: skip
+
+
+def test_resume_equals_an_uninterrupted_run(mixture, tmp_path, monkeypatch):
+    """A run killed after its step-20 checkpoint and resumed ends bit-identical to the same run uninterrupted:
+    weights, optimiser state, history, best step (same seed, dead-code re-seeding and hand dropout on).
+
+    Catches: a resume that starts a step late or early, ignores the saved weights or optimiser state,
+    restarts the LR schedule, or draws other batches / dropout / re-seeds than the uninterrupted run."""
+    train, test = mixture
+    kw = dict(steps=30, eval_every=10, save_last_every=10, warmup_steps=2, batch_size=16, reseed_every=5,
+              unknown_hand_prob=0.2)  # fmt: skip
+
+    def fresh_model() -> UniDexTok:  # a high dead-code threshold, so re-seeding (and its statistics) matter
+        torch.manual_seed(0)
+        return UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=train.hand_names(), dead_code_threshold=0.9))
+
+    full = train_tokenizer(_cfg(tmp_path, output_dir=str(tmp_path / "full"), **kw), train, test, fresh_model())
+    _run_interrupted(_cfg(tmp_path, output_dir=str(tmp_path / "cut"), **kw), train, test, 20, monkeypatch,
+                     fresh_model())  # fmt: skip
+    assert _checkpoint(tmp_path / "cut" / "last")["state"]["step"] == 20
+    resumed = train_tokenizer(_cfg(tmp_path, output_dir=str(tmp_path / "cut"), resume=True, **kw), train, test)
+    assert resumed.history == full.history and [h["step"] for h in resumed.history] == [10, 20, 30]
+    assert (resumed.best_step, resumed.best_mae_deg) == (full.best_step, full.best_mae_deg)
+    a, b = _checkpoint(tmp_path / "full" / "last"), _checkpoint(tmp_path / "cut" / "last")
+    assert a["state"] == b["state"]
+    for part in ("model", "optim"):
+        assert a[part].keys() == b[part].keys()
+        changed = [k for k in a[part] if not torch.equal(a[part][k], b[part][k])]
+        assert not changed, (part, changed[:5])
+
+
 def test_resume_without_checkpoint_is_a_clear_error(mixture, tmp_path):
     train, test = mixture
     with pytest.raises(FileNotFoundError, match="run once without --resume"):
