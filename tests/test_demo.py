@@ -35,7 +35,7 @@ def test_demo_smoke_tiny(tmp_path):
     for n in range(1, 7):
         assert f"\n{n}. " in text, f"stage {n} missing"
     assert "weights identical = True" in text and "Demo finished" in text
-    trained = re.search(r"trained (\d+) steps .* best held-out joint MAE ([\d.]+) deg", text)
+    trained = re.search(r"trained (\d+) steps .* best selection-episode joint MAE ([\d.]+) deg", text)
     assert trained and int(trained.group(1)) == 60 and float(trained.group(2)) > 0
     converted = sorted(p.name for p in (out / "converted").iterdir())
     assert len(converted) >= 6 and all((out / "converted" / c / "meta" / "info.json").is_file() for c in converted)
