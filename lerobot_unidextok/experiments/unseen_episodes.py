@@ -2,8 +2,9 @@
 episodes), next to 8-bit per-joint binning on the same frames: the tuning table of docs/tokenizer.md.
 
     python experiments/unseen_episodes.py                                  # real G1 + Inspire, 5 folds
-    python experiments/unseen_episodes.py --variants=shipped,no_coverage --folds=5 --steps=5000
-    python experiments/unseen_episodes.py --datasets=path/to/converted_a,path/to/converted_b
+    python experiments/unseen_episodes.py --variants='[shipped,no_coverage]' --folds=5 --steps=5000
+    python experiments/unseen_episodes.py --variants='[longer]' --only_folds='[0,1]'   # configs/train/longer.yaml
+    python experiments/unseen_episodes.py --datasets='[path/to/converted_a,path/to/converted_b]'
 
 Each (variant, fold) result is cached in <output_root>/unseen_episodes/runs.jsonl, so an interrupted run
 resumes and new variants reuse the old ones. Besides the held-out episodes, every model is scored on
@@ -13,7 +14,6 @@ the recordings never show.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import logging
@@ -50,6 +50,8 @@ VARIANTS: dict[str, Variant] = {
     "no_coverage": Variant("recorded rows only (no coverage samples)", {"coverage": RECORDED_ONLY}),
     "uniform_only": Variant("coverage samples only", {"coverage": {"robot": {"uniform": 1.0}}}),
     "uniform_0.8": Variant("robot rows: recorded 0.2, uniform 0.8", {"coverage": {"robot": {"recorded": 0.2, "uniform": 0.8}}}),
+    "longer": Variant("the longer CPU schedule of configs/train/longer.yaml: 4x the steps", {"eval_every": 1000},
+                      steps_scale=4.0),
     "batch_128": Variant("batch 128 for twice the steps (equal compute)", {"batch_size": 128}, steps_scale=2.0),
     "robot_augment": Variant(
         "robot rows: recorded 0.3, recombine 0.1, noise 0.2, uniform 0.4",
@@ -243,24 +245,10 @@ def markdown(result: dict) -> str:
 
 
 def parse(argv: list[str] | None = None) -> UnseenConfig:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    lists = {"datasets", "variants", "only_folds"}
-    for f in dataclasses.fields(UnseenConfig):
-        parser.add_argument(f"--{f.name}", default=None)
-    args = vars(parser.parse_args(argv))
-    kw = {}
-    for f in dataclasses.fields(UnseenConfig):
-        raw = args[f.name]
-        if raw is None:
-            continue
-        if f.name in lists:
-            items = [s.strip() for s in raw.strip("[]").split(",") if s.strip()]
-            kw[f.name] = [int(s) for s in items] if f.name == "only_folds" else items
-        elif f.type in ("bool", bool):
-            kw[f.name] = raw.lower() in ("1", "true", "yes")
-        else:
-            kw[f.name] = type(getattr(UnseenConfig(), f.name))(raw)
-    return UnseenConfig(**kw)
+    """draccus, like the CLIs and the other experiments: `--<field>=<value>`, lists as `--variants='[a,b]'`."""
+    import draccus
+
+    return draccus.parse(UnseenConfig, args=argv)
 
 
 def main(argv: list[str] | None = None) -> None:

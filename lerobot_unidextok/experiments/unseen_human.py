@@ -3,8 +3,8 @@ recording's own last fifth, SYNTHETIC gesture motion (validation, used to choose
 tracker output of other people (the unseen set, never used to choose anything), next to 8-bit binning.
 
     python experiments/unseen_human.py                         # dex-retargeting clip -> MediaPipe gestures
-    python experiments/unseen_human.py --variants=shipped,no_coverage --steps=5000
-    python experiments/unseen_human.py --train_keypoints=a.npy,b.npy --unseen_keypoints=c.npy,d.json
+    python experiments/unseen_human.py --variants='[shipped,no_coverage]' --steps=5000
+    python experiments/unseen_human.py --train_keypoints='[a.npy,b.npy]' --unseen_keypoints='[c.npy,d.json]'
 
 Keypoint files: `.npy` (T, 21, 3) metres in MANO-21 order (one recording each), or a MediaPipe fixtures
 `.json` (entries with `world_landmarks_m`); all are solved to UDHM by UDHM IK as right hands.
@@ -12,7 +12,6 @@ Keypoint files: `.npy` (T, 21, 3) metres in MANO-21 order (one recording each), 
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import logging
@@ -140,23 +139,10 @@ def markdown(result: dict) -> str:
 
 
 def parse(argv: list[str] | None = None) -> HumanConfig:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    for f in dataclasses.fields(HumanConfig):
-        parser.add_argument(f"--{f.name}", default=None)
-    args = vars(parser.parse_args(argv))
-    kw = {}
-    for f in dataclasses.fields(HumanConfig):
-        raw = args[f.name]
-        if raw is None:
-            continue
-        default = getattr(HumanConfig(), f.name)
-        if isinstance(default, list):
-            kw[f.name] = [s.strip() for s in raw.strip("[]").split(",") if s.strip()]
-        elif isinstance(default, bool):
-            kw[f.name] = raw.lower() in ("1", "true", "yes")
-        else:
-            kw[f.name] = type(default)(raw)
-    return HumanConfig(**kw)
+    """draccus, like the CLIs and the other experiments: `--<field>=<value>`, lists as `--variants='[a,b]'`."""
+    import draccus
+
+    return draccus.parse(HumanConfig, args=argv)
 
 
 def main(argv: list[str] | None = None) -> None:

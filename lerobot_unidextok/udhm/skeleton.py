@@ -12,7 +12,7 @@ from lerobot_unidextok.udhm.frames import BASE_INDICES, palm_frame, to_canonical
 # ---------------------------------------------------------------------------------------------
 # Canonical adult default (metres, right-hand canonical frame, see frames.py).
 # Lengths: medians of keypoint-to-keypoint distances on real MediaPipe-tracked hands
-# (/work/shared/notes/hand-specs.md, "Canonical adult lengths", MediaPipe column, mid-range of the
+# (../shared/notes/hand-specs.md, "Canonical adult lengths", MediaPipe column, mid-range of the
 # two clips). Directions of the palm offsets: per-frame canonical offsets, median over the 621
 # frames of dexsuite/dex-retargeting `human_joint_right.pkl`, rescaled to those lengths.
 # ---------------------------------------------------------------------------------------------
