@@ -1,4 +1,4 @@
-"""Tokenizer training (layer 5): config, in-memory rows and hand mixing, optimiser, loop, checkpoints."""
+"""Tokenizer training (layer 5): config, per-hand rows, coverage mixing, episode splits, optimiser, loop, checkpoints."""
 
 from lerobot_unidextok.training.arrays import HandStates, load_hand_states, subsample_episodes
 from lerobot_unidextok.training.config import TrainConfig

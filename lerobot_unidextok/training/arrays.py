@@ -1,4 +1,4 @@
-"""In-memory per-hand rows for training and evaluation, and the hand-mixing sampler."""
+"""In-memory per-hand rows for training and evaluation (the batches come from `coverage.MixtureSampler`)."""
 
 from dataclasses import dataclass
 
