@@ -36,7 +36,7 @@ def _banner(title: str) -> None:
 def _table(header: list[str], rows: list[list[object]]) -> str:
     cells = [header, *[[str(c) for c in r] for r in rows]]
     widths = [max(len(r[i]) for r in cells) for i in range(len(header))]
-    fmt = lambda r: "  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths)))  # noqa: E731
+    fmt = lambda r: "  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths, strict=True)))  # noqa: E731
     return "\n".join([fmt(cells[0]), fmt(["-" * w for w in widths]), *map(fmt, cells[1:])])
 
 
@@ -213,7 +213,10 @@ def demo_lerobot(out: Path, roots: dict[str, Path]) -> None:
         return
     snapshot = cache_via_loopback(out / "tokenizer", repo_id)
     reloaded = UniDexTok.from_pretrained(repo_id, local_files_only=True)
-    same = all(torch.equal(a, b) for a, b in zip(reloaded.state_dict().values(), step.tokenizer.state_dict().values()))
+    same = all(
+        torch.equal(a, b)
+        for a, b in zip(reloaded.state_dict().values(), step.tokenizer.state_dict().values(), strict=True)
+    )
     print(f"\nsaved into the local hub cache: {snapshot}\nloaded back by repo id {repo_id!r} offline: "
           f"weights identical = {same}")  # fmt: skip
 

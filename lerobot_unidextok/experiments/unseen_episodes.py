@@ -49,9 +49,12 @@ VARIANTS: dict[str, Variant] = {
     "shipped": Variant("TrainConfig defaults, small preset (configs/train/small.yaml)"),
     "no_coverage": Variant("recorded rows only (no coverage samples)", {"coverage": RECORDED_ONLY}),
     "uniform_only": Variant("coverage samples only", {"coverage": {"robot": {"uniform": 1.0}}}),
-    "uniform_0.8": Variant("robot rows: recorded 0.2, uniform 0.8", {"coverage": {"robot": {"recorded": 0.2, "uniform": 0.8}}}),
-    "longer": Variant("the longer CPU schedule of configs/train/longer.yaml: 4x the steps", {"eval_every": 1000},
-                      steps_scale=4.0),
+    "uniform_0.8": Variant(
+        "robot rows: recorded 0.2, uniform 0.8", {"coverage": {"robot": {"recorded": 0.2, "uniform": 0.8}}}
+    ),
+    "longer": Variant(
+        "the longer CPU schedule of configs/train/longer.yaml: 4x the steps", {"eval_every": 1000}, steps_scale=4.0
+    ),
     "batch_128": Variant("batch 128 for twice the steps (equal compute)", {"batch_size": 128}, steps_scale=2.0),
     "robot_augment": Variant(
         "robot rows: recorded 0.3, recombine 0.1, noise 0.2, uniform 0.4",

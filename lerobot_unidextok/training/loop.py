@@ -109,7 +109,10 @@ def total_steps(cfg: TrainConfig, num_train_rows: int, num_processes: int = 1) -
 
 
 def train_tokenizer(
-    cfg: TrainConfig, train_data: HandStates | HandRowStore, eval_data: HandStates | None, model: UniDexTok | None = None
+    cfg: TrainConfig,
+    train_data: HandStates | HandRowStore,
+    eval_data: HandStates | None,
+    model: UniDexTok | None = None,
 ) -> TrainResult:
     """Train (or adapt) a tokenizer.
 

@@ -60,7 +60,9 @@ def split_store_by_episode(
     kept = {hand: np.flatnonzero(~np.isin(k, held)) for hand, k in keys.items()}
     held_view = store.view({hand: np.flatnonzero(np.isin(k, held)) for hand, k in keys.items()})
     rows = held_view.sample_rows(max_rows, seed=seed)
-    selection = HandStates(rows["states_rad"], rows["hands"], rows["masks"], rows["episode_index"], rows["dataset_index"])
+    selection = HandStates(
+        rows["states_rad"], rows["hands"], rows["masks"], rows["episode_index"], rows["dataset_index"]
+    )
     return store.view(kept), selection
 
 

@@ -191,7 +191,7 @@ echo "Submitted batch job $id"
 while [[ "$1" == -* ]]; do case "$1" in -n|-N) shift 2;; *) shift;; esac; done
 exec "$@"
 """,
-    "scontrol": '#!/bin/bash\necho localhost\n',  # scontrol show hostnames <list>
+    "scontrol": "#!/bin/bash\necho localhost\n",  # scontrol show hostnames <list>
 }
 
 
