@@ -29,3 +29,11 @@ def test_no_machine_paths_outside_tests():
         if found:
             hits[name] = found
     assert not hits, f"machine paths (use ../shared/..., a config field or a repo script): {hits}"
+
+
+def test_no_merge_conflict_markers():
+    """A conflict block committed by a merge (it happened once, in docs/architecture.md) fails here."""
+    marker = re.compile(r"^(<{7} |>{7} |={7}$)", re.M)
+    hits = [name for name in _tracked_files() if Path(name).suffix in (".py", ".md", ".yaml", ".toml", ".cfg", ".txt")
+            and marker.search((ROOT / name).read_text(errors="ignore"))]  # fmt: skip
+    assert not hits, f"merge conflict markers in {hits}"
