@@ -3,7 +3,6 @@ episodes), next to 8-bit per-joint binning on the same frames: the tuning table 
 
     python experiments/unseen_episodes.py                                  # real G1 + Inspire, 5 folds
     python experiments/unseen_episodes.py --variants='[shipped,no_coverage]' --folds=5 --steps=5000
-    python experiments/unseen_episodes.py --variants='[longer]' --only_folds='[0,1]'   # configs/train/longer.yaml
     python experiments/unseen_episodes.py --datasets='[path/to/converted_a,path/to/converted_b]'
 
 Each (variant, fold) result is cached in <output_root>/unseen_episodes/runs.jsonl, so an interrupted run
@@ -51,9 +50,6 @@ VARIANTS: dict[str, Variant] = {
     "uniform_only": Variant("coverage samples only", {"coverage": {"robot": {"uniform": 1.0}}}),
     "uniform_0.8": Variant(
         "robot rows: recorded 0.2, uniform 0.8", {"coverage": {"robot": {"recorded": 0.2, "uniform": 0.8}}}
-    ),
-    "longer": Variant(
-        "the longer CPU schedule of configs/train/longer.yaml: 4x the steps", {"eval_every": 1000}, steps_scale=4.0
     ),
     "batch_128": Variant("batch 128 for twice the steps (equal compute)", {"batch_size": 128}, steps_scale=2.0),
     "robot_augment": Variant(
