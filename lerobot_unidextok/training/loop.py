@@ -265,6 +265,8 @@ def _train(
         if cfg.adapt == "all" and cfg.reseed_every > 0 and (step + 1) % cfg.reseed_every == 0:
             raw_model.quantizer.reseed_dead_codes()
             broadcast_from_main(raw_model.quantizer)  # re-seeded from each process's own batch: keep process 0's
+        elif raw_model.config.codebook_update == "ema" and accelerator.num_processes > 1:
+            broadcast_from_main(raw_model.quantizer)  # EMA codes move with each process's batch: keep process 0's
 
         if step % 10 == 0:
             with torch.no_grad():
