@@ -26,7 +26,9 @@ tests of this repository would not see):
    the keyword arguments of `tqdm(...)` (its iterable is mutated) and method calls on a bar, and the
    statements that only feed them: `x = tqdm(x, ...)`, an assignment whose names only display code reads,
    an `if` / `with` whose whole body is display (e.g. `if step % 10 == 0: bar.set_postfix(...)`, the test
-   included). See `_display_statements`.
+   included). See `_display_statements`. Also not mutated: the number in a negative size of `reshape(...)`;
+   numpy infers any negative size (`reshape(-2, 3)` == `reshape(-1, 3)`: equivalent) and torch raises on it
+   (a crash every covering test kills): neither says anything about the tests.
 4. Each mutant: the file in the copy is rewritten, a forked child (heavy libraries already imported by the
    parent) runs `pytest -x` on the tests that cover the mutated line, fastest first, and the file is
    restored. Failing tests (or a collection error) = killed; a run longer than `--timeout-factor` x the
@@ -218,6 +220,10 @@ def _excluded_nodes(tree: ast.AST) -> set[int]:
             elif name in _BAR_FACTORIES:  # tqdm(iterable, desc=..., disable=...): the iterable is behaviour
                 for kw in node.keywords:
                     mark(kw)
+            elif name == "reshape":  # numpy reads any negative size as "infer": -1 -> -2 is equivalent
+                for arg in node.args:
+                    if isinstance(arg, ast.UnaryOp) and isinstance(arg.op, ast.USub):
+                        skip.add(id(arg.operand))
         elif isinstance(node, ast.arg | ast.AnnAssign):
             mark(node.annotation)
         elif isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):

@@ -31,7 +31,7 @@ def _mutated_lines(mutation, source: str) -> dict[int, set[tuple[str, str]]]:
     return found
 
 
-SOURCE = '''\
+SOURCE = """\
 import logging
 from tqdm import tqdm
 
@@ -58,7 +58,7 @@ def train(steps, items, progress):
     if limit > 0:
         logger.warning("limit %d", limit)
     return total, limit
-'''
+"""
 
 
 def test_display_code_gets_no_mutants_and_logic_keeps_them(mutation):
@@ -132,3 +132,12 @@ def test_mutant_applies_one_token(mutation):
         compile(mutated, "demo.py", "exec")
     swap = next(m for m in mutants if m.original == "max")
     assert swap.apply(source) == "def f(a, b):\n    return a - b if a < b else min(a, b)\n"
+
+
+def test_reshape_placeholder_is_not_bumped_but_its_sign_is_removed(mutation):
+    """numpy reads any negative size in `reshape` as "infer", so `-1 -> -2` there is an equivalent mutant
+    (skipped); dropping the minus (`reshape(1, 3)`) is a real one (kept), and so are other numbers."""
+    source = "def f(x):\n    return x.reshape(-1, 3) + 1\n"
+    found = {(m.original, m.replacement) for m in mutation.find_mutants("demo", "demo.py", source)}
+    assert found == {("-", ""), ("3", "4"), ("+", "-"), ("1", "2")}
+    assert sum(1 for m in mutation.find_mutants("demo", "demo.py", source) if m.original == "1") == 1
