@@ -105,6 +105,42 @@ def test_resume_equals_an_uninterrupted_run(mixture, tmp_path, monkeypatch):
         assert not changed, (part, changed[:5])
 
 
+def test_resume_from_a_checkpoint_without_random_streams_is_deterministic(mixture, tmp_path, monkeypatch, caplog):
+    """A checkpoint without saved random streams (written before exact resume, or by several processes)
+    resumes with fresh streams seeded from (seed, step, process): it says so, and two resumes of the same
+    checkpoint end identical (weights, history). Catches a broken seed formula on that path (a float or
+    negative seed fails to build the generators) and a fallback that is not reproducible."""
+    import logging
+    import shutil
+
+    train, test = mixture
+    kw = dict(steps=30, eval_every=10, save_last_every=10, warmup_steps=2, batch_size=16, unknown_hand_prob=0.2)
+    _run_interrupted(_cfg(tmp_path, output_dir=str(tmp_path / "a"), **kw), train, test, 20, monkeypatch)
+    (tmp_path / "a" / "last" / "resume_state.safetensors").unlink()
+    shutil.copytree(tmp_path / "a", tmp_path / "b")
+    results = []
+    for name in ("a", "b"):
+        with caplog.at_level(logging.WARNING, logger="lerobot_unidextok.training.loop"):
+            caplog.clear()
+            results.append(train_tokenizer(_cfg(tmp_path, output_dir=str(tmp_path / name), resume=True, **kw), train,
+                                           test))  # fmt: skip
+        assert any("fresh random streams" in r.getMessage() for r in caplog.records)
+    assert results[0].history == results[1].history and [h["step"] for h in results[0].history] == [10, 20, 30]
+    a, b = _checkpoint(tmp_path / "a" / "last"), _checkpoint(tmp_path / "b" / "last")
+    assert a["state"]["step"] == 30 and all(torch.equal(a["model"][k], b["model"][k]) for k in a["model"])
+
+
+def test_zero_turns_reseeding_and_the_thread_setting_off(mixture, tmp_path):
+    """`reseed_every=0` disables dead-code re-seeding and `num_threads=0` keeps torch's thread count, as the
+    config documents; the thread count is the caller's again afterwards. Catches `> 0` tested as `>= 0` on
+    either (a modulo by zero, or torch.set_num_threads(0), which raises)."""
+    train, test = mixture
+    before = torch.get_num_threads()
+    result = train_tokenizer(_cfg(tmp_path, steps=3, eval_every=3, reseed_every=0, num_threads=0), train, test)
+    assert result.steps == 3 and [h["step"] for h in result.history] == [3]
+    assert torch.get_num_threads() == before
+
+
 def test_resume_without_checkpoint_is_a_clear_error(mixture, tmp_path):
     train, test = mixture
     with pytest.raises(FileNotFoundError, match="run once without --resume"):
