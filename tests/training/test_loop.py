@@ -141,6 +141,51 @@ def test_zero_turns_reseeding_and_the_thread_setting_off(mixture, tmp_path):
     assert torch.get_num_threads() == before
 
 
+@pytest.mark.parametrize(("adapt", "calls"), [("all", [5, 10]), ("hand_embedding", [])])
+def test_dead_codes_are_reseeded_every_n_steps_only_when_training_everything(mixture, tmp_path, adapt, calls):
+    """With `reseed_every=5` over 12 steps the quantiser re-seeds after optimiser steps 5 and 10, and never
+    when only the hand embedding adapts (the shared codebook stays as it is). Observed by counting the
+    optimiser steps taken before each call. Catches the period off by one step (`step - 1`), re-seeding at
+    every step but the period (`!= 0`), and re-seeding while adapting the embedding only (`and` -> `or`)."""
+    train, test = mixture
+    torch.manual_seed(0)
+    model = UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=train.hand_names()))
+    seen: list[int] = []
+    original = model.quantizer.reseed_dead_codes
+    calls_before = []
+
+    def counting() -> int:
+        calls_before.append(len(seen))
+        return original()
+
+    model.quantizer.reseed_dead_codes = counting
+    model.register_forward_hook(lambda *_: seen.append(1) if model.training else None)
+    cfg = _cfg(tmp_path, steps=12, eval_every=12, reseed_every=5, adapt=adapt, warmup_steps=1)
+    train_tokenizer(cfg, train, test, model)
+    assert calls_before == calls
+
+
+def test_evaluation_and_last_checkpoint_at_the_period_and_at_the_end(mixture, tmp_path, monkeypatch):
+    """7 steps with eval_every=5 and save_last_every=5: held-out evaluations after steps 5 and 7, `last/`
+    written after steps 5 and 7 (the end counts even off the period). Catches the final evaluation or save
+    tested against the wrong step, and a period shifted by one."""
+    from lerobot_unidextok.training import loop
+
+    train, test = mixture
+    saved: list[tuple[str, int]] = []
+    original = loop.save_checkpoint
+
+    def recording(model, directory, optimizer=None, state=None, *rest):
+        saved.append((directory.name, state["step"]))
+        return original(model, directory, optimizer, state, *rest)
+
+    monkeypatch.setattr(loop, "save_checkpoint", recording)
+    result = train_tokenizer(_cfg(tmp_path, steps=7, eval_every=5, save_last_every=5, warmup_steps=1), train, test)
+    assert [h["step"] for h in result.history] == [5, 7]
+    assert [step for name, step in saved if name == "last"] == [5, 7]
+    assert all(step in (5, 7) for name, step in saved if name == "best")
+
+
 def test_resume_without_checkpoint_is_a_clear_error(mixture, tmp_path):
     train, test = mixture
     with pytest.raises(FileNotFoundError, match="run once without --resume"):
