@@ -1,6 +1,7 @@
 """The training loop: learning, checkpoint selection, resume, few-shot and zero-shot protocols."""
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -168,7 +169,8 @@ def test_dead_codes_are_reseeded_every_n_steps_only_when_training_everything(mix
 def test_evaluation_and_last_checkpoint_at_the_period_and_at_the_end(mixture, tmp_path, monkeypatch):
     """7 steps with eval_every=5 and save_last_every=5: held-out evaluations after steps 5 and 7, `last/`
     written after steps 5 and 7 (the end counts even off the period). Catches the final evaluation or save
-    tested against the wrong step, and a period shifted by one."""
+    tested against the wrong step, a period shifted by one, and the run's duration computed as a sum of
+    clock readings."""
     from lerobot_unidextok.training import loop
 
     train, test = mixture
@@ -180,7 +182,9 @@ def test_evaluation_and_last_checkpoint_at_the_period_and_at_the_end(mixture, tm
         return original(model, directory, optimizer, state, *rest)
 
     monkeypatch.setattr(loop, "save_checkpoint", recording)
+    t0 = time.perf_counter()
     result = train_tokenizer(_cfg(tmp_path, steps=7, eval_every=5, save_last_every=5, warmup_steps=1), train, test)
+    assert 0 < result.seconds <= time.perf_counter() - t0  # the reported duration is of this run
     assert [h["step"] for h in result.history] == [5, 7]
     assert [step for name, step in saved if name == "last"] == [5, 7]
     assert all(step in (5, 7) for name, step in saved if name == "best")
