@@ -5,6 +5,8 @@ A tool, not a CI gate. Run from the project root with the project's venv::
     python tools/mutation.py                                  # every core module, every mutant
     python tools/mutation.py --modules processor udhm --max-mutants 60 --seed 0
     python tools/mutation.py --list                           # the modules, their files and test folders
+    python tools/mutation.py --max-mutants 30 --seed 0 --combine outputs/mutation-a outputs/mutation-b
+                                                              # one report from runs on disjoint modules
 
 How it works (a small harness of our own rather than mutmut, which rewrites the package into a
 `mutants/` tree with trampolines that the editable install, LeRobot's plugin discovery and the subprocess
@@ -564,10 +566,25 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--output", type=Path, default=ROOT / "outputs" / "mutation", help="report folder")
     parser.add_argument("--list", action="store_true", help="list modules, files, test paths and mutant counts")
     parser.add_argument("--verbose", action="store_true", help="print every mutant's verdict")
+    parser.add_argument(
+        "--combine", type=Path, nargs="+", default=None, metavar="FOLDER",
+        help="report folders of runs on disjoint modules (same --max-mutants and --seed): print one report",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     unknown = sorted(set(args.modules) - set(MODULES))
     if unknown:
         parser.error(f"unknown module(s) {unknown}; choose from {list(MODULES)}")
+    if args.combine:
+        results = [
+            ModuleResult(**r) for folder in args.combine for r in json.loads((folder / "report.json").read_text())
+        ]
+        if len({r.module for r in results}) != len(results):
+            parser.error("--combine: a module appears in more than one report")
+        results.sort(key=lambda r: list(MODULES).index(r.module))
+        wall = sum(r.baseline_s + r.mutants_s for r in results)  # per-module time; CPU is per run (not stored)
+        text = report(results, args, float("nan"), wall).replace("nan min CPU (parent + children)", "CPU: see each run")
+        print(text)
+        return 0
     if args.list:
         for module in args.modules:
             files = module_files(module)

@@ -141,3 +141,25 @@ def test_reshape_placeholder_is_not_bumped_but_its_sign_is_removed(mutation):
     found = {(m.original, m.replacement) for m in mutation.find_mutants("demo", "demo.py", source)}
     assert found == {("-", ""), ("3", "4"), ("+", "-"), ("1", "2")}
     assert sum(1 for m in mutation.find_mutants("demo", "demo.py", source) if m.original == "1") == 1
+
+
+def test_combined_report_weights_module_rates_by_mutants(mutation, tmp_path, capsys):
+    """`--combine` joins runs on disjoint modules into one report; with a sample, the overall figure is each
+    module's kill rate weighted by its number of mutants: (0.8 x 100 + 0.9 x 50) / 150 = 83.3 %, not the
+    pooled 51 / 60 = 85.0 %. A module in two reports is an error."""
+    import json
+
+    def run(folder: str, module: str, total: int, killed: int):
+        (tmp_path / folder).mkdir()
+        result = mutation.ModuleResult(module, ["x.py"], mutants_total=total, run=30, killed=killed)
+        (tmp_path / folder / "report.json").write_text(json.dumps([mutation.asdict(result)]))
+
+    run("a", "udhm", 100, 24)
+    run("b", "hands", 50, 27)
+    assert mutation.main(["--max-mutants", "30", "--combine", str(tmp_path / "a"), str(tmp_path / "b")]) == 0
+    out = capsys.readouterr().out
+    assert "| `udhm` | 1 | 100 | 30 | 24 | 0 | 0 | 80.0 % |" in out
+    assert "| `hands` | 1 | 50 | 30 | 27 | 0 | 0 | 90.0 % |" in out
+    assert "**83.3 %**" in out
+    with pytest.raises(SystemExit):
+        mutation.main(["--combine", str(tmp_path / "a"), str(tmp_path / "a")])
