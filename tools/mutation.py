@@ -5,6 +5,8 @@ A tool, not a CI gate. Run from the project root with the project's venv::
     python tools/mutation.py                                  # every core module, every mutant
     python tools/mutation.py --modules processor udhm --max-mutants 60 --seed 0
     python tools/mutation.py --list                           # the modules, their files and test folders
+    python tools/mutation.py --max-mutants 30 --seed 0 --combine outputs/mutation-a outputs/mutation-b
+                                                              # one report from runs on disjoint modules
 
 How it works (a small harness of our own rather than mutmut, which rewrites the package into a
 `mutants/` tree with trampolines that the editable install, LeRobot's plugin discovery and the subprocess
@@ -21,7 +23,14 @@ tests of this repository would not see):
    (`+` <-> `-`, `*` <-> `/`, `//` -> `/`, `**` -> `*`, `%` -> `/`), augmented assignment, `and` <-> `or`,
    unary `-` and `not` removed, numbers n -> n + 1, `True` <-> `False`, `min` <-> `max` (and argmin/argmax,
    any/all, minimum/maximum, floor/ceil). Not mutated: strings, docstrings, f-strings, type annotations,
-   the message of a `raise`, and logging / print / warning calls (they change no behaviour a test should pin).
+   the message of a `raise`, lines with `# pragma: no mutate`, and display code, which changes no behaviour a
+   test should pin: logging / print / warning calls, progress-bar text (`set_postfix`, `set_description`),
+   the keyword arguments of `tqdm(...)` (its iterable is mutated) and method calls on a bar, and the
+   statements that only feed them: `x = tqdm(x, ...)`, an assignment whose names only display code reads,
+   an `if` / `with` whose whole body is display (e.g. `if step % 10 == 0: bar.set_postfix(...)`, the test
+   included). See `_display_statements`. Also not mutated: the number in a negative size of `reshape(...)`;
+   numpy infers any negative size (`reshape(-2, 3)` == `reshape(-1, 3)`: equivalent) and torch raises on it
+   (a crash every covering test kills): neither says anything about the tests.
 4. Each mutant: the file in the copy is rewritten, a forked child (heavy libraries already imported by the
    parent) runs `pytest -x` on the tests that cover the mutated line, fastest first, and the file is
    restored. Failing tests (or a collection error) = killed; a run longer than `--timeout-factor` x the
@@ -69,19 +78,12 @@ MODULES: dict[str, tuple[list[str], list[str]]] = {
     "evaluation/metrics": (["evaluation/metrics.py"], ["tests/evaluation"]),
 }
 
-# calls whose arguments never change behaviour (messages); their subtrees are not mutated
+# calls whose arguments never change behaviour (messages, progress-bar text); their subtrees are not mutated
 _QUIET_CALLS = {
-    "print",
-    "warn",
-    "debug",
-    "info",
-    "warning",
-    "error",
-    "exception",
-    "critical",
-    "note",
-    "set_description",
-}
+    "print", "warn", "debug", "info", "warning", "error", "exception", "critical", "note",
+    "set_description", "set_description_str", "set_postfix", "set_postfix_str",
+}  # fmt: skip
+_BAR_FACTORIES = {"tqdm", "trange"}  # progress bars: their keyword arguments and their methods are display
 _SWAP_NAMES = {
     "min": "max", "max": "min", "argmin": "argmax", "argmax": "argmin", "any": "all", "all": "any",
     "minimum": "maximum", "maximum": "minimum", "floor": "ceil", "ceil": "floor", "amin": "amax", "amax": "amin",
@@ -128,13 +130,83 @@ def _char_col(lines: list[str], line: int, byte_col: int) -> int:
     return len(lines[line - 1].encode()[:byte_col].decode(errors="ignore"))
 
 
+def _call_name(node: ast.Call) -> str:
+    func = node.func
+    return func.id if isinstance(func, ast.Name) else func.attr if isinstance(func, ast.Attribute) else ""
+
+
+def _display_statements(tree: ast.AST) -> list[ast.stmt]:
+    """Statements that only feed progress bars, logs or prints (see "Not mutated" in the module docstring).
+
+    A statement is display-only when it is: a call of a quiet function (logging, print, warnings, progress-bar
+    text) or a method call on a progress bar (a name bound to `tqdm(...)`); an import; `x = tqdm(x, ...)`
+    (wrapping an iterable in a bar); an assignment to names that display-only code or quiet calls read and
+    nothing else reads (names compared module-wide, so a name read anywhere else keeps its assignment
+    mutated); or an `if` / `with` whose whole body is display-only (its test is then display too).
+    Found as a fixed point: a statement joins the set once what reads its names is display-only.
+    """
+    bars = {
+        t.id
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Assign)
+        and isinstance(node.value, ast.Call)
+        and _call_name(node.value) in _BAR_FACTORIES
+        for t in node.targets
+        if isinstance(t, ast.Name)
+    }
+
+    def display_call(node: ast.AST) -> bool:
+        if not isinstance(node, ast.Call):
+            return False
+        func = node.func
+        return _call_name(node) in _QUIET_CALLS or (
+            isinstance(func, ast.Attribute) and isinstance(func.value, ast.Name) and func.value.id in bars
+        )
+
+    def names_read(node: ast.AST, display: set[int], into: tuple[set[str], set[str]], shown: bool = False) -> None:
+        """Names read by behaviour (into[0]) and by display code (into[1])."""
+        shown = shown or id(node) in display or display_call(node)
+        if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Load):
+            into[shown].add(node.id)
+        for child in ast.iter_child_nodes(node):
+            names_read(child, display, into, shown)
+
+    def only_display(stmt: ast.stmt, display: set[int], behaviour: set[str], shown: set[str]) -> bool:
+        if isinstance(stmt, ast.Import | ast.ImportFrom | ast.Pass):
+            return True
+        if isinstance(stmt, ast.Expr):
+            return display_call(stmt.value)
+        if isinstance(stmt, ast.Assign) and all(isinstance(t, ast.Name) for t in stmt.targets):
+            names = {t.id for t in stmt.targets}
+            value = stmt.value
+            if isinstance(value, ast.Call) and _call_name(value) in _BAR_FACTORIES:  # x = tqdm(x, ...)
+                return bool(value.args) and isinstance(value.args[0], ast.Name) and {value.args[0].id} == names
+            return bool(names & shown) and not names & behaviour
+        if isinstance(stmt, ast.If | ast.With):
+            return all(id(s) in display for s in [*stmt.body, *getattr(stmt, "orelse", [])])
+        return False
+
+    statements = [n for n in ast.walk(tree) if isinstance(n, ast.stmt)]
+    display: set[int] = set()
+    while True:
+        behaviour, shown = set(), set()
+        names_read(tree, display, (behaviour, shown))
+        new = {id(s) for s in statements if id(s) not in display and only_display(s, display, behaviour, shown)}
+        if not new:
+            return [s for s in statements if id(s) in display]
+        display |= new
+
+
 def _excluded_nodes(tree: ast.AST) -> set[int]:
-    """ids of nodes whose subtree is not mutated (messages, annotations, docstrings, TYPE_CHECKING blocks)."""
+    """ids of nodes whose subtree is not mutated (messages, display code, annotations, TYPE_CHECKING blocks)."""
     skip: set[int] = set()
 
     def mark(node: ast.AST | None) -> None:
         if node is not None:
             skip.update(id(n) for n in ast.walk(node))
+
+    for stmt in _display_statements(tree):
+        mark(stmt)
 
     for node in ast.walk(tree):
         if isinstance(node, ast.JoinedStr):
@@ -144,10 +216,16 @@ def _excluded_nodes(tree: ast.AST) -> set[int]:
         elif isinstance(node, ast.Assert):
             mark(node.msg)
         elif isinstance(node, ast.Call):
-            func = node.func
-            name = func.id if isinstance(func, ast.Name) else func.attr if isinstance(func, ast.Attribute) else ""
+            name = _call_name(node)
             if name in _QUIET_CALLS:
                 mark(node)
+            elif name in _BAR_FACTORIES:  # tqdm(iterable, desc=..., disable=...): the iterable is behaviour
+                for kw in node.keywords:
+                    mark(kw)
+            elif name == "reshape":  # numpy reads any negative size as "infer": -1 -> -2 is equivalent
+                for arg in node.args:
+                    if isinstance(arg, ast.UnaryOp) and isinstance(arg.op, ast.USub):
+                        skip.add(id(arg.operand))
         elif isinstance(node, ast.arg | ast.AnnAssign):
             mark(node.annotation)
         elif isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
@@ -488,10 +566,25 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--output", type=Path, default=ROOT / "outputs" / "mutation", help="report folder")
     parser.add_argument("--list", action="store_true", help="list modules, files, test paths and mutant counts")
     parser.add_argument("--verbose", action="store_true", help="print every mutant's verdict")
+    parser.add_argument(
+        "--combine", type=Path, nargs="+", default=None, metavar="FOLDER",
+        help="report folders of runs on disjoint modules (same --max-mutants and --seed): print one report",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     unknown = sorted(set(args.modules) - set(MODULES))
     if unknown:
         parser.error(f"unknown module(s) {unknown}; choose from {list(MODULES)}")
+    if args.combine:
+        results = [
+            ModuleResult(**r) for folder in args.combine for r in json.loads((folder / "report.json").read_text())
+        ]
+        if len({r.module for r in results}) != len(results):
+            parser.error("--combine: a module appears in more than one report")
+        results.sort(key=lambda r: list(MODULES).index(r.module))
+        wall = sum(r.baseline_s + r.mutants_s for r in results)  # per-module time; CPU is per run (not stored)
+        text = report(results, args, float("nan"), wall).replace("nan min CPU (parent + children)", "CPU: see each run")
+        print(text)
+        return 0
     if args.list:
         for module in args.modules:
             files = module_files(module)

@@ -250,6 +250,23 @@ def test_human_source_left_or_right_sequences(samples, tmp_path, monkeypatch):
     assert "SYNTHETIC" in (root / "README.md").read_text()
 
 
+def test_layout_difference_names_what_differs_and_hints_sides_only_for_sides():
+    """The mixed-layout error lists each difference; the `--sides` hint appears only when the hand sides
+    differ. Catches the hint keyed on another part of the layout (then every layout error, e.g. an
+    episode without actions, wrongly suggests --sides)."""
+    from types import SimpleNamespace
+
+    from lerobot_unidextok.conversion.pipeline import _layout_difference
+
+    first = (("right",), True, (), (), ())
+    no_actions = _layout_difference(SimpleNamespace(layout=(("right",), False, (), (), ())), 30, first, 30)
+    assert "actions False vs True" in no_actions and "--sides" not in no_actions
+    other_fps = _layout_difference(SimpleNamespace(layout=first), 25, first, 30)
+    assert "fps 25 vs 30" in other_fps and "--sides" not in other_fps
+    left = _layout_difference(SimpleNamespace(layout=(("left",), True, (), (), ())), 30, first, 30)
+    assert "hand sides ('left',) vs ('right',)" in left and "--sides=right,left" in left
+
+
 # ---------------------------------------------------------------------------------------------
 # bad episodes
 # ---------------------------------------------------------------------------------------------

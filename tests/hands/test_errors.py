@@ -150,6 +150,41 @@ def test_out_of_range_raise_or_clip_with_counted_warning(caplog, as_torch):
         spec.to_udhm(raw, on_out_of_range="wrap")
 
 
+def test_range_slack_is_relative_to_the_joint_range(tmp_path):
+    """The round-off slack at a range end is 1e-6 of the range width (at least 1e-6): on the toy wrist's
+    [-10, 10] range (width 20) 10 + 1e-5 is accepted and 10 + 1e-4 is not. Catches the width computed as
+    `hi + lo` (0 here, so the slack falls to 1e-6 and float32 round-off at the end raises)."""
+    spec = hands.load_spec(_write(tmp_path, MINIMAL.format(name="toy_hand")))
+    np.testing.assert_allclose(spec.to_radians(np.array([45.0, 45.0, 10.0 + 1e-5])), [np.pi / 4, np.pi / 4, 0.0])
+    with pytest.raises(ValueError, match=r"wrist in \[-10, 10\]"):
+        spec.to_radians(np.array([45.0, 45.0, 10.0 + 1e-4]))
+
+
+def test_specs_are_immutable():
+    """Registered specs are cached and shared by every caller, so they and their parts are frozen: a caller
+    that edits one cannot change another's hand. Catches a spec dataclass left mutable (`frozen=False`)."""
+    import dataclasses
+
+    spec = hands.get("linkerhand_l10")
+    parts = [spec, spec.joints[0], spec.joints[0].sides["right"], spec.skeleton_spec, spec._side_table("right")]
+    parts += [spec.urdf, spec.urdf.keypoints["right"][0]]
+    parts += [c for hand in hands.all_specs() for c in hand.coupled][:1]
+    for part in parts:
+        field = dataclasses.fields(part)[0].name
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(part, field, None)
+    assert {type(p).__name__ for p in parts} >= {
+        "HandSpec",
+        "JointSpec",
+        "JointSide",
+        "SkeletonSpec",
+        "_SideTable",
+        "UrdfSpec",
+        "UrdfKeypoint",
+        "CoupledJoint",
+    }
+
+
 def test_bad_side_and_mapping():
     spec = hands.get("linkerhand_l10")
     with pytest.raises(ValueError, match="sides are"):

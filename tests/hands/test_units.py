@@ -54,3 +54,14 @@ def test_conversion_stops_the_episode_with_the_fix():
         map_episode(raw)
     ok = RawEpisode("g1_episode.parquet", 30.0, [HandStream("right", "inspire_rh56_unitree", values, values)])
     assert map_episode(ok).state_rad.shape == (120, 22)
+
+
+def test_one_moving_joint_is_enough_to_flag_values_held_at_one_end():
+    """Normalised 0-1 values where only one finger moves (the others rest) still sit within 1 % of the lower
+    end of a 0-1000 range: flagged. Catches "moving" read as "every joint moves" (`.max()` -> `.min()` over
+    the joints' spreads), which let such a stream convert into a hand held closed."""
+    values = np.full((60, 6), 0.9)
+    values[:, 2] = np.linspace(0.2, 1.0, 60)  # one finger closes and opens; five stay open
+    with pytest.raises(hands.NativeUnitsError, match="1% of the lower end"):
+        hands.get("inspire_rh56").check_units(values, "right")
+    hands.get("inspire_rh56").check_units(1000 * values, "right")  # the same motion in registers is fine

@@ -277,3 +277,66 @@ def test_negative_indices_raise(vq):
     vq.check_indices(torch.full((2, 4, 8), 31))  # the largest valid code passes
     with pytest.raises(ValueError, match="integer"):
         vq.check_indices(torch.zeros(2, 4, 8))
+
+
+def test_default_straight_through_passes_the_gradient_unchanged():
+    """Straight-through (the default): d quantized / d z is that of the unquantised path project_out(u), as if
+    the code were u. Catches the estimator switch read the wrong way round (`== "rotation"` -> `!=`), which
+    makes every default model train with the rotation trick."""
+    torch.manual_seed(0)
+    vq = FactorizedCosineVQ(UniDexTokConfig.from_preset("tiny"))
+    z = torch.randn(8, 4, 64, requires_grad=True)
+    quantized, _, _ = vq(z)
+    quantized.pow(3).sum().backward()  # a non-linear head, so the upstream gradient depends on the value
+    z2 = z.detach().clone().requires_grad_(True)
+    u = torch.nn.functional.normalize(vq.project_in(z2).view(8, 4, vq.num_groups, vq.group_dim), dim=-1)
+    upstream = 3 * quantized.detach().pow(2)  # d/dq of q^3 at the quantised value
+    (vq.project_out(u.flatten(-2)) * upstream).sum().backward()
+    torch.testing.assert_close(z.grad, z2.grad, rtol=1e-5, atol=1e-6)
+
+
+def test_training_statistics_are_not_in_the_checkpoint():
+    """usage_ema, last_features and the EMA codebook's running sums are training statistics, not weights: the
+    state dict holds the codebooks and projections only. Catches one of them made persistent (a checkpoint that
+    carries, and on load overwrites, another run's statistics; its size then depends on the last batch)."""
+    vq = FactorizedCosineVQ(UniDexTokConfig.from_preset("tiny", codebook_update="ema")).train()
+    vq(torch.randn(4, 4, 64))
+    assert vq.ema_sum.numel() and vq.ema_count.numel() and vq.last_features.numel()
+    assert sorted(vq.state_dict()) == [
+        "codebooks", "project_in.bias", "project_in.weight", "project_out.bias", "project_out.weight",
+    ]  # fmt: skip
+
+
+def test_ema_update_worked_example_with_more_codes_than_dims():
+    """EMA codebook update, by hand: 1 group, 3 codes in 2-D (e0, e1, -e0), decay 0.5, one token
+    u = (0.6, 0.8) (nearest code e1). Counts start at 1 and sums at the unit codes, so
+    count = 0.5 * 1 + 0.5 * (0, 1, 0) = (0.5, 1, 0.5); sum_1 = 0.5 * e1 + 0.5 * u = (0.3, 0.9); codes =
+    sum / count = (1, 0), (0.3, 0.9), (-1, 0). Catches dividing by the counts on the wrong axis (only
+    visible when codes != dims: the tiny preset has 32 of both)."""
+    cfg = UniDexTokConfig.from_preset("tiny", codebook_dim=2, num_groups=1, codebook_size=3, codebook_update="ema",
+                                      ema_decay=0.5)  # fmt: skip
+    vq = FactorizedCosineVQ(cfg).train()
+    with torch.no_grad():
+        vq.project_in.weight.zero_()
+        vq.project_in.weight[0, 0] = vq.project_in.weight[1, 1] = 1.0
+        vq.project_in.bias.zero_()
+        vq.codebooks.copy_(torch.tensor([[[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]]]))
+    z = torch.zeros(1, 1, 64)
+    z[0, 0, :2] = torch.tensor([0.6, 0.8])
+    _, indices, _ = vq(z)
+    assert indices.flatten().tolist() == [1]
+    torch.testing.assert_close(vq.codebooks, torch.tensor([[[1.0, 0.0], [0.3, 0.9], [-1.0, 0.0]]]))
+
+
+def test_reseed_before_any_batch_and_from_a_single_row():
+    """Re-seeding needs a training batch: with every code below the threshold but no batch seen yet it does
+    nothing (catches the "no features" guard testing `numel() == 1`, which then draws from an empty batch).
+    From a one-row batch every dead code becomes that row (catches drawing rows from 1, not 0)."""
+    vq = _toy_vq(dead_code_threshold=1.5)  # uniform usage 1/2 < 1.5 / 2: every code is dead
+    assert vq.reseed_dead_codes() == 0
+    vq.train()
+    vq(_rows(1))  # one token, feature e1
+    with torch.no_grad():
+        vq.usage_ema.zero_()
+    assert vq.reseed_dead_codes() == 2
+    torch.testing.assert_close(vq.codebooks, torch.tensor([[[0.0, 3.0], [0.0, 3.0]]]))  # e1 x mean norm 3

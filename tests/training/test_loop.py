@@ -1,6 +1,7 @@
 """The training loop: learning, checkpoint selection, resume, few-shot and zero-shot protocols."""
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -103,6 +104,90 @@ def test_resume_equals_an_uninterrupted_run(mixture, tmp_path, monkeypatch):
         assert a[part].keys() == b[part].keys()
         changed = [k for k in a[part] if not torch.equal(a[part][k], b[part][k])]
         assert not changed, (part, changed[:5])
+
+
+def test_resume_from_a_checkpoint_without_random_streams_is_deterministic(mixture, tmp_path, monkeypatch, caplog):
+    """A checkpoint without saved random streams (written before exact resume, or by several processes)
+    resumes with fresh streams seeded from (seed, step, process): it says so, and two resumes of the same
+    checkpoint end identical (weights, history). Catches a broken seed formula on that path (a float or
+    negative seed fails to build the generators) and a fallback that is not reproducible."""
+    import logging
+    import shutil
+
+    train, test = mixture
+    kw = dict(steps=30, eval_every=10, save_last_every=10, warmup_steps=2, batch_size=16, unknown_hand_prob=0.2)
+    _run_interrupted(_cfg(tmp_path, output_dir=str(tmp_path / "a"), **kw), train, test, 20, monkeypatch)
+    (tmp_path / "a" / "last" / "resume_state.safetensors").unlink()
+    shutil.copytree(tmp_path / "a", tmp_path / "b")
+    results = []
+    for name in ("a", "b"):
+        with caplog.at_level(logging.WARNING, logger="lerobot_unidextok.training.loop"):
+            caplog.clear()
+            results.append(train_tokenizer(_cfg(tmp_path, output_dir=str(tmp_path / name), resume=True, **kw), train,
+                                           test))  # fmt: skip
+        assert any("fresh random streams" in r.getMessage() for r in caplog.records)
+    assert results[0].history == results[1].history and [h["step"] for h in results[0].history] == [10, 20, 30]
+    a, b = _checkpoint(tmp_path / "a" / "last"), _checkpoint(tmp_path / "b" / "last")
+    assert a["state"]["step"] == 30 and all(torch.equal(a["model"][k], b["model"][k]) for k in a["model"])
+
+
+def test_zero_turns_reseeding_and_the_thread_setting_off(mixture, tmp_path):
+    """`reseed_every=0` disables dead-code re-seeding and `num_threads=0` keeps torch's thread count, as the
+    config documents; the thread count is the caller's again afterwards. Catches `> 0` tested as `>= 0` on
+    either (a modulo by zero, or torch.set_num_threads(0), which raises)."""
+    train, test = mixture
+    before = torch.get_num_threads()
+    result = train_tokenizer(_cfg(tmp_path, steps=3, eval_every=3, reseed_every=0, num_threads=0), train, test)
+    assert result.steps == 3 and [h["step"] for h in result.history] == [3]
+    assert torch.get_num_threads() == before
+
+
+@pytest.mark.parametrize(("adapt", "calls"), [("all", [5, 10]), ("hand_embedding", [])])
+def test_dead_codes_are_reseeded_every_n_steps_only_when_training_everything(mixture, tmp_path, adapt, calls):
+    """With `reseed_every=5` over 12 steps the quantiser re-seeds after optimiser steps 5 and 10, and never
+    when only the hand embedding adapts (the shared codebook stays as it is). Observed by counting the
+    optimiser steps taken before each call. Catches the period off by one step (`step - 1`), re-seeding at
+    every step but the period (`!= 0`), and re-seeding while adapting the embedding only (`and` -> `or`)."""
+    train, test = mixture
+    torch.manual_seed(0)
+    model = UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=train.hand_names()))
+    seen: list[int] = []
+    original = model.quantizer.reseed_dead_codes
+    calls_before = []
+
+    def counting() -> int:
+        calls_before.append(len(seen))
+        return original()
+
+    model.quantizer.reseed_dead_codes = counting
+    model.register_forward_hook(lambda *_: seen.append(1) if model.training else None)
+    cfg = _cfg(tmp_path, steps=12, eval_every=12, reseed_every=5, adapt=adapt, warmup_steps=1)
+    train_tokenizer(cfg, train, test, model)
+    assert calls_before == calls
+
+
+def test_evaluation_and_last_checkpoint_at_the_period_and_at_the_end(mixture, tmp_path, monkeypatch):
+    """7 steps with eval_every=5 and save_last_every=5: held-out evaluations after steps 5 and 7, `last/`
+    written after steps 5 and 7 (the end counts even off the period). Catches the final evaluation or save
+    tested against the wrong step, a period shifted by one, and the run's duration computed as a sum of
+    clock readings."""
+    from lerobot_unidextok.training import loop
+
+    train, test = mixture
+    saved: list[tuple[str, int]] = []
+    original = loop.save_checkpoint
+
+    def recording(model, directory, optimizer=None, state=None, *rest):
+        saved.append((directory.name, state["step"]))
+        return original(model, directory, optimizer, state, *rest)
+
+    monkeypatch.setattr(loop, "save_checkpoint", recording)
+    t0 = time.perf_counter()
+    result = train_tokenizer(_cfg(tmp_path, steps=7, eval_every=5, save_last_every=5, warmup_steps=1), train, test)
+    assert 0 < result.seconds <= time.perf_counter() - t0  # the reported duration is of this run
+    assert [h["step"] for h in result.history] == [5, 7]
+    assert [step for name, step in saved if name == "last"] == [5, 7]
+    assert all(step in (5, 7) for name, step in saved if name == "best")
 
 
 def test_resume_without_checkpoint_is_a_clear_error(mixture, tmp_path):

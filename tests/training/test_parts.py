@@ -57,3 +57,53 @@ def test_train_config_checks():
         TrainConfig(fraction=1.5)
     with pytest.raises(ValueError, match="hand weights"):
         TrainConfig(hand_weights={"human": -1.0})
+
+
+def test_total_steps_from_epochs():
+    """An epoch = the training rows once at the effective batch (batch x processes), rounded up, at least one
+    step; without epochs the configured steps. Catches the rows / batch ratio inverted, the process count
+    ignored, the floor of one step raised, and epochs=0 read as "derive the steps"."""
+    from lerobot_unidextok.training.loop import total_steps
+
+    assert total_steps(TrainConfig(epochs=2.0, batch_size=8), 100) == 25  # 200 rows / 8
+    assert total_steps(TrainConfig(epochs=2.0, batch_size=8), 100, num_processes=2) == 13  # ceil(200 / 16)
+    assert total_steps(TrainConfig(epochs=0.5, batch_size=64), 10) == 1  # 5 rows: one (partial) step
+    assert total_steps(TrainConfig(epochs=0.0, steps=7, batch_size=8), 100) == 7
+
+
+def test_joint_ranges_cover_the_registry_ranges_and_every_recorded_row():
+    """`joint_ranges_rad` (the range normalisation of `input_norm="range"`) is the smallest per-joint box
+    holding every training hand's registry range (both sides; UDHM limits for the human on its active
+    joints) and every recorded row, also when a row lies outside its hand's range, and whatever the
+    chunking. Catches a bound left at its +-inf start, min/max swapped, rows skipped between chunks, or the
+    recorded rows ignored."""
+    from lerobot_unidextok import hands, udhm
+    from lerobot_unidextok.training.loop import joint_ranges_rad
+
+    rng = np.random.default_rng(0)
+    l10 = hands.get("linkerhand_l10")
+    mask_l10 = l10.mask("semantic")
+    lo_r, hi_r = l10.udhm_limits_rad("right")
+    lo_l, hi_l = l10.udhm_limits_rad("left")
+    robot = rng.uniform(np.minimum(lo_r, lo_l), np.maximum(hi_r, hi_l), size=(40, 22)) * mask_l10
+    slot = int(np.flatnonzero(mask_l10)[0])
+    robot[17, slot] = max(hi_r[slot], hi_l[slot]) + 0.3  # one row beyond the hand's range: it counts too
+    mask_h = np.ones(22, bool)
+    mask_h[udhm.joint_index("pinky_metacarpal_twist")] = False  # a human layout without the twist
+    human = rng.uniform(-0.2, 0.2, size=(25, 22)) * mask_h
+    human[3, 5] = -2.5  # far below every limit
+    data = HandStates(
+        np.concatenate([robot, human]),
+        np.array(["linkerhand_l10"] * 40 + ["human"] * 25),
+        np.concatenate([np.tile(mask_l10, (40, 1)), np.tile(mask_h, (25, 1))]),
+    )
+    limits = udhm.JOINT_LIMITS_RAD
+    rows = data.states_rad.astype(np.float64)
+    want_lo = np.minimum.reduce([lo_r, lo_l, limits[:, 0] * mask_h, rows.min(0)])
+    want_hi = np.maximum.reduce([hi_r, hi_l, limits[:, 1] * mask_h, rows.max(0)])
+    for chunk_rows in (1 << 20, 7, 1):
+        got = np.array(joint_ranges_rad(data, chunk_rows=chunk_rows))  # (22, 2)
+        assert got.shape == (22, 2)
+        np.testing.assert_allclose(got[:, 0], want_lo, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(got[:, 1], want_hi, rtol=0, atol=1e-12)
+    assert got[slot, 1] == pytest.approx(robot[17, slot], abs=1e-6) and got[5, 0] == pytest.approx(-2.5)

@@ -81,6 +81,26 @@ def test_batching_shapes_numpy_and_torch(rng, lead):
     np.testing.assert_allclose(kp.reshape(-1, 21, 3)[-1], udhm.forward_kinematics(flat[-1]), atol=1e-12)
 
 
+def test_torch_with_per_frame_skeleton_matches_numpy(rng):
+    """torch and numpy FK agree when the skeleton has its own leading dims (5, 2, 5, 3), not only with the
+    default (5, 3) one. Catches normalising the palm-offset axes over the wrong dim in the torch branch
+    (`dim=1` instead of `dim=-1` is invisible on a (5, 3) skeleton)."""
+    angles = udhm.sample_angles(rng, (5, 2))
+    sk = udhm.Skeleton.default()
+    scales = rng.uniform(0.8, 1.2, size=(5, 2, 5, 1))
+    per_frame = udhm.Skeleton(sk.palm_offsets_m * scales, sk.bone_lengths_m * scales)
+    kp = udhm.forward_kinematics(angles, per_frame)
+    kp_t = udhm.forward_kinematics(torch.as_tensor(angles), per_frame)
+    np.testing.assert_allclose(kp_t.numpy(), kp, atol=1e-12)
+    np.testing.assert_allclose(
+        kp[4, 1],
+        udhm.forward_kinematics(
+            angles[4, 1], udhm.Skeleton(per_frame.palm_offsets_m[4, 1], per_frame.bone_lengths_m[4, 1])
+        ),
+        atol=1e-12,
+    )
+
+
 def test_per_frame_skeleton_and_wrist_pose_broadcast(rng):
     angles = udhm.sample_angles(rng, (5, 2))
     sk = udhm.Skeleton.default()

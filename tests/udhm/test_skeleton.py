@@ -55,6 +55,12 @@ def test_validation_errors():
     bones[1, 2] = -0.01
     with pytest.raises(ValueError, match="zero or negative bone lengths"):
         udhm.Skeleton(sk.palm_offsets_m, bones)
+    # the bound itself: "every bone must be longer than 1e-6 m" (catches `<=` -> `<` at the boundary)
+    bones[1, 2] = 1e-6
+    with pytest.raises(ValueError, match="zero or negative bone lengths"):
+        udhm.Skeleton(sk.palm_offsets_m, bones)
+    bones[1, 2] = 2e-6
+    assert udhm.Skeleton(sk.palm_offsets_m, bones).bone_lengths_m[1, 2] == 2e-6
     with pytest.raises(ValueError, match=r"\(\.\.\., 5, 3\)"):
         udhm.Skeleton(sk.palm_offsets_m[:4], sk.bone_lengths_m)
     with pytest.raises(ValueError, match="NaN"):
