@@ -16,13 +16,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.experiments import runtime
 from lerobot_unidextok.experiments.common import git_commit, md_table
 from lerobot_unidextok.training import HandStates, TrainConfig, train_tokenizer
 from lerobot_unidextok.training.coverage import CoverageConfig, MixtureSampler
@@ -244,19 +244,11 @@ def markdown(result: dict) -> str:
 
 
 def parse(argv: list[str] | None = None) -> UnseenConfig:
-    """draccus, like the CLIs and the other experiments: `--<field>=<value>`, lists as `--variants='[a,b]'`."""
-    import draccus
-
-    return draccus.parse(UnseenConfig, args=argv)
+    return runtime.parse(UnseenConfig, argv)
 
 
 def main(argv: list[str] | None = None) -> None:
-    import torch
-
-    os.environ.setdefault("MPLBACKEND", "Agg")
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
-    torch.set_num_threads(1)
-    print(markdown(run(parse(argv))))
+    runtime.cli(UnseenConfig, run, markdown, argv)
 
 
 if __name__ == "__main__":

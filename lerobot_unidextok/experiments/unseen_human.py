@@ -15,13 +15,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.experiments import runtime
 from lerobot_unidextok.experiments.common import git_commit, md_table
 from lerobot_unidextok.experiments.unseen_episodes import VARIANTS, Variant
 from lerobot_unidextok.training import HandStates, TrainConfig, train_tokenizer
@@ -139,19 +139,11 @@ def markdown(result: dict) -> str:
 
 
 def parse(argv: list[str] | None = None) -> HumanConfig:
-    """draccus, like the CLIs and the other experiments: `--<field>=<value>`, lists as `--variants='[a,b]'`."""
-    import draccus
-
-    return draccus.parse(HumanConfig, args=argv)
+    return runtime.parse(HumanConfig, argv)
 
 
 def main(argv: list[str] | None = None) -> None:
-    import torch
-
-    os.environ.setdefault("MPLBACKEND", "Agg")
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
-    torch.set_num_threads(1)
-    print(markdown(run(parse(argv))))
+    runtime.cli(HumanConfig, run, markdown, argv)
 
 
 if __name__ == "__main__":
