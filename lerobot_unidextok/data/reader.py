@@ -253,6 +253,17 @@ def _keep_episodes(table: pa.Table, wanted: np.ndarray | None) -> pa.Table:
     return table.filter(pc.is_in(table.column("episode_index"), value_set=pa.array(wanted, pa.int64())))
 
 
+def _open(root, repo_id, split: str | None, holdout: str):
+    """(info, layout, data files, wanted episodes) of a converted dataset, with the split arguments checked."""
+    if split is not None and split not in SPLITS:
+        raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
+    if holdout not in HOLDOUTS:
+        raise ValueError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
+    root = _resolve_root(root, repo_id)
+    info = read_info(root)
+    return info, _layout(info), _data_files(root), _split_episodes(root, info, split, holdout)
+
+
 def load_udhm_frames(
     root: str | Path | None = None,
     repo_id: str | None = None,
@@ -268,15 +279,7 @@ def load_udhm_frames(
     drop_absent: drop rows whose mask is all False (a hand not present in that frame, zero-filled).
     Everything is read into memory; `iter_udhm_frames` reads the same rows in bounded pieces.
     """
-    if split is not None and split not in SPLITS:
-        raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
-    if holdout not in HOLDOUTS:
-        raise ValueError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
-    root = _resolve_root(root, repo_id)
-    info = read_info(root)
-    layout = _layout(info)
-    files = _data_files(root)
-    wanted = _split_episodes(root, info, split, holdout)
+    info, layout, files, wanted = _open(root, repo_id, split, holdout)
     table = pa.concat_tables(pq.read_table(f, columns=layout.columns) for f in files)
     return _frames_of_table(_keep_episodes(table, wanted), layout, info, drop_absent)
 
@@ -291,15 +294,7 @@ def iter_udhm_frames(
 ) -> Iterator[UdhmFrames]:
     """The rows of `load_udhm_frames`, in the same order, in pieces of at most `batch_rows` dataset frames
     (parquet record batches), so memory is bounded by one piece whatever the dataset size."""
-    if split is not None and split not in SPLITS:
-        raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
-    if holdout not in HOLDOUTS:
-        raise ValueError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
-    root = _resolve_root(root, repo_id)
-    info = read_info(root)
-    layout = _layout(info)
-    files = _data_files(root)
-    wanted = _split_episodes(root, info, split, holdout)
+    info, layout, files, wanted = _open(root, repo_id, split, holdout)
     for path in files:
         for batch in pq.ParquetFile(path).iter_batches(batch_size=batch_rows, columns=layout.columns):
             table = _keep_episodes(pa.Table.from_batches([batch]), wanted)
