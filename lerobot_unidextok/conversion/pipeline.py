@@ -331,15 +331,21 @@ def plan_episodes(reader, opts: ConvertOptions, input_path: Path) -> _Plan:
     return _Plan(items, len(refs))
 
 
-def convert(opts: ConvertOptions) -> ConvertReport:
-    """Convert `opts.source` at `opts.input` into a UDHM LeRobotDataset at `opts.root`."""
-    t0 = time.perf_counter()
+def checked_paths(opts: ConvertOptions) -> tuple[Path, Path]:
+    """(output root, input path) of a conversion; refuses an existing root without --overwrite and a missing input."""
     target = Path(opts.root).expanduser().resolve()
     if target.exists() and not opts.overwrite:
         raise FileExistsError(f"{target} already exists; pass --overwrite=true to replace it, or choose another --root")
     input_path = Path(opts.input).expanduser()
     if not input_path.exists():
         raise FileNotFoundError(f"--input {input_path} does not exist")
+    return target, input_path
+
+
+def convert(opts: ConvertOptions) -> ConvertReport:
+    """Convert `opts.source` at `opts.input` into a UDHM LeRobotDataset at `opts.root`."""
+    t0 = time.perf_counter()
+    target, input_path = checked_paths(opts)
     _import_sources()
     reader_cls = get_source(opts.source)
     reader_options = opts.reader_options()

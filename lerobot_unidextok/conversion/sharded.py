@@ -30,7 +30,13 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from lerobot_unidextok.conversion.pipeline import ConvertOptions, SetupError, _import_sources, plan_episodes
+from lerobot_unidextok.conversion.pipeline import (
+    ConvertOptions,
+    SetupError,
+    _import_sources,
+    checked_paths,
+    plan_episodes,
+)
 from lerobot_unidextok.conversion.registry import make_reader
 
 logger = logging.getLogger(__name__)
@@ -136,12 +142,7 @@ def convert_with_executor(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
         dt = importlib.import_module("lerobot_unidextok.conversion.datatrove")
     except ImportError as exc:
         raise SetupError(f"{DATATROVE_MISSING}; {exc}") from exc
-    target = Path(opts.root).expanduser().resolve()
-    if target.exists() and not opts.overwrite:
-        raise FileExistsError(f"{target} already exists; pass --overwrite=true to replace it, or choose another --root")
-    input_path = Path(opts.input).expanduser()
-    if not input_path.exists():
-        raise FileNotFoundError(f"--input {input_path} does not exist")
+    target, input_path = checked_paths(opts)
     _import_sources()
     plan = plan_episodes(make_reader(opts.source, opts.reader_options()), opts, input_path)
     num_shards = min(cfg.tasks, len(plan.items))
