@@ -194,3 +194,24 @@ def test_missing_keypoint_link_is_named(toy, tmp_path):
     spec.path.write_text(text)
     with pytest.raises(ValueError, match="wrist -> 'forearm'"):
         check_spec(hands.load_spec(spec.path), urdf, "right")
+
+
+def test_cli_skeleton_prints_and_writes_the_measured_block(toy, capsys):
+    """`skeleton` prints the URDF-measured block; `--write` puts it into the YAML (before `joints:` the first
+    time, replacing it the second) and the reloaded spec's skeleton is the measured one to the printed 0.1 mm.
+    Catches a block that loses lines (e.g. the bone lengths) and a write that appends instead of replacing."""
+    spec, urdf = toy()
+    measured = measure_skeleton(UrdfHand.load(urdf, spec.urdf.keypoints["right"]), "right")
+    assert hands_cli(["skeleton", str(spec.path), "--urdf", str(urdf)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.startswith("skeleton:\n") and printed.count("\n    ") == 10  # 5 offsets + 5 bone rows
+
+    assert hands_cli(["skeleton", str(spec.path), "--urdf", str(urdf), "--write"]) == 0
+    written = spec.path.read_text()
+    assert printed in written and written.count("skeleton:") == 1 and written.index(printed) < written.index("joints:")
+    again = hands.load_spec(spec.path).skeleton()
+    np.testing.assert_allclose(np.asarray(again.bone_lengths_m), np.asarray(measured.bone_lengths_m), atol=5e-5)
+    np.testing.assert_allclose(np.asarray(again.palm_offsets_m), np.asarray(measured.palm_offsets_m), atol=5e-5)
+
+    assert hands_cli(["skeleton", str(spec.path), "--urdf", str(urdf), "--write"]) == 0
+    assert spec.path.read_text() == written  # replaced in place, not appended

@@ -60,3 +60,20 @@ def test_every_mapped_joint_agrees_with_the_urdf(urdf_dir, name, side):
     bad = {j.joint for j in report.disagreements}
     assert bad == known, f"unexpected verdicts (known: {sorted(known)}):\n{report.table()}"
     assert len(report.mapped) == spec.num_active
+
+
+@pytest.mark.slow
+def test_check_all_cli_sums_every_hand_and_side(urdf_dir, capsys):
+    """`python -m lerobot_unidextok.hands check all`: one summary line per (hand, side), the total over every
+    mapped entry (each hand's active joints on each side), and exit 1 while any entry disagrees (the known
+    thumb exceptions do). `--random 0` keeps it quick; the per-case verdicts are checked above."""
+    from lerobot_unidextok.hands.__main__ import main as hands_cli
+
+    assert hands_cli(["check", "all", "--urdf-dir", str(urdf_dir), "--random", "0"]) == 1
+    out = capsys.readouterr().out
+    summaries = [ln for ln in out.splitlines() if "mapped joints agree with the URDF kinematics" in ln]
+    assert len(summaries) == len(CASES)
+    expected_total = sum(hands.get(n).num_active for n, _ in CASES)
+    agree, total = (int(x) for x in out.split("total: ")[1].split(" ")[0].split("/"))
+    assert total == expected_total
+    assert total - 2 * len(KNOWN_DISAGREEMENTS) <= agree < total
