@@ -167,7 +167,9 @@ def test_reference_only_pipeline_reloads_from_checkpoint_folder(tok_dir, states,
 
 
 def test_bad_width_names_the_fix(step):
-    with pytest.raises(ValueError, match=r"width 30, which matches no UDHM layout.*unidextok-convert"):
+    """The message names the widths that would work (a wrong list there, e.g. 66 for two hands, misleads)."""
+    known = r"known widths: 22 \(1 hand\), 44 \(2 hands\)\)\."
+    with pytest.raises(ValueError, match=rf"width 30, which matches no UDHM layout.*{known}.*unidextok-convert"):
         step.observation({OBS_STATE: torch.zeros(4, 30)})
     with pytest.raises(ValueError, match="width 22"):
         step.observation({OBS_STATE: torch.zeros(22)})  # one hand where the layout has two
