@@ -8,6 +8,7 @@ clock (the machine is shared); wall time is printed too.
 """
 
 import argparse
+import functools
 import time
 
 import numpy as np
@@ -57,24 +58,24 @@ def main() -> None:
         params = count_parameters(model)
         for b in (1, 1024):
             x = states[:b]
-            cpu, wall, n = _timed(lambda x=x: model.decode(model.encode(x, "human"), "human"), args.seconds)
+            cpu, wall, n = _timed(lambda x=x, m=model: m.decode(m.encode(x, "human"), "human"), args.seconds)
             train_cell = "" if b == 1 else "see next row"
             print(f"| {name} | {params:,} | {b} | {n * b / cpu:,.0f} | {n * b / wall:,.0f} | {train_cell} |")
         model.train()
         opt = make_optimizer(model, 1e-3, 0.01, (0.9, 0.99))
         xb = states[: args.train_batch]
         mask = torch.ones_like(xb, dtype=torch.bool)
-
-        def step() -> None:
-            out = model(xb, "human", mask=mask)
-            opt.zero_grad(set_to_none=True)
-            out.loss.backward()
-            torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
-            opt.step()
-
-        cpu, wall, n = _timed(step, args.seconds)
+        cpu, wall, n = _timed(functools.partial(_train_step, model, opt, xb, mask), args.seconds)
         print(f"| {name} (train step) | {params:,} | {args.train_batch} | - | - | "
               f"{n * args.train_batch / cpu:,.0f} ({n * args.train_batch / wall:,.0f} / wall-s) |")  # fmt: skip
+
+
+def _train_step(model: UniDexTok, opt: torch.optim.Optimizer, xb: torch.Tensor, mask: torch.Tensor) -> None:
+    out = model(xb, "human", mask=mask)
+    opt.zero_grad(set_to_none=True)
+    out.loss.backward()
+    torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+    opt.step()
 
 
 if __name__ == "__main__":
