@@ -2,6 +2,7 @@
 
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,6 +10,7 @@ import torch
 
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 from lerobot_unidextok.training import TrainConfig, build_model, evaluate_mae_deg, subsample_episodes, train_tokenizer
+from lerobot_unidextok.training.loop import joint_ranges_rad
 
 
 def _cfg(tmp_path, **kw) -> TrainConfig:
@@ -264,3 +266,35 @@ def test_hand_embedding_adaptation_changes_only_that_row(mixture, tmp_path):
     torch.testing.assert_close(after["hand_embed.weight"][:row], before["hand_embed.weight"][:row], rtol=0, atol=0)
     with pytest.raises(ValueError, match="adapt must be"):
         _cfg(tmp_path, adapt="encoder")
+
+
+def test_joint_ranges_are_measured_only_for_range_normalisation(mixture):
+    """input_norm "pi" (the paper's fixed normaliser) keeps no ranges; "range" measures them from the training
+    hands unless given. Catches the condition joined with `or` (ranges written into every config)."""
+    train, _ = mixture
+    cfg = TrainConfig(preset="tiny", output_dir="unused")
+    assert UniDexTokConfig.from_preset("tiny").input_norm == "pi"
+    assert build_model(cfg, train).config.joint_range_rad is None
+    measured = build_model(cfg, train, input_norm="range").config.joint_range_rad
+    assert measured == joint_ranges_rad(train)
+    given = [[-1.0, 1.0]] * 22
+    assert build_model(cfg, train, input_norm="range", joint_range_rad=given).config.joint_range_rad == given
+
+
+def test_ema_codebook_is_moved_by_the_ema_and_everything_else_by_the_optimiser(mixture, tmp_path):
+    """codebook_update="ema": the codebook is frozen for the optimiser (its EMA update moves it) while the
+    encoder, decoder and hand embeddings train. Catches the freeze applied to every other parameter instead
+    (`name == "quantizer.codebooks"` -> `!=`), which trains nothing but the codebook."""
+    train, test = mixture
+    cfg = _cfg(tmp_path, steps=20, eval_every=20, reseed_every=0)
+    torch.manual_seed(cfg.seed)
+    model = build_model(cfg, train, codebook_update="ema")
+    before = {k: v.clone() for k, v in model.state_dict().items()}
+    train_tokenizer(cfg, train, test, model=model)
+    after = UniDexTok.from_pretrained(Path(cfg.output_dir) / "last").state_dict()
+    for name, param in model.named_parameters():
+        assert param.requires_grad == (name != "quantizer.codebooks"), name
+    moved = {k for k in before if k in after and not torch.equal(before[k], after[k])}
+    assert "quantizer.codebooks" in moved  # by the EMA
+    assert {"enc_pos", "hand_embed.weight"} <= moved
+    assert any(k.startswith("encoder.") for k in moved) and any(k.startswith("decoder.") for k in moved)
