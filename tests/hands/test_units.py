@@ -65,3 +65,19 @@ def test_one_moving_joint_is_enough_to_flag_values_held_at_one_end():
     with pytest.raises(hands.NativeUnitsError, match="1% of the lower end"):
         hands.get("inspire_rh56").check_units(values, "right")
     hands.get("inspire_rh56").check_units(1000 * values, "right")  # the same motion in registers is fine
+
+
+def test_degrees_a_little_past_the_limits_still_get_the_fix():
+    """Recorded joints often overshoot the URDF limits by a few percent (calibration offsets). Degrees where
+    radians are expected, 5 % of the frames 3 % of the range past each limit, still get the deg2rad
+    suggestion (each rescaling may leave values up to 5 % of the range outside). Catches that slack
+    shrunk to a hair (`0.05 * span` -> `0.05 / span`), which leaves the user with no suggested fix."""
+    spec = hands.get("xhand1")
+    lim = spec.limits_rad("right")
+    a = spec._active_joint_idx
+    rad = np.random.default_rng(2).uniform(lim[:, 0], lim[:, 1], size=(200, spec.num_native))
+    span = lim[a, 1] - lim[a, 0]
+    rad[:10, a] = lim[a, 1] + 0.03 * span  # 10 of 200 frames overshoot every joint's upper limit
+    rad[10:20, a] = lim[a, 0] - 0.03 * span  # and 10 its lower limit
+    with pytest.raises(hands.NativeUnitsError, match=r"Likely fix: degrees given where radians are expected"):
+        spec.check_units(np.degrees(rad), "right")
