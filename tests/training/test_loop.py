@@ -144,12 +144,16 @@ def test_zero_turns_reseeding_and_the_thread_setting_off(mixture, tmp_path):
     assert torch.get_num_threads() == before
 
 
-@pytest.mark.parametrize(("adapt", "calls"), [("all", [5, 10]), ("hand_embedding", [])])
-def test_dead_codes_are_reseeded_every_n_steps_only_when_training_everything(mixture, tmp_path, adapt, calls):
-    """With `reseed_every=5` over 12 steps the quantiser re-seeds after optimiser steps 5 and 10, and never
-    when only the hand embedding adapts (the shared codebook stays as it is). Observed by counting the
-    optimiser steps taken before each call. Catches the period off by one step (`step - 1`), re-seeding at
-    every step but the period (`!= 0`), and re-seeding while adapting the embedding only (`and` -> `or`)."""
+@pytest.mark.parametrize(
+    ("adapt", "every", "calls"),
+    [("all", 5, [5, 10]), ("all", 1, list(range(1, 13))), ("hand_embedding", 5, [])],
+)
+def test_dead_codes_are_reseeded_every_n_steps_only_when_training_everything(mixture, tmp_path, adapt, every, calls):
+    """With `reseed_every=5` over 12 steps the quantiser re-seeds after optimiser steps 5 and 10 (with 1,
+    after every step), and never when only the hand embedding adapts (the shared codebook stays as it is).
+    Observed by counting the optimiser steps taken before each call. Catches the period off by one step
+    (`step - 1`), re-seeding at every step but the period (`!= 0`), a period of 1 read as "off" (`> 0` ->
+    `> 1`), and re-seeding while adapting the embedding only (`and` -> `or`)."""
     train, test = mixture
     torch.manual_seed(0)
     model = UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=train.hand_names()))
@@ -163,7 +167,7 @@ def test_dead_codes_are_reseeded_every_n_steps_only_when_training_everything(mix
 
     model.quantizer.reseed_dead_codes = counting
     model.register_forward_hook(lambda *_: seen.append(1) if model.training else None)
-    cfg = _cfg(tmp_path, steps=12, eval_every=12, reseed_every=5, adapt=adapt, warmup_steps=1)
+    cfg = _cfg(tmp_path, steps=12, eval_every=12, reseed_every=every, adapt=adapt, warmup_steps=1)
     train_tokenizer(cfg, train, test, model)
     assert calls_before == calls
 
@@ -298,3 +302,41 @@ def test_ema_codebook_is_moved_by_the_ema_and_everything_else_by_the_optimiser(m
     assert "quantizer.codebooks" in moved  # by the EMA
     assert {"enc_pos", "hand_embed.weight"} <= moved
     assert any(k.startswith("encoder.") for k in moved) and any(k.startswith("decoder.") for k in moved)
+
+
+def test_the_checkpoint_records_its_selection_and_without_held_out_rows_best_is_the_final_model(mixture, tmp_path):
+    """With held-out rows `best/` is the evaluated checkpoint (its state names the rows that chose it); with
+    none, or an empty set, `best/` is the final model, saved at the last step. Catches the final-model save
+    run when held-out rows exist (`eval_data is None` -> `is not None`, or `and` -> `or`), which overwrote the
+    selected checkpoint, an empty held-out set treated as a selection set (`and` -> `or` on the emptiness
+    test), and a selection record written for the wrong case."""
+    train, test = mixture
+    cfg = _cfg(tmp_path, steps=6, eval_every=3, output_dir=str(tmp_path / "held_out"))
+    result = train_tokenizer(cfg, train, test)
+    state = json.loads((result.best_dir / "training_state.json").read_text())
+    assert state["eval_mae_deg"] == pytest.approx(result.best_mae_deg, abs=1e-12)
+    assert state["selection"] == {"rows": len(test), "hands": test.hand_names()}
+
+    for name, held_out in (("none", None), ("empty", test.select(np.zeros(0, dtype=np.int64)))):
+        cfg = _cfg(tmp_path, steps=6, eval_every=3, output_dir=str(tmp_path / name))
+        result = train_tokenizer(cfg, train, held_out)
+        assert result.best_step == 6 and result.history == [] and np.isnan(result.best_mae_deg), name
+        state = json.loads((result.best_dir / "training_state.json").read_text())
+        assert state["step"] == 6 and state["eval_mae_deg"] is None, name
+        assert state["selection"] == "none: best = the final model", name
+        best = UniDexTok.from_pretrained(result.best_dir).state_dict()
+        last = UniDexTok.from_pretrained(Path(cfg.output_dir) / "last").state_dict()
+        assert all(torch.equal(best[k], last[k]) for k in best), name
+
+
+def test_num_threads_is_set_for_the_run_and_restored(mixture, tmp_path, monkeypatch):
+    """`num_threads=1` runs the training on one torch thread and gives the caller's count back afterwards.
+    Catches the setting skipped for 1 (`> 0` -> `> 1`). Observed through the calls to torch.set_num_threads,
+    which still do their work."""
+    train, test = mixture
+    before = torch.get_num_threads()
+    calls: list[int] = []
+    real = torch.set_num_threads
+    monkeypatch.setattr(torch, "set_num_threads", lambda n: (calls.append(n), real(n))[1])
+    train_tokenizer(_cfg(tmp_path, steps=2, eval_every=2, num_threads=1), train, test)
+    assert calls == [1, before] and torch.get_num_threads() == before

@@ -75,8 +75,9 @@ def test_joint_ranges_cover_the_registry_ranges_and_every_recorded_row():
     """`joint_ranges_rad` (the range normalisation of `input_norm="range"`) is the smallest per-joint box
     holding every training hand's registry range (both sides; UDHM limits for the human on its active
     joints) and every recorded row, also when a row lies outside its hand's range, and whatever the
-    chunking. Catches a bound left at its +-inf start, min/max swapped, rows skipped between chunks, or the
-    recorded rows ignored."""
+    chunking; a hand's active joints are those of any of its rows, so an untracked frame (nothing active)
+    changes nothing. Catches a bound left at its +-inf start, min/max swapped, rows skipped between chunks,
+    the recorded rows ignored, or the active joints taken from every row (`any` -> `all`)."""
     from lerobot_unidextok import hands, udhm
     from lerobot_unidextok.training.loop import joint_ranges_rad
 
@@ -92,10 +93,12 @@ def test_joint_ranges_cover_the_registry_ranges_and_every_recorded_row():
     mask_h[udhm.joint_index("pinky_metacarpal_twist")] = False  # a human layout without the twist
     human = rng.uniform(-0.2, 0.2, size=(25, 22)) * mask_h
     human[3, 5] = -2.5  # far below every limit
+    masks_h = np.tile(mask_h, (25, 1))
+    human[0], masks_h[0] = 0.0, False  # an untracked frame: zeros, nothing active
     data = HandStates(
         np.concatenate([robot, human]),
         np.array(["linkerhand_l10"] * 40 + ["human"] * 25),
-        np.concatenate([np.tile(mask_l10, (40, 1)), np.tile(mask_h, (25, 1))]),
+        np.concatenate([np.tile(mask_l10, (40, 1)), masks_h]),
     )
     limits = udhm.JOINT_LIMITS_RAD
     rows = data.states_rad.astype(np.float64)
