@@ -171,6 +171,28 @@ def test_mimic_chains_follow_their_root_leader(toy):
     assert "ring_pip" not in hand.joint_names and "ring_mcp" in hand.joint_names
 
 
+def test_mimic_chains_resolve_whatever_the_joint_order(toy, tmp_path):
+    """The same URDF with its joints listed in reverse (a follower before its leader): posing still follows
+    the chain to its root. Catches chains left unflattened (`leader is None` -> `is not None`), which only
+    works when every leader comes first in the file."""
+    spec, urdf = toy()
+    head, _, rest = urdf.read_text().partition("\n  <joint ")
+    blocks = ("  <joint " + rest.removesuffix("\n</robot>\n")).split("\n  <joint ")
+    reordered = tmp_path / "reversed.urdf"
+    reordered.write_text(
+        head + "\n  <joint " + "\n  <joint ".join(b.removeprefix("  <joint ") for b in blocks[::-1]) + "\n</robot>\n"
+    )
+    hand = UrdfHand.load(reordered, spec.urdf.keypoints["right"])
+    assert hand.mimics["ring_dip"] == ("ring_mcp", 0.5, 0.0)
+    full = hand.full_cfg({"ring_mcp": 0.6})
+    assert full["ring_pip"] == pytest.approx(0.6) and full["ring_dip"] == pytest.approx(0.3)
+    np.testing.assert_allclose(
+        hand.keypoints_m([{"ring_mcp": 0.6}]),
+        UrdfHand.load(urdf, spec.urdf.keypoints["right"]).keypoints_m([{"ring_mcp": 0.6}]),
+        atol=1e-12,
+    )
+
+
 def test_measured_skeleton_has_the_urdf_bone_lengths(toy):
     spec, urdf = toy()
     skel = measure_skeleton(UrdfHand.load(urdf, spec.urdf.keypoints["right"]))

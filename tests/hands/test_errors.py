@@ -74,6 +74,11 @@ def test_new_hand_from_one_yaml(tmp_path):
         ),  # min > max
         ("name: finger_b", "name: finger_a", "joints[].name"),  # duplicate joint
         ("sides: [right]", "sides: [up]", "sides"),
+        ("sides: [right]", "sides: []", "sides"),  # each clause of the sides check on its own
+        ("sides: [right]", "sides: right", "sides"),
+        ("sides: [right]", "sides: [right, right]", "sides"),
+        ("    note: not a finger joint", "    default_raw: 12", "default_raw"),  # outside [-10, 10]
+        ("    note: not a finger joint", "    default_raw: open", "default_raw"),
         ("    note: not a finger joint", "    tendon: 3", "unknown key"),
         ("slot: index_mcp_flex\n", "slot: index_mcp_flex\n    sign: 2\n", "sign"),
         ("embodiment: toy_gripper_hand\n", "", "embodiment"),
@@ -87,6 +92,20 @@ def test_invalid_yaml_names_file_and_field(tmp_path, old, new, field):
         hands.load_spec(path)
     msg = str(err.value)
     assert str(path) in msg and field in msg
+
+
+def test_dropped_joints_decode_to_their_raw_value_at_zero_rad(tmp_path):
+    """A dropped joint (slot null) has no UDHM angle; decoding gives the raw value where its angle is 0 rad
+    (a wrist at -0.5..1.0 rad over raw 0..150: raw 50), or the upper raw end when its angle never changes.
+    Catches the zero-span case taken for every joint (`rad[0] == rad[1]` -> `rad[1] == rad[1]`)."""
+    text = MINIMAL.format(name="toy_hand").replace(
+        "raw_range: [-10, 10]\n    rad_at_raw_range: [0.0, 0.0]",
+        "raw_range: [0, 150]\n    rad_at_raw_range: [-0.5, 1.0]",
+    )
+    spec = hands.load_spec(_write(tmp_path, text))
+    assert spec.dropped_joints == ("wrist",)
+    back = spec.from_udhm(spec.to_udhm(np.array([[45.0, 90.0, 120.0]])))
+    np.testing.assert_allclose(back, [[45.0, 90.0, 50.0]], atol=1e-9)
 
 
 def test_file_name_must_match_spec_name(tmp_path):

@@ -185,6 +185,11 @@ def test_describe_lists_native_joints_and_slots():
     assert "thumb_cmc_roll" in text and "thumb_mcp_abd" in text  # L10 channel 9 and its slot
     assert "reserved_11" in text and "(dropped)" in text
     assert "LFJ5" in text and "pinky_metacarpal_twist" in text
+    # a slot that differs between the sides is shown with the other side's (Allegro's left index/ring order),
+    # and only there
+    allegro = {ln.split()[1]: ln for ln in hands.describe(["allegro"]).splitlines() if ln.strip()[:1].isdigit()}
+    assert allegro["joint_0.0"].endswith("index_mcp_abd (left: ring_mcp_abd)")
+    assert allegro["joint_4.0"].endswith("middle_mcp_abd")
 
 
 def test_docs_cover_every_hand():

@@ -81,3 +81,19 @@ def test_degrees_a_little_past_the_limits_still_get_the_fix():
     rad[10:20, a] = lim[a, 0] - 0.03 * span  # and 10 its lower limit
     with pytest.raises(hands.NativeUnitsError, match=r"Likely fix: degrees given where radians are expected"):
         spec.check_units(np.degrees(rad), "right")
+
+
+def test_one_value_a_little_past_the_range_is_named():
+    """The range check allows float rounding only (1e-6 of the range): one joint 2 % of its range past its
+    upper limit in one frame is reported with the joint and its reach. Catches a tolerance of a whole range
+    width (`1e-6` -> `1.000001`), which let values far outside through."""
+    spec = hands.get("xhand1")
+    lim = spec.limits_rad("right")
+    a = spec._active_joint_idx
+    rad = np.random.default_rng(3).uniform(lim[:, 0], lim[:, 1], size=(50, spec.num_native))
+    rad[:2, a] = lim[a, 1]  # exactly at the limit: fine
+    spec.check_units(rad, "right")
+    j = int(a[0])
+    rad[7, j] = lim[j, 1] + 0.02 * (lim[j, 1] - lim[j, 0])
+    with pytest.raises(hands.NativeUnitsError, match=rf"1 value\(s\) outside the native range: {spec.joint_names[j]}"):
+        spec.check_units(rad, "right")
