@@ -480,3 +480,22 @@ def test_append_pad_mapping_and_stale_temp_cleanup(samples, tmp_path):
         assert rows[:, :n_active].all() and not rows[:, n_active:].any()  # packed at the front
     assert read_settings(target)["mapping"] == "append_pad"
     assert validate_dataset(target).ok  # the validator checks masks against the recorded mapping
+
+
+def test_input_is_synthetic_reads_the_sample_labels_up_to_two_folders_up(tmp_path):
+    """A sample written by `conversion.samples` carries a labels file saying it is synthetic; an input inside
+    it (up to two folders down) is marked synthetic on the card, a labels file saying false or a damaged one
+    is not (a damaged file must not stop the conversion)."""
+    from lerobot_unidextok.conversion.pipeline import input_is_synthetic
+    from lerobot_unidextok.conversion.samples import LABELS_FILE
+
+    sample = tmp_path / "sample"
+    (sample / "a" / "b" / "c").mkdir(parents=True)
+    (sample / LABELS_FILE).write_text(json.dumps({"synthetic": True}))
+    assert input_is_synthetic(sample) and input_is_synthetic(sample / "a" / "b")
+    assert not input_is_synthetic(sample / "a" / "b" / "c")  # three folders down: not looked for
+    (sample / LABELS_FILE).write_text(json.dumps({"synthetic": False}))
+    assert not input_is_synthetic(sample / "a")
+    for damaged in ("{not json", "[1, 2]"):
+        (sample / LABELS_FILE).write_text(damaged)
+        assert input_is_synthetic(sample) is False

@@ -462,3 +462,15 @@ def test_udhm_to_native_recovers_real_l10_presets(real_data_dir, tok_dir):
     np.testing.assert_allclose(post.action(torch.from_numpy(l10_states)).numpy(), raw, atol=0.5)
     step = UniDexTokStateTokenizerStep(hand_layout=["linkerhand_l10"] * 2, pretrained=str(tok_dir))
     assert step.observation({OBS_STATE: torch.from_numpy(l10_states)})[OBS_HAND_TOKENS].shape[0] == len(raw)
+
+
+def test_udhm_to_native_with_a_whole_robot_layout_gives_the_native_vector():
+    """A step built from a whole robot's state names decodes a converted 58-wide G1 vector back to Unitree's
+    26 native columns: the arm passthrough by name, then each Inspire hand. Catches the state names dropped
+    on the way to the native layout (`state_names or None` -> `and None`: hands only, arms lost)."""
+    from robot_udhm import native_motion, to_converted
+
+    native = native_motion(6, seed=1)  # (6, 26) arms + left hand + right hand, Unitree's order and units
+    out = udhm_to_native(to_converted(native), HandLayout(PAIR, ["left", "right"], STATE_NAMES))
+    assert out.shape == (6, 26)
+    np.testing.assert_allclose(out, native, atol=1e-5)

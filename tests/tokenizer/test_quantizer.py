@@ -340,3 +340,15 @@ def test_reseed_before_any_batch_and_from_a_single_row():
         vq.usage_ema.zero_()
     assert vq.reseed_dead_codes() == 2
     torch.testing.assert_close(vq.codebooks, torch.tensor([[[0.0, 3.0], [0.0, 3.0]]]))  # e1 x mean norm 3
+
+
+def test_l2norm_gives_unit_vectors_whatever_their_length():
+    """Cosine VQ compares directions: latents and codes of any length (here 1e-3 to 1e3) come out of unit
+    length, and a zero vector stays finite. Catches an eps as large as the vectors (`1e-6` -> `1.000001`),
+    which leaves every vector shorter than 1 unnormalised."""
+    from lerobot_unidextok.tokenizer.quantizer import l2norm
+
+    x = torch.randn(64, 8) * torch.logspace(-3, 3, 64)[:, None]
+    torch.testing.assert_close(l2norm(x).norm(dim=-1), torch.ones(64))
+    torch.testing.assert_close(l2norm(x), x / x.norm(dim=-1, keepdim=True))
+    assert torch.isfinite(l2norm(torch.zeros(2, 8))).all()

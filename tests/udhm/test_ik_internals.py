@@ -11,7 +11,7 @@ import pytest
 
 from lerobot_unidextok.udhm import Skeleton
 from lerobot_unidextok.udhm.fk import AXIAL_PRONATION_RAD, CHAIN_ACTIVE
-from lerobot_unidextok.udhm.ik import SLOT_LIMITS_RAD, _abd_flex, _residuals
+from lerobot_unidextok.udhm.ik import SLOT_LIMITS_RAD, _abd_flex, _best_branch, _residuals
 
 
 def _blocks(rng: np.random.Generator, n: int, spread_rad: float):
@@ -76,3 +76,29 @@ def test_abd_flex_inverts_the_joint_rotation_on_the_half_plane_branch(rng):
     assert np.abs(a).max() > 1.5  # the sample reaches the fold
     rebuilt = np.stack([np.sin(f), np.sin(a) * np.cos(f), np.cos(a) * np.cos(f)], axis=-1)
     np.testing.assert_allclose(rebuilt, d, atol=1e-12)
+
+
+def test_best_branch_turns_a_twin_back_into_the_in_limit_solution(rng):
+    """Rot_x(-a) Rot_y(f) = Rot_x(-(a + pi)) Rot_y(pi - f) Rot_z(pi): the twin of the first 2-DoF joint (a + pi,
+    pi - f, every later slot negated) poses the finger identically. Given that twin of an in-limit pose,
+    `_best_branch` must return the in-limit pose, and both must give the same keypoints. Catches a twin
+    built from the wrong slot (`c[..., j + 1]` -> `c[..., j + 2]`) or without the later sign flip."""
+    from lerobot_unidextok.udhm.fk import finger_chain
+    from lerobot_unidextok.udhm.ik import _wrap
+
+    n = 200
+    lo, hi = SLOT_LIMITS_RAD[..., 0], SLOT_LIMITS_RAD[..., 1]  # (5, 6)
+    lo_f, hi_f = np.where(np.isfinite(lo), lo, 0.0), np.where(np.isfinite(hi), hi, 0.0)
+    pad = 0.05 * (hi_f - lo_f)
+    q = np.where(CHAIN_ACTIVE, rng.uniform(lo_f + pad, hi_f - pad, size=(n, 5, 6)), 0.0)  # inside the limits
+    twin = q.copy()
+    twin[..., 1] = _wrap(q[..., 1] + np.pi)
+    twin[..., 2] = _wrap(np.pi - q[..., 2])
+    twin[..., 3:] = -q[..., 3:]
+    sk = Skeleton.default()
+    off = np.broadcast_to(np.asarray(sk.palm_offsets_m), (n, 5, 3))
+    bones = np.broadcast_to(np.asarray(sk.bone_lengths_m), (n, 5, 3))
+    pose = finger_chain(q, off, bones, AXIAL_PRONATION_RAD).points
+    np.testing.assert_allclose(finger_chain(twin, off, bones, AXIAL_PRONATION_RAD).points, pose, atol=1e-12)
+    best = _best_branch(twin, slice(None))
+    np.testing.assert_allclose(_wrap(best - q), 0.0, atol=1e-12)
