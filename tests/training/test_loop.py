@@ -340,3 +340,38 @@ def test_num_threads_is_set_for_the_run_and_restored(mixture, tmp_path, monkeypa
     monkeypatch.setattr(torch, "set_num_threads", lambda n: (calls.append(n), real(n))[1])
     train_tokenizer(_cfg(tmp_path, steps=2, eval_every=2, num_threads=1), train, test)
     assert calls == [1, before] and torch.get_num_threads() == before
+
+
+def test_resuming_a_finished_run_adds_nothing_but_a_missing_evaluation(mixture, tmp_path):
+    """`--resume` on a run that already reached its steps trains no further. If it was evaluated, nothing
+    changes; if it ran without held-out rows, resuming with them evaluates the final model once so `best/`
+    is a selected checkpoint. Catches the extra evaluation on every resume (`not history` dropped, or `and`
+    -> `or`) and none for a run that is exactly at its end (`>=` -> `>`)."""
+    train, test = mixture
+    kw = dict(steps=6, eval_every=3, save_last_every=3)
+    first = train_tokenizer(_cfg(tmp_path, output_dir=str(tmp_path / "a"), **kw), train, test)
+    again = train_tokenizer(_cfg(tmp_path, output_dir=str(tmp_path / "a"), resume=True, **kw), train, test)
+    assert [h["step"] for h in first.history] == [3, 6] and again.history == first.history
+
+    train_tokenizer(_cfg(tmp_path, output_dir=str(tmp_path / "b"), **kw), train, None)
+    late = train_tokenizer(_cfg(tmp_path, output_dir=str(tmp_path / "b"), resume=True, **kw), train, test)
+    assert [h["step"] for h in late.history] == [6] and late.best_step == 6
+    state = json.loads((late.best_dir / "training_state.json").read_text())
+    assert state["eval_mae_deg"] == pytest.approx(late.best_mae_deg, abs=1e-12)
+
+
+def test_training_data_needs_one_row_and_a_given_model_learns_new_hands(mixture, tmp_path):
+    """No rows is a clear error, one row is enough; a model passed in that lacks a training hand gets its
+    embedding row added (and recorded as trained). Catches the emptiness test off by one (`== 0` -> `== 1`)
+    and the known hands taken for the unknown ones (`not` dropped: the new hand has no row)."""
+    train, test = mixture
+    with pytest.raises(ValueError, match="need training rows"):
+        train_tokenizer(_cfg(tmp_path, steps=1), train.select(np.zeros(0, dtype=np.int64)), None)
+    one = train.only("inspire_rh56").select(np.array([0]))
+    torch.manual_seed(0)
+    model = UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["human"]))
+    result = train_tokenizer(_cfg(tmp_path, steps=2, eval_every=2, batch_size=4), one, None, model)
+    assert result.steps == 2
+    trained = UniDexTok.from_pretrained(result.best_dir)
+    assert trained.knows_hand("inspire_rh56") and trained.knows_hand("human")
+    assert trained.config.trained_hands == ["inspire_rh56"]

@@ -110,3 +110,21 @@ def test_joint_ranges_cover_the_registry_ranges_and_every_recorded_row():
         np.testing.assert_allclose(got[:, 0], want_lo, rtol=0, atol=1e-12)
         np.testing.assert_allclose(got[:, 1], want_hi, rtol=0, atol=1e-12)
     assert got[slot, 1] == pytest.approx(robot[17, slot], abs=1e-6) and got[5, 0] == pytest.approx(-2.5)
+
+
+def test_joint_ranges_of_a_still_hand_are_the_union_of_its_sides():
+    """One L10 frame at zero: the ranges are exactly the union of the right and left registry ranges (the
+    left hand's abduction range is not the right's). Catches the sides' upper bounds met by their minimum
+    (`hhi.max(0)` -> `hhi.min(0)`), which recorded motion of a wide hand would hide."""
+    from lerobot_unidextok import hands
+    from lerobot_unidextok.training.loop import joint_ranges_rad
+
+    l10 = hands.get("linkerhand_l10")
+    mask = l10.mask("semantic")
+    data = HandStates(np.zeros((1, 22)), np.array(["linkerhand_l10"]), mask[None])
+    lo_r, hi_r = l10.udhm_limits_rad("right")
+    lo_l, hi_l = l10.udhm_limits_rad("left")
+    got = np.array(joint_ranges_rad(data))
+    assert (hi_r != hi_l).any() and (lo_r != lo_l).any()  # the sides differ, so the test can tell
+    np.testing.assert_allclose(got[:, 0], np.minimum.reduce([lo_r, lo_l, np.zeros(22)]), atol=1e-12)
+    np.testing.assert_allclose(got[:, 1], np.maximum.reduce([hi_r, hi_l, np.zeros(22)]), atol=1e-12)
