@@ -6,6 +6,7 @@ constants); the real LinkerHand presets in ../shared are an extra check that ski
 
 import json
 import logging
+import math
 
 import numpy as np
 import pytest
@@ -334,6 +335,21 @@ def test_token_preview_shows_codes_and_decoded_state(step, states):
     first_codes = step.observation({OBS_STATE: states[0]})[OBS_HAND_TOKENS][: cfg.num_groups]
     assert "  tokens " + " ".join(f"{c:2d}" for c in first_codes.tolist()) in text
     assert "input deg" in text and "decoded deg" in text
+    # the numbers are degrees of the first hand's active joints, and the error is over all of them
+    lines = text.splitlines()
+    row = next(i for i, ln in enumerate(lines) if ln.endswith("input deg"))
+    shown = [float(v) for v in lines[row].split()[:-2]]
+    decoded = [float(v) for v in lines[row + 1].split()[:-2]]
+    rows = step.hand_blocks(states[:1])[0, 0]  # (22,) rad, frame 0, hand 0
+    active = step._active[0]
+    want = np.degrees(rows[active].numpy())[: len(shown)]
+    np.testing.assert_allclose(shown, want, atol=0.051)
+    codes = step.tokenize(states[:1])[0].reshape(-1, cfg.num_tokens, cfg.num_groups)  # (H, N, K)
+    back = step.tokenizer.decode(codes, step._hand_ids)[0]  # (22,) hand 0, rad
+    np.testing.assert_allclose(decoded, np.degrees(back[active].numpy())[: len(decoded)], atol=0.051)
+    err = float(lines[0].split("= ")[1].split(" deg")[0])
+    assert err == pytest.approx(float((back - rows).abs()[active].mean()) * 180 / math.pi, abs=0.0051)
+    assert lines[0].startswith(f"frame 0 hand 0 ({PAIR[0]}): {cfg.num_tokens} tokens x {cfg.num_groups} codes")
 
 
 def test_token_preview_of_a_whole_robot_state(robot_step, step, states):
