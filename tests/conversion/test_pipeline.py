@@ -499,3 +499,21 @@ def test_input_is_synthetic_reads_the_sample_labels_up_to_two_folders_up(tmp_pat
     for damaged in ("{not json", "[1, 2]"):
         (sample / LABELS_FILE).write_text(damaged)
         assert input_is_synthetic(sample) is False
+
+
+def test_stale_temp_cleanup_leaves_a_live_run_alone(tmp_path):
+    """A temp folder whose process still runs (here: this test's own pid) is another conversion at work and
+    stays; one of a dead process (no such pid) goes. The liveness probe must be signal 0, which delivers
+    nothing: any other signal would hit the live run (SIGHUP, `os.kill(pid, 1)`, ends this test process)."""
+    import os
+
+    from lerobot_unidextok.conversion.pipeline import _remove_stale_temps
+
+    target = tmp_path / "ds"
+    live = tmp_path / f".ds.tmp-{os.getpid()}-cafebabe"
+    dead = tmp_path / ".ds.tmp-999999999-deadbeef"
+    other = tmp_path / ".other.tmp-999999999-deadbeef"  # another dataset's temp folder: not ours to judge
+    for folder in (live, dead, other):
+        (folder / "data").mkdir(parents=True)
+    _remove_stale_temps(target)
+    assert live.is_dir() and other.is_dir() and not dead.exists()

@@ -193,6 +193,17 @@ def test_mimic_chains_resolve_whatever_the_joint_order(toy, tmp_path):
     )
 
 
+def test_rest_pose_is_zero_clipped_into_each_joints_limits(toy, tmp_path):
+    """The URDF rest pose (where skeletons are measured and rest offsets read) is 0 rad for every independent
+    joint, clipped into its limits. Catches a rest angle other than 0 (`0.0` -> `1.0`: every finger bent)."""
+    spec, urdf = toy()
+    assert set(UrdfHand.load(urdf, spec.urdf.keypoints["right"]).rest_cfg().values()) == {0.0}
+    raised = tmp_path / "raised.urdf"  # index MCP limited to [0.2, 1.5]: its rest is 0.2
+    raised.write_text(urdf.read_text().replace('<limit lower="0.0" upper="1.5"', '<limit lower="0.2" upper="1.5"', 1))
+    rest = UrdfHand.load(raised, spec.urdf.keypoints["right"]).rest_cfg()
+    assert rest["index_mcp"] == pytest.approx(0.2) and rest["middle_mcp"] == 0.0
+
+
 def test_measured_skeleton_has_the_urdf_bone_lengths(toy):
     spec, urdf = toy()
     skel = measure_skeleton(UrdfHand.load(urdf, spec.urdf.keypoints["right"]))

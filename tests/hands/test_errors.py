@@ -10,6 +10,7 @@ import pytest
 import torch
 
 from lerobot_unidextok import hands
+from lerobot_unidextok.udhm import Skeleton
 
 MINIMAL = textwrap.dedent(
     """\
@@ -56,6 +57,11 @@ def test_new_hand_from_one_yaml(tmp_path):
     assert spec.active_mask.sum() == 2 and spec.dropped_joints == ("wrist",)
     back = spec.from_udhm(state)
     np.testing.assert_allclose(back, [[45.0, 90.0, 10.0]], atol=1e-12)  # dropped, no angle: upper raw end
+    # no `skeleton:` block: the default adult human skeleton, unscaled (as for the human hand itself)
+    default = Skeleton.default()
+    for skel in (spec.skeleton(), hands.get("human").skeleton()):
+        np.testing.assert_allclose(skel.bone_lengths_m, default.bone_lengths_m, atol=1e-12)
+        np.testing.assert_allclose(skel.palm_offsets_m, default.palm_offsets_m, atol=1e-12)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -79,6 +85,8 @@ def test_new_hand_from_one_yaml(tmp_path):
         ("sides: [right]", "sides: [right, right]", "sides"),
         ("    note: not a finger joint", "    default_raw: 12", "default_raw"),  # outside [-10, 10]
         ("    note: not a finger joint", "    default_raw: open", "default_raw"),
+        ("kind: joints", "kind: joints\nskeleton:\n  bone_lengths_m: [0.03, 0.02, 0.02]", "bone_lengths_m"),
+        ("kind: joints", "kind: joints\nskeleton:\n  bone_lengths_m: {thumbs: [0.03, 0.02, 0.02]}", "bone_lengths_m"),
         ("    note: not a finger joint", "    tendon: 3", "unknown key"),
         ("slot: index_mcp_flex\n", "slot: index_mcp_flex\n    sign: 2\n", "sign"),
         ("embodiment: toy_gripper_hand\n", "", "embodiment"),
@@ -106,6 +114,14 @@ def test_dropped_joints_decode_to_their_raw_value_at_zero_rad(tmp_path):
     assert spec.dropped_joints == ("wrist",)
     back = spec.from_udhm(spec.to_udhm(np.array([[45.0, 90.0, 120.0]])))
     np.testing.assert_allclose(back, [[45.0, 90.0, 50.0]], atol=1e-9)
+
+
+@pytest.mark.parametrize("joints", ["[]", "3"])
+def test_a_joints_hand_needs_a_list_of_joints(tmp_path, joints):
+    """Catches the two clauses of the check joined with `and` (an empty list, or a number, slipped through)."""
+    text = MINIMAL.format(name="toy_hand").split("joints:\n")[0] + f"joints: {joints}\n"
+    with pytest.raises(ValueError, match="field 'joints': a kind 'joints' hand needs a non-empty list of joints"):
+        hands.load_spec(_write(tmp_path, text))
 
 
 def test_file_name_must_match_spec_name(tmp_path):

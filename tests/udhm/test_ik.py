@@ -128,6 +128,8 @@ def test_chunking_gives_identical_results(rng):
     chunked = udhm.inverse_kinematics(kp, chunk_size=10, progress=False)
     np.testing.assert_array_equal(chunked.angles_rad, whole.angles_rad)
     np.testing.assert_array_equal(chunked.residual_m, whole.residual_m)
+    single = udhm.inverse_kinematics(kp[:4], chunk_size=1, progress=False)  # the smallest chunk is allowed
+    np.testing.assert_array_equal(single.angles_rad, whole.angles_rad[:4])
 
 
 def test_noisy_keypoints_fit_denoises_with_a_sequence_skeleton(rng):
