@@ -337,7 +337,12 @@ def test_num_threads_is_set_for_the_run_and_restored(mixture, tmp_path, monkeypa
     before = torch.get_num_threads()
     calls: list[int] = []
     real = torch.set_num_threads
-    monkeypatch.setattr(torch, "set_num_threads", lambda n: (calls.append(n), real(n))[1])
+
+    def recording(n: int) -> None:
+        calls.append(n)
+        real(n)
+
+    monkeypatch.setattr(torch, "set_num_threads", recording)
     train_tokenizer(_cfg(tmp_path, steps=2, eval_every=2, num_threads=1), train, test)
     assert calls == [1, before] and torch.get_num_threads() == before
 
