@@ -44,7 +44,7 @@ def _fixed(name, parent, child, xyz):
   </joint>"""
 
 
-def toy_urdf() -> str:
+def toy_urdf(joints_reversed: bool = False) -> str:
     links, joints = ["base"], []
     for f, y in FINGER_Y.items():
         links += [f"{f}_knuckle", f"{f}_proximal", f"{f}_middle", f"{f}_distal", f"{f}_tip"]
@@ -63,7 +63,7 @@ def toy_urdf() -> str:
     joints.append(_joint("thumb_swing", "base", "thumb_base", "0.01 0.025 0.03", "0 0 -1", 0.0, 1.2))
     joints.append(_joint("thumb_turn", "thumb_base", "thumb_metacarpal", "0 0 0", "1 0 0", -0.5, 0.7))
     joints.append(_fixed("thumb_tip_fixed", "thumb_metacarpal", "thumb_tip", f"0 {3 * s} {3 * s}"))
-    body = "".join(f'\n  <link name="{n}"/>' for n in links) + "".join(joints)
+    body = "".join(f'\n  <link name="{n}"/>' for n in links) + "".join(joints[::-1] if joints_reversed else joints)
     return f'<?xml version="1.0"?>\n<robot name="toy_hand">{body}\n</robot>\n'
 
 
@@ -176,12 +176,8 @@ def test_mimic_chains_resolve_whatever_the_joint_order(toy, tmp_path):
     the chain to its root. Catches chains left unflattened (`leader is None` -> `is not None`), which only
     works when every leader comes first in the file."""
     spec, urdf = toy()
-    head, _, rest = urdf.read_text().partition("\n  <joint ")
-    blocks = ("  <joint " + rest.removesuffix("\n</robot>\n")).split("\n  <joint ")
     reordered = tmp_path / "reversed.urdf"
-    reordered.write_text(
-        head + "\n  <joint " + "\n  <joint ".join(b.removeprefix("  <joint ") for b in blocks[::-1]) + "\n</robot>\n"
-    )
+    reordered.write_text(toy_urdf(joints_reversed=True))
     hand = UrdfHand.load(reordered, spec.urdf.keypoints["right"])
     assert hand.mimics["ring_dip"] == ("ring_mcp", 0.5, 0.0)
     full = hand.full_cfg({"ring_mcp": 0.6})
