@@ -26,6 +26,7 @@ from datatrove.executor import LocalPipelineExecutor
 from datatrove.executor.slurm import SlurmPipelineExecutor
 from datatrove.pipeline.base import PipelineStep
 
+from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.conversion.pipeline import ConvertOptions
 from lerobot_unidextok.conversion.sharded import ExecutorOptions, logging_dir_of
 
@@ -100,11 +101,11 @@ class MergeShards(PipelineStep):
         if rank != 0:
             return
         shards = shard_roots(self.shards_dir, self.num_shards)
-        missing = [str(s) for s in shards if not (s / "meta" / "info.json").is_file()]
+        missing = [str(s) for s in shards if not (s / INFO_PATH).is_file()]
         if missing:
             raise FileNotFoundError(f"shard datasets missing (did every convert task finish?): {missing}")
         target = merge_shards(shards, self.root, self.repo_id, overwrite=self.overwrite)
-        info = json.loads((target / "meta" / "info.json").read_text())
+        info = json.loads((target / INFO_PATH).read_text())
         self.stat_update("episodes", value=int(info["total_episodes"]), unit="dataset")
         self.stat_update("frames", value=int(info["total_frames"]), unit="dataset")
         if not self.keep_shards:

@@ -10,16 +10,14 @@ leading/trailing frames where no hand is present are trimmed. Anything that woul
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
-from lerobot_unidextok.constants import SIDES, UDHM_DIM
+from lerobot_unidextok.constants import MAPPINGS, SIDES, UDHM_DIM
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode, VideoSegment
 from lerobot_unidextok.state_layout import udhm_state_names
 
-Mapping = Literal["semantic", "append_pad"]
-MAPPINGS: tuple[str, ...] = ("semantic", "append_pad")
 ANGLE_BOUND_RAD = 2 * np.pi  # no UDHM joint angle is beyond this: larger values are unit errors
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.constants import DATA_GLOB, INFO_PATH
 from lerobot_unidextok.experiments.config import ExperimentConfig, config_dict
 from lerobot_unidextok.training import (
     HandStates,
@@ -136,7 +137,7 @@ def sample_raw_dir(cfg: ExperimentConfig) -> Path:
 
 
 def _valid_dataset(root: Path) -> bool:
-    return (root / "meta" / "info.json").is_file() and any((root / "data").glob("chunk-*/file-*.parquet"))
+    return (root / INFO_PATH).is_file() and any(root.glob(DATA_GLOB))
 
 
 def prepare_sample_data(cfg: ExperimentConfig, mapping: str = "semantic") -> list[Path]:

@@ -18,15 +18,20 @@ from typing import Any, Literal
 import numpy as np
 import torch
 
-from lerobot_unidextok.constants import NUM_KEYPOINTS, UDHM_DIM, UDHM_INDEX, UDHM_JOINT_NAMES
+from lerobot_unidextok.constants import (
+    MAPPINGS,
+    NUM_KEYPOINTS,
+    UDHM_DIM,
+    UDHM_INDEX,
+    UDHM_JOINT_NAMES,
+    UdhmMapping,
+)
 
 logger = logging.getLogger(__name__)
 
-Mapping = Literal["semantic", "append_pad"]
 OutOfRange = Literal["raise", "clip"]
 Array = np.ndarray | torch.Tensor
 
-MAPPINGS: tuple[str, ...] = ("semantic", "append_pad")
 OUT_OF_RANGE_MODES: tuple[str, ...] = ("raise", "clip")
 # Relative slack on range checks so float round-off at an end point is not "out of range".
 _RANGE_TOL = 1e-6
@@ -252,7 +257,7 @@ class HandSpec:
         """(22,) bool: UDHM slots filled by a real DoF of this hand (semantic insertion)."""
         return self.mask("semantic")
 
-    def mask(self, mapping: Mapping = "semantic") -> np.ndarray:
+    def mask(self, mapping: UdhmMapping = "semantic") -> np.ndarray:
         """(22,) bool active-DoF mask of ``mapping``."""
         self._check_mapping(mapping)
         mask = np.zeros(UDHM_DIM, dtype=bool)
@@ -340,7 +345,7 @@ class HandSpec:
         self,
         raw: Any,
         side: str = "right",
-        mapping: Mapping = "semantic",
+        mapping: UdhmMapping = "semantic",
         on_out_of_range: OutOfRange = "raise",
     ) -> Array:
         """Native values -> UDHM state (..., 22) in radians; inactive slots are 0."""
@@ -356,7 +361,7 @@ class HandSpec:
         out[..., target] = values
         return out
 
-    def from_udhm(self, state: Any, side: str = "right", mapping: Mapping = "semantic") -> Array:
+    def from_udhm(self, state: Any, side: str = "right", mapping: UdhmMapping = "semantic") -> Array:
         """UDHM state (..., 22) in radians -> native values (..., J), clipped to the joint limits.
 
         Dropped joints get their ``default_raw``. For the human hand: keypoints (..., 21, 3) in metres

@@ -21,7 +21,7 @@ from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3d project
 
 from lerobot_unidextok import hands as hand_registry
 from lerobot_unidextok import udhm
-from lerobot_unidextok.constants import OBS_STATE, UDHM_DIM
+from lerobot_unidextok.constants import INFO_PATH, OBS_STATE, UDHM_DIM
 from lerobot_unidextok.viz.hands3d import BONES, VIEWS
 from lerobot_unidextok.viz.style import DARK_BG, GROUND_TRUTH_COLOR, UNIDEXTOK_COLOR
 
@@ -88,13 +88,13 @@ def load_episode(
     from lerobot_unidextok.utils.hf_cache import dataset_root
 
     root = Path(dataset)
-    if not (root / "meta" / "info.json").is_file():
+    if not (root / INFO_PATH).is_file():
         if root.exists() or str(dataset).count("/") != 1:
             raise FileNotFoundError(f"{dataset} is not a LeRobotDataset folder (meta/info.json missing) nor a repo id")
         root = dataset_root(str(dataset))
     if stride < 1:
         raise ValueError(f"stride must be >= 1, got {stride}")
-    info = json.loads((root / "meta" / "info.json").read_text())
+    info = json.loads((root / INFO_PATH).read_text())
     layout = hand_layout_from_dataset(root)
     states, frame_index = _episode_states(root, episode)
     take = np.arange(0, len(states), stride)[:max_frames]
