@@ -21,6 +21,7 @@ from lerobot_unidextok.training import (
     load_hand_states,
     train_tokenizer,
 )
+from lerobot_unidextok.training.splits import split_by_episode
 
 logger = logging.getLogger(__name__)
 
@@ -280,18 +281,13 @@ def trained_unidextok(cfg: ExperimentConfig, tag: str, train: HandStates, select
 
 
 def selection_split(train: HandStates, seed: int, fraction: float = 0.1) -> tuple[HandStates, HandStates]:
-    """(fit rows, checkpoint-selection rows): whole training episodes held back per hand, never test rows."""
-    rng = np.random.default_rng(seed)
+    """(fit rows, checkpoint-selection rows): whole training episodes held back per hand
+    (`training.splits.split_by_episode`), never test rows; every 10th row when no hand has two episodes."""
+    fit, select = split_by_episode(train, fraction, seed)
+    if len(select):
+        return fit, select
     pick = np.zeros(len(train), dtype=bool)
-    eps = train.episode_index if train.episode_index is not None else np.arange(len(train))
-    for hand in train.hand_names():
-        rows = train.hands == hand
-        uniq = np.unique(eps[rows])
-        n = max(1, round(fraction * len(uniq))) if len(uniq) > 1 else 0
-        chosen = rng.choice(uniq, size=n, replace=False) if n else []
-        pick |= rows & np.isin(eps, chosen)
-    if not pick.any():  # one episode only: hold back every 10th row
-        pick[:: max(2, int(1 / fraction))] = True
+    pick[:: max(2, int(1 / fraction))] = True
     return train.select(np.flatnonzero(~pick)), train.select(np.flatnonzero(pick))
 
 
