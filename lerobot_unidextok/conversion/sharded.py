@@ -38,6 +38,7 @@ from lerobot_unidextok.conversion.pipeline import (
     plan_episodes,
 )
 from lerobot_unidextok.conversion.registry import make_reader
+from lerobot_unidextok.utils.imports import missing_package_message
 
 logger = logging.getLogger(__name__)
 
@@ -45,9 +46,8 @@ __all__ = ["EXECUTORS", "ExecutorOptions", "SlurmOptions", "convert_with_executo
 
 EXECUTORS = ("local", "slurm")
 RUN_SETTINGS = "run_settings.json"  # the settings of the run that owns a logging_dir (resume guard)
-DATATROVE_MISSING = (
-    "--executor=local|slurm needs datatrove, an optional extra: pip install 'lerobot-unidextok[datatrove]' "
-    "(or pip install 'datatrove>=0.10,<0.11')"
+DATATROVE_MISSING = missing_package_message(
+    "datatrove", "datatrove", purpose="--executor=local|slurm", hint=" (or pip install 'datatrove>=0.10,<0.11')"
 )
 
 

@@ -20,19 +20,9 @@ import numpy as np
 
 from lerobot_unidextok.constants import KEYPOINT_NAMES
 from lerobot_unidextok.hands.spec import UrdfKeypoint
+from lerobot_unidextok.utils.imports import require_package
 
 logger = logging.getLogger(__name__)
-
-
-def require_yourdfpy():
-    """The yourdfpy module, or an ImportError naming the extra that installs it."""
-    try:
-        import yourdfpy
-    except ImportError as err:  # pragma: no cover - exercised only without the extra
-        raise ImportError(
-            "the URDF kinematic check needs yourdfpy: pip install 'lerobot-unidextok[urdf]' (or pip install yourdfpy)"
-        ) from err
-    return yourdfpy
 
 
 @dataclass
@@ -47,7 +37,9 @@ class UrdfHand:
     @classmethod
     def load(cls, path: str | Path, keypoints: tuple[UrdfKeypoint, ...]) -> UrdfHand:
         """Parse ``path`` (meshes are not loaded: kinematics only) and check that every keypoint link exists."""
-        yourdfpy = require_yourdfpy()
+        yourdfpy = require_package(
+            "yourdfpy", "urdf", purpose="the URDF kinematic check", hint=" (or pip install yourdfpy)"
+        )
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"URDF not found: {path}")
