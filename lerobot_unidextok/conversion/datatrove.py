@@ -27,8 +27,8 @@ from datatrove.executor.slurm import SlurmPipelineExecutor
 from datatrove.pipeline.base import PipelineStep
 
 from lerobot_unidextok.constants import INFO_PATH
-from lerobot_unidextok.conversion.pipeline import ConvertOptions
-from lerobot_unidextok.conversion.sharded import ExecutorOptions, logging_dir_of
+from lerobot_unidextok.conversion.executor_options import ExecutorOptions, logging_dir_of
+from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert, merge_shards
 
 logger = logging.getLogger(__name__)
 
@@ -52,7 +52,6 @@ class ConvertShard(PipelineStep):
         self.shards_dir = str(shards_dir)
 
     def run(self, data=None, rank: int = 0, world_size: int = 1):
-        from lerobot_unidextok.conversion.pipeline import convert
         from lerobot_unidextok.conversion.validate import validate_dataset
 
         root = shard_roots(self.shards_dir, world_size)[rank]
@@ -96,8 +95,6 @@ class MergeShards(PipelineStep):
         self.overwrite, self.keep_shards = overwrite, keep_shards
 
     def run(self, data=None, rank: int = 0, world_size: int = 1):
-        from lerobot_unidextok.conversion.pipeline import merge_shards
-
         if rank != 0:
             return
         shards = shard_roots(self.shards_dir, self.num_shards)

@@ -105,6 +105,8 @@ def _map_values(
     present: np.ndarray,
 ) -> np.ndarray:
     """(T, ...) native -> (T, 22) float32 rad; absent frames are zero."""
+    from lerobot_unidextok.hands import check_units
+
     num = values.shape[0]
     out = np.zeros((num, UDHM_DIM), dtype=np.float32)
     sel = values[present]
@@ -117,7 +119,7 @@ def _map_values(
     if not present.any():
         return out
     try:
-        spec.check_units(sel, side)  # wrong units (a tiny corner of the range, or beyond it): likely fix
+        check_units(spec, sel, side)  # wrong units (a tiny corner of the range, or beyond it): likely fix
         udhm = np.asarray(spec.to_udhm(sel, side=side, mapping=mapping), dtype=np.float64)
     except EpisodeError:
         raise
