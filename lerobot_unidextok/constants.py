@@ -67,7 +67,6 @@ OBS_STATE = "observation.state"
 ACTION = "action"
 HAND_TYPE_KEY = "hand_type"  # string feature: hand spec name(s) of the frame, e.g. "inspire_rh56"
 UDHM_MASK_KEY = "udhm_mask"  # bool feature: which UDHM slots are real DoFs of the source hand
-SPLIT_KEY = "split"  # not a frame feature: train/test split lives in meta/info.json "splits"
 OBS_HAND_TOKENS = "observation.hand_tokens"  # int64 codes added by the processor step
 OBS_HAND_TOKEN_FEATURES = "observation.environment_state"  # float view of the tokens for policies
 

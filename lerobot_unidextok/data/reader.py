@@ -104,11 +104,6 @@ def udhm_blocks(info: dict, key: str = OBS_STATE) -> list[UdhmBlock]:
     return blocks
 
 
-def _block_sides(info: dict) -> list[str]:
-    """Side of each UDHM block of observation.state, in vector order."""
-    return [b.side for b in udhm_blocks(info)]
-
-
 def _fixed_list_to_numpy(col: pa.ChunkedArray, width: int, dtype) -> np.ndarray:
     """(N, width) array from a fixed_size_list / list column without per-row Python."""
     col = col.combine_chunks() if isinstance(col, pa.ChunkedArray) else col

@@ -80,9 +80,6 @@ class JointSpec:
     note: str = ""
     judgement: str = ""  # non-empty = a judgement call, with its reason
 
-    def slot_for(self, side: str) -> str | None:
-        return self.sides[side].slot
-
 
 @dataclass(frozen=True)
 class CoupledJoint:

@@ -87,7 +87,7 @@ def test_robot_source_contract_and_round_trip(samples, linker):
     assert settings["source"] == "linkerhand" and settings["synthetic"] is True
     keys = [str(r).replace(str(samples["linkerhand"]) + "/", "") for r in refs]
     _, test_pos = split_order(keys, 0.2)
-    assert settings["test_episodes"] == test_pos  # same rule as before, now a list of indices
+    assert settings["test_episodes"] == test_pos  # the sha1 rule over source keys, as a list of indices
     assert [r["source"] for r in settings["episodes"]] == keys  # source order, each source recorded
     assert [r["split"] for r in settings["episodes"]] == ["test" if i in test_pos else "train" for i in range(6)]
     frames = load_udhm_frames(root)

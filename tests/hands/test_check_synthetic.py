@@ -146,7 +146,7 @@ def test_right_spec_agrees_everywhere(toy):
 
 
 def test_wrong_spec_is_flagged_with_the_fix(toy):
-    """A deliberately wrong spec: thumb base joints swapped (the bug of issue 11), index abduction sign
+    """A deliberately wrong spec: thumb base joints swapped, index abduction sign
     flipped, and the thumb spread's rest offset missing on an otherwise right spec."""
     spec, urdf = toy(thumb_swapped=True, index_abd_sign=-1)
     verdicts = {j.joint: j for j in check_spec(spec, urdf, "right").joints}

@@ -172,8 +172,8 @@ def test_g1_inspire_episodes_map_into_joint_limits(g1):
 
 
 def test_g1_inspire_through_the_register_spec_is_caught(g1):
-    """Issue 11 item 5: Unitree's 0-1 values through the 0-1000 `inspire_rh56` spec used to convert into a
-    hand held closed and validate; the units guard now raises and names the Unitree spec as the fix."""
+    """Unitree's 0-1 values through the 0-1000 `inspire_rh56` spec would convert into a hand held closed and
+    validate; the units guard raises and names the Unitree spec as the fix."""
     names, episodes = g1
     values = episodes[0]["observation.state"][:, _hand_columns(names, "right")]
     with pytest.raises(hands.NativeUnitsError, match="inspire_rh56_unitree"):

@@ -1,4 +1,4 @@
-"""Issue 11 item 5: wrong native units raise with the likely fix, before anything converts silently."""
+"""Wrong native units raise with the likely fix, before anything converts silently."""
 
 from __future__ import annotations
 
@@ -18,7 +18,8 @@ def _grasp(num: int = 120, seed: int = 0) -> np.ndarray:
 
 
 def test_normalised_values_through_the_register_spec_raise():
-    """Before issue 11 these converted into a hand held closed (all values < 1 of 1000) and validated."""
+    """Normalised 0-1 values through the 0-1000 register spec would convert into a hand held closed (all values
+    < 1 of 1000) and validate: they raise, naming the rescaling and the Unitree spec."""
     values = _grasp()
     with pytest.raises(hands.NativeUnitsError) as err:
         hands.check_units(hands.get("inspire_rh56"), values, "right")
