@@ -48,6 +48,7 @@ from lerobot_unidextok.conversion.mapping import EpisodeError, UdhmEpisode, map_
 from lerobot_unidextok.conversion.registry import CONVERTERS_PACKAGE, SetupError, get_source, make_reader
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 from lerobot_unidextok.data.splits import split_order
+from lerobot_unidextok.utils.files import replace_folder
 
 logger = logging.getLogger(__name__)
 
@@ -284,15 +285,9 @@ def _remove_stale_temps(target: Path) -> None:
 
 
 def _move_into_place(tmp: Path, target: Path, overwrite: bool) -> None:
-    if target.exists():
-        if not overwrite:  # appeared while we were converting
-            raise ConversionError(f"{target} appeared during conversion; result left in {tmp}")
-        old = target.parent / f".{target.name}.old-{uuid.uuid4().hex[:8]}"
-        target.rename(old)
-        tmp.rename(target)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        tmp.rename(target)
+    if target.exists() and not overwrite:  # appeared while we were converting
+        raise ConversionError(f"{target} appeared during conversion; result left in {tmp}")
+    replace_folder(tmp, target)
 
 
 @dataclass

@@ -22,6 +22,7 @@ from lerobot_unidextok.training import (
     train_tokenizer,
 )
 from lerobot_unidextok.training.splits import split_by_episode
+from lerobot_unidextok.utils.files import jsonable
 
 logger = logging.getLogger(__name__)
 
@@ -73,24 +74,6 @@ def provenance(cfg: ExperimentConfig, data: "ExperimentData", seconds: float) ->
         "wall_seconds": round(seconds, 1),
         "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }  # fmt: skip
-
-
-def jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [jsonable(v) for v in x]
-    if isinstance(x, (np.floating, float)):
-        return None if math.isnan(float(x)) else float(x)
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    if isinstance(x, np.ndarray):
-        return jsonable(x.tolist())
-    if isinstance(x, Path):
-        return str(x)
-    return x
 
 
 def out_dir(cfg: ExperimentConfig, name: str) -> Path:
