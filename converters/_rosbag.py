@@ -52,6 +52,15 @@ def require_rosbags() -> None:
     require_package("rosbags", "ros", purpose="reading ROS bags", hint=" (pure Python, no ROS install)")
 
 
+def resampling_options(fps: float, interpolation: str) -> tuple[int, str]:
+    """(fps, interpolation) of a bag reader's fixed output grid, checked: fps a positive integer."""
+    if int(fps) != fps or fps <= 0:
+        raise ValueError(f"fps must be a positive integer, got {fps!r}")
+    if interpolation not in INTERPOLATIONS:
+        raise ValueError(f"interpolation must be one of {INTERPOLATIONS}, got {interpolation!r}")
+    return int(fps), interpolation
+
+
 def list_bags(root: Path, pattern: str = "*") -> list[Path]:
     """ROS 1 `.bag` files, ROS 2 bag folders (with metadata.yaml) and standalone `.mcap` / `.db3` files
     under `root` (or `root` itself), sorted by path."""

@@ -88,11 +88,7 @@ class LinkerHandSource:
             _model(model, "linkerhand option model")
         self.model = model
         self.hands = parse_hands(hands) if hands is not None else None
-        if int(fps) != fps or fps <= 0:
-            raise ValueError(f"fps must be a positive integer, got {fps!r}")
-        if interpolation not in rb.INTERPOLATIONS:
-            raise ValueError(f"interpolation must be one of {rb.INTERPOLATIONS}, got {interpolation!r}")
-        self.fps, self.interpolation = int(fps), interpolation
+        self.fps, self.interpolation = rb.resampling_options(fps, interpolation)
 
     def list_episodes(self, input_path: str | Path) -> list:
         root = Path(input_path)

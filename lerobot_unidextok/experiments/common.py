@@ -1,7 +1,6 @@
 """What the experiments share: sample data cache, cached tokenizer training, scoring, result files."""
 
 import dataclasses
-import hashlib
 import json
 import logging
 import math
@@ -22,7 +21,7 @@ from lerobot_unidextok.training import (
     train_tokenizer,
 )
 from lerobot_unidextok.training.splits import split_by_episode
-from lerobot_unidextok.utils.files import jsonable
+from lerobot_unidextok.utils.files import fingerprint, jsonable
 
 logger = logging.getLogger(__name__)
 
@@ -217,13 +216,6 @@ def per_hand_states(data: HandStates) -> dict[str, np.ndarray]:
 # ---------------------------------------------------------------------------------------------
 # UniDexTok: trained once per (configuration, training rows), cached under models_dir
 # ---------------------------------------------------------------------------------------------
-def _fingerprint(*parts) -> str:
-    h = hashlib.sha1()
-    for p in parts:
-        h.update(p.tobytes() if isinstance(p, np.ndarray) else json.dumps(p, sort_keys=True, default=str).encode())
-    return h.hexdigest()[:12]
-
-
 def train_config(cfg: ExperimentConfig, output_dir: Path, hand_names: list[str]) -> TrainConfig:
     return TrainConfig(
         preset=cfg.preset, steps=cfg.steps, batch_size=cfg.batch_size, lr=cfg.lr, warmup_steps=cfg.warmup_steps,
@@ -241,7 +233,7 @@ def trained_unidextok(cfg: ExperimentConfig, tag: str, train: HandStates, select
     settings = dataclasses.asdict(train_config(cfg, Path("."), hands))  # every training setting, incl. defaults
     for volatile in ("output_dir", "progress"):
         settings.pop(volatile)
-    key = _fingerprint(
+    key = fingerprint(
         settings,
         train.states_rad,
         train.hands.astype("U32"),

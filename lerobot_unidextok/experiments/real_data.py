@@ -11,7 +11,6 @@ The clip's keypoints are also what `experiments.retargeted` retargets onto the r
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 from dataclasses import dataclass
@@ -22,6 +21,7 @@ import numpy as np
 from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.experiments.config import ExperimentConfig
 from lerobot_unidextok.training import HandStates, load_hand_states
+from lerobot_unidextok.utils.files import fingerprint
 
 logger = logging.getLogger(__name__)
 
@@ -62,13 +62,6 @@ def segment_split(num_frames: int, segment_frames: int, test_fraction: float = 0
     return segment, np.isin(segment, test_ids)
 
 
-def _sha(*parts: bytes) -> str:
-    h = hashlib.sha1()
-    for p in parts:
-        h.update(p)
-    return h.hexdigest()[:12]
-
-
 def real_human(cfg: ExperimentConfig) -> RealHuman:
     from lerobot_unidextok import hands
 
@@ -83,7 +76,7 @@ def g1_inspire(cfg: ExperimentConfig, mapping: str = "semantic") -> Path:
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
 
     src = cfg.real_dir / G1_FOLDER
-    stamp = _sha(json.dumps(sorted((p.name, p.stat().st_size) for p in src.rglob("*") if p.is_file())).encode())
+    stamp = fingerprint(json.dumps(sorted((p.name, p.stat().st_size) for p in src.rglob("*") if p.is_file())).encode())
     root = Path(cfg.data_dir) / f"real_g1_inspire_{mapping}_{stamp}"
     if not (root / INFO_PATH).is_file():
         convert(ConvertOptions(source="lerobot", input=src, root=root, repo_id="local/real_g1_inspire",

@@ -1,7 +1,9 @@
-"""Writing results safely: a finished folder moved into place in one step, results as plain JSON."""
+"""Writing results safely: a finished folder moved into place in one step, results as plain JSON, cache keys."""
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import shutil
 import uuid
@@ -39,3 +41,17 @@ def jsonable(x):
     if isinstance(x, Path):
         return str(x)
     return x
+
+
+def fingerprint(*parts) -> str:
+    """12 hex digits of one sha1 over `parts` (bytes as they are, numpy arrays by their bytes, anything else
+    as sorted JSON): the key of a cache folder, the same for the same inputs."""
+    h = hashlib.sha1()
+    for p in parts:
+        if isinstance(p, bytes):
+            h.update(p)
+        elif isinstance(p, np.ndarray):
+            h.update(p.tobytes())
+        else:
+            h.update(json.dumps(p, sort_keys=True, default=str).encode())
+    return h.hexdigest()[:12]

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_unidextok.utils.files import jsonable, replace_folder
+from lerobot_unidextok.utils.files import fingerprint, jsonable, replace_folder
 
 
 def _folder(path: Path, text: str) -> Path:
@@ -28,3 +28,12 @@ def test_jsonable_gives_plain_json():
                     "path": Path("x") / "y"})  # fmt: skip
     assert out == {"1": 0.5, "a": [3, True], "nan": None, "arr": [[1.0, 0.0], [0.0, 1.0]], "path": "x/y"}
     assert json.loads(json.dumps(out)) == out
+
+
+def test_fingerprint_is_one_sha1_over_the_parts():
+    import hashlib
+
+    arr = np.arange(4, dtype=np.float32)
+    assert fingerprint(b"ab", arr) == hashlib.sha1(b"ab" + arr.tobytes()).hexdigest()[:12]
+    assert fingerprint({"b": 1, "a": 2}) == hashlib.sha1(b'{"a": 2, "b": 1}').hexdigest()[:12]  # sorted keys
+    assert fingerprint(arr) != fingerprint(arr + 1)
