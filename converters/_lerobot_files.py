@@ -20,7 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.constants import EPISODES_META_GLOB, INFO_PATH
 from lerobot_unidextok.conversion.episode import VideoSegment
+from lerobot_unidextok.state_layout import flatten_names
 
 SUPPORTED_VERSIONS = ("v2.0", "v2.1", "v3.0")
 DEFAULT_KEYS = ("timestamp", "frame_index", "episode_index", "index", "task_index")  # rebuilt by the writer
@@ -52,9 +54,9 @@ def find_dataset_roots(input_path: str | Path) -> list[Path]:
     path = Path(input_path)
     if not path.exists():
         raise FileNotFoundError(f"input path {path} does not exist")
-    if (path / "meta" / "info.json").is_file():
+    if (path / INFO_PATH).is_file():
         return [path]
-    roots = sorted(p.parent.parent for p in path.glob("*/meta/info.json"))
+    roots = sorted(p.parent.parent for p in path.glob(f"*/{INFO_PATH}"))
     if not roots:
         raise LeRobotFormatError(
             f"{path} is not a LeRobot dataset: no meta/info.json in it or in its sub-folders; "
@@ -65,7 +67,7 @@ def find_dataset_roots(input_path: str | Path) -> list[Path]:
 
 def load_info(root: str | Path) -> dict:
     """`meta/info.json`, checked for the fields the readers use."""
-    path = Path(root) / "meta" / "info.json"
+    path = Path(root) / INFO_PATH
     try:
         info = json.loads(path.read_text())
     except FileNotFoundError as exc:
@@ -83,21 +85,6 @@ def load_info(root: str | Path) -> dict:
     return info
 
 
-def flatten_names(names: object, where: str) -> list[str]:
-    """Feature `names` as a flat list: flat list, nested `[[...]]`, or dict `{"motors": [...], ...}`."""
-    if isinstance(names, dict):
-        out: list[str] = []
-        for value in names.values():
-            out += flatten_names(value, where)
-        return out
-    if isinstance(names, (list, tuple)):
-        out = []
-        for item in names:
-            out += flatten_names(item, where) if isinstance(item, (list, tuple, dict)) else [str(item)]
-        return out
-    raise LeRobotFormatError(f"{where}: feature names must be a list or dict of lists, got {type(names).__name__}")
-
-
 def feature_names(info: dict, key: str, root: str | Path) -> list[str]:
     """Flat names of a vector feature, checked against its declared shape."""
     where = f"{Path(root) / 'meta' / 'info.json'} features[{key!r}]"
@@ -106,7 +93,10 @@ def feature_names(info: dict, key: str, root: str | Path) -> list[str]:
     feature = info["features"][key]
     if feature.get("names") is None:
         raise LeRobotFormatError(f"{where}: has no 'names'; name the hand columns explicitly")
-    names = flatten_names(feature["names"], where)
+    try:
+        names = flatten_names(feature["names"])
+    except ValueError as exc:
+        raise LeRobotFormatError(f"{where}: {exc}") from None
     size = int(np.prod(feature.get("shape", [len(names)])))
     if len(names) != size:
         raise LeRobotFormatError(f"{where}: {len(names)} names for shape {feature.get('shape')}")
@@ -151,7 +141,7 @@ def list_all_episodes(input_path: str | Path) -> list[LeRobotEpisodeRef]:
 
 def _episodes_table_v30(root: Path) -> dict[str, list]:
     """All rows of `meta/episodes/*.parquet`, cached per folder and file state (workers read many episodes)."""
-    files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
+    files = sorted(root.glob(EPISODES_META_GLOB))
     stamp = tuple((str(f), f.stat().st_mtime_ns, f.stat().st_size) for f in files)
     return _episodes_table_cached(str(root), stamp)
 

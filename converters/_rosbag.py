@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.utils.imports import require_package
+
 # kuavo_msgs (LejuRobotics kuavo-ros-opensource, `src/kuavo_msgs/msg/*.msg`); the LET bags embed these
 # definitions too, these are the fallback for bags that do not.
 KUAVO_MSGS: dict[str, str] = {
@@ -45,11 +47,18 @@ class BagFormatError(ValueError):
     """A bag is unreadable or lacks a topic/field; the message names the file and the topic."""
 
 
-def require_rosbags():
-    try:
-        import rosbags  # noqa: F401
-    except ImportError as exc:
-        raise ImportError("reading ROS bags needs rosbags (pure Python): pip install 'lerobot-unidextok[ros]'") from exc
+def require_rosbags() -> None:
+    """ImportError naming the `ros` extra when rosbags is missing."""
+    require_package("rosbags", "ros", purpose="reading ROS bags", hint=" (pure Python, no ROS install)")
+
+
+def resampling_options(fps: float, interpolation: str) -> tuple[int, str]:
+    """(fps, interpolation) of a bag reader's fixed output grid, checked: fps a positive integer."""
+    if int(fps) != fps or fps <= 0:
+        raise ValueError(f"fps must be a positive integer, got {fps!r}")
+    if interpolation not in INTERPOLATIONS:
+        raise ValueError(f"interpolation must be one of {INTERPOLATIONS}, got {interpolation!r}")
+    return int(fps), interpolation
 
 
 def list_bags(root: Path, pattern: str = "*") -> list[Path]:

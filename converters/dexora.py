@@ -19,6 +19,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.conversion.episode import RawEpisode
 from lerobot_unidextok.conversion.registry import check_hand, register_source
 from lerobot_unidextok.converters import _lerobot_files as lr
@@ -85,7 +86,7 @@ class DexoraSource:
     def plan(self, root: str | Path) -> tuple[list[HandColumns], str, str | None]:
         """The hands, state key and action key of one dataset folder (raises naming info.json and the field)."""
         info = lr.load_info(root)
-        where = str(Path(root) / "meta" / "info.json")
+        where = str(Path(root) / INFO_PATH)
         state_key = _key(info, self.state_key, STATE_KEYS, where, required=True)
         action_key = _key(info, self.action_key, ACTION_KEYS, where, required=False)
         state_cols = hand_columns(lr.feature_names(info, state_key, root), f"{where} features[{state_key!r}]")

@@ -19,6 +19,7 @@ import numpy as np
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
+from lerobot_unidextok.utils.imports import require_package
 
 EGODEX_FPS = 30.0
 FINGERS = ("Index", "Middle", "Ring", "Little")
@@ -53,16 +54,6 @@ class EgoDexFormatError(ValueError):
     """An EgoDex file is truncated or lacks a dataset/attribute; the message names both."""
 
 
-def _require_h5py():
-    try:
-        import h5py
-    except ImportError as exc:
-        raise ImportError(
-            "the egodex source reads HDF5 files with h5py: pip install 'lerobot-unidextok[egodex]'"
-        ) from exc
-    return h5py
-
-
 @register_source("egodex")
 class EgoDexSource:
     license = "CC BY-NC-ND 4.0 (EgoDex; research use)"
@@ -87,7 +78,7 @@ class EgoDexSource:
         return files
 
     def read_episode(self, ref: str) -> RawEpisode:
-        h5py = _require_h5py()
+        h5py = require_package("h5py", "egodex", purpose="the egodex source (HDF5 files)")
         path = Path(ref)
         try:
             f = h5py.File(path, "r")

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode
 from lerobot_unidextok.conversion.registry import check_hand, register_source
 from lerobot_unidextok.converters import _lerobot_files as lr
@@ -150,7 +151,7 @@ def column_plan(
 ) -> tuple[list[tuple], dict[str, list[str]]]:
     """Per hand (hand, state key, state columns, action key, action columns), and the names of each feature;
     raises naming the info.json field when a hand's columns are not there."""
-    info_path = Path(root) / "meta" / "info.json"
+    info_path = Path(root) / INFO_PATH
     names: dict[str, list[str]] = {}
 
     def names_of(key: str, all_columns: bool) -> list[str]:
@@ -203,7 +204,7 @@ def read_mapped_episode(
     """One episode with each hand's state (and action) columns picked by name, and the rest of the robot:
     passthrough columns of the shared state/action vectors, other features copied, videos."""
     info = lr.load_info(ref.root)
-    info_path = str(Path(ref.root) / "meta" / "info.json")
+    info_path = str(Path(ref.root) / INFO_PATH)
     plan, names = column_plan(info, ref.root, hands, state_key, action_key)
     has_action = all(p[4] is not None for p in plan)
     vectors = {OUT_STATE: state_key}  # output vector -> source feature holding the hands' shared columns

@@ -98,11 +98,7 @@ class LETSource:
         arms: bool = True,
     ) -> None:
         self.hand = hand if hand == "auto" else check_hand(hand, "let option hand")
-        if int(fps) != fps or fps <= 0:
-            raise ValueError(f"fps must be a positive integer, got {fps!r}")
-        if interpolation not in rb.INTERPOLATIONS:
-            raise ValueError(f"interpolation must be one of {rb.INTERPOLATIONS}, got {interpolation!r}")
-        self.fps, self.interpolation = int(fps), interpolation
+        self.fps, self.interpolation = rb.resampling_options(fps, interpolation)
         self.use_state_topic, self.arms = use_state_topic, arms
 
     def _hand_of(self, path: Path) -> str | None:

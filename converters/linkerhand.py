@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
 from lerobot_unidextok.converters import _lerobot_files as lr
@@ -87,17 +88,13 @@ class LinkerHandSource:
             _model(model, "linkerhand option model")
         self.model = model
         self.hands = parse_hands(hands) if hands is not None else None
-        if int(fps) != fps or fps <= 0:
-            raise ValueError(f"fps must be a positive integer, got {fps!r}")
-        if interpolation not in rb.INTERPOLATIONS:
-            raise ValueError(f"interpolation must be one of {rb.INTERPOLATIONS}, got {interpolation!r}")
-        self.fps, self.interpolation = int(fps), interpolation
+        self.fps, self.interpolation = rb.resampling_options(fps, interpolation)
 
     def list_episodes(self, input_path: str | Path) -> list:
         root = Path(input_path)
         if not root.exists():
             raise FileNotFoundError(f"LinkerHand input {root} does not exist")
-        if root.is_dir() and ((root / "meta" / "info.json").is_file() or list(root.glob("*/meta/info.json"))):
+        if root.is_dir() and ((root / INFO_PATH).is_file() or list(root.glob(f"*/{INFO_PATH}"))):
             if self.model is None and self.hands is None:
                 raise LinkerHandFormatError(
                     f"{root}: a LeRobot-style LinkerHand export needs model= (L6/L10/L20) or hands= to map its columns"
@@ -137,7 +134,7 @@ class LinkerHandSource:
         for side, by_k in sorted(found.items()):
             ks = sorted(by_k)
             if len(ks) != num or ks not in (list(range(num)), list(range(1, num + 1))):
-                info_path = Path(ref.root) / "meta" / "info.json"
+                info_path = Path(ref.root) / INFO_PATH
                 raise LinkerHandFormatError(
                     f"{info_path}: {side} hand has joints {ks}, expected {num} for {self.model}"
                 )

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import SetupError, register_source
 
@@ -80,7 +81,7 @@ class RetargetSource:
         root = Path(input_path)
         if not root.exists():
             raise FileNotFoundError(f"retarget input {root} does not exist")
-        if (root / "meta" / "info.json").is_file():
+        if (root / INFO_PATH).is_file():
             frames = _human_frames(str(root))
             human = frames.hands == HUMAN
             if not human.any():

@@ -1,4 +1,4 @@
-"""Names shared by every layer: UDHM joints, MANO-21 keypoints and LeRobot feature keys.
+"""Names shared by every layer: UDHM joints, MANO-21 keypoints, LeRobot feature keys and dataset files.
 
 Layer 0: imports nothing from this package.
 """
@@ -6,6 +6,7 @@ Layer 0: imports nothing from this package.
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 # ---------------------------------------------------------------------------------------------
 # UDHM: the 22-DoF Unified Dexterous Hand Model state, in this fixed order.
@@ -66,8 +67,24 @@ OBS_STATE = "observation.state"
 ACTION = "action"
 HAND_TYPE_KEY = "hand_type"  # string feature: hand spec name(s) of the frame, e.g. "inspire_rh56"
 UDHM_MASK_KEY = "udhm_mask"  # bool feature: which UDHM slots are real DoFs of the source hand
-SPLIT_KEY = "split"  # not a frame feature: train/test split lives in meta/info.json "splits"
 OBS_HAND_TOKENS = "observation.hand_tokens"  # int64 codes added by the processor step
 OBS_HAND_TOKEN_FEATURES = "observation.environment_state"  # float view of the tokens for policies
 
 SIDES: tuple[str, ...] = ("right", "left")
+
+# How a hand's native joints fill the 22 UDHM slots: by meaning ("semantic", the paper's mapping) or in
+# native order with zeros after ("append_pad", the ablation).
+UdhmMapping = Literal["semantic", "append_pad"]
+MAPPINGS: tuple[UdhmMapping, ...] = ("semantic", "append_pad")
+
+# ---------------------------------------------------------------------------------------------
+# Files of a LeRobotDataset v3.0 folder (paths relative to its root) and the record this package adds.
+# ---------------------------------------------------------------------------------------------
+INFO_PATH = "meta/info.json"
+EPISODES_META_GLOB = "meta/episodes/chunk-*/file-*.parquet"  # per-episode metadata: lengths, stats
+DATA_GLOB = "data/chunk-*/file-*.parquet"
+# settings of the conversion, its test episodes, per-episode records and the native layout
+CONVERSION_PATH = "meta/unidextok_conversion.json"
+# beside the raw files of a synthetic sample (`conversion.samples`): per-frame gesture labels and
+# `"synthetic": true`, which marks the converted dataset synthetic
+SAMPLE_LABELS_FILE = "gestures.json"

@@ -6,7 +6,8 @@ Layer 0: names only, no lerobot import. A converted dataset's `observation.state
     + [one 22-wide UDHM block per hand, named `<side>_<udhm joint>` in UDHM order]
 
 so a hands-only dataset is the special case with no passthrough columns. Consumers (training reader,
-processor step, policies) never assume positions: they call `find_udhm_blocks(names)`.
+processor step, policies) never assume positions: they call `find_udhm_blocks(names)` on the flat
+`feature_names` of the feature.
 """
 
 from __future__ import annotations
@@ -16,6 +17,28 @@ from dataclasses import dataclass
 import numpy as np
 
 from lerobot_unidextok.constants import SIDES, UDHM_DIM, UDHM_JOINT_NAMES
+
+
+def flatten_names(names: object) -> list[str]:
+    """LeRobot feature `names` as one flat list of strings, in order.
+
+    LeRobot writes a flat list, a list nested in a list (`[["a", "b"]]`) or a dict of lists (`{"motors": [...]}`,
+    `{"axes": [...]}`); no names give []. Anything else is a ValueError.
+    """
+    if not names:
+        return []
+    if isinstance(names, dict):
+        return [n for value in names.values() for n in flatten_names(value)]
+    if isinstance(names, (list, tuple)):
+        return [
+            n for item in names for n in (flatten_names(item) if isinstance(item, (list, tuple, dict)) else [str(item)])
+        ]
+    raise ValueError(f"feature names must be a list or dict of lists, got {type(names).__name__}")
+
+
+def feature_names(feature: dict) -> list[str]:
+    """The flat `names` of a LeRobot feature (its entry in `meta/info.json` `features`)."""
+    return flatten_names(feature.get("names"))
 
 
 def udhm_block_names(side: str) -> list[str]:

@@ -3,7 +3,13 @@
 import numpy as np
 import pytest
 
-from lerobot_unidextok.state_layout import find_udhm_blocks, passthrough_indices, udhm_block_names, udhm_state_names
+from lerobot_unidextok.state_layout import (
+    feature_names,
+    find_udhm_blocks,
+    passthrough_indices,
+    udhm_block_names,
+    udhm_state_names,
+)
 
 
 def test_blocks_after_passthrough_columns():
@@ -37,3 +43,25 @@ def test_incomplete_or_shuffled_block_raises():
         find_udhm_blocks(shuffled)
     with pytest.raises(ValueError, match="one block per side"):
         find_udhm_blocks(names + names)
+
+
+@pytest.mark.parametrize(
+    ("names", "flat"),
+    [
+        (["a", "b"], ["a", "b"]),
+        ([["a", "b"]], ["a", "b"]),  # one nested list, as some LeRobot datasets write it
+        ({"axes": ["a", "b"]}, ["a", "b"]),
+        (["ab"], ["ab"]),  # one name is not a nested list
+        ({"motors": ["a"], "grippers": [["b"]]}, ["a", "b"]),  # every list of a dict, in order
+        (None, []),
+    ],
+)
+def test_feature_names_flattens_lerobot_spellings(names, flat):
+    """Catches a plain name split into characters (a string taken for a nested list) and a nested list kept
+    as one name."""
+    assert feature_names({"dtype": "float32", "names": names}) == flat
+
+
+def test_feature_names_of_another_type_raise():
+    with pytest.raises(ValueError, match="feature names must be a list or dict of lists, got str"):
+        feature_names({"names": "a,b"})

@@ -9,7 +9,6 @@ Default 8 tokens x 8 codes x 5 bits = 320 bits, UniDexTok's budget.
 
 from __future__ import annotations
 
-import importlib.util
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
@@ -20,6 +19,7 @@ from tqdm.auto import tqdm
 
 from lerobot_unidextok.baselines.base import ArrayLike, Rate, as_mask, as_states, check_hand, infer_masks
 from lerobot_unidextok.constants import ANGLE_SCALE_RAD, UDHM_DIM
+from lerobot_unidextok.utils.imports import require_package
 
 # FSQ levels per code for a bit budget (FSQ paper, Table 1, for 8 and 10 bits; the others are our choice).
 FSQ_LEVELS: dict[int, tuple[int, ...]] = {3: (8,), 4: (4, 4), 5: (8, 4), 6: (8, 8), 8: (8, 6, 5), 10: (8, 5, 5, 5)}
@@ -27,10 +27,10 @@ QUANTIZERS = ("fsq", "rvq")
 
 
 def require_vector_quantize() -> None:
-    if importlib.util.find_spec("vector_quantize_pytorch") is None:
-        raise ImportError(
-            "the FSQ / RVQ baselines need vector-quantize-pytorch: pip install 'lerobot-unidextok[baselines]'"
-        )
+    """ImportError naming the `baselines` extra when vector-quantize-pytorch is missing."""
+    require_package(
+        "vector-quantize-pytorch", "baselines", purpose="an FSQ / RVQ baseline", import_name="vector_quantize_pytorch"
+    )
 
 
 @dataclass

@@ -26,8 +26,9 @@ from datatrove.executor import LocalPipelineExecutor
 from datatrove.executor.slurm import SlurmPipelineExecutor
 from datatrove.pipeline.base import PipelineStep
 
-from lerobot_unidextok.conversion.pipeline import ConvertOptions
-from lerobot_unidextok.conversion.sharded import ExecutorOptions, logging_dir_of
+from lerobot_unidextok.constants import INFO_PATH
+from lerobot_unidextok.conversion.executor_options import ExecutorOptions, logging_dir_of
+from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert, merge_shards
 
 logger = logging.getLogger(__name__)
 
@@ -51,7 +52,6 @@ class ConvertShard(PipelineStep):
         self.shards_dir = str(shards_dir)
 
     def run(self, data=None, rank: int = 0, world_size: int = 1):
-        from lerobot_unidextok.conversion.pipeline import convert
         from lerobot_unidextok.conversion.validate import validate_dataset
 
         root = shard_roots(self.shards_dir, world_size)[rank]
@@ -95,16 +95,14 @@ class MergeShards(PipelineStep):
         self.overwrite, self.keep_shards = overwrite, keep_shards
 
     def run(self, data=None, rank: int = 0, world_size: int = 1):
-        from lerobot_unidextok.conversion.pipeline import merge_shards
-
         if rank != 0:
             return
         shards = shard_roots(self.shards_dir, self.num_shards)
-        missing = [str(s) for s in shards if not (s / "meta" / "info.json").is_file()]
+        missing = [str(s) for s in shards if not (s / INFO_PATH).is_file()]
         if missing:
             raise FileNotFoundError(f"shard datasets missing (did every convert task finish?): {missing}")
         target = merge_shards(shards, self.root, self.repo_id, overwrite=self.overwrite)
-        info = json.loads((target / "meta" / "info.json").read_text())
+        info = json.loads((target / INFO_PATH).read_text())
         self.stat_update("episodes", value=int(info["total_episodes"]), unit="dataset")
         self.stat_update("frames", value=int(info["total_frames"]), unit="dataset")
         if not self.keep_shards:

@@ -10,16 +10,14 @@ leading/trailing frames where no hand is present are trimmed. Anything that woul
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
-from lerobot_unidextok.constants import SIDES, UDHM_DIM
+from lerobot_unidextok.constants import MAPPINGS, SIDES, UDHM_DIM
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode, VideoSegment
 from lerobot_unidextok.state_layout import udhm_state_names
 
-Mapping = Literal["semantic", "append_pad"]
-MAPPINGS: tuple[str, ...] = ("semantic", "append_pad")
 ANGLE_BOUND_RAD = 2 * np.pi  # no UDHM joint angle is beyond this: larger values are unit errors
 
 
@@ -107,6 +105,8 @@ def _map_values(
     present: np.ndarray,
 ) -> np.ndarray:
     """(T, ...) native -> (T, 22) float32 rad; absent frames are zero."""
+    from lerobot_unidextok.hands import check_units
+
     num = values.shape[0]
     out = np.zeros((num, UDHM_DIM), dtype=np.float32)
     sel = values[present]
@@ -119,7 +119,7 @@ def _map_values(
     if not present.any():
         return out
     try:
-        spec.check_units(sel, side)  # wrong units (a tiny corner of the range, or beyond it): likely fix
+        check_units(spec, sel, side)  # wrong units (a tiny corner of the range, or beyond it): likely fix
         udhm = np.asarray(spec.to_udhm(sel, side=side, mapping=mapping), dtype=np.float64)
     except EpisodeError:
         raise

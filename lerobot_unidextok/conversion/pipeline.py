@@ -20,7 +20,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import os
@@ -35,17 +34,25 @@ from typing import Any, Literal
 
 import numpy as np
 
-from lerobot_unidextok.constants import SIDES
+from lerobot_unidextok.constants import (
+    CONVERSION_PATH,
+    EPISODES_META_GLOB,
+    INFO_PATH,
+    MAPPINGS,
+    SAMPLE_LABELS_FILE,
+    SIDES,
+)
 from lerobot_unidextok.conversion.card import write_card
 from lerobot_unidextok.conversion.features import episode_features, episode_frames, native_layout, udhm_features
-from lerobot_unidextok.conversion.mapping import MAPPINGS, EpisodeError, UdhmEpisode, map_episode, to_layout
+from lerobot_unidextok.conversion.mapping import EpisodeError, UdhmEpisode, map_episode, to_layout
 from lerobot_unidextok.conversion.registry import CONVERTERS_PACKAGE, SetupError, get_source, make_reader
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
+from lerobot_unidextok.data.splits import split_order
+from lerobot_unidextok.utils.files import replace_folder
 
 logger = logging.getLogger(__name__)
 
 __all__ = [
-    "CONVERSION_SETTINGS_PATH",
     "ConversionError",
     "ConvertOptions",
     "ConvertReport",
@@ -53,13 +60,11 @@ __all__ = [
     "convert",
     "merge_shards",
     "read_settings",
-    "split_order",
     "udhm_features",
 ]
 
 OnError = Literal["raise", "skip"]
 KEEP = ("all", "hands")
-CONVERSION_SETTINGS_PATH = "meta/unidextok_conversion.json"  # settings, records (LeRobot drops unknown info keys)
 SPLIT_METHOD = "sha1 of episode key (ref relative to --input); the round(f*N) smallest are test; source order kept"
 
 
@@ -161,14 +166,6 @@ def episode_key(ref: Any, input_path: str | Path) -> str:
     return text
 
 
-def split_order(keys: list[str], test_fraction: float = 0.2) -> tuple[list[int], list[int]]:
-    """(train, test) positions: test = the round(f * N) keys with the smallest sha1; each list in input order."""
-    num_test = round(test_fraction * len(keys)) if len(keys) > 1 else 0
-    ranked = sorted(range(len(keys)), key=lambda i: hashlib.sha1(keys[i].encode()).hexdigest())
-    test = set(ranked[:num_test])
-    return [i for i in range(len(keys)) if i not in test], sorted(test)
-
-
 # ---------------------------------------------------------------------------------------------
 # workers
 # ---------------------------------------------------------------------------------------------
@@ -256,11 +253,9 @@ def _int_fps(fps: float, src: str) -> int:
 def input_is_synthetic(input_path: Path) -> bool:
     """True when `input_path` is (inside) a sample written by `conversion.samples` (its labels file says so),
     so the card is marked synthetic even for formats whose reader cannot carry the marker."""
-    from lerobot_unidextok.conversion.samples import LABELS_FILE
-
     path = input_path.resolve()
     for folder in [path, *path.parents][:3]:
-        labels = folder / LABELS_FILE
+        labels = folder / SAMPLE_LABELS_FILE
         if labels.is_file():
             try:
                 return bool(json.loads(labels.read_text()).get("synthetic", False))
@@ -290,15 +285,9 @@ def _remove_stale_temps(target: Path) -> None:
 
 
 def _move_into_place(tmp: Path, target: Path, overwrite: bool) -> None:
-    if target.exists():
-        if not overwrite:  # appeared while we were converting
-            raise ConversionError(f"{target} appeared during conversion; result left in {tmp}")
-        old = target.parent / f".{target.name}.old-{uuid.uuid4().hex[:8]}"
-        target.rename(old)
-        tmp.rename(target)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        tmp.rename(target)
+    if target.exists() and not overwrite:  # appeared while we were converting
+        raise ConversionError(f"{target} appeared during conversion; result left in {tmp}")
+    replace_folder(tmp, target)
 
 
 @dataclass
@@ -536,12 +525,12 @@ def format_failures(failures: list[EpisodeFailure], limit: int = 50) -> str:
 
 
 def _record_settings(root: Path, settings: dict) -> None:
-    (root / CONVERSION_SETTINGS_PATH).write_text(json.dumps(settings, indent=1, default=str))
+    (root / CONVERSION_PATH).write_text(json.dumps(settings, indent=1, default=str))
 
 
 def read_settings(root: str | Path) -> dict:
     """Conversion settings and records kept next to the dataset metadata ({} if absent)."""
-    path = Path(root) / CONVERSION_SETTINGS_PATH
+    path = Path(root) / CONVERSION_PATH
     return json.loads(path.read_text()) if path.is_file() else {}
 
 
@@ -569,7 +558,7 @@ def merge_shards(
     shard_settings = [read_settings(r) for r in shard_roots]
     missing = [str(r) for r, s in zip(shard_roots, shard_settings, strict=True) if not s]
     if missing:
-        raise ValueError(f"not converted shards (no {CONVERSION_SETTINGS_PATH}): {missing}")
+        raise ValueError(f"not converted shards (no {CONVERSION_PATH}): {missing}")
     tmp = _temp_dir(target)
     try:
         aggregate_datasets(
@@ -579,7 +568,7 @@ def merge_shards(
             aggr_root=tmp,
         )
         _restate_bookkeeping_stats(tmp)
-        path = tmp / "meta" / "info.json"
+        path = tmp / INFO_PATH
         info = json.loads(path.read_text())
         total = int(info["total_episodes"])
         info["splits"] = {"train": f"0:{total}"}
@@ -636,7 +625,7 @@ def _restate_bookkeeping_stats(root: Path) -> None:
     keys = [k for k in BOOKKEEPING_KEYS if k in stats]
     if not keys:
         return
-    files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
+    files = sorted(root.glob(EPISODES_META_GLOB))
     names = [f"stats/{k}/{n}" for k in keys for n in stats[k]]
     table = pq.read_table(files, columns=names)
     # each cell is a one-value list (scalar features): (E, 1) per column

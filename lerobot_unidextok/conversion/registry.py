@@ -20,24 +20,11 @@ from __future__ import annotations
 import importlib
 import inspect
 import logging
-from typing import Any, Protocol, runtime_checkable
 
 logger = logging.getLogger(__name__)
 
 _SOURCES: dict[str, type] = {}
 CONVERTERS_PACKAGE = "lerobot_unidextok.converters"
-
-
-@runtime_checkable
-class SourceReader(Protocol):
-    """What the pipeline needs from a registered source class instance."""
-
-    license: str
-    description: str
-
-    def list_episodes(self, input_path: Any) -> list: ...
-
-    def read_episode(self, ref: Any) -> Any: ...
 
 
 def register_source(name: str):
@@ -54,7 +41,6 @@ def register_source(name: str):
                 f"source {name!r} is already registered by {_SOURCES[name].__module__}."
                 f"{_SOURCES[name].__qualname__}; pick another name"
             )
-        cls.source_name = name
         _SOURCES[name] = cls
         return cls
 

@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.constants import SAMPLE_LABELS_FILE
 from lerobot_unidextok.conversion.sample_motion import GestureTrack, gesture_track, wrist_track
 
 logger = logging.getLogger(__name__)
@@ -47,7 +48,6 @@ SYNTHETIC_NOTE = (
 SAMPLE_SOURCES: tuple[str, ...] = ("dexycb", "egodex", "let", "dexora", "linkerhand", "lerobot")
 # Written only when asked for: converting them needs the licensed MANO model (or a stand-in layer).
 MANO_SOURCES: tuple[str, ...] = ("oakink2",)
-LABELS_FILE = "gestures.json"
 TRUTH_FILE = "udhm_truth.npz"  # the UDHM angles each sample was generated from, per episode and side
 
 # Hand spec names (lerobot_unidextok.hands registry) used by the robot samples.
@@ -165,7 +165,7 @@ def _write_labels(folder: Path, source: str, labels: Labels) -> None:
         "(rad, (T, 22) float32) under '<episode>|<side>'",
         "episodes": labels,
     }
-    (folder / LABELS_FILE).write_text(json.dumps(payload))
+    (folder / SAMPLE_LABELS_FILE).write_text(json.dumps(payload))
 
 
 _README_FORMS = {
@@ -206,7 +206,7 @@ def _write_readme(folder: Path, source: str, spec: SampleSpec) -> None:
         "- Motion: random sequences of named gestures (open, fist, point, pinch, thumbs_up, count_2-4, ok, "
         "rock, call, grasp_cylinder, tripod) with minimum-jerk transitions, PIP/DIP coupled to MCP, "
         "per-episode tempo, per-visit jitter, drift and noise (lerobot_unidextok.conversion.sample_motion).\n"
-        f"- `{LABELS_FILE}`: the gesture label of every frame and hand; `{TRUTH_FILE}`: the generating UDHM angles.\n"
+        f"- `{SAMPLE_LABELS_FILE}`: the gesture label of every frame and hand; `{TRUTH_FILE}`: the generating UDHM angles.\n"
         f"- Convert: `unidextok-convert --source={source} --input=<this folder> ...`"
         + (
             f" with source options `{json.dumps(SAMPLE_SOURCE_OPTIONS[source])}`"

@@ -22,14 +22,14 @@ a successful merge unless `keep_shards`) and `run_settings.json`. Re-running the
 
 from __future__ import annotations
 
-import importlib
 import json
 import logging
 import shutil
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from lerobot_unidextok.conversion.executor_options import EXECUTORS, ExecutorOptions, SlurmOptions, logging_dir_of
 from lerobot_unidextok.conversion.pipeline import (
     ConvertOptions,
     SetupError,
@@ -38,66 +38,16 @@ from lerobot_unidextok.conversion.pipeline import (
     plan_episodes,
 )
 from lerobot_unidextok.conversion.registry import make_reader
+from lerobot_unidextok.utils.imports import missing_package_message
 
 logger = logging.getLogger(__name__)
 
 __all__ = ["EXECUTORS", "ExecutorOptions", "SlurmOptions", "convert_with_executor", "logging_dir_of"]
 
-EXECUTORS = ("local", "slurm")
 RUN_SETTINGS = "run_settings.json"  # the settings of the run that owns a logging_dir (resume guard)
-DATATROVE_MISSING = (
-    "--executor=local|slurm needs datatrove, an optional extra: pip install 'lerobot-unidextok[datatrove]' "
-    "(or pip install 'datatrove>=0.10,<0.11')"
+DATATROVE_MISSING = missing_package_message(
+    "datatrove", "datatrove", purpose="--executor=local|slurm", hint=" (or pip install 'datatrove>=0.10,<0.11')"
 )
-
-
-@dataclass
-class SlurmOptions:
-    """Fields of datatrove's `SlurmPipelineExecutor` for the shard job (the merge job: same, one task)."""
-
-    partition: str = ""  # required for executor="slurm" (`sinfo` lists them)
-    time: str = "04:00:00"  # time limit of one task
-    cpus_per_task: int = 2  # give each task as many as --num_workers
-    mem_per_cpu_gb: int = 2
-    job_name: str = "unidextok-convert"
-    qos: str = "normal"
-    # shell line(s) that put `launch_pickled_pipeline` (datatrove) on the PATH of the compute nodes;
-    # empty = activate the venv running this command (when it runs in one)
-    env_command: str = ""
-    sbatch_args: dict[str, str] = field(default_factory=dict)  # extra #SBATCH lines, e.g. {"account": "lab"}
-    max_array_size: int = 1001  # the cluster's MaxArraySize; more tasks become several array jobs
-
-
-@dataclass
-class ExecutorOptions:
-    """How to run a sharded conversion on datatrove."""
-
-    executor: str = "local"  # "local" | "slurm"
-    tasks: int = 2  # shards = datatrove tasks; capped at the number of episodes
-    workers: int = -1  # tasks running at the same time (-1: all)
-    logging_dir: str | None = None  # default "<root>.datatrove" beside the target
-    keep_shards: bool = False  # keep the shard datasets after the merge
-    slurm: SlurmOptions = field(default_factory=SlurmOptions)
-
-    def __post_init__(self) -> None:
-        if isinstance(self.slurm, dict):
-            self.slurm = SlurmOptions(**self.slurm)
-        if self.executor not in EXECUTORS:
-            raise ValueError(f"executor must be one of {EXECUTORS}, got {self.executor!r}")
-        if self.tasks < 1:
-            raise ValueError(f"tasks must be >= 1, got {self.tasks}")
-        if self.workers == 0 or self.workers < -1:
-            raise ValueError(f"workers must be >= 1 (or -1: all tasks at once), got {self.workers}")
-        if self.executor == "slurm" and not self.slurm.partition:
-            raise ValueError("executor='slurm' needs a partition: --slurm.partition=<name> (sinfo lists them)")
-
-
-def logging_dir_of(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
-    """The run's folder: `cfg.logging_dir`, else `<root>.datatrove` beside the target."""
-    if cfg.logging_dir:
-        return Path(cfg.logging_dir).expanduser().resolve()
-    target = Path(opts.root).expanduser().resolve()
-    return target.parent / f"{target.name}.datatrove"
 
 
 def _run_settings(opts: ConvertOptions, cfg: ExecutorOptions, num_shards: int) -> dict[str, Any]:
@@ -138,8 +88,8 @@ def convert_with_executor(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
     """
     if opts.shard_index != 0 or opts.num_shards != 1:
         raise ValueError("with an executor each task converts one shard: leave shard_index/num_shards unset")
-    try:
-        dt = importlib.import_module("lerobot_unidextok.conversion.datatrove")
+    try:  # datatrove is an optional extra: imported only when a run needs it
+        import lerobot_unidextok.conversion.datatrove as dt
     except ImportError as exc:
         raise SetupError(f"{DATATROVE_MISSING}; {exc}") from exc
     target, input_path = checked_paths(opts)

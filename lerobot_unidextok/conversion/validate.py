@@ -20,13 +20,17 @@ import pyarrow.parquet as pq
 
 from lerobot_unidextok.constants import (
     ACTION,
+    CONVERSION_PATH,
+    DATA_GLOB,
+    EPISODES_META_GLOB,
     HAND_TYPE_KEY,
+    INFO_PATH,
     OBS_STATE,
     UDHM_DIM,
     UDHM_MASK_KEY,
 )
 from lerobot_unidextok.conversion.mapping import ANGLE_BOUND_RAD
-from lerobot_unidextok.state_layout import find_udhm_blocks, udhm_state_names
+from lerobot_unidextok.state_layout import feature_names, find_udhm_blocks, udhm_state_names
 
 LIMIT_TOL_RAD = 1e-3
 
@@ -65,11 +69,6 @@ class ValidationReport:
         return "\n".join(lines)
 
 
-def _names(ft: dict) -> list[str]:
-    names = ft.get("names") or []
-    return list(next(iter(names.values()))) if isinstance(names, dict) else list(names)
-
-
 def _native_layout_problems(layout: dict, feats: dict) -> list[str]:
     """What in `native_layout` does not fit the dataset's features (names to decode back to the robot)."""
     problems = []
@@ -81,7 +80,7 @@ def _native_layout_problems(layout: dict, feats: dict) -> list[str]:
         hand_cols = [c for h in entry.get("hands", []) for c in h.get("columns", [])]
         if not set(hand_cols) <= set(names):
             problems.append(f"{key}: hand columns {sorted(set(hand_cols) - set(names))[:4]} not in names")
-        converted = _names(feats[key])
+        converted = feature_names(feats[key])
         passthrough = [n for n in names if n not in set(hand_cols)]
         if converted[: len(passthrough)] != passthrough:
             problems.append(f"{key}: passthrough columns {passthrough[:4]}... are not the first converted columns")
@@ -98,7 +97,7 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
 
     root = Path(root)
     rep = ValidationReport(root)
-    info_path = root / "meta" / "info.json"
+    info_path = root / INFO_PATH
     if not rep.add("meta/info.json", info_path.is_file(), str(info_path)):
         return rep
     info = json.loads(info_path.read_text())
@@ -118,7 +117,7 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
     ):
         return rep
     dim = int(st["shape"][0])
-    names = _names(st)
+    names = feature_names(st)
     try:
         blocks = find_udhm_blocks(names) if len(names) == dim else []
         why = "" if blocks else f"{len(names)} names for {dim} values; no complete '<side>_<udhm joint>' block"
@@ -145,7 +144,7 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
                 "absent" if key == ACTION else "missing",
             )
             continue
-        ft_names = _names(ft)
+        ft_names = feature_names(ft)
         if key == UDHM_MASK_KEY:
             ok = ft.get("dtype") == dtype and list(ft["shape"]) == [UDHM_DIM * num_hands] and ft_names == udhm_names
             rep.add(f"{key} feature", ok, f"{ft.get('dtype')} {ft['shape']}, names = the UDHM block names")
@@ -175,8 +174,8 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         return rep
 
     # -- data ----------------------------------------------------------------------------------------
-    files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
-    action_udhm = ACTION in feats and bool(find_udhm_blocks(_names(feats[ACTION])))
+    files = sorted(root.glob(DATA_GLOB))
+    action_udhm = ACTION in feats and bool(find_udhm_blocks(feature_names(feats[ACTION])))
     cols = [OBS_STATE, UDHM_MASK_KEY, HAND_TYPE_KEY, "episode_index"] + ([ACTION] if action_udhm else [])
     try:
         table = pq.read_table(files, columns=cols) if files else None
@@ -226,7 +225,7 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         rep.add(f"{key} zero where masked", leak == 0, f"{leak} non-zero masked values")
 
     # hand_type: known specs, masks equal to the spec masks (or all False for an absent hand)
-    settings_path = root / "meta" / "unidextok_conversion.json"
+    settings_path = root / CONVERSION_PATH
     mapping = (
         json.loads(settings_path.read_text()).get("mapping", "semantic") if settings_path.is_file() else "semantic"
     )
@@ -318,7 +317,7 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
     )
     for rel in ("meta/stats.json", "meta/tasks.parquet"):
         rep.add(rel, (root / rel).is_file(), "")
-    ep_files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
+    ep_files = sorted(root.glob(EPISODES_META_GLOB))
     if ep_files:
         ep_tab = pq.read_table(ep_files, columns=["episode_index", "length"])
         rep.add(

@@ -17,15 +17,9 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from lerobot_unidextok.constants import (
-    ACTION,
-    HAND_TYPE_KEY,
-    OBS_STATE,
-    UDHM_DIM,
-    UDHM_MASK_KEY,
-)
+from lerobot_unidextok.constants import ACTION, DATA_GLOB, HAND_TYPE_KEY, INFO_PATH, OBS_STATE, UDHM_DIM, UDHM_MASK_KEY
 from lerobot_unidextok.data.splits import HOLDOUTS, SPLITS, EpisodeSplit, SplitError, resolve_split
-from lerobot_unidextok.state_layout import UdhmBlock, find_udhm_blocks
+from lerobot_unidextok.state_layout import UdhmBlock, feature_names, find_udhm_blocks
 
 
 @dataclass
@@ -68,7 +62,7 @@ def _resolve_root(root: str | Path | None, repo_id: str | None) -> Path:
 
         root = dataset_root(repo_id)  # $HF_LEROBOT_HOME/<repo_id>, then the HF cache (unidextok-pull)
     root = Path(root)
-    if not (root / "meta" / "info.json").is_file():
+    if not (root / INFO_PATH).is_file():
         raise FileNotFoundError(
             f"{root} is not a LeRobotDataset: meta/info.json missing. Convert a source first with "
             "`unidextok-convert --source=... --input=... --root=...`"
@@ -78,7 +72,7 @@ def _resolve_root(root: str | Path | None, repo_id: str | None) -> Path:
 
 def read_info(root: str | Path) -> dict:
     """meta/info.json of a dataset folder."""
-    return json.loads((Path(root) / "meta" / "info.json").read_text())
+    return json.loads((Path(root) / INFO_PATH).read_text())
 
 
 def split_episode_range(info: dict, split: str) -> tuple[int, int]:
@@ -92,22 +86,12 @@ def split_episode_range(info: dict, split: str) -> tuple[int, int]:
     return a, b
 
 
-def _names(info: dict, key: str) -> list[str]:
-    ft = info["features"].get(key)
-    if ft is None:
-        return []
-    names = ft.get("names") or []
-    if isinstance(names, dict):  # LeRobot also allows {"axes": [...]}
-        names = next(iter(names.values()))
-    return [str(n) for n in names]
-
-
 def udhm_blocks(info: dict, key: str = OBS_STATE) -> list[UdhmBlock]:
     """The UDHM blocks of a vector feature, found by name; a clear error when there are none."""
     ft = info["features"].get(key)
     if ft is None:
         raise ValueError(f"dataset has no {key!r} feature; is it a UDHM conversion?")
-    names = _names(info, key)
+    names = feature_names(ft)
     dim = int(ft["shape"][0])
     if len(names) != dim:
         raise ValueError(f"{key} has {dim} values but {len(names)} names; UDHM blocks are found by name")
@@ -118,11 +102,6 @@ def udhm_blocks(info: dict, key: str = OBS_STATE) -> list[UdhmBlock]:
             "convert the dataset with unidextok-convert first"
         )
     return blocks
-
-
-def _block_sides(info: dict) -> list[str]:
-    """Side of each UDHM block of observation.state, in vector order."""
-    return [b.side for b in udhm_blocks(info)]
 
 
 def _fixed_list_to_numpy(col: pa.ChunkedArray, width: int, dtype) -> np.ndarray:
@@ -178,7 +157,7 @@ def _layout(info: dict) -> _Layout:
 
 
 def _data_files(root: Path) -> list[Path]:
-    files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
+    files = sorted(root.glob(DATA_GLOB))
     if not files:
         raise FileNotFoundError(f"no data parquet files under {root / 'data'}")
     return files

@@ -29,8 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_unidextok.constants import UDHM_DIM
+from lerobot_unidextok.constants import CONVERSION_PATH, INFO_PATH, UDHM_DIM
 from lerobot_unidextok.data.reader import _data_files, _resolve_root, iter_udhm_frames
+from lerobot_unidextok.utils.files import replace_folder
 
 logger = logging.getLogger(__name__)
 
@@ -150,7 +151,7 @@ def store_fingerprint(roots: list[Path], split: str | None, holdout: str) -> str
     h = hashlib.sha1(f"format={STORE_FORMAT};split={split};holdout={holdout}".encode())
     for root in roots:
         h.update(str(root.resolve()).encode())
-        for name in ("meta/info.json", "meta/unidextok_conversion.json"):
+        for name in (INFO_PATH, CONVERSION_PATH):
             path = root / name
             h.update(path.read_bytes() if path.is_file() else b"-")
         for f in _data_files(root):
@@ -218,13 +219,7 @@ def build_row_store(
             "hands": files,
         }
         (tmp / INDEX).write_text(json.dumps(index, indent=1))
-        if folder.exists():
-            old = folder.parent / f".{folder.name}.old-{uuid.uuid4().hex[:8]}"
-            folder.rename(old)
-            tmp.rename(folder)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            tmp.rename(folder)
+        replace_folder(tmp, folder)
     except BaseException:
         for entry in files.values():
             for handle in entry.get("handles", {}).values():

@@ -9,7 +9,8 @@ one. `holdout` chooses what happens then:
 - `"recorded"`: the recorded test episodes (conversion record still valid for the dataset, or a
   `"test"` range in `meta/info.json` `splits`); a dataset without them is an error saying so.
 - `"hash"`: ignore records; the test episodes are the `round(0.2 * N)` episodes with the smallest
-  sha1 of `episode_<index:06d>` (deterministic, needs no metadata).
+  sha1 of `episode_<index:06d>` (deterministic, needs no metadata): `split_order`, the rule the conversion
+  applies to its source episode keys.
 - `"auto"` (default): recorded when there is a valid record, else `"hash"` with a warning.
 """
 
@@ -23,11 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.constants import CONVERSION_PATH, EPISODES_META_GLOB
+
 logger = logging.getLogger(__name__)
 
 HOLDOUTS = ("auto", "recorded", "hash")
 SPLITS = ("train", "test", "all")
-CONVERSION_SETTINGS = "meta/unidextok_conversion.json"
 HASH_TEST_FRACTION = 0.2
 
 
@@ -55,18 +57,25 @@ class EpisodeSplit:
         raise SplitError(f"split must be one of {SPLITS} or None, got {split!r}")
 
 
+def split_order(keys: list[str], test_fraction: float = HASH_TEST_FRACTION) -> tuple[list[int], list[int]]:
+    """(train, test) positions: test = the round(f * N) keys with the smallest sha1 (none when N = 1); each
+    list in input order."""
+    num_test = round(test_fraction * len(keys)) if len(keys) > 1 else 0
+    ranked = sorted(range(len(keys)), key=lambda i: hashlib.sha1(keys[i].encode()).hexdigest())
+    test = set(ranked[:num_test])
+    return [i for i in range(len(keys)) if i not in test], sorted(test)
+
+
 def hash_test_episodes(num_episodes: int, fraction: float = HASH_TEST_FRACTION) -> tuple[int, ...]:
-    """The `round(fraction * N)` episode indices with the smallest sha1 of `episode_<index:06d>` (none if N = 1)."""
-    num_test = round(fraction * num_episodes) if num_episodes > 1 else 0
-    ranked = sorted(range(num_episodes), key=lambda i: hashlib.sha1(f"episode_{i:06d}".encode()).hexdigest())
-    return tuple(sorted(ranked[:num_test]))
+    """`split_order` over the keys `episode_<index:06d>`: the test episode indices of a dataset without a record."""
+    return tuple(split_order([f"episode_{i:06d}" for i in range(num_episodes)], fraction)[1])
 
 
 def episode_lengths(root: Path) -> dict[int, int] | None:
     """{episode index: length} from `meta/episodes/*.parquet` (None when absent)."""
     import pyarrow.parquet as pq
 
-    files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
+    files = sorted(root.glob(EPISODES_META_GLOB))
     if not files:
         return None
     table = pq.read_table(files, columns=["episode_index", "length"])
@@ -76,8 +85,8 @@ def episode_lengths(root: Path) -> dict[int, int] | None:
 def recorded_split(root: Path, info: dict) -> tuple[EpisodeSplit | None, str]:
     """The dataset's own record of its test episodes, or (None, why there is none usable)."""
     total = int(info.get("total_episodes", 0))
-    path = root / CONVERSION_SETTINGS
-    why = f"no {CONVERSION_SETTINGS}"
+    path = root / CONVERSION_PATH
+    why = f"no {CONVERSION_PATH}"
     if path.is_file():
         settings = json.loads(path.read_text())
         test = settings.get("test_episodes")
@@ -85,16 +94,16 @@ def recorded_split(root: Path, info: dict) -> tuple[EpisodeSplit | None, str]:
         lengths = episode_lengths(root)
         recorded_lengths = {int(r["episode_index"]): int(r["length"]) for r in records if "length" in r}
         if test is None:
-            why = f"{CONVERSION_SETTINGS} has no test_episodes (converted by an older version)"
+            why = f"{CONVERSION_PATH} has no test_episodes (converted by an older version)"
         elif int(settings.get("num_episodes", -1)) != total or (
             lengths is not None and recorded_lengths and recorded_lengths != lengths
         ):
             why = (
-                f"{CONVERSION_SETTINGS} describes {settings.get('num_episodes')} episodes but the dataset has "
+                f"{CONVERSION_PATH} describes {settings.get('num_episodes')} episodes but the dataset has "
                 f"{total} (or other episode lengths): it was edited after conversion (e.g. lerobot-edit-dataset)"
             )
         elif any(not 0 <= int(i) < total for i in test):
-            why = f"{CONVERSION_SETTINGS} test_episodes {test} reach beyond the {total} episodes"
+            why = f"{CONVERSION_PATH} test_episodes {test} reach beyond the {total} episodes"
         else:
             return EpisodeSplit(total, tuple(int(i) for i in test), "conversion record"), ""
     splits = info.get("splits") or {}

@@ -4,10 +4,9 @@ import json
 import math
 from pathlib import Path
 
-import numpy as np
-
 from lerobot_unidextok.evaluation.metrics import reconstruction_metrics
 from lerobot_unidextok.evaluation.reconstruct import codebook_usage, reconstruct
+from lerobot_unidextok.utils.files import jsonable
 
 
 def evaluate_tokenizer(model, data, batch_size: int = 4096) -> dict:
@@ -56,23 +55,11 @@ def markdown_table(report: dict) -> str:
     return "\n".join(lines)
 
 
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (np.floating, float)):
-        return None if math.isnan(float(x)) else float(x)
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
-
-
 def write_report(report: dict, stem: str | Path) -> str:
     """Write `<stem>.json` and `<stem>.md`; returns the Markdown text."""
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
-    stem.with_suffix(".json").write_text(json.dumps(_jsonable(report), indent=2))
+    stem.with_suffix(".json").write_text(json.dumps(jsonable(report), indent=2))
     md = markdown_table(report)
     stem.with_suffix(".md").write_text(md + "\n")
     return md

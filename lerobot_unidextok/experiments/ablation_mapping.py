@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.constants import INFO_PATH, MAPPINGS
 from lerobot_unidextok.experiments.common import (
     ExperimentData,
     cap_rows,
@@ -33,7 +34,6 @@ from lerobot_unidextok.training import HandStates, load_hand_states
 
 logger = logging.getLogger(__name__)
 NAME = "ablation_mapping"
-MAPPINGS = ("semantic", "append_pad")
 
 
 def append_to_semantic_perm(hand: str) -> np.ndarray | None:
@@ -67,7 +67,7 @@ def _datasets(cfg: ExperimentConfig, mapping: str) -> ExperimentData:
     for item in cfg.raw_sources:
         source, path = item.split("=", 1)
         root = Path(cfg.data_dir) / f"{mapping}_user" / f"{source}_{abs(hash(path)) % 10**8}"
-        if not (root / "meta" / "info.json").is_file():
+        if not (root / INFO_PATH).is_file():
             convert(ConvertOptions(source=source, input=path, root=root, repo_id=f"local/{source}_{mapping}", mapping=mapping,
                                    overwrite=True, progress=cfg.progress))  # fmt: skip
         roots.append(str(root))

@@ -88,14 +88,12 @@ def pca(cfg: ExperimentConfig, train: HandStates):
 def quantized_ae(cfg: ExperimentConfig, train: HandStates, quantizer: str):
     """FSQ or RVQ at UniDexTok's budget (8 tokens x 8 codes x 5 bits); None when the library is missing."""
     from lerobot_unidextok.baselines import QuantizedAEConfig, QuantizedAETokenizer
+    from lerobot_unidextok.baselines.quantized_ae import require_vector_quantize
 
     try:
-        import vector_quantize_pytorch  # noqa: F401
-    except ImportError:
-        logger.warning(
-            "vector-quantize-pytorch missing (pip install '.[baselines]'): skipping %s",
-            quantizer,
-        )
+        require_vector_quantize()
+    except ImportError as err:
+        logger.warning("%s: skipping %s", err, quantizer)
         return None
     qcfg = QuantizedAEConfig.from_preset(
         cfg.qae_preset,

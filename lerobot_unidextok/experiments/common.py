@@ -1,7 +1,6 @@
 """What the experiments share: sample data cache, cached tokenizer training, scoring, result files."""
 
 import dataclasses
-import hashlib
 import json
 import logging
 import math
@@ -13,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.constants import DATA_GLOB, INFO_PATH
 from lerobot_unidextok.experiments.config import ExperimentConfig, config_dict
 from lerobot_unidextok.training import (
     HandStates,
@@ -20,6 +20,8 @@ from lerobot_unidextok.training import (
     load_hand_states,
     train_tokenizer,
 )
+from lerobot_unidextok.training.splits import split_by_episode
+from lerobot_unidextok.utils.files import fingerprint, jsonable
 
 logger = logging.getLogger(__name__)
 
@@ -73,24 +75,6 @@ def provenance(cfg: ExperimentConfig, data: "ExperimentData", seconds: float) ->
     }  # fmt: skip
 
 
-def jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [jsonable(v) for v in x]
-    if isinstance(x, (np.floating, float)):
-        return None if math.isnan(float(x)) else float(x)
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    if isinstance(x, np.ndarray):
-        return jsonable(x.tolist())
-    if isinstance(x, Path):
-        return str(x)
-    return x
-
-
 def out_dir(cfg: ExperimentConfig, name: str) -> Path:
     path = Path(cfg.output_root) / name
     path.mkdir(parents=True, exist_ok=True)
@@ -136,7 +120,7 @@ def sample_raw_dir(cfg: ExperimentConfig) -> Path:
 
 
 def _valid_dataset(root: Path) -> bool:
-    return (root / "meta" / "info.json").is_file() and any((root / "data").glob("chunk-*/file-*.parquet"))
+    return (root / INFO_PATH).is_file() and any(root.glob(DATA_GLOB))
 
 
 def prepare_sample_data(cfg: ExperimentConfig, mapping: str = "semantic") -> list[Path]:
@@ -232,13 +216,6 @@ def per_hand_states(data: HandStates) -> dict[str, np.ndarray]:
 # ---------------------------------------------------------------------------------------------
 # UniDexTok: trained once per (configuration, training rows), cached under models_dir
 # ---------------------------------------------------------------------------------------------
-def _fingerprint(*parts) -> str:
-    h = hashlib.sha1()
-    for p in parts:
-        h.update(p.tobytes() if isinstance(p, np.ndarray) else json.dumps(p, sort_keys=True, default=str).encode())
-    return h.hexdigest()[:12]
-
-
 def train_config(cfg: ExperimentConfig, output_dir: Path, hand_names: list[str]) -> TrainConfig:
     return TrainConfig(
         preset=cfg.preset, steps=cfg.steps, batch_size=cfg.batch_size, lr=cfg.lr, warmup_steps=cfg.warmup_steps,
@@ -256,7 +233,7 @@ def trained_unidextok(cfg: ExperimentConfig, tag: str, train: HandStates, select
     settings = dataclasses.asdict(train_config(cfg, Path("."), hands))  # every training setting, incl. defaults
     for volatile in ("output_dir", "progress"):
         settings.pop(volatile)
-    key = _fingerprint(
+    key = fingerprint(
         settings,
         train.states_rad,
         train.hands.astype("U32"),
@@ -279,18 +256,13 @@ def trained_unidextok(cfg: ExperimentConfig, tag: str, train: HandStates, select
 
 
 def selection_split(train: HandStates, seed: int, fraction: float = 0.1) -> tuple[HandStates, HandStates]:
-    """(fit rows, checkpoint-selection rows): whole training episodes held back per hand, never test rows."""
-    rng = np.random.default_rng(seed)
+    """(fit rows, checkpoint-selection rows): whole training episodes held back per hand
+    (`training.splits.split_by_episode`), never test rows; every 10th row when no hand has two episodes."""
+    fit, select = split_by_episode(train, fraction, seed)
+    if len(select):
+        return fit, select
     pick = np.zeros(len(train), dtype=bool)
-    eps = train.episode_index if train.episode_index is not None else np.arange(len(train))
-    for hand in train.hand_names():
-        rows = train.hands == hand
-        uniq = np.unique(eps[rows])
-        n = max(1, round(fraction * len(uniq))) if len(uniq) > 1 else 0
-        chosen = rng.choice(uniq, size=n, replace=False) if n else []
-        pick |= rows & np.isin(eps, chosen)
-    if not pick.any():  # one episode only: hold back every 10th row
-        pick[:: max(2, int(1 / fraction))] = True
+    pick[:: max(2, int(1 / fraction))] = True
     return train.select(np.flatnonzero(~pick)), train.select(np.flatnonzero(pick))
 
 

@@ -215,14 +215,15 @@ def _source_hand(source: str, entry: dict) -> str | None:
 def sample_gestures(raw: Path, max_per_class: int, seed: int) -> dict[str, np.ndarray]:
     """Held gesture frames of every sample source: states (N, 22) rad, hands, labels, episode ids."""
     from lerobot_unidextok import hands as registry
-    from lerobot_unidextok.conversion.samples import LABELS_FILE, SAMPLE_SOURCES, TRUTH_FILE
+    from lerobot_unidextok.constants import SAMPLE_LABELS_FILE
+    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCES, TRUTH_FILE
 
     states, hands, labels, episodes = [], [], [], []
     for source in SAMPLE_SOURCES:
         folder = raw / source
-        if not (folder / LABELS_FILE).is_file():
+        if not (folder / SAMPLE_LABELS_FILE).is_file():
             continue
-        eps = json.loads((folder / LABELS_FILE).read_text())["episodes"]
+        eps = json.loads((folder / SAMPLE_LABELS_FILE).read_text())["episodes"]
         truth = np.load(folder / TRUTH_FILE)
         for key, entry in eps.items():
             hand = _source_hand(source, entry)
@@ -244,7 +245,7 @@ def sample_gestures(raw: Path, max_per_class: int, seed: int) -> dict[str, np.nd
                 episodes += [f"{source}/{key}"] * int(held.sum())
     if not states:
         raise ValueError(
-            f"no labelled sample frames under {raw}; the sample sources need {LABELS_FILE} and {TRUTH_FILE}"
+            f"no labelled sample frames under {raw}; the sample sources need {SAMPLE_LABELS_FILE} and {TRUTH_FILE}"
         )
     out = {"states": np.concatenate(states), "hands": np.array(hands), "labels": np.array(labels),
            "episodes": np.array(episodes)}  # fmt: skip

@@ -5,13 +5,12 @@
 - `dex-retargeting/human_joint_right.npy`: one real right hand (MediaPipe world landmarks, 621 frames at
   30 fps) mapped to UDHM by the human hand spec (UDHM IK). One clip, so it is cut into consecutive segments
   of `human_segment_s` seconds that act as episodes; the held-out segments are chosen like the converter's
-  episode split (`conversion.pipeline.split_order`, 20 % by sha1 of the segment key).
+  episode split (`data.splits.split_order`, 20 % by sha1 of the segment key).
 The clip's keypoints are also what `experiments.retargeted` retargets onto the robot hands (protocol b).
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 from dataclasses import dataclass
@@ -19,8 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.experiments.config import ExperimentConfig
 from lerobot_unidextok.training import HandStates, load_hand_states
+from lerobot_unidextok.utils.files import fingerprint
 
 logger = logging.getLogger(__name__)
 
@@ -33,7 +34,7 @@ SEGMENT_EPISODE_BASE = 100_000  # human segment episode ids, apart from the G1 e
 
 
 def real_available(cfg: ExperimentConfig) -> bool:
-    return (cfg.real_dir / G1_FOLDER / "meta" / "info.json").is_file() and (cfg.real_dir / HUMAN_CLIP).is_file()
+    return (cfg.real_dir / G1_FOLDER / INFO_PATH).is_file() and (cfg.real_dir / HUMAN_CLIP).is_file()
 
 
 @dataclass
@@ -53,19 +54,12 @@ class RealHuman:
 
 def segment_split(num_frames: int, segment_frames: int, test_fraction: float = 0.2) -> tuple[np.ndarray, np.ndarray]:
     """(segment id per frame, test flag per frame): consecutive segments, the last short one merged."""
-    from lerobot_unidextok.conversion.pipeline import split_order
+    from lerobot_unidextok.data.splits import split_order
 
     n_seg = max(1, num_frames // segment_frames)
     segment = np.minimum(np.arange(num_frames) // segment_frames, n_seg - 1)
     _, test_ids = split_order([f"{HUMAN_CLIP.as_posix()}#segment{i:03d}" for i in range(n_seg)], test_fraction)
     return segment, np.isin(segment, test_ids)
-
-
-def _sha(*parts: bytes) -> str:
-    h = hashlib.sha1()
-    for p in parts:
-        h.update(p)
-    return h.hexdigest()[:12]
 
 
 def real_human(cfg: ExperimentConfig) -> RealHuman:
@@ -82,9 +76,9 @@ def g1_inspire(cfg: ExperimentConfig, mapping: str = "semantic") -> Path:
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
 
     src = cfg.real_dir / G1_FOLDER
-    stamp = _sha(json.dumps(sorted((p.name, p.stat().st_size) for p in src.rglob("*") if p.is_file())).encode())
+    stamp = fingerprint(json.dumps(sorted((p.name, p.stat().st_size) for p in src.rglob("*") if p.is_file())).encode())
     root = Path(cfg.data_dir) / f"real_g1_inspire_{mapping}_{stamp}"
-    if not (root / "meta" / "info.json").is_file():
+    if not (root / INFO_PATH).is_file():
         convert(ConvertOptions(source="lerobot", input=src, root=root, repo_id="local/real_g1_inspire",
                                source_options={"hands": G1_HANDS}, mapping=mapping, overwrite=True, progress=False))  # fmt: skip
     return root

@@ -9,7 +9,6 @@ Retargeting runs once per (keypoints, hand, spec, URDF) and is cached under `dat
 
 from __future__ import annotations
 
-import hashlib
 import logging
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +17,7 @@ import numpy as np
 
 from lerobot_unidextok.experiments.config import ExperimentConfig
 from lerobot_unidextok.training import HandStates
+from lerobot_unidextok.utils.files import fingerprint
 
 logger = logging.getLogger(__name__)
 HUMAN = "human"
@@ -45,13 +45,6 @@ class RetargetedPairs:
         return HandStates.concat([self.robot_test[h] for h in self.hands])
 
 
-def _sha(*parts: bytes) -> str:
-    h = hashlib.sha1()
-    for p in parts:
-        h.update(p)
-    return h.hexdigest()[:12]
-
-
 def retarget_cached(cfg: ExperimentConfig, keypoints_m: np.ndarray, hand: str) -> tuple[np.ndarray, float] | None:
     """(T, 22) UDHM of `keypoints_m` (right hand) retargeted onto `hand`, and the mean target error (mm).
     None (with a warning) when no URDF of the hand is under urdf_dir or dex-retargeting is not installed."""
@@ -62,7 +55,7 @@ def retarget_cached(cfg: ExperimentConfig, keypoints_m: np.ndarray, hand: str) -
     except (URDFError, ImportError) as e:
         logger.warning("%s not retargeted: %s", hand, e)
         return None
-    key = _sha(np.ascontiguousarray(keypoints_m).tobytes(), get_retarget_spec(hand).path.read_bytes(),
+    key = fingerprint(np.ascontiguousarray(keypoints_m).tobytes(), get_retarget_spec(hand).path.read_bytes(),
                retargeter.urdf_path.read_bytes(), Path(__file__).read_bytes())  # fmt: skip
     cache = Path(cfg.data_dir) / "retargeted" / f"{hand}_{key}.npz"
     if cache.is_file():

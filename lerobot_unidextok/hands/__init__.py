@@ -4,7 +4,7 @@ from lerobot_unidextok import hands
 spec = hands.get("linkerhand_l10")
 state = spec.to_udhm(raw, side="right")      # (..., 10) SDK 0-255 -> (..., 22) rad
 raw = spec.from_udhm(state, side="right")    # -> (..., 10), clipped to the joint limits
-spec.check_units(episode_raw, side="right")  # NativeUnitsError with the likely fix for wrong units
+hands.check_units(spec, episode_raw, side="right")  # NativeUnitsError with the likely fix for wrong units
 Kinematic check against a URDF: `hands.check.check_spec` / `python -m lerobot_unidextok.hands check`.
 """
 
@@ -19,7 +19,7 @@ from lerobot_unidextok.hands.spec import (
     UrdfKeypoint,
     UrdfSpec,
 )
-from lerobot_unidextok.hands.units import NativeUnitsError
+from lerobot_unidextok.hands.units import NativeUnitsError, check_units
 
 __all__ = [
     "SPECS_DIR",
@@ -34,6 +34,7 @@ __all__ = [
     "UrdfKeypoint",
     "UrdfSpec",
     "all_specs",
+    "check_units",
     "describe",
     "get",
     "load_spec",

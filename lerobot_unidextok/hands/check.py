@@ -63,7 +63,6 @@ class JointVerdict:
     gain: float = 0.0
     rest_error_deg: float = float("nan")  # spec - IK at the rest pose, on the spec slot
     suggested_rest_rad: float = float("nan")
-    poses_agreeing: int = 0
     mode: str = "own"  # "own": followers held; "linkage": the joint's URDF mimic followers move with it
     primary_pose: str = ""
     median_share: float = float("nan")
@@ -299,7 +298,6 @@ def _verdict(
     primary = next((r for r in v.readings if r.slot is not None and r.gain <= MAX_GAIN), None)
     if primary is not None:
         v.primary_pose, v.found_slot, v.found_sign, v.gain = primary.pose, primary.slot, primary.sign, primary.gain
-    v.poses_agreeing = sum(r.slot is not None and r.spec_share >= SHARE for r in v.readings)
     if urdf_joint is None:
         v.verdict = "no URDF joint" if js.slot is not None else "dropped"
     elif js.slot is None:

@@ -18,15 +18,21 @@ from typing import Any, Literal
 import numpy as np
 import torch
 
-from lerobot_unidextok.constants import NUM_KEYPOINTS, UDHM_DIM, UDHM_INDEX, UDHM_JOINT_NAMES
+from lerobot_unidextok.constants import (
+    FINGERS,
+    MAPPINGS,
+    NUM_KEYPOINTS,
+    UDHM_DIM,
+    UDHM_INDEX,
+    UDHM_JOINT_NAMES,
+    UdhmMapping,
+)
 
 logger = logging.getLogger(__name__)
 
-Mapping = Literal["semantic", "append_pad"]
 OutOfRange = Literal["raise", "clip"]
 Array = np.ndarray | torch.Tensor
 
-MAPPINGS: tuple[str, ...] = ("semantic", "append_pad")
 OUT_OF_RANGE_MODES: tuple[str, ...] = ("raise", "clip")
 # Relative slack on range checks so float round-off at an end point is not "out of range".
 _RANGE_TOL = 1e-6
@@ -74,9 +80,6 @@ class JointSpec:
     note: str = ""
     judgement: str = ""  # non-empty = a judgement call, with its reason
 
-    def slot_for(self, side: str) -> str | None:
-        return self.sides[side].slot
-
 
 @dataclass(frozen=True)
 class CoupledJoint:
@@ -113,6 +116,23 @@ class SkeletonSpec:
             return f"measured: {self.source or 'palm offsets and bone lengths in the spec'}"
         base = "default human skeleton" + ("" if self.scale == 1.0 else f" x {self.scale:g}")
         return base + (" with per-finger bone lengths" if self.bone_lengths_m else "") + " (approximation)"
+
+    def skeleton(self):
+        """``udhm.Skeleton``: the measured one (palm offsets + bone lengths, canonicalised) when given, else the
+        default human skeleton times ``scale`` with per-finger bone lengths overriding."""
+        from lerobot_unidextok.udhm.skeleton import Skeleton
+
+        if self.measured:
+            offsets = np.array([self.palm_offsets_m[f] for f in FINGERS], dtype=np.float64)  # (5, 3)
+            bones = np.array([self.bone_lengths_m[f] for f in FINGERS], dtype=np.float64)  # (5, 3)
+            return Skeleton(offsets, bones).canonicalized()
+        skel = Skeleton.default().scaled(self.scale)
+        if not self.bone_lengths_m:
+            return skel
+        bones = np.array(skel.bone_lengths_m, dtype=np.float64)  # (5, 3)
+        for finger, lengths in self.bone_lengths_m.items():
+            bones[FINGERS.index(finger)] = lengths
+        return Skeleton(np.array(skel.palm_offsets_m), bones)
 
 
 @dataclass(frozen=True)
@@ -252,7 +272,7 @@ class HandSpec:
         """(22,) bool: UDHM slots filled by a real DoF of this hand (semantic insertion)."""
         return self.mask("semantic")
 
-    def mask(self, mapping: Mapping = "semantic") -> np.ndarray:
+    def mask(self, mapping: UdhmMapping = "semantic") -> np.ndarray:
         """(22,) bool active-DoF mask of ``mapping``."""
         self._check_mapping(mapping)
         mask = np.zeros(UDHM_DIM, dtype=bool)
@@ -340,7 +360,7 @@ class HandSpec:
         self,
         raw: Any,
         side: str = "right",
-        mapping: Mapping = "semantic",
+        mapping: UdhmMapping = "semantic",
         on_out_of_range: OutOfRange = "raise",
     ) -> Array:
         """Native values -> UDHM state (..., 22) in radians; inactive slots are 0."""
@@ -356,7 +376,7 @@ class HandSpec:
         out[..., target] = values
         return out
 
-    def from_udhm(self, state: Any, side: str = "right", mapping: Mapping = "semantic") -> Array:
+    def from_udhm(self, state: Any, side: str = "right", mapping: UdhmMapping = "semantic") -> Array:
         """UDHM state (..., 22) in radians -> native values (..., J), clipped to the joint limits.
 
         Dropped joints get their ``default_raw``. For the human hand: keypoints (..., 21, 3) in metres
@@ -376,23 +396,15 @@ class HandSpec:
         rad = _clip(rad, _table(t.rad_lo, rad), _table(t.rad_hi, rad))
         return self._rad_to_raw(rad, t)
 
-    def check_units(self, raw: Any, side: str = "right") -> None:
-        """Raise ``hands.NativeUnitsError`` when a stream of native values (..., J) does not look like this
-        spec's units (outside the range, or all within 1 % of one end of it); the message gives the likely fix."""
-        from lerobot_unidextok.hands.units import check_native_units
-
-        self._check_side(side)
-        check_native_units(self, raw.detach().cpu().numpy() if isinstance(raw, torch.Tensor) else raw, side)
-
     # -- kinematics ----------------------------------------------------------------------------------
     def skeleton(self):
-        """This hand's ``udhm.Skeleton`` (the default human skeleton scaled, per-finger lengths if given)."""
-        from lerobot_unidextok.hands.kinematics import skeleton_for
-
-        return skeleton_for(self.skeleton_spec)
+        """This hand's ``udhm.Skeleton`` (``SkeletonSpec.skeleton``: measured, or the default human skeleton
+        scaled with per-finger lengths if given)."""
+        return self.skeleton_spec.skeleton()
 
     def _keypoints_to_udhm(self, keypoints_m: Any, side: str) -> Array:
-        from lerobot_unidextok.hands.kinematics import keypoints_to_udhm
+        """MANO-21 keypoints (..., 21, 3) m -> UDHM (..., 22) rad by ``udhm.inverse_kinematics``."""
+        from lerobot_unidextok.udhm import inverse_kinematics
 
         kp = _to_float(keypoints_m)
         self._check_side(side)
@@ -402,13 +414,17 @@ class HandSpec:
                 f"got {tuple(kp.shape)}"
             )
         self._check_nan(kp, "keypoints_m")
-        return keypoints_to_udhm(kp, side)
+        if isinstance(kp, torch.Tensor):
+            angles_rad = inverse_kinematics(kp.detach().cpu().double().numpy(), side=side).angles_rad
+            return torch.as_tensor(angles_rad, dtype=kp.dtype, device=kp.device)
+        return inverse_kinematics(np.asarray(kp, dtype=np.float64), side=side).angles_rad
 
     def _udhm_to_keypoints(self, state: Array, side: str) -> Array:
-        from lerobot_unidextok.hands.kinematics import udhm_to_keypoints
+        """UDHM (..., 22) rad -> MANO-21 keypoints (..., 21, 3) m in the canonical wrist frame (UDHM FK)."""
+        from lerobot_unidextok.udhm.fk import forward_kinematics
 
         self._check_side(side)
-        return udhm_to_keypoints(state, self.skeleton(), side)
+        return forward_kinematics(state, self.skeleton(), side=side)
 
     # -- checks ----------------------------------------------------------------------------------------
     def _side_table(self, side: str) -> _SideTable:

@@ -1,6 +1,6 @@
 """Wrong native units caught before conversion: data using a tiny corner of a joint range, or overshooting it.
 
-`check_native_units(spec, raw, side)` looks at a whole stream (an episode) of native values:
+`check_units(spec, raw, side)` (`hands.check_units`) looks at a whole stream (an episode) of native values:
 - values outside the native range (e.g. degrees where the spec expects radians) raise with the
   rescaling that would bring them inside it (``np.deg2rad``, ``/ 1000``, ...);
 - values that all sit within ``TINY_FRACTION`` of one end of every joint's range while still moving
@@ -8,6 +8,7 @@
   would otherwise convert into a hand held closed and validate) raise with the rescaling, and the
   registered spec of the same embodiment whose native range fits the data as it is.
 Both raise ``NativeUnitsError`` (a ValueError) naming the hand, the side, the joints and the likely fix.
+The check sits above the registry because its advice names other registered specs.
 """
 
 from __future__ import annotations
@@ -15,6 +16,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import torch
+
+from lerobot_unidextok.hands.registry import all_specs
+from lerobot_unidextok.hands.spec import HandSpec
 
 TINY_FRACTION = 0.01  # all values within 1 % of one end of every joint's range = wrong units
 # (rescaling, label): what a value times the factor would be if that were the mistake.
@@ -39,7 +44,7 @@ def _fits(values: np.ndarray, lo: np.ndarray, hi: np.ndarray, tol: np.ndarray) -
     return bool(((values >= lo - tol) & (values <= hi + tol)).all())
 
 
-def _likely_fixes(spec, values: np.ndarray, lo: np.ndarray, hi: np.ndarray, tol: np.ndarray) -> list[str]:
+def _likely_fixes(spec: HandSpec, values: np.ndarray, lo: np.ndarray, hi: np.ndarray, tol: np.ndarray) -> list[str]:
     """The rescaling that puts (nearly) every value inside the range using most of it, and sibling specs."""
     span = hi - lo
     best, best_score = None, None
@@ -54,10 +59,8 @@ def _likely_fixes(spec, values: np.ndarray, lo: np.ndarray, hi: np.ndarray, tol:
     return ([best] if best else []) + _sibling_specs(spec, values)
 
 
-def _sibling_specs(spec, values: np.ndarray) -> list[str]:
+def _sibling_specs(spec: HandSpec, values: np.ndarray) -> list[str]:
     """Registered specs of the same embodiment and width whose native range holds the values as they are."""
-    from lerobot_unidextok.hands.registry import all_specs
-
     out = []
     for other in all_specs():
         if other.name == spec.name or other.embodiment != spec.embodiment or other.num_native != spec.num_native:
@@ -70,10 +73,14 @@ def _sibling_specs(spec, values: np.ndarray) -> list[str]:
     return out
 
 
-def check_native_units(spec, raw, side: str = "right") -> None:
-    """Raise ``NativeUnitsError`` when a stream of native values (..., J) does not fit the spec's units."""
+def check_units(spec: HandSpec, raw, side: str = "right") -> None:
+    """Raise ``NativeUnitsError`` when a stream of native values (..., J) does not look like the spec's units
+    (outside the range, or all within 1 % of one end of it); the message gives the likely fix."""
+    if side not in spec.sides:
+        raise ValueError(f"hand {spec.name!r} has no side {side!r}; its sides are {list(spec.sides)}")
     if spec.kind != "joints":
         return
+    raw = raw.detach().cpu().numpy() if isinstance(raw, torch.Tensor) else raw
     values = np.asarray(raw, dtype=np.float64).reshape(-1, spec.num_native)
     a = spec._active_joint_idx
     if values.size == 0 or len(a) == 0 or not np.isfinite(values).all():

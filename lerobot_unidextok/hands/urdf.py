@@ -12,6 +12,7 @@ to the root leader); they are posed explicitly, so a check can also move a leade
 from __future__ import annotations
 
 import logging
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,19 +20,9 @@ import numpy as np
 
 from lerobot_unidextok.constants import KEYPOINT_NAMES
 from lerobot_unidextok.hands.spec import UrdfKeypoint
+from lerobot_unidextok.utils.imports import require_package
 
 logger = logging.getLogger(__name__)
-
-
-def require_yourdfpy():
-    """The yourdfpy module, or an ImportError naming the extra that installs it."""
-    try:
-        import yourdfpy
-    except ImportError as err:  # pragma: no cover - exercised only without the extra
-        raise ImportError(
-            "the URDF kinematic check needs yourdfpy: pip install 'lerobot-unidextok[urdf]' (or pip install yourdfpy)"
-        ) from err
-    return yourdfpy
 
 
 @dataclass
@@ -46,7 +37,9 @@ class UrdfHand:
     @classmethod
     def load(cls, path: str | Path, keypoints: tuple[UrdfKeypoint, ...]) -> UrdfHand:
         """Parse ``path`` (meshes are not loaded: kinematics only) and check that every keypoint link exists."""
-        yourdfpy = require_yourdfpy()
+        yourdfpy = require_package(
+            "yourdfpy", "urdf", purpose="the URDF kinematic check", hint=" (or pip install yourdfpy)"
+        )
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"URDF not found: {path}")
@@ -54,13 +47,17 @@ class UrdfHand:
             raise ValueError(f"need {len(KEYPOINT_NAMES)} keypoints in MANO-21 order, got {len(keypoints)}")
         logging.getLogger("yourdfpy").setLevel(logging.ERROR)  # dangling mesh paths are expected
         parsed = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False)
-        _flatten_mimic_chains(parsed.robot)
-        mimics = {}
+        tags = {
+            j.name: (j.mimic.joint, _or(j.mimic.multiplier, 1.0), _or(j.mimic.offset, 0.0))
+            for j in parsed.robot.joints
+            if j.mimic is not None
+        }
+        try:
+            mimics = resolve_mimic_chains(tags, [j.name for j in parsed.robot.joints])
+        except ValueError as err:
+            raise ValueError(f"{path.name}: {err}") from None
         for joint in parsed.robot.joints:
-            if joint.mimic is not None:
-                m = joint.mimic
-                mimics[joint.name] = (m.joint, 1.0 if m.multiplier is None else m.multiplier, m.offset or 0.0)
-                joint.mimic = None  # posed explicitly by full_cfg
+            joint.mimic = None  # followers are posed explicitly by full_cfg
         model = yourdfpy.URDF(robot=parsed.robot, build_scene_graph=True, load_meshes=False)
         missing = [(n, k.link) for n, k in zip(KEYPOINT_NAMES, keypoints, strict=True) if k.link not in model.link_map]
         if missing:
@@ -128,25 +125,34 @@ class UrdfHand:
         return {n: self.model.get_transform(frame_to=n, frame_from=base)[:3, 3].copy() for n in self.model.link_map}
 
 
-def _flatten_mimic_chains(robot) -> None:
-    """Point every mimic joint at the root of its mimic chain (yourdfpy follows one level only).
+def resolve_mimic_chains(
+    mimics: dict[str, tuple[str, float, float]], joints: Collection[str]
+) -> dict[str, tuple[str, float, float]]:
+    """Each mimic joint's (root leader, multiplier, offset), following chains of mimics to a non-mimic joint.
 
-    b = m1 a + o1 and c = m2 b + o2 give c = (m2 m1) a + (m2 o1 + o2).
+    ``mimics`` maps a follower to its URDF ``<mimic>`` tag (leader, multiplier, offset): follower =
+    multiplier * leader + offset. A chain b = m1 a + o1, c = m2 b + o2 gives c = (m2 m1) a + (m2 o1 + o2).
+    A multiplier of 0 stays 0 (the follower sits at its offset). ValueError when a leader is not in
+    ``joints`` or the mimics form a cycle.
     """
-    by_name = {j.name: j for j in robot.joints}
-    for joint in robot.joints:
-        seen = {joint.name}
-        while joint.mimic is not None:
-            leader = by_name.get(joint.mimic.joint)
-            if leader is None or leader.mimic is None:
-                break
-            if leader.name in seen:
-                raise ValueError(f"URDF mimic joints form a cycle through {sorted(seen)}")
-            seen.add(leader.name)
-            m1, o1 = leader.mimic.multiplier or 1.0, leader.mimic.offset or 0.0
-            m2, o2 = joint.mimic.multiplier or 1.0, joint.mimic.offset or 0.0
-            joint.mimic.joint = leader.mimic.joint
-            joint.mimic.multiplier, joint.mimic.offset = m2 * m1, m2 * o1 + o2
+
+    def root_of(name: str, chain: tuple[str, ...]) -> tuple[str, float, float]:
+        if name not in mimics:
+            if name not in joints:
+                raise ValueError(f"joint {chain[-1]!r} mimics unknown joint {name!r}")
+            return name, 1.0, 0.0
+        if name in chain:
+            raise ValueError(f"mimic joints form a cycle: {' -> '.join((*chain, name))}")
+        leader, mult_here, offset_here = mimics[name]
+        root, mult, offset = root_of(leader, (*chain, name))
+        return root, mult_here * mult, mult_here * offset + offset_here
+
+    return {follower: root_of(follower, ()) for follower in mimics}
+
+
+def _or(value: float | None, default: float) -> float:
+    """yourdfpy leaves an attribute the URDF omits as None; 0 is a value, not a missing one."""
+    return default if value is None else float(value)
 
 
 def measure_skeleton(hand: UrdfHand, side: str = "right"):

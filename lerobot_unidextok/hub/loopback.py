@@ -103,7 +103,6 @@ class _Handler(BaseHTTPRequestHandler):
 
     def _dispatch(self) -> None:
         hub = self.server.hub
-        hub.touch()
         token = hub.token
         if token is not None and self.headers.get("Authorization") != f"Bearer {token}":
             self._json(401, {"error": "Invalid credentials in Authorization header"})
@@ -336,7 +335,6 @@ class LoopbackHub:
         self.repos: dict[tuple[str, str], _Repo] = {}
         self.lock = threading.Lock()
         self._server: LoopbackHub._Server | None = None
-        self._last_request = time.monotonic()
 
     @property
     def url(self) -> str:
@@ -344,9 +342,6 @@ class LoopbackHub:
             raise RuntimeError("LoopbackHub is not running: call start() or use it as a context manager")
         host, port = self._server.server_address[:2]
         return f"http://{host}:{port}"
-
-    def touch(self) -> None:
-        self._last_request = time.monotonic()
 
     def start(self) -> Self:
         self._server = self._Server(("127.0.0.1", 0), _Handler)

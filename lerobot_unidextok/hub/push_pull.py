@@ -13,6 +13,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.hub.card import card_status, model_card, with_training_data
 from lerobot_unidextok.utils.hf_cache import DATASET_REVISIONS, cached_repo_snapshot, hub_cache, lerobot_home
 
@@ -39,7 +40,7 @@ def _check_repo(repo_id: str, repo_type: str) -> None:
 
 def detect_repo_type(local_dir: Path) -> str:
     """'dataset' for a LeRobotDataset folder (meta/info.json), 'model' for a checkpoint (config.json)."""
-    if (local_dir / "meta" / "info.json").is_file():
+    if (local_dir / INFO_PATH).is_file():
         return "dataset"
     if (local_dir / "config.json").is_file():
         return "model"
@@ -57,7 +58,7 @@ def cache_dir() -> str:
 def checkpoint_folder(local_dir: Path) -> Path:
     """The folder to upload for `local_dir`: itself, or the checkpoint inside a training run folder
     (unidextok-train: `best/`; lerobot-train: `checkpoints/last/pretrained_model/`, or `pretrained_model/`)."""
-    if (local_dir / "config.json").is_file() or (local_dir / "meta" / "info.json").is_file():
+    if (local_dir / "config.json").is_file() or (local_dir / INFO_PATH).is_file():
         return local_dir
     for inner in ("best", "pretrained_model", "checkpoints/last/pretrained_model"):
         if (local_dir / inner / "config.json").is_file():
@@ -99,7 +100,7 @@ def push(
     with tempfile.TemporaryDirectory(prefix="unidextok-push-") as staging:
         upload_dir = local_dir
         if repo_type == "dataset":
-            info = json.loads((local_dir / "meta" / "info.json").read_text())
+            info = json.loads((local_dir / INFO_PATH).read_text())
             if info.get("codebase_version") != DATASET_CODEBASE_TAG:
                 raise ValueError(
                     f"{local_dir} is LeRobot dataset {info.get('codebase_version')!r}; only "

@@ -12,7 +12,6 @@ from lerobot_unidextok.processor.processor_unidextok import (
     load_tokenizer,
     tokenizer_output_dims,
     tokens_to_native,
-    trained_hands,
     udhm_to_native,
 )
 
@@ -31,6 +30,5 @@ __all__ = [
     "token_preview",
     "tokenizer_output_dims",
     "tokens_to_native",
-    "trained_hands",
     "udhm_to_native",
 ]

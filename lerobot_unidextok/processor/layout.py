@@ -18,20 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from lerobot_unidextok.constants import ACTION, HAND_TYPE_KEY, OBS_STATE, SIDES, UDHM_DIM
-from lerobot_unidextok.state_layout import find_udhm_blocks, passthrough_indices
-
-CONVERSION_META = Path("meta") / "unidextok_conversion.json"
-
-
-def feature_names(feature: dict) -> list[str]:
-    """`names` of a LeRobot feature as a flat list (LeRobot also writes `{"axes": [...]}` or `[[...]]`)."""
-    names = feature.get("names") or []
-    if isinstance(names, dict):
-        names = next(iter(names.values()), [])
-    if len(names) == 1 and isinstance(names[0], list):
-        names = names[0]
-    return [str(n) for n in names]
+from lerobot_unidextok.constants import ACTION, CONVERSION_PATH, HAND_TYPE_KEY, INFO_PATH, OBS_STATE, SIDES, UDHM_DIM
+from lerobot_unidextok.state_layout import feature_names, find_udhm_blocks, passthrough_indices
 
 
 @dataclass
@@ -125,7 +113,7 @@ class HandLayout:
 # reading a converted dataset folder
 # ---------------------------------------------------------------------------------------------
 def _read_info(root: Path) -> dict:
-    info_path = root / "meta" / "info.json"
+    info_path = root / INFO_PATH
     if not info_path.is_file():
         raise FileNotFoundError(f"{info_path} not found: pass the root folder of a LeRobotDataset v3.0")
     return json.loads(info_path.read_text())
@@ -259,7 +247,7 @@ class NativeLayout:
         names = feature_names(features[key])
         if not find_udhm_blocks(names):
             return None
-        meta_path = root / CONVERSION_META
+        meta_path = root / CONVERSION_PATH
         recorded = json.loads(meta_path.read_text()).get("native_layout", {}).get(key) if meta_path.is_file() else None
         if recorded:
             if any(hand_registry.get(h["hand"]).kind != "joints" for h in recorded["hands"]):

@@ -89,11 +89,6 @@ def tokenizer_output_dims(config: UniDexTokConfig, num_hands: int, representatio
 # ---------------------------------------------------------------------------------------------
 # pre-processor step
 # ---------------------------------------------------------------------------------------------
-def trained_hands(config: UniDexTokConfig) -> list[str]:
-    """Hands the tokenizer was trained on when its checkpoint records them ([] = not recorded)."""
-    return list(getattr(config, "trained_hands", None) or [])
-
-
 @ProcessorStepRegistry.register(STEP_NAME)
 @dataclass
 class UniDexTokStateTokenizerStep(ObservationProcessorStep):
@@ -149,9 +144,9 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             self._tokenizer = UniDexTok(UniDexTokConfig.from_preset(self.preset)).eval()
         self.tokenizer_config = asdict(self._tokenizer.config)
         cfg = self._tokenizer.config
-        unseen = untrained_hands(self.hand_layout, cfg.hand_names, trained_hands(cfg))
+        unseen = untrained_hands(self.hand_layout, cfg.hand_names, cfg.trained_hands)
         if unseen and not self.allow_unknown:
-            seen = trained_hands(cfg) or cfg.hand_names
+            seen = cfg.trained_hands or cfg.hand_names
             raise ValueError(
                 f"the tokenizer was not trained on hands {unseen} (it knows {seen}), so their tokens would be "
                 "meaningless. Use a tokenizer trained or few-shot adapted on them (unidextok-train --init_from), "

@@ -21,7 +21,6 @@ Needs the `retarget` extra (`pip install 'lerobot-unidextok[retarget]'`), import
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import logging
 import tempfile
 from dataclasses import dataclass
@@ -33,6 +32,7 @@ from tqdm.auto import tqdm
 from lerobot_unidextok.constants import KEYPOINT_NAMES, NUM_KEYPOINTS, UDHM_DIM
 from lerobot_unidextok.retarget.spec import PALM_KEYS, SideRetargetSpec, get_retarget_spec
 from lerobot_unidextok.retarget.urdf import URDFError, find_urdfs, flatten_mimic_chains, link_names, read_joints
+from lerobot_unidextok.utils.imports import require_package
 
 logger = logging.getLogger(__name__)
 
@@ -40,11 +40,11 @@ _PALM_KEYPOINTS = {"wrist": 0, "index_mcp": 5, "middle_mcp": 9, "pinky_mcp": 17}
 
 
 def require_dex_retargeting() -> None:
-    if importlib.util.find_spec("dex_retargeting") is None:
-        raise ImportError(
-            "retargeting needs dex-retargeting (with pinocchio `pin` and nlopt): "
-            "pip install 'lerobot-unidextok[retarget]' (Python < 3.13)"
-        )
+    """ImportError naming the `retarget` extra when dex-retargeting (or its pinocchio / nlopt) is missing."""
+    require_package(
+        "dex-retargeting", "retarget", purpose="retargeting", import_name="dex_retargeting",
+        hint=" (Python < 3.13; it brings pinocchio `pin` and nlopt)",
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,7 @@
 dex-retargeting's mimic adaptor (`kinematics_adaptor.MimicJointKinematicAdaptor`) needs every mimic joint to
 follow an optimised joint; some vendor URDFs chain mimics (LinkerHand L10: thumb_ip mimics thumb_mcp, which
 mimics thumb_cmc_pitch). `flatten_mimic_chains` rewrites such a chain to follow its root
-(multiplier m2*m1, offset m2*o1 + o2); the kinematics are unchanged.
+(`hands.urdf.resolve_mimic_chains`: multiplier m2*m1, offset m2*o1 + o2); the kinematics are unchanged.
 """
 
 from __future__ import annotations
@@ -11,6 +11,8 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+
+from lerobot_unidextok.hands.urdf import resolve_mimic_chains
 
 
 class URDFError(ValueError):
@@ -61,27 +63,17 @@ def link_names(path: Path) -> set[str]:
 
 
 def flatten_mimic_chains(src: Path, dst: Path) -> Path:
-    """Write `src` to `dst` with every mimic joint following a non-mimic joint."""
+    """Write `src` to `dst` with every mimic joint following a non-mimic joint (`hands.urdf.resolve_mimic_chains`)."""
+    joints = read_joints(src)
+    try:
+        roots = resolve_mimic_chains({n: j.mimic for n, j in joints.items() if j.mimic is not None}, joints)
+    except ValueError as err:
+        raise URDFError(f"{src}: {err}") from None
     tree = ET.parse(src)
-    joints = {j.get("name"): j for j in tree.getroot().findall("joint")}
-
-    def root_of(name: str, depth: int = 0) -> tuple[str, float, float]:
-        m = joints[name].find("mimic")
-        if m is None:
-            return name, 1.0, 0.0
-        if depth > len(joints):
-            raise URDFError(f"{src}: mimic joints form a cycle through {name!r}")
-        parent = m.get("joint")
-        if parent not in joints:
-            raise URDFError(f"{src}: joint {name!r} mimics unknown joint {parent!r}")
-        base, mul, off = root_of(parent, depth + 1)
-        m_here, o_here = float(m.get("multiplier", 1.0)), float(m.get("offset", 0.0))
-        return base, m_here * mul, m_here * off + o_here
-
-    for name, j in joints.items():
+    for j in tree.getroot().findall("joint"):
         m = j.find("mimic")
         if m is not None:
-            base, mul, off = root_of(name)
+            base, mul, off = roots[j.get("name")]
             m.set("joint", base)
             m.set("multiplier", repr(mul))
             m.set("offset", repr(off))

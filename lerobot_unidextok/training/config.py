@@ -36,13 +36,9 @@ class TrainConfig:
     init_from: str | None = None  # start from a pretrained checkpoint (folder or repo id)
 
     # --- optimisation -------------------------------------------------------------------------------
-    # small preset, lr 6e-3: 0.909 deg held-out MAE on the demo's 6-hand sample mixture after 5000 steps,
-    # 339 s wall on one thread at load ~1 (0.951 deg after 4000; docs/tokenizer.md)
-    steps: int = 5000
+    steps: int = 5000  # the demo's schedule (its figures: docs/tokenizer.md)
     batch_size: int = 256
-    # tuned for the CPU presets: 6e-3 beat 3e-3 on real G1 Inspire recordings (0.411 vs 0.447 deg after 2000
-    # steps) and reaches 0.91 deg on the demo mixture; the paper preset uses 5e-4 (configs/train/paper.yaml)
-    lr: float = 6e-3
+    lr: float = 6e-3  # for the CPU presets (small, tiny); the paper preset uses 5e-4 (configs/train/paper.yaml)
     min_lr_ratio: float = 0.05  # cosine decays to lr * min_lr_ratio
     warmup_steps: int = 200
     weight_decay: float = 0.01  # not applied to codebooks, norms, embeddings, biases
@@ -83,7 +79,7 @@ class TrainConfig:
     # draws its own `batch_size` rows, so the effective batch is batch_size x N (docs/tokenizer.md)
     device: str = "cpu"
     # torch CPU threads while training (0 = torch default). 1 by default: these models are small and
-    # extra intra-op threads slow training down ~10x on busy shared CPUs (measured).
+    # extra intra-op threads slow training down on busy shared CPUs (benchmarks/README.md).
     num_threads: int = 1
     progress: bool = True  # tqdm bar
 

@@ -18,6 +18,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from lerobot_unidextok.constants import INFO_PATH
+
 DATASET_REVISIONS = ("v3.0", "main")  # refs tried in a hub cache, in order
 
 
@@ -58,7 +60,7 @@ def dataset_candidates(repo_id: str) -> list[Path]:
 
 def find_dataset(repo_id: str) -> Path | None:
     """The local folder of dataset `repo_id` (one holding meta/info.json), or None."""
-    return next((p for p in dataset_candidates(repo_id) if (p / "meta" / "info.json").is_file()), None)
+    return next((p for p in dataset_candidates(repo_id) if (p / INFO_PATH).is_file()), None)
 
 
 def dataset_root(repo_id: str) -> Path:

@@ -21,7 +21,8 @@ from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3d project
 
 from lerobot_unidextok import hands as hand_registry
 from lerobot_unidextok import udhm
-from lerobot_unidextok.constants import OBS_STATE, UDHM_DIM
+from lerobot_unidextok.constants import INFO_PATH, OBS_STATE, UDHM_DIM
+from lerobot_unidextok.utils.imports import require_package
 from lerobot_unidextok.viz.hands3d import BONES, VIEWS
 from lerobot_unidextok.viz.style import DARK_BG, GROUND_TRUTH_COLOR, UNIDEXTOK_COLOR
 
@@ -88,13 +89,13 @@ def load_episode(
     from lerobot_unidextok.utils.hf_cache import dataset_root
 
     root = Path(dataset)
-    if not (root / "meta" / "info.json").is_file():
+    if not (root / INFO_PATH).is_file():
         if root.exists() or str(dataset).count("/") != 1:
             raise FileNotFoundError(f"{dataset} is not a LeRobotDataset folder (meta/info.json missing) nor a repo id")
         root = dataset_root(str(dataset))
     if stride < 1:
         raise ValueError(f"stride must be >= 1, got {stride}")
-    info = json.loads((root / "meta" / "info.json").read_text())
+    info = json.loads((root / INFO_PATH).read_text())
     layout = hand_layout_from_dataset(root)
     states, frame_index = _episode_states(root, episode)
     take = np.arange(0, len(states), stride)[:max_frames]
@@ -243,13 +244,10 @@ def _write_mp4(frames, path: Path, fps: float) -> None:
 def write_rerun(view: EpisodeView, path: str | Path) -> Path:
     """A rerun recording (.rrd): per hand 3D keypoints + bones (dataset and decoded), native values and
     tokens as time series on the episode's frame timeline. Needs rerun-sdk (`pip install 'lerobot[viz]'`)."""
-    try:
-        import rerun as rr
-    except ImportError as err:
-        raise ImportError(
-            "writing a rerun recording needs rerun-sdk: pip install 'lerobot[viz]' (or 'lerobot-unidextok[viz]'); "
-            "an .mp4 or .gif needs nothing extra"
-        ) from err
+    rr = require_package(
+        "rerun-sdk", "viz", purpose="writing a rerun recording", import_name="rerun",
+        hint=" (or 'lerobot[viz]'); an .mp4 or .gif needs nothing extra",
+    )  # fmt: skip
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     rec = rr.RecordingStream(f"unidextok/{Path(view.dataset).name}/episode_{view.episode}")

@@ -20,7 +20,6 @@ from lerobot_unidextok.conversion.pipeline import (
     episode_key,
     merge_shards,
     read_settings,
-    split_order,
 )
 from lerobot_unidextok.conversion.registry import (
     get_source,
@@ -29,6 +28,7 @@ from lerobot_unidextok.conversion.registry import (
 )
 from lerobot_unidextok.conversion.validate import validate_dataset
 from lerobot_unidextok.data import load_udhm_frames
+from lerobot_unidextok.data.splits import split_order
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +87,7 @@ def test_robot_source_contract_and_round_trip(samples, linker):
     assert settings["source"] == "linkerhand" and settings["synthetic"] is True
     keys = [str(r).replace(str(samples["linkerhand"]) + "/", "") for r in refs]
     _, test_pos = split_order(keys, 0.2)
-    assert settings["test_episodes"] == test_pos  # same rule as before, now a list of indices
+    assert settings["test_episodes"] == test_pos  # the sha1 rule over source keys, as a list of indices
     assert [r["source"] for r in settings["episodes"]] == keys  # source order, each source recorded
     assert [r["split"] for r in settings["episodes"]] == ["test" if i in test_pos else "train" for i in range(6)]
     frames = load_udhm_frames(root)
@@ -486,18 +486,18 @@ def test_input_is_synthetic_reads_the_sample_labels_up_to_two_folders_up(tmp_pat
     """A sample written by `conversion.samples` carries a labels file saying it is synthetic; an input inside
     it (up to two folders down) is marked synthetic on the card, a labels file saying false or a damaged one
     is not (a damaged file must not stop the conversion)."""
+    from lerobot_unidextok.constants import SAMPLE_LABELS_FILE
     from lerobot_unidextok.conversion.pipeline import input_is_synthetic
-    from lerobot_unidextok.conversion.samples import LABELS_FILE
 
     sample = tmp_path / "sample"
     (sample / "a" / "b" / "c").mkdir(parents=True)
-    (sample / LABELS_FILE).write_text(json.dumps({"synthetic": True}))
+    (sample / SAMPLE_LABELS_FILE).write_text(json.dumps({"synthetic": True}))
     assert input_is_synthetic(sample) and input_is_synthetic(sample / "a" / "b")
     assert not input_is_synthetic(sample / "a" / "b" / "c")  # three folders down: not looked for
-    (sample / LABELS_FILE).write_text(json.dumps({"synthetic": False}))
+    (sample / SAMPLE_LABELS_FILE).write_text(json.dumps({"synthetic": False}))
     assert not input_is_synthetic(sample / "a")
     for damaged in ("{not json", "[1, 2]"):
-        (sample / LABELS_FILE).write_text(damaged)
+        (sample / SAMPLE_LABELS_FILE).write_text(damaged)
         assert input_is_synthetic(sample) is False
 
 

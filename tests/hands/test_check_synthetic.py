@@ -44,7 +44,7 @@ def _fixed(name, parent, child, xyz):
   </joint>"""
 
 
-def toy_urdf(joints_reversed: bool = False) -> str:
+def toy_urdf(joints_reversed: bool = False, ring_dip_multiplier: float = 0.5) -> str:
     links, joints = ["base"], []
     for f, y in FINGER_Y.items():
         links += [f"{f}_knuckle", f"{f}_proximal", f"{f}_middle", f"{f}_distal", f"{f}_tip"]
@@ -52,7 +52,7 @@ def toy_urdf(joints_reversed: bool = False) -> str:
         joints.append(_joint(f"{f}_mcp", f"{f}_knuckle", f"{f}_proximal", "0 0 0", "0 1 0", 0.0, 1.5))
         pip_mimic = '\n    <mimic joint="ring_mcp" multiplier="1.0"/>' if f == "ring" else ""
         dip_mimic = {"middle": '\n    <mimic joint="middle_pip" multiplier="0.8"/>',
-                     "ring": '\n    <mimic joint="ring_pip" multiplier="0.5"/>'}.get(f, "")  # fmt: skip
+                     "ring": f'\n    <mimic joint="ring_pip" multiplier="{ring_dip_multiplier}"/>'}.get(f, "")  # fmt: skip
         joints.append(
             _joint(f"{f}_pip", f"{f}_proximal", f"{f}_middle", f"0 0 {BONES[0]}", "0 1 0", 0.0, 1.5, pip_mimic)
         )
@@ -146,7 +146,7 @@ def test_right_spec_agrees_everywhere(toy):
 
 
 def test_wrong_spec_is_flagged_with_the_fix(toy):
-    """A deliberately wrong spec: thumb base joints swapped (the bug of issue 11), index abduction sign
+    """A deliberately wrong spec: thumb base joints swapped, index abduction sign
     flipped, and the thumb spread's rest offset missing on an otherwise right spec."""
     spec, urdf = toy(thumb_swapped=True, index_abd_sign=-1)
     verdicts = {j.joint: j for j in check_spec(spec, urdf, "right").joints}
@@ -244,3 +244,15 @@ def test_cli_skeleton_prints_and_writes_the_measured_block(toy, capsys):
 
     assert hands_cli(["skeleton", str(spec.path), "--urdf", str(urdf), "--write"]) == 0
     assert spec.path.read_text() == written  # replaced in place, not appended
+
+
+def test_a_mimic_multiplier_of_zero_holds_the_follower(toy, tmp_path):
+    """A URDF mimic multiplier of 0 is legal: ring DIP (which mimics ring PIP, itself a mimic of ring MCP) stays
+    at 0 whatever the MCP does. Catches a 0 multiplier read as a missing one (`multiplier or 1.0`)."""
+    spec, _ = toy()
+    urdf = tmp_path / "zero.urdf"
+    urdf.write_text(toy_urdf(ring_dip_multiplier=0.0))
+    hand = UrdfHand.load(urdf, spec.urdf.keypoints["right"])
+    assert hand.mimics["ring_dip"] == ("ring_mcp", 0.0, 0.0)
+    full = hand.full_cfg({"ring_mcp": 0.6})
+    assert full["ring_pip"] == pytest.approx(0.6) and full["ring_dip"] == 0.0

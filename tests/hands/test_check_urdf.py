@@ -5,8 +5,8 @@ moved at the rest, mid and 12 random poses (`hands.check`). Every mapped joint m
 with the spec's sign and reproduce the robot's rest pose (rest offsets), except the few listed in
 KNOWN_DISAGREEMENTS with the reason the spec cannot do better; the test also fails if one of those starts
 agreeing, so the list cannot go stale. Skips cleanly without ../shared (set UNIDEXTOK_URDF_DIR).
-Before issue 11 the specs disagreed on 58 of 220 mapped entries (thumb base joints swapped or flipped,
-rest offsets ignored, abduction signs, the left Allegro's index/ring order).
+What it catches: thumb base joints swapped or flipped, rest offsets missing, abduction signs, a side's
+finger order (the left Allegro's index/ring).
 """
 
 from __future__ import annotations

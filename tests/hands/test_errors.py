@@ -234,7 +234,7 @@ def test_human_has_no_joint_radians():
 
 
 # ---------------------------------------------------------------------------------------------
-# issue 11 spec format: per-side slots and signs, rest offsets, URDF keypoint maps
+# the spec format's per-side slots and signs, rest offsets, URDF keypoint maps
 # ---------------------------------------------------------------------------------------------
 TWO_SIDED = textwrap.dedent(
     """\

@@ -161,7 +161,7 @@ def test_g1_inspire_episodes_map_into_joint_limits(g1):
         lo, hi = spec.udhm_limits_rad(side)
         for ep in episodes:
             for key in ("observation.state", "action"):
-                spec.check_units(ep[key][:, cols], side)  # the real normalised data passes the units guard
+                hands.check_units(spec, ep[key][:, cols], side)  # the real normalised data passes the units guard
                 state = spec.to_udhm(ep[key][:, cols], side)  # raises on any value outside [0, 1]
                 assert (state >= lo - 1e-9).all() and (state <= hi + 1e-9).all()
                 fingers = [UDHM_INDEX[f"{f}_mcp_flex"] for f in FINGERS4]
@@ -172,12 +172,12 @@ def test_g1_inspire_episodes_map_into_joint_limits(g1):
 
 
 def test_g1_inspire_through_the_register_spec_is_caught(g1):
-    """Issue 11 item 5: Unitree's 0-1 values through the 0-1000 `inspire_rh56` spec used to convert into a
-    hand held closed and validate; the units guard now raises and names the Unitree spec as the fix."""
+    """Unitree's 0-1 values through the 0-1000 `inspire_rh56` spec would convert into a hand held closed and
+    validate; the units guard raises and names the Unitree spec as the fix."""
     names, episodes = g1
     values = episodes[0]["observation.state"][:, _hand_columns(names, "right")]
     with pytest.raises(hands.NativeUnitsError, match="inspire_rh56_unitree"):
-        hands.get("inspire_rh56").check_units(values, "right")
+        hands.check_units(hands.get("inspire_rh56"), values, "right")
 
 
 def test_g1_inspire_grasp_flexes_right_hand_fingers(g1):

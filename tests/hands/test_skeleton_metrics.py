@@ -1,4 +1,4 @@
-"""Issue 11 item 3: keypoint metrics of a robot hand use that robot's skeleton (from its URDF) and say so."""
+"""Keypoint metrics of a robot hand use that robot's skeleton (from its URDF) and say so."""
 
 from __future__ import annotations
 

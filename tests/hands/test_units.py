@@ -1,4 +1,4 @@
-"""Issue 11 item 5: wrong native units raise with the likely fix, before anything converts silently."""
+"""Wrong native units raise with the likely fix, before anything converts silently."""
 
 from __future__ import annotations
 
@@ -18,28 +18,29 @@ def _grasp(num: int = 120, seed: int = 0) -> np.ndarray:
 
 
 def test_normalised_values_through_the_register_spec_raise():
-    """Before issue 11 these converted into a hand held closed (all values < 1 of 1000) and validated."""
+    """Normalised 0-1 values through the 0-1000 register spec would convert into a hand held closed (all values
+    < 1 of 1000) and validate: they raise, naming the rescaling and the Unitree spec."""
     values = _grasp()
     with pytest.raises(hands.NativeUnitsError) as err:
-        hands.get("inspire_rh56").check_units(values, "right")
+        hands.check_units(hands.get("inspire_rh56"), values, "right")
     msg = str(err.value)
     assert "multiply by 1000" in msg and "'inspire_rh56_unitree'" in msg and "1% of the lower end" in msg
-    hands.get("inspire_rh56_unitree").check_units(values, "right")  # the right spec accepts them
-    hands.get("inspire_rh56").check_units(1000 * values, "left")  # and the register spec the registers
+    hands.check_units(hands.get("inspire_rh56_unitree"), values, "right")  # the right spec accepts them
+    hands.check_units(hands.get("inspire_rh56"), 1000 * values, "left")  # and the register spec the registers
 
 
 def test_degrees_where_radians_are_expected_raise():
     spec = hands.get("xhand1")
     lim = spec.limits_rad("right")
     rad = np.random.default_rng(1).uniform(lim[:, 0], lim[:, 1], size=(80, spec.num_native))
-    spec.check_units(rad, "right")
+    hands.check_units(spec, rad, "right")
     with pytest.raises(hands.NativeUnitsError, match="np.deg2rad"):
-        spec.check_units(np.degrees(rad), "right")
+        hands.check_units(spec, np.degrees(rad), "right")
 
 
 def test_a_hand_held_still_at_one_end_is_not_flagged():
     """An idle hand resting open for a whole episode is data, not a units error (nothing moves)."""
-    hands.get("inspire_rh56").check_units(np.full((50, 6), 1000.0), "right")
+    hands.check_units(hands.get("inspire_rh56"), np.full((50, 6), 1000.0), "right")
 
 
 def test_conversion_stops_the_episode_with_the_fix():
@@ -63,8 +64,8 @@ def test_one_moving_joint_is_enough_to_flag_values_held_at_one_end():
     values = np.full((60, 6), 0.9)
     values[:, 2] = np.linspace(0.2, 1.0, 60)  # one finger closes and opens; five stay open
     with pytest.raises(hands.NativeUnitsError, match="1% of the lower end"):
-        hands.get("inspire_rh56").check_units(values, "right")
-    hands.get("inspire_rh56").check_units(1000 * values, "right")  # the same motion in registers is fine
+        hands.check_units(hands.get("inspire_rh56"), values, "right")
+    hands.check_units(hands.get("inspire_rh56"), 1000 * values, "right")  # the same motion in registers is fine
 
 
 def test_degrees_a_little_past_the_limits_still_get_the_fix():
@@ -80,7 +81,7 @@ def test_degrees_a_little_past_the_limits_still_get_the_fix():
     rad[:10, a] = lim[a, 1] + 0.03 * span  # 10 of 200 frames overshoot every joint's upper limit
     rad[10:20, a] = lim[a, 0] - 0.03 * span  # and 10 its lower limit
     with pytest.raises(hands.NativeUnitsError, match=r"Likely fix: degrees given where radians are expected"):
-        spec.check_units(np.degrees(rad), "right")
+        hands.check_units(spec, np.degrees(rad), "right")
 
 
 def test_one_value_a_little_past_the_range_is_named():
@@ -92,8 +93,8 @@ def test_one_value_a_little_past_the_range_is_named():
     a = spec._active_joint_idx
     rad = np.random.default_rng(3).uniform(lim[:, 0], lim[:, 1], size=(50, spec.num_native))
     rad[:2, a] = lim[a, 1]  # exactly at the limit: fine
-    spec.check_units(rad, "right")
+    hands.check_units(spec, rad, "right")
     j = int(a[0])
     rad[7, j] = lim[j, 1] + 0.02 * (lim[j, 1] - lim[j, 0])
     with pytest.raises(hands.NativeUnitsError, match=rf"1 value\(s\) outside the native range: {spec.joint_names[j]}"):
-        spec.check_units(rad, "right")
+        hands.check_units(spec, rad, "right")

@@ -1,27 +1,11 @@
-"""processor.layout: feature names in LeRobot's spellings and the native layout's column checks."""
+"""processor.layout: the native layout's column checks."""
 
 from __future__ import annotations
 
 import pytest
 from robot_udhm import HAND_NAMES, INSPIRE, NATIVE_NAMES, STATE_NAMES
 
-from lerobot_unidextok.processor.layout import NativeLayout, feature_names
-
-
-@pytest.mark.parametrize(
-    ("names", "flat"),
-    [
-        (["a", "b"], ["a", "b"]),
-        ([["a", "b"]], ["a", "b"]),  # one nested list, as some LeRobot datasets write it
-        ({"axes": ["a", "b"]}, ["a", "b"]),
-        (["ab"], ["ab"]),  # one name is not a nested list
-        (None, []),
-    ],
-)
-def test_feature_names_flattens_lerobot_spellings(names, flat):
-    """Catches the nesting test loosened (`and` -> `or`: one plain name split into characters) or off by one
-    (`len(names) == 2`: the nested list kept as one name)."""
-    assert feature_names({"dtype": "float32", "names": names}) == flat
+from lerobot_unidextok.processor.layout import NativeLayout
 
 
 def _hands(right_columns):

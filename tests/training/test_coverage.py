@@ -15,7 +15,7 @@ from lerobot_unidextok.training.coverage import SOURCES, CoverageConfig, Mixture
 
 DEG = math.pi / 180
 # inspire_rh56_unitree (Unitree convention): fingers [0, 1.7] rad, thumb bend [0, 0.5], thumb rotation [-0.1, 1.3].
-# UDHM = sign * (rad - rest) (docs/hands.md); from the URDF check (#11): thumb rotation -> thumb_cmc_flex, sign +1,
+# UDHM = sign * (rad - rest) (docs/hands.md); from the URDF check: thumb rotation -> thumb_cmc_flex, sign +1,
 # rest -0.33 rad right / -0.24 left; thumb bend -> thumb_cmc_spread, sign -1, rest 1.048 right / 1.08 left.
 # Expected: the union of both sides' boxes.
 INSPIRE = {
