@@ -49,7 +49,9 @@ def require_rosbags():
     try:
         import rosbags  # noqa: F401
     except ImportError as exc:
-        raise ImportError("reading ROS bags needs rosbags (pure Python): pip install 'lerobot-unidextok[ros]'") from exc
+        raise ImportError(
+            "reading ROS bags needs rosbags (pure Python): pip install 'lerobot_policy_unidextok[ros]'"
+        ) from exc
 
 
 def list_bags(root: Path, pattern: str = "*") -> list[Path]:

@@ -58,7 +58,7 @@ def _require_h5py():
         import h5py
     except ImportError as exc:
         raise ImportError(
-            "the egodex source reads HDF5 files with h5py: pip install 'lerobot-unidextok[egodex]'"
+            "the egodex source reads HDF5 files with h5py: pip install 'lerobot_policy_unidextok[egodex]'"
         ) from exc
     return h5py
 

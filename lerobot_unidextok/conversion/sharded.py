@@ -46,7 +46,7 @@ __all__ = ["EXECUTORS", "ExecutorOptions", "SlurmOptions", "convert_with_executo
 EXECUTORS = ("local", "slurm")
 RUN_SETTINGS = "run_settings.json"  # the settings of the run that owns a logging_dir (resume guard)
 DATATROVE_MISSING = (
-    "--executor=local|slurm needs datatrove, an optional extra: pip install 'lerobot-unidextok[datatrove]' "
+    "--executor=local|slurm needs datatrove, an optional extra: pip install 'lerobot_policy_unidextok[datatrove]' "
     "(or pip install 'datatrove>=0.10,<0.11')"
 )
 

@@ -29,7 +29,7 @@ def require_yourdfpy():
         import yourdfpy
     except ImportError as err:  # pragma: no cover - exercised only without the extra
         raise ImportError(
-            "the URDF kinematic check needs yourdfpy: pip install 'lerobot-unidextok[urdf]' (or pip install yourdfpy)"
+            "the URDF kinematic check needs yourdfpy: pip install 'lerobot_policy_unidextok[urdf]' (or pip install yourdfpy)"
         ) from err
     return yourdfpy
 
