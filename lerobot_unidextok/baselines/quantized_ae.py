@@ -16,10 +16,10 @@ from dataclasses import dataclass, field, replace
 
 import torch
 from torch import nn
-from tqdm.auto import tqdm
 
 from lerobot_unidextok.baselines.base import ArrayLike, Rate, as_mask, as_states, check_hand, infer_masks
 from lerobot_unidextok.constants import ANGLE_SCALE_RAD, UDHM_DIM
+from lerobot_unidextok.utils.cli import progress_bar
 
 # FSQ levels per code for a bit budget (FSQ paper, Table 1, for 8 and 10 bits; the others are our choice).
 FSQ_LEVELS: dict[int, tuple[int, ...]] = {3: (8,), 4: (4, 4), 5: (8, 4), 6: (8, 8), 8: (8, 6, 5), 10: (8, 5, 5, 5)}
@@ -29,7 +29,7 @@ QUANTIZERS = ("fsq", "rvq")
 def require_vector_quantize() -> None:
     if importlib.util.find_spec("vector_quantize_pytorch") is None:
         raise ImportError(
-            "the FSQ / RVQ baselines need vector-quantize-pytorch: pip install 'lerobot-unidextok[baselines]'"
+            "the FSQ / RVQ baselines need vector-quantize-pytorch: pip install 'lerobot_policy_unidextok[baselines]'"
         )
 
 
@@ -178,7 +178,7 @@ class QuantizedAETokenizer(nn.Module):
         opt = torch.optim.AdamW(self.parameters(), lr=cfg.lr)
         self.train()
         losses = []
-        for _ in tqdm(range(cfg.steps), desc=f"{self.name} autoencoder", disable=not cfg.progress):
+        for _ in progress_bar(range(cfg.steps), desc=f"{self.name} autoencoder", disable=not cfg.progress):
             loss = torch.zeros(())
             for hand, data in norm.items():
                 x = data[torch.randint(data.shape[0], (cfg.batch_size,), generator=generator)]  # (B, 22)

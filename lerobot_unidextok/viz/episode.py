@@ -208,10 +208,10 @@ def write_video(view: EpisodeView, path: str | Path, camera: str = "oblique", pr
     if camera not in VIEWS:
         raise ValueError(f"unknown camera view {camera!r}; choose from {sorted(VIEWS)}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    from tqdm import tqdm
+    from lerobot_unidextok.utils.cli import progress_bar
 
     frames = (render_frame(view, t, camera) for t in range(view.num_frames))
-    frames = tqdm(frames, total=view.num_frames, desc=f"render {path.name}", unit="frame", disable=not progress)
+    frames = progress_bar(frames, total=view.num_frames, desc=f"render {path.name}", unit="frame", disable=not progress)
     if path.suffix.lower() == ".gif":
         from PIL import Image
 
@@ -247,7 +247,7 @@ def write_rerun(view: EpisodeView, path: str | Path) -> Path:
         import rerun as rr
     except ImportError as err:
         raise ImportError(
-            "writing a rerun recording needs rerun-sdk: pip install 'lerobot[viz]' (or 'lerobot-unidextok[viz]'); "
+            "writing a rerun recording needs rerun-sdk: pip install 'lerobot[viz]' (or 'lerobot_policy_unidextok[viz]'); "
             "an .mp4 or .gif needs nothing extra"
         ) from err
     path = Path(path)
