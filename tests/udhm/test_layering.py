@@ -1,5 +1,5 @@
 """udhm is layer 1: it may import only numpy, scipy, torch, the stdlib and layer 0 (constants, the CLI output
-helpers); tests/test_imports.py checks in a fresh interpreter that it never imports LeRobot."""
+helpers); tests/test_light_imports.py checks in a fresh interpreter that it never imports LeRobot."""
 
 from __future__ import annotations
 
