@@ -24,6 +24,7 @@ import numpy as np
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
+from lerobot_unidextok.utils.cli import UserError
 
 MANO_HELP = (
     "install the mano extra (pip install manotorch) and point --mano_assets to your licensed MANO files "
@@ -37,7 +38,7 @@ class OakInk2FormatError(ValueError):
     """An OakInk-v2 annotation is missing, truncated or lacks a field; the message names both."""
 
 
-class MissingManoError(RuntimeError):
+class MissingManoError(UserError):
     """OakInk-v2 needs the licensed MANO model and manotorch."""
 
 

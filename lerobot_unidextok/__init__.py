@@ -1,21 +1,31 @@
 """lerobot-unidextok: UDHM hand model, dataset converters and the UniDexTok hand-state tokenizer.
 
-from lerobot_unidextok import udhm, hands, UniDexTok
+    from lerobot_unidextok import udhm, hands, UniDexTok
+
+Importing the package is cheap: subpackages and the tokenizer are imported on first use. LeRobot
+registration (the `<type>_udt` policy types, the `unidextok.*` processor steps) happens on import of
+`lerobot_unidextok.policies` / `lerobot_unidextok.processor`, which LeRobot's CLIs import through the
+`lerobot_policy_unidextok` plugin package (docs/lerobot.md).
 """
 
-# Before anything imports LeRobot or tqdm: LeRobot's ~100-line torchcodec/FFmpeg warning becomes a one-line
-# note, and progress bars refresh every 30 s when stderr is not a terminal (utils/cli.py).
-from lerobot_unidextok.utils.cli import configure_output  # noqa: I001
+import importlib
 
-configure_output()
-
-# LeRobot registration on import: the `unidextok.state_tokenizer` / `unidextok.udhm_to_native`
-# processor steps and the `<type>_udt` policy types (act_udt, diffusion_udt, vqbet_udt; docs/lerobot.md).
-from lerobot_unidextok import policies as _policies  # noqa: E402, F401
-from lerobot_unidextok import processor as _processor  # noqa: E402, F401
-from lerobot_unidextok.constants import KEYPOINT_NAMES, UDHM_DIM, UDHM_JOINT_NAMES  # noqa: E402
-from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig  # noqa: E402
+from lerobot_unidextok.constants import KEYPOINT_NAMES, UDHM_DIM, UDHM_JOINT_NAMES
 
 __version__ = "0.1.0"
 
-__all__ = ["KEYPOINT_NAMES", "UDHM_DIM", "UDHM_JOINT_NAMES", "UniDexTok", "UniDexTokConfig", "__version__"]
+_LAZY_NAMES = {"UniDexTok": "lerobot_unidextok.tokenizer", "UniDexTokConfig": "lerobot_unidextok.tokenizer"}
+_LAZY_SUBPACKAGES = ("udhm", "hands", "tokenizer")
+
+__all__ = [*_LAZY_SUBPACKAGES, "KEYPOINT_NAMES", "UDHM_DIM", "UDHM_JOINT_NAMES", *_LAZY_NAMES, "__version__"]
+
+
+def __getattr__(name: str):
+    """PEP 562: `lerobot_unidextok.UniDexTok`, `lerobot_unidextok.udhm`, ... imported on first access."""
+    if name in _LAZY_NAMES:
+        value = getattr(importlib.import_module(_LAZY_NAMES[name]), name)
+        globals()[name] = value
+        return value
+    if name in _LAZY_SUBPACKAGES:
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

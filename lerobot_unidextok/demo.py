@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.utils.cli import configure_output
+
 DEFAULT_OUT = Path("outputs/demo")
 REAL_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 # Training steps of the full demo (lr etc. are TrainConfig's defaults). Measured on the 6-source sample
@@ -231,6 +233,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
+    configure_output()
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     os.environ.setdefault("MPLBACKEND", "Agg")
     steps = args.steps or (300 if args.quick else DEMO_STEPS)

@@ -83,7 +83,8 @@ _QUIET_CALLS = {
     "print", "warn", "debug", "info", "warning", "error", "exception", "critical", "note",
     "set_description", "set_description_str", "set_postfix", "set_postfix_str",
 }  # fmt: skip
-_BAR_FACTORIES = {"tqdm", "trange"}  # progress bars: their keyword arguments and their methods are display
+# progress bars (`progress_bar` is utils/cli.py's tqdm): their keyword arguments and their methods are display
+_BAR_FACTORIES = {"tqdm", "trange", "progress_bar"}
 _SWAP_NAMES = {
     "min": "max", "max": "min", "argmin": "argmax", "argmax": "argmin", "any": "all", "all": "any",
     "minimum": "maximum", "maximum": "minimum", "floor": "ceil", "ceil": "floor", "amin": "amax", "amax": "amin",

@@ -15,10 +15,10 @@ from dataclasses import dataclass, field, replace
 
 import torch
 from torch import nn
-from tqdm.auto import tqdm
 
 from lerobot_unidextok.baselines.base import ArrayLike, Rate, as_mask, as_states, check_hand, infer_masks
 from lerobot_unidextok.constants import ANGLE_SCALE_RAD, UDHM_DIM
+from lerobot_unidextok.utils.cli import progress_bar
 from lerobot_unidextok.utils.imports import require_package
 
 # FSQ levels per code for a bit budget (FSQ paper, Table 1, for 8 and 10 bits; the others are our choice).
@@ -178,7 +178,7 @@ class QuantizedAETokenizer(nn.Module):
         opt = torch.optim.AdamW(self.parameters(), lr=cfg.lr)
         self.train()
         losses = []
-        for _ in tqdm(range(cfg.steps), desc=f"{self.name} autoencoder", disable=not cfg.progress):
+        for _ in progress_bar(range(cfg.steps), desc=f"{self.name} autoencoder", disable=not cfg.progress):
             loss = torch.zeros(())
             for hand, data in norm.items():
                 x = data[torch.randint(data.shape[0], (cfg.batch_size,), generator=generator)]  # (B, 22)

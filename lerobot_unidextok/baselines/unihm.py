@@ -24,10 +24,10 @@ from dataclasses import asdict, dataclass, replace
 import torch
 import torch.nn.functional as F
 from torch import nn
-from tqdm.auto import tqdm
 
 from lerobot_unidextok.baselines.base import ArrayLike, Rate, as_mask, as_states, check_hand, infer_masks
 from lerobot_unidextok.constants import ANGLE_SCALE_RAD, UDHM_DIM
+from lerobot_unidextok.utils.cli import progress_bar
 
 logger = logging.getLogger(__name__)
 
@@ -372,7 +372,7 @@ class UniHMTokenizer(nn.Module):
         human = cfg.teacher_hand if cfg.teacher_hand in norm else None
         recent: list[torch.Tensor] = []
         losses = []
-        for step in tqdm(range(cfg.teacher_steps), desc="UniHM teacher", disable=not cfg.progress):
+        for step in progress_bar(range(cfg.teacher_steps), desc="UniHM teacher", disable=not cfg.progress):
             idx = {hand: self._indices(norm, hand, generator) for hand in norm}
             batches = {hand: norm[hand][i] for hand, i in idx.items()}
             z = self.teacher(torch.cat(list(batches.values())))  # (H*B, D)
@@ -418,7 +418,9 @@ class UniHMTokenizer(nn.Module):
             for i in range(cfg.rounds):
                 scale = cfg.round_lr_decay**i
                 opt = torch.optim.AdamW(student.parameters(), lr=cfg.distill_lr * scale, weight_decay=cfg.weight_decay)
-                for _ in tqdm(range(cfg.distill_steps), desc=f"UniHM distil {hand} r{i}", disable=not cfg.progress):
+                for _ in progress_bar(
+                    range(cfg.distill_steps), desc=f"UniHM distil {hand} r{i}", disable=not cfg.progress
+                ):
                     x_s, x_t = self._student_pairs(norm, hand, generator)
                     loss = F.l1_loss(student(x_s), self.teacher(x_t))
                     opt.zero_grad()
@@ -426,7 +428,9 @@ class UniHMTokenizer(nn.Module):
                     opt.step()
                     history["distill"].append(loss.item())
                 opt = torch.optim.AdamW(student.parameters(), lr=cfg.align_lr * scale, weight_decay=cfg.weight_decay)
-                for _ in tqdm(range(cfg.align_steps), desc=f"UniHM align {hand} r{i}", disable=not cfg.progress):
+                for _ in progress_bar(
+                    range(cfg.align_steps), desc=f"UniHM align {hand} r{i}", disable=not cfg.progress
+                ):
                     x_s, x_t = self._student_pairs(norm, hand, generator)
                     z_q_s, _, vq_loss = self.quantizer(student(x_s))
                     with torch.no_grad():
@@ -439,7 +443,7 @@ class UniHMTokenizer(nn.Module):
             decoder = self.decoders[hand]
             decoder.requires_grad_(False)
             opt = torch.optim.AdamW(student.parameters(), lr=cfg.finetune_lr, weight_decay=cfg.weight_decay)
-            for _ in tqdm(range(cfg.finetune_steps), desc=f"UniHM fine-tune {hand}", disable=not cfg.progress):
+            for _ in progress_bar(range(cfg.finetune_steps), desc=f"UniHM fine-tune {hand}", disable=not cfg.progress):
                 x_s, _ = self._student_pairs(norm, hand, generator)
                 z_q, _, vq_loss = self.quantizer(student(x_s))
                 loss = self._l1(decoder(z_q), x_s, hand) + vq_loss

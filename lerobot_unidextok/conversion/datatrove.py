@@ -10,7 +10,7 @@ validates its shard before it is marked complete.
 
 Use `conversion.sharded.convert_with_executor` (set-up checks, resume guard); `build_executors` alone
 constructs the executors without running anything (e.g. to inspect a Slurm script). datatrove is an
-optional extra (`pip install 'lerobot-unidextok[datatrove]'`), imported only by this module.
+optional extra (`pip install 'lerobot_policy_unidextok[datatrove]'`), imported only by this module.
 """
 
 from __future__ import annotations

@@ -48,6 +48,7 @@ from lerobot_unidextok.conversion.mapping import EpisodeError, UdhmEpisode, map_
 from lerobot_unidextok.conversion.registry import CONVERTERS_PACKAGE, SetupError, get_source, make_reader
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 from lerobot_unidextok.data.splits import split_order
+from lerobot_unidextok.utils.cli import UserError
 from lerobot_unidextok.utils.files import replace_folder
 
 logger = logging.getLogger(__name__)
@@ -151,7 +152,7 @@ class ConvertReport:
         return self.num_frames / self.seconds if self.seconds > 0 else float("inf")
 
 
-class ConversionError(RuntimeError):
+class ConversionError(UserError):
     """The conversion stopped; nothing was written at the target."""
 
 
@@ -348,9 +349,9 @@ def convert(opts: ConvertOptions) -> ConvertReport:
         synthetic=bool(getattr(reader_cls, "synthetic", False)) or input_is_synthetic(input_path),
         sides=opts.sides or (tuple(reader_cls.sides) if getattr(reader_cls, "sides", None) else None),
     )
-    from tqdm import tqdm
+    from lerobot_unidextok.utils.cli import progress_bar
 
-    bar = tqdm(total=len(plan.items), desc=f"convert {opts.source}", unit="ep", disable=not opts.progress)
+    bar = progress_bar(total=len(plan.items), desc=f"convert {opts.source}", unit="ep", disable=not opts.progress)
     try:
         results = _iter_results([ref for ref, _, _ in plan.items], opts, reader_options)
         for (_, key, split), result in zip(plan.items, results, strict=True):
@@ -363,12 +364,12 @@ def convert(opts: ConvertOptions) -> ConvertReport:
                     ) from exc
                 state.failures.append(EpisodeFailure(exc.source_file, exc.reason))
                 logger.warning("skipped %s: %s", exc.source_file, exc.reason)
-            bar.update(1)
             if state.writer is not None:
                 elapsed = time.perf_counter() - t0
                 bar.set_postfix(
                     frames=state.writer.num_frames, fps=f"{state.writer.num_frames / max(elapsed, 1e-9):,.0f}"
                 )
+            bar.update(1)  # after the postfix: one refresh writes both
         bar.close()
         if state.writer is None:
             first = state.failures[0] if state.failures else None

@@ -74,9 +74,11 @@ class SampleSpec:
 
 def _episodes(spec: SampleSpec, source: str):
     """Episode indices of one source, with a progress bar when asked."""
-    from tqdm.auto import tqdm
+    from lerobot_unidextok.utils.cli import progress_bar
 
-    return tqdm(range(spec.num_episodes), desc=f"sample {source}", unit="ep", disable=not spec.progress, leave=False)
+    return progress_bar(
+        range(spec.num_episodes), desc=f"sample {source}", unit="ep", disable=not spec.progress, leave=False
+    )
 
 
 def write_samples(

@@ -269,7 +269,11 @@ def policy_card(folder: str | Path, repo_id: str, training_data: list[str] | Non
         "## Use",
         "",
         "```python",
-        *(["import lerobot_unidextok  # registers the _udt policy types and the processor steps"] if is_udt else []),
+        *(
+            ["import lerobot_policy_unidextok  # registers the _udt policy types and the processor steps"]
+            if is_udt
+            else []
+        ),
         "from lerobot.configs.policies import PreTrainedConfig",
         "from lerobot.policies.factory import get_policy_class, make_pre_post_processors",
         f'cfg = PreTrainedConfig.from_pretrained("{repo_id}")',

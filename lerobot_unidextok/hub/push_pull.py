@@ -15,6 +15,7 @@ from pathlib import Path
 
 from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.hub.card import card_status, model_card, with_training_data
+from lerobot_unidextok.utils.cli import UserError
 from lerobot_unidextok.utils.hf_cache import DATASET_REVISIONS, cached_repo_snapshot, hub_cache, lerobot_home
 
 logger = logging.getLogger(__name__)
@@ -94,7 +95,7 @@ def push(
     repo_type = repo_type or detect_repo_type(local_dir)
     _check_repo(repo_id, repo_type)
     if _offline():
-        raise RuntimeError("HF_HUB_OFFLINE is set: unset it (or set HF_HUB_OFFLINE=0) to push")
+        raise UserError("HF_HUB_OFFLINE is set: unset it (or set HF_HUB_OFFLINE=0) to push")
 
     api = HfApi(endpoint=_endpoint(endpoint), token=token or os.environ.get("HF_TOKEN"))
     with tempfile.TemporaryDirectory(prefix="unidextok-push-") as staging:
@@ -161,7 +162,7 @@ def pull(
 
     _check_repo(repo_id, repo_type)
     if _offline():
-        raise RuntimeError(
+        raise UserError(
             f"HF_HUB_OFFLINE is set, so {repo_id} cannot be downloaded: unset HF_HUB_OFFLINE "
             "(or set HF_HUB_OFFLINE=0) and run the pull again"
         )

@@ -15,7 +15,7 @@ previous frame. Our part is the glue, all data-driven from `retarget/specs/<hand
    limits, or radians as they are), then UDHM with `hands.get(hand).to_udhm(native, side)`: the hand spec
    decides slots and signs, nothing is repeated here.
 
-Needs the `retarget` extra (`pip install 'lerobot-unidextok[retarget]'`), imported when a retargeter is built.
+Needs the `retarget` extra (`pip install 'lerobot_policy_unidextok[retarget]'`), imported when a retargeter is built.
 """
 
 from __future__ import annotations
@@ -27,11 +27,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from lerobot_unidextok.constants import KEYPOINT_NAMES, NUM_KEYPOINTS, UDHM_DIM
 from lerobot_unidextok.retarget.spec import PALM_KEYS, SideRetargetSpec, get_retarget_spec
 from lerobot_unidextok.retarget.urdf import URDFError, find_urdfs, flatten_mimic_chains, link_names, read_joints
+from lerobot_unidextok.utils.cli import progress_bar
 from lerobot_unidextok.utils.imports import require_package
 
 logger = logging.getLogger(__name__)
@@ -260,7 +260,9 @@ class HandRetargeter:
             self._seq.filter.reset()
         qpos = np.zeros((len(kp), len(self.urdf_joint_names)))
         err = np.zeros((len(kp), len(self.spec.target_links)))
-        for t in tqdm(range(len(kp)), desc=f"retarget {self.hand}/{self.side}", disable=not self.config.progress):
+        for t in progress_bar(
+            range(len(kp)), desc=f"retarget {self.hand}/{self.side}", disable=not self.config.progress
+        ):
             q_all = self._seq.retarget(vectors[t], fixed_qpos=self._fixed_qpos)  # (dof,) incl. mimic joints
             qpos[t] = q_all[self._idx_spec_in_qpos]
             self._robot.compute_forward_kinematics(q_all)

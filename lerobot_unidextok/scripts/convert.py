@@ -8,7 +8,7 @@
     unidextok-convert --validate=true --root=out/linkerhand_udhm
     unidextok-convert --config_path=convert.yaml          # same fields in a YAML/JSON file
     unidextok-convert --list_sources=true
-    # datatrove: 8 shards, 2 at a time on this machine, then one merge (pip install 'lerobot-unidextok[datatrove]')
+    # datatrove: 8 shards, 2 at a time on this machine, then one merge (pip install 'lerobot_policy_unidextok[datatrove]')
     unidextok-convert --source=egodex --input=raw/egodex --root=out/egodex_udhm --executor=local --tasks=8 --workers=2
     # Slurm: an array job of 64 shard tasks and a merge job after it (configs/convert/slurm.yaml)
     unidextok-convert --config_path=configs/convert/slurm.yaml --input=/data/egodex --root=/scratch/egodex_udhm
@@ -27,6 +27,7 @@ import draccus
 import yaml
 
 from lerobot_unidextok.conversion.sharded import EXECUTORS, SlurmOptions
+from lerobot_unidextok.utils.cli import UserError, configure_output
 
 
 @dataclass
@@ -50,7 +51,7 @@ class ConvertConfig:
     max_episodes: int | None = None  # convert only the first N episodes (quick looks)
     shard_index: int = 0  # convert one contiguous shard of the episode list (multi-machine runs by hand)
     num_shards: int = 1
-    # -- past one machine: datatrove (pip install 'lerobot-unidextok[datatrove]') -------------------------
+    # -- past one machine: datatrove (pip install 'lerobot_policy_unidextok[datatrove]') -------------------------
     # "pool": this process, --num_workers reader processes | "local" / "slurm": datatrove's Local/Slurm
     # PipelineExecutor, --tasks shard conversions (each with --num_workers processes), then one merge
     executor: str = "pool"
@@ -127,7 +128,7 @@ def run(cfg: ConvertConfig) -> int:
             FileExistsError,
             FileNotFoundError,
             ValueError,
-            RuntimeError,
+            UserError,
         ) as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 1
@@ -201,6 +202,7 @@ def convert_cli(cfg: ConvertConfig) -> int:
 
 
 def main() -> None:
+    configure_output()
     # force: importing lerobot already gave the root logger a WARNING handler (a module-level logging.debug
     # call in lerobot.utils.import_utils), which would make this a no-op and hide our INFO lines
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", force=True)

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import draccus
 
+from lerobot_unidextok.utils.cli import configure_output
+
 logger = logging.getLogger(__name__)
 
 
@@ -72,6 +74,7 @@ def eval_cli(cfg: EvalConfig) -> None:
 
 
 def main() -> None:
+    configure_output()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     eval_cli()
 

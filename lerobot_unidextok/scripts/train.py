@@ -29,9 +29,10 @@ import draccus
 import numpy as np
 
 from lerobot_unidextok.data.rowstore import HandRowStore
-from lerobot_unidextok.training import TrainConfig, load_hand_states, subsample_episodes, train_tokenizer
-from lerobot_unidextok.training.arrays import HandStates
+from lerobot_unidextok.training.arrays import HandStates, load_hand_states, subsample_episodes
+from lerobot_unidextok.training.config import TrainConfig
 from lerobot_unidextok.training.splits import kfold_by_episode, split_by_episode, split_store_by_episode
+from lerobot_unidextok.utils.cli import configure_output
 
 logger = logging.getLogger(__name__)
 SUMMARY_KEYS = ("rows", "mpjae_deg", "mpjpe_mm", "fingertip_mm")
@@ -67,6 +68,7 @@ def run_kfold(cfg: TrainConfig) -> dict:
     """`cfg.folds` models, each trained without one fold of episodes (all splits pooled) and scored on it."""
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer
     from lerobot_unidextok.tokenizer import UniDexTok
+    from lerobot_unidextok.training.loop import train_tokenizer
 
     pooled = load_hand_states(cfg.datasets, split=None, holdout=cfg.holdout)
     folds = []
@@ -155,6 +157,7 @@ def run(cfg: TrainConfig) -> dict:
 
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer, write_report
     from lerobot_unidextok.tokenizer import UniDexTok
+    from lerobot_unidextok.training.loop import train_tokenizer
 
     if cfg.folds and PartialState().num_processes > 1:
         raise ValueError("--folds trains its fold models one after another in one process: launch without "
@@ -197,6 +200,7 @@ def train_cli(cfg: TrainConfig) -> None:
 
 
 def main() -> None:
+    configure_output()
     # force: importing lerobot already gave the root logger a WARNING handler (a module-level logging.debug
     # call in lerobot.utils.import_utils), which would make this a no-op and hide our INFO lines
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s", force=True)

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
 from lerobot_unidextok.constants import UDHM_DIM
 from lerobot_unidextok.data.rowstore import HandRowStore
@@ -27,6 +26,7 @@ from lerobot_unidextok.training.config import TrainConfig
 from lerobot_unidextok.training.coverage import MixtureSampler, hand_ranges_rad, recorded_tables
 from lerobot_unidextok.training.distributed import broadcast_from_main, check_replicas
 from lerobot_unidextok.training.optim import lr_at, make_optimizer
+from lerobot_unidextok.utils.cli import progress_bar
 
 logger = logging.getLogger(__name__)
 
@@ -237,7 +237,7 @@ def _train(
                 "usage_ema": raw_model.quantizer.usage_ema}  # fmt: skip
 
     t0 = time.perf_counter()
-    bar = tqdm(
+    bar = progress_bar(
         range(start, n_steps),
         disable=not (cfg.progress and accelerator.is_main_process),
         desc="unidextok",

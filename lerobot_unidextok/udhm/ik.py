@@ -129,9 +129,9 @@ def inverse_kinematics(
     starts = range(0, len(idx_present), chunk_size)
     show = progress if progress is not None else len(starts) > 4
     if show:  # optional progress bar; tqdm is imported only when one is shown
-        from tqdm.auto import tqdm
+        from lerobot_unidextok.utils.cli import progress_bar
 
-        starts = tqdm(starts, desc="UDHM IK", unit="chunk")
+        starts = progress_bar(starts, desc="UDHM IK", unit="chunk")
     for s in starts:
         idx = idx_present[s : s + chunk_size]
         sk = None if fixed is None else (fixed[0][idx], fixed[1][idx])

@@ -13,8 +13,8 @@ from types import ModuleType
 
 
 def missing_package_message(pkg: str, extra: str, purpose: str, hint: str = "") -> str:
-    """`<purpose> needs <pkg>: pip install 'lerobot-unidextok[<extra>]'<hint>`."""
-    return f"{purpose} needs {pkg}: pip install 'lerobot-unidextok[{extra}]'{hint}"
+    """`<purpose> needs <pkg>: pip install 'lerobot_policy_unidextok[<extra>]'<hint>`."""
+    return f"{purpose} needs {pkg}: pip install 'lerobot_policy_unidextok[{extra}]'{hint}"
 
 
 def require_package(

@@ -209,10 +209,10 @@ def write_video(view: EpisodeView, path: str | Path, camera: str = "oblique", pr
     if camera not in VIEWS:
         raise ValueError(f"unknown camera view {camera!r}; choose from {sorted(VIEWS)}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    from tqdm import tqdm
+    from lerobot_unidextok.utils.cli import progress_bar
 
     frames = (render_frame(view, t, camera) for t in range(view.num_frames))
-    frames = tqdm(frames, total=view.num_frames, desc=f"render {path.name}", unit="frame", disable=not progress)
+    frames = progress_bar(frames, total=view.num_frames, desc=f"render {path.name}", unit="frame", disable=not progress)
     if path.suffix.lower() == ".gif":
         from PIL import Image
 

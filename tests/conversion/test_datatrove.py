@@ -16,7 +16,9 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-pytest.importorskip("datatrove", reason="datatrove is an optional extra: pip install 'lerobot-unidextok[datatrove]'")
+pytest.importorskip(
+    "datatrove", reason="datatrove is an optional extra: pip install 'lerobot_policy_unidextok[datatrove]'"
+)
 
 from lerobot_unidextok.conversion.pipeline import (  # noqa: E402
     ConvertOptions,
@@ -268,6 +270,6 @@ def test_cli_local_executor_and_clear_errors(raw, single, tmp_path, capsys):
 def test_missing_datatrove_is_a_setup_error_with_the_install_command(raw, tmp_path, monkeypatch):
     """Without the extra, --executor=local says which package to install instead of a traceback."""
     monkeypatch.setitem(sys.modules, "lerobot_unidextok.conversion.datatrove", None)  # import fails
-    with pytest.raises(SetupError, match=r"pip install 'lerobot-unidextok\[datatrove\]'"):
+    with pytest.raises(SetupError, match=r"pip install 'lerobot_policy_unidextok\[datatrove\]'"):
         convert_with_executor(_options(raw, tmp_path / "g1"), ExecutorOptions(executor="local"))
     assert not (tmp_path / "g1").exists() and not (tmp_path / "g1.datatrove").exists()

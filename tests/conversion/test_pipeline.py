@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
+import time
 from pathlib import Path
 
 import numpy as np
@@ -65,6 +67,20 @@ def _data(root):
 # ---------------------------------------------------------------------------------------------
 # robot source
 # ---------------------------------------------------------------------------------------------
+def test_progress_bar_off_a_terminal_writes_the_start_and_the_end(samples, tmp_path, capsys, monkeypatch):
+    """Conversion wrote 92 bar updates into a log in 2 s (one per episode). Off a terminal the bar refreshes
+    every 30 s, so a short run writes its start and its end, the counter with the frame count."""
+    monkeypatch.delenv("TQDM_MININTERVAL", raising=False)
+    t0 = time.perf_counter()
+    report = convert(ConvertOptions(source="linkerhand", input=samples["linkerhand"], root=tmp_path / "ds",
+                                    repo_id="t/bar", progress=True))  # fmt: skip
+    elapsed = time.perf_counter() - t0
+    refreshes = re.findall(r"(\d+)/6 \[([^\]]*)\]", capsys.readouterr().err)  # stderr is captured: not a tty
+    assert 2 <= len(refreshes) <= 2 + elapsed // 30, (elapsed, refreshes)  # start, end, one per 30 s between
+    assert refreshes[0][0] == "0" and refreshes[-1][0] == "6"
+    assert f"frames={report.num_frames}" in refreshes[-1][1]  # the postfix of the last episode, with its count
+
+
 def test_robot_source_contract_and_round_trip(samples, linker):
     """Episodes keep the source order (episode i = i-th listed file) and the test split is recorded, not
     reordered. Catches the old pipeline, which wrote train episodes first and then the test ones."""

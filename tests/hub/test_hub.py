@@ -99,7 +99,7 @@ for argv, main in [
     # offline, in a fresh process: tokenizer by repo id (bit-exact), dataset by repo id in every reader
     check = f"""
 import torch
-import lerobot_unidextok  # registration on package import (checked here to save a process)
+import lerobot_policy_unidextok  # registration by LeRobot's plugin package (checked here to save a process)
 from lerobot.processor import ProcessorStepRegistry
 from lerobot.configs.policies import PreTrainedConfig
 assert "unidextok.state_tokenizer" in ProcessorStepRegistry.list()

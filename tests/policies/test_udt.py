@@ -19,7 +19,8 @@ from robot_udhm import INSPIRE, NATIVE_NAMES, STATE_NAMES, to_converted
 
 from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_STATE
 from lerobot_unidextok.policies import UDT_CONFIGS, ACTUdtConfig, DiffusionUdtConfig
-from lerobot_unidextok.policies.udt.processor_udt import make_udt_pre_post_processors
+from lerobot_unidextok.policies.act_udt import make_act_udt_pre_post_processors
+from lerobot_unidextok.policies.diffusion_udt import make_diffusion_udt_pre_post_processors
 from lerobot_unidextok.processor import NATIVE_STEP_NAME, STEP_NAME
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 
@@ -117,7 +118,7 @@ def test_whole_robot_layout_comes_from_the_dataset(tok_dir, g1_like):
     assert cfg.udt_state_names == STATE_NAMES
     assert cfg.udt_native_layout["native_names"] == NATIVE_NAMES
     assert cfg.input_features[OBS_HAND_TOKEN_FEATURES].shape == (44,)
-    pre, post = make_udt_pre_post_processors(cfg)
+    pre, post = make_diffusion_udt_pre_post_processors(cfg)
     names = [type(s).__name__ for s in pre.steps]
     assert names.index("UniDexTokStateTokenizerStep") < names.index("AddBatchDimensionProcessorStep")
     assert names.index("UniDexTokStateTokenizerStep") < names.index("NormalizerProcessorStep")
@@ -132,18 +133,71 @@ def test_whole_robot_layout_comes_from_the_dataset(tok_dir, g1_like):
     torch.testing.assert_close(native, torch.from_numpy(g1_like["native_action"][:2]).float(), atol=1e-5, rtol=0)
     assert post.steps[-1]._registry_name == NATIVE_STEP_NAME
     off = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"], udt_native_action=False)
-    assert make_udt_pre_post_processors(off)[1](torch.zeros(2, 58)).shape == (2, 58)
+    assert make_act_udt_pre_post_processors(off)[1](torch.zeros(2, 58)).shape == (2, 58)
 
 
 # ---------------------------------------------------------------------------------------------
 # the real lerobot-train CLI
 # ---------------------------------------------------------------------------------------------
-def _train(args: list[str], out: Path, hf: Path) -> Path:
+def _run_train(args: list[str], out: Path, hf: Path) -> subprocess.CompletedProcess:
     base = [str(BIN / "lerobot-train"), "--num_workers=0", f"--output_dir={out}", "--log_freq=1", "--save_freq=3"]
     r = subprocess.run(base + args, env=subprocess_env(HF_HOME=str(hf)), check=False, capture_output=True,
                        text=True, timeout=600)  # fmt: skip
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
+    return r
+
+
+def _train(args: list[str], out: Path, hf: Path) -> Path:
+    _run_train(args, out, hf)
     return out / "checkpoints" / "last" / "pretrained_model"
+
+
+def _help_text(text: str, flag: str) -> str:
+    """The description argparse prints under `flag` in a --help listing, without its "(default: ...)"."""
+    lines = text.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.strip().startswith(flag + " "))
+    block = [lines[start].strip().removeprefix(flag).split(maxsplit=1)[1:]]
+    for line in lines[start + 1 :]:
+        if line.strip().startswith("--") or not line.strip():
+            break
+        block.append([line.strip()])
+    words = " ".join(w for part in block for w in part)
+    return words.split("(default:")[0].strip()
+
+
+@pytest.mark.slow
+def test_lerobot_train_help_finds_the_plugin_without_the_flag_and_describes_every_udt_field(tmp_path):
+    """Without --policy.discover_packages_path lerobot-train printed 217 lines (two torchcodec tracebacks)
+    ending in "Couldn't find a choice class for 'act_udt'"; with it, the udt_* flags had no descriptions."""
+    from dataclasses import fields
+
+    from lerobot_unidextok.policies import UdtConfigMixin
+
+    r = subprocess.run([str(BIN / "lerobot-train"), "--policy.type=act_udt", "--help"], check=False,
+                       env=subprocess_env(HF_HOME=str(tmp_path / "hf")), capture_output=True, text=True,
+                       timeout=600)  # fmt: skip
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
+    assert "Traceback" not in r.stdout + r.stderr and "is installed but cannot be loaded" not in r.stderr
+    for f in fields(UdtConfigMixin):
+        description = _help_text(r.stdout, f"--policy.{f.name}")
+        assert len(description.split()) >= 4, (f.name, description)  # a sentence, not just the type
+
+
+@pytest.mark.slow
+def test_lerobot_train_without_the_plugin_flag(tok_dir, g1_like, tmp_path):
+    """LeRobot's own plugin convention: the `lerobot_policy_unidextok` distribution is imported by
+    register_third_party_plugins(), so `--policy.type=act_udt` trains with no --policy.discover_packages_path."""
+    root = g1_like["root"]
+    r = _run_train(["--policy.type=act_udt", "--dataset.repo_id=test/g1_like_udhm", f"--dataset.root={root}",
+                    f"--policy.udt_pretrained={tok_dir}", "--policy.device=cpu", "--policy.push_to_hub=false",
+                    "--steps=2", "--batch_size=4", "--wandb.enable=false", *TINY_ACT], tmp_path / "act",
+                   tmp_path / "hf")  # fmt: skip
+    assert "Traceback" not in r.stdout + r.stderr and "is installed but cannot be loaded" not in r.stderr
+    ckpt = tmp_path / "act" / "checkpoints" / "last" / "pretrained_model"
+    cfg = json.loads((ckpt / "config.json").read_text())
+    assert cfg["type"] == "act_udt" and cfg["udt_state_names"] == STATE_NAMES
+    pre = [s["registry_name"] for s in json.loads((ckpt / "policy_preprocessor.json").read_text())["steps"]]
+    assert pre.index(STEP_NAME) < pre.index("to_batch_processor")
 
 
 RELOAD = """
@@ -228,7 +282,7 @@ def test_real_g1_inspire_select_action_returns_the_native_action(tok_dir, g1_dat
                    "--policy.push_to_hub=false", f"--policy.udt_pretrained={tok_dir}", "--steps=3", "--batch_size=4",
                    "--wandb.enable=false", *TINY_ACT], tmp_path / "train", tmp_path / "hf")  # fmt: skip
     check = f"""
-import lerobot_unidextok, torch
+import lerobot_policy_unidextok, torch
 from lerobot.configs.policies import PreTrainedConfig
 from lerobot.policies.factory import get_policy_class, make_pre_post_processors
 from lerobot.datasets import LeRobotDataset

@@ -1,6 +1,7 @@
 """The training loop: learning, checkpoint selection, resume, few-shot and zero-shot protocols."""
 
 import json
+import re
 import time
 from pathlib import Path
 
@@ -36,6 +37,20 @@ def test_training_tiny_reduces_mae_far_below_untrained(mixture, tmp_path):
     assert again == pytest.approx(result.best_mae_deg, abs=1e-9)
     assert 0 < usage["usage"] <= 1
     assert json.loads((result.best_dir / "training_state.json").read_text())["step"] == result.best_step
+
+
+def test_progress_bar_off_a_terminal_writes_the_start_and_the_end(mixture, tmp_path, capsys, monkeypatch):
+    """Training wrote 213 bar updates into a log in 3 minutes, the step counter frozen at 0/2000 while the
+    loss postfix changed every 10 steps. Off a terminal the bar refreshes every 30 s, counter and postfix together."""
+    monkeypatch.delenv("TQDM_MININTERVAL", raising=False)
+    train, test = mixture
+    t0 = time.perf_counter()
+    train_tokenizer(_cfg(tmp_path, steps=60, eval_every=60, progress=True), train, test)
+    elapsed = time.perf_counter() - t0
+    refreshes = re.findall(r"(\d+)/60 \[([^\]]*)\]", capsys.readouterr().err)  # stderr is captured: not a tty
+    assert 2 <= len(refreshes) <= 2 + elapsed // 30, (elapsed, refreshes)  # start, end, one per 30 s between
+    assert refreshes[0][0] == "0" and refreshes[-1][0] == "60"
+    assert "loss=" in refreshes[-1][1] and "mae_deg=" in refreshes[-1][1]
 
 
 def test_resume_continues_from_last_checkpoint(mixture, tmp_path):

@@ -1,11 +1,10 @@
-"""CLI output: one-line errors, the one-line torchcodec note, tqdm throttled off a terminal."""
+"""CLI output: one-line errors, the one-line torchcodec note, progress bars throttled off a terminal."""
 
 import logging
-import subprocess
-import sys
+import re
+import time
 
 import pytest
-from linkerhand_udhm import subprocess_env
 
 from lerobot_unidextok.utils import cli
 
@@ -27,6 +26,27 @@ def test_run_cli_turns_user_mistakes_into_one_line(capsys, monkeypatch):
         cli.run_cli(lambda: 1 / 0)
 
 
+def test_a_runtime_error_is_a_bug_and_a_user_error_is_one_line(capsys, monkeypatch):
+    """RuntimeError counted as a user mistake, so real bugs (e.g. replicas drifting apart) lost their traceback."""
+    monkeypatch.delenv("UNIDEXTOK_TRACEBACK", raising=False)
+
+    def bug() -> None:
+        raise RuntimeError("step 10: model replicas differ")
+
+    def offline_push() -> None:
+        raise cli.UserError("HF_HUB_OFFLINE is set: unset it (or set HF_HUB_OFFLINE=0) to push")
+
+    with pytest.raises(RuntimeError, match="replicas differ"):
+        cli.run_cli(bug)
+    with pytest.raises(SystemExit) as info:
+        cli.run_cli(offline_push)
+    assert info.value.code == 2
+    assert (
+        capsys.readouterr().err.splitlines()[0]
+        == "error: HF_HUB_OFFLINE is set: unset it (or set HF_HUB_OFFLINE=0) to push"
+    )
+
+
 def test_torchcodec_warning_becomes_one_note(caplog):
     """Without FFmpeg every LeRobotDataset printed ~100 lines of torchcodec tracebacks."""
     cli.quiet_torchcodec_warning()
@@ -43,18 +63,39 @@ def test_torchcodec_warning_becomes_one_note(caplog):
     assert messages == [cli.TORCHCODEC_NOTE, "an unrelated warning"]
 
 
-def test_progress_bars_throttle_when_not_on_a_terminal():
-    """tqdm wrote every update into non-terminal logs (a make demo log was megabytes)."""
-    code = (
-        "import time, lerobot_unidextok\n"  # the package import throttles every bar imported after it
-        "from tqdm import tqdm\n"
-        "for _ in tqdm(range(100)): time.sleep(0.01)\n"
-    )
-    env = subprocess_env()
-    env.pop("TQDM_MININTERVAL", None)
-    r = subprocess.run([sys.executable, "-c", code], env=env, check=False, capture_output=True, text=True, timeout=60)
-    assert r.returncode == 0, r.stderr
-    assert r.stderr.count("%|") <= 3  # first and last refresh, not one per update
-    r = subprocess.run([sys.executable, "-c", code.replace(", lerobot_unidextok", "")], env=env,
-                       check=False, capture_output=True, text=True, timeout=60)  # fmt: skip
-    assert r.stderr.count("%|") > 3  # without it: a refresh every 0.1 s
+def _refreshes(text: str, total: int) -> list[tuple[int, str]]:
+    """(counter, postfix) of every refresh a tqdm bar wrote: `desc: 40%|#### | 60/150 [00:01<00:02, 50it/s, loss=59]`,
+    refreshes separated by carriage returns (or newlines)."""
+    found = re.findall(rf"(\d+)/{total} \[([^\]]*)\]", text)
+    return [(int(n), ", ".join(p for p in inside.split(", ") if "=" in p)) for n, inside in found]
+
+
+def test_progress_bar_refreshes_every_30_s_off_a_terminal(tmp_path, monkeypatch):
+    """Conversion wrote 92 bar updates in 2 s and training 213 in 3 minutes into a log file, with the step
+    counter frozen while the loss postfix changed: tqdm's set_postfix refreshes on every call."""
+    monkeypatch.delenv("TQDM_MININTERVAL", raising=False)
+    log = tmp_path / "log.txt"
+    with log.open("w") as f:  # a file, as when stderr is redirected
+        bar = cli.progress_bar(range(150), file=f, desc="loop")
+        for i in bar:
+            time.sleep(0.004)
+            bar.set_postfix(loss=i)
+    refreshes = _refreshes(log.read_text(), 150)
+    assert [n for n, _ in refreshes] == [0, 150]  # the start and the end, nothing in between (< 30 s)
+    assert refreshes[-1][1] == "loss=149"  # the last postfix, written with the final counter
+
+
+def test_progress_bar_honours_tqdm_mininterval_and_writes_counter_with_postfix(tmp_path, monkeypatch):
+    monkeypatch.setenv("TQDM_MININTERVAL", "0.05")
+    log = tmp_path / "log.txt"
+    with log.open("w") as f:
+        bar = cli.progress_bar(range(150), file=f, desc="loop")
+        for i in bar:
+            time.sleep(0.004)
+            bar.set_postfix(loss=i)
+    refreshes = _refreshes(log.read_text(), 150)
+    assert 5 < len(refreshes) < 40  # ~0.6 s of updates at one refresh per 0.05 s, not one per update (150)
+    counters = [n for n, _ in refreshes]
+    assert counters == sorted(counters) and counters[-1] == 150
+    # every refresh after the first shows the postfix of the step it counts (loss = step index)
+    assert all(postfix == f"loss={n - 1}" for n, postfix in refreshes[1:]), refreshes

@@ -15,7 +15,8 @@ def test_an_installed_package_is_returned():
 def test_a_missing_package_names_its_extra_and_the_purpose(monkeypatch):
     monkeypatch.setitem(sys.modules, "rosbags", None)  # import fails as if not installed
     with pytest.raises(
-        ImportError, match=r"^reading ROS bags needs rosbags: pip install 'lerobot-unidextok\[ros\]' \(pure Python\)$"
+        ImportError,
+        match=r"^reading ROS bags needs rosbags: pip install 'lerobot_policy_unidextok\[ros\]' \(pure Python\)$",
     ) as err:
         require_package("rosbags", "ros", purpose="reading ROS bags", hint=" (pure Python)")
     assert isinstance(err.value.__cause__, ImportError)  # the original import error stays attached

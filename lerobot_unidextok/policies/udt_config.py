@@ -1,19 +1,19 @@
-"""`<type>_udt`: a stock LeRobot policy whose pre-processor tokenises the hand blocks with UniDexTok.
+"""The `udt_*` fields and checks every `<type>_udt` config adds to its stock LeRobot config (one mixin).
 
-    lerobot-train --policy.type=diffusion_udt --policy.discover_packages_path=lerobot_unidextok \
-        --policy.udt_pretrained=lab/unidextok-small --dataset.repo_id=lab/g1_udhm --dataset.root=data/g1_udhm
+    lerobot-train --policy.type=diffusion_udt --policy.udt_pretrained=lab/unidextok-small \
+        --dataset.repo_id=lab/g1_udhm --dataset.root=data/g1_udhm
 
-Why one generic wrapper and not one file trio per policy, a token-writing command or an injecting entry point
-(lerobot 0.6.1): a policy *type* is the only thing `lerobot-train` flags and config files can select
-that also decides the processors (`make_<type>_pre_post_processors`), and its processors are saved into
-every checkpoint, so `--policy.path` resume, `lerobot-eval` and the stock factory reload all get the step
-back without any code of ours in the loop. Features written into the dataset would leave inference
-without the step; an injecting entry point would not be `lerobot-train`. So each `<type>_udt` is the stock
-config class plus the `udt_*` fields below, the stock model class unchanged (`modeling_udt`), and the stock
-processors with the UniDexTok step inserted before batching (`processor_udt`): one implementation for
-every wrapped type. `udt_config_class("<type>")` wraps another stock type the same way.
+Why a policy type per wrapped policy and not a token-writing command or an injecting entry point (lerobot
+0.6.1): a policy *type* is the only thing `lerobot-train` flags and config files can select that also
+decides the processors (`make_<type>_pre_post_processors`), and its processors are saved into every
+checkpoint, so `--policy.path` resume, `lerobot-eval` and the stock factory reload all get the step back
+without any code of ours in the loop. Features written into the dataset would leave inference without the
+step; an injecting entry point would not be `lerobot-train`. So each `<type>_udt` is LeRobot's trio
+(`policies/<type>_udt/`): the stock config class plus `UdtConfigMixin`, the stock policy class unchanged
+under that config, and the stock processors with the UniDexTok step inserted before batching
+(`udt_processor.insert_udt_steps`).
 
-What the wrapper adds to the stock config, in `validate_features` (run when the policy is built):
+What the mixin adds to the stock config, in `validate_features` (run when the policy is built):
 - the hand layout, sides and state column names from the training dataset (`hand_type` + state names),
   so a whole-robot state (arms + hands) works: only the UDHM blocks are tokenised;
 - `observation.environment_state` (ENV, not normalised) sized for the token view, which ACT / Diffusion /
@@ -29,8 +29,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import lerobot.policies  # noqa: F401  (registers the stock config classes this module wraps)
-from lerobot.configs.policies import PreTrainedConfig
 from lerobot.configs.types import FeatureType, PolicyFeature
 
 from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE, UDHM_DIM
@@ -48,33 +46,40 @@ from lerobot_unidextok.state_layout import find_udhm_blocks
 logger = logging.getLogger(__name__)
 
 UDT_SUFFIX = "_udt"
-UDT_CONFIGS: dict[str, type[PreTrainedConfig]] = {}  # "<type>_udt" -> config class
 
 
 @dataclass
-class UdtFields:
-    """The `udt_*` fields every `<type>_udt` config adds to its stock config."""
+class UdtConfigMixin:
+    """The `udt_*` fields of a `<type>_udt` config; put it before the stock config class among the bases
+    (`class ACTUdtConfig(UdtConfigMixin, ACTConfig)`). Each field's comment is its `--help` text."""
 
-    # --- UniDexTok step -----------------------------------------------------------------------------
-    # UniDexTok checkpoint folder or Hub repo id (resolved offline from the HF cache once pulled).
-    # None: an untrained `udt_preset` tokenizer (smoke tests only).
+    # UniDexTok checkpoint folder or Hub repo id (offline from the HF cache once pulled); unset: an untrained
+    # `udt_preset` tokenizer (smoke tests only).
     udt_pretrained: str | None = None
+    # Tokenizer size preset used when udt_pretrained is unset: tiny | small | paper.
     udt_preset: str = "small"
-    udt_representation: str = "dequantized"  # "dequantized" (H*22 rad) | "embedding" (H*N*codebook_dim)
-    # Hand spec name per UDHM block of observation.state (one name = all blocks). Empty: read from the
-    # training dataset (`hand_type` column) when lerobot-train builds the policy.
+    # What the policy reads as observation.environment_state: dequantized (decoded UDHM, H*22 radians) or
+    # embedding (unit-norm code vectors, H*N*codebook_dim).
+    udt_representation: str = "dequantized"
+    # Hand spec name per UDHM block of observation.state, one name for all blocks; empty: read from the
+    # training dataset's hand_type column when lerobot-train builds the policy.
     udt_hand_layout: list[str] = field(default_factory=list)
-    udt_sides: list[str] = field(default_factory=list)  # filled from the dataset's state names
-    udt_state_names: list[str] = field(default_factory=list)  # observation.state names (filled from the dataset)
-    # Hands the tokenizer was not trained on: false = refuse; true = zero-shot "unknown hand" embedding.
+    # Side (left/right) of each UDHM block; filled from the dataset's state names.
+    udt_sides: list[str] = field(default_factory=list)
+    # Column names of observation.state, which locate the UDHM blocks; filled from the dataset.
+    udt_state_names: list[str] = field(default_factory=list)
+    # Hands the tokenizer was not trained on: false refuses them, true tokenises them zero-shot with the
+    # tokenizer's unknown-hand embedding.
     udt_allow_unknown: bool = False
-    udt_range_check: str = "raise"  # states outside the hands' ranges (degrees, normalised): raise | warn | off
-    # Decode predicted actions back to the robot's native action (arms copied, hands in native units)
-    # when the dataset's hands have native joints; the layout is read from the dataset.
+    # States outside their hands' ranges (degrees fed as radians, normalised values): raise | warn | off.
+    udt_range_check: str = "raise"
+    # Decode predicted actions to the robot's native action vector (arms copied, hands in native units) when
+    # the dataset's hands have native joints; false keeps UDHM radians.
     udt_native_action: bool = True
-    udt_native_layout: dict[str, Any] = field(default_factory=dict)  # {"names", "native_names", "hands"}
-    # Accepted (and ignored) so `--policy.discover_packages_path=lerobot_unidextok` also works with
-    # `--policy.path=<checkpoint>`, where LeRobot passes every --policy.* flag to the loaded config.
+    # The native action layout {"names", "native_names", "hands"}; filled from the dataset.
+    udt_native_layout: dict[str, Any] = field(default_factory=dict)
+    # Accepted and ignored, so --policy.discover_packages_path=lerobot_unidextok also works with
+    # --policy.path=<checkpoint> (LeRobot passes every --policy.* flag to the loaded config).
     discover_packages_path: str | None = None
 
     def __post_init__(self) -> None:
@@ -104,7 +109,7 @@ class UdtFields:
         if OBS_HAND_TOKEN_FEATURES in meta.features:
             raise ValueError(
                 f"the dataset already has '{OBS_HAND_TOKEN_FEATURES}', which the UniDexTok step writes; drop or "
-                f"rename it (lerobot-edit-dataset), or train the stock --policy.type={self.base_type}"
+                f"rename it (lerobot-edit-dataset), or train the stock --policy.type={self.type.removesuffix(UDT_SUFFIX)}"
             )
         names = feature_names(meta.features.get(OBS_STATE, {}))
         hands = self.udt_hand_layout or dataset_hand_types(meta.root)
@@ -152,26 +157,3 @@ class UdtFields:
             _, env_width = tokenizer_output_dims(self.tokenizer_config(), num_hands, self.udt_representation)
             self.input_features[OBS_HAND_TOKEN_FEATURES] = PolicyFeature(type=FeatureType.ENV, shape=(env_width,))
         super().validate_features()
-
-
-def udt_config_class(base_type: str) -> type[PreTrainedConfig]:
-    """Register `<base_type>_udt`: the stock config class of `base_type` plus `UdtFields`; returns it."""
-    udt_type = base_type + UDT_SUFFIX
-    if udt_type in UDT_CONFIGS:
-        return UDT_CONFIGS[udt_type]
-    base = PreTrainedConfig.get_choice_class(base_type)
-    name = base.__name__.removesuffix("Config") + "UdtConfig"  # ACTConfig -> ACTUdtConfig (-> ACTUdtPolicy)
-    doc = f"LeRobot's `{base_type}` policy on UniDexTok hand tokens (`--policy.type={udt_type}`)."
-    namespace = {"__module__": __name__, "__qualname__": name, "__doc__": doc}
-    cls = dataclass(type(name, (UdtFields, base), namespace))
-    cls.base_type, cls.udt_type = base_type, udt_type  # plain class attributes, not config fields
-    PreTrainedConfig.register_subclass(udt_type)(cls)
-    globals()[name] = cls  # modeling_udt / processor_udt find it by name, pickles resolve it
-    UDT_CONFIGS[udt_type] = cls
-    return cls
-
-
-# The stock types wrapped by default: state-based policies that take `observation.environment_state`.
-ACTUdtConfig = udt_config_class("act")
-DiffusionUdtConfig = udt_config_class("diffusion")
-VQBeTUdtConfig = udt_config_class("vqbet")
