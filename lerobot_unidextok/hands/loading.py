@@ -25,7 +25,7 @@ _TOP_KEYS = {
 }  # fmt: skip
 _SIDE_KEYS = {"slot", "raw_range", "rad_at_raw_range", "sign", "rest_rad", "default_raw", "urdf_joint"}
 _JOINT_KEYS = {"name", "note", "judgement", *_SIDE_KEYS, *SIDES}
-_COUPLED_KEYS = {"joint", "follows", "ratio", "offset_rad", "note"}
+_COUPLED_KEYS = {"joint", "follows", "ratio", "offset_rad", "note", "slot"}
 _SKELETON_KEYS = {"scale", "bone_lengths_m", "palm_offsets_m", "source", "note"}
 _URDF_KEYS = {"source", "file", "keypoints", "note", *SIDES}
 _URDF_SIDE_KEYS = {"file", "keypoints"}
@@ -96,6 +96,7 @@ def spec_from_dict(data: Any, source: str = "<dict>", path: Path | None = None) 
         raise fail("joints", "a kind 'keypoints' hand takes MANO-21 keypoints and lists no joints")
 
     coupled = tuple(_coupled(c, f"coupled[{i}]", fail) for i, c in enumerate(data.get("coupled") or []))
+    _drawn_couplings(coupled, joints, fail)
     return HandSpec(
         name=name,
         embodiment=_string(data["embodiment"], "embodiment", fail),
@@ -215,7 +216,28 @@ def _coupled(c: Any, where: str, fail) -> CoupledJoint:
         ratio=_number(c["ratio"], f"{where}.ratio", fail),
         offset_rad=_number(c.get("offset_rad", 0.0), f"{where}.offset_rad", fail),
         note=str(c.get("note", "")).strip(),
+        slot=None if c.get("slot") is None else _string(c["slot"], f"{where}.slot", fail),
     )
+
+
+def _drawn_couplings(coupled: tuple[CoupledJoint, ...], joints: list[JointSpec], fail) -> None:
+    """A coupled joint with a ``slot`` follows a native joint that has a slot and bends a slot no joint fills."""
+    by_name = {j.name: j for j in joints}
+    filled = {s.slot for j in joints for s in j.sides.values()} - {None}
+    drawn: set[str] = set()
+    for i, c in enumerate(coupled):
+        if c.slot is None:
+            continue
+        where = f"coupled[{i}]"
+        if c.slot not in UDHM_INDEX:
+            raise fail(f"{where}.slot", f"{c.slot!r} is not a UDHM joint; use one of {list(UDHM_INDEX)}")
+        if c.slot in filled or c.slot in drawn:
+            raise fail(f"{where}.slot", f"{c.slot!r} is already filled by a joint or another coupling")
+        leader = by_name.get(c.follows)
+        if leader is None or leader.slot is None:
+            raise fail(f"{where}.follows", f"{c.follows!r} must name a native joint with a UDHM slot when slot is given; "
+                                           f"joints: {[j.name for j in joints if j.slot is not None]}")  # fmt: skip
+        drawn.add(c.slot)
 
 
 def _skeleton(s: Any, fail) -> SkeletonSpec:

@@ -83,13 +83,18 @@ class JointSpec:
 
 @dataclass(frozen=True)
 class CoupledJoint:
-    """A passive/mimic joint of the hardware, documented (not inserted into UDHM by default)."""
+    """A passive/mimic joint of the hardware: ``angle = ratio * angle(follows) + offset_rad`` (URDF mimic).
+
+    Never inserted into UDHM (the tokenizer sees actuated DoFs only). With ``slot`` it is drawn: the
+    viewer sets that UDHM slot to the joint's angle, ``follows`` being the native joint that drives it.
+    """
 
     joint: str
     follows: str
     ratio: float
     offset_rad: float = 0.0
     note: str = ""
+    slot: str | None = None  # UDHM slot the passive joint bends when the hand is drawn; None = documentation only
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,10 @@
-"""`unidextok-view`: look at a converted episode: 3D UDHM hands from FK next to the native values and,
-with a tokenizer, the tokens and the decoded hand. Writes an .mp4 / .gif, or a rerun recording (.rrd).
+"""`unidextok-view`: look at a converted episode: each hand in 3D (the robot with its coupled joints, or its
+URDF) next to its native values and, with a tokenizer, the tokens and the decoded hand. Writes an .mp4 /
+.gif, or a rerun recording (.rrd).
 
     unidextok-view --dataset=data/g1_udhm --episode=0 --output=outputs/view/g1_ep0.mp4
     unidextok-view --dataset=lab/g1_udhm --tokenizer=lab/unidextok-small --output=outputs/view/ep0.gif --stride=3
+    unidextok-view --dataset=data/g1_udhm --urdf=../shared/data/urdf --output=outputs/view/g1_ep0.mp4
     unidextok-view --dataset=data/g1_udhm --output=outputs/view/ep0.rrd   # rerun-sdk: pip install 'lerobot[viz]'
         then: rerun outputs/view/ep0.rrd
 """
@@ -24,7 +26,8 @@ class ViewConfig:
     output: str = "outputs/view/episode.mp4"  # .mp4 | .gif | .rrd (rerun recording)
     stride: int = 1  # show every stride-th frame (the video plays at fps / stride)
     max_frames: int = 300  # at most this many frames after the stride
-    camera: str = "oblique"  # 3D view: side | oblique | palm
+    camera: str = "oblique"  # 3D view: side | oblique | palm (a left hand is seen by the mirrored camera)
+    urdf: str | None = None  # draw robot hands by their URDF: a .urdf file, or a folder holding each hand's urdf.file
 
 
 @draccus.wrap()
@@ -36,7 +39,7 @@ def view_cli(cfg: ViewConfig) -> None:
     suffix = Path(cfg.output).suffix.lower()
     if suffix not in (*VIDEO_SUFFIXES, ".rrd"):
         raise ValueError(f"--output must end in .mp4, .gif or .rrd, got {cfg.output!r}")
-    view = load_episode(cfg.dataset, cfg.episode, cfg.tokenizer, cfg.stride, cfg.max_frames)
+    view = load_episode(cfg.dataset, cfg.episode, cfg.tokenizer, cfg.stride, cfg.max_frames, cfg.urdf)
     path = write_rerun(view, cfg.output) if suffix == ".rrd" else write_video(view, cfg.output, cfg.camera)
     print(f"wrote {path} ({view.num_frames} frames, hands {view.hands}, sides {view.sides})")
 

@@ -12,14 +12,8 @@ from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3d project
 
 from lerobot_unidextok import hands, udhm
 from lerobot_unidextok.constants import KEYPOINT_PARENTS, UDHM_DIM
-from lerobot_unidextok.viz.style import DARK_BG, GROUND_TRUTH_COLOR, method_colors, save
+from lerobot_unidextok.viz.style import DARK_BG, GROUND_TRUTH_COLOR, VIEWS, method_colors, save
 
-# Canonical hand frame (udhm/fk.py): x palmar normal, y thumb side, z distal.
-VIEWS: dict[str, tuple[float, float]] = {  # name -> (elevation, azimuth) in degrees
-    "side": (0.0, 90.0),  # from the thumb side: flexion profile
-    "oblique": (25.0, 35.0),  # between palm and thumb side
-    "palm": (0.0, 0.0),  # facing the palm: abduction and spread
-}
 BONES = [(child, parent) for child, parent in enumerate(KEYPOINT_PARENTS) if parent >= 0]
 
 
@@ -82,7 +76,7 @@ def plot_hand_reconstructions(
             ax.set_ylim(c[1] - half, c[1] + half)
             ax.set_zlim(c[2] - half, c[2] + half)
             ax.set_box_aspect((1, 1, 1), zoom=1.35)
-            ax.view_init(elev=VIEWS[view][0], azim=VIEWS[view][1])
+            ax.view_init(elev=VIEWS[view][0], azim=-VIEWS[view][1] if side == "left" else VIEWS[view][1])  # mirrored
             ax.set_axis_off()
             if row == 0:
                 errs = "  ".join(

@@ -11,6 +11,13 @@ UNIDEXTOK_COLOR = "#2ecc40"  # green
 BASELINE_COLORS = ("#ff4136", "#ff851b", "#f012be", "#b10dc9", "#ffdc00")  # red first, then distinct warm hues
 DARK_BG = "#2a2a2a"
 OTHER_COLORS = ("#0074d9", "#7fdbff", "#39cccc", "#85144b", "#3d9970")
+# Camera views of a hand in its wrist frame (udhm/frames.py: x palmar normal, y thumb side of a right hand,
+# z distal): name -> (elevation, azimuth) in degrees, matplotlib's convention.
+VIEWS: dict[str, tuple[float, float]] = {
+    "side": (0.0, 90.0),  # from the thumb side: flexion profile
+    "oblique": (25.0, 35.0),  # between palm and thumb side
+    "palm": (0.0, 0.0),  # facing the palm: abduction and spread
+}
 
 
 def method_colors(methods: list[str]) -> dict[str, str]:

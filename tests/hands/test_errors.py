@@ -90,6 +90,15 @@ def test_new_hand_from_one_yaml(tmp_path):
         ("    note: not a finger joint", "    tendon: 3", "unknown key"),
         ("slot: index_mcp_flex\n", "slot: index_mcp_flex\n    sign: 2\n", "sign"),
         ("embodiment: toy_gripper_hand\n", "", "embodiment"),
+        *[
+            ("    note: not a finger joint", f"    note: not a finger joint\ncoupled:\n  - {entry}", field)
+            for entry, field in [  # a drawn coupling (with slot) must be usable by the viewer
+                ("{joint: pip, follows: finger_a, ratio: 1.0, slot: index_pip}", "coupled[0].slot"),
+                ("{joint: pip, follows: finger_a, ratio: 1.0, slot: thumb_cmc_flex}", "coupled[0].slot"),  # a joint's
+                ("{joint: pip, follows: finger_z, ratio: 1.0, slot: index_pip_flex}", "coupled[0].follows"),
+                ("{joint: pip, follows: wrist, ratio: 1.0, slot: index_pip_flex}", "coupled[0].follows"),  # dropped
+            ]
+        ],
     ],
 )
 def test_invalid_yaml_names_file_and_field(tmp_path, old, new, field):
@@ -100,6 +109,17 @@ def test_invalid_yaml_names_file_and_field(tmp_path, old, new, field):
         hands.load_spec(path)
     msg = str(err.value)
     assert str(path) in msg and field in msg
+
+
+def test_a_drawn_coupling_loads_with_its_slot(tmp_path):
+    """A coupled joint with a slot names the UDHM slot the viewer bends; two may not bend the same slot."""
+    entry = "  - {joint: pip, follows: finger_a, ratio: 0.7, offset_rad: 0.1, slot: index_pip_flex}\n"
+    text = MINIMAL.format(name="toy_hand") + "coupled:\n" + entry
+    (coupling,) = hands.load_spec(_write(tmp_path, text)).coupled
+    assert (coupling.slot, coupling.follows, coupling.ratio) == ("index_pip_flex", "finger_a", 0.7)
+    assert coupling.offset_rad == 0.1
+    with pytest.raises(hands.SpecError, match=r"coupled\[1\].slot.*already filled"):
+        hands.load_spec(_write(tmp_path, text + entry))
 
 
 def test_dropped_joints_decode_to_their_raw_value_at_zero_rad(tmp_path):

@@ -9,7 +9,8 @@ import torch
 from robot_udhm import INSPIRE
 
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
-from lerobot_unidextok.viz.episode import load_episode, render_frame, write_rerun, write_video
+from lerobot_unidextok.viz.episode import load_episode, write_rerun, write_video
+from lerobot_unidextok.viz.render import render_frame
 from lerobot_unidextok.viz.style import GROUND_TRUTH_COLOR, UNIDEXTOK_COLOR
 
 
@@ -58,10 +59,17 @@ def test_mp4_and_gif(view, tmp_path):
     with av.open(str(mp4)) as container:
         frames = [f.to_ndarray(format="rgb24") for f in container.decode(video=0)]
     assert len(frames) == view.num_frames
-    assert frames[0].shape == render_frame(view, 0).shape
+    expected = render_frame(view, 4)
+    assert frames[4].shape == expected.shape and np.abs(frames[4].astype(int) - expected).mean() < 4  # lossy H.264
     gif = write_video(view, tmp_path / "ep.gif", camera="side", progress=False)
     with Image.open(gif) as im:
         assert im.n_frames == view.num_frames and abs(im.info["duration"] - 1000 / 7.5) <= 10  # GIF: 10 ms units
+        im.seek(3)
+        drawn = np.asarray(im.convert("RGB")).astype(int)
+    # one palette for every frame, no dithering: frame 3 keeps its colours within the palette's rounding
+    expected = render_frame(view, 3, camera="side").astype(int)
+    assert np.abs(drawn - expected).mean() < 2.0 and _has_color(drawn.astype(np.uint8), UNIDEXTOK_COLOR)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ep.gif", "ep.mp4"]  # no partial files left
     with pytest.raises(ValueError, match=r"\.mp4.*\.gif"):
         write_video(view, tmp_path / "ep.avi")
 
@@ -91,6 +99,14 @@ def test_cli_writes_a_gif_and_refuses_bad_input(g1_like, tmp_path, monkeypatch, 
     assert out.is_file() and "wrote" in capsys.readouterr().out
     for argv, message in [
         ([f"--dataset={g1_like['root']}", "--output=x.avi"], "error: --output must end in .mp4, .gif or .rrd"),
+        (
+            [f"--dataset={g1_like['root']}", f"--urdf={tmp_path / 'none'}", f"--output={out}"],
+            f"error: --urdf {tmp_path / 'none'} is neither a URDF file nor a folder",
+        ),
+        (
+            [f"--dataset={g1_like['root']}", f"--urdf={tmp_path}", f"--output={out}"],
+            f"error: no URDF for the left {INSPIRE} hand under {tmp_path}: tried",
+        ),
         ([f"--dataset={g1_like['root']}", "--episode=9", f"--output={out}"], "error: episode 9 is not in"),
         (["--dataset=lab/not-here", f"--output={out}"], "error: dataset 'lab/not-here' is not on this machine"),
     ]:
