@@ -4,7 +4,6 @@ No `from __future__ import annotations` here: the Hub mixin reads the real `UniD
 annotation of `__init__` to rebuild the config from config.json.
 """
 
-import json
 import math
 import os
 from collections.abc import Sequence
@@ -17,7 +16,7 @@ from huggingface_hub import constants as hf_constants
 from torch import nn
 
 from lerobot_unidextok.constants import ANGLE_SCALE_RAD
-from lerobot_unidextok.tokenizer.configuration_unidextok import FORMAT_VERSION, UniDexTokConfig
+from lerobot_unidextok.tokenizer.configuration_unidextok import UniDexTokConfig
 from lerobot_unidextok.tokenizer.layers import AdaLNBlock, AdaLNFinalNorm
 from lerobot_unidextok.tokenizer.quantizer import FactorizedCosineVQ
 
@@ -214,9 +213,7 @@ class UniDexTok(
         x_rad = self._check_states(states_rad)  # (B, 22)
         c = self.hand_embed(self.hand_ids(hand, x_rad.shape[0], allow_unknown))  # (B, C)
         z = self._encode_latent(x_rad, c)  # (B, N, C)
-        u = self.quantizer.project_in(z).view(*z.shape[:2], self.config.num_groups, -1)  # (B, N, K, d)
-        sim = torch.einsum("bnkd,ksd->bnks", F.normalize(u, dim=-1, eps=1e-6), self.quantizer.normalized_codebooks())
-        return sim.argmax(dim=-1)  # (B, N, K) int64
+        return self.quantizer.nearest_indices(z)  # (B, N, K) int64
 
     @torch.no_grad()
     def embed(self, states_rad: torch.Tensor, hand: HandArg, allow_unknown: bool = False) -> torch.Tensor:
@@ -268,6 +265,14 @@ class UniDexTok(
     # Hub loading: format check, safetensors only, strict
     # -----------------------------------------------------------------------------------------
     @classmethod
+    def _decode_arg(cls, expected_type, value):
+        """huggingface_hub passes config.json's dict here to build the config; a file without `format_version`
+        is read as `format_version=None` (refused by `UniDexTokConfig`), not as the current version."""
+        if expected_type is UniDexTokConfig and isinstance(value, dict):
+            value = {"format_version": None, **value}
+        return super()._decode_arg(expected_type, value)
+
+    @classmethod
     def _from_pretrained(
         cls,
         *,
@@ -294,14 +299,9 @@ class UniDexTok(
                 force_download=force_download, token=token, local_files_only=local_files_only,
             )  # fmt: skip
 
-        with open(_fetch(hf_constants.CONFIG_NAME), encoding="utf-8") as f:
-            raw = json.load(f)
-        version = raw.get("format_version")
-        if version != FORMAT_VERSION:
-            raise ValueError(
-                f"checkpoint {model_id!r} has format_version={version!r} but this code reads "
-                f"format_version={FORMAT_VERSION}; install the lerobot-unidextok version that wrote it or re-train"
-            )
+        if "config" not in model_kwargs:  # huggingface_hub found no config.json (it only logs that)
+            _fetch(hf_constants.CONFIG_NAME)  # raises the error that says where it looked
+            raise FileNotFoundError(f"{model_id}: config.json could not be read")
         model = cls(**model_kwargs)
         model = cls._load_as_safetensor(model, _fetch(hf_constants.SAFETENSORS_SINGLE_FILE), map_location, strict)
         model.eval()
