@@ -17,7 +17,7 @@ from torch import nn
 
 from lerobot_unidextok.constants import ANGLE_SCALE_RAD
 from lerobot_unidextok.tokenizer.configuration_unidextok import UniDexTokConfig
-from lerobot_unidextok.tokenizer.layers import AdaLNBlock, AdaLNFinalNorm
+from lerobot_unidextok.tokenizer.layers import AdaLNBlock, AdaLNFinalNorm, HandEmbedder
 from lerobot_unidextok.tokenizer.quantizer import FactorizedCosineVQ
 
 HandArg = str | Sequence[str] | torch.Tensor
@@ -48,10 +48,9 @@ class UniDexTok(
         self.config = config
         c, n = config.hidden_dim, config.num_tokens
         self._hand_index = {name: i for i, name in enumerate(config.hand_names)}
-        self.unknown_hand_id = len(config.hand_names)
 
         # hand-type embedding c_h; last row = "unknown hand"
-        self.hand_embed = nn.Embedding(len(config.hand_names) + 1, c)
+        self.hand_embed = HandEmbedder(len(config.hand_names), c)
         # encoder
         self.input_proj = nn.Linear(config.state_dim * (1 + 2 * config.fourier_octaves), n * c)
         self.enc_pos = nn.Parameter(torch.zeros(1, n, c))
@@ -97,6 +96,11 @@ class UniDexTok(
     # -----------------------------------------------------------------------------------------
     # input checks
     # -----------------------------------------------------------------------------------------
+    @property
+    def unknown_hand_id(self) -> int:
+        """Id of the "unknown hand" embedding row (hands outside `config.hand_names`, zero-shot)."""
+        return self.hand_embed.unknown_id
+
     def hand_ids(self, hand: HandArg, batch_size: int, allow_unknown: bool = False) -> torch.Tensor:
         """Hand name, one name per row, or a LongTensor of ids -> (B,) ids."""
         device = self.enc_pos.device
@@ -110,12 +114,13 @@ class UniDexTok(
             names = [hand] if isinstance(hand, str) else list(hand)
             if len(names) == 1:
                 names = names * batch_size
-            ids = torch.tensor([self._name_to_id(nm, allow_unknown) for nm in names], device=device)
+            ids = torch.tensor([self.hand_id(nm, allow_unknown) for nm in names], device=device)
         if ids.shape[0] != batch_size:
             raise ValueError(f"got {ids.shape[0]} hands for a batch of {batch_size}; pass one name or one per row")
         return ids  # (B,)
 
-    def _name_to_id(self, name: str, allow_unknown: bool) -> int:
+    def hand_id(self, name: str, allow_unknown: bool = False) -> int:
+        """The embedding row of hand `name`; with `allow_unknown`, the unknown-hand row for other names."""
         if name in self._hand_index:
             return self._hand_index[name]
         if allow_unknown:
@@ -166,11 +171,16 @@ class UniDexTok(
         hand: HandArg,
         mask: torch.Tensor | None = None,
         allow_unknown: bool = False,
+        hand_drop_prob: float = 0.0,
+        generator: torch.Generator | None = None,
     ) -> UniDexTokOutput:
-        """Reconstruct states and compute losses; `mask` (B, 22) bool marks the active DoFs."""
+        """Reconstruct states and compute losses; `mask` (B, 22) bool marks the active DoFs.
+
+        In training mode a `hand_drop_prob` share of rows is conditioned on the unknown-hand embedding
+        instead of their own (`HandEmbedder`; the draws come from `generator`)."""
         x_rad = self._check_states(states_rad)  # (B, 22)
         b = x_rad.shape[0]
-        c = self.hand_embed(self.hand_ids(hand, b, allow_unknown))  # (B, C)
+        c = self.hand_embed(self.hand_ids(hand, b, allow_unknown), hand_drop_prob, generator)  # (B, C)
         z = self._encode_latent(x_rad, c)  # (B, N, C)
         zq, indices, vq_loss = self.quantizer(z)  # (B, N, C), (B, N, K), ()
         x_hat_rad = self._decode_latent(zq, c)  # (B, 22)
@@ -244,14 +254,9 @@ class UniDexTok(
         new = [n for n in dict.fromkeys(names) if n not in self._hand_index]
         if not new:
             return []
-        old = self.hand_embed.weight  # (H + 1, C)
-        known, unknown = old[:-1], old[-1:]
-        weight = torch.cat([known, unknown.expand(len(new), -1), unknown], dim=0)  # (H + new + 1, C)
-        self.hand_embed = nn.Embedding(weight.shape[0], weight.shape[1], device=old.device, dtype=old.dtype)
-        self.hand_embed.weight.copy_(weight)
+        self.hand_embed = self.hand_embed.with_new_hands(len(new))  # (H + new + 1, C)
         self.config.hand_names = [*self.config.hand_names, *new]
         self._hand_index = {name: i for i, name in enumerate(self.config.hand_names)}
-        self.unknown_hand_id = len(self.config.hand_names)
         return new
 
     def knows_hand(self, name: str) -> bool:

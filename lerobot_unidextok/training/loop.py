@@ -187,7 +187,7 @@ def _train(
         n_steps, len(train_data), cfg.batch_size, accelerator.num_processes,
         cfg.batch_size * accelerator.num_processes, mixture,
     )  # fmt: skip
-    hand_id_of = torch.tensor([raw_model._hand_index[h] for h in sampler.hand_names])  # sampler hand -> model id
+    hand_id_of = torch.tensor([raw_model.hand_id(h) for h in sampler.hand_names])  # sampler hand -> model id
     device = accelerator.device
     # what this run trained on; saved with every checkpoint (training_state.json) for the model card
     about = {
@@ -252,11 +252,8 @@ def _train(
         x = torch.from_numpy(batch.states_rad).to(device)  # (B, 22)
         m = torch.from_numpy(batch.masks).to(device)  # (B, 22)
         h = hand_id_of[torch.from_numpy(batch.hands)].to(device)  # (B,)
-        if cfg.unknown_hand_prob > 0:  # hand-embedding dropout trains the zero-shot "unknown hand" path
-            drop = torch.rand(h.shape, generator=dropout_rng).to(device) < cfg.unknown_hand_prob  # (B,)
-            h = torch.where(drop, torch.full_like(h, raw_model.unknown_hand_id), h)
-
-        out = model(x, h, mask=m)
+        # hand dropout (some rows conditioned on the "unknown hand" row) trains the zero-shot path
+        out = model(x, h, mask=m, hand_drop_prob=cfg.unknown_hand_prob, generator=dropout_rng)
         optimizer.zero_grad(set_to_none=True)
         accelerator.backward(out.loss)
         if cfg.grad_clip_norm > 0:
