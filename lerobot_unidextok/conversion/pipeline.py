@@ -39,7 +39,13 @@ from lerobot_unidextok.constants import SIDES
 from lerobot_unidextok.conversion.card import write_card
 from lerobot_unidextok.conversion.features import episode_features, episode_frames, native_layout, udhm_features
 from lerobot_unidextok.conversion.mapping import MAPPINGS, EpisodeError, UdhmEpisode, map_episode, to_layout
-from lerobot_unidextok.conversion.registry import CONVERTERS_PACKAGE, SetupError, get_source, make_reader
+from lerobot_unidextok.conversion.registry import (
+    CONVERTERS_PACKAGE,
+    SetupError,
+    get_source,
+    import_converters,
+    make_reader,
+)
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 
 logger = logging.getLogger(__name__)
@@ -176,15 +182,9 @@ _WORKER: dict[str, Any] = {}
 
 
 def _init_worker(source: str, source_options: dict, mapping: str) -> None:
-    _import_sources()
+    import_converters()
     _WORKER["reader"] = make_reader(source, source_options)
     _WORKER["mapping"] = mapping
-
-
-def _import_sources() -> None:
-    from lerobot_unidextok.conversion.registry import _import_converters
-
-    _import_converters()
 
 
 def _read_and_map(ref: Any) -> UdhmEpisode | EpisodeFailure:
@@ -346,7 +346,7 @@ def convert(opts: ConvertOptions) -> ConvertReport:
     """Convert `opts.source` at `opts.input` into a UDHM LeRobotDataset at `opts.root`."""
     t0 = time.perf_counter()
     target, input_path = checked_paths(opts)
-    _import_sources()
+    import_converters()
     reader_cls = get_source(opts.source)
     reader_options = opts.reader_options()
     reader = make_reader(opts.source, reader_options)

@@ -33,11 +33,10 @@ from typing import Any
 from lerobot_unidextok.conversion.pipeline import (
     ConvertOptions,
     SetupError,
-    _import_sources,
     checked_paths,
     plan_episodes,
 )
-from lerobot_unidextok.conversion.registry import make_reader
+from lerobot_unidextok.conversion.registry import import_converters, make_reader
 
 logger = logging.getLogger(__name__)
 
@@ -143,7 +142,7 @@ def convert_with_executor(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
     except ImportError as exc:
         raise SetupError(f"{DATATROVE_MISSING}; {exc}") from exc
     target, input_path = checked_paths(opts)
-    _import_sources()
+    import_converters()
     plan = plan_episodes(make_reader(opts.source, opts.reader_options()), opts, input_path)
     num_shards = min(cfg.tasks, len(plan.items))
     if num_shards < cfg.tasks:

@@ -63,7 +63,7 @@ def _sibling_specs(spec, values: np.ndarray) -> list[str]:
         if other.name == spec.name or other.embodiment != spec.embodiment or other.num_native != spec.num_native:
             continue
         rr = other.raw_range(other.sides[0])
-        a = other._active_joint_idx
+        a = other.active_joint_indices
         span = rr[a, 1] - rr[a, 0]
         if _fits(values, rr[a, 0], rr[a, 1], 1e-6 * span) and ((values.max(0) - values.min(0)) / span).max() > 0.05:
             out.append(f"use hand spec {other.name!r} ({other.native_units})")
@@ -75,7 +75,7 @@ def check_native_units(spec, raw, side: str = "right") -> None:
     if spec.kind != "joints":
         return
     values = np.asarray(raw, dtype=np.float64).reshape(-1, spec.num_native)
-    a = spec._active_joint_idx
+    a = spec.active_joint_indices
     if values.size == 0 or len(a) == 0 or not np.isfinite(values).all():
         return  # NaN and shape problems are reported by the conversion itself
     values = values[:, a]  # (N, A)
