@@ -3,14 +3,14 @@
     from lerobot_unidextok.conversion import ConvertOptions
     from lerobot_unidextok.conversion.sharded import ExecutorOptions, convert_with_executor
     convert_with_executor(ConvertOptions(source="egodex", input="raw/egodex", root="out/egodex_udhm"),
-                          ExecutorOptions(executor="local", tasks=8, workers=2))
+                          ExecutorOptions(type="local", tasks=8, workers=2))
 
 `convert_with_executor` checks the set-up once in this process (source options, hands, input, existing
 target: the same `SetupError`s as `convert`), caps the tasks at the number of episodes, then runs the
 datatrove pipeline of `conversion.datatrove`: `tasks` shard conversions and one merge.
 
-- `executor="local"`: datatrove's `LocalPipelineExecutor` (`tasks` shards, `workers` at a time) here.
-- `executor="slurm"`: datatrove's `SlurmPipelineExecutor`: one sbatch array job for the shards and a
+- `type="local"`: datatrove's `LocalPipelineExecutor` (`tasks` shards, `workers` at a time) here.
+- `type="slurm"`: datatrove's `SlurmPipelineExecutor`: one sbatch array job for the shards and a
   merge job that depends on it (`afterok`). Returns once both are submitted.
 
 Everything of a run lives in `logging_dir` (default `<root>.datatrove` beside the target): datatrove's
@@ -42,10 +42,10 @@ logger = logging.getLogger(__name__)
 
 __all__ = ["EXECUTORS", "ExecutorOptions", "SlurmOptions", "convert_with_executor", "logging_dir_of"]
 
-EXECUTORS = ("local", "slurm")
+EXECUTORS = ("pool", "local", "slurm")  # pool: `pipeline.convert` in this process, no datatrove
 RUN_SETTINGS = "run_settings.json"  # the settings of the run that owns a logging_dir (resume guard)
 DATATROVE_MISSING = (
-    "--executor=local|slurm needs datatrove, an optional extra: pip install 'lerobot-unidextok[datatrove]' "
+    "--executor.type=local|slurm needs datatrove, an optional extra: pip install 'lerobot-unidextok[datatrove]' "
     "(or pip install 'datatrove>=0.10,<0.11')"
 )
 
@@ -54,7 +54,7 @@ DATATROVE_MISSING = (
 class SlurmOptions:
     """Fields of datatrove's `SlurmPipelineExecutor` for the shard job (the merge job: same, one task)."""
 
-    partition: str = ""  # required for executor="slurm" (`sinfo` lists them)
+    partition: str = ""  # required for type="slurm" (`sinfo` lists them)
     time: str = "04:00:00"  # time limit of one task
     cpus_per_task: int = 2  # give each task as many as --num_workers
     mem_per_cpu_gb: int = 2
@@ -69,26 +69,32 @@ class SlurmOptions:
 
 @dataclass
 class ExecutorOptions:
-    """How to run a sharded conversion on datatrove."""
+    """Where a conversion runs: in this process, or sharded on a datatrove executor."""
 
-    executor: str = "local"  # "local" | "slurm"
+    # "pool": this process, `num_workers` reader processes (no datatrove) | "local" / "slurm": datatrove's
+    # Local/Slurm PipelineExecutor, `tasks` shard conversions (each with `num_workers` processes), then one merge
+    type: str = "pool"
     tasks: int = 2  # shards = datatrove tasks; capped at the number of episodes
     workers: int = -1  # tasks running at the same time (-1: all)
-    logging_dir: str | None = None  # default "<root>.datatrove" beside the target
+    logging_dir: str | None = None  # datatrove run folder (logs, completions, shards); default <root>.datatrove
     keep_shards: bool = False  # keep the shard datasets after the merge
-    slurm: SlurmOptions = field(default_factory=SlurmOptions)
+    slurm: SlurmOptions = field(default_factory=SlurmOptions)  # datatrove's Slurm executor settings (type="slurm")
 
     def __post_init__(self) -> None:
         if isinstance(self.slurm, dict):
             self.slurm = SlurmOptions(**self.slurm)
-        if self.executor not in EXECUTORS:
-            raise ValueError(f"executor must be one of {EXECUTORS}, got {self.executor!r}")
+        if self.type not in EXECUTORS:
+            raise ValueError(
+                f"--executor.type must be {', '.join(EXECUTORS[:-1])} or {EXECUTORS[-1]}, got {self.type!r}"
+            )
         if self.tasks < 1:
-            raise ValueError(f"tasks must be >= 1, got {self.tasks}")
+            raise ValueError(f"--executor.tasks must be >= 1, got {self.tasks}")
         if self.workers == 0 or self.workers < -1:
-            raise ValueError(f"workers must be >= 1 (or -1: all tasks at once), got {self.workers}")
-        if self.executor == "slurm" and not self.slurm.partition:
-            raise ValueError("executor='slurm' needs a partition: --slurm.partition=<name> (sinfo lists them)")
+            raise ValueError(f"--executor.workers must be >= 1 (or -1: all tasks at once), got {self.workers}")
+        if self.type == "slurm" and not self.slurm.partition:
+            raise ValueError(
+                "--executor.type=slurm needs a partition: --executor.slurm.partition=<name> (sinfo lists them)"
+            )
 
 
 def logging_dir_of(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
@@ -107,7 +113,7 @@ def _run_settings(opts: ConvertOptions, cfg: ExecutorOptions, num_shards: int) -
     settings.update(
         input=str(Path(opts.input).expanduser().resolve()),
         root=str(Path(opts.root).expanduser().resolve()),
-        executor=cfg.executor,
+        executor=cfg.type,
         num_shards=num_shards,
     )
     return json.loads(json.dumps(settings, default=str))
@@ -123,7 +129,7 @@ def _claim_logging_dir(logs: Path, settings: dict, overwrite: bool) -> None:
             changed = sorted(k for k in settings.keys() | before.keys() if settings.get(k) != before.get(k))
             raise SetupError(
                 f"{logs} holds a run with other settings ({', '.join(changed)} differ): resume it with the same "
-                "settings, pass --overwrite=true to start again, or choose another --logging_dir"
+                "settings, pass --overwrite=true to start again, or choose another --executor.logging_dir"
             )
         logger.info("resuming the run in %s: completed tasks are skipped", logs)
     logs.mkdir(parents=True, exist_ok=True)
@@ -135,6 +141,8 @@ def convert_with_executor(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
 
     Returns the target folder (for Slurm: where the merge job will write it).
     """
+    if cfg.type == "pool":
+        raise ValueError("ExecutorOptions(type='pool') converts in this process: call conversion.convert")
     if opts.shard_index != 0 or opts.num_shards != 1:
         raise ValueError("with an executor each task converts one shard: leave shard_index/num_shards unset")
     try:
@@ -152,7 +160,7 @@ def convert_with_executor(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
     _claim_logging_dir(logs, _run_settings(opts, cfg, num_shards), opts.overwrite)
     convert_exec, merge_exec = dt.build_executors(opts, cfg, num_shards)
     merge_exec.run()  # runs (local) or submits (Slurm) its dependency, the shard conversions, first
-    if cfg.executor == "slurm":
+    if cfg.type == "slurm":
         logger.info(
             "submitted Slurm job %s (convert, %d tasks) and %s (merge, after it); logs in %s",
             convert_exec.job_id, num_shards, merge_exec.job_id, logs,

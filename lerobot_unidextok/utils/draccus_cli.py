@@ -1,0 +1,101 @@
+"""draccus parsing for the command-line tools: one help line per flag, config checks as their own errors.
+
+Two draccus (0.11) habits this corrects:
+
+- every nested config (`--coverage.*`, `--executor.*`, `--train.*`) gets its config-file flag registered
+  twice, once by the parent as `--<field name>` and once by the nested wrapper as `--<dotted path>`.
+  At the top level the second shadows the first, but argparse keeps the shadowed copy in the help
+  (`--coverage str` listed twice); one level down the parent's copy is a flag of its own that leads
+  nowhere (`--slurm` beside `--executor.slurm`). Both are removed; `--<dotted path>` stays.
+- a ValueError raised by a config's `__post_init__` (a bad flag value) reaches the caller wrapped in
+  `ParsingError("Couldn't instantiate class ...")`; it is raised as itself, with its own message.
+
+    @wrap()
+    def train_cli(cfg: TrainConfig) -> None: ...
+
+    cfg = parse_config(ExperimentConfig, args=["--train.steps=20"])
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import functools
+import inspect
+import sys
+import typing
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from draccus.argparsing import ArgumentParser
+from draccus.utils import ParsingError
+
+
+def config_parser[T](config_class: type[T], config_path: str | None = None) -> ArgumentParser:
+    """draccus' parser for `config_class`, with one config-file flag per nested config (its dotted path)."""
+    parser = ArgumentParser(config_class=config_class, config_path=config_path)
+    _drop_stray_config_flags(parser.parser, set(_nested_paths(config_class)))
+    return parser
+
+
+def _nested_paths(config_class: type, prefix: str = "") -> list[str]:
+    """Dotted paths of the nested dataclass fields of `config_class` (`executor`, `executor.slurm`)."""
+    hints = typing.get_type_hints(config_class)
+    paths = []
+    for f in dataclasses.fields(config_class):
+        kind = hints.get(f.name, f.type)
+        if f.init and dataclasses.is_dataclass(kind):
+            paths += [prefix + f.name, *_nested_paths(kind, f"{prefix}{f.name}.")]
+    return paths
+
+
+def _drop_stray_config_flags(parser: argparse.ArgumentParser, nested: set[str]) -> None:
+    """Keep, of the config-file flags draccus adds for nested configs, the live one named by the dotted path."""
+    for action in list(parser._actions):
+        if (action.help or "").startswith("Config file for ") and action.dest not in nested:
+            parser._remove_action(action)  # the parent's `--<field name>` copy of a deeper config
+            for option in action.option_strings:
+                parser._option_string_actions.pop(option, None)
+    live = {id(action) for action in parser._actions}
+    for group in parser._action_groups:  # copies shadowed by a later flag of the same name
+        group._group_actions[:] = [a for a in group._group_actions if id(a) in live]
+
+
+def parse_config[T](config_class: type[T], args: Sequence[str] | None = None, config_path: str | None = None) -> T:
+    """`draccus.parse` (`--config_path=...` and `--field=value` flags; `sys.argv[1:]` when `args` is None)."""
+    args = sys.argv[1:] if args is None else list(args)
+    nested = set(_nested_paths(config_class))
+    for arg in args:
+        name, _, value = arg.partition("=")
+        if name.removeprefix("--") in nested and value and not Path(value).is_file():
+            raise ValueError(
+                f"{arg}: {name} is a group of flags ({name}.<field>=..., --help lists them); {name}=<file> reads "
+                "them from a YAML file"
+            )
+    try:
+        return config_parser(config_class, config_path).parse_args(args)
+    except ParsingError as exc:
+        if isinstance(exc.__cause__, ValueError):  # a __post_init__ check: its message names the flag
+            raise exc.__cause__ from None
+        raise
+
+
+def wrap(config_path: str | None = None) -> Callable:
+    """Like `draccus.wrap()`: the decorated function's first parameter is parsed from the command line
+    unless a config of that type is passed."""
+
+    def decorate(fn: Callable) -> Callable:
+        config_class = inspect.getfullargspec(fn).annotations[inspect.getfullargspec(fn).args[0]]
+
+        @functools.wraps(fn)
+        def wrapper(*args, **kwargs):
+            if args and type(args[0]) is config_class:
+                return fn(*args, **kwargs)
+            return fn(parse_config(config_class, config_path=config_path), *args, **kwargs)
+
+        return wrapper
+
+    return decorate
+
+
+__all__ = ["config_parser", "parse_config", "wrap"]
