@@ -11,7 +11,7 @@ Writes <output>.json and <output>.md and prints the table.
 import logging
 from dataclasses import dataclass, field
 
-import draccus
+from lerobot_unidextok.utils.draccus_cli import wrap
 
 
 @dataclass
@@ -53,7 +53,7 @@ def run(cfg: EvalConfig) -> dict:
     return report
 
 
-@draccus.wrap()
+@wrap()
 def eval_cli(cfg: EvalConfig) -> None:
     run(cfg)
 

@@ -23,10 +23,9 @@ output_dir/best (use this one), output_dir/last (resume with --resume=true), eac
 import logging
 from pathlib import Path
 
-import draccus
-
 from lerobot_unidextok.training import TrainConfig
 from lerobot_unidextok.training.run import train_and_evaluate
+from lerobot_unidextok.utils.draccus_cli import wrap
 
 
 def run(cfg: TrainConfig) -> dict:
@@ -44,7 +43,7 @@ def run(cfg: TrainConfig) -> dict:
     return report
 
 
-@draccus.wrap()
+@wrap()
 def train_cli(cfg: TrainConfig) -> None:
     run(cfg)
 

@@ -11,9 +11,8 @@ import logging
 from dataclasses import dataclass
 from pathlib import Path
 
-import draccus
-
 from lerobot_unidextok.utils.cli import run_cli
+from lerobot_unidextok.utils.draccus_cli import wrap
 
 
 @dataclass
@@ -27,7 +26,7 @@ class ViewConfig:
     camera: str = "oblique"  # 3D view: side | oblique | palm
 
 
-@draccus.wrap()
+@wrap()
 def view_cli(cfg: ViewConfig) -> None:
     from lerobot_unidextok.viz.episode import VIDEO_SUFFIXES, load_episode, write_rerun, write_video
 

@@ -1,12 +1,17 @@
 """draccus parsing for the command-line tools: one help line per flag, config checks as their own errors.
 
-Two draccus (0.11) habits this corrects:
+Four draccus (0.11) habits this corrects:
 
-- every nested config (`--coverage.*`, `--executor.*`, `--train.*`) gets its config-file flag registered
+- every nested config (`--coverage.*`, `--executor.*`, `--train.*`) gets a whole-group flag registered
   twice, once by the parent as `--<field name>` and once by the nested wrapper as `--<dotted path>`.
   At the top level the second shadows the first, but argparse keeps the shadowed copy in the help
   (`--coverage str` listed twice); one level down the parent's copy is a flag of its own that leads
   nowhere (`--slurm` beside `--executor.slurm`). Both are removed; `--<dotted path>` stays.
+- a field comment with a percent sign ("6.2 % of the frames") broke `--help` (argparse formats help
+  with %); it is escaped.
+- that flag's help says "Config file for ...", but draccus reads its value as the group in YAML
+  (`--executor='{type: local, tasks: 8}'`, or `--executor='include file.yaml'`); the help says so, and a
+  plain value (`--executor=local`) is refused with the group's flags named.
 - a ValueError raised by a config's `__post_init__` (a bad flag value) reaches the caller wrapped in
   `ParsingError("Couldn't instantiate class ...")`; it is raised as itself, with its own message.
 
@@ -22,11 +27,12 @@ import argparse
 import dataclasses
 import functools
 import inspect
+import re
 import sys
 import typing
 from collections.abc import Callable, Sequence
-from pathlib import Path
 
+import yaml
 from draccus.argparsing import ArgumentParser
 from draccus.utils import ParsingError
 
@@ -35,6 +41,9 @@ def config_parser[T](config_class: type[T], config_path: str | None = None) -> A
     """draccus' parser for `config_class`, with one config-file flag per nested config (its dotted path)."""
     parser = ArgumentParser(config_class=config_class, config_path=config_path)
     _drop_stray_config_flags(parser.parser, set(_nested_paths(config_class)))
+    for action in parser.parser._actions:
+        if action.help:
+            action.help = re.sub(r"%(?!\()", "%%", action.help)  # a literal %, not argparse's %(default)s
     return parser
 
 
@@ -50,12 +59,16 @@ def _nested_paths(config_class: type, prefix: str = "") -> list[str]:
 
 
 def _drop_stray_config_flags(parser: argparse.ArgumentParser, nested: set[str]) -> None:
-    """Keep, of the config-file flags draccus adds for nested configs, the live one named by the dotted path."""
+    """Keep, of the whole-group flags draccus adds for nested configs, the live one named by the dotted path."""
     for action in list(parser._actions):
-        if (action.help or "").startswith("Config file for ") and action.dest not in nested:
+        if not (action.help or "").startswith("Config file for "):
+            continue
+        if action.dest not in nested:
             parser._remove_action(action)  # the parent's `--<field name>` copy of a deeper config
             for option in action.option_strings:
                 parser._option_string_actions.pop(option, None)
+        else:
+            action.help = f"all of --{action.dest}.* as one YAML mapping ('{{field: value, ...}}' or 'include <file>')"
     live = {id(action) for action in parser._actions}
     for group in parser._action_groups:  # copies shadowed by a later flag of the same name
         group._group_actions[:] = [a for a in group._group_actions if id(a) in live]
@@ -67,10 +80,10 @@ def parse_config[T](config_class: type[T], args: Sequence[str] | None = None, co
     nested = set(_nested_paths(config_class))
     for arg in args:
         name, _, value = arg.partition("=")
-        if name.removeprefix("--") in nested and value and not Path(value).is_file():
+        if name.removeprefix("--") in nested and value and not _is_group_value(value):
             raise ValueError(
-                f"{arg}: {name} is a group of flags ({name}.<field>=..., --help lists them); {name}=<file> reads "
-                "them from a YAML file"
+                f"{arg}: {name} is a group of flags ({name}.<field>=..., --help lists them), or all of them as "
+                f"one YAML mapping: {name}='{{field: value, ...}}'"
             )
     try:
         return config_parser(config_class, config_path).parse_args(args)
@@ -78,6 +91,16 @@ def parse_config[T](config_class: type[T], args: Sequence[str] | None = None, co
         if isinstance(exc.__cause__, ValueError):  # a __post_init__ check: its message names the flag
             raise exc.__cause__ from None
         raise
+
+
+def _is_group_value(value: str) -> bool:
+    """What draccus reads for a whole group: a YAML mapping or `include <file>`."""
+    if value.startswith("include "):
+        return True
+    try:
+        return isinstance(yaml.safe_load(value), dict)
+    except yaml.YAMLError:
+        return False
 
 
 def wrap(config_path: str | None = None) -> Callable:
