@@ -48,7 +48,7 @@ class ConvertConfig(ConvertOptions):
     list_sources: bool = False  # print the registered sources and exit
 
     def __post_init__(self) -> None:
-        if isinstance(self.source_options, str):  # a JSON object given as text (Python callers, old configs)
+        if isinstance(self.source_options, str):  # a JSON object given as text (Python callers, quoted in YAML)
             self.source_options = _source_options(self.source_options)
         super().__post_init__()
 
@@ -65,8 +65,8 @@ def _root(cfg: ConvertConfig) -> Path:
 
 
 def _source_options(text: str) -> dict:
-    """The --source_options object. Parsed as YAML, a superset of JSON: draccus hands a flag that looks
-    like a mapping over as the Python repr of the dict it parsed, which YAML's flow syntax also reads."""
+    """The --source_options object given as text: JSON, read as YAML (a superset; its flow syntax also
+    reads the repr of a Python dict)."""
     if not text:
         return {}
     try:

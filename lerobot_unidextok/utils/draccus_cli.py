@@ -1,17 +1,19 @@
 """draccus parsing for the command-line tools: one help line per flag, config checks as their own errors.
 
-Four draccus (0.11) habits this corrects:
+Five draccus (0.11) habits this corrects:
 
 - every nested config (`--coverage.*`, `--executor.*`, `--train.*`) gets a whole-group flag registered
   twice, once by the parent as `--<field name>` and once by the nested wrapper as `--<dotted path>`.
   At the top level the second shadows the first, but argparse keeps the shadowed copy in the help
   (`--coverage str` listed twice); one level down the parent's copy is a flag of its own that leads
   nowhere (`--slurm` beside `--executor.slurm`). Both are removed; `--<dotted path>` stays.
-- a field comment with a percent sign ("6.2 % of the frames") broke `--help` (argparse formats help
-  with %); it is escaped.
 - that flag's help says "Config file for ...", but draccus reads its value as the group in YAML
   (`--executor='{type: local, tasks: 8}'`, or `--executor='include file.yaml'`); the help says so, and a
   plain value (`--executor=local`) is refused with the group's flags named.
+- a field comment with a percent sign ("6.2 % of the frames") broke `--help` (argparse formats help
+  with %); it is escaped.
+- a flag value YAML cannot read (`--source_options={bad`) ended in a yaml traceback; it is a ValueError
+  naming the flag.
 - a ValueError raised by a config's `__post_init__` (a bad flag value) reaches the caller wrapped in
   `ParsingError("Couldn't instantiate class ...")`; it is raised as itself, with its own message.
 
@@ -80,6 +82,13 @@ def parse_config[T](config_class: type[T], args: Sequence[str] | None = None, co
     nested = set(_nested_paths(config_class))
     for arg in args:
         name, _, value = arg.partition("=")
+        try:  # draccus reads every value as YAML; a value YAML cannot read would end in a parser traceback
+            yaml.safe_load(value)
+        except yaml.YAMLError as exc:
+            problem = " ".join(str(getattr(exc, "problem", None) or exc).split())
+            raise ValueError(
+                f"{name}: {value!r} is not valid YAML/JSON ({problem}); check its brackets and quotes"
+            ) from None
         if name.removeprefix("--") in nested and value and not _is_group_value(value):
             raise ValueError(
                 f"{arg}: {name} is a group of flags ({name}.<field>=..., --help lists them), or all of them as "

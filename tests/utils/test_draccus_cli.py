@@ -62,3 +62,8 @@ def test_wrap_parses_the_command_line_unless_given_a_config(monkeypatch):
     monkeypatch.setattr("sys.argv", ["prog", "--steps=3"])
     assert cli() == 3
     assert cli(Outer(steps=5)) == 5 and seen[-1].steps == 5
+
+
+def test_a_value_yaml_cannot_read_names_its_flag():
+    with pytest.raises(ValueError, match=r"--inner.name: '\{bad' is not valid YAML/JSON"):
+        parse_config(Outer, ["--inner.name={bad"])
