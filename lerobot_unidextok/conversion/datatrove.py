@@ -139,7 +139,7 @@ def build_executors(opts: ConvertOptions, cfg: ExecutorOptions, num_shards: int 
     shard_opts = replace(opts, root=target, input=str(Path(opts.input).expanduser().resolve()), progress=False)
     convert_step = ConvertShard(shard_opts, shards_dir)
     merge_step = MergeShards(shards_dir, num_shards, target, opts.repo_id, opts.overwrite, cfg.keep_shards)
-    if cfg.executor == "local":
+    if cfg.type == "local":
         _preload_local_workers()
         convert_exec = LocalPipelineExecutor(
             pipeline=[convert_step], tasks=num_shards, workers=cfg.workers, logging_dir=str(logs / "convert")

@@ -1,4 +1,4 @@
-"""How a sharded conversion runs on datatrove: executor, tasks, workers, Slurm fields, the run's folder.
+"""Where a conversion runs (this process, or sharded on datatrove): executor type, tasks, workers, Slurm fields, the run's folder.
 
 Plain dataclasses (no datatrove import), shared by `conversion.sharded` (set-up checks, resume guard) and
 `conversion.datatrove` (the executors built from them).
@@ -11,14 +11,14 @@ from pathlib import Path
 
 from lerobot_unidextok.conversion.pipeline import ConvertOptions
 
-EXECUTORS = ("local", "slurm")
+EXECUTORS = ("pool", "local", "slurm")  # pool: `pipeline.convert` in this process, no datatrove
 
 
 @dataclass
 class SlurmOptions:
     """Fields of datatrove's `SlurmPipelineExecutor` for the shard job (the merge job: same, one task)."""
 
-    partition: str = ""  # required for executor="slurm" (`sinfo` lists them)
+    partition: str = ""  # required for type="slurm" (`sinfo` lists them)
     time: str = "04:00:00"  # time limit of one task
     cpus_per_task: int = 2  # give each task as many as --num_workers
     mem_per_cpu_gb: int = 2
@@ -33,26 +33,32 @@ class SlurmOptions:
 
 @dataclass
 class ExecutorOptions:
-    """How to run a sharded conversion on datatrove."""
+    """Where a conversion runs: in this process, or sharded on a datatrove executor."""
 
-    executor: str = "local"  # "local" | "slurm"
+    # "pool": this process, `num_workers` reader processes (no datatrove) | "local" / "slurm": datatrove's
+    # Local/Slurm PipelineExecutor, `tasks` shard conversions (each with `num_workers` processes), then one merge
+    type: str = "pool"
     tasks: int = 2  # shards = datatrove tasks; capped at the number of episodes
     workers: int = -1  # tasks running at the same time (-1: all)
-    logging_dir: str | None = None  # default "<root>.datatrove" beside the target
+    logging_dir: str | None = None  # datatrove run folder (logs, completions, shards); default <root>.datatrove
     keep_shards: bool = False  # keep the shard datasets after the merge
-    slurm: SlurmOptions = field(default_factory=SlurmOptions)
+    slurm: SlurmOptions = field(default_factory=SlurmOptions)  # datatrove's Slurm executor settings (type="slurm")
 
     def __post_init__(self) -> None:
         if isinstance(self.slurm, dict):
             self.slurm = SlurmOptions(**self.slurm)
-        if self.executor not in EXECUTORS:
-            raise ValueError(f"executor must be one of {EXECUTORS}, got {self.executor!r}")
+        if self.type not in EXECUTORS:
+            raise ValueError(
+                f"--executor.type must be {', '.join(EXECUTORS[:-1])} or {EXECUTORS[-1]}, got {self.type!r}"
+            )
         if self.tasks < 1:
-            raise ValueError(f"tasks must be >= 1, got {self.tasks}")
+            raise ValueError(f"--executor.tasks must be >= 1, got {self.tasks}")
         if self.workers == 0 or self.workers < -1:
-            raise ValueError(f"workers must be >= 1 (or -1: all tasks at once), got {self.workers}")
-        if self.executor == "slurm" and not self.slurm.partition:
-            raise ValueError("executor='slurm' needs a partition: --slurm.partition=<name> (sinfo lists them)")
+            raise ValueError(f"--executor.workers must be >= 1 (or -1: all tasks at once), got {self.workers}")
+        if self.type == "slurm" and not self.slurm.partition:
+            raise ValueError(
+                "--executor.type=slurm needs a partition: --executor.slurm.partition=<name> (sinfo lists them)"
+            )
 
 
 def logging_dir_of(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:

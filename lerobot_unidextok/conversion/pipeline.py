@@ -45,7 +45,13 @@ from lerobot_unidextok.constants import (
 from lerobot_unidextok.conversion.card import write_card
 from lerobot_unidextok.conversion.features import episode_features, episode_frames, native_layout, udhm_features
 from lerobot_unidextok.conversion.mapping import EpisodeError, UdhmEpisode, map_episode, to_layout
-from lerobot_unidextok.conversion.registry import CONVERTERS_PACKAGE, SetupError, get_source, make_reader
+from lerobot_unidextok.conversion.registry import (
+    CONVERTERS_PACKAGE,
+    SetupError,
+    get_source,
+    import_converters,
+    make_reader,
+)
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 from lerobot_unidextok.data.splits import split_order
 from lerobot_unidextok.utils.cli import UserError
@@ -71,25 +77,28 @@ SPLIT_METHOD = "sha1 of episode key (ref relative to --input); the round(f*N) sm
 
 @dataclass
 class ConvertOptions:
-    """What to convert and how (the CLI config carries the same fields)."""
+    """What to convert and how (`unidextok-convert` takes the same fields as flags)."""
 
-    source: str
-    input: str | Path
-    root: str | Path
-    repo_id: str = "local/udhm"
-    source_options: dict[str, Any] = field(default_factory=dict)  # kwargs of the source reader class
-    mapping: str = "semantic"  # "semantic" | "append_pad"
-    on_error: OnError = "raise"
+    source: str  # registered source name (conversion.available_sources(), --list_sources=true)
+    input: str | Path  # raw dataset folder (or file) of the source
+    root: str | Path  # output folder (must not exist unless `overwrite`)
+    repo_id: str = "local/udhm"  # dataset id (namespace/name), used for the card and the Hub
+    # keyword options of the source reader class, e.g. {"hands": {...}} (a JSON object on the command line)
+    source_options: dict[str, Any] = field(default_factory=dict)
+    mapping: str = "semantic"  # "semantic" (joint -> named UDHM slot) | "append_pad" (ablation)
+    on_error: OnError = "raise"  # "raise": stop at the first bad episode | "skip": skip, report at the end
     num_workers: int = 1  # processes reading + mapping episodes; 1 = in this process
-    overwrite: bool = False
-    test_fraction: float = 0.2
-    max_episodes: int | None = None  # first N episodes in source order (quick looks)
-    sides: tuple[str, ...] | None = None  # block layout, e.g. ("right", "left"); None = source's `sides` or 1st episode
-    fps: int | None = None  # resampling grid of time-stamped sources (bags, keypoint files); None = source default
-    keep: str = "all"  # "all": whole robot (passthrough columns, other features, videos) | "hands": UDHM only
-    shard_index: int = 0
-    num_shards: int = 1
-    progress: bool = True
+    overwrite: bool = False  # replace an existing dataset at root (atomically, at the end)
+    test_fraction: float = 0.2  # share of episodes in the deterministic test split
+    max_episodes: int | None = None  # convert only the first N episodes in source order (quick looks)
+    # block layout, e.g. "right,left" (or ("right", "left")) for sources whose episodes are left or right hands;
+    # None = the source's `sides`, else the first episode's
+    sides: str | tuple[str, ...] | None = None
+    fps: int | None = None  # frame grid for time-stamped sources (ROS bags, keypoint files); None = source default
+    keep: str = "all"  # "all": the whole robot (arms, other features, videos) | "hands": UDHM blocks only
+    shard_index: int = 0  # convert one contiguous shard of the episode list (multi-machine runs by hand)
+    num_shards: int = 1  # how many such shards the episode list is cut into
+    progress: bool = True  # progress bar
     mp_context: str = "forkserver"  # worker start method; "fork" is unsafe in a threaded parent (pyarrow, torch)
 
     def __post_init__(self):
@@ -105,6 +114,8 @@ class ConvertOptions:
             raise ValueError(f"test_fraction must be in [0, 1), got {self.test_fraction}")
         if self.fps is not None and (int(self.fps) != self.fps or self.fps <= 0):
             raise ValueError(f"fps must be a positive integer (LeRobot stores int fps), got {self.fps!r}")
+        if isinstance(self.sides, str):
+            self.sides = tuple(side.strip() for side in self.sides.split(",") if side.strip()) or None
         if self.sides is not None:
             self.sides = tuple(self.sides)
             if not self.sides or len(set(self.sides)) != len(self.sides) or not set(self.sides) <= set(SIDES):
@@ -174,15 +185,9 @@ _WORKER: dict[str, Any] = {}
 
 
 def _init_worker(source: str, source_options: dict, mapping: str) -> None:
-    _import_sources()
+    import_converters()
     _WORKER["reader"] = make_reader(source, source_options)
     _WORKER["mapping"] = mapping
-
-
-def _import_sources() -> None:
-    from lerobot_unidextok.conversion.registry import _import_converters
-
-    _import_converters()
 
 
 def _read_and_map(ref: Any) -> UdhmEpisode | EpisodeFailure:
@@ -336,7 +341,7 @@ def convert(opts: ConvertOptions) -> ConvertReport:
     """Convert `opts.source` at `opts.input` into a UDHM LeRobotDataset at `opts.root`."""
     t0 = time.perf_counter()
     target, input_path = checked_paths(opts)
-    _import_sources()
+    import_converters()
     reader_cls = get_source(opts.source)
     reader_options = opts.reader_options()
     reader = make_reader(opts.source, reader_options)

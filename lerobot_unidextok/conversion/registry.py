@@ -52,7 +52,7 @@ def unregister_source(name: str) -> None:
     _SOURCES.pop(name, None)
 
 
-def _import_converters() -> None:
+def import_converters() -> None:
     """Import `lerobot_unidextok.converters` and its submodules so their decorators run."""
     try:
         pkg = importlib.import_module(CONVERTERS_PACKAGE)
@@ -72,14 +72,14 @@ def _import_converters() -> None:
 
 def available_sources() -> list[str]:
     """Names of all registered sources (after importing the converters package)."""
-    _import_converters()
+    import_converters()
     return sorted(_SOURCES)
 
 
 def get_source(name: str) -> type:
     """The registered reader class for `name`; raises ValueError listing the known names."""
     if name not in _SOURCES:
-        _import_converters()
+        import_converters()
     if name not in _SOURCES:
         raise ValueError(
             f"unknown source {name!r}; available sources: {sorted(_SOURCES) or 'none registered'}. "

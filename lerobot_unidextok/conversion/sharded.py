@@ -3,14 +3,14 @@
     from lerobot_unidextok.conversion import ConvertOptions
     from lerobot_unidextok.conversion.sharded import ExecutorOptions, convert_with_executor
     convert_with_executor(ConvertOptions(source="egodex", input="raw/egodex", root="out/egodex_udhm"),
-                          ExecutorOptions(executor="local", tasks=8, workers=2))
+                          ExecutorOptions(type="local", tasks=8, workers=2))
 
 `convert_with_executor` checks the set-up once in this process (source options, hands, input, existing
 target: the same `SetupError`s as `convert`), caps the tasks at the number of episodes, then runs the
 datatrove pipeline of `conversion.datatrove`: `tasks` shard conversions and one merge.
 
-- `executor="local"`: datatrove's `LocalPipelineExecutor` (`tasks` shards, `workers` at a time) here.
-- `executor="slurm"`: datatrove's `SlurmPipelineExecutor`: one sbatch array job for the shards and a
+- `type="local"`: datatrove's `LocalPipelineExecutor` (`tasks` shards, `workers` at a time) here.
+- `type="slurm"`: datatrove's `SlurmPipelineExecutor`: one sbatch array job for the shards and a
   merge job that depends on it (`afterok`). Returns once both are submitted.
 
 Everything of a run lives in `logging_dir` (default `<root>.datatrove` beside the target): datatrove's
@@ -33,11 +33,10 @@ from lerobot_unidextok.conversion.executor_options import EXECUTORS, ExecutorOpt
 from lerobot_unidextok.conversion.pipeline import (
     ConvertOptions,
     SetupError,
-    _import_sources,
     checked_paths,
     plan_episodes,
 )
-from lerobot_unidextok.conversion.registry import make_reader
+from lerobot_unidextok.conversion.registry import import_converters, make_reader
 from lerobot_unidextok.utils.imports import missing_package_message
 
 logger = logging.getLogger(__name__)
@@ -46,7 +45,7 @@ __all__ = ["EXECUTORS", "ExecutorOptions", "SlurmOptions", "convert_with_executo
 
 RUN_SETTINGS = "run_settings.json"  # the settings of the run that owns a logging_dir (resume guard)
 DATATROVE_MISSING = missing_package_message(
-    "datatrove", "datatrove", purpose="--executor=local|slurm", hint=" (or pip install 'datatrove>=0.10,<0.11')"
+    "datatrove", "datatrove", purpose="--executor.type=local|slurm", hint=" (or pip install 'datatrove>=0.10,<0.11')"
 )
 
 
@@ -58,7 +57,7 @@ def _run_settings(opts: ConvertOptions, cfg: ExecutorOptions, num_shards: int) -
     settings.update(
         input=str(Path(opts.input).expanduser().resolve()),
         root=str(Path(opts.root).expanduser().resolve()),
-        executor=cfg.executor,
+        executor=cfg.type,
         num_shards=num_shards,
     )
     return json.loads(json.dumps(settings, default=str))
@@ -74,7 +73,7 @@ def _claim_logging_dir(logs: Path, settings: dict, overwrite: bool) -> None:
             changed = sorted(k for k in settings.keys() | before.keys() if settings.get(k) != before.get(k))
             raise SetupError(
                 f"{logs} holds a run with other settings ({', '.join(changed)} differ): resume it with the same "
-                "settings, pass --overwrite=true to start again, or choose another --logging_dir"
+                "settings, pass --overwrite=true to start again, or choose another --executor.logging_dir"
             )
         logger.info("resuming the run in %s: completed tasks are skipped", logs)
     logs.mkdir(parents=True, exist_ok=True)
@@ -86,6 +85,8 @@ def convert_with_executor(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
 
     Returns the target folder (for Slurm: where the merge job will write it).
     """
+    if cfg.type == "pool":
+        raise ValueError("ExecutorOptions(type='pool') converts in this process: call conversion.convert")
     if opts.shard_index != 0 or opts.num_shards != 1:
         raise ValueError("with an executor each task converts one shard: leave shard_index/num_shards unset")
     try:  # datatrove is an optional extra: imported only when a run needs it
@@ -93,7 +94,7 @@ def convert_with_executor(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
     except ImportError as exc:
         raise SetupError(f"{DATATROVE_MISSING}; {exc}") from exc
     target, input_path = checked_paths(opts)
-    _import_sources()
+    import_converters()
     plan = plan_episodes(make_reader(opts.source, opts.reader_options()), opts, input_path)
     num_shards = min(cfg.tasks, len(plan.items))
     if num_shards < cfg.tasks:
@@ -103,7 +104,7 @@ def convert_with_executor(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
     _claim_logging_dir(logs, _run_settings(opts, cfg, num_shards), opts.overwrite)
     convert_exec, merge_exec = dt.build_executors(opts, cfg, num_shards)
     merge_exec.run()  # runs (local) or submits (Slurm) its dependency, the shard conversions, first
-    if cfg.executor == "slurm":
+    if cfg.type == "slurm":
         logger.info(
             "submitted Slurm job %s (convert, %d tasks) and %s (merge, after it); logs in %s",
             convert_exec.job_id, num_shards, merge_exec.job_id, logs,

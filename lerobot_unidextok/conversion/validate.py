@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pyarrow.compute as pc
@@ -93,8 +94,6 @@ def _native_layout_problems(layout: dict, feats: dict) -> list[str]:
 
 def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = True) -> ValidationReport:
     """Validate the converted dataset at `root`; never raises on a bad dataset, reports instead."""
-    from lerobot_unidextok import hands as hand_registry
-
     root = Path(root)
     rep = ValidationReport(root)
     info_path = root / INFO_PATH
@@ -107,15 +106,67 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         str(info.get("codebase_version")),
     )
     feats = info.get("features", {})
+    state = _check_features(rep, feats)
+    if state is None or not rep.ok:
+        return rep
+    rows = _read_rows(rep, root, feats, state.num_hands)
+    if rows is None:
+        return rep
+    total_eps = int(info.get("total_episodes", -1))
+    _check_counts(rep, info, rows, total_eps)
+    _check_values(rep, rows)
+    settings_path = root / CONVERSION_PATH
+    settings = json.loads(settings_path.read_text()) if settings_path.is_file() else {}
+    _check_hand_types(rep, rows, state.sides, settings.get("mapping", "semantic"))
+    _check_splits(rep, root, info, total_eps)
+    layout = settings.get("native_layout")
+    if layout:
+        problems = _native_layout_problems(layout, feats)
+        rep.add("native layout", not problems, "; ".join(problems) or f"{sorted(layout)}")
+    _check_files(rep, root, rows.num_rows, total_eps)
+    if load:
+        _check_lerobot_load(rep, root, repo_id or info.get("repo_id") or f"local/{root.name}", state.dim)
+    return rep
 
-    # -- features ----------------------------------------------------------------------------------
+
+# ---------------------------------------------------------------------------------------------
+# the checks, in report order
+# ---------------------------------------------------------------------------------------------
+@dataclass
+class _StateBlocks:
+    """Where the UDHM blocks sit in `observation.state`."""
+
+    dim: int
+    sides: list[str]
+
+    @property
+    def num_hands(self) -> int:
+        return len(self.sides)
+
+
+@dataclass
+class _Rows:
+    """The UDHM blocks of every frame, (n, H, 22) each, and the columns the checks read."""
+
+    table: Any  # pyarrow.Table: state, mask, hand_type, episode_index (+ action)
+    state: np.ndarray
+    mask: np.ndarray
+    action: np.ndarray | None  # None when the action has no UDHM blocks
+
+    @property
+    def num_rows(self) -> int:
+        return self.table.num_rows
+
+
+def _check_features(rep: ValidationReport, feats: dict) -> _StateBlocks | None:
+    """observation.state (passthrough columns, then one or two UDHM blocks), action, udhm_mask, hand_type."""
     st = feats.get(OBS_STATE)
     if not rep.add(
         "observation.state feature",
         st is not None and st.get("dtype") == "float32",
         str(st and st.get("dtype")),
     ):
-        return rep
+        return None
     dim = int(st["shape"][0])
     names = feature_names(st)
     try:
@@ -170,10 +221,11 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         ht is not None and ht.get("dtype") == "string",
         str(ht and ht.get("dtype")),
     )
-    if not rep.ok:
-        return rep
+    return _StateBlocks(dim, sides)
 
-    # -- data ----------------------------------------------------------------------------------------
+
+def _read_rows(rep: ValidationReport, root: Path, feats: dict, num_hands: int) -> _Rows | None:
+    """The data parquet columns the checks need, with each frame's UDHM blocks as (n, H, 22) arrays."""
     files = sorted(root.glob(DATA_GLOB))
     action_udhm = ACTION in feats and bool(find_udhm_blocks(feature_names(feats[ACTION])))
     cols = [OBS_STATE, UDHM_MASK_KEY, HAND_TYPE_KEY, "episode_index"] + ([ACTION] if action_udhm else [])
@@ -181,32 +233,39 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         table = pq.read_table(files, columns=cols) if files else None
     except Exception as exc:  # noqa: BLE001
         rep.add("data parquet readable", False, f"{type(exc).__name__}: {exc}")
-        return rep
+        return None
     if not rep.add("data parquet readable", table is not None, f"{len(files)} file(s)"):
-        return rep
+        return None
     n = table.num_rows
+
+    def blocks(key, dtype):
+        col = table.column(key).combine_chunks()
+        flat = col.flatten().to_numpy(zero_copy_only=False).astype(dtype).reshape(n, -1)
+        return flat[:, flat.shape[1] - UDHM_DIM * num_hands :].reshape(n, num_hands, UDHM_DIM)  # blocks come last
+
+    action = blocks(ACTION, np.float32) if action_udhm else None
+    return _Rows(table, blocks(OBS_STATE, np.float32), blocks(UDHM_MASK_KEY, bool), action)
+
+
+def _check_counts(rep: ValidationReport, info: dict, rows: _Rows, total_eps: int) -> None:
+    """Frame count as info.json says; episodes numbered 0..N-1."""
+    n = rows.num_rows
     rep.add(
         "total_frames",
         n == info.get("total_frames"),
         f"{n} rows, info says {info.get('total_frames')}",
     )
-    eps = np.unique(table.column("episode_index").to_numpy())
-    total_eps = int(info.get("total_episodes", -1))
+    eps = np.unique(rows.table.column("episode_index").to_numpy())
     rep.add(
         "episodes 0..N-1",
         len(eps) == total_eps and (len(eps) == 0 or (eps[0] == 0 and eps[-1] == total_eps - 1)),
         f"{len(eps)} episodes",
     )
 
-    def arr(key, dtype):
-        col = table.column(key).combine_chunks()
-        flat = col.flatten().to_numpy(zero_copy_only=False).astype(dtype).reshape(n, -1)
-        return flat[:, flat.shape[1] - UDHM_DIM * num_hands :].reshape(n, num_hands, UDHM_DIM)  # blocks come last
 
-    state = arr(OBS_STATE, np.float32)
-    mask = arr(UDHM_MASK_KEY, bool)
-    action = arr(ACTION, np.float32) if action_udhm else None
-    for key, values in ((OBS_STATE, state), (ACTION, action)):
+def _check_values(rep: ValidationReport, rows: _Rows) -> None:
+    """State (and action) blocks: finite, |angle| <= 2 pi, exactly zero where the mask is False."""
+    for key, values in ((OBS_STATE, rows.state), (ACTION, rows.action)):
         if values is None:
             continue
         finite = np.isfinite(values).all()
@@ -221,20 +280,22 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
             peak <= ANGLE_BOUND_RAD,
             f"max |angle| {peak:.3f} rad",
         )
-        leak = int((values[~mask] != 0).sum())
+        leak = int((values[~rows.mask] != 0).sum())
         rep.add(f"{key} zero where masked", leak == 0, f"{leak} non-zero masked values")
 
-    # hand_type: known specs, masks equal to the spec masks (or all False for an absent hand)
-    settings_path = root / CONVERSION_PATH
-    mapping = (
-        json.loads(settings_path.read_text()).get("mapping", "semantic") if settings_path.is_file() else "semantic"
-    )
-    ht_col = table.column(HAND_TYPE_KEY).combine_chunks().dictionary_encode()
+
+def _check_hand_types(rep: ValidationReport, rows: _Rows, sides: list[str], mapping: str) -> None:
+    """hand_type: known specs, masks equal to the spec masks (or all False for an absent hand), values
+    within each hand's UDHM limits (a warning: IK fits may exceed them slightly)."""
+    from lerobot_unidextok import hands as hand_registry
+
+    num_hands = len(sides)
+    ht_col = rows.table.column(HAND_TYPE_KEY).combine_chunks().dictionary_encode()
     codes = ht_col.indices.to_numpy(zero_copy_only=False)
     bad_names, bad_masks, out_of_limits, checked = [], 0, 0, 0
     for code, value in enumerate(ht_col.dictionary.to_pylist()):
         parts = value.split(",")
-        rows = codes == code
+        frames = codes == code
         if len(parts) != num_hands:
             bad_names.append(value)
             continue
@@ -244,7 +305,7 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
             except (KeyError, ValueError):
                 bad_names.append(name)
                 continue
-            m = mask[rows, b]
+            m = rows.mask[frames, b]
             spec_mask = spec.mask(mapping)
             ok_rows = (m == spec_mask).all(axis=1) | ~m.any(axis=1)
             bad_masks += int((~ok_rows).sum())
@@ -255,7 +316,7 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
                 lo, hi = JOINT_LIMITS_RAD[:, 0], JOINT_LIMITS_RAD[:, 1]
             else:
                 lo, hi = spec.udhm_limits_rad(sides[b])
-            vals = state[rows, b][present]
+            vals = rows.state[frames, b][present]
             out_of_limits += int(((vals < lo - LIMIT_TOL_RAD) | (vals > hi + LIMIT_TOL_RAD)).sum())
             checked += vals.size
     rep.add(
@@ -275,7 +336,11 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         warning=True,
     )
 
-    # -- splits ----------------------------------------------------------------------------------
+
+def _check_splits(rep: ValidationReport, root: Path, info: dict, total_eps: int) -> None:
+    """LeRobot's `splits` ranges in info.json, and the recorded test episodes (warned when missing)."""
+    from lerobot_unidextok.data.splits import recorded_split
+
     splits = info.get("splits", {})
     bad = []
     for name, value in (splits or {}).items():
@@ -290,8 +355,6 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         bool(splits) and not bad,
         "; ".join(bad) if bad else (f"{splits}" if splits else "no splits"),
     )
-    from lerobot_unidextok.data.splits import recorded_split
-
     recorded, why = recorded_split(root, info)
     rep.add(
         "recorded test episodes",
@@ -301,11 +364,10 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         else f"{why}; train/eval fall back to --holdout=hash (a deterministic 20 % by episode hash)",
         warning=recorded is None,
     )
-    settings = json.loads(settings_path.read_text()) if settings_path.is_file() else {}
-    layout = settings.get("native_layout")
-    if layout:
-        problems = _native_layout_problems(layout, feats)
-        rep.add("native layout", not problems, "; ".join(problems) or f"{sorted(layout)}")
+
+
+def _check_files(rep: ValidationReport, root: Path, num_rows: int, total_eps: int) -> None:
+    """Dataset card (warned when missing), stats, tasks, and the episodes metadata lengths."""
     has_card = (root / "README.md").is_file()
     rep.add(
         "dataset card README.md",
@@ -322,26 +384,24 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
         ep_tab = pq.read_table(ep_files, columns=["episode_index", "length"])
         rep.add(
             "meta/episodes lengths",
-            int(pc.sum(ep_tab.column("length")).as_py() or 0) == n and ep_tab.num_rows == total_eps,
+            int(pc.sum(ep_tab.column("length")).as_py() or 0) == num_rows and ep_tab.num_rows == total_eps,
             f"{ep_tab.num_rows} rows",
         )
     else:
         rep.add("meta/episodes lengths", False, "no meta/episodes parquet")
 
-    # -- LeRobot load ------------------------------------------------------------------------------
-    if load:
-        try:
-            from lerobot.datasets import LeRobotDataset
 
-            ds = LeRobotDataset(
-                repo_id or info.get("repo_id") or f"local/{root.name}", root=root, video_backend="pyav"
-            )  # state-only: skip the video decoder probe
-            item = ds[0]
-            rep.add(
-                "LeRobotDataset loads",
-                tuple(item[OBS_STATE].shape) == (dim,),
-                f"{ds.num_episodes} episodes, {ds.num_frames} frames",
-            )
-        except Exception as exc:  # noqa: BLE001
-            rep.add("LeRobotDataset loads", False, f"{type(exc).__name__}: {exc}")
-    return rep
+def _check_lerobot_load(rep: ValidationReport, root: Path, repo_id: str, dim: int) -> None:
+    """`LeRobotDataset(repo_id, root=root)` opens the dataset and returns a frame of the state's width."""
+    try:
+        from lerobot.datasets import LeRobotDataset
+
+        ds = LeRobotDataset(repo_id, root=root, video_backend="pyav")  # state-only: skip the video decoder probe
+        item = ds[0]
+        rep.add(
+            "LeRobotDataset loads",
+            tuple(item[OBS_STATE].shape) == (dim,),
+            f"{ds.num_episodes} episodes, {ds.num_frames} frames",
+        )
+    except Exception as exc:  # noqa: BLE001
+        rep.add("LeRobotDataset loads", False, f"{type(exc).__name__}: {exc}")

@@ -184,6 +184,34 @@ class UdhmDatasetWriter:
         if self._finalized:
             raise RuntimeError("writer already finalized")
         copied, videos, copied_stats = copied or {}, videos or {}, copied_stats or {}
+        num = self._check_episode(frames, task, copied, videos)
+        ep_index = self.num_episodes
+        if task not in self.tasks:
+            self.tasks[task] = len(self.tasks)
+        table, ep_arrays = self._episode_table(frames, copied, num, ep_index, self.tasks[task])
+        self._write_data(table, num)
+        stats = self._add_stats(ep_arrays, copied_stats, num)
+        row = {
+            "episode_index": ep_index,
+            "tasks": [task],
+            "length": num,
+            "data/chunk_index": self._data_chunk,
+            "data/file_index": self._data_file,
+            "dataset_from_index": self.num_frames,
+            "dataset_to_index": self.num_frames + num,
+        }
+        for key in self.video_keys:
+            row.update(self._add_video(key, videos[key]))
+        for key, st in stats.items():
+            for name, value in st.items():
+                row[f"stats/{key}/{name}"] = value.tolist()
+        self._add_meta_row(row)
+        self.num_episodes += 1
+        self.num_frames += num
+        return ep_index
+
+    def _check_episode(self, frames: dict, task: str, copied: dict, videos: dict) -> int:
+        """The episode's length, after checking it brings exactly the features and one length for all."""
         given = set(frames) | set(copied) | set(videos)
         missing = [k for k in self.features if k not in DEFAULT_KEYS and k not in given]
         extra = [k for k in given if k not in self.features or k in DEFAULT_KEYS]
@@ -197,18 +225,19 @@ class UdhmDatasetWriter:
         num = next(iter(lengths.values()), 0)
         if num == 0 or any(n != num for n in lengths.values()):
             raise ValueError(f"episode arrays must share a non-zero length, got {lengths}")
+        return num
 
-        ep_index = self.num_episodes
-        if task not in self.tasks:
-            self.tasks[task] = len(self.tasks)
+    def _episode_table(
+        self, frames: dict, copied: dict, num: int, ep_index: int, task_index: int
+    ) -> tuple[pa.Table, dict[str, np.ndarray]]:
+        """(the episode's rows in the schema, {key: values} of the features whose stats the writer computes)."""
         frame_index = np.arange(num, dtype=np.int64)
-        timestamps = frame_index / self.fps  # float64, as LeRobot's list of Python floats
         default = {
-            "timestamp": timestamps,
+            "timestamp": frame_index / self.fps,  # float64, as LeRobot's list of Python floats
             "frame_index": frame_index,
             "episode_index": np.full(num, ep_index, dtype=np.int64),
             "index": np.arange(self.num_frames, self.num_frames + num, dtype=np.int64),
-            "task_index": np.full(num, self.tasks[task], dtype=np.int64),
+            "task_index": np.full(num, task_index, dtype=np.int64),
         }
         columns = []
         ep_arrays = {}
@@ -222,15 +251,7 @@ class UdhmDatasetWriter:
                     )
                 )
             elif key in copied:
-                column = copied[key]
-                column = column.combine_chunks() if isinstance(column, pa.ChunkedArray) else column
-                try:
-                    column = column.cast(self.schema.field(key).type)
-                except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as exc:
-                    raise ValueError(
-                        f"copied feature {key!r}: column type {column.type} does not fit the feature "
-                        f"{self.features[key]['dtype']} {self.features[key]['shape']} ({exc})"
-                    ) from exc
+                column = self._copied_column(key, copied[key])
                 columns.append(column)
                 ft = self.features[key]
                 if ft["dtype"] not in NUMERIC_STATS_EXCLUDED and len(ft["shape"]) == 1:  # stats as LeRobot computes
@@ -246,9 +267,21 @@ class UdhmDatasetWriter:
                 values = frames[key]
                 columns.append(self._column(key, values, num))
             ep_arrays[key] = values
-        table = pa.Table.from_arrays(columns, schema=self.schema)
+        return pa.Table.from_arrays(columns, schema=self.schema), ep_arrays
 
-        # roll over to the next data file as LeRobot does: current size + estimate >= limit
+    def _copied_column(self, key: str, column: pa.Array | pa.ChunkedArray) -> pa.Array:
+        """A source's Arrow column cast to the schema type of feature `key` (a clear error when it cannot be)."""
+        column = column.combine_chunks() if isinstance(column, pa.ChunkedArray) else column
+        try:
+            return column.cast(self.schema.field(key).type)
+        except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as exc:
+            raise ValueError(
+                f"copied feature {key!r}: column type {column.type} does not fit the feature "
+                f"{self.features[key]['dtype']} {self.features[key]['shape']} ({exc})"
+            ) from exc
+
+    def _write_data(self, table: pa.Table, num: int) -> None:
+        """Append the rows to the current data file, rolling over as LeRobot does: size + estimate >= limit."""
         if self._data_writer is not None:
             size_mb = self._data_path.stat().st_size / 1024**2
             in_file = self.num_frames - self._file_start_frame
@@ -269,6 +302,8 @@ class UdhmDatasetWriter:
             self._file_start_frame = self.num_frames
         self._data_writer.write_table(table)
 
+    def _add_stats(self, ep_arrays: dict, copied_stats: dict[str, dict], num: int) -> dict[str, dict]:
+        """The episode's stats (computed, plus the source's for images / videos), kept for stats.json."""
         stats = episode_stats(
             {k: (v if np.asarray(v).ndim > 0 else np.full(num, v)) for k, v in ep_arrays.items()},
             self.features,
@@ -279,24 +314,7 @@ class UdhmDatasetWriter:
         self._episode_stats.append(stats)
         if len(self._episode_stats) >= STATS_FOLD_EPISODES:  # count-weighted, so folding in blocks is exact
             self._episode_stats = [self._aggregate_stats(self._episode_stats)]
-        row = {
-            "episode_index": ep_index,
-            "tasks": [task],
-            "length": num,
-            "data/chunk_index": self._data_chunk,
-            "data/file_index": self._data_file,
-            "dataset_from_index": self.num_frames,
-            "dataset_to_index": self.num_frames + num,
-        }
-        for key in self.video_keys:
-            row.update(self._add_video(key, videos[key]))
-        for key, st in stats.items():
-            for name, value in st.items():
-                row[f"stats/{key}/{name}"] = value.tolist()
-        self._add_meta_row(row)
-        self.num_episodes += 1
-        self.num_frames += num
-        return ep_index
+        return stats
 
     # -- videos ----------------------------------------------------------------------------------
     def _add_video(self, key: str, segment) -> dict:

@@ -54,7 +54,8 @@ class UdhmFrames:
         )
 
 
-def _resolve_root(root: str | Path | None, repo_id: str | None) -> Path:
+def resolve_root(root: str | Path | None, repo_id: str | None) -> Path:
+    """The dataset folder: `root`, else `repo_id` found in the local caches; it must hold meta/info.json."""
     if root is None:
         if repo_id is None:
             raise ValueError("give root= (a converted dataset folder) or repo_id= (looked up in the local caches)")
@@ -156,7 +157,8 @@ def _layout(info: dict) -> _Layout:
     return _Layout(blocks, int(info["features"][OBS_STATE]["shape"][0]), action_blocks, action_width, columns)
 
 
-def _data_files(root: Path) -> list[Path]:
+def data_files(root: Path) -> list[Path]:
+    """The dataset's data parquet files in order; FileNotFoundError when there are none."""
     files = sorted(root.glob(DATA_GLOB))
     if not files:
         raise FileNotFoundError(f"no data parquet files under {root / 'data'}")
@@ -238,9 +240,9 @@ def _open(root, repo_id, split: str | None, holdout: str):
         raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
     if holdout not in HOLDOUTS:
         raise ValueError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
-    root = _resolve_root(root, repo_id)
+    root = resolve_root(root, repo_id)
     info = read_info(root)
-    return info, _layout(info), _data_files(root), _split_episodes(root, info, split, holdout)
+    return info, _layout(info), data_files(root), _split_episodes(root, info, split, holdout)
 
 
 def load_udhm_frames(

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_unidextok.constants import CONVERSION_PATH, INFO_PATH, UDHM_DIM
-from lerobot_unidextok.data.reader import _data_files, _resolve_root, iter_udhm_frames
+from lerobot_unidextok.data.reader import data_files, iter_udhm_frames, resolve_root
 from lerobot_unidextok.utils.files import replace_folder
 
 logger = logging.getLogger(__name__)
@@ -154,7 +154,7 @@ def store_fingerprint(roots: list[Path], split: str | None, holdout: str) -> str
         for name in (INFO_PATH, CONVERSION_PATH):
             path = root / name
             h.update(path.read_bytes() if path.is_file() else b"-")
-        for f in _data_files(root):
+        for f in data_files(root):
             st = f.stat()
             h.update(f"{f.relative_to(root)}:{st.st_size}:{st.st_mtime_ns}".encode())
     return h.hexdigest()
@@ -166,7 +166,7 @@ def _roots(datasets: list[str | Path]) -> list[Path]:
     roots = []
     for ds in datasets:
         path = Path(ds).expanduser()
-        roots.append(_resolve_root(path, None) if path.is_dir() else _resolve_root(None, str(ds)))
+        roots.append(resolve_root(path, None) if path.is_dir() else resolve_root(None, str(ds)))
     return roots
 
 

@@ -66,7 +66,7 @@ def provenance(cfg: ExperimentConfig, data: "ExperimentData", seconds: float) ->
     return {
         "data": {"source": data.source, "synthetic_sample": data.synthetic, "datasets": [str(d) for d in data.datasets],
                  "train_rows": len(data.train), "test_rows": len(data.test), "hands": data.train.hand_names()},
-        "preset": cfg.preset,
+        "preset": cfg.train.preset,
         "seed": cfg.seed,
         "git_commit": git_commit(),
         "config": config_dict(cfg),
@@ -217,10 +217,10 @@ def per_hand_states(data: HandStates) -> dict[str, np.ndarray]:
 # UniDexTok: trained once per (configuration, training rows), cached under models_dir
 # ---------------------------------------------------------------------------------------------
 def train_config(cfg: ExperimentConfig, output_dir: Path, hand_names: list[str]) -> TrainConfig:
-    return TrainConfig(
-        preset=cfg.preset, steps=cfg.steps, batch_size=cfg.batch_size, lr=cfg.lr, warmup_steps=cfg.warmup_steps,
-        eval_every=cfg.eval_every, save_last_every=10**9, seed=cfg.seed, output_dir=str(output_dir),
-        hand_names=hand_names, progress=cfg.progress, eval_max_frames=cfg.max_eval_frames,
+    """`cfg.train` with what the experiment sets itself (`experiments.config.SET_BY_THE_EXPERIMENT`)."""
+    return dataclasses.replace(
+        cfg.train, save_last_every=10**9, seed=cfg.seed, output_dir=str(output_dir), hand_names=hand_names,
+        progress=cfg.progress, eval_max_frames=cfg.max_eval_frames,
     )  # fmt: skip
 
 

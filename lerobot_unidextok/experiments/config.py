@@ -6,9 +6,15 @@ import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import draccus
+from lerobot_unidextok.training.config import TrainConfig
+from lerobot_unidextok.utils.draccus_cli import parse_config as parse_cli
 
 DATA_CHOICES = ("auto", "real", "sample")
+# TrainConfig fields each experiment sets itself, and the flag that controls them
+SET_BY_THE_EXPERIMENT = {
+    "datasets": "--datasets", "output_dir": "--models_dir", "hand_names": "the training rows", "seed": "--seed",
+    "progress": "--progress", "eval_max_frames": "--max_eval_frames", "save_last_every": "the experiment",
+}  # fmt: skip
 # The project root's sibling `shared/data/real` (referred to as ../shared/data/real); UNIDEXTOK_REAL_DATA overrides.
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 
@@ -18,12 +24,23 @@ def default_real_data_dir() -> str:
 
 
 @dataclass
+class ExperimentTraining(TrainConfig):
+    """`unidextok-train`'s settings with the experiments' shorter defaults (draccus builds a nested config
+    from its class defaults, so they are declared here rather than passed to TrainConfig)."""
+
+    steps: int = 600
+    lr: float = 3e-3
+    warmup_steps: int = 60
+    eval_every: int = 200
+
+
+@dataclass
 class ExperimentConfig:
     """What every experiment shares: data, tokenizer training size, baseline sizes, outputs."""
 
     # --- data ---------------------------------------------------------------------------------------
-    # auto: the real recordings in real_data_dir when present, else the SYNTHETIC sample; real | sample force one.
     data: str = "auto"
+    """auto: the real recordings in real_data_dir when present, else the SYNTHETIC sample; real | sample force one."""
     # Folder of the real recordings (../shared/data/real beside the checkout; env UNIDEXTOK_REAL_DATA); empty = that.
     real_data_dir: str = ""
     # Folder (or file) of robot URDFs for retargeting the real human motion (empty = ../shared/data/urdf).
@@ -42,21 +59,18 @@ class ExperimentConfig:
     data_dir: str = "outputs/experiments/_data"  # converted data cache, reused when valid
 
     # --- UniDexTok training (each configuration trained once, cached under models_dir) --------------
-    preset: str = "small"
-    steps: int = 600
-    batch_size: int = 256
-    lr: float = 3e-3
-    warmup_steps: int = 60
-    eval_every: int = 200
-    models_dir: str = "outputs/experiments/_models"
+    train: ExperimentTraining = field(default_factory=ExperimentTraining)
+    """unidextok-train's settings (--train.preset=tiny --train.steps=2000 ...); datasets, output folder, hand
+    vocabulary, seed, progress and selection rows come from this config."""
+    models_dir: str = "outputs/experiments/_models"  # trained tokenizers, reused for the same settings and rows
 
     # --- baselines ----------------------------------------------------------------------------------
-    unihm_preset: str = "cpu"
+    unihm_preset: str = "cpu"  # UniHM baseline size (baselines.unihm.UNIHM_PRESETS)
     unihm_teacher_steps: int = 400  # cut from the cpu preset's 1200 to fit the 5-minute budget
     unihm_rounds: int = 2
     unihm_round_steps: int = 30  # distil and align steps per round
     unihm_finetune_steps: int = 80
-    qae_preset: str = "cpu"
+    qae_preset: str = "cpu"  # FSQ / RVQ baseline size (baselines.quantized_ae.QAE_PRESETS)
     qae_steps: int = 600  # FSQ / RVQ steps (cpu preset: 2000)
     with_qae: bool = True  # FSQ / RVQ (needs vector-quantize-pytorch)
     pca_components: int = 8  # PCA baseline: components = tokens per state (UniDexTok: 8)
@@ -77,25 +91,30 @@ class ExperimentConfig:
     transfer_sample_hands: bool = True
 
     # --- probe --------------------------------------------------------------------------------------
-    # LinkerHand vendor presets (JSON); empty = <real_data_dir>/linkerhand-ros2-sdk/linkerhand_gui_preset_actions.json
     linkerhand_presets: str = ""
+    """LinkerHand vendor presets (JSON); empty = <real_data_dir>/linkerhand-ros2-sdk/linkerhand_gui_preset_actions.json"""
     # Labelled real human gestures (MediaPipe HandLandmarker results); empty = <real_data_dir>/mediapipe/...
     human_gestures: str = ""
     probe_max_per_class: int = 400  # held gesture frames per (gesture, hand) kept for the probe
 
     # --- output -------------------------------------------------------------------------------------
-    output_root: str = "outputs/experiments"
+    output_root: str = "outputs/experiments"  # result files: <output_root>/<experiment>/<experiment>.{json,md}
     render_samples: int = 3  # sampled states per hand in the 3D renderings
     max_eval_frames: int = 20000  # held-out rows scored per experiment (all if fewer)
-    seed: int = 0
-    progress: bool = True
+    seed: int = 0  # seeds data sampling, training and the baselines
+    progress: bool = True  # progress bars
 
     def __post_init__(self) -> None:
-        if self.steps < 1 or self.sample_episodes < 2 or self.sample_frames < 10:
+        if self.sample_episodes < 2 or self.sample_frames < 10:
             raise ValueError(
-                f"need steps >= 1, sample_episodes >= 2, sample_frames >= 10; got {self.steps}, "
-                f"{self.sample_episodes}, {self.sample_frames}"
+                f"need sample_episodes >= 2, sample_frames >= 10; got {self.sample_episodes}, {self.sample_frames}"
             )
+        if isinstance(self.train, dict):
+            self.train = ExperimentTraining(**self.train)
+        default = TrainConfig()
+        for name, owner in SET_BY_THE_EXPERIMENT.items():
+            if getattr(self.train, name) != getattr(default, name):
+                raise ValueError(f"train.{name} is set by each experiment from {owner}; drop --train.{name}")
         if self.data not in DATA_CHOICES:
             raise ValueError(f"data must be one of {DATA_CHOICES}, got {self.data!r}")
         if not 0.0 < self.fewshot_fraction <= 1.0:
@@ -140,7 +159,8 @@ PRESETS: dict[str, ExperimentConfig] = {
     # Tests: seconds. Tiny tokenizer and baselines on 3 episodes x 30 frames per source
     # (configs/experiments/tiny.yaml holds the same values for the command line).
     "tiny": ExperimentConfig(
-        sample_episodes=3, sample_frames=30, preset="tiny", steps=20, batch_size=64, warmup_steps=2, eval_every=10,
+        sample_episodes=3, sample_frames=30,
+        train=ExperimentTraining(preset="tiny", steps=20, batch_size=64, warmup_steps=2, eval_every=10),
         unihm_preset="tiny", unihm_teacher_steps=20, unihm_rounds=1, unihm_round_steps=3, unihm_finetune_steps=5,
         qae_preset="tiny", qae_steps=20, fewshot_fraction=0.3, fewshot_epochs=1.0, fewshot_batch_size=16,
         probe_max_per_class=20, render_samples=2, progress=False,
@@ -150,9 +170,10 @@ PRESETS: dict[str, ExperimentConfig] = {
 
 def parse_config(argv: list[str] | None = None, description: str = "") -> ExperimentConfig:
     """draccus, like the CLIs: `--config_path=configs/experiments/tiny.yaml` and `--<field>=<value>` for every
-    field (lists as `--datasets='[a,b]'`); `--help` lists the fields with their comments. `description` is
-    accepted for callers that pass their docstring; draccus takes the help text from the field comments."""
-    return draccus.parse(ExperimentConfig, args=argv)
+    field (lists as `--datasets='[a,b]'`, training as `--train.steps=2000`); `--help` lists the fields with
+    their comments. `description` is accepted for callers that pass their docstring; draccus takes the help
+    text from the field comments."""
+    return parse_cli(ExperimentConfig, args=argv)
 
 
 def config_dict(cfg: ExperimentConfig) -> dict:

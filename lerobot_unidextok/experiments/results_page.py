@@ -84,8 +84,9 @@ def data_label(result: dict) -> str:
 def _provenance_line(result: dict) -> str:
     p = result["provenance"]
     data = f"{data_label(result)}: " + ", ".join(p["data"]["datasets"])
+    steps = p["config"]["train"]["steps"] if "train" in p["config"] else p["config"]["steps"]  # flat in older files
     return (f"_Data: {data} ({p['data']['train_rows']} train / {p['data']['test_rows']} held-out rows, hands "
-            f"{', '.join(p['data']['hands'])}); preset `{p['preset']}`, {p['config']['steps']} steps, seed {p['seed']}, "
+            f"{', '.join(p['data']['hands'])}); preset `{p['preset']}`, {steps} steps, seed {p['seed']}, "
             f"commit `{p['git_commit'][:12]}`, {p['date_utc']}, wall time {p['wall_seconds']} s._")  # fmt: skip
 
 

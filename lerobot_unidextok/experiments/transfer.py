@@ -77,7 +77,7 @@ def adapt(cfg: ExperimentConfig, base_dir: str, shots: HandStates, how: str, tag
 
     lr = cfg.fewshot_lr if how == "hand_embedding" else cfg.fewshot_lr_all
     few_cfg = TrainConfig(
-        preset=cfg.preset, init_from=base_dir, fraction=1.0, epochs=cfg.fewshot_epochs, batch_size=cfg.fewshot_batch_size,
+        preset=cfg.train.preset, init_from=base_dir, fraction=1.0, epochs=cfg.fewshot_epochs, batch_size=cfg.fewshot_batch_size,
         lr=lr, adapt=how, unknown_hand_prob=0.0, warmup_steps=1, eval_every=10**9, save_last_every=10**9, seed=cfg.seed,
         select_fraction=0.0, output_dir=str(Path(cfg.models_dir) / f"fewshot_{tag}"), progress=cfg.progress,
     )  # fmt: skip

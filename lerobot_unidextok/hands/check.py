@@ -201,7 +201,7 @@ def check_spec(
     """Check every native joint of ``spec`` on ``side`` against the URDF at ``urdf_path``."""
     if spec.kind != "joints":
         raise ValueError(f"hand {spec.name!r} is given as keypoints; there are no joints to check")
-    spec._check_side(side)
+    spec.check_side(side)
     if spec.urdf is None:
         raise ValueError(
             f"hand {spec.name!r} has no `urdf:` block with the 21 keypoints on URDF links; add one to "

@@ -214,7 +214,7 @@ class _SideTable:
     rad_hi: np.ndarray  # (J,)
     default_raw: np.ndarray  # (J,)
     rest: np.ndarray  # (J,) rest_rad
-    slot_idx: np.ndarray  # (A,) UDHM index of each active joint (native order of `_active_joint_idx`)
+    slot_idx: np.ndarray  # (A,) UDHM index of each active joint (native order of `active_joint_indices`)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -252,13 +252,13 @@ class HandSpec:
         return len(self.joints)
 
     @cached_property
-    def _active_joint_idx(self) -> np.ndarray:
-        """Native indices of joints with a UDHM slot, in native order."""
+    def active_joint_indices(self) -> np.ndarray:
+        """(A,) native indices of the joints with a UDHM slot, in native order."""
         return np.array([i for i, j in enumerate(self.joints) if j.slot is not None], dtype=np.int64)
 
     @cached_property
     def _slot_idx(self) -> np.ndarray:
-        """UDHM index of each joint with a slot on the first side (same order as ``_active_joint_idx``).
+        """UDHM index of each joint with a slot on the first side (same order as ``active_joint_indices``).
 
         The set of slots is the same on every side (checked on load); only the assignment may differ.
         """
@@ -266,7 +266,7 @@ class HandSpec:
 
     @property
     def num_active(self) -> int:
-        return UDHM_DIM if self.kind == "keypoints" else len(self._active_joint_idx)
+        return UDHM_DIM if self.kind == "keypoints" else len(self.active_joint_indices)
 
     @property
     def dropped_joints(self) -> tuple[str, ...]:
@@ -292,7 +292,7 @@ class HandSpec:
     def slot_map(self, side: str | None = None) -> dict[str, str | None]:
         """Native joint name -> UDHM slot name (None = dropped) on ``side`` (default: the first side)."""
         side = side or self.sides[0]
-        self._check_side(side)
+        self.check_side(side)
         return {j.name: j.sides[side].slot for j in self.joints}
 
     def slot_indices(self, side: str = "right") -> np.ndarray:
@@ -323,7 +323,7 @@ class HandSpec:
         """(22,) lower and upper UDHM bounds reachable by this hand (0 on inactive slots)."""
         self._require_joints("udhm_limits_rad")
         t = self._side_table(side)
-        a = self._active_joint_idx
+        a = self.active_joint_indices
         s, rest = t.sign[a], t.rest[a]
         lo, hi = np.zeros(UDHM_DIM), np.zeros(UDHM_DIM)
         ends = np.stack([s * (t.rad_lo[a] - rest), s * (t.rad_hi[a] - rest)])
@@ -374,7 +374,7 @@ class HandSpec:
             return self._keypoints_to_udhm(raw, side)
         rad = self.to_radians(raw, side, on_out_of_range)  # (..., J)
         t = self._side_table(side)
-        a = self._active_joint_idx
+        a = self.active_joint_indices
         values = (rad[..., a] - _table(t.rest[a], rad)) * _table(t.sign[a], rad)  # (..., A)
         out = _zeros((*rad.shape[:-1], UDHM_DIM), rad)  # (..., 22)
         target = t.slot_idx if mapping == "semantic" else np.arange(len(a))
@@ -394,7 +394,7 @@ class HandSpec:
         if self.kind == "keypoints":
             return self._udhm_to_keypoints(state, side)
         t = self._side_table(side)
-        a = self._active_joint_idx
+        a = self.active_joint_indices
         source = t.slot_idx if mapping == "semantic" else np.arange(len(a))
         rad = _zeros((*state.shape[:-1], self.num_native), state) + _table(t.offset + t.scale * t.default_raw, state)
         rad[..., a] = state[..., source] * _table(t.sign[a], state) + _table(t.rest[a], state)
@@ -412,7 +412,7 @@ class HandSpec:
         from lerobot_unidextok.udhm import inverse_kinematics
 
         kp = _to_float(keypoints_m)
-        self._check_side(side)
+        self.check_side(side)
         if kp.ndim < 2 or tuple(kp.shape[-2:]) != (NUM_KEYPOINTS, 3):
             raise ValueError(
                 f"hand {self.name!r}: expected MANO-21 keypoints in metres of shape (..., {NUM_KEYPOINTS}, 3), "
@@ -428,12 +428,12 @@ class HandSpec:
         """UDHM (..., 22) rad -> MANO-21 keypoints (..., 21, 3) m in the canonical wrist frame (UDHM FK)."""
         from lerobot_unidextok.udhm.fk import forward_kinematics
 
-        self._check_side(side)
+        self.check_side(side)
         return forward_kinematics(state, self.skeleton(), side=side)
 
     # -- checks ----------------------------------------------------------------------------------------
     def _side_table(self, side: str) -> _SideTable:
-        self._check_side(side)
+        self.check_side(side)
         return self._tables[side]
 
     @cached_property
@@ -459,7 +459,8 @@ class HandSpec:
             )
         return tables
 
-    def _check_side(self, side: str) -> None:
+    def check_side(self, side: str) -> None:
+        """ValueError naming the hand's sides unless ``side`` is one of them."""
         if side not in self.sides:
             raise ValueError(f"hand {self.name!r} has no side {side!r}; its sides are {list(self.sides)}")
 

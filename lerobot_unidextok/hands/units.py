@@ -66,7 +66,7 @@ def _sibling_specs(spec: HandSpec, values: np.ndarray) -> list[str]:
         if other.name == spec.name or other.embodiment != spec.embodiment or other.num_native != spec.num_native:
             continue
         rr = other.raw_range(other.sides[0])
-        a = other._active_joint_idx
+        a = other.active_joint_indices
         span = rr[a, 1] - rr[a, 0]
         if _fits(values, rr[a, 0], rr[a, 1], 1e-6 * span) and ((values.max(0) - values.min(0)) / span).max() > 0.05:
             out.append(f"use hand spec {other.name!r} ({other.native_units})")
@@ -82,7 +82,7 @@ def check_units(spec: HandSpec, raw, side: str = "right") -> None:
         return
     raw = raw.detach().cpu().numpy() if isinstance(raw, torch.Tensor) else raw
     values = np.asarray(raw, dtype=np.float64).reshape(-1, spec.num_native)
-    a = spec._active_joint_idx
+    a = spec.active_joint_indices
     if values.size == 0 or len(a) == 0 or not np.isfinite(values).all():
         return  # NaN and shape problems are reported by the conversion itself
     values = values[:, a]  # (N, A)

@@ -222,6 +222,21 @@ def tokenizer_card(folder: str | Path, repo_id: str, training_data: list[str] | 
     return "\n".join(_front("lerobot-unidextok", tags, training_data) + body)
 
 
+def write_run_cards(run_dir: str | Path, results: dict[str, dict], training: dict) -> None:
+    """The cards of a `unidextok-train` run folder: in best/ and last/, `training` (datasets, excluded hands,
+    fraction) added to training_state.json, `results` (held-out figures) as eval.json, and README.md."""
+    run_dir = Path(run_dir)
+    for name in ("best", "last"):
+        folder = run_dir / name
+        if not (folder / "config.json").is_file():
+            continue
+        state_path = folder / "training_state.json"
+        state = json.loads(state_path.read_text()) if state_path.is_file() else {}
+        state_path.write_text(json.dumps(state | training, indent=2))
+        (folder / "eval.json").write_text(json.dumps({"results": results}, indent=2))
+        (folder / "README.md").write_text(tokenizer_card(folder, run_dir.name))
+
+
 def policy_card(folder: str | Path, repo_id: str, training_data: list[str] | None = None) -> str:
     """README.md text of a LeRobot policy checkpoint (`<type>_udt` or stock): type, inputs, hands, data, use."""
     folder = Path(folder)

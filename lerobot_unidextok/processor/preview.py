@@ -19,14 +19,14 @@ def token_preview(step: UniDexTokStateTokenizerStep, states_rad: torch.Tensor, j
     num_hands = step.layout.num_hands
     codes = tokens.reshape(len(states_rad), num_hands, cfg.num_tokens, cfg.num_groups)  # (B, H, N, K)
     rows = step.hand_blocks(states_rad)  # (B, H, 22) the UDHM blocks, radians
-    ids = step._hand_ids.repeat(len(states_rad))  # (B*H,)
+    ids = step.hand_ids.repeat(len(states_rad))  # (B*H,)
     decoded = step.tokenizer.decode(codes.reshape(-1, cfg.num_tokens, cfg.num_groups), ids)  # (B*H, 22)
     decoded = decoded.reshape(-1, num_hands, UDHM_DIM)  # (B, H, 22)
     deg = 180.0 / math.pi
     lines = []
     for b in range(len(states_rad)):
         for h, hand in enumerate(step.layout.hands):
-            active = step._active[h].cpu()  # (22,) bool
+            active = step.active_masks[h].cpu()  # (22,) bool
             slots = active.nonzero().flatten()[:joints].tolist()
             err = (decoded[b, h] - rows[b, h]).abs()[active].mean().item() * deg
             lines.append(f"frame {b} hand {h} ({hand}): {cfg.num_tokens} tokens x {cfg.num_groups} codes, "

@@ -185,6 +185,16 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
         assert self._layout is not None
         return self._layout
 
+    @property
+    def hand_ids(self) -> torch.Tensor:
+        """(H,) the tokenizer's hand id of each block (the unknown-hand id for hands it was not trained on)."""
+        return self._hand_ids
+
+    @property
+    def active_masks(self) -> torch.Tensor:
+        """(H, 22) bool: the active DoFs of each block's hand (decoded values elsewhere are zeroed)."""
+        return self._active
+
     # ----------------------------------------------------------------------------------------- core
     def hand_blocks(self, states: torch.Tensor) -> torch.Tensor:
         """(B, D) whole states -> (B, H, 22) UDHM blocks, radians; checks width, NaN and ranges."""

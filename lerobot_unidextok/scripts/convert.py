@@ -9,7 +9,8 @@
     unidextok-convert --config_path=convert.yaml          # same fields in a YAML/JSON file
     unidextok-convert --list_sources=true
     # datatrove: 8 shards, 2 at a time on this machine, then one merge (pip install 'lerobot_policy_unidextok[datatrove]')
-    unidextok-convert --source=egodex --input=raw/egodex --root=out/egodex_udhm --executor=local --tasks=8 --workers=2
+    unidextok-convert --source=egodex --input=raw/egodex --root=out/egodex_udhm \\
+        --executor.type=local --executor.tasks=8 --executor.workers=2
     # Slurm: an array job of 64 shard tasks and a merge job after it (configs/convert/slurm.yaml)
     unidextok-convert --config_path=configs/convert/slurm.yaml --input=/data/egodex --root=/scratch/egodex_udhm
 
@@ -18,65 +19,55 @@
 
 import json
 import logging
-import os
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
-import draccus
 import yaml
 
-from lerobot_unidextok.conversion.sharded import EXECUTORS, SlurmOptions
+from lerobot_unidextok.conversion.pipeline import ConvertOptions
+from lerobot_unidextok.conversion.sharded import ExecutorOptions
 from lerobot_unidextok.utils.cli import UserError, configure_output
+from lerobot_unidextok.utils.draccus_cli import parse_config
 
 
 @dataclass
-class ConvertConfig:
-    # -- what ---------------------------------------------------------------------------------------
+class ConvertConfig(ConvertOptions):
+    """The conversion (every `ConvertOptions` field is a flag), where it runs (`--executor.*`), and the modes."""
+
+    # -- what and where: given for a conversion, optional for --validate / --list_sources ---------------------
     source: str = ""  # registered source name (see --list_sources=true)
     input: str = ""  # raw dataset folder (or file) of the source
-    source_options: str = ""  # JSON object of source reader options, e.g. '{"hands": {...}}'
-    # -- where --------------------------------------------------------------------------------------
-    repo_id: str = "local/udhm"  # dataset id (namespace/name), used for the card and the Hub
     root: str = ""  # output folder; default $HF_LEROBOT_HOME/<repo_id>
-    overwrite: bool = False  # replace an existing dataset at --root (atomically, at the end)
-    # -- how ----------------------------------------------------------------------------------------
-    mapping: str = "semantic"  # "semantic" (joint -> named UDHM slot) | "append_pad" (ablation)
-    sides: str = ""  # block layout, e.g. "right,left" for sources whose episodes are left or right hands
-    fps: int | None = None  # frame grid for time-stamped sources (ROS bags, keypoint files); None = source default
-    keep: str = "all"  # "all": the whole robot (arms, other features, videos) | "hands": UDHM blocks only
-    num_workers: int = 1  # processes reading + mapping episodes
-    on_error: str = "raise"  # "raise": stop at the first bad episode | "skip": skip, report at the end
-    test_fraction: float = 0.2  # share of episodes in the deterministic test split
-    max_episodes: int | None = None  # convert only the first N episodes (quick looks)
-    shard_index: int = 0  # convert one contiguous shard of the episode list (multi-machine runs by hand)
-    num_shards: int = 1
-    # -- past one machine: datatrove (pip install 'lerobot_policy_unidextok[datatrove]') -------------------------
-    # "pool": this process, --num_workers reader processes | "local" / "slurm": datatrove's Local/Slurm
-    # PipelineExecutor, --tasks shard conversions (each with --num_workers processes), then one merge
-    executor: str = "pool"
-    tasks: int = 2  # shards = datatrove tasks (capped at the number of episodes)
-    workers: int = -1  # datatrove tasks running at the same time (-1: all)
-    logging_dir: str = ""  # datatrove run folder (logs, completions, shards); default <root>.datatrove
-    keep_shards: bool = False  # keep the shard datasets after the merge
-    slurm: SlurmOptions = field(default_factory=SlurmOptions)  # --slurm.partition=... --slurm.time=...
-    # -- modes --------------------------------------------------------------------------------------
+    # -- past one machine: shards on datatrove (pip install 'lerobot_policy_unidextok[datatrove]') --------------------
+    executor: ExecutorOptions = field(default_factory=ExecutorOptions)
+    """Where the conversion runs: this process (pool), or datatrove shards and a merge (--executor.type=local|slurm)."""
+    # -- modes -------------------------------------------------------------------------------------------
     validate: bool = False  # validate the dataset at --root instead of converting
     push_to_hub: bool = False  # upload the dataset to --repo_id after converting (or validating)
-    private: bool = False
+    private: bool = False  # create the Hub repo private
     list_sources: bool = False  # print the registered sources and exit
+
+    def __post_init__(self) -> None:
+        if isinstance(self.source_options, str):  # a JSON object given as text (Python callers, quoted in YAML)
+            self.source_options = _source_options(self.source_options)
+        super().__post_init__()
+
+    def conversion(self) -> ConvertOptions:
+        """The library options of this run (`root` resolved)."""
+        options = {f.name: getattr(self, f.name) for f in fields(ConvertOptions)}
+        return ConvertOptions(**options | {"root": _root(self)})
 
 
 def _root(cfg: ConvertConfig) -> Path:
-    if cfg.root:
-        return Path(cfg.root).expanduser()
-    home = os.environ.get("HF_LEROBOT_HOME") or str(Path(os.environ.get("HF_HOME", "~/.cache/huggingface")) / "lerobot")
-    return Path(home).expanduser() / cfg.repo_id
+    from lerobot_unidextok.utils.hf_cache import lerobot_home
+
+    return Path(cfg.root).expanduser() if cfg.root else lerobot_home() / cfg.repo_id
 
 
 def _source_options(text: str) -> dict:
-    """The --source_options object. Parsed as YAML, a superset of JSON: draccus hands a flag that looks
-    like a mapping over as the Python repr of the dict it parsed, which YAML's flow syntax also reads."""
+    """The --source_options object given as text: JSON, read as YAML (a superset; its flow syntax also
+    reads the repr of a Python dict)."""
     if not text:
         return {}
     try:
@@ -102,27 +93,9 @@ def run(cfg: ConvertConfig) -> int:
         if not cfg.source or not cfg.input:
             raise SystemExit("error: --source and --input are required (or --validate=true / --list_sources=true)")
         try:
-            opts = pipeline.ConvertOptions(
-                source=cfg.source,
-                input=cfg.input,
-                root=root,
-                repo_id=cfg.repo_id,
-                source_options=_source_options(cfg.source_options),
-                mapping=cfg.mapping,
-                on_error=cfg.on_error,
-                num_workers=cfg.num_workers,
-                overwrite=cfg.overwrite,
-                test_fraction=cfg.test_fraction,
-                max_episodes=cfg.max_episodes,
-                shard_index=cfg.shard_index,
-                num_shards=cfg.num_shards,
-                sides=tuple(s.strip() for s in cfg.sides.split(",") if s.strip()) or None,
-                fps=cfg.fps,
-                keep=cfg.keep,
-            )
-            if cfg.executor != "pool":
-                return _run_executor(cfg, opts)
-            report = pipeline.convert(opts)
+            if cfg.executor.type != "pool":
+                return _run_executor(cfg)
+            report = pipeline.convert(cfg.conversion())
         except (
             pipeline.ConversionError,
             FileExistsError,
@@ -160,24 +133,14 @@ def _after_conversion(cfg: ConvertConfig, root: Path) -> int:
     return 0
 
 
-def _run_executor(cfg: ConvertConfig, opts) -> int:
-    """--executor=local|slurm: shards on datatrove, then the merge (local) or both jobs submitted (slurm)."""
-    from lerobot_unidextok.conversion.sharded import ExecutorOptions, convert_with_executor
+def _run_executor(cfg: ConvertConfig) -> int:
+    """--executor.type=local|slurm: shards on datatrove, then the merge (local) or both jobs submitted (slurm)."""
+    from lerobot_unidextok.conversion.sharded import convert_with_executor
 
-    if cfg.executor not in EXECUTORS:
-        raise ValueError(f"--executor must be pool, {' or '.join(EXECUTORS)}; got {cfg.executor!r}")
     if cfg.shard_index != 0 or cfg.num_shards != 1:
-        raise ValueError("--executor chooses the shards (--tasks); drop --shard_index/--num_shards")
-    ex = ExecutorOptions(
-        executor=cfg.executor,
-        tasks=cfg.tasks,
-        workers=cfg.workers,
-        logging_dir=cfg.logging_dir or None,
-        keep_shards=cfg.keep_shards,
-        slurm=cfg.slurm,
-    )
-    root = convert_with_executor(opts, ex)
-    if cfg.executor == "slurm":
+        raise ValueError("--executor.type chooses the shards (--executor.tasks); drop --shard_index/--num_shards")
+    root = convert_with_executor(cfg.conversion(), cfg.executor)
+    if cfg.executor.type == "slurm":
         print(f"submitted the shard tasks and the merge into {root} (squeue lists them)")
         return 0
     info = json.loads((root / "meta" / "info.json").read_text())
@@ -196,11 +159,6 @@ def _print_train_episodes(root: Path) -> None:
         print(f"lerobot-train without the {len(settings['test_episodes'])} test episodes: {flag}")
 
 
-@draccus.wrap()
-def convert_cli(cfg: ConvertConfig) -> int:
-    return run(cfg)
-
-
 def main() -> None:
     configure_output()
     # force: importing lerobot already gave the root logger a WARNING handler (a module-level logging.debug
@@ -208,7 +166,12 @@ def main() -> None:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", force=True)
     for noisy in ("httpx", "lerobot.datasets.utils"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
-    sys.exit(convert_cli())
+    try:
+        cfg = parse_config(ConvertConfig)
+    except ValueError as exc:  # a flag value the options refuse (--mapping, --keep, --executor.type, ...)
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(1)
+    sys.exit(run(cfg))
 
 
 if __name__ == "__main__":

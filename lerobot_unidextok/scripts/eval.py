@@ -10,11 +10,9 @@ Writes <output>.json and <output>.md and prints the table.
 
 import logging
 from dataclasses import dataclass, field
-from pathlib import Path
-
-import draccus
 
 from lerobot_unidextok.utils.cli import configure_output
+from lerobot_unidextok.utils.draccus_cli import wrap
 
 logger = logging.getLogger(__name__)
 
@@ -31,24 +29,11 @@ class EvalConfig:
     device: str = "cpu"
 
 
-def resolve_checkpoint(checkpoint: str) -> str:
-    """A checkpoint folder, the `best/` of a `unidextok-train` run folder, or a Hub repo id (unchanged)."""
-    path = Path(checkpoint).expanduser()
-    if not path.is_dir() or (path / "config.json").is_file():
-        return checkpoint
-    if (path / "best" / "config.json").is_file():
-        logger.info("%s is a training run folder: evaluating its best/ checkpoint", path)
-        return str(path / "best")
-    raise SystemExit(
-        f"error: {path} holds no tokenizer: expected config.json + model.safetensors, or a unidextok-train run "
-        "folder with best/ (pass that folder or its best/)"
-    )
-
-
 def run(cfg: EvalConfig) -> dict:
     from lerobot_unidextok.evaluation import evaluate_tokenizer, write_report
     from lerobot_unidextok.tokenizer import UniDexTok
     from lerobot_unidextok.training import load_hand_states
+    from lerobot_unidextok.training.checkpoint import resolve_checkpoint
 
     if not cfg.checkpoint:
         raise SystemExit("error: --checkpoint is required (a folder with config.json + model.safetensors or a repo id)")
@@ -59,7 +44,10 @@ def run(cfg: EvalConfig) -> dict:
         data = data.only(cfg.hands)
         if len(data) == 0:
             raise SystemExit(f"error: no rows for hands {cfg.hands} in {cfg.datasets}")
-    checkpoint = resolve_checkpoint(cfg.checkpoint)
+    try:
+        checkpoint = resolve_checkpoint(cfg.checkpoint)
+    except FileNotFoundError as exc:
+        raise SystemExit(f"error: {exc}") from exc
     model = UniDexTok.from_pretrained(checkpoint).to(cfg.device)
     report = evaluate_tokenizer(model, data)
     report["checkpoint"], report["datasets"], report["split"] = checkpoint, cfg.datasets, cfg.split
@@ -68,7 +56,7 @@ def run(cfg: EvalConfig) -> dict:
     return report
 
 
-@draccus.wrap()
+@wrap()
 def eval_cli(cfg: EvalConfig) -> None:
     run(cfg)
 

@@ -11,10 +11,9 @@ HF_ENDPOINT, HF_TOKEN, HF_HOME / HF_HUB_CACHE are honoured.
 import logging
 from dataclasses import dataclass, field
 
-import draccus
-
 from lerobot_unidextok.hub import pull, push
 from lerobot_unidextok.utils.cli import run_cli
+from lerobot_unidextok.utils.draccus_cli import wrap
 
 
 @dataclass
@@ -40,7 +39,7 @@ def _require(value: str, flag: str) -> None:
         raise SystemExit(f"error: {flag} is required, e.g. {flag}=namespace/name")
 
 
-@draccus.wrap()
+@wrap()
 def push_cli(cfg: PushConfig) -> None:
     _require(cfg.local_dir, "--local_dir")
     _require(cfg.repo_id, "--repo_id")
@@ -54,7 +53,7 @@ def push_cli(cfg: PushConfig) -> None:
     print(f"pushed {cfg.local_dir} -> {cfg.repo_id} @ {commit}")
 
 
-@draccus.wrap()
+@wrap()
 def pull_cli(cfg: PullConfig) -> None:
     _require(cfg.repo_id, "--repo_id")
     path = pull(cfg.repo_id, cfg.repo_type, cfg.revision)

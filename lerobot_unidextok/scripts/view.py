@@ -13,9 +13,8 @@ import logging
 from dataclasses import dataclass
 from pathlib import Path
 
-import draccus
-
 from lerobot_unidextok.utils.cli import run_cli
+from lerobot_unidextok.utils.draccus_cli import wrap
 
 
 @dataclass
@@ -30,7 +29,7 @@ class ViewConfig:
     urdf: str | None = None  # draw robot hands by their URDF: a .urdf file, or a folder holding each hand's urdf.file
 
 
-@draccus.wrap()
+@wrap()
 def view_cli(cfg: ViewConfig) -> None:
     from lerobot_unidextok.viz.episode import VIDEO_SUFFIXES, load_episode, write_rerun, write_video
 

@@ -93,9 +93,9 @@ class UniDexTokConfig:
     def __post_init__(self) -> None:
         if self.format_version != FORMAT_VERSION:
             raise ValueError(
-                f"UniDexTok config format_version={self.format_version} does not match this code's "
-                f"FORMAT_VERSION={FORMAT_VERSION}; re-train or convert the checkpoint, or install the "
-                "lerobot-unidextok version that wrote it"
+                f"UniDexTok config format_version={self.format_version!r} does not match this code's "
+                f"FORMAT_VERSION={FORMAT_VERSION}; install the lerobot-unidextok version that wrote the checkpoint, "
+                "or re-train"
             )
         if self.hidden_dim % self.num_heads != 0:
             raise ValueError(f"hidden_dim={self.hidden_dim} must be divisible by num_heads={self.num_heads}")

@@ -1,6 +1,7 @@
-"""DiT-style adaLN-Zero transformer blocks conditioned on a hand-type embedding.
+"""DiT-style adaLN-Zero transformer blocks conditioned on a hand-type embedding, and that embedding.
 
-Block layout follows facebookresearch/DiT `models.py` (written fresh here, not copied).
+Block layout and the embedder with its extra "null" row and condition dropout follow facebookresearch/DiT
+`models.py` (`DiTBlock`, `FinalLayer`, `LabelEmbedder`; written fresh here, not copied).
 """
 
 import torch
@@ -11,6 +12,47 @@ from torch import nn
 def modulate(x: torch.Tensor, shift: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
     """gamma(c) * x + beta(c) with gamma = 1 + scale: x (B, N, C), shift/scale (B, C)."""
     return x * (1 + scale.unsqueeze(1)) + shift.unsqueeze(1)
+
+
+# ---------------------------------------------------------------------------------------------
+# hand conditioning
+# ---------------------------------------------------------------------------------------------
+class HandEmbedder(nn.Module):
+    """Hand-type embedding c_h: one row per vocabulary hand plus a last "unknown hand" row (DiT's
+    `LabelEmbedder` null row), with hand dropout: in training, a `drop_prob` share of rows is routed to the
+    unknown row, so the path that tokenises unseen hands zero-shot gets trained."""
+
+    def __init__(self, num_hands: int, hidden_dim: int, device=None, dtype=None) -> None:
+        super().__init__()
+        # (H + 1, C), as an nn.Embedding's weight (state-dict key `hand_embed.weight`), same default init
+        self.weight = nn.Parameter(torch.empty(num_hands + 1, hidden_dim, device=device, dtype=dtype))
+        nn.init.normal_(self.weight)
+
+    @property
+    def unknown_id(self) -> int:
+        """Id of the unknown-hand row (= the number of vocabulary hands)."""
+        return self.weight.shape[0] - 1
+
+    def token_drop(self, ids: torch.Tensor, drop_prob: float, generator: torch.Generator | None = None) -> torch.Tensor:
+        """(B,) ids with a `drop_prob` share replaced by the unknown id; draws on the CPU from `generator`."""
+        drop = torch.rand(ids.shape, generator=generator).to(ids.device) < drop_prob  # (B,)
+        return torch.where(drop, torch.full_like(ids, self.unknown_id), ids)  # (B,)
+
+    def forward(
+        self, ids: torch.Tensor, drop_prob: float = 0.0, generator: torch.Generator | None = None
+    ) -> torch.Tensor:
+        """(B,) hand ids -> (B, C) embeddings; `drop_prob` applies in training mode only."""
+        if self.training and drop_prob > 0:
+            ids = self.token_drop(ids, drop_prob, generator)  # (B,)
+        return F.embedding(ids, self.weight)  # (B, C)
+
+    @torch.no_grad()
+    def with_new_hands(self, count: int) -> "HandEmbedder":
+        """A copy with `count` more vocabulary rows before the unknown row; they start equal to it."""
+        grown = HandEmbedder(self.unknown_id + count, self.weight.shape[1], self.weight.device, self.weight.dtype)
+        known, unknown = self.weight[:-1], self.weight[-1:]  # (H, C), (1, C)
+        grown.weight.copy_(torch.cat([known, unknown.expand(count, -1), unknown], dim=0))  # (H + count + 1, C)
+        return grown
 
 
 # ---------------------------------------------------------------------------------------------

@@ -4,7 +4,6 @@ No `from __future__ import annotations` here: the Hub mixin reads the real `UniD
 annotation of `__init__` to rebuild the config from config.json.
 """
 
-import json
 import math
 import os
 from collections.abc import Sequence
@@ -17,8 +16,8 @@ from huggingface_hub import constants as hf_constants
 from torch import nn
 
 from lerobot_unidextok.constants import ANGLE_SCALE_RAD
-from lerobot_unidextok.tokenizer.configuration_unidextok import FORMAT_VERSION, UniDexTokConfig
-from lerobot_unidextok.tokenizer.layers import AdaLNBlock, AdaLNFinalNorm
+from lerobot_unidextok.tokenizer.configuration_unidextok import UniDexTokConfig
+from lerobot_unidextok.tokenizer.layers import AdaLNBlock, AdaLNFinalNorm, HandEmbedder
 from lerobot_unidextok.tokenizer.quantizer import FactorizedCosineVQ
 
 HandArg = str | Sequence[str] | torch.Tensor
@@ -49,10 +48,9 @@ class UniDexTok(
         self.config = config
         c, n = config.hidden_dim, config.num_tokens
         self._hand_index = {name: i for i, name in enumerate(config.hand_names)}
-        self.unknown_hand_id = len(config.hand_names)
 
         # hand-type embedding c_h; last row = "unknown hand"
-        self.hand_embed = nn.Embedding(len(config.hand_names) + 1, c)
+        self.hand_embed = HandEmbedder(len(config.hand_names), c)
         # encoder
         self.input_proj = nn.Linear(config.state_dim * (1 + 2 * config.fourier_octaves), n * c)
         self.enc_pos = nn.Parameter(torch.zeros(1, n, c))
@@ -98,6 +96,11 @@ class UniDexTok(
     # -----------------------------------------------------------------------------------------
     # input checks
     # -----------------------------------------------------------------------------------------
+    @property
+    def unknown_hand_id(self) -> int:
+        """Id of the "unknown hand" embedding row (hands outside `config.hand_names`, zero-shot)."""
+        return self.hand_embed.unknown_id
+
     def hand_ids(self, hand: HandArg, batch_size: int, allow_unknown: bool = False) -> torch.Tensor:
         """Hand name, one name per row, or a LongTensor of ids -> (B,) ids."""
         device = self.enc_pos.device
@@ -111,12 +114,13 @@ class UniDexTok(
             names = [hand] if isinstance(hand, str) else list(hand)
             if len(names) == 1:
                 names = names * batch_size
-            ids = torch.tensor([self._name_to_id(nm, allow_unknown) for nm in names], device=device)
+            ids = torch.tensor([self.hand_id(nm, allow_unknown) for nm in names], device=device)
         if ids.shape[0] != batch_size:
             raise ValueError(f"got {ids.shape[0]} hands for a batch of {batch_size}; pass one name or one per row")
         return ids  # (B,)
 
-    def _name_to_id(self, name: str, allow_unknown: bool) -> int:
+    def hand_id(self, name: str, allow_unknown: bool = False) -> int:
+        """The embedding row of hand `name`; with `allow_unknown`, the unknown-hand row for other names."""
         if name in self._hand_index:
             return self._hand_index[name]
         if allow_unknown:
@@ -167,11 +171,16 @@ class UniDexTok(
         hand: HandArg,
         mask: torch.Tensor | None = None,
         allow_unknown: bool = False,
+        hand_drop_prob: float = 0.0,
+        generator: torch.Generator | None = None,
     ) -> UniDexTokOutput:
-        """Reconstruct states and compute losses; `mask` (B, 22) bool marks the active DoFs."""
+        """Reconstruct states and compute losses; `mask` (B, 22) bool marks the active DoFs.
+
+        In training mode a `hand_drop_prob` share of rows is conditioned on the unknown-hand embedding
+        instead of their own (`HandEmbedder`; the draws come from `generator`)."""
         x_rad = self._check_states(states_rad)  # (B, 22)
         b = x_rad.shape[0]
-        c = self.hand_embed(self.hand_ids(hand, b, allow_unknown))  # (B, C)
+        c = self.hand_embed(self.hand_ids(hand, b, allow_unknown), hand_drop_prob, generator)  # (B, C)
         z = self._encode_latent(x_rad, c)  # (B, N, C)
         zq, indices, vq_loss = self.quantizer(z)  # (B, N, C), (B, N, K), ()
         x_hat_rad = self._decode_latent(zq, c)  # (B, 22)
@@ -214,9 +223,7 @@ class UniDexTok(
         x_rad = self._check_states(states_rad)  # (B, 22)
         c = self.hand_embed(self.hand_ids(hand, x_rad.shape[0], allow_unknown))  # (B, C)
         z = self._encode_latent(x_rad, c)  # (B, N, C)
-        u = self.quantizer.project_in(z).view(*z.shape[:2], self.config.num_groups, -1)  # (B, N, K, d)
-        sim = torch.einsum("bnkd,ksd->bnks", F.normalize(u, dim=-1, eps=1e-6), self.quantizer.normalized_codebooks())
-        return sim.argmax(dim=-1)  # (B, N, K) int64
+        return self.quantizer.nearest_indices(z)  # (B, N, K) int64
 
     @torch.no_grad()
     def embed(self, states_rad: torch.Tensor, hand: HandArg, allow_unknown: bool = False) -> torch.Tensor:
@@ -247,14 +254,9 @@ class UniDexTok(
         new = [n for n in dict.fromkeys(names) if n not in self._hand_index]
         if not new:
             return []
-        old = self.hand_embed.weight  # (H + 1, C)
-        known, unknown = old[:-1], old[-1:]
-        weight = torch.cat([known, unknown.expand(len(new), -1), unknown], dim=0)  # (H + new + 1, C)
-        self.hand_embed = nn.Embedding(weight.shape[0], weight.shape[1], device=old.device, dtype=old.dtype)
-        self.hand_embed.weight.copy_(weight)
+        self.hand_embed = self.hand_embed.with_new_hands(len(new))  # (H + new + 1, C)
         self.config.hand_names = [*self.config.hand_names, *new]
         self._hand_index = {name: i for i, name in enumerate(self.config.hand_names)}
-        self.unknown_hand_id = len(self.config.hand_names)
         return new
 
     def knows_hand(self, name: str) -> bool:
@@ -267,6 +269,14 @@ class UniDexTok(
     # -----------------------------------------------------------------------------------------
     # Hub loading: format check, safetensors only, strict
     # -----------------------------------------------------------------------------------------
+    @classmethod
+    def _decode_arg(cls, expected_type, value):
+        """huggingface_hub passes config.json's dict here to build the config; a file without `format_version`
+        is read as `format_version=None` (refused by `UniDexTokConfig`), not as the current version."""
+        if expected_type is UniDexTokConfig and isinstance(value, dict):
+            value = {"format_version": None, **value}
+        return super()._decode_arg(expected_type, value)
+
     @classmethod
     def _from_pretrained(
         cls,
@@ -294,14 +304,9 @@ class UniDexTok(
                 force_download=force_download, token=token, local_files_only=local_files_only,
             )  # fmt: skip
 
-        with open(_fetch(hf_constants.CONFIG_NAME), encoding="utf-8") as f:
-            raw = json.load(f)
-        version = raw.get("format_version")
-        if version != FORMAT_VERSION:
-            raise ValueError(
-                f"checkpoint {model_id!r} has format_version={version!r} but this code reads "
-                f"format_version={FORMAT_VERSION}; install the lerobot-unidextok version that wrote it or re-train"
-            )
+        if "config" not in model_kwargs:  # huggingface_hub found no config.json (it only logs that)
+            _fetch(hf_constants.CONFIG_NAME)  # raises the error that says where it looked
+            raise FileNotFoundError(f"{model_id}: config.json could not be read")
         model = cls(**model_kwargs)
         model = cls._load_as_safetensor(model, _fetch(hf_constants.SAFETENSORS_SINGLE_FILE), map_location, strict)
         model.eval()

@@ -87,6 +87,19 @@ class FactorizedCosineVQ(nn.Module):
         codes = self.indices_to_codes(indices)  # (B, N, K, d)
         return self.project_out(codes.flatten(-2))  # (B, N, C)
 
+    def unit_groups(self, z: torch.Tensor) -> torch.Tensor:
+        """(B, N, C) tokens -> (B, N, K, d) unit-norm group vectors, the inputs of the code search."""
+        b, n, _ = z.shape
+        return l2norm(self.project_in(z).view(b, n, self.num_groups, self.group_dim))  # (B, N, K, d)
+
+    def similarities(self, u: torch.Tensor) -> torch.Tensor:
+        """(B, N, K, d) unit-norm group vectors -> (B, N, K, S) cosine similarity to every code of its group."""
+        return torch.einsum("bnkd,ksd->bnks", u, self.normalized_codebooks())  # (B, N, K, S)
+
+    def nearest_indices(self, z: torch.Tensor) -> torch.Tensor:
+        """(B, N, C) tokens -> (B, N, K) int64 index of the nearest code per group (no losses, no statistics)."""
+        return self.similarities(self.unit_groups(z)).argmax(dim=-1)  # (B, N, K)
+
     def check_indices(self, indices: torch.Tensor) -> None:
         if indices.dtype not in (torch.int64, torch.int32, torch.int16, torch.uint8):
             raise ValueError(f"codes must be an integer tensor, got dtype {indices.dtype}")
@@ -103,15 +116,11 @@ class FactorizedCosineVQ(nn.Module):
     ) -> (
         tuple[torch.Tensor, torch.Tensor, torch.Tensor] | tuple[torch.Tensor, torch.Tensor, torch.Tensor, LossBreakdown]
     ):
-        b, n, _ = z.shape
-
         # project and split into unit-norm group vectors
-        u = self.project_in(z).view(b, n, self.num_groups, self.group_dim)  # (B, N, K, d)
-        u = l2norm(u)  # (B, N, K, d)
+        u = self.unit_groups(z)  # (B, N, K, d)
 
         # nearest code by cosine similarity, per group
-        cb = self.normalized_codebooks()  # (K, S, d)
-        sim = torch.einsum("bnkd,ksd->bnks", u, cb)  # (B, N, K, S)
+        sim = self.similarities(u)  # (B, N, K, S)
         indices = sim.argmax(dim=-1)  # (B, N, K)
         q = self.indices_to_codes(indices)  # (B, N, K, d)
 

@@ -1,4 +1,8 @@
-"""Typed training configuration (draccus reads it from YAML / CLI)."""
+"""Typed training configuration (draccus reads it from YAML / CLI).
+
+A field's `--help` text is the comment on its line, else the docstring below it, else the comments above it;
+the first field of each section has one of the first two, so the section divider stays out of its help.
+"""
 
 from dataclasses import dataclass, field
 
@@ -10,8 +14,8 @@ class TrainConfig:
     """How to train (or adapt) a UniDexTok tokenizer."""
 
     # --- data -------------------------------------------------------------------------------------
-    # Converted UDHM LeRobotDatasets: local roots, or repo ids resolved in HF_LEROBOT_HOME.
     datasets: list[str] = field(default_factory=list)
+    """Converted UDHM LeRobotDatasets: local roots, or repo ids resolved in HF_LEROBOT_HOME."""
     holdout: str = "auto"  # datasets without a recorded test split: auto (hash fallback, warned) | recorded | hash
     # Share of each hand in a batch (relative weights). Hands not listed get `default_hand_weight`.
     hand_weights: dict[str, float] = field(default_factory=dict)
@@ -31,55 +35,55 @@ class TrainConfig:
 
     # --- model ------------------------------------------------------------------------------------
     preset: str = "small"  # UniDexTokConfig preset: paper | small | tiny
-    # Hand vocabulary; empty = the preset's default list plus every hand in the training data.
+    # Hands to give an embedding row besides the training hands, which always get one (listed first, then the
+    # training hands). Other hands, e.g. those left out with exclude_hands, go through the unknown-hand row.
     hand_names: list[str] = field(default_factory=list)
     init_from: str | None = None  # start from a pretrained checkpoint (folder or repo id)
 
     # --- optimisation -------------------------------------------------------------------------------
-    steps: int = 5000  # the demo's schedule (its figures: docs/tokenizer.md)
-    batch_size: int = 256
-    lr: float = 6e-3  # for the CPU presets (small, tiny); the paper preset uses 5e-4 (configs/train/paper.yaml)
+    steps: int = 5000  # optimiser steps (derived from `epochs` when that is > 0)
+    batch_size: int = 256  # rows per step and process
+    lr: float = 6e-3  # peak learning rate (the paper preset uses 5e-4: configs/train/paper.yaml)
     min_lr_ratio: float = 0.05  # cosine decays to lr * min_lr_ratio
-    warmup_steps: int = 200
+    warmup_steps: int = 200  # linear warmup from 0 to lr
     weight_decay: float = 0.01  # not applied to codebooks, norms, embeddings, biases
-    betas: tuple[float, float] = (0.9, 0.99)
-    grad_clip_norm: float = 1.0
+    betas: tuple[float, float] = (0.9, 0.99)  # AdamW betas
+    grad_clip_norm: float = 1.0  # gradient norm clip (0 disables)
     reseed_every: int = 50  # dead-code re-seeding period in steps (0 disables)
     # Share of training rows conditioned on the "unknown hand" embedding instead of their own hand
     # (hand-embedding dropout, as classifier-free guidance drops its condition). Without it that
     # embedding is never trained and zero-shot tokenisation of unseen hands is meaningless.
     # Not in the paper, which does not say how its unknown-hand path is trained.
     unknown_hand_prob: float = 0.05
-    seed: int = 0
+    seed: int = 0  # seeds the model, the batches and the splits
 
     # --- evaluation and checkpoints ----------------------------------------------------------------
-    # Share of each hand's training-split episodes held out (whole episodes) to choose `best`; the reported
-    # figures come from the datasets' test episodes. 0 = no selection, `best` is the final model.
     select_fraction: float = 0.1
+    """Share of each hand's training-split episodes held out (whole episodes) to choose `best`; the reported
+    figures come from the datasets' test episodes. 0 = no selection, `best` is the final model."""
     # k-fold over episodes (small datasets): when >= 2, also train `folds` models, each scored on the episodes
     # of one fold (train + test splits pooled), and report mean and spread (output_dir/kfold.{json,md}).
     folds: int = 0
-    eval_every: int = 250
+    eval_every: int = 250  # steps between checkpoint-selection evaluations
     eval_max_frames: int = 20000  # held-out rows used for checkpoint selection (all if fewer)
-    output_dir: str = "outputs/unidextok"
+    output_dir: str = "outputs/unidextok"  # run folder: best/, last/, eval.{json,md}
     resume: bool = False  # continue from output_dir/last (model, optimiser, step)
-    save_last_every: int = 500
+    save_last_every: int = 500  # steps between saves of output_dir/last
 
     # --- few-shot adaptation ------------------------------------------------------------------------
-    # When > 0: epochs over `fraction` of the training frames (steps is then derived).
-    fraction: float = 1.0
-    epochs: float = 0.0
+    fraction: float = 1.0  # share of the training episodes trained on (few-shot: a small share, whole episodes)
+    epochs: float = 0.0  # when > 0: train this many passes over those rows (steps is then derived)
     # What adaptation trains: "all" parameters, or only the "hand_embedding" (the shared encoder, codebook
     # and decoder stay as they are, so a few hundred frames cannot overfit them).
     adapt: str = "all"
 
     # --- runtime ------------------------------------------------------------------------------------
-    # cpu | cuda | cuda:N. Several processes: `accelerate launch --multi_gpu --num_processes=N -m
-    # lerobot_unidextok.scripts.train ...` (also on CPU with --device=cpu: gloo) or `torchrun`; each process
-    # draws its own `batch_size` rows, so the effective batch is batch_size x N (docs/tokenizer.md)
     device: str = "cpu"
-    # torch CPU threads while training (0 = torch default). 1 by default: these models are small and
-    # extra intra-op threads slow training down on busy shared CPUs (benchmarks/README.md).
+    """cpu | cuda | cuda:N. Several processes: `accelerate launch --multi_gpu --num_processes=N -m
+    lerobot_unidextok.scripts.train ...` (also on CPU with --device=cpu: gloo) or `torchrun`; each process
+    draws its own `batch_size` rows, so the effective batch is batch_size x N (docs/tokenizer.md)"""
+    # torch CPU threads while training (0 = torch default). 1 by default: these models are small, and extra
+    # intra-op threads slow them down on shared CPUs.
     num_threads: int = 1
     progress: bool = True  # tqdm bar
 

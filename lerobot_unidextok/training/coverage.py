@@ -107,7 +107,7 @@ def hand_ranges_rad(hand: str, mask: np.ndarray, rows: np.ndarray) -> tuple[np.n
                 for side in spec.sides:
                     lo, hi = spec.udhm_limits_rad(side)
                     if mapping == "append_pad":  # same values packed at the front in native order
-                        order = spec._slot_idx
+                        order = spec.slot_indices(spec.sides[0])
                         lo = np.concatenate([lo[order], np.zeros(UDHM_DIM - len(order))])
                         hi = np.concatenate([hi[order], np.zeros(UDHM_DIM - len(order))])
                     los.append(lo)

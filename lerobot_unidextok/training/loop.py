@@ -141,6 +141,95 @@ def _train(
     out = Path(cfg.output_dir)
     best_dir, last_dir = out / "best", out / "last"
 
+    model = _prepare_model(cfg, train_data, model, last_dir)
+    optimizer = make_optimizer(model, cfg.lr, cfg.weight_decay, cfg.betas)
+    n_steps = total_steps(cfg, len(train_data), accelerator.num_processes)
+    selection = _Selection(best_dir)
+    start, state = 0, {}
+    if cfg.resume:
+        load_optimizer_state(optimizer, last_dir)
+        state = load_training_state(last_dir)
+        start = state["step"]
+        selection = _Selection(best_dir, state["best_mae_deg"], state["best_step"], state["history"])
+    model, optimizer = accelerator.prepare(model, optimizer)
+    raw_model: UniDexTok = accelerator.unwrap_model(model)
+
+    # seeded as at step 0 also when resuming: the saved generator states (below) continue the same streams
+    sampler = MixtureSampler(
+        train_data,
+        cfg.hand_weights,
+        cfg.default_hand_weight,
+        cfg.coverage,
+        seed=cfg.seed * 1000 + accelerator.process_index,  # each process draws its own batches
+    )
+    mixture = sampler.describe()
+    logger.info(
+        "training %d steps on %d recorded rows; batch %d x %d processes = %d; mixture %s",
+        n_steps, len(train_data), cfg.batch_size, accelerator.num_processes,
+        cfg.batch_size * accelerator.num_processes, mixture,
+    )  # fmt: skip
+    hand_id_of = torch.tensor([raw_model.hand_id(h) for h in sampler.hand_names])  # sampler hand -> model id
+    about = _about(cfg, n_steps, sampler.hand_names, mixture, eval_data)
+
+    def _evaluate(step: int) -> None:
+        if accelerator.is_main_process and eval_data is not None:
+            selection.evaluate(raw_model, eval_data, step, cfg, about)
+
+    dropout_rng = torch.Generator().manual_seed(cfg.seed * 1000 + 1 + 7919 * accelerator.process_index)
+    if cfg.resume:
+        _restore_random_streams(cfg, last_dir, state, sampler, dropout_rng, raw_model, accelerator.num_processes,
+                                accelerator.process_index, start)  # fmt: skip
+
+    t0 = time.perf_counter()
+    bar = progress_bar(
+        range(start, n_steps),
+        disable=not (cfg.progress and accelerator.is_main_process),
+        desc="unidextok",
+        initial=start,
+        total=n_steps,
+    )
+    for step in bar:
+        lr = lr_at(step, n_steps, cfg.lr, cfg.warmup_steps, cfg.min_lr_ratio)
+        for g in optimizer.param_groups:
+            g["lr"] = lr
+        batch = sampler.sample(cfg.batch_size)
+        x = torch.from_numpy(batch.states_rad).to(accelerator.device)  # (B, 22)
+        m = torch.from_numpy(batch.masks).to(accelerator.device)  # (B, 22)
+        h = hand_id_of[torch.from_numpy(batch.hands)].to(accelerator.device)  # (B,)
+        out = _optimisation_step(cfg, model, optimizer, accelerator, x, h, m, dropout_rng)
+        _sync_codebooks(cfg, raw_model, step, accelerator.num_processes)
+
+        if step % 10 == 0:
+            _show_progress(bar, out, x, m, raw_model, lr)
+        if (step + 1) % cfg.eval_every == 0 or step + 1 == n_steps:
+            check_replicas(raw_model, step + 1)  # every process; raises if the copies drifted apart
+            _evaluate(step + 1)
+        if accelerator.is_main_process and ((step + 1) % cfg.save_last_every == 0 or step + 1 == n_steps):
+            save_checkpoint(
+                raw_model, last_dir, optimizer,
+                {"step": step + 1, **selection.state(), **about, "sampler_rng": sampler.rng.bit_generator.state},
+                {"torch_rng": torch.get_rng_state(), "dropout_rng": dropout_rng.get_state(),
+                 "usage_ema": raw_model.quantizer.usage_ema},
+            )  # fmt: skip
+    bar.close()
+    if start >= n_steps and not selection.history:
+        _evaluate(n_steps)
+    if eval_data is None and accelerator.is_main_process:  # no held-out rows: the final model is kept
+        selection.best_step = n_steps
+        save_checkpoint(raw_model, best_dir, state={"step": n_steps, "eval_mae_deg": None, **about})
+    accelerator.wait_for_everyone()
+    best_mae = selection.best_mae if math.isfinite(selection.best_mae) else float("nan")
+    return TrainResult(best_dir, best_mae, selection.best_step, n_steps, time.perf_counter() - t0, selection.history)
+
+
+# ---------------------------------------------------------------------------------------------
+# the parts of a run
+# ---------------------------------------------------------------------------------------------
+def _prepare_model(
+    cfg: TrainConfig, train_data: HandStates | HandRowStore, model: UniDexTok | None, last_dir: Path
+) -> UniDexTok:
+    """The model to train: given, built, or resumed from `last_dir`; with every training hand in its
+    vocabulary, in training mode, and only the parameters `cfg.adapt` names trainable."""
     if model is None:
         model = build_model(cfg, train_data)
     elif cfg.hand_names:
@@ -162,137 +251,104 @@ def _train(
         if name == "quantizer.codebooks" and model.config.codebook_update == "ema":
             trainable = False  # moved by the EMA update, not by the optimiser
         param.requires_grad_(trainable)
-    optimizer = make_optimizer(model, cfg.lr, cfg.weight_decay, cfg.betas)
+    return model
 
-    n_steps = total_steps(cfg, len(train_data), accelerator.num_processes)
-    start, best_mae, best_step, history = 0, float("inf"), -1, []
-    if cfg.resume:
-        load_optimizer_state(optimizer, last_dir)
-        state = load_training_state(last_dir)
-        start, best_mae, best_step, history = state["step"], state["best_mae_deg"], state["best_step"], state["history"]
-    model, optimizer = accelerator.prepare(model, optimizer)
-    raw_model: UniDexTok = accelerator.unwrap_model(model)
 
-    # seeded as at step 0 also when resuming: the saved generator states (below) continue the same streams
-    sampler = MixtureSampler(
-        train_data,
-        cfg.hand_weights,
-        cfg.default_hand_weight,
-        cfg.coverage,
-        seed=cfg.seed * 1000 + accelerator.process_index,  # each process draws its own batches
-    )
-    mixture = sampler.describe()
-    logger.info(
-        "training %d steps on %d recorded rows; batch %d x %d processes = %d; mixture %s",
-        n_steps, len(train_data), cfg.batch_size, accelerator.num_processes,
-        cfg.batch_size * accelerator.num_processes, mixture,
-    )  # fmt: skip
-    hand_id_of = torch.tensor([raw_model._hand_index[h] for h in sampler.hand_names])  # sampler hand -> model id
-    device = accelerator.device
-    # what this run trained on; saved with every checkpoint (training_state.json) for the model card
-    about = {
+def _about(cfg: TrainConfig, n_steps: int, hands: list[str], mixture: dict, eval_data: HandStates | None) -> dict:
+    """What this run trains on; saved with every checkpoint (training_state.json) for the model card."""
+    return {
         "preset": cfg.preset, "init_from": cfg.init_from, "adapt": cfg.adapt, "steps": n_steps,
         "batch_size": cfg.batch_size, "lr": cfg.lr, "unknown_hand_prob": cfg.unknown_hand_prob,
-        "hands_trained": sampler.hand_names, "mixture": mixture,
+        "hands_trained": hands, "mixture": mixture,
         "selection": {"rows": len(eval_data), "hands": eval_data.hand_names()} if eval_data is not None
         else "none: best = the final model",
     }  # fmt: skip
 
-    def _evaluate(step: int) -> None:
-        nonlocal best_mae, best_step
-        if not accelerator.is_main_process or eval_data is None:
-            return
-        mae, usage = evaluate_mae_deg(raw_model, eval_data, cfg.eval_max_frames, cfg.seed)
-        history.append({"step": step, "eval_mae_deg": mae, **{f"eval_{k}": v for k, v in usage.items()}})
-        if mae < best_mae:
-            best_mae, best_step = mae, step
-            save_checkpoint(raw_model, best_dir, state={"step": step, "eval_mae_deg": mae, **about})
+
+def _optimisation_step(cfg: TrainConfig, model, optimizer, accelerator, x: torch.Tensor, h: torch.Tensor,
+                       m: torch.Tensor, dropout_rng: torch.Generator):  # fmt: skip
+    """Forward, backward, clip, step on one batch (x, m (B, 22), h (B,) hand ids); returns the model output.
+    Hand dropout (a share of rows conditioned on the "unknown hand" row) trains the zero-shot path."""
+    out = model(x, h, mask=m, hand_drop_prob=cfg.unknown_hand_prob, generator=dropout_rng)
+    optimizer.zero_grad(set_to_none=True)
+    accelerator.backward(out.loss)
+    if cfg.grad_clip_norm > 0:
+        accelerator.clip_grad_norm_(model.parameters(), cfg.grad_clip_norm)
+    optimizer.step()
+    return out
+
+
+@dataclass
+class _Selection:
+    """Checkpoint selection: evaluations so far and the best one, saved to `best_dir`."""
+
+    best_dir: Path
+    best_mae: float = float("inf")
+    best_step: int = -1
+    history: list[dict] = field(default_factory=list)
+
+    def evaluate(self, model: UniDexTok, eval_data: HandStates, step: int, cfg: TrainConfig, about: dict) -> None:
+        mae, usage = evaluate_mae_deg(model, eval_data, cfg.eval_max_frames, cfg.seed)
+        self.history.append({"step": step, "eval_mae_deg": mae, **{f"eval_{k}": v for k, v in usage.items()}})
+        if mae < self.best_mae:
+            self.best_mae, self.best_step = mae, step
+            save_checkpoint(model, self.best_dir, state={"step": step, "eval_mae_deg": mae, **about})
         logger.info(
             "step %d: held-out MAE %.3f deg (best %.3f @ %d), usage %.2f",
             step,
             mae,
-            best_mae,
-            best_step,
+            self.best_mae,
+            self.best_step,
             usage["usage"],
         )
 
-    dropout_rng = torch.Generator().manual_seed(cfg.seed * 1000 + 1 + 7919 * accelerator.process_index)
-    if cfg.resume:  # continue the random streams where the checkpoint left them: resume == uninterrupted run
-        saved = load_resume_tensors(last_dir)
-        if "sampler_rng" in state and saved and accelerator.num_processes == 1:
-            sampler.rng.bit_generator.state = state["sampler_rng"]
-            torch.set_rng_state(saved["torch_rng"])
-            dropout_rng.set_state(saved["dropout_rng"])
-            raw_model.quantizer.usage_ema.copy_(saved["usage_ema"])
-        else:  # only process 0's streams are saved: each process restarts its own from (seed, step, process)
-            offset = cfg.seed * 1000 + 7919 * accelerator.process_index + 104729 * start
-            sampler.rng = np.random.default_rng(offset)
-            dropout_rng.manual_seed(offset + 1)
-            logger.warning("%s: resuming with fresh random streams (%s): the resumed run draws other batches than "
-                           "an uninterrupted one would", last_dir,
-                           "several processes" if saved else "older checkpoint")  # fmt: skip
+    def state(self) -> dict:
+        """What `last/training_state.json` keeps of it for a resume."""
+        return {"best_mae_deg": self.best_mae, "best_step": self.best_step, "history": self.history}
 
-    def _resume_tensors() -> dict[str, torch.Tensor]:
-        return {"torch_rng": torch.get_rng_state(), "dropout_rng": dropout_rng.get_state(),
-                "usage_ema": raw_model.quantizer.usage_ema}  # fmt: skip
 
-    t0 = time.perf_counter()
-    bar = progress_bar(
-        range(start, n_steps),
-        disable=not (cfg.progress and accelerator.is_main_process),
-        desc="unidextok",
-        initial=start,
-        total=n_steps,
+def _restore_random_streams(
+    cfg: TrainConfig,
+    last_dir: Path,
+    state: dict,
+    sampler: MixtureSampler,
+    dropout_rng: torch.Generator,
+    model: UniDexTok,
+    num_processes: int,
+    process_index: int,
+    start: int,
+) -> None:
+    """Continue the random streams where the checkpoint left them, so resume == an uninterrupted run."""
+    saved = load_resume_tensors(last_dir)
+    if "sampler_rng" in state and saved and num_processes == 1:
+        sampler.rng.bit_generator.state = state["sampler_rng"]
+        torch.set_rng_state(saved["torch_rng"])
+        dropout_rng.set_state(saved["dropout_rng"])
+        model.quantizer.usage_ema.copy_(saved["usage_ema"])
+    else:  # only process 0's streams are saved: each process restarts its own from (seed, step, process)
+        offset = cfg.seed * 1000 + 7919 * process_index + 104729 * start
+        sampler.rng = np.random.default_rng(offset)
+        dropout_rng.manual_seed(offset + 1)
+        logger.warning("%s: resuming with fresh random streams (%s): the resumed run draws other batches than "
+                       "an uninterrupted one would", last_dir,
+                       "several processes" if saved else "older checkpoint")  # fmt: skip
+
+
+def _sync_codebooks(cfg: TrainConfig, model: UniDexTok, step: int, num_processes: int) -> None:
+    """After an optimiser step: re-seed dead codes on schedule; keep every process on process 0's codes."""
+    if cfg.adapt == "all" and cfg.reseed_every > 0 and (step + 1) % cfg.reseed_every == 0:
+        model.quantizer.reseed_dead_codes()
+        broadcast_from_main(model.quantizer)  # re-seeded from each process's own batch: keep process 0's
+    elif model.config.codebook_update == "ema" and num_processes > 1:
+        broadcast_from_main(model.quantizer)  # EMA codes move with each process's batch: keep process 0's
+
+
+def _show_progress(bar, out, x: torch.Tensor, m: torch.Tensor, model: UniDexTok, lr: float) -> None:
+    with torch.no_grad():
+        err = (out.states_rad - x).abs()[m].mean().item()
+    bar.set_postfix(
+        loss=f"{out.loss.item():.4f}",
+        mae_deg=f"{math.degrees(err):.2f}",
+        usage=f"{model.quantizer.last_usage:.2f}",
+        lr=f"{lr:.1e}",
     )
-    for step in bar:
-        lr = lr_at(step, n_steps, cfg.lr, cfg.warmup_steps, cfg.min_lr_ratio)
-        for g in optimizer.param_groups:
-            g["lr"] = lr
-        batch = sampler.sample(cfg.batch_size)
-        x = torch.from_numpy(batch.states_rad).to(device)  # (B, 22)
-        m = torch.from_numpy(batch.masks).to(device)  # (B, 22)
-        h = hand_id_of[torch.from_numpy(batch.hands)].to(device)  # (B,)
-        if cfg.unknown_hand_prob > 0:  # hand-embedding dropout trains the zero-shot "unknown hand" path
-            drop = torch.rand(h.shape, generator=dropout_rng).to(device) < cfg.unknown_hand_prob  # (B,)
-            h = torch.where(drop, torch.full_like(h, raw_model.unknown_hand_id), h)
-
-        out = model(x, h, mask=m)
-        optimizer.zero_grad(set_to_none=True)
-        accelerator.backward(out.loss)
-        if cfg.grad_clip_norm > 0:
-            accelerator.clip_grad_norm_(model.parameters(), cfg.grad_clip_norm)
-        optimizer.step()
-        if cfg.adapt == "all" and cfg.reseed_every > 0 and (step + 1) % cfg.reseed_every == 0:
-            raw_model.quantizer.reseed_dead_codes()
-            broadcast_from_main(raw_model.quantizer)  # re-seeded from each process's own batch: keep process 0's
-        elif raw_model.config.codebook_update == "ema" and accelerator.num_processes > 1:
-            broadcast_from_main(raw_model.quantizer)  # EMA codes move with each process's batch: keep process 0's
-
-        if step % 10 == 0:
-            with torch.no_grad():
-                err = (out.states_rad - x).abs()[m].mean().item()
-            bar.set_postfix(
-                loss=f"{out.loss.item():.4f}",
-                mae_deg=f"{math.degrees(err):.2f}",
-                usage=f"{raw_model.quantizer.last_usage:.2f}",
-                lr=f"{lr:.1e}",
-            )
-        if (step + 1) % cfg.eval_every == 0 or step + 1 == n_steps:
-            check_replicas(raw_model, step + 1)  # every process; raises if the copies drifted apart
-            _evaluate(step + 1)
-        if accelerator.is_main_process and ((step + 1) % cfg.save_last_every == 0 or step + 1 == n_steps):
-            save_checkpoint(
-                raw_model, last_dir, optimizer,
-                {"step": step + 1, "best_mae_deg": best_mae, "best_step": best_step, "history": history, **about,
-                 "sampler_rng": sampler.rng.bit_generator.state},
-                _resume_tensors(),
-            )  # fmt: skip
-    bar.close()
-    if start >= n_steps and not history:
-        _evaluate(n_steps)
-    if eval_data is None and accelerator.is_main_process:  # no held-out rows: the final model is kept
-        best_step = n_steps
-        save_checkpoint(raw_model, best_dir, state={"step": n_steps, "eval_mae_deg": None, **about})
-    accelerator.wait_for_everyone()
-    best_mae = best_mae if math.isfinite(best_mae) else float("nan")
-    return TrainResult(best_dir, best_mae, best_step, n_steps, time.perf_counter() - t0, history)

@@ -126,12 +126,10 @@ def test_entry_point_config_file_flags_and_push_to_hub(raw, tmp_path, capsys):
 def test_source_options_json_flag_survives_draccus():
     """draccus turns a mapping-looking flag into the repr of the dict it parsed; the documented
     `--source_options='{"hands": ...}'` must still reach the reader as that dict."""
-    import draccus
-
-    from lerobot_unidextok.scripts.convert import _source_options
+    from lerobot_unidextok.utils.draccus_cli import parse_config
 
     flag = '{"hands": {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}}'
-    cfg = draccus.parse(ConvertConfig, args=["--source=lerobot", "--input=x", f"--source_options={flag}"])
-    assert _source_options(cfg.source_options) == {
+    cfg = parse_config(ConvertConfig, args=["--source=lerobot", "--input=x", f"--source_options={flag}"])
+    assert cfg.conversion().source_options == {
         "hands": {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}
     }

@@ -104,7 +104,7 @@ def test_local_executor_two_tasks_equals_single_process(raw, single, tmp_path):
     from lerobot.datasets import LeRobotDataset
 
     root = tmp_path / "g1"
-    out = convert_with_executor(_options(raw, root), ExecutorOptions(executor="local", tasks=2, workers=2))
+    out = convert_with_executor(_options(raw, root), ExecutorOptions(type="local", tasks=2, workers=2))
     assert out == root.resolve()
     assert_same_dataset(single, root)
     assert LeRobotDataset("t/g1", root=root).num_frames == _table(single).num_rows
@@ -116,7 +116,7 @@ def test_local_executor_two_tasks_equals_single_process(raw, single, tmp_path):
     assert "episodes" in json.dumps(stats)  # our step's counters reach datatrove's stats
 
     with pytest.raises(FileExistsError, match="--overwrite=true"):
-        convert_with_executor(_options(raw, root), ExecutorOptions(executor="local", tasks=2, workers=1))
+        convert_with_executor(_options(raw, root), ExecutorOptions(type="local", tasks=2, workers=1))
 
 
 def test_rerun_resumes_completed_shards_and_refuses_other_settings(raw, single, tmp_path):
@@ -128,7 +128,7 @@ def test_rerun_resumes_completed_shards_and_refuses_other_settings(raw, single, 
     root = tmp_path / "g1"
     logs = tmp_path / "g1.datatrove"
     opts = _options(raw, root)
-    cfg = ExecutorOptions(executor="local", tasks=2, workers=1)
+    cfg = ExecutorOptions(type="local", tasks=2, workers=1)
     # the first run: this machine ran task 0 of 2 and stopped
     from lerobot_unidextok.conversion import sharded
 
@@ -157,10 +157,10 @@ def test_slurm_executor_from_documented_config(raw, tmp_path):
     cfg = draccus.parse(
         ConvertConfig,
         config_path=str(REPO / "configs" / "convert" / "slurm.yaml"),
-        args=[f"--input={raw}", f"--root={tmp_path / 'egodex_udhm'}", "--slurm.sbatch_args={account: lab}"],
+        args=[f"--input={raw}", f"--root={tmp_path / 'egodex_udhm'}", "--executor.slurm.sbatch_args={account: lab}"],
     )
-    assert cfg.executor == "slurm" and cfg.tasks == 64 and cfg.num_workers == cfg.slurm.cpus_per_task
-    ex = ExecutorOptions(executor=cfg.executor, tasks=cfg.tasks, workers=cfg.workers, slurm=cfg.slurm)
+    ex = cfg.executor
+    assert ex.type == "slurm" and ex.tasks == 64 and cfg.num_workers == ex.slurm.cpus_per_task
     opts = ConvertOptions(source=cfg.source, input=cfg.input, root=cfg.root, num_workers=cfg.num_workers)
     convert_exec, merge_exec = build_executors(opts, ex)
     assert merge_exec.depends is convert_exec and convert_exec.world_size == 64 and merge_exec.world_size == 1
@@ -177,8 +177,8 @@ def test_slurm_executor_from_documented_config(raw, tmp_path):
     assert step.options["num_workers"] == 8 and step.options["source"] == "egodex"
     assert step.shards_dir == str(tmp_path / "egodex_udhm.datatrove" / "shards")
 
-    with pytest.raises(ValueError, match="--slurm.partition"):
-        ExecutorOptions(executor="slurm", slurm=SlurmOptions(partition=""))
+    with pytest.raises(ValueError, match="--executor.slurm.partition"):
+        ExecutorOptions(type="slurm", slurm=SlurmOptions(partition=""))
 
 
 _STAND_INS = {
@@ -216,9 +216,9 @@ def test_slurm_path_runs_with_stand_in_scheduler(raw, single, tmp_path, monkeypa
         root=str(root),
         repo_id="t/g1",
         source_options=json.dumps(SAMPLE_SOURCE_OPTIONS[SOURCE]),
-        executor="slurm",
-        tasks=2,
-        slurm=SlurmOptions(partition="cpu", time="00:10:00", cpus_per_task=1),
+        executor=ExecutorOptions(
+            type="slurm", tasks=2, slurm=SlurmOptions(partition="cpu", time="00:10:00", cpus_per_task=1)
+        ),
     )
     assert run(cfg) == 0
     assert not root.exists()  # submitted, not run
@@ -245,31 +245,44 @@ def test_slurm_path_runs_with_stand_in_scheduler(raw, single, tmp_path, monkeypa
     assert_same_dataset(single, root)
 
 
-def test_cli_local_executor_and_clear_errors(raw, single, tmp_path, capsys):
-    """--executor=local from the CLI (workers=1: tasks one after the other in this process); flag mistakes
-    exit 1 with the fix, before any task starts."""
+def test_cli_local_executor_and_clear_errors(raw, single, tmp_path, capsys, monkeypatch):
+    """--executor.type=local from the CLI (workers=1: tasks one after the other in this process); flag
+    mistakes exit 1 with the fix, before any task starts."""
+    from lerobot_unidextok.scripts.convert import main
+
+    def cli(*flags: str) -> int:
+        monkeypatch.setattr(sys, "argv", ["unidextok-convert", *flags])
+        with pytest.raises(SystemExit) as exit_info:
+            main()
+        return exit_info.value.code
+
     base = dict(source=SOURCE, input=str(raw), repo_id="t/g1", source_options=json.dumps(SAMPLE_SOURCE_OPTIONS[SOURCE]))
+    flags = [f"--source={SOURCE}", f"--input={raw}", "--repo_id=t/g1"]
     root = tmp_path / "g1"
-    assert run(ConvertConfig(**base, root=str(root), executor="local", tasks=3, workers=1)) == 0
+    local = ExecutorOptions(type="local", tasks=3, workers=1)
+    assert run(ConvertConfig(**base, root=str(root), executor=local)) == 0
     out = capsys.readouterr().out
     assert f"wrote {root}: {NUM_EPISODES} episodes" in out and "--dataset.episodes=" in out
     assert_same_dataset(single, root)
 
-    assert run(ConvertConfig(**base, root=str(tmp_path / "a"), executor="local", shard_index=1, num_shards=2)) == 1
+    assert run(ConvertConfig(**base, root=str(tmp_path / "a"), executor=local, shard_index=1, num_shards=2)) == 1
     assert "drop --shard_index/--num_shards" in capsys.readouterr().err
-    assert run(ConvertConfig(**base, root=str(tmp_path / "b"), executor="slurm")) == 1
-    assert "--slurm.partition" in capsys.readouterr().err
-    assert run(ConvertConfig(**base, root=str(tmp_path / "c"), executor="ray")) == 1
-    assert "--executor must be pool, local or slurm" in capsys.readouterr().err
+    assert cli(*flags, f"--root={tmp_path / 'b'}", "--executor.type=slurm") == 1
+    assert "--executor.slurm.partition" in capsys.readouterr().err
+    assert cli(*flags, f"--root={tmp_path / 'c'}", "--executor.type=ray") == 1
+    assert "--executor.type must be pool, local or slurm" in capsys.readouterr().err
+    assert cli(*flags, f"--root={tmp_path / 'c'}", "--executor=local") == 1  # a group of flags, not a value
+    assert "--executor.<field>=..." in capsys.readouterr().err
     bad = dict(base, source_options='{"hands": {"left": "no_such_hand:kLeftHand"}}')
-    assert run(ConvertConfig(**bad, root=str(tmp_path / "d"), executor="local")) == 1
+    assert run(ConvertConfig(**bad, root=str(tmp_path / "d"), executor=ExecutorOptions(type="local"))) == 1
     assert "no_such_hand" in capsys.readouterr().err
     assert not (tmp_path / "d.datatrove").exists()  # set-up failed before the run folder was claimed
+    assert not any((tmp_path / name).exists() for name in ("b", "b.datatrove", "c", "c.datatrove"))
 
 
 def test_missing_datatrove_is_a_setup_error_with_the_install_command(raw, tmp_path, monkeypatch):
-    """Without the extra, --executor=local says which package to install instead of a traceback."""
+    """Without the extra, --executor.type=local says which package to install instead of a traceback."""
     monkeypatch.setitem(sys.modules, "lerobot_unidextok.conversion.datatrove", None)  # import fails
     with pytest.raises(SetupError, match=r"pip install 'lerobot_policy_unidextok\[datatrove\]'"):
-        convert_with_executor(_options(raw, tmp_path / "g1"), ExecutorOptions(executor="local"))
+        convert_with_executor(_options(raw, tmp_path / "g1"), ExecutorOptions(type="local"))
     assert not (tmp_path / "g1").exists() and not (tmp_path / "g1.datatrove").exists()

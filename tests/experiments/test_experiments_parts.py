@@ -17,12 +17,12 @@ from lerobot_unidextok.training import HandStates
 def test_parse_config_is_draccus_with_yaml_presets(tmp_path):
     """One config system: draccus flags and --config_path, like the CLIs (the hand-written parser is gone)."""
     tiny = Path(__file__).resolve().parents[2] / "configs" / "experiments" / "tiny.yaml"
-    cfg = parse_config([f"--config_path={tiny}", "--steps=7", "--datasets=[a,b]", "--with_qae=false"])
-    assert cfg.preset == "tiny" and cfg.steps == 7 and cfg.datasets == ["a", "b"] and cfg.with_qae is False
+    cfg = parse_config([f"--config_path={tiny}", "--train.steps=7", "--datasets=[a,b]", "--with_qae=false"])
+    assert cfg.train.preset == "tiny" and cfg.train.steps == 7 and cfg.datasets == ["a", "b"] and cfg.with_qae is False
     path = tmp_path / "c.yaml"
-    path.write_text("steps: 11\nseed: 3\n")
+    path.write_text("train:\n  steps: 11\nseed: 3\n")
     cfg = parse_config([f"--config_path={path}", "--seed=4"])
-    assert cfg.steps == 11 and cfg.seed == 4 and cfg.preset == "small"  # flags override the file
+    assert cfg.train.steps == 11 and cfg.seed == 4 and cfg.train.preset == "small"  # flags override the file
     path.write_text("stepz: 1\n")
     with pytest.raises(draccus.utils.ParsingError, match="stepz"):
         parse_config([f"--config_path={path}"])
@@ -32,6 +32,11 @@ def test_parse_config_is_draccus_with_yaml_presets(tmp_path):
         ExperimentConfig(fewshot_fraction=0.0)
     with pytest.raises(ValueError, match="data must be one of"):
         ExperimentConfig(data="somewhere")
+    # training settings are nested (--train.*) and keep the experiments' defaults around a changed one
+    cfg = parse_config(["--train.steps=20"])
+    assert (cfg.train.steps, cfg.train.lr, cfg.train.warmup_steps) == (20, 3e-3, 60)
+    with pytest.raises(ValueError, match="train.seed is set by each experiment from --seed"):
+        parse_config(["--train.seed=3"])
 
 
 def test_tiny_yaml_is_the_tiny_preset():

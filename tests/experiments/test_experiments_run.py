@@ -127,7 +127,8 @@ def test_tokenizer_cache_is_reused(tiny_cfg, main_result):
     assert other["cached"] is False and other["dir"] != info["dir"]
     from dataclasses import replace
 
-    _, changed = trained_unidextok(replace(tiny_cfg, lr=tiny_cfg.lr / 2), "all_hands", fit, select)  # other settings
+    half_lr = replace(tiny_cfg, train=replace(tiny_cfg.train, lr=tiny_cfg.train.lr / 2))
+    _, changed = trained_unidextok(half_lr, "all_hands", fit, select)  # other settings
     assert changed["cached"] is False and changed["dir"] != info["dir"]
 
 

@@ -75,7 +75,7 @@ def test_degrees_a_little_past_the_limits_still_get_the_fix():
     shrunk to a hair (`0.05 * span` -> `0.05 / span`), which leaves the user with no suggested fix."""
     spec = hands.get("xhand1")
     lim = spec.limits_rad("right")
-    a = spec._active_joint_idx
+    a = spec.active_joint_indices
     rad = np.random.default_rng(2).uniform(lim[:, 0], lim[:, 1], size=(200, spec.num_native))
     span = lim[a, 1] - lim[a, 0]
     rad[:10, a] = lim[a, 1] + 0.03 * span  # 10 of 200 frames overshoot every joint's upper limit
@@ -90,7 +90,7 @@ def test_one_value_a_little_past_the_range_is_named():
     width (`1e-6` -> `1.000001`), which let values far outside through."""
     spec = hands.get("xhand1")
     lim = spec.limits_rad("right")
-    a = spec._active_joint_idx
+    a = spec.active_joint_indices
     rad = np.random.default_rng(3).uniform(lim[:, 0], lim[:, 1], size=(50, spec.num_native))
     rad[:2, a] = lim[a, 1]  # exactly at the limit: fine
     hands.check_units(spec, rad, "right")

@@ -240,8 +240,8 @@ def test_vocabulary_hand_never_trained_is_refused(tmp_path, caplog):
     with pytest.raises(ValueError, match=r"not trained on hands \['shadow'\] \(it knows \['inspire_rh56_unitree'\]\)"):
         UniDexTokStateTokenizerStep(hand_layout=["shadow"] * 2, pretrained=str(tmp_path / "tok"))
     step = UniDexTokStateTokenizerStep(hand_layout=["shadow"], pretrained=str(tmp_path / "tok"), allow_unknown=True)
-    assert step._hand_ids.tolist() == [step.tokenizer.unknown_hand_id]  # not the untrained 'shadow' row
-    assert UniDexTokStateTokenizerStep(hand_layout=[INSPIRE], pretrained=str(tmp_path / "tok"))._hand_ids.tolist() == [
+    assert step.hand_ids.tolist() == [step.tokenizer.unknown_hand_id]  # not the untrained 'shadow' row
+    assert UniDexTokStateTokenizerStep(hand_layout=[INSPIRE], pretrained=str(tmp_path / "tok")).hand_ids.tolist() == [
         cfg.hand_names.index(INSPIRE)
     ]
 
@@ -341,11 +341,11 @@ def test_token_preview_shows_codes_and_decoded_state(step, states):
     shown = [float(v) for v in lines[row].split()[:-2]]
     decoded = [float(v) for v in lines[row + 1].split()[:-2]]
     rows = step.hand_blocks(states[:1])[0, 0]  # (22,) rad, frame 0, hand 0
-    active = step._active[0]
+    active = step.active_masks[0]
     want = np.degrees(rows[active].numpy())[: len(shown)]
     np.testing.assert_allclose(shown, want, atol=0.051)
     codes = step.tokenize(states[:1])[0].reshape(-1, cfg.num_tokens, cfg.num_groups)  # (H, N, K)
-    back = step.tokenizer.decode(codes, step._hand_ids)[0]  # (22,) hand 0, rad
+    back = step.tokenizer.decode(codes, step.hand_ids)[0]  # (22,) hand 0, rad
     np.testing.assert_allclose(decoded, np.degrees(back[active].numpy())[: len(decoded)], atol=0.051)
     err = float(lines[0].split("= ")[1].split(" deg")[0])
     assert err == pytest.approx(float((back - rows).abs()[active].mean()) * 180 / math.pi, abs=0.0051)

@@ -352,3 +352,14 @@ def test_l2norm_gives_unit_vectors_whatever_their_length():
     torch.testing.assert_close(l2norm(x).norm(dim=-1), torch.ones(64))
     torch.testing.assert_close(l2norm(x), x / x.norm(dim=-1, keepdim=True))
     assert torch.isfinite(l2norm(torch.zeros(2, 8))).all()
+
+
+def test_nearest_indices_are_the_forward_indices_without_side_effects(vq):
+    """`UniDexTok.encode` uses `nearest_indices`: the same codes as the forward pass, no statistics moved."""
+    vq.train()
+    z = torch.randn(16, 4, 64)
+    usage = vq.usage_ema.clone()
+    nearest = vq.nearest_indices(z)
+    assert torch.equal(vq.usage_ema, usage)
+    _, indices, _ = vq(z)
+    assert torch.equal(nearest, indices)

@@ -280,7 +280,7 @@ def test_hand_embedding_adaptation_changes_only_that_row(mixture, tmp_path):
     after = UniDexTok.from_pretrained(result.best_dir).state_dict()
     changed = sorted(k for k in after if k not in before or not torch.equal(before[k], after[k]))
     assert changed == ["hand_embed.weight"], changed
-    row = UniDexTok.from_pretrained(result.best_dir)._hand_index["inspire_rh56"]
+    row = UniDexTok.from_pretrained(result.best_dir).hand_id("inspire_rh56")
     assert not torch.equal(after["hand_embed.weight"][row], before["hand_embed.weight"][-1])  # the new row moved
     torch.testing.assert_close(after["hand_embed.weight"][:row], before["hand_embed.weight"][:row], rtol=0, atol=0)
     with pytest.raises(ValueError, match="adapt must be"):

@@ -1,0 +1,133 @@
+"""draccus parsing for the command-line tools: one help line per flag, config checks as their own errors.
+
+Five draccus (0.11) habits this corrects:
+
+- every nested config (`--coverage.*`, `--executor.*`, `--train.*`) gets a whole-group flag registered
+  twice, once by the parent as `--<field name>` and once by the nested wrapper as `--<dotted path>`.
+  At the top level the second shadows the first, but argparse keeps the shadowed copy in the help
+  (`--coverage str` listed twice); one level down the parent's copy is a flag of its own that leads
+  nowhere (`--slurm` beside `--executor.slurm`). Both are removed; `--<dotted path>` stays.
+- that flag's help says "Config file for ...", but draccus reads its value as the group in YAML
+  (`--executor='{type: local, tasks: 8}'`, or `--executor='include file.yaml'`); the help says so, and a
+  plain value (`--executor=local`) is refused with the group's flags named.
+- a field comment with a percent sign ("6.2 % of the frames") broke `--help` (argparse formats help
+  with %); it is escaped.
+- a flag value YAML cannot read (`--source_options={bad`) ended in a yaml traceback; it is a ValueError
+  naming the flag.
+- a ValueError raised by a config's `__post_init__` (a bad flag value) reaches the caller wrapped in
+  `ParsingError("Couldn't instantiate class ...")`; it is raised as itself, with its own message.
+
+    @wrap()
+    def train_cli(cfg: TrainConfig) -> None: ...
+
+    cfg = parse_config(ExperimentConfig, args=["--train.steps=20"])
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import functools
+import inspect
+import re
+import sys
+import typing
+from collections.abc import Callable, Sequence
+
+import yaml
+from draccus.argparsing import ArgumentParser
+from draccus.utils import ParsingError
+
+
+def config_parser[T](config_class: type[T], config_path: str | None = None) -> ArgumentParser:
+    """draccus' parser for `config_class`, with one config-file flag per nested config (its dotted path)."""
+    parser = ArgumentParser(config_class=config_class, config_path=config_path)
+    _drop_stray_config_flags(parser.parser, set(_nested_paths(config_class)))
+    for action in parser.parser._actions:
+        if action.help:
+            action.help = re.sub(r"%(?!\()", "%%", action.help)  # a literal %, not argparse's %(default)s
+    return parser
+
+
+def _nested_paths(config_class: type, prefix: str = "") -> list[str]:
+    """Dotted paths of the nested dataclass fields of `config_class` (`executor`, `executor.slurm`)."""
+    hints = typing.get_type_hints(config_class)
+    paths = []
+    for f in dataclasses.fields(config_class):
+        kind = hints.get(f.name, f.type)
+        if f.init and dataclasses.is_dataclass(kind):
+            paths += [prefix + f.name, *_nested_paths(kind, f"{prefix}{f.name}.")]
+    return paths
+
+
+def _drop_stray_config_flags(parser: argparse.ArgumentParser, nested: set[str]) -> None:
+    """Keep, of the whole-group flags draccus adds for nested configs, the live one named by the dotted path."""
+    for action in list(parser._actions):
+        if not (action.help or "").startswith("Config file for "):
+            continue
+        if action.dest not in nested:
+            parser._remove_action(action)  # the parent's `--<field name>` copy of a deeper config
+            for option in action.option_strings:
+                parser._option_string_actions.pop(option, None)
+        else:
+            action.help = f"all of --{action.dest}.* as one YAML mapping ('{{field: value, ...}}' or 'include <file>')"
+    live = {id(action) for action in parser._actions}
+    for group in parser._action_groups:  # copies shadowed by a later flag of the same name
+        group._group_actions[:] = [a for a in group._group_actions if id(a) in live]
+
+
+def parse_config[T](config_class: type[T], args: Sequence[str] | None = None, config_path: str | None = None) -> T:
+    """`draccus.parse` (`--config_path=...` and `--field=value` flags; `sys.argv[1:]` when `args` is None)."""
+    args = sys.argv[1:] if args is None else list(args)
+    nested = set(_nested_paths(config_class))
+    for arg in args:
+        name, _, value = arg.partition("=")
+        try:  # draccus reads every value as YAML; a value YAML cannot read would end in a parser traceback
+            yaml.safe_load(value)
+        except yaml.YAMLError as exc:
+            problem = " ".join(str(getattr(exc, "problem", None) or exc).split())
+            raise ValueError(
+                f"{name}: {value!r} is not valid YAML/JSON ({problem}); check its brackets and quotes"
+            ) from None
+        if name.removeprefix("--") in nested and value and not _is_group_value(value):
+            raise ValueError(
+                f"{arg}: {name} is a group of flags ({name}.<field>=..., --help lists them), or all of them as "
+                f"one YAML mapping: {name}='{{field: value, ...}}'"
+            )
+    try:
+        return config_parser(config_class, config_path).parse_args(args)
+    except ParsingError as exc:
+        if isinstance(exc.__cause__, ValueError):  # a __post_init__ check: its message names the flag
+            raise exc.__cause__ from None
+        raise
+
+
+def _is_group_value(value: str) -> bool:
+    """What draccus reads for a whole group: a YAML mapping or `include <file>`."""
+    if value.startswith("include "):
+        return True
+    try:
+        return isinstance(yaml.safe_load(value), dict)
+    except yaml.YAMLError:
+        return False
+
+
+def wrap(config_path: str | None = None) -> Callable:
+    """Like `draccus.wrap()`: the decorated function's first parameter is parsed from the command line
+    unless a config of that type is passed."""
+
+    def decorate(fn: Callable) -> Callable:
+        config_class = inspect.getfullargspec(fn).annotations[inspect.getfullargspec(fn).args[0]]
+
+        @functools.wraps(fn)
+        def wrapper(*args, **kwargs):
+            if args and type(args[0]) is config_class:
+                return fn(*args, **kwargs)
+            return fn(parse_config(config_class, config_path=config_path), *args, **kwargs)
+
+        return wrapper
+
+    return decorate
+
+
+__all__ = ["config_parser", "parse_config", "wrap"]
