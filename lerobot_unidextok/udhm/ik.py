@@ -10,7 +10,7 @@ Steps, all vectorised over frames (no per-frame Python loop), in bounded-memory 
 Joint limits are soft: a residual `limit_weight_m_per_rad * distance outside the limit` joins the
 keypoint residuals (zero inside the limits, so in-limit poses are recovered exactly). At the
 default 1 m/rad a 1 deg excess costs as much as 17 mm of keypoint error, so the limits act almost
-hard (largest excess on the real 621-frame clip: 0.04 deg). Angles that still end up more than
+hard (largest excess on the real 621-frame clip: 0.07 deg). Angles that still end up more than
 1e-3 rad outside are reported in `IKResult.limit_violations`.
 Left hands: solved as their mirror-image right hand; `IKResult.side` makes FK mirror back, so
 `result.keypoints_m()` reproduces the input in its own frame.
