@@ -9,6 +9,12 @@ frame, optional `confidences/`, and the task text chosen as Apple's loader choos
 Both hands per file. Keypoints are the translations of the 21 hand joints in the ARKit world frame
 (joint angles do not depend on the frame). `confidences/<joint>` are optional: when present, frames
 whose lowest hand-joint confidence is <= `min_confidence` are `valid=False`. Needs `h5py` (egodex extra).
+
+The joints are visionOS ARKit's `HandSkeleton` joints under EgoDex's names (apple/ml-egodex `skeleton_tfs.py`:
+`<side>Hand` is the wrist, `<side><Finger>Metacarpal` / `Knuckle` / `IntermediateBase` / `IntermediateTip` /
+`Tip`, the thumb without a metacarpal). The `*Metacarpal` joints (the bases of the metacarpals) are not read:
+UDHM's zero of abduction is the knuckle row (`udhm/frames.py`), which every tracker has, so an EgoDex hand and
+the same hand from MediaPipe or MANO give one UDHM reading wherever ARKit puts its wrist point.
 """
 
 from __future__ import annotations

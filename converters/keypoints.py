@@ -14,6 +14,10 @@ One episode per file under `--input`:
   normalised image landmarks are refused (no metric scale). MediaPipe's handedness labels assume a
   mirrored selfie image in older versions (the label swap of August 2023): `swap_handedness=true` flips them.
 
+Trackers disagree on where the wrist landmark sits (MediaPipe's is annotated on images, MANO's is its root
+joint, OpenXR / WebXR put it on the forearm's twist axis); UDHM's abductions do not depend on it
+(`udhm/frames.py`, docs/conversion.md "Human keypoints"), so any of them can be given as keypoint 0.
+
 Checks, per file: units (the wrist -> middle-knuckle length of an adult hand is 6-14 cm; millimetre or
 centimetre files need `units="mm"` / `"cm"`), handedness (the UDHM inverse kinematics of a sample of
 frames must fit the stated side better than the mirrored one, else the file says which side it looks

@@ -221,13 +221,14 @@ def _write_readme(folder: Path, source: str, spec: SampleSpec) -> None:
 
 
 def _person_skeleton(rng: np.random.Generator):
-    """One person's hand: the default skeleton scaled 0.85-1.15, each palm offset and bone varied ~4 %."""
+    """One person's hand: the default skeleton scaled 0.85-1.15, each palm offset and bone varied ~4 %,
+    expressed in its own palm frame (as IK measures it), so IK recovers the generating angles."""
     from lerobot_unidextok import udhm
 
     base = udhm.Skeleton.default().scaled(rng.uniform(0.85, 1.15))
     offsets = np.asarray(base.palm_offsets_m) * rng.normal(1.0, 0.04, (5, 1)).clip(0.9, 1.1)
     bones = np.asarray(base.bone_lengths_m) * rng.normal(1.0, 0.04, (5, 3)).clip(0.9, 1.1)
-    return udhm.Skeleton(offsets, bones)
+    return udhm.Skeleton(offsets, bones).canonicalized()
 
 
 def _human_keypoints_m(angles_rad: np.ndarray, skeleton, wrist_pose: np.ndarray, side: str) -> np.ndarray:

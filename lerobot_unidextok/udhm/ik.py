@@ -10,7 +10,7 @@ Steps, all vectorised over frames (no per-frame Python loop), in bounded-memory 
 Joint limits are soft: a residual `limit_weight_m_per_rad * distance outside the limit` joins the
 keypoint residuals (zero inside the limits, so in-limit poses are recovered exactly). At the
 default 1 m/rad a 1 deg excess costs as much as 17 mm of keypoint error, so the limits act almost
-hard (largest excess on the real 621-frame clip: 0.04 deg). Angles that still end up more than
+hard (largest excess on the real 621-frame clip: 0.07 deg). Angles that still end up more than
 1e-3 rad outside are reported in `IKResult.limit_violations`.
 Left hands: solved as their mirror-image right hand; `IKResult.side` makes FK mirror back, so
 `result.keypoints_m()` reproduces the input in its own frame.
@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -88,92 +89,121 @@ def inverse_kinematics(
         (4096 keeps the working set in cache: ~4x faster per frame than 65536 chunks on 2 cores).
     """
     check_side(side)
-    kp = np.asarray(keypoints_m)  # float32 stays float32 until its chunk is solved (memory)
+    kp = _checked_keypoints(keypoints_m)
+    if iterations < 0 or chunk_size < 1:
+        raise ValueError(f"iterations must be >= 0 and chunk_size >= 1, got {iterations} and {chunk_size}")
+    lead = kp.shape[:-2]
+    present = _present_frames(kp, mask)
+    fixed = _broadcast_skeleton(skeleton, lead) if skeleton is not None else None
+    fit = _solve_present(kp, present, side, fixed, iterations, limit_weight_m_per_rad, chunk_size, progress)
+    angles = fit.angles_rad.reshape(*lead, 22)
+    return IKResult(
+        angles_rad=angles,
+        skeleton=skeleton if fixed is not None else _measured_skeleton(fit, present),
+        wrist_rotation=fit.rotation.reshape(*lead, 3, 3),
+        wrist_position_m=np.where(present[..., None], kp[..., 0, :].astype(np.float64), np.nan),
+        residual_m=fit.residual_m.reshape(lead),
+        limit_violations=_logged_violations(angles),
+        side=side,
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# the steps of `inverse_kinematics`: checked input, the chunks, the measured skeleton
+# ---------------------------------------------------------------------------------------------
+class _Fit(NamedTuple):
+    """Per-frame IK output over flat frames (N = frames): NaN rows where nothing was solved."""
+
+    angles_rad: np.ndarray  # (N, 22)
+    rotation: np.ndarray  # (N, 3, 3) canonical -> input frame
+    palm_offsets_m: np.ndarray  # (N, 5, 3)
+    bone_lengths_m: np.ndarray  # (N, 5, 3)
+    residual_m: np.ndarray  # (N,)
+
+
+def _checked_keypoints(keypoints_m: np.ndarray) -> np.ndarray:
+    """Keypoints as a float array of shape (..., 21, 3); float32 stays float32 until its chunk is solved (memory)."""
+    kp = np.asarray(keypoints_m)
     if not np.issubdtype(kp.dtype, np.floating):
         kp = kp.astype(np.float64)
     if kp.ndim < 2 or kp.shape[-2:] != (21, 3):
         raise ValueError(f"keypoints_m must have shape (..., 21, 3) in MANO-21 order, got {kp.shape}")
-    if iterations < 0 or chunk_size < 1:
-        raise ValueError(f"iterations must be >= 0 and chunk_size >= 1, got {iterations} and {chunk_size}")
+    return kp
+
+
+def _present_frames(kp: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
+    """Bool (...) of the frames to solve: the mask (checked against the keypoints), else all (all finite)."""
     lead = kp.shape[:-2]
-    n = int(np.prod(lead))
     finite = np.isfinite(kp).all(axis=(-1, -2))  # (...)
     if mask is None:
-        present = np.ones(lead, dtype=bool)
         if not finite.all():
             raise ValueError(
                 f"keypoints_m has NaN/inf in frames {_frame_list(~finite)}; "
                 "pass mask=<bool (...), False for missing frames> to get NaN rows for them"
             )
-    else:
-        present = np.asarray(mask)
-        if present.dtype != bool or present.shape != lead:
-            raise ValueError(
-                f"mask must be a bool array of shape {lead} (True = frame present), got {present.dtype} {present.shape}"
-            )
-        if (present & ~finite).any():
-            raise ValueError(
-                f"keypoints_m has NaN/inf in frames {_frame_list(present & ~finite)} that mask marks present"
-            )
+        return np.ones(lead, dtype=bool)
+    present = np.asarray(mask)
+    if present.dtype != bool or present.shape != lead:
+        raise ValueError(
+            f"mask must be a bool array of shape {lead} (True = frame present), got {present.dtype} {present.shape}"
+        )
+    if (present & ~finite).any():
+        raise ValueError(f"keypoints_m has NaN/inf in frames {_frame_list(present & ~finite)} that mask marks present")
+    return present
 
-    flat = kp.reshape(n, 21, 3)
-    present_flat = present.reshape(n)
-    fixed = _broadcast_skeleton(skeleton, lead) if skeleton is not None else None
 
-    angles = np.full((n, 22), np.nan)
-    rots = np.full((n, 3, 3), np.nan)
-    offsets = np.full((n, 5, 3), np.nan)
-    bones = np.full((n, 5, 3), np.nan)
-    resid = np.full(n, np.nan)
-    idx_present = np.flatnonzero(present_flat)
+def _solve_present(kp, present, side, fixed, iterations, limit_weight, chunk_size, progress) -> _Fit:
+    """Solve the present frames of kp (..., 21, 3) chunk by chunk, as flat frames (N, ...); missing ones stay NaN."""
+    lead = kp.shape[:-2]
+    flat = kp.reshape(-1, 21, 3)
+    n = len(flat)
+    fit = _Fit(np.full((n, 22), np.nan), np.full((n, 3, 3), np.nan), np.full((n, 5, 3), np.nan),
+               np.full((n, 5, 3), np.nan), np.full(n, np.nan))  # fmt: skip
+    idx_present = np.flatnonzero(present.reshape(n))
     starts = range(0, len(idx_present), chunk_size)
-    show = progress if progress is not None else len(starts) > 4
-    if show:  # optional progress bar; tqdm is imported only when one is shown
+    if progress if progress is not None else len(starts) > 4:  # the bar's module is imported only when shown
         from lerobot_unidextok.utils.cli import progress_bar
 
         starts = progress_bar(starts, desc="UDHM IK", unit="chunk")
     for s in starts:
         idx = idx_present[s : s + chunk_size]
         sk = None if fixed is None else (fixed[0][idx], fixed[1][idx])
-        a, r, o, b, e = _solve_chunk(
-            flat[idx].astype(np.float64), side, sk, iterations, limit_weight_m_per_rad, idx, lead
-        )
-        angles[idx], rots[idx], offsets[idx], bones[idx], resid[idx] = a, r, o, b, e
+        chunk = _solve_chunk(flat[idx].astype(np.float64), side, sk, iterations, limit_weight, idx, lead)
+        for whole, part in zip(fit, chunk, strict=True):
+            whole[idx] = part
+    return fit
 
-    if fixed is None:
-        # Missing frames get the median skeleton of the present ones, so the Skeleton stays valid.
-        fill_o, fill_b = (
-            (np.median(offsets[idx_present], 0), np.median(bones[idx_present], 0))
-            if len(idx_present)
-            else (Skeleton.default().palm_offsets_m, Skeleton.default().bone_lengths_m)
-        )
-        offsets[~present_flat], bones[~present_flat] = fill_o, fill_b
-        out_skeleton = Skeleton(offsets.reshape(*lead, 5, 3), bones.reshape(*lead, 5, 3))
+
+def _measured_skeleton(fit: _Fit, present: np.ndarray) -> Skeleton:
+    """The per-frame skeletons, shaped (..., 5, 3) like `present` (...); missing frames get the median of the
+    present ones (the default skeleton when none is present), so the Skeleton stays valid."""
+    offsets, bones = fit.palm_offsets_m, fit.bone_lengths_m
+    flat_present = present.reshape(-1)
+    if flat_present.any():
+        fill = np.median(offsets[flat_present], 0), np.median(bones[flat_present], 0)
     else:
-        out_skeleton = skeleton
-    angles = angles.reshape(*lead, 22)
-    violations = limit_violations(np.nan_to_num(angles, nan=0.0))
+        fill = Skeleton.default().palm_offsets_m, Skeleton.default().bone_lengths_m
+    offsets[~flat_present], bones[~flat_present] = fill
+    return Skeleton(offsets.reshape(*present.shape, 5, 3), bones.reshape(*present.shape, 5, 3))
+
+
+def _logged_violations(angles_rad: np.ndarray) -> np.ndarray:
+    """`limit_violations` of the solution (NaN rows count as none), logged when there are any."""
+    violations = limit_violations(np.nan_to_num(angles_rad, nan=0.0))
     if violations.any():
         logger.info(
             "UDHM IK: %d joint-limit violations in %d frames", int(violations.sum()), int(violations.any(-1).sum())
         )
-    wrist = np.where(present[..., None], kp[..., 0, :].astype(np.float64), np.nan)
-    return IKResult(
-        angles_rad=angles,
-        skeleton=out_skeleton,
-        wrist_rotation=rots.reshape(*lead, 3, 3),
-        wrist_position_m=wrist,
-        residual_m=resid.reshape(lead),
-        limit_violations=violations,
-        side=side,
-    )
+    return violations
 
 
 # ---------------------------------------------------------------------------------------------
 # one chunk
 # ---------------------------------------------------------------------------------------------
-def _solve_chunk(kp, side, fixed, iterations, limit_weight, idx, lead):
-    """kp (N, 21, 3) finite -> angles (N, 22), rotations, offsets, bones, residual (N,)."""
+def _solve_chunk(kp, side, fixed, iterations, limit_weight, idx, lead) -> _Fit:
+    """kp (N, 21, 3) finite -> angles (N, 22), rotations, offsets, bones, residual (N,).
+
+    idx: the chunk's flat frame indices and lead the input's leading shape, for the error messages."""
     if fixed is None:
         rot = palm_frame(kp, side)  # (N, 3, 3)
         bad = ~np.isfinite(rot).all(axis=(-1, -2))
@@ -200,7 +230,7 @@ def _solve_chunk(kp, side, fixed, iterations, limit_weight, idx, lead):
     chain = finger_chain(slots, offsets, bones)
     fit = chain_to_keypoints(chain.points)  # (N, 21, 3)
     resid = np.linalg.norm(fit - local, axis=-1).mean(-1)
-    return slots_to_angles(slots), rot, offsets, bones, resid
+    return _Fit(slots_to_angles(slots), rot, offsets, bones, resid)
 
 
 def _kabsch_palm(kp: np.ndarray, offsets: np.ndarray, side: str) -> np.ndarray:

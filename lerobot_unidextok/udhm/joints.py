@@ -14,18 +14,21 @@ _DEG = math.pi / 180.0
 
 # ---------------------------------------------------------------------------------------------
 # Joint limits (rad), human active range of motion about the UDHM zero pose (flat hand, every
-# finger parallel to wrist -> middle MCP, thumb lying in the palm plane alongside the index).
+# finger perpendicular to the index-ring knuckle row, thumb lying in the palm plane alongside the index).
 # Sources: AAOS "Joint Motion: Method of Measuring and Recording" (1965) and Hume et al. 1990
 # (J Hand Surg 15A: functional ROM) for flexion/extension; abduction ranges add the ~±15 deg
 # resting splay of each finger relative to the middle finger, because UDHM measures abduction
-# from "parallel to the middle finger", not from the finger's own metacarpal.
+# from "parallel to the middle finger", not from the finger's own metacarpal. The ranges of the
+# angles about the palm normal (thumb CMC spread, the four MCP abductions) were written about the
+# wrist -> middle MCP line; the knuckle-row zero (frames.py) is turned 5.4 deg from it toward the
+# little finger on the default hand, so they sit 5 deg further toward the thumb.
 # Signs: flexion > 0 toward the palm, abduction > 0 toward the thumb (right-hand frame).
 # ---------------------------------------------------------------------------------------------
 _LIMITS_DEG: dict[str, tuple[float, float]] = {
     # Thumb CMC: palmar abduction 0..~80 deg (AAOS 0-70/80), a little retroposition below 0.
     "thumb_cmc_flex": (-20.0, 90.0),
     # Thumb CMC radial abduction measured from parallel to the fingers: 0..~80 deg (AAOS 0-80).
-    "thumb_cmc_spread": (-15.0, 90.0),
+    "thumb_cmc_spread": (-10.0, 95.0),
     # Thumb MCP flexion 0-50 (AAOS) up to 90 in lax joints, hyperextension to ~30.
     "thumb_mcp_flex": (-30.0, 90.0),
     # Thumb MCP ab/adduction (also absorbs metacarpal pronation the 5-DoF thumb lacks): ~±30.
@@ -33,22 +36,22 @@ _LIMITS_DEG: dict[str, tuple[float, float]] = {
     # Thumb IP flexion 0-80/90 (AAOS 0-80), hyperextension to ~35.
     "thumb_ip_flex": (-35.0, 90.0),
     # Index/middle/ring MCP abduction ±20 (AAOS) plus resting splay.
-    "index_mcp_abd": (-30.0, 45.0),
+    "index_mcp_abd": (-25.0, 50.0),
     "index_mcp_flex": (-45.0, 100.0),  # AAOS 0-90 flexion, 0-45 hyperextension
     "index_pip_flex": (-10.0, 120.0),  # AAOS 0-100, functional studies to ~110-120
     "index_dip_flex": (-30.0, 100.0),  # AAOS 0-90, hyperextension to ~30
-    "middle_mcp_abd": (-35.0, 35.0),
+    "middle_mcp_abd": (-30.0, 40.0),
     "middle_mcp_flex": (-45.0, 100.0),
     "middle_pip_flex": (-10.0, 120.0),
     "middle_dip_flex": (-30.0, 100.0),
-    "ring_mcp_abd": (-45.0, 30.0),
+    "ring_mcp_abd": (-40.0, 35.0),
     "ring_mcp_flex": (-45.0, 100.0),
     "ring_pip_flex": (-10.0, 120.0),
     "ring_dip_flex": (-30.0, 100.0),
     # 4th/5th CMC mobility: the little-finger metacarpal flexes/rotates ~20-30 deg when cupping
     # (El-Shennawy et al. 2001); > 0 = cupping (the little finger curls toward the thumb).
     "pinky_metacarpal_twist": (-30.0, 45.0),
-    "pinky_mcp_abd": (-55.0, 30.0),
+    "pinky_mcp_abd": (-50.0, 35.0),
     "pinky_mcp_flex": (-45.0, 100.0),
     "pinky_pip_flex": (-10.0, 120.0),
     "pinky_dip_flex": (-30.0, 100.0),

@@ -13,15 +13,16 @@ from lerobot_unidextok.udhm.frames import BASE_INDICES, palm_frame, to_canonical
 # Canonical adult default (metres, right-hand canonical frame, see frames.py).
 # Lengths: medians of keypoint-to-keypoint distances on real MediaPipe-tracked hands
 # (../shared/notes/hand-specs.md, "Canonical adult lengths", MediaPipe column, mid-range of the
-# two clips). Directions of the palm offsets: per-frame canonical offsets, median over the 621
-# frames of dexsuite/dex-retargeting `human_joint_right.pkl`, rescaled to those lengths.
+# two clips). Directions of the palm offsets: median over the 621 frames of dexsuite/dex-retargeting
+# `human_joint_right.pkl` in the clip's own frame (+z = wrist -> middle MCP), rescaled to those lengths;
+# `default()` re-expresses them in the knuckle-row palm frame of `frames.py` (a 5.4 deg turn about x).
 # ---------------------------------------------------------------------------------------------
 _DEFAULT_PALM_OFFSETS_M = (
     np.array(
         [
             [14.0, 27.7, 26.7],  # thumb CMC   |41.0 mm|
             [1.7, 26.2, 97.0],  # index MCP   |100.5 mm|
-            [-3.3, 0.0, 98.9],  # middle MCP  |99.0 mm| (y = 0 by definition of the frame)
+            [-3.3, 0.0, 98.9],  # middle MCP  |99.0 mm| (y = 0 in the clip's frame)
             [2.0, -22.2, 92.4],  # ring MCP    |95.0 mm|
             [7.7, -38.3, 75.5],  # pinky MCP   |85.0 mm|
         ]

@@ -24,9 +24,10 @@ INSPIRE = {
     "thumb_cmc_flex": (min(-0.1 + 0.33, -0.1 + 0.24), max(1.3 + 0.33, 1.3 + 0.24)),
     "thumb_cmc_spread": (min(1.048 - 0.5, 1.08 - 0.5), max(1.048, 1.08)),
 }  # fmt: skip
-# a few human UDHM limits (udhm/joints.py cites AAOS / Hume et al.): index MCP flex -45..100 deg, PIP -10..120
+# a few human UDHM limits (udhm/joints.py cites AAOS / Hume et al.): index MCP flex -45..100 deg, PIP -10..120,
+# thumb CMC spread -10..95 (AAOS 0-80 radial abduction, 5 deg toward the thumb with the knuckle-row zero)
 HUMAN = {"index_mcp_flex": (-45 * DEG, 100 * DEG), "index_pip_flex": (-10 * DEG, 120 * DEG),
-         "thumb_cmc_spread": (-15 * DEG, 90 * DEG)}  # fmt: skip
+         "thumb_cmc_spread": (-10 * DEG, 95 * DEG)}  # fmt: skip
 
 
 def _inspire_rows(n: int, seed: int) -> HandStates:

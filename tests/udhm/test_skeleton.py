@@ -12,8 +12,9 @@ def test_default_is_canonical_adult():
     sk = udhm.Skeleton.default()
     assert sk.palm_offsets_m.shape == (5, 3) and sk.bone_lengths_m.shape == (5, 3)
     assert 0.09 < np.linalg.norm(sk.palm_offsets_m[2]) < 0.11  # wrist -> middle MCP ~ 99 mm
-    assert abs(sk.palm_offsets_m[2, 1]) < 1e-12  # middle MCP defines +z, so y = 0
-    assert sk.palm_offsets_m[0, 1] > sk.palm_offsets_m[1, 1] > 0 > sk.palm_offsets_m[3, 1] > sk.palm_offsets_m[4, 1]
+    assert abs(sk.palm_offsets_m[1, 2] - sk.palm_offsets_m[3, 2]) < 1e-12  # z is perpendicular to the knuckle row
+    y = sk.palm_offsets_m[:, 1]
+    assert y[0] > 0 and y[1] > y[2] > y[3] > y[4]  # thumb on the radial side, knuckles in order across the palm
     # re-measuring the default hand gives the default back (it is expressed in its own palm frame)
     again = udhm.Skeleton.from_keypoints(udhm.forward_kinematics(np.zeros(22), sk))
     np.testing.assert_allclose(again.palm_offsets_m, sk.palm_offsets_m, atol=1e-12)
