@@ -139,6 +139,14 @@ def list_all_episodes(input_path: str | Path) -> list[LeRobotEpisodeRef]:
     return [ref for root in find_dataset_roots(input_path) for ref in list_episodes(root)]
 
 
+def robot_type_of(refs: list) -> str | None:
+    """The `robot_type` of the LeRobot datasets the episode refs come from (distinct values, sorted,
+    joined with ","); None when none records one."""
+    roots = sorted({r.root for r in refs if isinstance(r, LeRobotEpisodeRef)})
+    types = sorted({str(t) for t in (load_info(root).get("robot_type") for root in roots) if t})
+    return ",".join(types) or None
+
+
 def _episodes_table_v30(root: Path) -> dict[str, list]:
     """All rows of `meta/episodes/*.parquet`, cached per folder and file state (workers read many episodes)."""
     files = sorted(root.glob(EPISODES_META_GLOB))

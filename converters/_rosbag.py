@@ -8,7 +8,7 @@ straight from its bytes (`decode_joint_state`).
 
 Recorded stamps jitter (a 30 Hz topic measures 30.14 Hz), and LeRobot stores a fixed integer fps, so
 every stream is resampled onto one grid of `fps` frames per second over the time all required topics
-cover (`resample`): **nearest** sample for commands (a command holds until the next one; LejuRobotics'
+cover (`_resample`): **nearest** sample for commands (a command holds until the next one; LejuRobotics'
 converter `kuavo_data/common/kuavo_dataset.py` `align_frame_data` takes the nearest message of every
 topic), **linear** interpolation for measured joint states (or nearest, per reader option).
 """
@@ -16,12 +16,19 @@ topic), **linear** interpolation for measured joint states (or nearest, per read
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.converters._resample import (  # noqa: F401  the bag readers' resampling, re-exported
+    INTERPOLATIONS,
+    Stream,
+    grid_for,
+    measured_rate_hz,
+    resample,
+    resampling_options,
+)
 from lerobot_unidextok.utils.imports import require_package
 
 # kuavo_msgs (LejuRobotics kuavo-ros-opensource, `src/kuavo_msgs/msg/*.msg`); the LET bags embed these
@@ -40,7 +47,6 @@ KUAVO_MSGS: dict[str, str] = {
     ),
 }
 BAG_SUFFIXES = (".bag", ".mcap", ".db3")
-INTERPOLATIONS = ("linear", "nearest")
 
 
 class BagFormatError(ValueError):
@@ -50,15 +56,6 @@ class BagFormatError(ValueError):
 def require_rosbags() -> None:
     """ImportError naming the `ros` extra when rosbags is missing."""
     require_package("rosbags", "ros", purpose="reading ROS bags", hint=" (pure Python, no ROS install)")
-
-
-def resampling_options(fps: float, interpolation: str) -> tuple[int, str]:
-    """(fps, interpolation) of a bag reader's fixed output grid, checked: fps a positive integer."""
-    if int(fps) != fps or fps <= 0:
-        raise ValueError(f"fps must be a positive integer, got {fps!r}")
-    if interpolation not in INTERPOLATIONS:
-        raise ValueError(f"interpolation must be one of {INTERPOLATIONS}, got {interpolation!r}")
-    return int(fps), interpolation
 
 
 def list_bags(root: Path, pattern: str = "*") -> list[Path]:
@@ -110,16 +107,6 @@ def _store_for(connections: list, ros1: bool):
         else:
             raise ValueError(f"type {conn.msgtype} of topic {conn.topic!r} is not defined in the bag nor known")
     return store
-
-
-@dataclass
-class Stream:
-    """One topic of one bag: log-time stamps (s) and per-message values (and names, e.g. JointState.name)."""
-
-    topic: str
-    stamps_s: np.ndarray  # (N,) float64, strictly increasing after `read_streams`
-    values: np.ndarray  # (N, D) float64
-    names: tuple[str, ...] | None = None
 
 
 Extractor = Callable[[object], tuple[np.ndarray, tuple[str, ...] | None]]
@@ -271,37 +258,3 @@ def read_streams(path: Path, extractors: dict[str, Extractor]) -> dict[str, Stre
         keep = np.append(stamps[1:] != stamps[:-1], True)  # equal stamps: the last message wins
         out[topic] = Stream(topic, stamps[keep] / 1e9, values[keep], names.get(topic))
     return out
-
-
-def grid_for(streams: list[Stream], fps: int, path: Path) -> np.ndarray:
-    """Frame times (s) every 1/fps over the span every stream covers."""
-    start = max(s.stamps_s[0] for s in streams)
-    stop = min(s.stamps_s[-1] for s in streams)
-    if stop <= start:
-        raise BagFormatError(f"{path}: topics {[s.topic for s in streams]} do not overlap in time")
-    num = int(np.floor((stop - start) * fps + 1e-9)) + 1
-    return start + np.arange(num) / fps
-
-
-def resample(stream: Stream, grid_s: np.ndarray, method: str) -> np.ndarray:
-    """(len(grid), D) values of `stream` at the grid times: "nearest" sample or "linear" interpolation."""
-    if method not in INTERPOLATIONS:
-        raise ValueError(f"interpolation must be one of {INTERPOLATIONS}, got {method!r}")
-    t, v = stream.stamps_s, stream.values
-    if len(t) == 1:
-        return np.repeat(v, len(grid_s), axis=0)
-    if method == "nearest":
-        right = np.clip(np.searchsorted(t, grid_s), 1, len(t) - 1)
-        left = right - 1
-        pick = np.where(np.abs(grid_s - t[left]) <= np.abs(t[right] - grid_s), left, right)
-        return v[pick]
-    out = np.empty((len(grid_s), v.shape[1]), dtype=np.float64)
-    for d in range(v.shape[1]):
-        out[:, d] = np.interp(grid_s, t, v[:, d])
-    return out
-
-
-def measured_rate_hz(stream: Stream) -> float:
-    """Mean message rate of a stream (for reports: jittered stamps are expected)."""
-    span = stream.stamps_s[-1] - stream.stamps_s[0]
-    return (len(stream.stamps_s) - 1) / span if span > 0 else float("nan")

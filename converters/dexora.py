@@ -23,7 +23,7 @@ from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.conversion.episode import RawEpisode
 from lerobot_unidextok.conversion.registry import check_hand, register_source
 from lerobot_unidextok.converters import _lerobot_files as lr
-from lerobot_unidextok.converters.lerobot import HandColumns, read_mapped_episode
+from lerobot_unidextok.converters.lerobot import HandColumns, check_keep, read_mapped_episode
 
 XHAND = "xhand1"
 XHAND_JOINTS = 12
@@ -78,10 +78,13 @@ class DexoraSource:
     license = "Dexora dataset terms (HF Dexora/Dexora_Real-World_Dataset); check before redistribution"
     description = "Dexora real-world bimanual data: AIRBOT arms + two XHand1 hands, 12 joints each in radians (robot)"
 
-    def __init__(self, hand: str = XHAND, state_key: str | None = None, action_key: str | None = None) -> None:
+    def __init__(
+        self, hand: str = XHAND, state_key: str | None = None, action_key: str | None = None, keep: str = "all"
+    ) -> None:
         self.hand = check_hand(hand, "dexora option hand")
         self.state_key = state_key  # None: observation.state (scheme 1) or states (scheme 2)
         self.action_key = action_key  # None: action or actions
+        self.keep = check_keep(keep)  # set by --keep: "hands" reads no image/video feature
 
     def plan(self, root: str | Path) -> tuple[list[HandColumns], str, str | None]:
         """The hands, state key and action key of one dataset folder (raises naming info.json and the field)."""
@@ -110,8 +113,11 @@ class DexoraSource:
             self.plan(root)
         return refs
 
+    def robot_type(self, refs: list) -> str | None:
+        return lr.robot_type_of(refs)
+
     def read_episode(self, ref: lr.LeRobotEpisodeRef) -> RawEpisode:
         hands, state_key, action_key = self.plan(ref.root)
-        episode = read_mapped_episode(ref, hands, state_key, action_key)
+        episode = read_mapped_episode(ref, hands, state_key, action_key, self.keep)
         episode.source_episode["subset"] = Path(ref.root).name
         return episode

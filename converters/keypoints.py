@@ -14,6 +14,12 @@ One episode per file under `--input`:
   normalised image landmarks are refused (no metric scale). MediaPipe's handedness labels assume a
   mirrored selfie image in older versions (the label swap of August 2023): `swap_handedness=true` flips them.
 
+Frame rate: the file's own (sidecar / npz `fps` / JSON `fps`), else the option `fps`. LeRobot stores one
+integer fps, and trackers record at 29.97 Hz or 54-115 Hz: a file whose rate differs from the output
+rate is resampled onto it by linear interpolation (`_resample`, the mechanism the ROS bag readers use;
+frames next to an undetected frame stay absent). The output rate is `fps` (`--fps`) when given, else the
+file's rate rounded to an integer (29.97 -> 30). Each episode records `source_fps` and `resampled_fps`.
+
 Trackers disagree on where the wrist landmark sits (MediaPipe's is annotated on images, MANO's is its root
 joint, OpenXR / WebXR put it on the forearm's twist axis); UDHM's abductions do not depend on it
 (`udhm/frames.py`, docs/conversion.md "Human keypoints"), so any of them can be given as keypoint 0.
@@ -34,6 +40,7 @@ import numpy as np
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
+from lerobot_unidextok.converters import _resample
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 PALM_M = (0.06, 0.14)  # plausible wrist -> middle MCP length (m), adult hands (MediaPipe medians ~97 mm)
@@ -145,13 +152,16 @@ class KeypointsSource:
             fps = fps or fps_file
         else:
             by_side = {self._side(path, meta): self._array(np.load(path, allow_pickle=False), path, "array")}
-        fps = fps or self.fps
-        if not fps:
+        fps = float(fps or self.fps or 0)
+        if not fps > 0:
             raise KeypointsFormatError(f"{path}: no frame rate: add {{'fps': ...}} to {path.stem}.json or pass fps=")
-        if int(fps) != fps:
-            raise KeypointsFormatError(f"{path}: fps {fps} is not an integer (LeRobot stores integer fps)")
         if not by_side:
             raise KeypointsFormatError(f"{path}: no hand detected in any frame")
+        out_fps = int(self.fps or round(fps))
+        record = {}
+        if out_fps != fps:
+            by_side = {side: resample_keypoints(kp, fps, out_fps, path) for side, kp in by_side.items()}
+            record = {"source_fps": fps, "resampled_fps": out_fps}
         hands = []
         for side, kp in by_side.items():
             kp = kp * UNITS[self.units]
@@ -162,7 +172,8 @@ class KeypointsSource:
             hands.append(
                 HandStream(side=side, hand="human", state_native=np.where(valid[:, None, None], kp, 0.0), valid=valid)
             )
-        return RawEpisode(source_file=str(path), fps=float(fps), hands=hands, task=str(meta.get("task", "")))
+        task = str(meta.get("task", ""))
+        return RawEpisode(source_file=str(path), fps=float(out_fps), hands=hands, task=task, source_episode=record)
 
     # ----------------------------------------------------------------------------------------- #
     def _sidecar(self, path: Path) -> dict:
@@ -214,6 +225,16 @@ class KeypointsSource:
                 raise KeypointsFormatError(f"{path}: two keys hold the {side} hand")
             out[side] = self._array(values, path, f"key {key!r}")
         return out, fps
+
+
+def resample_keypoints(kp: np.ndarray, fps: float, out_fps: int, path: Path) -> np.ndarray:
+    """(T, 21, 3) keypoints sampled at `fps` -> (T', 21, 3) on a grid of `out_fps` over the same span,
+    linear; NaN (undetected) frames stay NaN and make the grid frames next to them NaN."""
+    if len(kp) < 2:
+        return kp
+    stream = _resample.Stream(f"keypoints@{fps:g}Hz", np.arange(len(kp)) / fps, kp.reshape(len(kp), -1))
+    grid = _resample.grid_for([stream], out_fps, path)
+    return _resample.resample(stream, grid, "linear").reshape(len(grid), 21, 3)
 
 
 def _check_units(kp: np.ndarray, path: Path, side: str, units: str) -> None:

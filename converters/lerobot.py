@@ -64,6 +64,13 @@ class HandColumns:
         return picked
 
 
+def check_keep(keep: str) -> str:
+    """The `keep` option (set by `--keep`): "all" reads every feature and video, "hands" only the vectors."""
+    if keep not in ("all", "hands"):
+        raise ValueError(f"keep must be 'all' or 'hands', got {keep!r}")
+    return keep
+
+
 def parse_hands(hands: dict | str) -> list[HandColumns]:
     """Parse the `hands` option (dict or its JSON text) into one `HandColumns` per side."""
     if isinstance(hands, str):
@@ -124,7 +131,11 @@ class LeRobotSource:
     description = "any LeRobot dataset (v2.1 or v3.0); hand columns mapped by feature names (robot)"
 
     def __init__(
-        self, hands: dict | str | None = None, state_key: str = "observation.state", action_key: str | None = "action"
+        self,
+        hands: dict | str | None = None,
+        state_key: str = "observation.state",
+        action_key: str | None = "action",
+        keep: str = "all",
     ) -> None:
         if hands is None:
             raise ValueError(
@@ -135,6 +146,7 @@ class LeRobotSource:
         self.hands = parse_hands(hands)
         self.state_key = state_key
         self.action_key = action_key
+        self.keep = check_keep(keep)
 
     def list_episodes(self, input_path: str | Path) -> list[lr.LeRobotEpisodeRef]:
         refs = lr.list_all_episodes(input_path)
@@ -142,8 +154,11 @@ class LeRobotSource:
             column_plan(lr.load_info(root), root, self.hands, self.state_key, self.action_key)
         return refs
 
+    def robot_type(self, refs: list) -> str | None:
+        return lr.robot_type_of(refs)
+
     def read_episode(self, ref: lr.LeRobotEpisodeRef) -> RawEpisode:
-        return read_mapped_episode(ref, self.hands, self.state_key, self.action_key)
+        return read_mapped_episode(ref, self.hands, self.state_key, self.action_key, self.keep)
 
 
 def column_plan(
@@ -199,10 +214,15 @@ def _names_or_indices(info: dict, key: str, root) -> list[str]:
 
 
 def read_mapped_episode(
-    ref: lr.LeRobotEpisodeRef, hands: list[HandColumns], state_key: str, action_key: str | None
+    ref: lr.LeRobotEpisodeRef,
+    hands: list[HandColumns],
+    state_key: str,
+    action_key: str | None,
+    keep: str = "all",
 ) -> RawEpisode:
     """One episode with each hand's state (and action) columns picked by name, and the rest of the robot:
-    passthrough columns of the shared state/action vectors, other features copied, videos."""
+    passthrough columns of the shared state/action vectors, other features copied, videos.
+    `keep="hands"` (`--keep=hands`) reads no other feature and no video: their files need not exist."""
     info = lr.load_info(ref.root)
     info_path = str(Path(ref.root) / INFO_PATH)
     plan, names = column_plan(info, ref.root, hands, state_key, action_key)
@@ -212,7 +232,7 @@ def read_mapped_episode(
         vectors[OUT_ACTION] = action_key
     used = {p[1] for p in plan} | ({p[3] for p in plan if p[3]} if has_action else set())
     used |= set(vectors.values())
-    copied_ft, video_ft = lr.other_features(info, used)
+    copied_ft, video_ft = lr.other_features(info, used) if keep == "all" else ({}, {})
     keys = sorted(used & set(info["features"]))
     episode = lr.read_episode(ref, keys, tuple(copied_ft), tuple(video_ft))
     streams = []

@@ -13,7 +13,10 @@ Follows linker-bot/linkerhand-ros2-sdk `doc/Topic-Reference.md` and
   linear (or nearest) state (`_rosbag`).
 
 A LeRobot-style export (folder with meta/info.json, v2.1 or v3.0) is read like the `lerobot` source: pass
-`model=` (names `<side>_hand_<k>` / `<side>_hand_joint_<k>`, k from 0 or 1) or `hands=`.
+`model=` (joint names `<side>_hand_<k>`, `<side>_hand_joint_<k>`, `<side>_hand.joint_<k>.pos`,
+`<side>_hand_joint_<k>.pos`, ...: k from 0 or 1, separators `_`, `.` or space, optional `.pos` suffix) or
+`hands=`. `state_key` / `action_key` name the vectors as in the `lerobot` source (defaults
+`observation.state` / `action`; e.g. `state` / `actions`).
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
 from lerobot_unidextok.converters import _lerobot_files as lr
 from lerobot_unidextok.converters import _rosbag as rb
-from lerobot_unidextok.converters.lerobot import HandColumns, parse_hands, read_mapped_episode
+from lerobot_unidextok.converters.lerobot import HandColumns, check_keep, column_plan, parse_hands, read_mapped_episode
 
 MODELS: dict[str, tuple[str, int]] = {  # SDK model (hand_joint) -> (hand spec name, joints per hand)
     "L6": ("linkerhand_l6", 6),
@@ -39,7 +42,7 @@ MODELS: dict[str, tuple[str, int]] = {  # SDK model (hand_joint) -> (hand spec n
 }
 BY_WIDTH = {6: "L6", 10: "L10", 20: "L20"}
 SIDES = ("left", "right")
-_EXPORT_NAME = re.compile(r"^(left|right)[_ ]?hand[_ ]?(?:joint[_ ]?)?(\d+)$", re.IGNORECASE)
+_EXPORT_NAME = re.compile(r"^(left|right)[_. ]?hand[_. ]?(?:joint[_. ]?)?(\d+)(?:[_.]pos(?:ition)?)?$", re.IGNORECASE)
 
 
 class LinkerHandFormatError(ValueError):
@@ -83,11 +86,16 @@ class LinkerHandSource:
         hands: dict | str | None = None,
         fps: int = 30,
         interpolation: str = "linear",
+        state_key: str = "observation.state",
+        action_key: str | None = "action",
+        keep: str = "all",
     ) -> None:
         if model is not None:
             _model(model, "linkerhand option model")
         self.model = model
         self.hands = parse_hands(hands) if hands is not None else None
+        self.state_key, self.action_key = state_key, action_key  # LeRobot exports: the vectors' feature keys
+        self.keep = check_keep(keep)  # set by --keep: "hands" reads no image/video feature of an export
         self.fps, self.interpolation = rb.resampling_options(fps, interpolation)
 
     def list_episodes(self, input_path: str | Path) -> list:
@@ -99,7 +107,11 @@ class LinkerHandSource:
                 raise LinkerHandFormatError(
                     f"{root}: a LeRobot-style LinkerHand export needs model= (L6/L10/L20) or hands= to map its columns"
                 )
-            return [ref for r in lr.find_dataset_roots(root) for ref in lr.list_episodes(r)]
+            refs = [ref for r in lr.find_dataset_roots(root) for ref in lr.list_episodes(r)]
+            for export in sorted({r.root for r in refs}):  # setup check: the columns map, before any episode
+                ref = next(r for r in refs if r.root == export)
+                column_plan(lr.load_info(export), export, self._export_hands(ref), self.state_key, self.action_key)
+            return refs
         rb.require_rosbags()
         bags = rb.list_bags(root)
         if not bags:
@@ -108,9 +120,13 @@ class LinkerHandSource:
             )
         return [str(b) for b in bags]
 
+    def robot_type(self, refs: list) -> str | None:
+        """A LeRobot export's `robot_type`; bags record none."""
+        return lr.robot_type_of(refs)
+
     def read_episode(self, ref) -> RawEpisode:
         if isinstance(ref, lr.LeRobotEpisodeRef):
-            return read_mapped_episode(ref, self._export_hands(ref), "observation.state", "action")
+            return read_mapped_episode(ref, self._export_hands(ref), self.state_key, self.action_key, self.keep)
         return self._read_bag(Path(ref))
 
     # ----------------------------------------------------------------------------------------- #
@@ -119,7 +135,7 @@ class LinkerHandSource:
             return self.hands
         spec, num = _model(self.model, ref.root)
         info = lr.load_info(ref.root)
-        names = lr.feature_names(info, "observation.state", ref.root)
+        names = lr.feature_names(info, self.state_key, ref.root)
         found: dict[str, dict[int, str]] = {}
         for name in names:
             m = _EXPORT_NAME.match(name)
@@ -127,7 +143,7 @@ class LinkerHandSource:
                 found.setdefault(m.group(1).lower(), {})[int(m.group(2))] = name
         if not found:
             raise LinkerHandFormatError(
-                f"{Path(ref.root) / 'meta' / 'info.json'}: no '<side>_hand_<k>' names in observation.state; "
+                f"{Path(ref.root) / 'meta' / 'info.json'}: no '<side>_hand_<k>' names in {self.state_key}; "
                 f"pass hands= to map the columns (names present: {names})"
             )
         out = []

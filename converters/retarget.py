@@ -6,7 +6,8 @@
 Input, either:
 1. A converted human dataset (this project's UDHM LeRobotDataset; `hand_type` "human"): each human block
    becomes MANO-21 keypoints by forward kinematics with the human spec's skeleton
-   (`hands.get("human").from_udhm(state, side)`), episode by episode, side by side.
+   (`hands.get("human").from_udhm(state, side)`), episode by episode, side by side; with `side` given, only
+   that side (only its URDF is needed; episodes without that hand are skipped).
 2. MANO-21 keypoints in metres, one `(T, 21, 3)` `.npy` per episode (any frame: the retargeter aligns palm
    frames), of the `side` hand (option, default right); `fps` option (default 30).
 Each keypoint sequence goes through `lerobot_unidextok.retarget.HandRetargeter` (module docstring there) and
@@ -49,7 +50,7 @@ class RetargetSource:
         self,
         hand: str | None = None,
         urdf: str | None = None,
-        side: str = "right",
+        side: str | None = None,
         fps: float = 30.0,
         scaling: float | None = None,
         low_pass_alpha: float = 1.0,
@@ -63,6 +64,8 @@ class RetargetSource:
             )
         require_dex_retargeting()
         get_retarget_spec(hand)  # raises listing the hands that have a spec
+        if side not in (None, "left", "right"):
+            raise ValueError(f"side must be 'left' or 'right', got {side!r}")
         if not Path(urdf).exists():
             raise FileNotFoundError(f"URDF {urdf} does not exist; pass the robot hand's URDF file or its folder")
         self.hand, self.urdf, self.side, self.fps = hand, str(urdf), side, float(fps)
@@ -89,6 +92,10 @@ class RetargetSource:
                     f"{root}: no human hand blocks (hand_type 'human'); retarget a converted human dataset "
                     f"(its hands: {sorted(set(frames.hands.tolist()))})"
                 )
+            if self.side is not None:
+                human &= (frames.side == self.side) & frames.masks.any(axis=1)
+                if not human.any():
+                    raise RetargetInputError(f"{root}: no {self.side} human hand in any frame; pick the other side")
             return [f"{root}#episode={int(e)}" for e in np.unique(frames.episode_index[human])]
         files = [root] if root.is_file() else sorted(root.rglob("*.npy"))
         if not files or any(f.suffix != ".npy" for f in files):
@@ -104,8 +111,9 @@ class RetargetSource:
         kp = np.load(text)
         if kp.ndim != 3 or kp.shape[1:] != (21, 3):
             raise RetargetInputError(f"{text}: expected (T, 21, 3) MANO-21 keypoints in metres, got {kp.shape}")
-        res = self._retargeter(self.side).retarget(kp)
-        return RawEpisode(text, self.fps, [HandStream(self.side, self.hand, res.native)],
+        side = self.side or "right"
+        res = self._retargeter(side).retarget(kp)
+        return RawEpisode(text, self.fps, [HandStream(side, self.hand, res.native)],
                           task=f"retargeted human motion ({Path(text).stem})",
                           extra={"retarget": self._extra(res)})  # fmt: skip
 
@@ -115,7 +123,8 @@ class RetargetSource:
         frames = _human_frames(root)
         rows = (frames.episode_index == int(episode)) & (frames.hands == HUMAN)
         streams, extra = [], {}
-        for side in sorted(set(frames.side[rows].tolist()), key=["right", "left"].index):
+        sides = sorted(set(frames.side[rows].tolist()), key=["right", "left"].index)
+        for side in [s for s in sides if self.side in (None, s)]:
             r = rows & (frames.side == side)
             order = np.argsort(frames.frame_index[r], kind="stable")
             state = frames.states_rad[r][order].astype(np.float64)  # (T, 22) rad

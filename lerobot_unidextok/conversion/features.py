@@ -81,6 +81,8 @@ def native_layout(ep: UdhmEpisode) -> dict[str, dict]:
                            "hands": [{"side", "hand", "columns": [source columns of the hand]}]}, "action": ...}
     Native vector = `names`; passthrough columns copied by name; each hand's `columns` =
     `hands.get(hand).from_udhm(block, side)`. Keypoint (human) hands have no native joint columns.
+    A hands-only conversion (`--keep=hands`) has no passthrough columns: `names` are then the hand columns in
+    source order and `"source_names"` lists every source column (where the robot's vector puts them).
     """
     out: dict[str, dict] = {}
     for key, which in ((OBS_STATE, 0), (ACTION, 1)):
@@ -100,6 +102,8 @@ def native_layout(ep: UdhmEpisode) -> dict[str, dict]:
             *(c for h in hands for c in h["columns"]),
         ]
         entry = {"names": list(names), "hands": hands}
+        if key in ep.source_names:  # --keep=hands: `names` are the hand columns of these source names
+            entry["source_names"] = list(ep.source_names[key])
         if key in ep.native_keys:
             entry["source_key"] = ep.native_keys[key]
         out[key] = entry

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from lerobot_unidextok.constants import MAPPINGS, SIDES, UDHM_DIM
+from lerobot_unidextok.constants import ACTION, MAPPINGS, OBS_STATE, SIDES, UDHM_DIM
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode, VideoSegment
 from lerobot_unidextok.state_layout import udhm_state_names
 
@@ -50,6 +50,8 @@ class UdhmEpisode:
     passthrough: dict[str, Passthrough] = field(default_factory=dict)
     native_names: dict[str, list[str]] = field(default_factory=dict)
     native_keys: dict[str, str] = field(default_factory=dict)
+    # every source column name where `native_names` lists only the kept (hand) columns (`--keep=hands`)
+    source_names: dict[str, list[str]] = field(default_factory=dict)
     hand_columns: tuple[tuple[tuple[str, ...] | None, tuple[str, ...] | None], ...] = ()  # (H,) (state, action)
     copied: dict[str, Any] = field(default_factory=dict)
     copied_features: dict[str, dict] = field(default_factory=dict)
@@ -79,9 +81,32 @@ class UdhmEpisode:
         )
 
     def without_robot(self) -> UdhmEpisode:
-        """The hands-only episode (`--keep=hands`): no passthrough columns, copied features or videos."""
+        """The hands-only episode (`--keep=hands`): no passthrough columns, copied features or videos.
+
+        The native vectors shrink to the hand columns (source order), so a hands-only dataset decodes to
+        the hands' own commands; `source_names` keeps every source column name to place them in the
+        robot's full vector.
+        """
+        native_names, source_names = {}, {}
+        for key, which in ((OBS_STATE, 0), (ACTION, 1)):
+            hand_cols = [c for pair in self.hand_columns for c in (pair[which] or ())]
+            if not hand_cols:
+                continue
+            p = self.passthrough.get(key)
+            full = list(self.native_names.get(key) or [*(p.names if p is not None else ()), *hand_cols])
+            native_names[key] = [n for n in full if n in set(hand_cols)]
+            if native_names[key] != full:
+                source_names[key] = full
         return replace(
-            self, passthrough={}, copied={}, copied_features={}, copied_stats={}, videos={}, video_features={}
+            self,
+            passthrough={},
+            copied={},
+            copied_features={},
+            copied_stats={},
+            videos={},
+            video_features={},
+            native_names=native_names,
+            source_names=source_names,
         )
 
 

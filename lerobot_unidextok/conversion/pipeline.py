@@ -8,7 +8,8 @@
   recorded, not made a range: `meta/info.json` keeps LeRobot's `{"train": "0:N"}` and
   `meta/unidextok_conversion.json` lists `test_episodes` and, per episode, its source and split.
 - Whole robot: passthrough columns, copied features and videos of the source go through unchanged
-  (`keep="all"`, default) or are dropped for a hands-only dataset (`keep="hands"`).
+  (`keep="all"`, default) or are dropped for a hands-only dataset (`keep="hands"`; readers with a `keep`
+  option do not read them at all). `robot_type` is the source's own (reader's optional `robot_type(refs)`).
 - Reliability: everything is written to `<root>.<name>.tmp-*` next to the target and moved into place
   at the end; an error or Ctrl-C removes the temp folder. An existing target is refused unless
   `overwrite`. Per-episode failures are `EpisodeError(file, reason)`: raised (`on_error="raise"`)
@@ -94,8 +95,12 @@ class ConvertOptions:
     # block layout, e.g. "right,left" (or ("right", "left")) for sources whose episodes are left or right hands;
     # None = the source's `sides`, else the first episode's
     sides: str | tuple[str, ...] | None = None
-    fps: int | None = None  # frame grid for time-stamped sources (ROS bags, keypoint files); None = source default
-    keep: str = "all"  # "all": the whole robot (arms, other features, videos) | "hands": UDHM blocks only
+    # frame grid of time-stamped sources (ROS bags, keypoint files): streams and files at another rate are resampled
+    # onto it; None = source default (bags 30, keypoint files their own rate rounded, e.g. 29.97 -> 30)
+    fps: int | None = None
+    # "all": the whole robot (arms, other features, videos) | "hands": UDHM blocks only (other features and videos
+    # are not read, so missing video files do not matter; the native layout then names the hand columns)
+    keep: str = "all"
     shard_index: int = 0  # convert one contiguous shard of the episode list (multi-machine runs by hand)
     num_shards: int = 1  # how many such shards the episode list is cut into
     progress: bool = True  # progress bar
@@ -124,13 +129,18 @@ class ConvertOptions:
             raise ValueError(f"need 0 <= shard_index < num_shards, got {self.shard_index}/{self.num_shards}")
 
     def reader_options(self) -> dict:
-        """The source options, with `fps` passed to sources that resample onto a grid."""
-        options = dict(self.source_options)
-        if self.fps is not None:
-            cls = get_source(self.source)
-            import inspect
+        """The source options, with `fps` passed to sources that resample onto a grid and `keep` to sources
+        that can skip reading what `--keep=hands` drops (other features, videos)."""
+        import inspect
 
-            if "fps" not in inspect.signature(cls).parameters:
+        options = dict(self.source_options)
+        params = inspect.signature(get_source(self.source)).parameters
+        if "keep" in params:
+            if options.get("keep") not in (None, self.keep):
+                raise SetupError(f"--keep={self.keep} and source option keep={options['keep']} disagree; give --keep")
+            options["keep"] = self.keep
+        if self.fps is not None:
+            if "fps" not in params:
                 raise SetupError(
                     f"--fps applies to sources that resample time-stamped streams; {self.source!r} has a fixed "
                     "frame rate: drop --fps"
@@ -302,6 +312,7 @@ class _Plan:
 
     items: list[tuple[Any, str, str]]
     num_listed: int
+    robot_type: str | None = None  # the source's own robot type, of the whole listing (equal in every shard)
 
 
 def plan_episodes(reader, opts: ConvertOptions, input_path: Path) -> _Plan:
@@ -323,7 +334,20 @@ def plan_episodes(reader, opts: ConvertOptions, input_path: Path) -> _Plan:
         items = items[bounds[opts.shard_index] : bounds[opts.shard_index + 1]]
         if not items:
             raise SetupError(f"shard {opts.shard_index}/{opts.num_shards} is empty ({len(refs)} episodes)")
-    return _Plan(items, len(refs))
+    return _Plan(items, len(refs), source_robot_type(reader, refs))
+
+
+def source_robot_type(reader, refs: list) -> str | None:
+    """The robot type the source records (LeRobot's `robot_type` in meta/info.json), from the reader's
+    optional `robot_type(refs)` method (or `robot_type` class attribute); None when the format records none
+    (LeRobot's own default)."""
+    method = getattr(reader, "robot_type", None)
+    if not callable(method):  # a fixed type as a class attribute, or none
+        return str(method) if method else None
+    try:
+        return method(refs) or None
+    except (ValueError, FileNotFoundError) as exc:
+        raise SetupError(f"source {type(reader).__name__} cannot read the robot type: {exc}") from exc
 
 
 def checked_paths(opts: ConvertOptions) -> tuple[Path, Path]:
@@ -351,6 +375,7 @@ def convert(opts: ConvertOptions) -> ConvertReport:
     _remove_stale_temps(target)
     tmp = _temp_dir(target)
     state = _RunState(
+        robot_type=plan.robot_type,
         synthetic=bool(getattr(reader_cls, "synthetic", False)) or input_is_synthetic(input_path),
         sides=opts.sides or (tuple(reader_cls.sides) if getattr(reader_cls, "sides", None) else None),
     )
@@ -424,6 +449,7 @@ class _RunState:
 
     synthetic: bool
     sides: tuple[str, ...] | None
+    robot_type: str | None = None
     writer: UdhmDatasetWriter | None = None
     layout: tuple | None = None
     fps: int = 0
@@ -448,8 +474,9 @@ class _RunState:
                 features = episode_features(result)
             except ValueError as exc:
                 raise EpisodeError(result.source_file, str(exc)) from exc
-            # one robot_type for every conversion: aggregate_datasets requires equal robot_type
-            self.writer = UdhmDatasetWriter(tmp, opts.repo_id, fps, features, robot_type="udhm")
+            # the source's robot type, the same in every shard (aggregate_datasets requires equal robot_type);
+            # UDHM itself is marked by the hand_type / udhm_mask features and meta/unidextok_conversion.json
+            self.writer = UdhmDatasetWriter(tmp, opts.repo_id, fps, features, robot_type=self.robot_type)
             self.native = native_layout(result)
         elif (result.layout, fps) != (self.layout, self.fps):
             raise EpisodeError(result.source_file, _layout_difference(result, fps, self.layout, self.fps))
@@ -483,6 +510,7 @@ class _RunState:
             "license": getattr(reader_cls, "license", "unknown"),
             "description": getattr(reader_cls, "description", ""),
             "source_options": opts.source_options,
+            "robot_type": self.robot_type,
             "mapping": opts.mapping,
             "on_error": opts.on_error,
             "keep": opts.keep,
@@ -520,6 +548,8 @@ def _layout_difference(ep: UdhmEpisode, fps: int, layout: tuple, layout_fps: int
         if ep.layout[0] != layout[0]
         else ""
     )
+    if fps != layout_fps:
+        hint += f"; pass --fps={layout_fps} to resample time-stamped sources (bags, keypoint files) onto one grid"
     return f"episode layout differs from the dataset's (set by its first episode): {'; '.join(diffs)}{hint}"
 
 

@@ -11,8 +11,10 @@ A source reader lives in `converters/<source>.py` (installed as `lerobot_unidext
         def __init__(self, **options): ...     # optional source options (e.g. --source_options)
         def list_episodes(self, input_path: Path) -> list: ...   # picklable refs, in a stable order
         def read_episode(self, ref) -> RawEpisode: ...            # one ref -> one episode
+        def robot_type(self, refs) -> str | None: ...              # optional: the source's robot type
 
-`list_episodes` must be cheap and deterministic; `read_episode` runs in worker processes.
+`list_episodes` must be cheap and deterministic; `read_episode` runs in worker processes. Options named
+`fps` and `keep` are filled from the `--fps` / `--keep` flags.
 """
 
 from __future__ import annotations

@@ -85,6 +85,9 @@ def _native_layout_problems(layout: dict, feats: dict) -> list[str]:
         passthrough = [n for n in names if n not in set(hand_cols)]
         if converted[: len(passthrough)] != passthrough:
             problems.append(f"{key}: passthrough columns {passthrough[:4]}... are not the first converted columns")
+        source_names = entry.get("source_names")  # a hands-only conversion: `names` are some source columns
+        if source_names is not None and [n for n in source_names if n in set(names)] != names:
+            problems.append(f"{key}: names are not the source_names {source_names[:4]}... in source order")
         sides = [h.get("side") for h in entry.get("hands", [])]
         blocks = [b.side for b in find_udhm_blocks(converted)]
         if not set(sides) <= set(blocks):

@@ -97,6 +97,8 @@ def test_merge_shards_stats_equal_single_run(raw, single, tmp_path):
         convert(_options(raw, shard, shard_index=k, num_shards=2))
     merged = merge_shards(shards, tmp_path / "merged", repo_id="t/g1")
     assert_same_dataset(single, merged)
+    robot_type = json.loads((raw / "meta/info.json").read_text())["robot_type"]
+    assert robot_type and json.loads((merged / "meta/info.json").read_text())["robot_type"] == robot_type  # not "udhm"
 
 
 def test_local_executor_two_tasks_equals_single_process(raw, single, tmp_path):

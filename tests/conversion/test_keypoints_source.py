@@ -55,19 +55,83 @@ def test_npy_with_sidecar_npz_keys_and_mediapipe_json(tmp_path):
         json.dumps({"fps": 15, "frames": _mediapipe_frames({"Right": right}, drop=(3, 4))})
     )
     (tmp_path / "web.json").write_text(json.dumps(_mediapipe_frames({"Left": left}, web=True)))
-    src = get_source("keypoints")(side="right", fps=30)
+    src = get_source("keypoints")(side="right")  # no fps: every file keeps its own integer rate
     refs = src.list_episodes(tmp_path)
     assert [r.rsplit("/", 1)[1] for r in refs] == ["both.npz", "clip_a.npy", "mp.json", "take_left.npy", "web.json"]
-    eps = {r.rsplit("/", 1)[1]: src.read_episode(r) for r in refs}
+    with pytest.raises(ValueError, match=r"take_left\.npy: no frame rate"):
+        src.read_episode(str(tmp_path / "take_left.npy"))
+    eps = {r.rsplit("/", 1)[1]: src.read_episode(r) for r in refs if "take_left" not in r and "web" not in r}
     assert [(h.side, e.fps) for h in eps["clip_a.npy"].hands for e in [eps["clip_a.npy"]]] == [("right", 25.0)]
-    assert eps["take_left.npy"].hands[0].side == "left" and eps["take_left.npy"].fps == 30.0  # option fps
     assert sorted(h.side for h in eps["both.npz"].hands) == ["left", "right"] and eps["both.npz"].fps == 20.0
     mp = eps["mp.json"]
     assert mp.fps == 15.0 and mp.hands[0].side == "right" and not mp.hands[0].valid[[3, 4]].any()
     np.testing.assert_allclose(mp.hands[0].state_native[5], right[5])
-    assert eps["web.json"].hands[0].side == "left"
+    with_fps = get_source("keypoints")(fps=30)  # fps: the rate of files that state none (and the output grid)
+    take_left = with_fps.read_episode(str(tmp_path / "take_left.npy"))
+    assert take_left.hands[0].side == "left" and take_left.fps == 30.0 and take_left.num_frames == len(left)
+    assert with_fps.read_episode(str(tmp_path / "web.json")).hands[0].side == "left"
     res = udhm.inverse_kinematics(eps["clip_a.npy"].hands[0].state_native, side="right")
     assert np.degrees(np.abs(res.angles_rad - truth)).mean() < 1.0  # the keypoints reach the IK unchanged
+
+
+def _smooth_angles_rad(t_s: np.ndarray) -> np.ndarray:
+    """(T, 22) UDHM angles of a slow continuous motion inside the joint limits, at times `t_s`."""
+    lo, hi = udhm.JOINT_LIMITS_RAD[:, 0], udhm.JOINT_LIMITS_RAD[:, 1]
+    phase = np.linspace(0.0, 2.0 * np.pi, 22, endpoint=False)
+    return (lo + hi) / 2 + 0.25 * (hi - lo) * np.sin(2 * np.pi * 0.4 * t_s[:, None] + phase)
+
+
+def _keypoints_at(t_s: np.ndarray, side: str = "right") -> np.ndarray:
+    n = len(t_s)
+    pose = (np.tile(np.eye(3), (n, 1, 1)), np.tile([0.1, 0.0, 0.5], (n, 1)))
+    return np.asarray(udhm.forward_kinematics(_smooth_angles_rad(t_s), None, pose, side=side), dtype=np.float64)
+
+
+@pytest.mark.parametrize(
+    ("rate_hz", "frames", "fps", "out_fps", "out_frames"),
+    [
+        (29.97, 90, None, 30, 90),  # NTSC video tracker, no --fps: the rounded rate
+        (29.97, 90, 30, 30, 90),
+        (60.0, 91, 30, 30, 46),  # an integer rate other than --fps is resampled too
+        (115.3, 200, 30, 30, 52),  # a headset hand tracker
+    ],
+)
+def test_tracker_rates_are_resampled_onto_fps(tmp_path, rate_hz, frames, fps, out_fps, out_frames):
+    """Real tracker rates (29.97 Hz video, 54-115 Hz headsets) go onto the integer --fps grid (or the rounded
+    rate): the converted angles equal the motion's own angles at the grid times. Catches the reader that
+    refused 'fps 29.97 is not an integer' and ignored --fps for files that state their rate."""
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    t_src = np.arange(frames) / rate_hz
+    np.save(raw / "take_right.npy", _keypoints_at(t_src))
+    (raw / "take_right.json").write_text(json.dumps({"fps": rate_hz}))
+    root = tmp_path / "out"
+    convert(ConvertOptions(source="keypoints", input=raw, root=root, fps=fps, progress=False, test_fraction=0.0))
+    out = load_udhm_frames(root)
+    assert out.fps == out_fps and len(out) == out_frames
+    from lerobot_unidextok import hands
+
+    truth = hands.get("human").to_udhm(_keypoints_at(np.arange(out_frames) / out_fps), "right")
+    err_deg = np.degrees(np.abs(out.states_rad - truth))
+    assert err_deg.mean() < 0.05 and err_deg.max() < 1.0, (err_deg.mean(), err_deg.max())
+    from lerobot_unidextok.conversion.pipeline import read_settings
+
+    (record,) = read_settings(root)["episodes"]
+    assert (record["source_fps"], record["resampled_fps"]) == (rate_hz, out_fps)
+
+
+def test_resampling_keeps_undetected_frames_absent(tmp_path):
+    """A 29.97 Hz MediaPipe JSON with undetected frames: the grid frames next to them are absent, not bridged."""
+    t_src = np.arange(60) / 29.97
+    kp = _keypoints_at(t_src)
+    frames = _mediapipe_frames({"Right": kp}, drop=(20, 21))
+    (tmp_path / "mp.json").write_text(json.dumps({"fps": 29.97, "frames": frames}))
+    ep = get_source("keypoints")().read_episode(str(tmp_path / "mp.json"))
+    (hand,) = ep.hands
+    assert ep.fps == 30.0 and ep.num_frames == 60
+    t_out = np.arange(60) / 30.0
+    expect_absent = (t_out > 19 / 29.97) & (t_out < 22 / 29.97)  # between the last and next detected frames
+    np.testing.assert_array_equal(~hand.valid, expect_absent)
 
 
 def test_units_and_handedness_are_checked(tmp_path):

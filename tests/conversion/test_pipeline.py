@@ -449,6 +449,7 @@ def test_real_g1_inspire_end_to_end(real_data_dir, tmp_path):
         assert names[14:] == [f"{s}_{j}" for s in ("left", "right") for j in UDHM_JOINT_NAMES]
     assert ds[0]["task"] == "Pick up the yellow bottle on the table."
     assert validate_dataset(root).ok
+    assert ds.meta.robot_type == source_info["robot_type"] == "Unitree_G1_Inspire"  # the robot, not "udhm"
     settings = read_settings(root)
     assert settings["synthetic"] is False and "SYNTHETIC" not in (root / "README.md").read_text()
     assert [r["source_episode_index"] for r in settings["episodes"]] == list(range(10))  # source order, recorded
@@ -472,6 +473,39 @@ def test_real_g1_inspire_end_to_end(real_data_dir, tmp_path):
             for b, (side, cols) in enumerate((("left", slice(14, 20)), ("right", slice(20, 26)))):
                 expect = spec.to_udhm(raw[:, cols].astype(np.float64), side=side)
                 np.testing.assert_allclose(out[:, 14 + 22 * b : 36 + 22 * b], expect, atol=1e-6)
+
+
+def test_real_g1_inspire_keep_hands(real_data_dir, tmp_path):
+    """`--keep=hands` on the real G1 + Inspire dataset: valid (it failed its own native-layout check), the
+    robot's own type kept, and the native layout decodes the converted actions back to the source's hand
+    columns (Inspire 0-1 values, source order)."""
+    import pyarrow.parquet as pq
+
+    from lerobot_unidextok.processor.layout import NativeLayout
+
+    src_root = real_data_dir / "g1-inspire"
+    root = tmp_path / "g1_hands"
+    hands_opt = {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}
+    convert(ConvertOptions(source="lerobot", input=src_root, root=root, repo_id="t/g1_hands", keep="hands",
+                           source_options={"hands": hands_opt}, max_episodes=2, progress=False))  # fmt: skip
+    report = validate_dataset(root)
+    assert report.ok, report.table()
+    info = json.loads((root / "meta/info.json").read_text())
+    assert info["robot_type"] == "Unitree_G1_Inspire" and info["features"]["action"]["shape"] == [44]
+    source_names = json.loads((src_root / "meta/info.json").read_text())["features"]["action"]["names"][0]
+    layout = NativeLayout.from_dataset(root, "action")
+    assert layout.native_names == source_names[14:]  # the 12 hand columns, source order
+    assert read_settings(root)["native_layout"]["action"]["source_names"] == source_names
+    converted = pq.read_table(sorted((root / "data").rglob("*.parquet")))
+    for ep_index in range(2):
+        raw = np.stack(
+            pq.read_table(src_root / f"data/chunk-000/episode_{ep_index:06d}.parquet")["action"].to_numpy(
+                zero_copy_only=False
+            )
+        )
+        rows = converted["episode_index"].to_numpy() == ep_index
+        out = np.stack(converted["action"].to_numpy(zero_copy_only=False)[rows])
+        np.testing.assert_allclose(layout.to_native(out), raw[:, 14:], atol=1e-5)
 
 
 def test_append_pad_mapping_and_stale_temp_cleanup(samples, tmp_path):

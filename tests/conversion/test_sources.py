@@ -469,3 +469,49 @@ def test_oakink2_converts_at_120fps(oakink2, tmp_path):
     frames = load_udhm_frames(tmp_path / "oak")
     assert report.num_episodes == 2 and frames.fps == 120 and set(frames.side) == {"right", "left"}
     assert np.isfinite(frames.states_rad).all()
+
+
+@pytest.mark.parametrize(
+    "name_of", [lambda side, k: f"{side}_hand.joint_{k}.pos", lambda side, k: f"{side}_hand_joint_{k}.pos"]
+)
+def test_linkerhand_lerobot_v30_export_with_state_key_and_pos_names(name_of, tmp_path):
+    """A LeRobot v3.0 dataset written by LeRobot's own writer, as real LinkerHand exports are: vectors named
+    `state` / `actions`, joints `right_hand.joint_1.pos` (LeRobot's `<motor>.pos` convention). Catches the reader
+    that had no state_key / action_key and matched only `<side>_hand[_joint]_<k>`."""
+    from lerobot.datasets import LeRobotDataset
+
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, SetupError, convert
+    from lerobot_unidextok.conversion.validate import validate_dataset
+    from lerobot_unidextok.data import load_udhm_frames
+
+    names = [name_of(side, k) for side in ("left", "right") for k in range(1, 11)]
+    features = {
+        "state": {"dtype": "float32", "shape": (20,), "names": names},
+        "actions": {"dtype": "float32", "shape": (20,), "names": names},
+    }
+    src = tmp_path / "lh"
+    ds = LeRobotDataset.create("t/lh", fps=30, features=features, root=src, use_videos=False, robot_type="linkerhand")
+    rng = np.random.default_rng(0)
+    values = rng.integers(0, 256, size=(2, 15, 20)).astype(np.float32)  # SDK units 0-255
+    for episode in values:
+        for row in episode:
+            ds.add_frame({"state": row, "actions": row, "task": "grasp"})
+        ds.save_episode()
+    ds.finalize()
+
+    with pytest.raises(SetupError, match=r"features\['observation.state'\]: missing"):
+        convert(ConvertOptions(source="linkerhand", input=src, root=tmp_path / "bad", progress=False,
+                               source_options={"model": "L10"}))  # fmt: skip
+    root = tmp_path / "udhm"
+    options = {"model": "L10", "state_key": "state", "action_key": "actions"}
+    convert(ConvertOptions(source="linkerhand", input=src, root=root, source_options=options, progress=False))
+    assert validate_dataset(root).ok
+    frames = load_udhm_frames(root, split=None)
+    spec = hands.get("linkerhand_l10")
+    for side, cols in (("left", slice(0, 10)), ("right", slice(10, 20))):
+        got = frames.states_rad[frames.side == side]
+        expected = spec.to_udhm(values.reshape(-1, 20)[:, cols].astype(np.float64), side)
+        np.testing.assert_allclose(got, expected, atol=1e-5)
+    layout = json.loads((root / "meta/unidextok_conversion.json").read_text())["native_layout"]
+    assert layout["observation.state"]["names"] == names and layout["observation.state"]["source_key"] == "state"
+    assert json.loads((root / "meta/info.json").read_text())["robot_type"] == "linkerhand"

@@ -115,7 +115,30 @@ def test_v30_keeps_arms_observations_images_and_videos(v30_source, v30_converted
     assert read_settings(v30_converted)["video_features"] == ["observation.images.cam_high"]
 
 
+def test_v30_keeps_the_source_robot_type(v30_converted):
+    """The converted dataset is still the source's robot (LeRobot's robot_type); catches the converter that
+    wrote robot_type "udhm" for every dataset."""
+    assert json.loads((v30_converted / "meta/info.json").read_text())["robot_type"] == "g1"
+    assert read_settings(v30_converted)["robot_type"] == "g1"
+
+
+def _native_action(root: Path, names: list[str]) -> np.ndarray:
+    """The source action columns `names` rebuilt from a converted dataset with its recorded native layout."""
+    import pyarrow.parquet as pq
+
+    from lerobot_unidextok.processor.layout import NativeLayout
+
+    layout = NativeLayout.from_dataset(root, "action")
+    assert layout is not None and layout.native_names == names
+    table = pq.read_table(sorted((root / "data").rglob("*.parquet")))
+    action = np.stack(table["action"].to_numpy(zero_copy_only=False))
+    return layout.to_native(action)
+
+
 def test_keep_hands_writes_the_hands_only_dataset(v30_source, tmp_path):
+    """--keep=hands: UDHM blocks only, a valid dataset whose native layout decodes the hand columns (in source
+    order; `source_names` lists the whole robot). Catches the recorded layout that still named the arm columns
+    as passthrough, so the dataset failed its own validation ('passthrough columns ... are not the first')."""
     root = tmp_path / "hands_only"
     convert(
         ConvertOptions(
@@ -130,6 +153,36 @@ def test_keep_hands_writes_the_hands_only_dataset(v30_source, tmp_path):
         "udhm_mask",
     }
     assert info["features"]["observation.state"]["shape"] == [44] and not (root / "videos").exists()
+    assert info["robot_type"] == "g1"
+    report = validate_dataset(root)
+    assert report.ok, report.table()
+    layout = read_settings(root)["native_layout"]
+    for key in ("observation.state", "action"):
+        assert layout[key]["names"] == HAND and layout[key]["source_names"] == NAMES
+    source_action = np.concatenate([_episode(i, n)["action"] for i, n in enumerate(LENGTHS)])
+    np.testing.assert_allclose(_native_action(root, HAND), source_action[:, 8:], atol=1e-5)  # native units back
+
+
+def test_keep_hands_needs_no_video_files(v30_source, tmp_path):
+    """A dataset whose video files are gone converts hands-only (the videos are never opened); keeping the
+    whole robot names the missing file. Catches the reader that demanded every video with --keep=hands."""
+    import shutil
+
+    from lerobot_unidextok.conversion.pipeline import ConversionError
+
+    moved = tmp_path / "no_videos"
+    shutil.copytree(v30_source, moved)
+    shutil.rmtree(moved / "videos")
+    root = tmp_path / "hands_only"
+    report = convert(
+        ConvertOptions(source="lerobot", input=moved, root=root, source_options=HANDS_OPT, keep="hands", progress=False)
+    )
+    assert report.num_episodes == 3 and report.num_frames == sum(LENGTHS)
+    assert validate_dataset(root).ok
+    with pytest.raises(ConversionError, match=r"\.mp4: video 'observation.images.cam_high' of episode 0 is missing"):
+        convert(ConvertOptions(source="lerobot", input=moved, root=tmp_path / "all", source_options=HANDS_OPT,
+                               progress=False))  # fmt: skip
+    assert not (tmp_path / "all").exists()
 
 
 def _write_v21_with_video(root: Path) -> None:

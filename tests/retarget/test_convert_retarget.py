@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from lerobot_unidextok import hands
 from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
 from lerobot_unidextok.data import load_udhm_frames
 from lerobot_unidextok.retarget import HandRetargeter
@@ -57,3 +58,26 @@ def test_retarget_source_errors(tmp_path, urdf_dir):
         convert(ConvertOptions(source="retarget", input=tmp_path / "x.json", root=tmp_path / "o", progress=False,
                                source_options={"hand": "xhand1", "urdf": str(urdf_dir)}))  # fmt: skip
     assert not (tmp_path / "o").exists()
+
+
+def test_one_side_of_a_two_hand_dataset_needs_only_that_urdf(urdf_dir, human_clip, tmp_path):
+    """`side=right` on a human dataset with both hands retargets the right hand alone, with only the right
+    URDF given. Catches the source that retargeted every side and so demanded the left URDF as well."""
+    kp = tmp_path / "kp"
+    kp.mkdir()
+    right = human_clip[:30]
+    np.savez(kp / "both.npz", right=right, left=right * np.array([-1.0, 1.0, 1.0]), fps=np.array(30.0))  # mirrored
+    human = tmp_path / "human"
+    convert(ConvertOptions(source="keypoints", input=kp, root=human, repo_id="t/human2", progress=False))
+    assert set(load_udhm_frames(human).side.tolist()) == {"left", "right"}
+    right_urdf = sorted(urdf_dir.rglob("xhand_right.urdf"))[0]  # the right URDF file alone
+    robot = tmp_path / "xhand_right"
+    opts = {"hand": "xhand1", "urdf": str(right_urdf), "side": "right"}
+    report = convert(ConvertOptions(source="retarget", input=human, root=robot, repo_id="t/xr", source_options=opts,
+                                    progress=False, test_fraction=0.0))  # fmt: skip
+    frames = load_udhm_frames(robot)
+    assert report.num_frames == 30 and set(frames.side.tolist()) == {"right"} and set(frames.hands) == {"xhand1"}
+    h = load_udhm_frames(human)
+    human_right = np.asarray(hands.get("human").from_udhm(h.states_rad[h.side == "right"].astype(np.float64), "right"))
+    expected = HandRetargeter("xhand1", right_urdf, "right").retarget(human_right).udhm_rad
+    np.testing.assert_allclose(frames.states_rad, expected, atol=1e-5)
