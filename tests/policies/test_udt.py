@@ -276,7 +276,8 @@ def test_lerobot_train_act_and_diffusion_resume_and_reload(tok_dir, g1_like, tmp
     with `--policy.path` rejected `--policy.discover_packages_path`. Both from flags / config file only.
     The reloaded post-processor's native action equals the dataset's native layout applied to the policy's
     converted action (the old check, hands in [0, 1], held by clipping alone), and the reloaded pre-processor
-    takes the robot's native state as well as the converted one (it refused the native width)."""
+    takes the robot's native state as well as the converted one (it refused the native width), also inside
+    `lerobot-rollout` driving a robot of the native layout."""
     root, hf = g1_like["root"], tmp_path / "hf"
     data = ["--dataset.repo_id=test/g1_like_udhm", f"--dataset.root={root}", f"--policy.udt_pretrained={tok_dir}"]
     plugin = "--policy.discover_packages_path=lerobot_unidextok"
@@ -310,6 +311,36 @@ def test_lerobot_train_act_and_diffusion_resume_and_reload(tok_dir, g1_like, tmp
         "diffusion_udt DiffusionUdtPolicy (3, 1, 26)",
         "diffusion_udt DiffusionUdtPolicy (3, 1, 26)",
     ]
+    _rollout_drives_a_native_robot(act, root, g1_like["native_state"], tmp_path)
+
+
+def _rollout_drives_a_native_robot(ckpt: Path, root: Path, native: np.ndarray, tmp_path: Path) -> None:
+    """`lerobot-rollout --policy.path` with a robot reporting the native layout (26 `.pos` values, recorded
+    order; tests/fixtures/replay_robot): the checkpoint's processors take its state and send it 26-wide
+    actions, the first one that of the stock factory for that state."""
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    np.save(tmp_path / "native_states.npy", native)
+    frame, sent = 5, tmp_path / "sent.npy"
+    fixtures = str(REPO / "tests" / "fixtures")
+    env = subprocess_env(HF_HOME=str(tmp_path / "hf3"))
+    env["PYTHONPATH"] = f"{fixtures}:{env['PYTHONPATH']}" if env.get("PYTHONPATH") else fixtures
+    r = subprocess.run([str(BIN / "lerobot-rollout"), "--robot.discover_packages_path=replay_robot",
+                        "--robot.type=unidextok_replay", f"--robot.dataset_root={root}",
+                        f"--robot.states={tmp_path / 'native_states.npy'}", f"--robot.frame={frame}",
+                        f"--robot.actions_out={sent}", f"--policy.path={ckpt}", "--strategy.type=base",
+                        "--task=pick up the bottle", "--duration=1", "--fps=30", "--device=cpu", "--play_sounds=false",
+                        "--return_to_initial_position=false"], env=env, check=False, capture_output=True, text=True,
+                       timeout=300)  # fmt: skip
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
+    actions = np.load(sent)
+    assert actions.ndim == 2 and actions.shape[1] == 26 and len(actions) >= 1, actions.shape
+    cfg = PreTrainedConfig.from_pretrained(ckpt)
+    policy = get_policy_class(cfg.type).from_pretrained(ckpt).eval()
+    pre, post = make_pre_post_processors(cfg, pretrained_path=ckpt)
+    with torch.inference_mode():
+        want = post(policy.select_action(pre({OBS_STATE: torch.from_numpy(native[frame]).float()})))
+    np.testing.assert_allclose(actions[0], want[0].numpy(), atol=1e-5)
 
 
 @pytest.mark.slow
