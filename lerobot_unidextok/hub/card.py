@@ -257,6 +257,7 @@ def policy_card(folder: str | Path, repo_id: str, training_data: list[str] | Non
     ), ""]  # fmt: skip
     if is_udt:
         native = config.get("udt_native_layout") or {}
+        native_state = config.get("udt_native_state_layout") or {}
         state_names = config.get("udt_state_names") or []
         hands = config.get("udt_hand_layout") or []
         body += [
@@ -267,6 +268,12 @@ def policy_card(folder: str | Path, repo_id: str, training_data: list[str] | Non
             f" ({config.get('udt_representation')} view as `observation.environment_state`)",
             f"- state: {len(state_names) or 22 * len(hands)} columns, "
             f"{max(0, len(state_names) - 22 * len(hands))} passthrough (arms, grippers...) + {len(hands)} UDHM blocks",
+            *(
+                [f"- the robot's native {len(native_state['native_names'])}-wide state is accepted too "
+                 "(`unidextok.native_to_udhm` pre-processor)"]  # fmt: skip
+                if native_state
+                else []
+            ),
             (
                 f"- actions: decoded to the robot's native {len(native['native_names'])}-wide vector "
                 "(`unidextok.udhm_to_native` post-processor)"

@@ -18,7 +18,9 @@ What the mixin adds to the stock config, in `validate_features` (run when the po
   so a whole-robot state (arms + hands) works: only the UDHM blocks are tokenised;
 - `observation.environment_state` (ENV, not normalised) sized for the token view, which ACT / Diffusion /
   VQ-BeT take as their environment state next to `observation.state`;
-- the native action layout, so `select_action` (through the post-processor) returns the robot's own action.
+- the native action layout, so `select_action` (through the post-processor) returns the robot's own action;
+- the native state layout, so the pre-processor also takes the robot's own `observation.state` (a step maps it
+  to the converted layout; `config.input_features` stays what the model reads, the converted state).
 """
 
 from __future__ import annotations
@@ -76,8 +78,14 @@ class UdtConfigMixin:
     # Decode predicted actions to the robot's native action vector (arms copied, hands in native units) when
     # the dataset's hands have native joints; false keeps UDHM radians.
     udt_native_action: bool = True
-    # The native action layout {"names", "native_names", "hands"}; filled from the dataset.
+    # The native action layout {"names", "native_names", "hands", "mapping"}; filled from the dataset.
     udt_native_layout: dict[str, Any] = field(default_factory=dict)
+    # Accept the robot's native observation.state (e.g. 14 arm radians + 2 x 6 Inspire values) and map it to
+    # the converted layout in the pre-processor (step unidextok.native_to_udhm); the converted state is
+    # accepted too. false: the converted state only.
+    udt_native_state: bool = True
+    # The native state layout {"names", "native_names", "hands", "mapping"}; filled from the dataset.
+    udt_native_state_layout: dict[str, Any] = field(default_factory=dict)
     # Accepted and ignored, so --policy.discover_packages_path=lerobot_unidextok also works with
     # --policy.path=<checkpoint> (LeRobot passes every --policy.* flag to the loaded config).
     discover_packages_path: str | None = None
@@ -119,9 +127,12 @@ class UdtConfigMixin:
         self.udt_hand_layout, self.udt_sides, self.udt_state_names = layout.hands, layout.sides, layout.state_names
         native = NativeLayout.from_dataset(meta.root, ACTION) if self.udt_native_action else None
         self.udt_native_layout = native.to_dict() if native is not None else {}
+        state = NativeLayout.from_dataset(meta.root, OBS_STATE) if self.udt_native_state else None
+        self.udt_native_state_layout = state.to_dict() if state is not None and state.invertible else {}
         logger.info(
-            "%s: hands %s (sides %s), %d passthrough state columns, native action %s, from %s",
+            "%s: hands %s (sides %s), %d passthrough state columns, native state %s, native action %s, from %s",
             self.type, layout.hands, layout.sides, len(layout.passthrough_names),
+            f"{state.native_dim} wide accepted" if self.udt_native_state_layout else "not accepted",
             f"{native.native_dim} wide" if native else "not decoded", meta.root,
         )  # fmt: skip
 
@@ -146,6 +157,11 @@ class UdtConfigMixin:
                 self.udt_hand_layout = self.udt_hand_layout * (width // UDHM_DIM)
         elif len(self.udt_state_names) != width:
             raise ValueError(f"udt_state_names has {len(self.udt_state_names)} names for a {width}-wide {OBS_STATE}")
+        if self.udt_native_state_layout and self.udt_native_state_layout.get("names") != self.udt_state_names:
+            raise ValueError(
+                "udt_native_state_layout.names must be the converted state names (udt_state_names); both are filled "
+                "from the training dataset, so leave them unset, or set --policy.udt_native_state=false"
+            )
         num_hands = len(self.udt_hand_layout)
         if not self.udt_state_names and num_hands * UDHM_DIM != width:
             raise ValueError(

@@ -1,11 +1,14 @@
 """The processors of every `<type>_udt` type: the stock pipelines with the UniDexTok step inserted before batching.
 
-    rename -> unidextok.state_tokenizer -> to_batch -> device -> normalizer      (pre)
-    unnormalizer -> to cpu [-> unidextok.udhm_to_native]                          (post)
+    rename [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer -> to_batch -> device -> normalizer  (pre)
+    unnormalizer -> to cpu [-> unidextok.udhm_to_native]                                                   (post)
 
-The step sits before `to_batch_processor` (custom keys must exist before batching, and it must see raw
-radians, never normalised values). Each `processor_<type>_udt.make_<type>_udt_pre_post_processors` builds the
-stock pair and passes it through `insert_udt_steps`.
+The steps sit before `to_batch_processor` (custom keys must exist before batching, and they must see raw
+values, never normalised ones). `unidextok.native_to_udhm` maps the robot's native `observation.state` to the
+converted layout (the converted state of the training batches passes unchanged); it is there when the
+training dataset recorded a native state layout and `udt_native_state` is on. Each
+`processor_<type>_udt.make_<type>_udt_pre_post_processors` builds the stock pair and passes it through
+`insert_udt_steps`.
 """
 
 from __future__ import annotations
@@ -13,7 +16,12 @@ from __future__ import annotations
 from lerobot.processor import AddBatchDimensionProcessorStep, NormalizerProcessorStep, PolicyProcessorPipeline
 
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
-from lerobot_unidextok.processor import NativeLayout, UDHMToNativeCommandStep, UniDexTokStateTokenizerStep
+from lerobot_unidextok.processor import (
+    NativeLayout,
+    NativeToUDHMStateStep,
+    UDHMToNativeCommandStep,
+    UniDexTokStateTokenizerStep,
+)
 
 
 def insert_udt_steps(
@@ -37,6 +45,8 @@ def insert_udt_steps(
             f"step before ({[type(s).__name__ for s in steps]}); this policy type cannot be wrapped"
         )
     steps.insert(before[0], step)
+    if config.udt_native_state and config.udt_native_state_layout:
+        steps.insert(before[0], NativeToUDHMStateStep.from_layout(NativeLayout(**config.udt_native_state_layout)))
     pre.steps = steps
     if config.udt_native_action and config.udt_native_layout:
         post.steps = [*post.steps, UDHMToNativeCommandStep.from_layout(NativeLayout(**config.udt_native_layout))]

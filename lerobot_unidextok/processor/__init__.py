@@ -2,6 +2,7 @@
 
 from lerobot_unidextok.processor.guards import RANGE_CHECKS, hand_bounds_rad
 from lerobot_unidextok.processor.layout import HandLayout, NativeLayout, hand_layout_from_dataset
+from lerobot_unidextok.processor.native_state import NATIVE_STATE_STEP_NAME, NativeToUDHMStateStep
 from lerobot_unidextok.processor.preview import token_preview
 from lerobot_unidextok.processor.processor_unidextok import (
     NATIVE_STEP_NAME,
@@ -16,12 +17,14 @@ from lerobot_unidextok.processor.processor_unidextok import (
 )
 
 __all__ = [
+    "NATIVE_STATE_STEP_NAME",
     "NATIVE_STEP_NAME",
     "RANGE_CHECKS",
     "REPRESENTATIONS",
     "STEP_NAME",
     "HandLayout",
     "NativeLayout",
+    "NativeToUDHMStateStep",
     "UDHMToNativeCommandStep",
     "UniDexTokStateTokenizerStep",
     "hand_bounds_rad",

@@ -5,8 +5,10 @@ No lerobot import here. A converted vector is `[passthrough columns] + [one 22-w
 `state_layout.find_udhm_blocks`, never by position.
 
 - `HandLayout`: hand spec name, side and columns of each UDHM block of `observation.state` (the pre-processor).
-- `NativeLayout`: converted `action` -> the robot's native action vector (the post-processor): passthrough
-  columns copied by name, each hand's native columns from `hands.get(hand).from_udhm(block, side)`.
+- `NativeLayout`: the robot's native vector <-> the converted vector. `to_native` (the post-processor, actions):
+  passthrough columns copied by name, each hand's native columns from `hands.get(hand).from_udhm(block, side)`;
+  `to_converted` (the pre-processor, the robot's `observation.state`): the inverse, each hand's native columns
+  through `hands.get(hand).to_udhm(values, side)` into its UDHM block.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
 from lerobot_unidextok.constants import ACTION, CONVERSION_PATH, HAND_TYPE_KEY, INFO_PATH, OBS_STATE, SIDES, UDHM_DIM
 from lerobot_unidextok.state_layout import feature_names, find_udhm_blocks, passthrough_indices
@@ -157,18 +160,26 @@ def hand_layout_from_dataset(root: str | Path) -> HandLayout:
 # ---------------------------------------------------------------------------------------------
 # back to the robot's native vector
 # ---------------------------------------------------------------------------------------------
+def names_summary(names: list[str], head: int = 2) -> str:
+    """`a, b, ..., z` for long name lists (error messages): the first `head` names and the last."""
+    names = list(names)
+    return ", ".join(names) if len(names) <= head + 2 else f"{', '.join(names[:head])}, ..., {names[-1]}"
+
+
 @dataclass
 class NativeLayout:
-    """Converted vector (passthrough + UDHM blocks, `names`) -> the robot's native vector (`native_names`).
+    """Converted vector (passthrough + UDHM blocks, `names`) <-> the robot's native vector (`native_names`).
 
     `hands`: one `{"side", "hand", "columns"}` per UDHM block; `columns` are the native names that
     `hands.get(hand).from_udhm(block, side)` fills, in that order. Every other native name must be a
-    passthrough column of `names` and is copied unchanged.
+    passthrough column of `names` and is copied unchanged. `mapping` is the converter's native -> UDHM
+    mapping ("semantic", or the "append_pad" ablation), recorded in `meta/unidextok_conversion.json`.
     """
 
     names: list[str]
     native_names: list[str]
     hands: list[dict[str, Any]]
+    mapping: str = "semantic"
 
     def __post_init__(self) -> None:
         from lerobot_unidextok import hands as hand_registry
@@ -197,10 +208,51 @@ class NativeLayout:
             raise ValueError(f"native columns {unknown[:5]} are neither a hand column nor a passthrough column")
         self._copy_src = np.array([self.names.index(n) for n in copy], dtype=np.int64)
         self._copy_dst = np.array([native_index[n] for n in copy], dtype=np.int64)
+        # the inverse needs every converted column: each block from a hand, each passthrough from a native name
+        covered = {h["side"] for h in self.hands}
+        self._inverse_gaps = [f"the {s} UDHM block has no hand entry" for s in blocks if s not in covered] + [
+            f"passthrough column {n!r} is not a native name" for n in pass_names if n not in native_index
+        ]
 
     @property
     def native_dim(self) -> int:
         return len(self.native_names)
+
+    @property
+    def converted_dim(self) -> int:
+        return len(self.names)
+
+    @property
+    def invertible(self) -> bool:
+        """Whether `to_converted` can rebuild every converted column from the native vector."""
+        return not self._inverse_gaps
+
+    def describe_native(self) -> str:
+        """`26 columns: kLeftShoulderPitch, ..., kRightWristYaw (14 passthrough), left inspire_rh56_unitree
+        kLeftHandPinky, ..., kLeftHandThumbRotation (6), ...`: the native layout in one line, vector order."""
+        hand_of = {c: h for h in self.hands for c in h["columns"]}
+        runs: list[tuple[dict | None, list[str]]] = []  # consecutive columns of one hand (or passthrough)
+        for n in self.native_names:
+            owner = hand_of.get(n)
+            if runs and runs[-1][0] is owner:
+                runs[-1][1].append(n)
+            else:
+                runs.append((owner, [n]))
+        parts = [
+            f"{names_summary(cols)} ({len(cols)} passthrough)"
+            if owner is None
+            else f"{owner['side']} {owner['hand']} {names_summary(cols)} ({len(cols)})"
+            for owner, cols in runs
+        ]
+        return f"{self.native_dim} columns: {'; '.join(parts)}"
+
+    def describe_converted(self) -> str:
+        """`58 columns: 14 passthrough + 2 UDHM blocks (left, right)`."""
+        blocks = find_udhm_blocks(self.names)
+        return (
+            f"{self.converted_dim} columns: {self.converted_dim - UDHM_DIM * len(blocks)} passthrough + "
+            f"{len(blocks)} UDHM block{'s' * (len(blocks) != 1)} ({', '.join(b.side for b in blocks)})"
+        )
 
     def to_native(self, x: np.ndarray) -> np.ndarray:
         """(..., len(names)) converted values -> (..., len(native_names)) native values (float64)."""
@@ -210,11 +262,38 @@ class NativeLayout:
         out = np.empty((*x.shape[:-1], self.native_dim), dtype=np.float64)
         out[..., self._copy_dst] = x[..., self._copy_src]
         for spec, side, block, dst in self._decoders:
-            out[..., dst] = np.asarray(spec.from_udhm(x[..., block], side))
+            out[..., dst] = np.asarray(spec.from_udhm(x[..., block], side, mapping=self.mapping))
+        return out
+
+    def to_converted(self, native: Any, on_out_of_range: str = "raise") -> Any:
+        """(..., len(native_names)) native values -> (..., len(names)) converted values, the inverse of
+        `to_native`: passthrough columns copied by name, each hand's native columns through
+        `hands.get(hand).to_udhm(values, side, mapping)` into its UDHM block (zero on slots the hand lacks).
+
+        A torch tensor stays a tensor (dtype and device kept); anything else becomes a float64 numpy array.
+        `on_out_of_range`: native hand values outside their range "raise" (as the converter does) or "clip".
+        """
+        if self._inverse_gaps:
+            raise ValueError(f"this native layout cannot rebuild the converted vector: {'; '.join(self._inverse_gaps)}")
+        is_torch = isinstance(native, torch.Tensor)
+        x = (native if native.is_floating_point() else native.float()) if is_torch else np.asarray(native, np.float64)
+        if x.shape[-1] != self.native_dim:
+            raise ValueError(f"expected a vector of width {self.native_dim} (native layout), got {tuple(x.shape)}")
+        lead = tuple(x.shape[:-1])
+        if is_torch:
+            out = torch.zeros((*lead, self.converted_dim), dtype=x.dtype, device=x.device)
+            src = torch.as_tensor(self._copy_dst, device=x.device)
+            dst = torch.as_tensor(self._copy_src, device=x.device)
+        else:
+            out, src, dst = np.zeros((*lead, self.converted_dim)), self._copy_dst, self._copy_src
+        out[..., dst] = x[..., src]
+        for spec, side, block, columns in self._decoders:
+            idx = torch.as_tensor(columns, device=x.device) if is_torch else np.asarray(columns)
+            out[..., block] = spec.to_udhm(x[..., idx], side, mapping=self.mapping, on_out_of_range=on_out_of_range)
         return out
 
     def to_dict(self) -> dict[str, Any]:
-        return {"names": self.names, "native_names": self.native_names, "hands": self.hands}
+        return {"names": self.names, "native_names": self.native_names, "hands": self.hands, "mapping": self.mapping}
 
     @classmethod
     def from_hands(cls, hands: list[str], sides: list[str], names: list[str] | None = None) -> NativeLayout:
@@ -248,12 +327,16 @@ class NativeLayout:
         if not find_udhm_blocks(names):
             return None
         meta_path = root / CONVERSION_PATH
-        recorded = json.loads(meta_path.read_text()).get("native_layout", {}).get(key) if meta_path.is_file() else None
+        settings = json.loads(meta_path.read_text()) if meta_path.is_file() else {}
+        recorded = settings.get("native_layout", {}).get(key)
+        mapping = settings.get("mapping", "semantic")
         if recorded:
             if any(hand_registry.get(h["hand"]).kind != "joints" for h in recorded["hands"]):
                 return None
-            return cls(names=names, native_names=recorded["names"], hands=recorded["hands"])
+            return cls(names=names, native_names=recorded["names"], hands=recorded["hands"], mapping=mapping)
         hand_types = dataset_hand_types(root)
         if any(hand_registry.get(h).kind != "joints" for h in hand_types):
             return None
-        return cls.from_hands(hand_types, [b.side for b in find_udhm_blocks(names)], names)
+        layout = cls.from_hands(hand_types, [b.side for b in find_udhm_blocks(names)], names)
+        layout.mapping = mapping
+        return layout

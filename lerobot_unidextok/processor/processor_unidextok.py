@@ -1,6 +1,7 @@
 """LeRobot processor steps around UniDexTok: hand states -> tokens (pre), UDHM -> native commands (post).
 
-The only module of the package that imports `lerobot.processor`. Registry names contain no '/'
+With `native_state.py` (native robot state -> converted layout), the only modules of the package that import
+`lerobot.processor`. Registry names contain no '/'
 (a '/' breaks `save_pretrained` of stateful steps in lerobot 0.6).
 
 The state may be a whole robot: only the UDHM blocks (found by name) are tokenised.

@@ -154,6 +154,7 @@ def test_policy_folder_gets_a_policy_card(tmp_path, g1_like):
     config = {"type": "diffusion_udt", "udt_hand_layout": [INSPIRE] * 2, "udt_sides": ["left", "right"],
               "udt_state_names": [f"s{i}" for i in range(58)], "udt_pretrained": "lab/unidextok-small",
               "udt_representation": "dequantized", "udt_native_layout": {"native_names": [f"n{i}" for i in range(26)]},
+              "udt_native_state_layout": {"native_names": [f"n{i}" for i in range(26)]},
               "input_features": {"observation.state": {"type": "STATE", "shape": [58]}},
               "output_features": {"action": {"type": "ACTION", "shape": [58]}}}  # fmt: skip
     (folder / "config.json").write_text(json.dumps(config))
@@ -161,6 +162,7 @@ def test_policy_folder_gets_a_policy_card(tmp_path, g1_like):
     card = model_card(folder, "lab/diffusion-g1")
     assert "None tokens" not in card and "LeRobot policy `diffusion_udt`" in card
     assert "14 passthrough (arms, grippers...) + 2 UDHM blocks" in card and "native 26-wide vector" in card
+    assert "the robot's native 26-wide state is accepted too" in card
     assert "- `lab/g1_udhm`" in card and "--policy.discover_packages_path=lerobot_unidextok" in card
     assert "library_name: lerobot" in card
 

@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 from lerobot.configs.policies import PreTrainedConfig
@@ -21,7 +22,7 @@ from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_STA
 from lerobot_unidextok.policies import UDT_CONFIGS, ACTUdtConfig, DiffusionUdtConfig
 from lerobot_unidextok.policies.act_udt import make_act_udt_pre_post_processors
 from lerobot_unidextok.policies.diffusion_udt import make_diffusion_udt_pre_post_processors
-from lerobot_unidextok.processor import NATIVE_STEP_NAME, STEP_NAME
+from lerobot_unidextok.processor import NATIVE_STATE_STEP_NAME, NATIVE_STEP_NAME, STEP_NAME
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 
 REPO = Path(__file__).resolve().parents[2]
@@ -136,6 +137,33 @@ def test_whole_robot_layout_comes_from_the_dataset(tok_dir, g1_like):
     assert make_act_udt_pre_post_processors(off)[1](torch.zeros(2, 58)).shape == (2, 58)
 
 
+def test_pre_processor_takes_the_robots_native_state(tok_dir, g1_like):
+    """The robot's 26-wide state was refused ("width 26, but this step was set up for 58 columns"): the
+    pre-processor maps it to the converted layout first, so both give the same policy inputs."""
+    from lerobot.configs.types import PipelineFeatureType
+
+    cfg = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"])
+    assert cfg.udt_native_state_layout["native_names"] == NATIVE_NAMES
+    assert cfg.input_features[OBS_STATE].shape == (58,)  # what the model reads stays the converted state
+    pre, _ = make_act_udt_pre_post_processors(cfg)
+    names = [type(s).__name__ for s in pre.steps]
+    assert names.index("NativeToUDHMStateStep") == names.index("UniDexTokStateTokenizerStep") - 1
+    native = torch.from_numpy(g1_like["native_state"][:5]).float()
+    converted = torch.from_numpy(to_converted(g1_like["native_state"][:5])).float()
+    for i in range(5):
+        a, b = pre({OBS_STATE: native[i]}), pre({OBS_STATE: converted[i]})
+        torch.testing.assert_close(a[OBS_STATE], b[OBS_STATE], atol=1e-6, rtol=0)
+        assert torch.equal(a[OBS_HAND_TOKEN_FEATURES], b[OBS_HAND_TOKEN_FEATURES])
+    # the features a robot of this layout reports are turned into those the policy reads
+    robot = {PipelineFeatureType.OBSERVATION: {OBS_STATE: PolicyFeature(FeatureType.STATE, (26,))}}
+    seen = pre.transform_features(robot)[PipelineFeatureType.OBSERVATION]
+    assert {k: seen[k] for k in cfg.input_features} == cfg.input_features
+    off = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"], udt_native_state=False)
+    assert off.udt_native_state_layout == {}
+    with pytest.raises(ValueError, match="width 26, but this step was set up for 58 columns"):
+        make_act_udt_pre_post_processors(off)[0]({OBS_STATE: native[0]})
+
+
 # ---------------------------------------------------------------------------------------------
 # the real lerobot-train CLI
 # ---------------------------------------------------------------------------------------------
@@ -212,7 +240,8 @@ import numpy as np
 from lerobot_unidextok.processor import NativeLayout
 ds = LeRobotDataset("test/g1_like_udhm", root=sys.argv[1])
 layout = NativeLayout.from_dataset(sys.argv[1])
-for path in sys.argv[2:]:
+native_states = np.load(sys.argv[2])  # (N, 26) the robot's own states of the dataset frames
+for path in sys.argv[3:]:
     cfg = PreTrainedConfig.from_pretrained(path)
     policy = get_policy_class(cfg.type).from_pretrained(path).eval()
     pre, post = make_pre_post_processors(cfg, pretrained_path=path)
@@ -229,6 +258,14 @@ for path in sys.argv[2:]:
         acts.append(native)
     a = torch.stack(acts)  # (3, 1, 26)
     assert torch.isfinite(a).all(), a
+    # the robot's native 26-wide state gives the action its converted 58-wide state gives
+    for i in (0, 5, 70):
+        outs = []
+        for state in (ds[i]["observation.state"], torch.from_numpy(native_states[i])):
+            policy.reset()
+            torch.manual_seed(0)  # diffusion samples noise
+            outs.append(post(policy.select_action(pre({"observation.state": state}))))
+        assert outs[1].shape == (1, 26) and torch.allclose(outs[0], outs[1], atol=1e-4), (outs[0] - outs[1]).abs().max()
     print(cfg.type, type(policy).__name__, tuple(a.shape))
 """
 
@@ -238,7 +275,9 @@ def test_lerobot_train_act_and_diffusion_resume_and_reload(tok_dir, g1_like, tmp
     """`--policy.type=act` failed (no image / env state) and diffusion failed on stacked states; resuming
     with `--policy.path` rejected `--policy.discover_packages_path`. Both from flags / config file only.
     The reloaded post-processor's native action equals the dataset's native layout applied to the policy's
-    converted action (the old check, hands in [0, 1], held by clipping alone)."""
+    converted action (the old check, hands in [0, 1], held by clipping alone), and the reloaded pre-processor
+    takes the robot's native state as well as the converted one (it refused the native width), also inside
+    `lerobot-rollout` driving a robot of the native layout."""
     root, hf = g1_like["root"], tmp_path / "hf"
     data = ["--dataset.repo_id=test/g1_like_udhm", f"--dataset.root={root}", f"--policy.udt_pretrained={tok_dir}"]
     plugin = "--policy.discover_packages_path=lerobot_unidextok"
@@ -253,14 +292,18 @@ def test_lerobot_train_act_and_diffusion_resume_and_reload(tok_dir, g1_like, tmp
         assert cfg["type"] == udt_type and cfg["udt_state_names"] == STATE_NAMES
         pre = [s["registry_name"] for s in json.loads((ckpt / "policy_preprocessor.json").read_text())["steps"]]
         assert pre.index(STEP_NAME) < pre.index("to_batch_processor") < pre.index("normalizer_processor")
+        assert pre.index(NATIVE_STATE_STEP_NAME) == pre.index(STEP_NAME) - 1
         post = [s["registry_name"] for s in json.loads((ckpt / "policy_postprocessor.json").read_text())["steps"]]
         assert post[-1] == NATIVE_STEP_NAME
     # resume the diffusion policy from its checkpoint with the same plugin flag
     resumed = _train([f"--policy.path={diff}", plugin, *data[:2], "--policy.device=cpu", "--policy.push_to_hub=false",
                       "--steps=3", "--batch_size=4", "--wandb.enable=false"], tmp_path / "resumed", hf)  # fmt: skip
     assert json.loads((resumed / "config.json").read_text())["type"] == "diffusion_udt"
-    # a fresh process reloads each checkpoint with the stock factory and returns the robot's 26-wide action
-    r = subprocess.run([sys.executable, "-c", RELOAD, str(root), str(act), str(diff), str(resumed)], check=False,
+    # a fresh process reloads each checkpoint with the stock factory and returns the robot's 26-wide action,
+    # from the converted state and from the robot's native state alike
+    np.save(tmp_path / "native.npy", g1_like["native_state"])
+    r = subprocess.run([sys.executable, "-c", RELOAD, str(root), str(tmp_path / "native.npy"), str(act), str(diff),
+                        str(resumed)], check=False,
                        env=subprocess_env(HF_HOME=str(tmp_path / "hf2")), capture_output=True, text=True, timeout=300)  # fmt: skip
     assert r.returncode == 0, r.stderr[-3000:]
     assert [line for line in r.stdout.splitlines() if "Policy (" in line] == [
@@ -268,21 +311,59 @@ def test_lerobot_train_act_and_diffusion_resume_and_reload(tok_dir, g1_like, tmp
         "diffusion_udt DiffusionUdtPolicy (3, 1, 26)",
         "diffusion_udt DiffusionUdtPolicy (3, 1, 26)",
     ]
+    _rollout_drives_a_native_robot(act, root, g1_like["native_state"], tmp_path)
+
+
+def _rollout_drives_a_native_robot(ckpt: Path, root: Path, native: np.ndarray, tmp_path: Path) -> None:
+    """`lerobot-rollout --policy.path` with a robot reporting the native layout (26 `.pos` values, recorded
+    order; tests/fixtures/replay_robot): the checkpoint's processors take its state and send it 26-wide
+    actions, the first one that of the stock factory for that state."""
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    np.save(tmp_path / "native_states.npy", native)
+    frame, sent = 5, tmp_path / "sent.npy"
+    fixtures = str(REPO / "tests" / "fixtures")
+    env = subprocess_env(HF_HOME=str(tmp_path / "hf3"))
+    env["PYTHONPATH"] = f"{fixtures}:{env['PYTHONPATH']}" if env.get("PYTHONPATH") else fixtures
+    r = subprocess.run([str(BIN / "lerobot-rollout"), "--robot.discover_packages_path=replay_robot",
+                        "--robot.type=unidextok_replay", f"--robot.dataset_root={root}",
+                        f"--robot.states={tmp_path / 'native_states.npy'}", f"--robot.frame={frame}",
+                        f"--robot.actions_out={sent}", f"--policy.path={ckpt}", "--strategy.type=base",
+                        "--task=pick up the bottle", "--duration=1", "--fps=30", "--device=cpu", "--play_sounds=false",
+                        "--return_to_initial_position=false"], env=env, check=False, capture_output=True, text=True,
+                       timeout=300)  # fmt: skip
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
+    actions = np.load(sent)
+    assert actions.ndim == 2 and actions.shape[1] == 26 and len(actions) >= 1, actions.shape
+    cfg = PreTrainedConfig.from_pretrained(ckpt)
+    policy = get_policy_class(cfg.type).from_pretrained(ckpt).eval()
+    pre, post = make_pre_post_processors(cfg, pretrained_path=ckpt)
+    with torch.inference_mode():
+        want = post(policy.select_action(pre({OBS_STATE: torch.from_numpy(native[frame]).float()})))
+    np.testing.assert_allclose(actions[0], want[0].numpy(), atol=1e-5)
 
 
 @pytest.mark.slow
-def test_real_g1_inspire_select_action_returns_the_native_action(tok_dir, g1_dataset, tmp_path):
+def test_real_g1_inspire_select_action_returns_the_native_action(tok_dir, g1_dataset, real_data_dir, tmp_path):
     """Real G1 + Inspire episodes converted by unidextok-convert (extra check, skips without ../shared):
-    act_udt returned 12 hand values for a robot that needs 26."""
+    act_udt returned 12 hand values for a robot that needs 26, and refused the robot's own 26-wide state
+    ("observation.state has width 26, but this step was set up for 58 columns"). In a fresh process, the
+    reloaded checkpoint now gives the robot's recorded native frames exactly the actions of their converted
+    frames, and a wrong width gets one line naming both layouts."""
+    from g1_real import native_states
+
     from lerobot_unidextok.processor import NativeLayout
 
     assert NativeLayout.from_dataset(g1_dataset).native_dim == 26  # 14 arm joints + 2 x 6 Inspire values
+    native = np.concatenate([native_states(real_data_dir, e) for e in range(3)])  # the 3 converted episodes
+    np.save(tmp_path / "native.npy", native)
     ckpt = _train(["--policy.type=act_udt", "--policy.discover_packages_path=lerobot_unidextok",
                    "--dataset.repo_id=test/g1_udhm", f"--dataset.root={g1_dataset}", "--policy.device=cpu",
                    "--policy.push_to_hub=false", f"--policy.udt_pretrained={tok_dir}", "--steps=3", "--batch_size=4",
                    "--wandb.enable=false", *TINY_ACT], tmp_path / "train", tmp_path / "hf")  # fmt: skip
     check = f"""
 import lerobot_policy_unidextok, torch
+import numpy as np
 from lerobot.configs.policies import PreTrainedConfig
 from lerobot.policies.factory import get_policy_class, make_pre_post_processors
 from lerobot.datasets import LeRobotDataset
@@ -291,11 +372,26 @@ cfg = PreTrainedConfig.from_pretrained(path)
 policy = get_policy_class(cfg.type).from_pretrained(path).eval()
 pre, post = make_pre_post_processors(cfg, pretrained_path=path)
 ds = LeRobotDataset("test/g1_udhm", root="{g1_dataset}")
-a = torch.stack([post(policy.select_action(pre({{"observation.state": ds[i]["observation.state"]}}))) for i in (0, 100, 700)])
+native = torch.from_numpy(np.load("{tmp_path / 'native.npy'}"))
+assert native.shape == (len(ds), 26)
+def act(state):
+    policy.reset()
+    return post(policy.select_action(pre({{"observation.state": state}})))
+a = torch.stack([act(ds[i]["observation.state"]) for i in (0, 100, 700)])
 assert torch.isfinite(a).all()
+b = torch.stack([act(native[i]) for i in (0, 100, 700)])  # the robot's own state, as a robot sends it
+assert torch.equal(a, b), (a - b).abs().max()
+try:
+    act(native[0, :25])
+except ValueError as err:
+    print(str(err))
 print(tuple(a.shape))
 """
     r = subprocess.run([sys.executable, "-c", check], check=False, env=subprocess_env(HF_HOME=str(tmp_path / "hf2")),
                        capture_output=True, text=True, timeout=180)  # fmt: skip
     assert r.returncode == 0, r.stderr[-3000:]
-    assert r.stdout.strip().splitlines()[-1] == "(3, 1, 26)"
+    *_, error, shape = r.stdout.strip().splitlines()
+    assert shape == "(3, 1, 26)"
+    assert error.startswith("observation.state has width 25, neither the native nor the converted layout")
+    assert "native 26 columns: kLeftShoulderPitch, kLeftShoulderRoll, ..., kRightWristYaw (14 passthrough)" in error
+    assert "converted 58 columns: 14 passthrough + 2 UDHM blocks (left, right)" in error
