@@ -168,6 +168,17 @@ def range_only_table(hand: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return mask, lo, hi
 
 
+def range_states(hand: str, n: int, seed: int) -> HandStates:
+    """`n` states of registered `hand` uniform inside its registered joint ranges, each on a random side
+    (the `uniform` source of a range-only hand): the per-hand in-range evaluation set."""
+    mask, lo, hi = range_only_table(hand)
+    rng = np.random.default_rng(seed)
+    side = rng.integers(len(lo), size=n)
+    x = lo[side] + (hi[side] - lo[side]) * rng.random((n, UDHM_DIM))
+    masks = np.broadcast_to(mask, x.shape)
+    return HandStates(np.where(masks, x, 0.0), np.full(n, hand), masks)
+
+
 def recorded_tables(data: HandStates | HandRowStore):
     """(hand, rows, masks, take) per hand: in-memory copies, or a store's memory maps and its view's rows."""
     if isinstance(data, HandRowStore):
