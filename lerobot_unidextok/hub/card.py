@@ -237,6 +237,16 @@ def write_run_cards(run_dir: str | Path, results: dict[str, dict], training: dic
         (folder / "README.md").write_text(tokenizer_card(folder, run_dir.name))
 
 
+def _policy_tokenizer(config: dict) -> str:
+    """The tokenizer a `<type>_udt` config names (as `UdtConfigMixin.untrained_preset` decides)."""
+    from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+
+    pretrained, preset = config.get("udt_pretrained"), config.get("udt_preset")
+    if pretrained is None or (preset and pretrained == DEFAULT_TOKENIZER):
+        return f"untrained preset {preset or 'small'}"
+    return pretrained
+
+
 def policy_card(folder: str | Path, repo_id: str, training_data: list[str] | None = None) -> str:
     """README.md text of a LeRobot policy checkpoint (`<type>_udt` or stock): type, inputs, hands, data, use."""
     folder = Path(folder)
@@ -264,7 +274,7 @@ def policy_card(folder: str | Path, repo_id: str, training_data: list[str] | Non
             "## Hands",
             "",
             *[f"- {s} `{h}`" for h, s in zip(hands, config.get("udt_sides") or ["?"] * len(hands), strict=False)],
-            f"- tokenizer: `{config.get('udt_pretrained') or 'untrained preset ' + str(config.get('udt_preset'))}`"
+            f"- tokenizer: `{_policy_tokenizer(config)}`"
             f" ({config.get('udt_representation')} view as `observation.environment_state`)",
             f"- state: {len(state_names) or 22 * len(hands)} columns, "
             f"{max(0, len(state_names) - 22 * len(hands))} passthrough (arms, grippers...) + {len(hands)} UDHM blocks",

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.hub.card import card_status, model_card, with_training_data
+from lerobot_unidextok.pretrained import resolve as resolve_pretrained
 from lerobot_unidextok.utils.cli import UserError
 from lerobot_unidextok.utils.hf_cache import DATASET_REVISIONS, cached_repo_snapshot, hub_cache, lerobot_home
 
@@ -78,7 +79,7 @@ def push(
     training_data: list[str] | None = None,
     commit_message: str | None = None,
 ) -> str:
-    """Upload a folder; returns the commit id.
+    """Upload a folder (or a tokenizer shipped in the package, by its id); returns the commit id.
 
     Models get a generated card (tokenizer or policy card) when the folder has none or only
     huggingface_hub's generic one; a card written by this package (e.g. by unidextok-train) is kept, with
@@ -88,7 +89,7 @@ def push(
     from huggingface_hub import HfApi
     from huggingface_hub.errors import RevisionNotFoundError
 
-    local_dir = Path(local_dir)
+    local_dir = Path(resolve_pretrained(local_dir))  # a shipped id (unidextok/universal-small): its package folder
     if not local_dir.is_dir():
         raise FileNotFoundError(f"{local_dir} is not a folder; pass the checkpoint or dataset directory")
     local_dir = checkpoint_folder(local_dir)

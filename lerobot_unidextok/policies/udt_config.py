@@ -34,6 +34,7 @@ from typing import Any
 from lerobot.configs.types import FeatureType, PolicyFeature
 
 from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE, UDHM_DIM
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 from lerobot_unidextok.processor import (
     RANGE_CHECKS,
     REPRESENTATIONS,
@@ -55,11 +56,12 @@ class UdtConfigMixin:
     """The `udt_*` fields of a `<type>_udt` config; put it before the stock config class among the bases
     (`class ACTUdtConfig(UdtConfigMixin, ACTConfig)`). Each field's comment is its `--help` text."""
 
-    # UniDexTok checkpoint folder or Hub repo id (offline from the HF cache once pulled); unset: an untrained
-    # `udt_preset` tokenizer (smoke tests only).
-    udt_pretrained: str | None = None
-    # Tokenizer size preset used when udt_pretrained is unset: tiny | small | paper.
-    udt_preset: str = "small"
+    # UniDexTok checkpoint folder, shipped id or Hub repo id (offline from the HF cache once pulled). Default:
+    # the shipped `unidextok/universal-small`, trained on every registered hand (no network needed).
+    udt_pretrained: str | None = DEFAULT_TOKENIZER
+    # An untrained tokenizer of this preset (tiny | small | paper; smoke tests only) instead of the default
+    # udt_pretrained; `udt_pretrained=null` without a preset is an untrained `small`.
+    udt_preset: str | None = None
     # What the policy reads as observation.environment_state: dequantized (decoded UDHM, H*22 radians) or
     # embedding (unit-norm code vectors, H*N*codebook_dim).
     udt_representation: str = "dequantized"
@@ -102,12 +104,19 @@ class UdtConfigMixin:
         """The UniDexTokConfig the step will use (config.json of udt_pretrained, else the preset)."""
         from lerobot_unidextok.tokenizer import UniDexTokConfig
 
-        if self.udt_pretrained is None:
-            return UniDexTokConfig.from_preset(self.udt_preset)
+        if self.untrained_preset() is not None:
+            return UniDexTokConfig.from_preset(self.untrained_preset())
         local = Path(self.udt_pretrained) / "config.json"
         if local.is_file():
             return UniDexTokConfig(**json.loads(local.read_text()))
         return load_tokenizer(self.udt_pretrained).config
+
+    def untrained_preset(self) -> str | None:
+        """The preset of an untrained tokenizer when one was asked for (as `UniDexTokStateTokenizerStep`
+        decides: `udt_preset` with the default udt_pretrained, or udt_pretrained=None), else None."""
+        if self.udt_pretrained is None:
+            return self.udt_preset or "small"
+        return self.udt_preset if self.udt_pretrained == DEFAULT_TOKENIZER else None
 
     def _fill_from_dataset(self) -> None:
         """Hand layout, state names and native action layout from the dataset lerobot-train loaded."""

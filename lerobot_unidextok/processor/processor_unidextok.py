@@ -43,6 +43,7 @@ from lerobot_unidextok.processor.guards import (
     layout_bounds,
     untrained_hands,
 )
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 from lerobot_unidextok.processor.layout import HandLayout, NativeLayout, hand_layout_from_dataset
 from lerobot_unidextok.tokenizer import PRESETS, UniDexTok, UniDexTokConfig
 
@@ -100,16 +101,20 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     leading shape works: (D,), (B, D), temporal stacks (B, T, D).
 
     The tokenizer comes from `tokenizer_config` (+ weights through `load_state_dict`, as the
-    pipeline does on reload), else from `pretrained` (folder or Hub repo id), else from `preset`
-    with random weights (benchmarks, tests).
+    pipeline does on reload), else from `pretrained` (folder, shipped id or Hub repo id; default the
+    shipped `unidextok/universal-small`, trained on every registered hand), else, only when asked for with
+    `preset=` (and `pretrained` left at its default) or `pretrained=None`, an untrained preset with random
+    weights (benchmarks, tests).
     """
 
     hand_layout: list[str] = field(default_factory=lambda: ["human"])  # hand spec name per UDHM block
     state_names: list[str] = field(default_factory=list)  # names of the whole state; [] = blocks only
-    pretrained: str | None = None  # checkpoint folder or Hub repo id
+    pretrained: str | None = DEFAULT_TOKENIZER  # checkpoint folder, shipped id or Hub repo id
     embed_weights: bool = True  # save tokenizer weights with the pipeline; False = keep only `pretrained`
     tokenizer_config: dict[str, Any] | None = None  # UniDexTokConfig fields (written by get_config)
-    preset: str = "small"  # used only without pretrained/tokenizer_config
+    # An untrained preset (tiny | small | paper) instead of the default `pretrained`; None = no preset
+    # (`pretrained=None` without a preset: untrained `small`).
+    preset: str | None = None
     representation: str = "dequantized"  # "dequantized" | "embedding"
     # Hands the tokenizer has no trained embedding for: False = refuse (ValueError naming them);
     # True = tokenise them zero-shot with the tokenizer's "unknown hand" embedding (logged once).
@@ -136,13 +141,15 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
         self._layout = HandLayout(self.hand_layout, state_names=self.state_names)
         if self.tokenizer_config is not None and (self.embed_weights or self.pretrained is None):
             self._tokenizer = UniDexTok(UniDexTokConfig(**self.tokenizer_config)).eval()
-        elif self.pretrained is not None:
+        elif self.pretrained is not None and (self.preset is None or self.pretrained != DEFAULT_TOKENIZER):
             self._tokenizer = load_tokenizer(self.pretrained)
         else:
-            if self.preset not in PRESETS:
-                raise ValueError(f"unknown preset {self.preset!r}; choose one of {sorted(PRESETS)}")
-            logger.warning("UniDexTok step built from preset %r with untrained weights", self.preset)
-            self._tokenizer = UniDexTok(UniDexTokConfig.from_preset(self.preset)).eval()
+            preset = self.preset or "small"
+            if preset not in PRESETS:
+                raise ValueError(f"unknown preset {preset!r}; choose one of {sorted(PRESETS)}")
+            logger.warning("UniDexTok step built from preset %r with untrained weights", preset)
+            self.pretrained = None  # the weights are this preset's, not the default checkpoint's
+            self._tokenizer = UniDexTok(UniDexTokConfig.from_preset(preset)).eval()
         self.tokenizer_config = asdict(self._tokenizer.config)
         cfg = self._tokenizer.config
         unseen = untrained_hands(self.hand_layout, cfg.hand_names, cfg.trained_hands)

@@ -2,6 +2,7 @@
 
     unidextok-push --local_dir=outputs/tok --repo_id=me/unidextok-small --training_data='[me/dexycb_udhm]'
     unidextok-push --local_dir=outputs/train/act_udt --repo_id=me/act-udt-g1   # policy run: policy card
+    unidextok-push --local_dir=unidextok/universal-small --repo_id=me/universal-small   # the shipped tokenizer
     unidextok-pull --repo_id=me/unidextok-small            # then HF_HUB_OFFLINE=1 works
     unidextok-pull --repo_id=me/dexycb_udhm --repo_type=dataset   # also linked at $HF_LEROBOT_HOME/<repo_id>
 
@@ -19,7 +20,8 @@ from lerobot_unidextok.utils.draccus_cli import wrap
 @dataclass
 class PushConfig:
     # tokenizer or policy checkpoint (config.json + model.safetensors), a training run folder (its best/ or
-    # checkpoints/last/pretrained_model/ is pushed), or a LeRobotDataset v3.0 folder
+    # checkpoints/last/pretrained_model/ is pushed), a LeRobotDataset v3.0 folder, or a tokenizer shipped in the
+    # package by its id (unidextok/universal-small)
     local_dir: str = ""
     repo_id: str = ""  # namespace/name on the Hub
     repo_type: str | None = None  # "model" | "dataset"; detected from the folder when omitted

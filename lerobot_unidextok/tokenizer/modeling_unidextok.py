@@ -270,6 +270,18 @@ class UniDexTok(
     # Hub loading: format check, safetensors only, strict
     # -----------------------------------------------------------------------------------------
     @classmethod
+    def from_pretrained(cls, pretrained_model_name_or_path, *args, **kwargs) -> "UniDexTok":
+        """Load a checkpoint: a local folder, else a tokenizer shipped in the package by its id
+        (`lerobot_unidextok.pretrained`, e.g. "unidextok/universal-small"; no network, no HF cache), else a
+        repo id from the HF cache / Hub. An explicit `revision` always means the Hub repo."""
+        from lerobot_unidextok.pretrained import resolve
+
+        name = pretrained_model_name_or_path
+        if kwargs.get("revision") is None:
+            name = resolve(name)
+        return super().from_pretrained(name, *args, **kwargs)
+
+    @classmethod
     def _decode_arg(cls, expected_type, value):
         """huggingface_hub passes config.json's dict here to build the config; a file without `format_version`
         is read as `format_version=None` (refused by `UniDexTokConfig`), not as the current version."""

@@ -26,6 +26,10 @@ class TrainConfig:
     # Coverage training: per hand kind, the weights of recorded rows vs states synthesised inside the hand's
     # joint ranges (training/coverage.py). `--coverage.robot='{"recorded": 1.0}'` trains on recordings only.
     coverage: CoverageConfig = field(default_factory=CoverageConfig)
+    # Registered hands also trained without recordings, on states uniform inside their registered joint ranges
+    # (both sides); `[all]` = every registered hand (minus exclude_hands). They join the vocabulary and the
+    # hand mixing (`hand_weights`); hands with recordings keep their own coverage mixture.
+    range_hands: list[str] = field(default_factory=list)
     # Training data larger than memory: read the rows from a memory-mapped per-hand store on disk
     # (`data.open_row_store`, built once from the datasets and reused while they are unchanged) instead
     # of loading every frame; same mixing and coverage. Checkpoint selection: up to `eval_max_frames` rows of

@@ -21,6 +21,10 @@ Mixing semantics of `MixtureSampler.sample` (one batch):
 Every synthesised row keeps the active-DoF mask of the recorded rows it came from (`uniform`: the hand's
 mask), so padded slots are never targets. Hands without a registered spec use the range of their recorded
 rows (logged once).
+
+Range-only hands (`range_hands`, `TrainConfig.range_hands`): registered hands without recorded rows, trained on
+`uniform` states of their registered ranges (both sides, the `semantic` mask) only, so one model covers every
+registered hand, recorded or not.
 """
 
 from __future__ import annotations
@@ -143,6 +147,38 @@ class _Hand:
         return self.lo.min(0), self.hi.max(0)
 
 
+def resolve_range_hands(names: list[str], exclude: list[str] | None = None) -> list[str]:
+    """The hands `names` asks for (`all` = every registered hand), registered, in order, minus `exclude`."""
+    from lerobot_unidextok import hands
+
+    registered = list(hands.names())
+    wanted = registered if "all" in names else list(dict.fromkeys(names))
+    unknown = sorted(set(wanted) - set(registered))
+    if unknown:
+        raise ValueError(f"range_hands {unknown} are not registered hands; choose from {registered} or 'all'")
+    return [h for h in wanted if h not in set(exclude or ())]
+
+
+def range_only_table(hand: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(mask (22,), lo (S, 22), hi (S, 22)) of a registered hand from its spec alone (`semantic` mapping)."""
+    from lerobot_unidextok import hands
+
+    mask = hands.get(hand).mask("semantic")
+    lo, hi, _ = hand_ranges_rad(hand, mask, np.zeros((1, UDHM_DIM)))
+    return mask, lo, hi
+
+
+def range_states(hand: str, n: int, seed: int) -> HandStates:
+    """`n` states of registered `hand` uniform inside its registered joint ranges, each on a random side
+    (the `uniform` source of a range-only hand): the per-hand in-range evaluation set."""
+    mask, lo, hi = range_only_table(hand)
+    rng = np.random.default_rng(seed)
+    side = rng.integers(len(lo), size=n)
+    x = lo[side] + (hi[side] - lo[side]) * rng.random((n, UDHM_DIM))
+    masks = np.broadcast_to(mask, x.shape)
+    return HandStates(np.where(masks, x, 0.0), np.full(n, hand), masks)
+
+
 def recorded_tables(data: HandStates | HandRowStore):
     """(hand, rows, masks, take) per hand: in-memory copies, or a store's memory maps and its view's rows."""
     if isinstance(data, HandRowStore):
@@ -175,12 +211,15 @@ class MixtureSampler:
         default_weight: float = 1.0,
         coverage: CoverageConfig | None = None,
         seed: int = 0,
+        range_hands: list[str] | tuple[str, ...] = (),
     ) -> None:
         if len(data) == 0:
             raise ValueError("no training rows: the sampler needs at least one recorded row per hand")
         coverage = coverage or CoverageConfig()
         self.coverage = coverage
-        self.hand_names = data.hand_names()
+        recorded = data.hand_names()
+        extra = [h for h in range_hands if h not in recorded]  # registered hands without recordings
+        self.hand_names = [*recorded, *extra]
         w = np.array([(hand_weights or {}).get(h, default_weight) for h in self.hand_names], dtype=np.float64)
         if w.sum() <= 0:
             raise ValueError(f"all hand weights are zero for hands {self.hand_names}; give at least one a weight > 0")
@@ -201,6 +240,11 @@ class MixtureSampler:
             p = np.array([weights.get(s, 0.0) for s in SOURCES], dtype=np.float64)
             self.hands.append(_Hand(name, rows, masks, take, mask, lo.astype(np.float32), hi.astype(np.float32),
                                     ranges_from, p / p.sum()))  # fmt: skip
+        only_uniform = np.array([s == "uniform" for s in SOURCES], dtype=np.float64)
+        for name in extra:
+            mask, lo, hi = range_only_table(name)
+            self.hands.append(_Hand(name, np.zeros((0, UDHM_DIM), np.float32), np.zeros((0, UDHM_DIM), bool), None,
+                                    mask, lo.astype(np.float32), hi.astype(np.float32), "registry", only_uniform))  # fmt: skip
         self.noise_rad = np.float32(np.radians(coverage.noise_deg))
 
     # -----------------------------------------------------------------------------------------
@@ -215,6 +259,7 @@ class MixtureSampler:
                     "share": float(p),
                     "kind": "human" if is_human(h.name) else "robot",
                     "recorded_rows": h.count,
+                    "range_only": h.count == 0,
                     "ranges_from": h.ranges_from,
                     "sources": {s: float(q) for s, q in zip(SOURCES, h.source_p, strict=True) if q > 0},
                 }

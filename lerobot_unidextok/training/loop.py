@@ -23,7 +23,13 @@ from lerobot_unidextok.training.checkpoint import (
     save_checkpoint,
 )
 from lerobot_unidextok.training.config import TrainConfig
-from lerobot_unidextok.training.coverage import MixtureSampler, hand_ranges_rad, recorded_tables
+from lerobot_unidextok.training.coverage import (
+    MixtureSampler,
+    hand_ranges_rad,
+    range_only_table,
+    recorded_tables,
+    resolve_range_hands,
+)
 from lerobot_unidextok.training.distributed import broadcast_from_main, check_replicas
 from lerobot_unidextok.training.optim import lr_at, make_optimizer
 from lerobot_unidextok.utils.cli import progress_bar
@@ -55,13 +61,20 @@ def training_vocabulary(cfg: TrainConfig, train_data: HandStates) -> list[str]:
             f"hands {clash} are both requested in hand_names and excluded by exclude_hands; a hand excluded for "
             "zero-shot must not get its own (untrained) embedding row: drop it from one of the two"
         )
-    return list(dict.fromkeys([*cfg.hand_names, *train_data.hand_names()]))
+    return list(dict.fromkeys([*cfg.hand_names, *train_data.hand_names(), *resolve_range_hands(cfg.range_hands,
+                                                                                              cfg.exclude_hands)]))
 
 
-def joint_ranges_rad(train_data: HandStates | HandRowStore, chunk_rows: int = 1 << 20) -> list[list[float]]:
+def joint_ranges_rad(
+    train_data: HandStates | HandRowStore, chunk_rows: int = 1 << 20, range_hands: list[str] | tuple[str, ...] = ()
+) -> list[list[float]]:
     """(22, 2) per-joint [lo, hi] covering every training hand's joint range (registry) and recorded rows
-    (read in chunks of `chunk_rows`, so a memory-mapped store is never loaded whole)."""
+    (read in chunks of `chunk_rows`, so a memory-mapped store is never loaded whole), and the registered
+    ranges of `range_hands`."""
     lo, hi = np.full(UDHM_DIM, np.inf), np.full(UDHM_DIM, -np.inf)
+    for hand in range_hands:
+        _, hlo, hhi = range_only_table(hand)
+        lo, hi = np.minimum(lo, hlo.min(0)), np.maximum(hi, hhi.max(0))
     for hand, rows, masks, take in recorded_tables(train_data):
         index = np.arange(len(rows)) if take is None else take
         mask = np.zeros(UDHM_DIM, dtype=bool)
@@ -83,11 +96,14 @@ def build_model(cfg: TrainConfig, train_data: HandStates | HandRowStore, **overr
     """
     if cfg.init_from:
         model = UniDexTok.from_pretrained(cfg.init_from)
-        model.add_hands([*cfg.hand_names, *train_data.hand_names()])
+        model.add_hands([*cfg.hand_names, *train_data.hand_names(), *resolve_range_hands(cfg.range_hands,
+                                                                                         cfg.exclude_hands)])
         return model
     preset = UniDexTokConfig.from_preset(cfg.preset)
     if overrides.get("input_norm", preset.input_norm) == "range" and "joint_range_rad" not in overrides:
-        overrides["joint_range_rad"] = joint_ranges_rad(train_data)
+        overrides["joint_range_rad"] = joint_ranges_rad(
+            train_data, range_hands=resolve_range_hands(cfg.range_hands, cfg.exclude_hands)
+        )
     return UniDexTok(
         UniDexTokConfig.from_preset(cfg.preset, hand_names=training_vocabulary(cfg, train_data), **overrides)
     )
@@ -161,6 +177,7 @@ def _train(
         cfg.default_hand_weight,
         cfg.coverage,
         seed=cfg.seed * 1000 + accelerator.process_index,  # each process draws its own batches
+        range_hands=resolve_range_hands(cfg.range_hands, cfg.exclude_hands),
     )
     mixture = sampler.describe()
     logger.info(
@@ -238,11 +255,12 @@ def _prepare_model(
         if not (last_dir / "config.json").is_file():
             raise FileNotFoundError(f"--resume: no checkpoint at {last_dir}; run once without --resume first")
         model = UniDexTok.from_pretrained(last_dir)
-    unknown = [h for h in train_data.hand_names() if not model.knows_hand(h)]
+    trained = list(dict.fromkeys([*train_data.hand_names(), *resolve_range_hands(cfg.range_hands, cfg.exclude_hands)]))
+    unknown = [h for h in trained if not model.knows_hand(h)]
     if unknown:
         model.add_hands(unknown)
     # the hands this checkpoint has been trained on (vocabulary rows of other hands were never trained)
-    model.config.trained_hands = list(dict.fromkeys([*model.config.trained_hands, *train_data.hand_names()]))
+    model.config.trained_hands = list(dict.fromkeys([*model.config.trained_hands, *trained]))
     model.train()
     if cfg.adapt != "all":
         model.quantizer.eval()  # no EMA codebook or usage updates: the shared parts stay as they are

@@ -147,6 +147,18 @@ def test_push_keeps_our_card_and_adds_training_data(hub, tok_dir, tmp_path):
     assert "config.json" in repo.commits[repo.branches["main"]]
 
 
+def test_the_shipped_tokenizer_is_pushed_by_its_id_like_any_model(hub, tmp_path):
+    from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, SHIPPED
+
+    r = run_cli(["unidextok-push", f"--local_dir={DEFAULT_TOKENIZER}", "--repo_id=lab/universal-small"],
+                HF_ENDPOINT=hub.url, HF_TOKEN=TOKEN, HF_HUB_OFFLINE="0", HF_HOME=str(tmp_path / "hf"))  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
+    repo = hub.repos[("model", "lab/universal-small")]
+    uploaded = repo.commits[repo.branches["main"]]
+    for name in ("config.json", "model.safetensors", "README.md", "eval.json"):  # the card is ours: kept as is
+        assert uploaded[name] == (SHIPPED[DEFAULT_TOKENIZER] / name).read_bytes(), name
+
+
 def test_policy_folder_gets_a_policy_card(tmp_path, g1_like):
     """Pushing a policy folder wrote a tokenizer card ('None tokens x None groups')."""
     folder = tmp_path / "pretrained_model"

@@ -87,6 +87,22 @@ def test_every_wrapped_type_resolves_through_the_stock_factory():
     assert STEP_NAME in [getattr(type(s), "_registry_name", "") for s in pre.steps]
 
 
+def test_the_default_tokenizer_is_the_shipped_universal_one_and_a_preset_only_when_asked():
+    from lerobot_unidextok.hub.card import _policy_tokenizer
+    from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+    from lerobot_unidextok.processor import load_tokenizer
+
+    cfg = ACTUdtConfig(device="cpu")
+    assert cfg.udt_pretrained == DEFAULT_TOKENIZER and cfg.untrained_preset() is None
+    assert cfg.tokenizer_config() == load_tokenizer(DEFAULT_TOKENIZER).config
+    assert _policy_tokenizer({"udt_pretrained": DEFAULT_TOKENIZER, "udt_preset": None}) == DEFAULT_TOKENIZER
+    tiny = ACTUdtConfig(device="cpu", udt_preset="tiny")  # explicit request: untrained
+    assert tiny.untrained_preset() == "tiny" and tiny.tokenizer_config().num_tokens == 4
+    assert _policy_tokenizer({"udt_pretrained": DEFAULT_TOKENIZER, "udt_preset": "tiny"}) == "untrained preset tiny"
+    assert ACTUdtConfig(device="cpu", udt_pretrained=None).untrained_preset() == "small"  # as saved before
+    assert ACTUdtConfig(device="cpu", udt_pretrained="lab/tok", udt_preset="small").untrained_preset() is None
+
+
 def test_config_adds_env_state_of_the_tokenizer_width(tok_dir):
     cfg = _config(ACTUdtConfig, tok_dir, udt_hand_layout=[INSPIRE])
     cfg.validate_features()

@@ -490,3 +490,17 @@ def test_udhm_to_native_with_a_whole_robot_layout_gives_the_native_vector():
     out = udhm_to_native(to_converted(native), HandLayout(PAIR, ["left", "right"], STATE_NAMES))
     assert out.shape == (6, 26)
     np.testing.assert_allclose(out, native, atol=1e-5)
+
+
+def test_the_default_tokenizer_is_the_shipped_universal_one_and_a_preset_only_when_asked():
+    from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+
+    shipped = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
+    step = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE])
+    assert step.pretrained == DEFAULT_TOKENIZER and step.tokenizer.config == shipped.config
+    for (name, a), (_, b) in zip(step.tokenizer.state_dict().items(), shipped.state_dict().items(), strict=True):
+        assert torch.equal(a, b), name
+    untrained = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE], preset="tiny")  # explicit request
+    assert untrained.pretrained is None and untrained.tokenizer.config.num_tokens == 4
+    assert untrained.get_config()["tokenizer_config"] is not None  # a reload rebuilds the tiny model, not the default
+    assert UniDexTokStateTokenizerStep(hand_layout=[INSPIRE], pretrained=None).tokenizer.config.trained_hands == []

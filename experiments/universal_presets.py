@@ -1,0 +1,63 @@
+"""The shipped universal tokenizer on the LinkerHand vendor preset poses (real hand-tuned poses for the hardware,
+never trained on): `linkerhand-ros2-sdk/<model>_positions.yaml`, both sides, for the models the registry has;
+and zero-shot: the in-range states of `ZERO_SHOT_COPIES` (the card's 5000 per hand) under a hand name outside
+its vocabulary, as a hand added by a YAML spec after training is tokenised (the unknown-hand embedding), next
+to the same states under the hand's own row. The ranges are ones the shared model trained on, so this scores
+the unknown-hand path, not a new kinematics.
+
+    python experiments/universal_presets.py [--real=../shared/data/real]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from lerobot_unidextok import hands
+from lerobot_unidextok.evaluation.report import evaluate_tokenizer
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.tokenizer import UniDexTok
+from lerobot_unidextok.training import HandStates
+from lerobot_unidextok.training.coverage import range_states
+
+REPO = Path(__file__).resolve().parents[1]
+SIDES = {"RIGHT_HAND": "right", "LEFT_HAND": "left"}
+ZERO_SHOT_COPIES = ("linkerhand_o7", "xhand1", "shadow")
+
+
+def preset_states(real: Path) -> HandStates:
+    parts = []
+    for path in sorted((real / "linkerhand-ros2-sdk").glob("*_positions.yaml")):
+        name = "linkerhand_" + path.stem.split("_")[0].lower()
+        if name not in hands.names():
+            continue
+        spec, data = hands.get(name), yaml.safe_load(path.read_text())
+        for key, side in SIDES.items():
+            for preset in data.get(key) or []:
+                q = np.asarray(spec.to_udhm(np.asarray(preset["POSITION"], dtype=np.float64), side=side))[None]
+                parts.append(HandStates(q, [name], spec.mask("semantic")[None]))
+    return HandStates.concat(parts)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--real", type=Path, default=REPO.parent / "shared" / "data" / "real")
+    model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
+    report = evaluate_tokenizer(model, preset_states(p.parse_args().real))
+    print("| hand | presets (both sides) | MPJAE (deg) | MPJPE (mm) | fingertip (mm) |\n|---|---|---|---|---|")
+    for hand, e in report["per_hand"].items():
+        print(f"| {hand} | {e['rows']} | {e['mpjae_deg']:.3f} | {e['mpjpe_mm']:.3f} | {e['fingertip_mm']:.3f} |")
+    print("\n| YAML-only copy of | zero-shot MPJAE (deg) | own row MPJAE (deg) |\n|---|---|---|")
+    for base in ZERO_SHOT_COPIES:
+        own = range_states(base, 5000, seed=0)
+        copy = HandStates(own.states_rad, np.full(len(own), f"yaml_only_{base}"), own.masks)
+        zero = evaluate_tokenizer(model, copy)["per_hand"][f"yaml_only_{base}"]
+        assert zero["zero_shot"]
+        print(f"| {base} | {zero['mpjae_deg']:.3f} | {evaluate_tokenizer(model, own)['per_hand'][base]['mpjae_deg']:.3f} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,171 @@
+"""The tokenizer shipped in the package (`lerobot_unidextok/pretrained/universal-small`): it loads by id in a
+fresh process with no network and an empty HF home, its card shows the figures of its recorded evaluation, and
+those figures are what the shipped weights measure."""
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from linkerhand_udhm import subprocess_env
+
+from lerobot_unidextok import hands
+from lerobot_unidextok.experiments.universal import IN_RANGE_PREFIX, in_range_figures, held_out_figures
+from lerobot_unidextok.hub.card import CARD_MARKER, card_status
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, SHIPPED, resolve, shipped_folder
+from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
+
+FOLDER = SHIPPED[DEFAULT_TOKENIZER]
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def shipped() -> UniDexTok:
+    return UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
+
+
+@pytest.fixture(scope="module")
+def recorded() -> dict:
+    return json.loads((FOLDER / "eval.json").read_text())
+
+
+def test_the_package_holds_a_small_hub_format_checkpoint_with_our_card():
+    names = {p.name for p in FOLDER.iterdir()}
+    assert {"config.json", "model.safetensors", "README.md", "eval.json"} <= names
+    assert sum(p.stat().st_size for p in FOLDER.iterdir()) <= 5 * 1024 * 1024
+    assert card_status(FOLDER / "README.md") == "ours"
+    assert shipped_folder(DEFAULT_TOKENIZER) == FOLDER and shipped_folder("lab/other") is None
+    text = (REPO / "pyproject.toml").read_text()  # a non-editable install carries the weights and the card
+    assert '"pretrained/*/model.safetensors"' in text and '"pretrained/*/README.md"' in text
+
+
+def test_loads_by_id_in_a_fresh_process_offline_with_an_empty_hf_home(tmp_path):
+    home = tmp_path / "hf"
+    home.mkdir()
+    code = ("from lerobot_unidextok.tokenizer import UniDexTok; import json; "
+            f"m = UniDexTok.from_pretrained({DEFAULT_TOKENIZER!r}); "
+            "print(json.dumps([m.config.hand_names, m.config.trained_hands]))")  # fmt: skip
+    env = subprocess_env(HF_HUB_OFFLINE="1", HF_HOME=str(home), PYTHONPATH=str(REPO))
+    env.pop("HF_HUB_CACHE", None)
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
+                       timeout=120, check=False)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
+    vocabulary, trained = json.loads(r.stdout.strip().splitlines()[-1])
+    assert len(trained) >= 14 and set(trained) <= set(vocabulary) and "human" in trained
+    assert list(home.rglob("*")) == []  # nothing was downloaded or cached
+
+
+def test_every_registered_hand_is_trained_or_goes_through_the_unknown_hand_path(shipped, recorded):
+    """The hands registered when it was trained are all trained; a hand registered later (a new YAML spec) is
+    not in its vocabulary and is tokenised zero-shot, until the recipe is run again."""
+    from lerobot_unidextok.training.coverage import range_states
+
+    trained = set(shipped.config.trained_hands)
+    at_training = {k.removeprefix(IN_RANGE_PREFIX) for k in recorded["results"] if k.startswith(IN_RANGE_PREFIX)}
+    assert at_training <= trained and len(at_training) >= 14
+    rows = range_states("linkerhand_o7", 200, seed=0)
+    with pytest.raises(ValueError, match="yaml_only_hand"):
+        shipped.encode(torch.from_numpy(rows.states_rad), "yaml_only_hand")
+    codes = shipped.encode(torch.from_numpy(rows.states_rad), "yaml_only_hand", allow_unknown=True)
+    back = shipped.decode(codes, "yaml_only_hand", allow_unknown=True).detach().numpy()
+    err_deg = np.degrees(np.abs(back - rows.states_rad))[rows.masks].mean()
+    assert err_deg < 2.0  # measured 0.713 deg on 5000 such states (experiments/universal_presets.py)
+
+
+def test_the_card_table_is_the_recorded_evaluation(recorded):
+    """Every row of the card's evaluation table is a row of eval.json with the same numbers (as the card
+    formats them), and every eval.json row is in the card."""
+    text = (FOLDER / "README.md").read_text()
+    assert CARD_MARKER in text
+    rows = {}
+    for line in text.split("## Evaluation", 1)[1].split("\n## ", 1)[0].splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 5 and cells[1] not in ("rows", "---"):
+            rows[cells[0]] = cells[1:]
+    assert set(rows) == set(recorded["results"])
+    for name, cells in rows.items():
+        want = recorded["results"][name]
+        assert int(cells[0]) == want["rows"]
+        for cell, key in zip(cells[1:], ("mpjae_deg", "mpjpe_mm", "fingertip_mm"), strict=True):
+            assert cell == f"{want[key]:.4g}", (name, key)
+    assert recorded["commit"] and re.fullmatch(r"[0-9a-f]{40}", recorded["commit"])
+    assert "unidextok-train --config_path=configs/train/universal.yaml" in text
+
+
+def test_the_in_range_figures_are_what_the_shipped_weights_measure(shipped, recorded):
+    """Recomputed for the two recorded hands and one range-only hand (each hand's rows cost seconds)."""
+    want = {k: v for k, v in recorded["results"].items() if k.startswith(IN_RANGE_PREFIX)}
+    assert set(want) == {IN_RANGE_PREFIX + h for h in shipped.config.trained_hands}
+    got = in_range_figures(shipped, ["human", "inspire_rh56_unitree", "shadow"])
+    assert len(got) == 3
+    for name, entry in ((k, want[k]) for k in got):
+        for key, value in entry.items():
+            assert got[name][key] == pytest.approx(value, rel=1e-4, abs=1e-6), (name, key)
+
+
+@pytest.mark.slow
+def test_the_g1_test_episode_figure_is_what_the_shipped_weights_measure(shipped, recorded, real_data_dir, tmp_path):
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+
+    sys.path.insert(0, str(REPO / "experiments"))
+    from universal_data import G1_HANDS  # the recipe's conversion
+
+    root = tmp_path / "g1"
+    convert(ConvertOptions(source="lerobot", input=real_data_dir / "g1-inspire", root=root, repo_id="local/g1",
+                           source_options={"hands": G1_HANDS}, progress=False))  # fmt: skip
+    got = held_out_figures(shipped, {"G1 Inspire": str(root)})
+    name = "G1 Inspire test episodes: inspire_rh56_unitree"
+    for key, value in recorded["results"][name].items():
+        assert got[name][key] == pytest.approx(value, rel=1e-4, abs=1e-6), key
+
+
+def test_resolution_order_local_folder_then_shipped_id_then_hub(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert resolve(DEFAULT_TOKENIZER) == str(FOLDER)
+    assert resolve("lab/not-shipped") == "lab/not-shipped"
+    local = tmp_path / DEFAULT_TOKENIZER  # a folder of that name in the working directory wins
+    torch.manual_seed(0)
+    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["human"])).save_pretrained(local)
+    assert resolve(DEFAULT_TOKENIZER) == DEFAULT_TOKENIZER
+    assert UniDexTok.from_pretrained(DEFAULT_TOKENIZER).config.num_tokens == 4  # the local tiny one
+    monkeypatch.chdir(REPO)
+    assert UniDexTok.from_pretrained(DEFAULT_TOKENIZER).config.num_tokens == 8
+
+
+@pytest.mark.slow
+def test_unidextok_eval_takes_the_shipped_id(g1_like_hands, tmp_path):
+    out = tmp_path / "eval"
+    env = subprocess_env(HF_HUB_OFFLINE="1", HF_HOME=str(tmp_path / "hf"), PYTHONPATH=str(REPO))
+    r = subprocess.run([str(Path(sys.executable).parent / "unidextok-eval"), f"--checkpoint={DEFAULT_TOKENIZER}",
+                        f"--datasets=[{g1_like_hands['root']}]", f"--output={out}"],
+                       env=env, cwd=tmp_path, capture_output=True, text=True, timeout=180, check=False)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
+    report = json.loads(out.with_suffix(".json").read_text())
+    assert report["checkpoint"] == DEFAULT_TOKENIZER
+    assert all(not e["zero_shot"] and np.isfinite(e["mpjae_deg"]) for e in report["per_hand"].values())
+
+
+def test_init_from_the_shipped_id_starts_from_its_weights(g1_like_hands, tmp_path):
+    from lerobot_unidextok.training import TrainConfig, build_model, load_hand_states
+
+    cfg = TrainConfig(datasets=[str(g1_like_hands["root"])], init_from=DEFAULT_TOKENIZER, steps=1,
+                      output_dir=str(tmp_path / "run"), progress=False)  # fmt: skip
+    model = build_model(cfg, load_hand_states(cfg.datasets, split="train"))
+    shipped = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
+    assert model.config.hand_names == shipped.config.hand_names  # every data hand was already known
+    for (name, a), (_, b) in zip(model.state_dict().items(), shipped.state_dict().items(), strict=True):
+        assert torch.equal(a, b), name
+
+
+def test_revision_means_the_hub_repo_not_the_shipped_copy(monkeypatch):
+    from huggingface_hub.errors import LocalEntryNotFoundError, OfflineModeIsEnabled
+
+    monkeypatch.setenv("HF_HUB_OFFLINE", "1")
+    with pytest.raises((LocalEntryNotFoundError, OfflineModeIsEnabled, FileNotFoundError, OSError)):
+        UniDexTok.from_pretrained(DEFAULT_TOKENIZER, revision="main")
+    assert os.environ["HF_HUB_OFFLINE"] == "1"
