@@ -1,11 +1,13 @@
-"""The processors of every `<type>_udt` type: the stock pipelines with the UniDexTok step inserted before batching.
+"""The processors of every `<type>_udt` type: the stock pipelines with the UniDexTok step inserted after batching.
 
-    rename -> unidextok.state_tokenizer -> to_batch -> device -> normalizer      (pre)
+    rename -> to_batch -> unidextok.state_tokenizer -> device -> normalizer      (pre)
     unnormalizer -> to cpu [-> unidextok.udhm_to_native]                          (post)
 
-The step sits before `to_batch_processor` (custom keys must exist before batching, and it must see raw
-radians, never normalised values). Each `processor_<type>_udt.make_<type>_udt_pre_post_processors` builds the
-stock pair and passes it through `insert_udt_steps`.
+The step sits after `to_batch_processor`, so its outputs have the batch dimensions of the batched state
+(LeRobot's batching step adds them only to its own keys: with the step before it, `observation.hand_tokens`
+of one frame stayed `(T,)` beside a `(1, D)` state), and before `normalizer_processor` (it must see raw
+radians, never normalised values). Each `processor_<type>_udt.make_<type>_udt_pre_post_processors` builds
+the stock pair and passes it through `insert_udt_steps`.
 """
 
 from __future__ import annotations
@@ -30,13 +32,14 @@ def insert_udt_steps(
         range_check=config.udt_range_check,
     )
     steps = list(pre.steps)
-    before = [i for i, s in enumerate(steps) if isinstance(s, AddBatchDimensionProcessorStep | NormalizerProcessorStep)]
-    if not before:
+    after_batch = [i + 1 for i, s in enumerate(steps) if isinstance(s, AddBatchDimensionProcessorStep)]
+    normalizer = [i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep)]
+    if not after_batch and not normalizer:
         raise ValueError(
-            f"the stock {config.type} pre-processor has no batching or normaliser step to put the UniDexTok "
-            f"step before ({[type(s).__name__ for s in steps]}); this policy type cannot be wrapped"
+            f"the stock {config.type} pre-processor has no batching or normaliser step to place the UniDexTok "
+            f"step by ({[type(s).__name__ for s in steps]}); this policy type cannot be wrapped"
         )
-    steps.insert(before[0], step)
+    steps.insert(min(after_batch[:1] + normalizer[:1]), step)  # after batching, before normalising
     pre.steps = steps
     if config.udt_native_action and config.udt_native_layout:
         post.steps = [*post.steps, UDHMToNativeCommandStep.from_layout(NativeLayout(**config.udt_native_layout))]
