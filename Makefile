@@ -1,4 +1,4 @@
-# Two commands do all set-up: `make demo` (main job) and `make test` (the test suite).
+# Two commands do all set-up: `make demo` (main job, ~3 CPU-minutes) and `make test` (the test suite).
 # Both create .venv with Python 3.12 if it is missing and install the package into it.
 VENV ?= .venv
 PY := $(VENV)/bin/python

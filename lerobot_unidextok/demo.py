@@ -4,12 +4,14 @@
    hands when ../shared/data/real is present.
 2. Hand registry: each hand's native joints and the UDHM slots they fill.
 3. Conversion: every sample source (native file formats) -> UDHM LeRobotDataset v3.
-4. UniDexTok: train the `small` preset on the converted mixture, evaluate per hand on the held-out split.
+4. UniDexTok: train the `small` preset on the converted mixture (a short schedule on the recorded rows),
+   evaluate per hand on the test episodes.
 5. Pictures: 3D ground truth vs reconstruction, per-joint errors, codebook usage.
 6. LeRobot: the processor step on converted frames (tokens next to decoded states), and the tokenizer
    saved into the local hub cache and loaded back by repo id, offline.
 
-Run `python -m lerobot_unidextok.demo --help` for options (`--quick` for a two-minute tour).
+Run `python -m lerobot_unidextok.demo --help` for options (`--quick`: less data, 300 steps). The full demo
+takes ~3 CPU-minutes (docs/tokenizer.md, "Demo").
 """
 
 import argparse
@@ -26,9 +28,16 @@ from lerobot_unidextok.utils.cli import configure_output
 
 DEFAULT_OUT = Path("outputs/demo")
 REAL_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
-# Training steps of the full demo (lr etc. are TrainConfig's defaults). Measured on the 6-source sample
-# mixture: 0.909 deg held-out MPJAE after 5000 steps, 339 s training wall at load ~1 on 2 cores (docs/tokenizer.md).
-DEMO_STEPS = 5000
+# Training schedule of the full demo: short enough for a first command, on the recordings only (no coverage
+# sampling). On the demo's sample mixture, held-out MPJAE (test episodes) and training CPU time, one thread:
+#   this schedule (2500 steps, batch 128, lr 1e-2, recordings only)  0.948 deg  171 s
+#   the same with coverage sampling (TrainConfig's default mixture)   1.043 deg  178 s  (3000 steps: 1.042, 208 s)
+#   configs/train/small.yaml (5000 steps, batch 256, lr 6e-3, coverage) 0.667 deg  586 s (loop wall, load 2-3.5)
+# (docs/tokenizer.md, "Demo"); `unidextok-train` keeps coverage sampling on by default.
+DEMO_STEPS = 2500
+DEMO_BATCH_SIZE = 128
+DEMO_LR = 1e-2
+DEMO_SOURCES = {"recorded": 1.0}  # coverage sources of every hand kind: the recorded rows only
 
 
 def _banner(title: str) -> None:
@@ -116,30 +125,37 @@ def demo_convert(out: Path, episodes: int, frames: int, seed: int) -> dict[str, 
 # ---------------------------------------------------------------------------------------------
 # 4. tokenizer training + evaluation
 # ---------------------------------------------------------------------------------------------
-def demo_train(out: Path, roots: dict[str, Path], preset: str, steps: int, seed: int):
+def demo_train(out: Path, roots: dict[str, Path], preset: str, steps: int, seed: int,
+               batch_size: int = DEMO_BATCH_SIZE):  # fmt: skip
     from lerobot_unidextok.evaluation import evaluate_tokenizer, write_report
+    from lerobot_unidextok.evaluation.report import describe_scored
     from lerobot_unidextok.tokenizer import UniDexTok
     from lerobot_unidextok.training import TrainConfig, load_hand_states, train_tokenizer
+    from lerobot_unidextok.training.coverage import CoverageConfig
     from lerobot_unidextok.training.splits import split_by_episode
 
-    _banner(f"4. UniDexTok: train the `{preset}` preset on the converted mixture, evaluate on held-out episodes")
+    _banner(f"4. UniDexTok: train the `{preset}` preset on the converted mixture ({steps} steps, batch {batch_size}, "
+            "recorded rows only), evaluate on held-out episodes")  # fmt: skip
     datasets = [str(r) for r in roots.values()]
-    cfg = TrainConfig(datasets=datasets, preset=preset, steps=steps, seed=seed, output_dir=str(out / "training"),
-                      eval_every=max(50, steps // 8), save_last_every=steps)  # fmt: skip
+    coverage = CoverageConfig(robot=dict(DEMO_SOURCES), human=dict(DEMO_SOURCES))
+    cfg = TrainConfig(datasets=datasets, preset=preset, steps=steps, batch_size=batch_size, lr=DEMO_LR,
+                      coverage=coverage, seed=seed, output_dir=str(out / "training"), eval_every=max(50, steps // 8),
+                      save_last_every=steps)  # fmt: skip
     # as unidextok-train: whole training episodes choose the checkpoint, the test episodes are only scored
     train_data, select_data = split_by_episode(load_hand_states(datasets, split="train"), cfg.select_fraction, seed)
     test_data = load_hand_states(datasets, split="test")
     print(f"{len(train_data):,} training rows, {len(select_data):,} checkpoint-selection rows, {len(test_data):,} "
           f"test rows (other episodes), hands: {', '.join(train_data.hand_names())}")  # fmt: skip
     result = train_tokenizer(cfg, train_data, select_data)
-    print(f"trained {result.steps} steps in {result.seconds:.0f} s; best selection-episode joint MAE "
-          f"{result.best_mae_deg:.3f} deg at step {result.best_step}")  # fmt: skip
+    print(f"trained {result.steps} steps (batch {batch_size}) in {result.seconds:.0f} s; best selection-episode "
+          f"joint MAE {result.best_mae_deg:.3f} deg at step {result.best_step}")  # fmt: skip
     model = UniDexTok.from_pretrained(result.best_dir)
     tok_dir = out / "tokenizer"
     if tok_dir.exists():
         shutil.rmtree(tok_dir)
     model.save_pretrained(tok_dir)
     report = evaluate_tokenizer(model, test_data)
+    report["scored"] = describe_scored(test_data, datasets, "test", result.best_dir)
     md = write_report(report, out / "eval")
     print(md.split("\n\nPer-joint")[0])
     print(f"\nFull report (per joint): {out / 'eval.md'}, {out / 'eval.json'}; tokenizer: {tok_dir}")
@@ -226,7 +242,9 @@ def demo_lerobot(out: Path, roots: dict[str, Path]) -> None:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output folder (default: outputs/demo)")
-    parser.add_argument("--quick", action="store_true", help="small data and a short training run (~2 min)")
+    parser.add_argument(
+        "--quick", action="store_true", help="less data (4 episodes x 100 frames per source) and 300 training steps"
+    )
     parser.add_argument("--preset", default="small", help="tokenizer size preset (paper | small | tiny)")
     parser.add_argument(
         "--steps", type=int, default=None, help=f"training steps (default: {DEMO_STEPS}, or 300 with --quick)"

@@ -4,6 +4,8 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
+
 from lerobot_unidextok.evaluation.metrics import reconstruction_metrics
 from lerobot_unidextok.evaluation.reconstruct import codebook_usage, reconstruct
 from lerobot_unidextok.utils.files import jsonable
@@ -24,13 +26,55 @@ def evaluate_tokenizer(model, data, batch_size: int = 4096) -> dict:
     return report
 
 
+HAND_ROWS = "hand-rows: one row per hand per frame (a two-hand frame gives two rows)"
+
+
+def episode_ranges(episodes) -> str:
+    """Sorted episode indices as compact ranges: [0, 1, 2, 5, 7, 8] -> "0-2, 5, 7-8"."""
+    eps = sorted(int(e) for e in episodes)
+    parts, i = [], 0
+    while i < len(eps):
+        j = i
+        while j + 1 < len(eps) and eps[j + 1] == eps[j] + 1:
+            j += 1
+        parts.append(str(eps[i]) if i == j else f"{eps[i]}-{eps[j]}")
+        i = j + 1
+    return ", ".join(parts)
+
+
+def describe_scored(data, datasets: list[str], split: str, checkpoint: str | None = None) -> dict:
+    """What a report scored: the checkpoint, the split, and per dataset (position `i` in `datasets` is
+    `data.dataset_index == i`) its episodes and hand-rows (`HAND_ROWS`), overall and per hand."""
+    entries = []
+    for i, name in enumerate(datasets):
+        rows = np.ones(len(data), bool) if data.dataset_index is None else data.dataset_index == i
+        episodes = [] if data.episode_index is None else np.unique(data.episode_index[rows]).tolist()
+        hands, counts = np.unique(data.hands[rows], return_counts=True)
+        entries.append({"dataset": str(name), "episodes": episodes, "hand_rows": int(rows.sum()),
+                        "hand_rows_per_hand": dict(zip(hands.tolist(), counts.tolist(), strict=True))})  # fmt: skip
+    return {"checkpoint": None if checkpoint is None else str(checkpoint), "split": split, "rows": HAND_ROWS,
+            "datasets": entries}  # fmt: skip
+
+
+def scored_markdown(scored: dict) -> str:
+    """The `describe_scored` record as a sentence and a per-dataset table of episodes and hand-rows."""
+    where = f"checkpoint `{scored['checkpoint']}`" if scored.get("checkpoint") else "the model"
+    lines = [f"Scored: {where} on the {scored['split']} episodes below. Rows are {scored['rows']}.", "",
+             "| dataset | episodes | hand-rows |", "|---|---|---|"]  # fmt: skip
+    for d in scored["datasets"]:
+        lines.append(f"| {d['dataset']} | {episode_ranges(d['episodes']) or '-'} ({len(d['episodes'])}) | "
+                     f"{d['hand_rows']} |")  # fmt: skip
+    return "\n".join(lines)
+
+
 def _fmt(x: float, digits: int = 3) -> str:
     return "nan" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
 
 
 def markdown_table(report: dict) -> str:
-    """Per-hand summary table, then the per-joint MAE (deg) table."""
-    lines = [
+    """What was scored (when the report says), the per-hand summary table, then the per-joint MAE (deg) table."""
+    lines = [scored_markdown(report["scored"]), ""] if report.get("scored") else []
+    lines += [
         "| hand | rows | active DoFs | MPJAE (deg) | MPJPE (mm) | fingertip (mm) | code usage | zero-shot |",
         "|---|---|---|---|---|---|---|---|",
     ]

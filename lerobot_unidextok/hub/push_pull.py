@@ -14,7 +14,7 @@ import tempfile
 from pathlib import Path
 
 from lerobot_unidextok.constants import INFO_PATH
-from lerobot_unidextok.hub.card import card_status, model_card, with_training_data
+from lerobot_unidextok.hub.card import card_status, model_card, with_repo_id, with_training_data
 from lerobot_unidextok.pretrained import resolve as resolve_pretrained
 from lerobot_unidextok.utils.cli import UserError
 from lerobot_unidextok.utils.hf_cache import DATASET_REVISIONS, cached_repo_snapshot, hub_cache, lerobot_home
@@ -83,7 +83,8 @@ def push(
 
     Models get a generated card (tokenizer or policy card) when the folder has none or only
     huggingface_hub's generic one; a card written by this package (e.g. by unidextok-train) is kept, with
-    `training_data` filled in; a hand-written card is kept as it is. A training run folder uploads its
+    `repo_id` as its title and in its usage code and `training_data` filled in; a hand-written card is kept
+    as it is. A training run folder uploads its
     checkpoint. Datasets must be LeRobot v3.0 and get the `v3.0` tag LeRobot resolves.
     """
     from huggingface_hub import HfApi
@@ -114,8 +115,9 @@ def push(
             card = None
             if status in ("missing", "generic"):  # write our card (tokenizer or policy)
                 card = model_card(local_dir, repo_id, training_data)
-            elif status == "ours" and training_data:  # e.g. unidextok-train's card: add the data repo ids
-                card = with_training_data(readme.read_text(), training_data)
+            elif status == "ours":  # e.g. unidextok-train's card: named after this repo, with the data repo ids
+                card = with_repo_id(readme.read_text(), local_dir, repo_id)
+                card = with_training_data(card, training_data) if training_data else card
             elif status == "custom" and training_data:
                 logger.warning(
                     "%s is a hand-written README: uploaded unchanged, without --training_data %s (delete it to "

@@ -10,7 +10,7 @@ checkpoint, so `--policy.path` resume, `lerobot-eval` and the stock factory relo
 without any code of ours in the loop. Features written into the dataset would leave inference without the
 step; an injecting entry point would not be `lerobot-train`. So each `<type>_udt` is LeRobot's trio
 (`policies/<type>_udt/`): the stock config class plus `UdtConfigMixin`, the stock policy class unchanged
-under that config, and the stock processors with the UniDexTok step inserted before batching
+under that config, and the stock processors with the UniDexTok step inserted after batching
 (`udt_processor.insert_udt_steps`).
 
 What the mixin adds to the stock config, in `validate_features` (run when the policy is built):

@@ -1,14 +1,16 @@
-"""The processors of every `<type>_udt` type: the stock pipelines with the UniDexTok step inserted before batching.
+"""The processors of every `<type>_udt` type: the stock pipelines with the UniDexTok step inserted after batching.
 
-    rename [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer -> to_batch -> device -> normalizer  (pre)
+    rename -> to_batch [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer -> device -> normalizer  (pre)
     unnormalizer -> to cpu [-> unidextok.udhm_to_native]                                                   (post)
 
-The steps sit before `to_batch_processor` (custom keys must exist before batching, and they must see raw
-values, never normalised ones). `unidextok.native_to_udhm` maps the robot's native `observation.state` to the
-converted layout (the converted state of the training batches passes unchanged); it is there when the
-training dataset recorded a native state layout and `udt_native_state` is on. Each
-`processor_<type>_udt.make_<type>_udt_pre_post_processors` builds the stock pair and passes it through
-`insert_udt_steps`.
+The steps sit after `to_batch_processor`, so their outputs have the batch dimensions of the batched state
+(LeRobot's batching step adds them only to its own keys: with the tokenizer step before it,
+`observation.hand_tokens` of one frame stayed `(T,)` beside a `(1, D)` state), and before
+`normalizer_processor` (they must see raw values, never normalised ones). `unidextok.native_to_udhm` maps the
+robot's native `observation.state` to the converted layout (the converted state of the training batches
+passes unchanged); it is there when the training dataset recorded a native state layout and
+`udt_native_state` is on. Each `processor_<type>_udt.make_<type>_udt_pre_post_processors` builds the stock
+pair and passes it through `insert_udt_steps`.
 """
 
 from __future__ import annotations
@@ -38,15 +40,17 @@ def insert_udt_steps(
         range_check=config.udt_range_check,
     )
     steps = list(pre.steps)
-    before = [i for i, s in enumerate(steps) if isinstance(s, AddBatchDimensionProcessorStep | NormalizerProcessorStep)]
-    if not before:
+    after_batch = [i + 1 for i, s in enumerate(steps) if isinstance(s, AddBatchDimensionProcessorStep)]
+    normalizer = [i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep)]
+    if not after_batch and not normalizer:
         raise ValueError(
-            f"the stock {config.type} pre-processor has no batching or normaliser step to put the UniDexTok "
-            f"step before ({[type(s).__name__ for s in steps]}); this policy type cannot be wrapped"
+            f"the stock {config.type} pre-processor has no batching or normaliser step to place the UniDexTok "
+            f"step by ({[type(s).__name__ for s in steps]}); this policy type cannot be wrapped"
         )
-    steps.insert(before[0], step)
+    at = min(after_batch[:1] + normalizer[:1])  # after batching, before normalising
+    steps.insert(at, step)
     if config.udt_native_state and config.udt_native_state_layout:
-        steps.insert(before[0], NativeToUDHMStateStep.from_layout(NativeLayout(**config.udt_native_state_layout)))
+        steps.insert(at, NativeToUDHMStateStep.from_layout(NativeLayout(**config.udt_native_state_layout)))
     pre.steps = steps
     if config.udt_native_action and config.udt_native_layout:
         post.steps = [*post.steps, UDHMToNativeCommandStep.from_layout(NativeLayout(**config.udt_native_layout))]

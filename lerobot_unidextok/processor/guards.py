@@ -67,7 +67,7 @@ def range_problem(rows: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor, hands:
         )
     return (
         f"{where} ({fraction:.0%} of values out of range): the state looks normalised (z-scores or min-max "
-        "[-1, 1]). The tokenizer step must see raw radians: place it before `normalizer_processor` (and before "
+        "[-1, 1]). The tokenizer step must see raw radians: place it before `normalizer_processor` (after "
         "`to_batch_processor`), as the <type>_udt policies do; otherwise check hand_layout and the sides"
     )
 

@@ -5,7 +5,9 @@
     unidextok-eval --checkpoint=me/unidextok-small --datasets='[me/inspire_udhm]' --split=test
 
 Hands the checkpoint never saw are evaluated zero-shot (unknown-hand embedding) and flagged.
-Writes <output>.json and <output>.md and prints the table.
+Writes <output>.json and <output>.md and prints them: first what was scored (the checkpoint folder, and per
+dataset the episodes of the split and their hand-rows: one row per hand per frame, so a two-hand frame gives
+two rows), then the per-hand table.
 """
 
 import logging
@@ -31,6 +33,7 @@ class EvalConfig:
 
 def run(cfg: EvalConfig) -> dict:
     from lerobot_unidextok.evaluation import evaluate_tokenizer, write_report
+    from lerobot_unidextok.evaluation.report import describe_scored
     from lerobot_unidextok.tokenizer import UniDexTok
     from lerobot_unidextok.training import load_hand_states
     from lerobot_unidextok.training.checkpoint import resolve_checkpoint
@@ -51,6 +54,7 @@ def run(cfg: EvalConfig) -> dict:
     model = UniDexTok.from_pretrained(checkpoint).to(cfg.device)
     report = evaluate_tokenizer(model, data)
     report["checkpoint"], report["datasets"], report["split"] = checkpoint, cfg.datasets, cfg.split
+    report["scored"] = describe_scored(data, cfg.datasets, cfg.split, checkpoint)
     md = write_report(report, cfg.output)
     print(md)
     return report

@@ -140,7 +140,7 @@ def train_and_evaluate(cfg: TrainConfig) -> tuple[dict, str]:
     which only train."""
     from accelerate import PartialState
 
-    from lerobot_unidextok.evaluation.report import evaluate_tokenizer, write_report
+    from lerobot_unidextok.evaluation.report import describe_scored, evaluate_tokenizer, write_report
     from lerobot_unidextok.hub.card import write_run_cards
     from lerobot_unidextok.tokenizer import UniDexTok
 
@@ -153,6 +153,9 @@ def train_and_evaluate(cfg: TrainConfig) -> tuple[dict, str]:
         return {}, ""
     model = UniDexTok.from_pretrained(result.best_dir)
     report = evaluate_tokenizer(model, test) if len(test) else {"per_hand": {}, "overall": {}}
+    report["scored"] = describe_scored(test, cfg.datasets, "test", result.best_dir)
+    if cfg.streaming:  # the test rows are a sample
+        report["scored"]["rows"] += f"; at most {cfg.eval_max_frames} rows sampled from these episodes"
     report["training"] = {
         "best_step": result.best_step, "select_mae_deg": result.best_mae_deg, "steps": result.steps,
         "seconds": result.seconds, "train_rows": len(fit), "select_rows": len(select), "test_rows": len(test),
@@ -170,5 +173,6 @@ def train_and_evaluate(cfg: TrainConfig) -> tuple[dict, str]:
         (out / "kfold.json").write_text(json.dumps(kfold, indent=2))
         (out / "kfold.md").write_text(kfold_markdown(kfold) + "\n")
     training = {"datasets": list(cfg.datasets), "excluded_hands": list(cfg.exclude_hands), "fraction": cfg.fraction}
-    write_run_cards(out, held_out_results(_summary(report) if len(test) else None, kfold), training)
+    write_run_cards(out, held_out_results(_summary(report) if len(test) else None, kfold), training,
+                    report["scored"] if len(test) else None)  # fmt: skip
     return report, md

@@ -98,7 +98,39 @@ def test_train_then_eval_cli_on_a_lerobot_dataset(udhm_dataset, tmp_path, capsys
     assert ereport["checkpoint"] == str(out / "best")
     assert ereport["overall"]["rows"] == 60
     assert ereport["overall"]["mpjae_deg"] == pytest.approx(report["overall"]["mpjae_deg"])
-    assert "| human | 60 | 22 |" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "| human | 60 | 22 |" in printed
+    # both say what they scored: the checkpoint folder, the test episode (4) of the dataset, hand-rows
+    for rep, name in ((report, "eval.json"), (ereport, "e.json")):
+        scored = json.loads(((out if name == "eval.json" else tmp_path) / name).read_text())["scored"]
+        assert scored == rep["scored"] and scored["checkpoint"] == str(out / "best") and scored["split"] == "test"
+        assert scored["datasets"] == [{"dataset": str(udhm_dataset), "episodes": [4], "hand_rows": 60,
+                                       "hand_rows_per_hand": {"human": 60}}]  # fmt: skip
+    assert f"Scored: checkpoint `{out / 'best'}` on the test episodes below. Rows are hand-rows" in printed
+    assert f"| {udhm_dataset} | 4 (1) | 60 |" in printed
+
+
+def test_eval_names_episodes_per_dataset_and_counts_hand_rows(g1_like, udhm_dataset, tmp_path, capsys):
+    """eval.json held `"split": "test"` only. A two-hand dataset (3 episodes x 40 frames, test episode 2) gives
+    80 hand-rows for its 40 test frames; each dataset lists its own episodes."""
+    from lerobot_unidextok.scripts import eval as eval_script
+
+    torch.manual_seed(0)
+    cfg = UniDexTokConfig.from_preset("tiny", hand_names=["human", "inspire_rh56_unitree"])
+    UniDexTok(cfg).save_pretrained(tmp_path / "run" / "best")
+    datasets = [str(g1_like["root"]), str(udhm_dataset)]
+    report = eval_script.run(eval_script.EvalConfig(checkpoint=str(tmp_path / "run"), datasets=datasets, split="all",
+                                                    output=str(tmp_path / "e")))  # fmt: skip
+    scored = json.loads((tmp_path / "e.json").read_text())["scored"]
+    assert scored["checkpoint"] == str(tmp_path / "run" / "best") and scored["split"] == "all"
+    assert "a two-hand frame gives two rows" in scored["rows"]
+    g1, human = scored["datasets"]
+    assert g1 == {"dataset": datasets[0], "episodes": [0, 1, 2], "hand_rows": 240,
+                  "hand_rows_per_hand": {"inspire_rh56_unitree": 240}}  # fmt: skip
+    assert human["episodes"] == [0, 1, 2, 3, 4] and human["hand_rows"] == 300
+    assert report["overall"]["rows"] == 540
+    md = (tmp_path / "e.md").read_text()
+    assert md.startswith("Scored: checkpoint") and f"| {datasets[0]} | 0-2 (3) | 240 |" in md
 
 
 def test_zero_shot_cli_with_default_settings(udhm_dataset, tmp_path, capsys):

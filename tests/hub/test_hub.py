@@ -159,6 +159,52 @@ def test_the_shipped_tokenizer_is_pushed_by_its_id_like_any_model(hub, tmp_path)
         assert uploaded[name] == (SHIPPED[DEFAULT_TOKENIZER] / name).read_bytes(), name
 
 
+def _pushed_card(hub, repo_id: str) -> str:
+    repo = hub.repos[("model", repo_id)]
+    return repo.commits[repo.branches["main"]]["README.md"].decode()
+
+
+def test_run_card_reads_as_text_and_is_named_after_the_pushed_repo(hub, g1_like, tmp_path):
+    """A unidextok-train card pushed as lab/unidextok-g1 was titled `# tok_small` (the run folder) and loaded
+    `from_pretrained("tok_small")` / `unidextok-pull --repo_id=tok_small`; it said "not recorded" right above
+    the dataset path; checkpoint selection was printed as a Python dict."""
+    from lerobot_unidextok.training import TrainConfig
+    from lerobot_unidextok.training.run import train_and_evaluate
+
+    run = tmp_path / "tok_small"
+    train_and_evaluate(TrainConfig(datasets=[str(g1_like["root"])], preset="tiny", steps=10, batch_size=16,
+                                   warmup_steps=2, eval_every=5, progress=False, output_dir=str(run)))  # fmt: skip
+    local = (run / "best" / "README.md").read_text()
+    assert "not recorded" not in local and f"- `{g1_like['root']}`" in local.split("## Training data")[1]
+    assert "{'rows'" not in local and "| preset | tiny |" in local
+    assert "Checkpoint selection: the evaluation with the lowest joint MAE on 80 hand-rows" in local
+    assert f"Scored: checkpoint `{run / 'best'}` on the test episodes below" in local
+    assert f'from_pretrained("{run / "best"}")' in local and "Publish it with `unidextok-push" in local
+
+    r = run_cli(["unidextok-push", f"--local_dir={run}", "--repo_id=lab/unidextok-g1"],
+                HF_ENDPOINT=hub.url, HF_TOKEN=TOKEN, HF_HUB_OFFLINE="0", HF_HOME=str(tmp_path / "hf"))  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
+    card = _pushed_card(hub, "lab/unidextok-g1")
+    assert card.split(CARD_MARKER)[1].lstrip().startswith("# lab/unidextok-g1\n")
+    use = card.split("## Use")[1]
+    assert 'from_pretrained("lab/unidextok-g1")' in use and "unidextok-pull --repo_id=lab/unidextok-g1" in use
+    assert "tok_small" not in use and "Publish it" not in card
+    assert card.split("## Use")[0] == local.split("## Use")[0].replace(f"# UniDexTok tokenizer `{run / 'best'}`",
+                                                                        "# lab/unidextok-g1")  # fmt: skip
+
+
+def test_folder_without_readme_gets_a_generated_card(hub, tok_dir, tmp_path):
+    folder = tmp_path / "ckpt"
+    shutil.copytree(tok_dir, folder)
+    (folder / "README.md").unlink()
+    r = run_cli(["unidextok-push", f"--local_dir={folder}", "--repo_id=lab/no-readme"],
+                HF_ENDPOINT=hub.url, HF_TOKEN=TOKEN, HF_HUB_OFFLINE="0", HF_HOME=str(tmp_path / "hf"))  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
+    card = _pushed_card(hub, "lab/no-readme")
+    assert CARD_MARKER in card and "# lab/no-readme\n" in card and 'from_pretrained("lab/no-readme")' in card
+    assert not (folder / "README.md").exists()  # staged: the folder is left as it was
+
+
 def test_policy_folder_gets_a_policy_card(tmp_path, g1_like):
     """Pushing a policy folder wrote a tokenizer card ('None tokens x None groups')."""
     folder = tmp_path / "pretrained_model"

@@ -18,7 +18,7 @@ from lerobot.configs.types import FeatureType, PolicyFeature
 from linkerhand_udhm import subprocess_env
 from robot_udhm import INSPIRE, NATIVE_NAMES, STATE_NAMES, to_converted
 
-from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_STATE
+from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE
 from lerobot_unidextok.policies import UDT_CONFIGS, ACTUdtConfig, DiffusionUdtConfig
 from lerobot_unidextok.policies.act_udt import make_act_udt_pre_post_processors
 from lerobot_unidextok.policies.diffusion_udt import make_diffusion_udt_pre_post_processors
@@ -137,13 +137,17 @@ def test_whole_robot_layout_comes_from_the_dataset(tok_dir, g1_like):
     assert cfg.input_features[OBS_HAND_TOKEN_FEATURES].shape == (44,)
     pre, post = make_diffusion_udt_pre_post_processors(cfg)
     names = [type(s).__name__ for s in pre.steps]
-    assert names.index("UniDexTokStateTokenizerStep") < names.index("AddBatchDimensionProcessorStep")
+    assert names.index("AddBatchDimensionProcessorStep") < names.index("UniDexTokStateTokenizerStep")
     assert names.index("UniDexTokStateTokenizerStep") < names.index("NormalizerProcessorStep")
     state = torch.from_numpy(to_converted(g1_like["native_state"][:6])).float()
+    tokens = 2 * 4 * 8  # 2 hands x 4 tokens x 8 groups (tiny preset)
     out = pre({OBS_STATE: state[0]})  # one unbatched frame, as at inference
-    assert out[OBS_HAND_TOKEN_FEATURES].shape == (1, 44)
+    # every output of the full pre-processor has the batch dimension the state got (the tokens were (64,))
+    assert out[OBS_STATE].shape == (1, 58) and out[OBS_HAND_TOKEN_FEATURES].shape == (1, 44)
+    assert out[OBS_HAND_TOKENS].shape == (1, tokens) and out[OBS_HAND_TOKENS].dtype == torch.int64
     stacked = pre({OBS_STATE: state.reshape(3, 2, 58)})  # (B, n_obs_steps, D) as diffusion trains
-    assert stacked[OBS_HAND_TOKEN_FEATURES].shape == (3, 2, 44)
+    assert stacked[OBS_HAND_TOKEN_FEATURES].shape == (3, 2, 44) and stacked[OBS_HAND_TOKENS].shape == (3, 2, tokens)
+    assert torch.equal(stacked[OBS_HAND_TOKENS][0, 0], out[OBS_HAND_TOKENS][0])
     actions = torch.from_numpy(to_converted(g1_like["native_action"][:2])).float()  # (2, 58) converted
     native = post(actions)
     assert native.shape == (2, 26)
@@ -241,7 +245,7 @@ def test_lerobot_train_without_the_plugin_flag(tok_dir, g1_like, tmp_path):
     cfg = json.loads((ckpt / "config.json").read_text())
     assert cfg["type"] == "act_udt" and cfg["udt_state_names"] == STATE_NAMES
     pre = [s["registry_name"] for s in json.loads((ckpt / "policy_preprocessor.json").read_text())["steps"]]
-    assert pre.index(STEP_NAME) < pre.index("to_batch_processor")
+    assert pre.index("to_batch_processor") < pre.index(STEP_NAME) < pre.index("normalizer_processor")
 
 
 RELOAD = """
@@ -307,7 +311,7 @@ def test_lerobot_train_act_and_diffusion_resume_and_reload(tok_dir, g1_like, tmp
         cfg = json.loads((ckpt / "config.json").read_text())
         assert cfg["type"] == udt_type and cfg["udt_state_names"] == STATE_NAMES
         pre = [s["registry_name"] for s in json.loads((ckpt / "policy_preprocessor.json").read_text())["steps"]]
-        assert pre.index(STEP_NAME) < pre.index("to_batch_processor") < pre.index("normalizer_processor")
+        assert pre.index("to_batch_processor") < pre.index(STEP_NAME) < pre.index("normalizer_processor")
         assert pre.index(NATIVE_STATE_STEP_NAME) == pre.index(STEP_NAME) - 1
         post = [s["registry_name"] for s in json.loads((ckpt / "policy_postprocessor.json").read_text())["steps"]]
         assert post[-1] == NATIVE_STEP_NAME

@@ -14,6 +14,6 @@ def make_act_udt_pre_post_processors(
     config: ACTUdtConfig,
     dataset_stats: dict[str, dict[str, torch.Tensor]] | None = None,
 ) -> tuple[PolicyProcessorPipeline, PolicyProcessorPipeline]:
-    """ACT's pre-/post-processors with the UniDexTok step before batching (plus the native-state
+    """ACT's pre-/post-processors with the UniDexTok step after batching (plus the native-state
     mapper and the native-action decoder)."""
     return insert_udt_steps(config, *make_act_pre_post_processors(config, dataset_stats=dataset_stats))

@@ -14,6 +14,6 @@ def make_diffusion_udt_pre_post_processors(
     config: DiffusionUdtConfig,
     dataset_stats: dict[str, dict[str, torch.Tensor]] | None = None,
 ) -> tuple[PolicyProcessorPipeline, PolicyProcessorPipeline]:
-    """Diffusion Policy's pre-/post-processors with the UniDexTok step before batching (plus the native-state
+    """Diffusion Policy's pre-/post-processors with the UniDexTok step after batching (plus the native-state
     mapper and the native-action decoder)."""
     return insert_udt_steps(config, *make_diffusion_pre_post_processors(config, dataset_stats=dataset_stats))

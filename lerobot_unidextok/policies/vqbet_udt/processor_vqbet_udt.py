@@ -14,6 +14,6 @@ def make_vqbet_udt_pre_post_processors(
     config: VQBeTUdtConfig,
     dataset_stats: dict[str, dict[str, torch.Tensor]] | None = None,
 ) -> tuple[PolicyProcessorPipeline, PolicyProcessorPipeline]:
-    """VQ-BeT's pre-/post-processors with the UniDexTok step before batching (plus the native-state
+    """VQ-BeT's pre-/post-processors with the UniDexTok step after batching (plus the native-state
     mapper and the native-action decoder)."""
     return insert_udt_steps(config, *make_vqbet_pre_post_processors(config, dataset_stats=dataset_stats))
