@@ -155,8 +155,14 @@ def test_the_shipped_tokenizer_is_pushed_by_its_id_like_any_model(hub, tmp_path)
     assert r.returncode == 0, r.stderr[-2000:]
     repo = hub.repos[("model", "lab/universal-small")]
     uploaded = repo.commits[repo.branches["main"]]
-    for name in ("config.json", "model.safetensors", "README.md", "eval.json"):  # the card is ours: kept as is
+    for name in ("config.json", "model.safetensors", "eval.json"):
         assert uploaded[name] == (SHIPPED[DEFAULT_TOKENIZER] / name).read_bytes(), name
+    # the card is ours: named after the repo it is pushed to, its figures and the rest kept as they are
+    shipped_card = (SHIPPED[DEFAULT_TOKENIZER] / "README.md").read_text()
+    card = uploaded["README.md"].decode()
+    assert "# lab/universal-small\n" in card and 'from_pretrained("lab/universal-small")' in card
+    assert card.split("## Use")[0] == shipped_card.split("## Use")[0].replace("# unidextok/universal-small\n",
+                                                                               "# lab/universal-small\n")
 
 
 def _pushed_card(hub, repo_id: str) -> str:
