@@ -16,13 +16,15 @@ from lerobot_unidextok.experiments import (
     ablation_human,
     ablation_mapping,
     main_table,
+    policy_tokens,
     probe,
     transfer,
 )
 
 logger = logging.getLogger(__name__)
 MARKDOWN = {"main_table": main_table.markdown, "ablation_human": ablation_human.markdown,
-            "ablation_mapping": ablation_mapping.markdown, "transfer": transfer.markdown, "probe": probe.markdown}  # fmt: skip
+            "ablation_mapping": ablation_mapping.markdown, "transfer": transfer.markdown, "probe": probe.markdown,
+            "policy_tokens": policy_tokens.markdown}  # fmt: skip
 COMMANDS = {name: f"python experiments/{name}.py" for name in EXPERIMENTS}
 MAX_PNG_BYTES = 300_000
 
