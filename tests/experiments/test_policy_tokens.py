@@ -79,13 +79,23 @@ def test_policy_tokens_runs_every_input_on_every_fold_and_caches(g1_like, tmp_pa
 
 
 def test_policy_tokens_on_the_results_page(g1_like, tmp_path):
-    from lerobot_unidextok.experiments.results_page import build_page
+    from lerobot_unidextok.experiments.results_page import build_page, update_sections
 
     argv = [f"--datasets=[{g1_like['root']}]", f"--output_root={tmp_path}", "--inputs=[udhm]", *TINY]
     policy_tokens.run(policy_tokens.parse(argv))
     page = build_page(tmp_path, tmp_path / "RESULTS.md")
-    assert "## policy_tokens" in page and "Command: `python experiments/policy_tokens.py`" in page
-    assert "| udhm |" in page
+    # the command that reproduces the table: every flag that differs from the defaults
+    assert "Command: `python experiments/policy_tokens.py --datasets='[" in page and "--inputs='[udhm]'" in page
+    assert "| udhm |" in page and "## main_table\n\nNot run yet" in page
+    # a page whose other sections came from JSON files this checkout does not have: only ours is replaced
+    kept = "# Results\n\nintro\n\n## main_table\n\nmeasured elsewhere\n\n## probe\n\nalso elsewhere\n"
+    (tmp_path / "page.md").write_text(kept)
+    text = update_sections(tmp_path, tmp_path / "page.md", ["policy_tokens"])
+    assert text.startswith("# Results\n\nintro\n") and "measured elsewhere" in text and "also elsewhere" in text
+    assert text.index("## main_table") < text.index("## probe") < text.index("## policy_tokens")
+    assert "| udhm |" in text
+    again = update_sections(tmp_path, tmp_path / "page.md", ["policy_tokens"])
+    assert again == text  # replaced in place, not appended twice
 
 
 def test_policy_tokens_rejects_unknown_inputs():
