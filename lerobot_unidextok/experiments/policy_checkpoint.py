@@ -1,5 +1,6 @@
 """Open-loop errors of a `lerobot-train` checkpoint of a `<type>_udt` policy on episodes of a converted
-dataset, next to copying the current state: the figures of docs/lerobot.md's CPU recipe.
+dataset, next to copying the current state and to the mean action of the other episodes (no state at all):
+the figures of docs/lerobot.md's CPU recipe.
 
     python experiments/eval_policy.py --checkpoint=outputs/act_udt_cpu/checkpoints/last/pretrained_model \
         --dataset=data/g1_udhm --episodes='[1,5]'
@@ -57,6 +58,12 @@ def checkpoint_chunks(checkpoint: str | Path, state: np.ndarray, batch: int = 25
     return np.concatenate(converted).astype(np.float64), np.concatenate(native).astype(np.float64)
 
 
+def mean_action_prediction(frames, rows: np.ndarray, chunk: int) -> np.ndarray:
+    """(R, chunk, D) the no-state reference: the mean action of the episodes not scored, at every step."""
+    mean = frames.action[~np.isin(np.arange(len(frames.action)), rows)].mean(0)
+    return np.broadcast_to(mean, (len(rows), chunk, mean.size)).copy()
+
+
 def run(cfg: EvalPolicyConfig) -> dict:
     from lerobot.configs.policies import PreTrainedConfig
 
@@ -87,6 +94,7 @@ def run(cfg: EvalPolicyConfig) -> dict:
         "chunk_size": chunk, "native_width": int(native.shape[-1]), "inference_cpu_ms_per_frame": 1000 * cpu / len(rows),
         "policy": open_loop_errors(converted, frames, rows, chunk),
         "copy_state": open_loop_errors(copy_state_prediction(frames, rows, chunk), frames, rows, chunk),
+        "mean_action": open_loop_errors(mean_action_prediction(frames, rows, chunk), frames, rows, chunk),
     }  # fmt: skip
     if cfg.output:
         Path(cfg.output).write_text(json.dumps(result, indent=2))
@@ -96,7 +104,7 @@ def run(cfg: EvalPolicyConfig) -> dict:
 def markdown(result: dict) -> str:
     metrics = list(result["policy"])
     rows = [[name, *[f"{result[name][m]:.4f}" if "native" in m else f"{result[name][m]:.2f}" for m in metrics]]
-            for name in ("policy", "copy_state")]  # fmt: skip
+            for name in ("policy", "copy_state", "mean_action")]  # fmt: skip
     return "\n".join([
         f"Open-loop MAE on episodes {result['episodes']} ({result['rows']} frames, chunk {result['chunk_size']}, "
         f"native action width {result['native_width']}): arms deg, hands UDHM deg and native units.", "",

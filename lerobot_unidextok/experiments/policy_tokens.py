@@ -240,9 +240,10 @@ def command_line(cfg: PolicyTokensConfig) -> str:
 def provenance(cfg, source: str, root: Path, frames: RobotFrames, fold_tests, fold_ids, seconds: float) -> dict:
     """What `results_page` prints above the table."""
     test = np.isin(frames.episode, np.concatenate([fold_tests[k] for k in fold_ids]))
+    train_rows = [int((~np.isin(frames.episode, fold_tests[k])).sum()) for k in fold_ids]
     name = "g1-inspire (converted)" if source == "real" else str(root)
     return {"data": {"source": source, "synthetic_sample": False, "datasets": [name],
-                     "train_rows": int(len(frames.episode) - len(frames.episode) // cfg.folds),
+                     "train_rows": " / ".join(map(str, train_rows)) + " per fold",
                      "test_rows": int(test.sum()), "hands": sorted(set(frames.hands))},
             "preset": cfg.tokenizer.preset if not cfg.tokenizer_pretrained else cfg.tokenizer_pretrained,
             "seed": cfg.seeds, "git_commit": git_commit(), "config": {"steps": cfg.act.steps, **dataclasses.asdict(cfg)},
@@ -293,7 +294,9 @@ def markdown(result: dict) -> str:
                      _cell(v, "hands_native_first", 4), _cell(v, "hands_native_chunk", 4),
                      "" if rel is None or kind == "udhm" else f"{100 * rel:+.1f} %",
                      f"{v['train_cpu_s']:.0f}" if v["seeds"] else ""])  # fmt: skip
-    tok = "; ".join(sorted({f["tokenizer"] for f in result["tokenizers"].values() if f})) or "none"
+    tok = "; ".join(f["tokenizer"] + (f", {f['select_mpjae_deg']:.2f} deg MPJAE on its selection episodes"
+                                       if "select_mpjae_deg" in f else "")
+                    for f in result["tokenizers"].values() if f) or "none"  # fmt: skip
     what = [f"- `{k}`: {HAND_INPUTS[k]}" for k in cfg["inputs"]]
     return "\n".join([
         f"# {NAME}", "",
@@ -345,7 +348,9 @@ def reading(result: dict) -> list[str]:
     tok_cpu = sum(f.get("train_cpu_s", 0.0) for f in result["tokenizers"].values() if f)
     lines.append(f"- CPU: {len(runs)} ACT runs, {sum(r['train_cpu_s'] for r in runs):.0f} CPU-s training "
                  f"({np.mean([r['train_cpu_s'] for r in runs]):.0f} s each, one thread) + {tok_cpu:.0f} CPU-s for the "
-                 "fold tokenizers." if runs else "- CPU: no ACT runs.")  # fmt: skip
+                 f"fold tokenizers; sized for a 30 CPU-minute budget: {cfg['act']['steps']} ACT steps, "
+                 f"{cfg['tokenizer']['steps']} tokenizer steps, {len(cfg['seeds'])} seeds, folds {result['fold_ids']} of "
+                 f"{cfg['folds']}." if runs else "- CPU: no ACT runs.")  # fmt: skip
     return lines
 
 

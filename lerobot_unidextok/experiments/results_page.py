@@ -117,11 +117,11 @@ def update_sections(results_dir: str | Path, page: str | Path, names: list[str],
     if missing:
         raise FileNotFoundError(f"no results for {missing} under {results_dir}; run `{COMMANDS[missing[0]]}` first")
     head, *chunks = page.read_text().split("\n## ")
-    sections = {c.split("\n", 1)[0].strip(): "## " + c for c in chunks}
+    sections = {c.split("\n", 1)[0].strip(): "## " + c for c in chunks}  # untouched text kept byte for byte
     for name in names:
         sections[name] = "\n".join(section(name, results[name], image_dir, page)).rstrip() + "\n"
     order = [n for n in EXPERIMENTS if n in sections] + [n for n in sections if n not in EXPERIMENTS]
-    text = "\n".join([head.rstrip() + "\n", *(sections[n].rstrip() + "\n" for n in order)])
+    text = head + "".join("\n" + sections[n] for n in order)
     page.write_text(text)
     logger.info("updated %s in %s", names, page)
     return text

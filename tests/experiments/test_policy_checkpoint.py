@@ -46,4 +46,5 @@ def test_cpu_recipe_trains_and_eval_policy_scores_it(g1_like, tmp_path):
     frames = load_frames(root)
     rows = np.flatnonzero(frames.episode == 2)
     assert result["copy_state"] == pytest.approx(open_loop_errors(copy_state_prediction(frames, rows, 10), frames, rows, 10))
-    assert "| copy_state |" in r.stdout
+    assert "| copy_state |" in r.stdout and "| mean_action |" in r.stdout
+    assert all(v > 0 for v in result["mean_action"].values())
