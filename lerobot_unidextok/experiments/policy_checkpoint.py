@@ -71,16 +71,16 @@ def run(cfg: EvalPolicyConfig) -> dict:
         copy_state_prediction,
         load_frames,
         open_loop_errors,
-        test_episodes,
+        recorded_test_episodes,
     )
 
-    import lerobot_policy_unidextok  # noqa: F401
-
     frames = load_frames(cfg.dataset)
-    episodes = cfg.episodes or test_episodes(cfg.dataset)
+    episodes = cfg.episodes or recorded_test_episodes(cfg.dataset)
     if not episodes:
         raise ValueError(f"{cfg.dataset} records no test episodes; pass --episodes='[...]'")
     rows = np.flatnonzero(np.isin(frames.episode, episodes))
+    import lerobot_policy_unidextok  # noqa: F401  registers the _udt config types before the config is read
+
     chunk = PreTrainedConfig.from_pretrained(cfg.checkpoint).chunk_size
     t0 = time.process_time()
     converted, native = checkpoint_chunks(cfg.checkpoint, frames.state[rows])

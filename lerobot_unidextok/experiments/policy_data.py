@@ -82,6 +82,7 @@ class RobotFrames:
 
 def load_frames(root: str | Path) -> RobotFrames:
     """A converted whole-robot dataset (passthrough columns + UDHM blocks, hands with native joints)."""
+    import pandas as pd
     import pyarrow.parquet as pq
 
     from lerobot_unidextok.processor.layout import hand_layout_from_dataset
@@ -92,8 +93,6 @@ def load_frames(root: str | Path) -> RobotFrames:
     layout = hand_layout_from_dataset(root)
     files = sorted((root / "data").rglob("*.parquet"))
     tables = [pq.read_table(f, columns=[OBS_STATE, ACTION, "episode_index", "index"]).to_pandas() for f in files]
-    import pandas as pd
-
     df = pd.concat(tables, ignore_index=True).sort_values("index")
     state = np.stack(df[OBS_STATE].to_numpy()).astype(np.float64)
     action = np.stack(df[ACTION].to_numpy()).astype(np.float64)
@@ -105,7 +104,7 @@ def load_frames(root: str | Path) -> RobotFrames:
     return frames
 
 
-def test_episodes(root: str | Path) -> list[int]:
+def recorded_test_episodes(root: str | Path) -> list[int]:
     """The held-out episodes the converter recorded (`meta/unidextok_conversion.json`), [] when none."""
     from lerobot_unidextok.constants import CONVERSION_PATH
 
@@ -148,14 +147,13 @@ def token_view(frames: RobotFrames, tokenizer: str | Path, representation: str, 
 
 def binned_blocks(blocks_rad: np.ndarray, hand_names: list[str]) -> np.ndarray:
     """(N, 22 * H) UDHM blocks -> decode(encode(x)) of 8-bit per-joint binning (experiments' reference)."""
+    from lerobot_unidextok import hands
     from lerobot_unidextok.experiments.unseen_data import binning_reconstruction
     from lerobot_unidextok.training import HandStates
 
     n, h = len(blocks_rad), len(hand_names)
     rows = blocks_rad.reshape(n * h, 22)
     hands_col = np.tile(np.asarray(hand_names), n)
-    from lerobot_unidextok import hands
-
     masks = np.stack([hands.get(name).active_mask for name in hands_col])
     out = binning_reconstruction(HandStates(rows, hands_col, masks))
     return out.reshape(n, h * 22)

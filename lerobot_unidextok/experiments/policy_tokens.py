@@ -160,7 +160,8 @@ def cached_runs(cache: Path) -> dict[str, dict]:
 
 
 def resolved(cfg: PolicyTokensConfig, kind: str, test: np.ndarray, tokenizer: str, data: str) -> dict:
-    """Everything a run's result depends on: its cache key."""
+    """Everything a run's result depends on: its cache key (the per-fold tokenizer's folder is named by the digest
+    of its training settings, test episodes and data)."""
     out = {"act": dataclasses.asdict(cfg.act), "test_episodes": test.tolist(), "data": data, "input": kind}
     if kind in TOKEN_INPUTS:
         out["tokenizer"] = tokenizer
@@ -194,8 +195,7 @@ def run(cfg: PolicyTokensConfig) -> dict:
                                 cfg.act.chunk_size)  # fmt: skip
         runs.append({"input": COPY, "fold": k, "seed": None, "errors": copy, "test_episodes": test.tolist()})
         for kind in cfg.inputs:
-            settings = resolved(cfg, kind, test, tok if facts.get("trained_on_fold") is False else facts.get("tokenizer", ""),
-                                str(root))  # fmt: skip
+            settings = resolved(cfg, kind, test, tok, str(root))
             hands_x = None
             for seed in cfg.seeds:
                 key = _digest(settings) + f"/{seed}"

@@ -9,7 +9,7 @@ variant trains on exactly the same rows, batches and initialisation for a seed.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -127,7 +127,3 @@ def train_act(size: SmallACT, arms: np.ndarray, hands: np.ndarray, actions: np.n
         loss = float(loss_t.detach())
     cpu = time.process_time() - cpu0
     return TrainedACT(policy, arm_s, hand_s, act_s, cpu, size.steps / max(cpu, 1e-9), loss)
-
-
-def size_dict(size: SmallACT) -> dict:
-    return asdict(size)
