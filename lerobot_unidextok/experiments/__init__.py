@@ -9,6 +9,7 @@ EXPERIMENTS: tuple[str, ...] = (
     "ablation_mapping",
     "transfer",
     "probe",
+    "policy_tokens",
 )
 
 __all__ = ["EXPERIMENTS", "PRESETS", "ExperimentConfig", "parse_config"]

@@ -6,7 +6,7 @@ Copies the PNGs the page shows into `benchmarks/results/` (skipping any over 300
 import json
 import logging
 import shutil
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import draccus
@@ -16,13 +16,15 @@ from lerobot_unidextok.experiments import (
     ablation_human,
     ablation_mapping,
     main_table,
+    policy_tokens,
     probe,
     transfer,
 )
 
 logger = logging.getLogger(__name__)
 MARKDOWN = {"main_table": main_table.markdown, "ablation_human": ablation_human.markdown,
-            "ablation_mapping": ablation_mapping.markdown, "transfer": transfer.markdown, "probe": probe.markdown}  # fmt: skip
+            "ablation_mapping": ablation_mapping.markdown, "transfer": transfer.markdown, "probe": probe.markdown,
+            "policy_tokens": policy_tokens.markdown}  # fmt: skip
 COMMANDS = {name: f"python experiments/{name}.py" for name in EXPERIMENTS}
 MAX_PNG_BYTES = 300_000
 
@@ -90,6 +92,41 @@ def _provenance_line(result: dict) -> str:
             f"commit `{p['git_commit'][:12]}`, {p['date_utc']}, wall time {p['wall_seconds']} s._")  # fmt: skip
 
 
+def section(name: str, r: dict | None, image_dir: Path, page: Path) -> list[str]:
+    """The page's lines for one experiment (its figures copied next to the page)."""
+    if r is None:
+        return [f"## {name}", "", f"Not run yet: `{COMMANDS[name]}`.", ""]
+    body = MARKDOWN[name](r).split("\n")
+    body = body[2:] if body and body[0].startswith("# ") else body  # drop the experiment's own title
+    out = [f"## {name}", "", f"Command: `{r.get('command', COMMANDS[name])}`", "", _provenance_line(r), "", *body, ""]
+    return out + _copy_figures(name, r.get("figures", {}), image_dir, page) + [""]
+
+
+def update_sections(results_dir: str | Path, page: str | Path, names: list[str], image_dir: str | Path | None = None) -> str:
+    """Replace (or add, in the page's experiment order) only `names`' sections of an existing page, from their
+    JSON files; the other sections stay as they are (for a checkout holding only some experiments' results)."""
+    results_dir, page = Path(results_dir), Path(page)
+    image_dir = Path(image_dir) if image_dir else page.parent / "results"
+    unknown = sorted(set(names) - set(EXPERIMENTS))
+    if unknown:
+        raise ValueError(f"unknown experiments {unknown}; choose from {list(EXPERIMENTS)}")
+    if not page.is_file():
+        raise FileNotFoundError(f"{page} does not exist; build the whole page first (without --only)")
+    results = load_results(results_dir)
+    missing = [n for n in names if n not in results]
+    if missing:
+        raise FileNotFoundError(f"no results for {missing} under {results_dir}; run `{COMMANDS[missing[0]]}` first")
+    head, *chunks = page.read_text().split("\n## ")
+    sections = {c.split("\n", 1)[0].strip(): "## " + c for c in chunks}  # untouched text kept byte for byte
+    for name in names:
+        sections[name] = "\n".join(section(name, results[name], image_dir, page)).rstrip() + "\n"
+    order = [n for n in EXPERIMENTS if n in sections] + [n for n in sections if n not in EXPERIMENTS]
+    text = head + "".join("\n" + sections[n] for n in order)
+    page.write_text(text)
+    logger.info("updated %s in %s", names, page)
+    return text
+
+
 def build_page(results_dir: str | Path, page: str | Path, image_dir: str | Path | None = None) -> str:
     """Write the results page from `<results_dir>/<experiment>/<experiment>.json`; returns its text."""
     results_dir, page = Path(results_dir), Path(page)
@@ -108,24 +145,7 @@ def build_page(results_dir: str | Path, page: str | Path, image_dir: str | Path 
            "figures, not the paper's. Other data: `--datasets='[a,b]'`."), "",
            f"Data sources on this page: {', '.join(sources)}.", ""]  # fmt: skip
     for name in EXPERIMENTS:
-        if name not in results:
-            out += [f"## {name}", "", f"Not run yet: `{COMMANDS[name]}`.", ""]
-            continue
-        r = results[name]
-        body = MARKDOWN[name](r).split("\n")
-        body = body[2:] if body and body[0].startswith("# ") else body  # drop the experiment's own title
-        out += [
-            f"## {name}",
-            "",
-            f"Command: `{COMMANDS[name]}`",
-            "",
-            _provenance_line(r),
-            "",
-            *body,
-            "",
-        ]
-        out += _copy_figures(name, r.get("figures", {}), image_dir, page)
-        out.append("")
+        out += section(name, results.get(name), image_dir, page)
     _remove_stale_figures(image_dir, out)
     text = "\n".join(out).rstrip() + "\n"
     page.parent.mkdir(parents=True, exist_ok=True)
@@ -139,12 +159,17 @@ class ResultsPageConfig:
     results_dir: str = "outputs/experiments"  # where the experiments wrote <name>/<name>.json
     page: str = "benchmarks/RESULTS.md"
     image_dir: str = ""  # figures copied here; empty = <page folder>/results
+    # Replace only these experiments' sections of the existing page (the others' JSON files may be absent).
+    only: list[str] = field(default_factory=list)
 
 
 def main(argv: list[str] | None = None) -> None:
     cfg = draccus.parse(ResultsPageConfig, args=argv)
     logging.basicConfig(level=logging.INFO)
-    build_page(cfg.results_dir, cfg.page, cfg.image_dir or None)
+    if cfg.only:
+        update_sections(cfg.results_dir, cfg.page, cfg.only, cfg.image_dir or None)
+    else:
+        build_page(cfg.results_dir, cfg.page, cfg.image_dir or None)
     print(f"wrote {cfg.page}")
 
 
