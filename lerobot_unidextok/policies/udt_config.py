@@ -94,7 +94,8 @@ class UdtConfigMixin:
     # Predict actions relative to the current state (action - state per column, LeRobot's
     # RelativeActionsProcessorStep before the normaliser, AbsoluteActionsProcessorStep after the unnormaliser, as
     # LeRobot's pi0 use_relative_actions); the action columns must be the first columns of the converted state
-    # (true for unidextok-convert datasets). Actions are then not normalised (ACTION: IDENTITY).
+    # (true for unidextok-convert datasets). Actions are then not normalised (ACTION: IDENTITY). LeRobot 0.6.1's
+    # lerobot-rollout refuses relative-action policies; the stock factory and select_action run them.
     udt_relative_actions: bool = False
     # Column names of the action (converted layout); filled from the dataset.
     udt_action_names: list[str] = field(default_factory=list)
