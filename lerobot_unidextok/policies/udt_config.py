@@ -20,7 +20,10 @@ What the mixin adds to the stock config, in `validate_features` (run when the po
   VQ-BeT take as their environment state next to `observation.state`;
 - the native action layout, so `select_action` (through the post-processor) returns the robot's own action;
 - the native state layout, so the pre-processor also takes the robot's own `observation.state` (a step maps it
-  to the converted layout; `config.input_features` stays what the model reads, the converted state).
+  to the converted layout; `config.input_features` stays what the model reads, the converted state);
+- with `udt_relative_actions`, the action column names, checked to be the first columns of the state (the
+  policy learns `action - state` per column), and IDENTITY action normalisation (the dataset's action
+  statistics are of absolute actions, not of the offsets the policy predicts).
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from lerobot.configs.types import FeatureType, PolicyFeature
+from lerobot.configs.types import FeatureType, NormalizationMode, PolicyFeature
 
 from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE, UDHM_DIM
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
@@ -88,6 +91,14 @@ class UdtConfigMixin:
     udt_native_state: bool = True
     # The native state layout {"names", "native_names", "hands", "mapping"}; filled from the dataset.
     udt_native_state_layout: dict[str, Any] = field(default_factory=dict)
+    # Predict actions relative to the current state (action - state per column, LeRobot's
+    # RelativeActionsProcessorStep before the normaliser, AbsoluteActionsProcessorStep after the unnormaliser, as
+    # LeRobot's pi0 use_relative_actions); the action columns must be the first columns of the converted state
+    # (true for unidextok-convert datasets). Actions are then not normalised (ACTION: IDENTITY). LeRobot 0.6.1's
+    # lerobot-rollout refuses relative-action policies; the stock factory and select_action run them.
+    udt_relative_actions: bool = False
+    # Column names of the action (converted layout); filled from the dataset.
+    udt_action_names: list[str] = field(default_factory=list)
     # Accepted and ignored, so --policy.discover_packages_path=lerobot_unidextok also works with
     # --policy.path=<checkpoint> (LeRobot passes every --policy.* flag to the loaded config).
     discover_packages_path: str | None = None
@@ -98,6 +109,8 @@ class UdtConfigMixin:
             raise ValueError(f"udt_representation must be one of {REPRESENTATIONS}, got {self.udt_representation!r}")
         if self.udt_range_check not in RANGE_CHECKS:
             raise ValueError(f"udt_range_check must be one of {RANGE_CHECKS}, got {self.udt_range_check!r}")
+        if self.udt_relative_actions:  # offsets around the state: the absolute action stats do not describe them
+            self.normalization_mapping = {**self.normalization_mapping, "ACTION": NormalizationMode.IDENTITY}
 
     # ----------------------------------------------------------------------------------------------
     def tokenizer_config(self):
@@ -134,6 +147,7 @@ class UdtConfigMixin:
             hands = hands * max(1, len(find_udhm_blocks(names)))
         layout = HandLayout.from_state_names(names, hands)
         self.udt_hand_layout, self.udt_sides, self.udt_state_names = layout.hands, layout.sides, layout.state_names
+        self.udt_action_names = feature_names(meta.features.get(ACTION, {}))
         native = NativeLayout.from_dataset(meta.root, ACTION) if self.udt_native_action else None
         self.udt_native_layout = native.to_dict() if native is not None else {}
         state = NativeLayout.from_dataset(meta.root, OBS_STATE) if self.udt_native_state else None
@@ -177,8 +191,26 @@ class UdtConfigMixin:
                 f"udt_hand_layout {self.udt_hand_layout} names {num_hands} hands but {OBS_STATE} (width {width}) "
                 f"holds {width // UDHM_DIM}"
             )
+        if self.udt_relative_actions:
+            self._check_relative_layout(width)
         self.input_features.pop(OBS_HAND_TOKENS, None)  # int64 ids must not reach the normalizer
         if OBS_HAND_TOKEN_FEATURES not in self.input_features:  # a reloaded config has it already
             _, env_width = tokenizer_output_dims(self.tokenizer_config(), num_hands, self.udt_representation)
             self.input_features[OBS_HAND_TOKEN_FEATURES] = PolicyFeature(type=FeatureType.ENV, shape=(env_width,))
         super().validate_features()
+
+    def _check_relative_layout(self, state_width: int) -> None:
+        """Relative actions subtract state column i from action column i: refuse an action layout that is not
+        the state's first columns (by name when both are named, else by width)."""
+        action = self.output_features.get(ACTION)
+        width = action.shape[0] if action is not None else len(self.udt_action_names)
+        names, state_names = list(self.udt_action_names), list(self.udt_state_names)
+        misaligned = width > state_width or (names and state_names and names != state_names[:width])
+        if misaligned:
+            where = (f"action columns {names[:4]}... vs state columns {state_names[:4]}..." if names and state_names
+                     else f"action width {width} vs state width {state_width}")  # fmt: skip
+            raise ValueError(
+                f"udt_relative_actions needs the action columns to be the first columns of {OBS_STATE} (it learns "
+                f"action - state per column), but {where}; reorder the dataset's action to the state's column order "
+                "or set --policy.udt_relative_actions=false"
+            )

@@ -1,7 +1,7 @@
 """The processors of every `<type>_udt` type: the stock pipelines with the UniDexTok step inserted after batching.
 
-    rename -> to_batch [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer -> device -> normalizer  (pre)
-    unnormalizer -> to cpu [-> unidextok.udhm_to_native]                                                   (post)
+    rename -> to_batch [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer -> device [-> relative] -> normalizer
+    unnormalizer [-> absolute] -> to cpu [-> unidextok.udhm_to_native]                                          (post)
 
 The steps sit after `to_batch_processor`, so their outputs have the batch dimensions of the batched state
 (LeRobot's batching step adds them only to its own keys: with the tokenizer step before it,
@@ -9,13 +9,23 @@ The steps sit after `to_batch_processor`, so their outputs have the batch dimens
 `normalizer_processor` (they must see raw values, never normalised ones). `unidextok.native_to_udhm` maps the
 robot's native `observation.state` to the converted layout (the converted state of the training batches
 passes unchanged); it is there when the training dataset recorded a native state layout and
-`udt_native_state` is on. Each `processor_<type>_udt.make_<type>_udt_pre_post_processors` builds the stock
+`udt_native_state` is on. With `udt_relative_actions`, LeRobot's own `RelativeActionsProcessorStep` (action -=
+converted state, the state cached) sits just before the normaliser and its `AbsoluteActionsProcessorStep` (action
++= that cached state) just after the unnormaliser, as in LeRobot's pi0 processors; both are saved with the
+checkpoint and LeRobot's factory re-pairs them on reload (`make_pre_post_processors(pretrained_path=...)`). Each `processor_<type>_udt.make_<type>_udt_pre_post_processors` builds the stock
 pair and passes it through `insert_udt_steps`.
 """
 
 from __future__ import annotations
 
-from lerobot.processor import AddBatchDimensionProcessorStep, NormalizerProcessorStep, PolicyProcessorPipeline
+from lerobot.processor import (
+    AbsoluteActionsProcessorStep,
+    AddBatchDimensionProcessorStep,
+    NormalizerProcessorStep,
+    PolicyProcessorPipeline,
+    RelativeActionsProcessorStep,
+    UnnormalizerProcessorStep,
+)
 
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.processor import (
@@ -51,7 +61,26 @@ def insert_udt_steps(
     steps.insert(at, step)
     if config.udt_native_state and config.udt_native_state_layout:
         steps.insert(at, NativeToUDHMStateStep.from_layout(NativeLayout(**config.udt_native_state_layout)))
+    if config.udt_relative_actions:
+        _insert_relative_pair(config, steps, post)
     pre.steps = steps
     if config.udt_native_action and config.udt_native_layout:
         post.steps = [*post.steps, UDHMToNativeCommandStep.from_layout(NativeLayout(**config.udt_native_layout))]
     return pre, post
+
+
+def _insert_relative_pair(config: UdtConfigMixin, pre_steps: list, post: PolicyProcessorPipeline) -> None:
+    """LeRobot's relative/absolute action steps: before the normaliser (it sees the converted state) and after
+    the unnormaliser (sharing the relative step, whose cached state it adds back)."""
+    normalizer = [i for i, s in enumerate(pre_steps) if isinstance(s, NormalizerProcessorStep)]
+    unnormalizer = [i for i, s in enumerate(post.steps) if isinstance(s, UnnormalizerProcessorStep)]
+    if not normalizer or not unnormalizer:
+        raise ValueError(
+            f"udt_relative_actions: the stock {config.type} processors have no normaliser/unnormaliser step to place "
+            "the relative/absolute action steps by; set --policy.udt_relative_actions=false"
+        )
+    relative = RelativeActionsProcessorStep(enabled=True, action_names=list(config.udt_action_names) or None)
+    pre_steps.insert(normalizer[0], relative)
+    post_steps = list(post.steps)
+    post_steps.insert(unnormalizer[0] + 1, AbsoluteActionsProcessorStep(enabled=True, relative_step=relative))
+    post.steps = post_steps

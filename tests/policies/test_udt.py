@@ -184,6 +184,59 @@ def test_pre_processor_takes_the_robots_native_state(tok_dir, g1_like):
         make_act_udt_pre_post_processors(off)[0]({OBS_STATE: native[0]})
 
 
+def test_relative_actions_round_trip_through_the_saved_and_reloaded_processors(tok_dir, g1_like, tmp_path):
+    """udt_relative_actions: the pre-processor turns absolute actions into action - converted state (also from
+    the robot's native state), the post-processor adds the cached state back; after save_pretrained and the
+    stock factory's reload (which re-pairs LeRobot's two steps), absolute in == absolute out."""
+    from lerobot.configs.types import NormalizationMode
+    from lerobot.policies.factory import make_pre_post_processors
+    from lerobot.processor import TransitionKey
+
+    cfg = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"], udt_relative_actions=True)
+    assert cfg.udt_action_names == STATE_NAMES and cfg.normalization_mapping["ACTION"] == NormalizationMode.IDENTITY
+    pre, post = make_act_udt_pre_post_processors(cfg, dataset_stats=_Meta(g1_like["root"])._meta.stats)
+    names = [type(s).__name__ for s in pre.steps]
+    assert names.index("UniDexTokStateTokenizerStep") < names.index("RelativeActionsProcessorStep")
+    assert names.index("RelativeActionsProcessorStep") == names.index("NormalizerProcessorStep") - 1
+    post_names = [type(s).__name__ for s in post.steps]
+    assert post_names.index("AbsoluteActionsProcessorStep") == post_names.index("UnnormalizerProcessorStep") + 1
+    assert post_names.index("AbsoluteActionsProcessorStep") < post_names.index("UDHMToNativeCommandStep")
+    pre.save_pretrained(tmp_path)
+    post.save_pretrained(tmp_path)
+    cfg.save_pretrained(tmp_path)
+    pre, post = make_pre_post_processors(cfg, pretrained_path=str(tmp_path))  # what eval / record / rollout do
+
+    native_state = torch.from_numpy(g1_like["native_state"][:8]).float()
+    state = torch.from_numpy(to_converted(g1_like["native_state"][:8])).float()  # (8, 58)
+    action = torch.stack([torch.from_numpy(to_converted(g1_like["native_action"][i : i + 4])).float()
+                          for i in range(8)])  # (8, 4, 58): a chunk of 4 absolute actions per frame  # fmt: skip
+    for obs in (state, native_state):
+        relative = pre({OBS_STATE: obs, ACTION: action})[ACTION]
+        torch.testing.assert_close(relative, action - state[:, None], atol=1e-5, rtol=0)
+        steps = list(post.step_through(relative))
+        torch.testing.assert_close(steps[-2][TransitionKey.ACTION], action, atol=1e-5, rtol=0)
+        native = torch.from_numpy(np.stack([g1_like["native_action"][i : i + 4] for i in range(8)])).float()
+        torch.testing.assert_close(steps[-1][TransitionKey.ACTION], native, atol=1e-5, rtol=0)
+    assert (relative - action).abs().max() > 0.1  # the state was really taken off
+
+
+def test_relative_actions_refuse_an_action_layout_that_is_not_the_states_first_columns(tok_dir, g1_like):
+    meta = _Meta(g1_like["root"])
+    shuffled = {**meta.features[ACTION], "names": STATE_NAMES[1:] + STATE_NAMES[:1]}
+    meta.features = {**meta.features, ACTION: shuffled}
+    cfg = _config(ACTUdtConfig, tok_dir, width=len(STATE_NAMES), udt_relative_actions=True)
+    cfg._runtime_dataset_meta = meta
+    with pytest.raises(ValueError, match="udt_relative_actions needs the action columns to be the first columns"):
+        cfg.validate_features()
+    wide = _config(ACTUdtConfig, tok_dir, udt_hand_layout=[INSPIRE], udt_relative_actions=True)
+    wide.output_features[ACTION] = PolicyFeature(FeatureType.ACTION, (46,))
+    with pytest.raises(ValueError, match="action width 46 vs state width 44"):
+        wide.validate_features()
+    absolute = _config(ACTUdtConfig, tok_dir, width=len(STATE_NAMES))  # absolute actions: any action layout
+    absolute._runtime_dataset_meta = meta
+    absolute.validate_features()
+
+
 # ---------------------------------------------------------------------------------------------
 # the real lerobot-train CLI
 # ---------------------------------------------------------------------------------------------
