@@ -251,7 +251,11 @@ def tokenizer_card(folder: str | Path, repo_id: str | None = None, training_data
         others = ["", "This checkpoint does not record which of these hands it was trained on."]
         hands_title = "Hand vocabulary"
     if repo_id:
-        load = f'tok = UniDexTok.from_pretrained("{repo_id}")   # offline after `unidextok-pull --repo_id={repo_id}`'
+        from lerobot_unidextok.pretrained import SHIPPED
+
+        where = "shipped inside the package: no download" if repo_id in SHIPPED else (
+            f"offline after `unidextok-pull --repo_id={repo_id}`")
+        load = f'tok = UniDexTok.from_pretrained("{repo_id}")   # {where}'
         publish = []
     else:
         load = f'tok = UniDexTok.from_pretrained("{folder}")'
