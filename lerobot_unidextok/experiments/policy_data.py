@@ -8,7 +8,6 @@ the converted action (arms + the UDHM slots each hand has), so every input is sc
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -87,12 +86,14 @@ def load_frames(root: str | Path) -> RobotFrames:
 
     from lerobot_unidextok.processor.layout import hand_layout_from_dataset
 
+    from lerobot_unidextok.data.reader import data_files
+
     root = Path(root)
     if not (root / INFO_PATH).is_file():
         raise FileNotFoundError(f"{root / INFO_PATH} not found: pass the root of a dataset written by unidextok-convert")
     layout = hand_layout_from_dataset(root)
-    files = sorted((root / "data").rglob("*.parquet"))
-    tables = [pq.read_table(f, columns=[OBS_STATE, ACTION, "episode_index", "index"]).to_pandas() for f in files]
+    columns = [OBS_STATE, ACTION, "episode_index", "index"]
+    tables = [pq.read_table(f, columns=columns).to_pandas() for f in data_files(root)]
     df = pd.concat(tables, ignore_index=True).sort_values("index")
     state = np.stack(df[OBS_STATE].to_numpy()).astype(np.float64)
     action = np.stack(df[ACTION].to_numpy()).astype(np.float64)
@@ -106,6 +107,8 @@ def load_frames(root: str | Path) -> RobotFrames:
 
 def recorded_test_episodes(root: str | Path) -> list[int]:
     """The held-out episodes the converter recorded (`meta/unidextok_conversion.json`), [] when none."""
+    import json
+
     from lerobot_unidextok.constants import CONVERSION_PATH
 
     path = Path(root) / CONVERSION_PATH
