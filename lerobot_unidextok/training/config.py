@@ -54,6 +54,9 @@ class TrainConfig:
     betas: tuple[float, float] = (0.9, 0.99)  # AdamW betas
     grad_clip_norm: float = 1.0  # gradient norm clip (0 disables)
     reseed_every: int = 50  # dead-code re-seeding period in steps (0 disables)
+    # Share of the steps after which dead codes are no longer re-seeded: a re-seeded code takes states from its
+    # neighbours, which the decoder must then relearn; near the end of training there are no steps left for it.
+    reseed_until: float = 1.0
     # Share of training rows conditioned on the "unknown hand" embedding instead of their own hand
     # (hand-embedding dropout, as classifier-free guidance drops its condition). Without it that
     # embedding is never trained and zero-shot tokenisation of unseen hands is meaningless.
@@ -111,6 +114,8 @@ class TrainConfig:
             )
         if self.streaming and self.folds:
             raise ValueError("--folds is for small datasets, held in memory: drop --streaming or --folds")
+        if not 0.0 <= self.reseed_until <= 1.0:
+            raise ValueError(f"reseed_until must be in [0, 1], got {self.reseed_until}")
         if self.batch_size < 1:
             raise ValueError(f"batch_size must be >= 1, got {self.batch_size}")
         if self.warmup_steps < 0:

@@ -214,7 +214,7 @@ def _train(
         m = torch.from_numpy(batch.masks).to(accelerator.device)  # (B, 22)
         h = hand_id_of[torch.from_numpy(batch.hands)].to(accelerator.device)  # (B,)
         out = _optimisation_step(cfg, model, optimizer, accelerator, x, h, m, dropout_rng)
-        _sync_codebooks(cfg, raw_model, step, accelerator.num_processes)
+        _sync_codebooks(cfg, raw_model, step, n_steps, accelerator.num_processes)
 
         if step % 10 == 0:
             _show_progress(bar, out, x, m, raw_model, lr)
@@ -352,9 +352,11 @@ def _restore_random_streams(
                        "several processes" if saved else "older checkpoint")  # fmt: skip
 
 
-def _sync_codebooks(cfg: TrainConfig, model: UniDexTok, step: int, num_processes: int) -> None:
-    """After an optimiser step: re-seed dead codes on schedule; keep every process on process 0's codes."""
-    if cfg.adapt == "all" and cfg.reseed_every > 0 and (step + 1) % cfg.reseed_every == 0:
+def _sync_codebooks(cfg: TrainConfig, model: UniDexTok, step: int, n_steps: int, num_processes: int) -> None:
+    """After an optimiser step: re-seed dead codes on schedule (until `reseed_until` of the steps); keep every
+    process on process 0's codes."""
+    reseeding = cfg.adapt == "all" and cfg.reseed_every > 0 and step < cfg.reseed_until * n_steps
+    if reseeding and (step + 1) % cfg.reseed_every == 0:
         model.quantizer.reseed_dead_codes()
         broadcast_from_main(model.quantizer)  # re-seeded from each process's own batch: keep process 0's
     elif model.config.codebook_update == "ema" and num_processes > 1:

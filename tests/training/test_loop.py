@@ -160,15 +160,19 @@ def test_zero_turns_reseeding_and_the_thread_setting_off(mixture, tmp_path):
 
 
 @pytest.mark.parametrize(
-    ("adapt", "every", "calls"),
-    [("all", 5, [5, 10]), ("all", 1, list(range(1, 13))), ("hand_embedding", 5, [])],
+    ("adapt", "every", "until", "calls"),
+    [("all", 5, 1.0, [5, 10]), ("all", 1, 1.0, list(range(1, 13))), ("hand_embedding", 5, 1.0, []),
+     ("all", 1, 0.5, [1, 2, 3, 4, 5, 6]), ("all", 5, 0.0, [])],
 )
-def test_dead_codes_are_reseeded_every_n_steps_only_when_training_everything(mixture, tmp_path, adapt, every, calls):
+def test_dead_codes_are_reseeded_every_n_steps_only_when_training_everything(
+    mixture, tmp_path, adapt, every, until, calls
+):
     """With `reseed_every=5` over 12 steps the quantiser re-seeds after optimiser steps 5 and 10 (with 1,
-    after every step), and never when only the hand embedding adapts (the shared codebook stays as it is).
-    Observed by counting the optimiser steps taken before each call. Catches the period off by one step
-    (`step - 1`), re-seeding at every step but the period (`!= 0`), a period of 1 read as "off" (`> 0` ->
-    `> 1`), and re-seeding while adapting the embedding only (`and` -> `or`)."""
+    after every step), and never when only the hand embedding adapts (the shared codebook stays as it is);
+    `reseed_until=0.5` stops after the first 6 of 12 steps, 0 never re-seeds. Observed by counting the
+    optimiser steps taken before each call. Catches the period off by one step (`step - 1`), re-seeding at
+    every step but the period (`!= 0`), a period of 1 read as "off" (`> 0` -> `> 1`), re-seeding while
+    adapting the embedding only (`and` -> `or`), and the stop off by one step (`<` -> `<=`)."""
     train, test = mixture
     torch.manual_seed(0)
     model = UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=train.hand_names()))
@@ -182,7 +186,8 @@ def test_dead_codes_are_reseeded_every_n_steps_only_when_training_everything(mix
 
     model.quantizer.reseed_dead_codes = counting
     model.register_forward_hook(lambda *_: seen.append(1) if model.training else None)
-    cfg = _cfg(tmp_path, steps=12, eval_every=12, reseed_every=every, adapt=adapt, warmup_steps=1)
+    cfg = _cfg(tmp_path, steps=12, eval_every=12, reseed_every=every, reseed_until=until, adapt=adapt,
+               warmup_steps=1)  # fmt: skip
     train_tokenizer(cfg, train, test, model)
     assert calls_before == calls
 

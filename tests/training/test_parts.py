@@ -57,6 +57,8 @@ def test_train_config_checks():
         TrainConfig(fraction=1.5)
     with pytest.raises(ValueError, match="hand weights"):
         TrainConfig(hand_weights={"human": -1.0})
+    with pytest.raises(ValueError, match="reseed_until must be in"):
+        TrainConfig(reseed_until=1.5)
 
 
 def test_total_steps_from_epochs():

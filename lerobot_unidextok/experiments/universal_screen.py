@@ -1,0 +1,166 @@
+"""Choose the universal recipe by measurement on data the reported figures never use.
+
+Each variant changes the universal recipe (`configs/train/universal.yaml`) in one or two settings, trains at
+a screening length, and is scored on
+- the run's selection episodes: whole training episodes held out from training (`select_fraction`), per hand;
+- every registered hand's states uniform inside its registered ranges, drawn with another seed than the
+  card's in-range figures (`SCREEN_SEED`).
+The test episodes and held-out recordings, which the card reports, are not loaded here.
+
+    python experiments/universal_screen.py --variants='[shipped,wide]' --steps=3000
+
+Each variant's result is cached in <output_root>/universal_screen/runs.jsonl (keyed by its resolved settings).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from lerobot_unidextok.experiments import runtime
+from lerobot_unidextok.experiments.common import git_commit, md_table
+
+logger = logging.getLogger(__name__)
+NAME = "universal_screen"
+SCREEN_SEED = 7  # the card's in-range states use seed 0 (experiments/universal.py)
+
+
+@dataclass(frozen=True)
+class Variant:
+    """A change against the recipe: TrainConfig fields and preset (model) fields."""
+
+    note: str
+    train: dict = field(default_factory=dict)
+    model: dict = field(default_factory=dict)
+
+
+VARIANTS: dict[str, Variant] = {
+    "shipped": Variant("configs/train/universal.yaml as it is (small preset)"),
+    "anneal": Variant("lr decays to 0 and no dead-code re-seeding in the last 30 % of steps",
+                      {"min_lr_ratio": 0.0, "reseed_until": 0.7}),  # fmt: skip
+    "wide": Variant("C = 128 (small preset otherwise)", model={"hidden_dim": 128}),
+    "wide_anneal": Variant("C = 128 and anneal", {"min_lr_ratio": 0.0, "reseed_until": 0.7}, {"hidden_dim": 128}),
+    "fourier": Variant("Fourier input features (6 octaves)", model={"fourier_octaves": 6}),
+    "l1": Variant("L1 loss added (weight 1)", model={"l1_weight": 1.0}),
+    "deep": Variant("3 + 3 blocks", model={"encoder_depth": 3, "decoder_depth": 3}),
+}
+
+
+@dataclass
+class ScreenConfig:
+    recipe: str = "configs/train/universal.yaml"  # the unidextok-train config screened
+    variants: list[str] = field(default_factory=lambda: ["shipped", "anneal"])
+    steps: int = 3000  # screening length (the recipe's own steps are not used)
+    range_rows: int = 2000  # in-range states scored per registered hand
+    output_root: str = "outputs/experiments"
+
+
+def recipe_config(cfg: ScreenConfig, variant: Variant, output_dir: Path):
+    import draccus
+
+    from lerobot_unidextok.training import TrainConfig
+
+    base = draccus.parse(TrainConfig, config_path=cfg.recipe, args=[])
+    return dataclasses.replace(base, steps=cfg.steps, output_dir=str(output_dir), progress=False,
+                               save_last_every=10**9, **variant.train)  # fmt: skip
+
+
+def resolved(cfg: ScreenConfig, name: str) -> dict:
+    tcfg = recipe_config(cfg, VARIANTS[name], Path("."))
+    train = {k: v for k, v in dataclasses.asdict(tcfg).items() if k not in ("output_dir", "progress")}
+    return {"train": train, "model": VARIANTS[name].model, "range_rows": cfg.range_rows}
+
+
+def run_variant(cfg: ScreenConfig, name: str, folder: Path) -> dict:
+    import torch
+
+    from lerobot_unidextok import hands
+    from lerobot_unidextok.evaluation.report import evaluate_tokenizer
+    from lerobot_unidextok.tokenizer import UniDexTok
+    from lerobot_unidextok.training.coverage import range_states
+    from lerobot_unidextok.training.loop import build_model, train_tokenizer
+    from lerobot_unidextok.training.run import _fit_and_select
+    from lerobot_unidextok.training import load_hand_states
+
+    variant = VARIANTS[name]
+    tcfg = recipe_config(cfg, variant, folder / "models" / name)
+    train = load_hand_states(tcfg.datasets, split="train", holdout=tcfg.holdout)  # the test split stays unread
+    fit, select = _fit_and_select(tcfg, train)
+    torch.manual_seed(tcfg.seed)
+    model = build_model(tcfg, fit, **variant.model)
+    cpu0 = time.process_time()
+    res = train_tokenizer(tcfg, fit, select, model=model)
+    cpu = time.process_time() - cpu0
+    best = UniDexTok.from_pretrained(res.best_dir)
+    select_report = evaluate_tokenizer(best, select)
+    in_range = {}
+    for hand in hands.names():
+        rep = evaluate_tokenizer(best, range_states(hand, cfg.range_rows, SCREEN_SEED))
+        in_range[hand] = rep["per_hand"][hand]["mpjae_deg"]
+    return {
+        "variant": name, "steps": res.steps, "best_step": res.best_step, "train_cpu_s": round(cpu, 1),
+        "params": sum(p.numel() for p in best.parameters()),
+        "select_deg": {h: e["mpjae_deg"] for h, e in select_report["per_hand"].items()},
+        "select_rows": len(select), "in_range_deg": in_range,
+        "in_range_mean": float(np.mean(list(in_range.values()))), "in_range_max": float(max(in_range.values())),
+        "git_commit": git_commit(), "resolved": resolved(cfg, name),
+    }  # fmt: skip
+
+
+def run(cfg: ScreenConfig) -> dict:
+    unknown = sorted(set(cfg.variants) - set(VARIANTS))
+    if unknown:
+        raise ValueError(f"unknown variants {unknown}; choose from {sorted(VARIANTS)}")
+    folder = Path(cfg.output_root) / NAME
+    folder.mkdir(parents=True, exist_ok=True)
+    cache = folder / "runs.jsonl"
+    done = {}
+    if cache.is_file():
+        for line in cache.read_text().splitlines():
+            r = json.loads(line)
+            done[json.dumps(r["resolved"], sort_keys=True, default=str)] = r
+    results = []
+    for name in cfg.variants:
+        key = json.dumps(resolved(cfg, name), sort_keys=True, default=str)
+        r = done.get(key)
+        if r is None:
+            logger.info("screening %s (%d steps)", name, cfg.steps)
+            r = run_variant(cfg, name, folder)
+            with cache.open("a") as f:
+                f.write(json.dumps(r, default=str) + "\n")
+        results.append(r)
+    result = {"experiment": NAME, "config": dataclasses.asdict(cfg), "runs": results,
+              "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
+    (folder / f"{NAME}.json").write_text(json.dumps(result, indent=2, default=str))
+    (folder / f"{NAME}.md").write_text(markdown(result) + "\n")
+    return result
+
+
+def markdown(result: dict) -> str:
+    hands_sel = sorted({h for r in result["runs"] for h in r["select_deg"]})
+    rows = [[r["variant"], r["steps"], r["best_step"], *[r["select_deg"].get(h) for h in hands_sel],
+             r["in_range_mean"], r["in_range_max"], r["params"], r["train_cpu_s"], VARIANTS[r["variant"]].note
+             if r["variant"] in VARIANTS else ""] for r in result["runs"]]  # fmt: skip
+    return "\n".join([
+        f"# {NAME}", "",
+        f"Recipe {result['config']['recipe']} at {result['config']['steps']} steps per variant. MPJAE (deg) on the "
+        "selection episodes (training episodes held out from training) per hand, and on states uniform inside "
+        f"each registered hand's ranges (seed {SCREEN_SEED}, {result['config']['range_rows']} per hand: mean and "
+        "worst hand). CPU s: training, one thread.", "",
+        md_table(["variant", "steps", "best step", *[f"select: {h}" for h in hands_sel], "in-range mean",
+                  "in-range worst", "params", "CPU s", "what"], rows),
+    ])  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> None:
+    runtime.cli(ScreenConfig, run, markdown, argv)
+
+
+if __name__ == "__main__":
+    main()
