@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -31,6 +32,7 @@ from lerobot_unidextok.experiments.config import PROJECT_ROOT, default_real_data
 from lerobot_unidextok.experiments.universal import IN_RANGE_ROWS, IN_RANGE_SEED
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 
+logger = logging.getLogger(__name__)
 NAME = "universal_zeroshot"
 SDK_DIR = "linkerhand-ros2-sdk"
 GUI_PRESETS = "linkerhand_gui_preset_actions.json"
@@ -57,7 +59,7 @@ def spec_path(path: str) -> Path:
     if not p.is_file() and not p.is_absolute() and (PROJECT_ROOT / p).is_file():
         p = PROJECT_ROOT / p
     if not p.is_file():
-        raise FileNotFoundError(f"hand spec {path!r} not found (relative to here or to {PROJECT_ROOT.name}/)")
+        raise FileNotFoundError(f"hand spec {path!r} not found; give a YAML path (relative: to here or the project root)")
     return p
 
 
@@ -137,7 +139,9 @@ def run(cfg: ZeroShotConfig) -> dict:
     for spec in specs:
         rows.append(score(model, range_states(spec, cfg.rows, cfg.seed), spec, in_range, "unknown"))
         data, presets[spec.name] = vendor_presets(spec, real_dir)
-        if data is not None:
+        if data is None:
+            logger.warning("no vendor presets of %s under %s: its preset row is left out", spec.name, real_dir)
+        else:
             rows.append(score(model, data, spec, "vendor presets", "unknown"))
     for name in cfg.relatives:
         spec, own = hands.get(name), range_states(name, cfg.rows, cfg.seed)
