@@ -1,9 +1,6 @@
 """The shipped universal tokenizer on the LinkerHand vendor preset poses (real hand-tuned poses for the hardware,
-never trained on): `linkerhand-ros2-sdk/<model>_positions.yaml`, both sides, for the models the registry has;
-and zero-shot: the in-range states of `ZERO_SHOT_COPIES` (the card's 5000 per hand) under a hand name outside
-its vocabulary, as a hand added by a YAML spec after training is tokenised (the unknown-hand embedding), next
-to the same states under the hand's own row. The ranges are ones the shared model trained on, so this scores
-the unknown-hand path, not a new kinematics.
+never trained on): `linkerhand-ros2-sdk/<model>_positions.yaml`, both sides, for the models the registry has.
+Hands added by a YAML spec only (zero-shot, the unknown-hand embedding): experiments/universal_zeroshot.py.
 
     python experiments/universal_presets.py [--real=../shared/data/real]
 """
@@ -21,11 +18,9 @@ from lerobot_unidextok.evaluation.report import evaluate_tokenizer
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 from lerobot_unidextok.tokenizer import UniDexTok
 from lerobot_unidextok.training import HandStates
-from lerobot_unidextok.training.coverage import range_states
 
 REPO = Path(__file__).resolve().parents[1]
 SIDES = {"RIGHT_HAND": "right", "LEFT_HAND": "left"}
-ZERO_SHOT_COPIES = ("linkerhand_o7", "xhand1", "shadow")
 
 
 def preset_states(real: Path) -> HandStates:
@@ -50,13 +45,6 @@ def main() -> None:
     print("| hand | presets (both sides) | MPJAE (deg) | MPJPE (mm) | fingertip (mm) |\n|---|---|---|---|---|")
     for hand, e in report["per_hand"].items():
         print(f"| {hand} | {e['rows']} | {e['mpjae_deg']:.3f} | {e['mpjpe_mm']:.3f} | {e['fingertip_mm']:.3f} |")
-    print("\n| YAML-only copy of | zero-shot MPJAE (deg) | own row MPJAE (deg) |\n|---|---|---|")
-    for base in ZERO_SHOT_COPIES:
-        own = range_states(base, 5000, seed=0)
-        copy = HandStates(own.states_rad, np.full(len(own), f"yaml_only_{base}"), own.masks)
-        zero = evaluate_tokenizer(model, copy)["per_hand"][f"yaml_only_{base}"]
-        assert zero["zero_shot"]
-        print(f"| {base} | {zero['mpjae_deg']:.3f} | {evaluate_tokenizer(model, own)['per_hand'][base]['mpjae_deg']:.3f} |")
 
 
 if __name__ == "__main__":

@@ -73,15 +73,16 @@ def load_keypoints(path: str | Path) -> dict[str, np.ndarray]:
 # ---------------------------------------------------------------------------------------------
 # the no-training reference
 # ---------------------------------------------------------------------------------------------
-def binning_reconstruction(data: HandStates, num_bins: int = 256) -> np.ndarray:
-    """Per-joint uniform binning (RT-2 / OpenVLA, 8 bits at 256 bins) over each hand's registered range
-    (human: the UDHM joint limits): decode(encode(x)) of every row."""
+def binning_reconstruction(data: HandStates, num_bins: int = 256, specs: dict | None = None) -> np.ndarray:
+    """Per-joint uniform binning (RT-2 / OpenVLA, 8 bits at 256 bins) over each hand's range (human: the UDHM
+    joint limits): decode(encode(x)) of every row. A hand's spec is `specs[name]` (`HandSpec`s of hands that
+    are not registered, e.g. loaded with `hands.load_spec`), else the registered one."""
     from lerobot_unidextok import hands, udhm
     from lerobot_unidextok.baselines import BinningConfig, HandRange, UniformBinning
 
     out = np.zeros_like(data.states_rad)
     for hand in data.hand_names():
-        spec = hands.get(hand)
+        spec = (specs or {}).get(hand) or hands.get(hand)
         if spec.kind == "keypoints":
             limits = udhm.JOINT_LIMITS_RAD
         else:  # union over the hand's sides

@@ -31,12 +31,16 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from lerobot_unidextok.constants import UDHM_DIM, UDHM_JOINT_NAMES
 from lerobot_unidextok.data.rowstore import HandRowStore
 from lerobot_unidextok.training.arrays import HandStates
+
+if TYPE_CHECKING:
+    from lerobot_unidextok.hands import HandSpec
 
 logger = logging.getLogger(__name__)
 
@@ -159,24 +163,32 @@ def resolve_range_hands(names: list[str], exclude: list[str] | None = None) -> l
     return [h for h in wanted if h not in set(exclude or ())]
 
 
-def range_only_table(hand: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(mask (22,), lo (S, 22), hi (S, 22)) of a registered hand from its spec alone (`semantic` mapping)."""
-    from lerobot_unidextok import hands
+def range_only_table(hand: str | HandSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(mask (22,), lo (S, 22), hi (S, 22)) of a hand from its spec alone (`semantic` mapping): a registered
+    name, or a `HandSpec` (e.g. a YAML loaded with `hands.load_spec`, registered or not). Robot hands: one row
+    per side (`spec.udhm_limits_rad`); the human hand: the UDHM joint limits."""
+    from lerobot_unidextok import hands, udhm
 
-    mask = hands.get(hand).mask("semantic")
-    lo, hi, _ = hand_ranges_rad(hand, mask, np.zeros((1, UDHM_DIM)))
-    return mask, lo, hi
+    spec = hand if isinstance(hand, hands.HandSpec) else hands.get(hand)
+    mask = spec.mask("semantic")
+    if spec.kind == "keypoints":
+        lo, hi = udhm.JOINT_LIMITS_RAD[None, :, 0] * mask, udhm.JOINT_LIMITS_RAD[None, :, 1] * mask
+        return mask, lo, hi
+    lo, hi = zip(*(spec.udhm_limits_rad(side) for side in spec.sides), strict=True)
+    return mask, np.stack(lo), np.stack(hi)
 
 
-def range_states(hand: str, n: int, seed: int) -> HandStates:
-    """`n` states of registered `hand` uniform inside its registered joint ranges, each on a random side
-    (the `uniform` source of a range-only hand): the per-hand in-range evaluation set."""
+def range_states(hand: str | HandSpec, n: int, seed: int) -> HandStates:
+    """`n` states of `hand` (a registered name or a `HandSpec`) uniform inside its joint ranges, each on a
+    random side (the `uniform` source of a range-only hand), labelled with the hand's name: the per-hand
+    in-range evaluation set."""
     mask, lo, hi = range_only_table(hand)
+    name = hand if isinstance(hand, str) else hand.name
     rng = np.random.default_rng(seed)
     side = rng.integers(len(lo), size=n)
     x = lo[side] + (hi[side] - lo[side]) * rng.random((n, UDHM_DIM))
     masks = np.broadcast_to(mask, x.shape)
-    return HandStates(np.where(masks, x, 0.0), np.full(n, hand), masks)
+    return HandStates(np.where(masks, x, 0.0), np.full(n, name), masks)
 
 
 def recorded_tables(data: HandStates | HandRowStore):

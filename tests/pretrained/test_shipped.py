@@ -74,7 +74,9 @@ def test_every_registered_hand_is_trained_or_goes_through_the_unknown_hand_path(
     codes = shipped.encode(torch.from_numpy(rows.states_rad), "yaml_only_hand", allow_unknown=True)
     back = shipped.decode(codes, "yaml_only_hand", allow_unknown=True).detach().numpy()
     err_deg = np.degrees(np.abs(back - rows.states_rad))[rows.masks].mean()
-    assert err_deg < 2.0  # measured 0.713 deg on 5000 such states (experiments/universal_presets.py)
+    # the unknown-hand row measured 0.54-0.56 deg on 5000 in-range states of the L6, O6 and L7
+    # (experiments/universal_zeroshot.py)
+    assert err_deg < 2.0
 
 
 def test_the_card_table_is_the_recorded_evaluation(recorded):

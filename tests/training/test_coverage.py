@@ -169,3 +169,16 @@ def test_coverage_config_checks():
         CoverageConfig(robot={"uniformly": 1.0})
     with pytest.raises(ValueError, match="positive sum"):
         CoverageConfig(human={"recorded": 0.0})
+
+
+def test_range_states_of_a_spec_object_equal_those_of_its_registered_name():
+    """A spec that is not registered (`hands.load_spec`) is sampled like a registered one: same draws."""
+    from lerobot_unidextok import hands
+    from lerobot_unidextok.training.coverage import range_states
+
+    for name in ("linkerhand_l6", "human"):
+        by_name, by_spec = range_states(name, 300, seed=5), range_states(hands.get(name), 300, seed=5)
+        np.testing.assert_array_equal(by_name.states_rad, by_spec.states_rad)
+        np.testing.assert_array_equal(by_name.masks, by_spec.masks)
+        assert set(by_spec.hands) == {name}
+
