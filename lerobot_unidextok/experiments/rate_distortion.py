@@ -234,6 +234,33 @@ def summary_table(result: dict) -> str:
                      "binning, smallest b matching UniDexTok: b (bits): MPJAE"], rows)  # fmt: skip
 
 
+def verdict(result: dict) -> str:
+    """Over the sets: how many times fewer bits binning needs for UniDexTok's MPJAE, and how many times lower
+    binning's MPJAE is within UniDexTok's measured rate."""
+    rows, max_bits = result["rows"], result["config"]["max_bits"]
+    match = [r for r in rows if r["equal_bits"]["to_match"]]
+    within = [r for r in rows if r["equal_bits"]["at_rate"]]
+
+    def span(values: list[float]) -> str:
+        return f"{min(values):.1f}-{max(values):.1f}x"
+
+    parts = []
+    if match:
+        need = [r["equal_bits"]["to_match"]["nominal_bits"] for r in match]
+        parts.append(
+            f"Binning reaches UniDexTok's MPJAE on {len(match)} of {len(rows)} sets with "
+            f"{span([r['unidextok']['rate_bits'] / n for r, n in zip(match, need, strict=True)])} fewer bits than "
+            f"UniDexTok's measured rate ({span([r['unidextok']['nominal_bits'] / n for r, n in zip(match, need, strict=True)])} "
+            "fewer than its nominal bits)."
+        )
+    if len(match) < len(rows):
+        parts.append(f"On {len(rows) - len(match)} of {len(rows)} sets binning needs more than b = {max_bits}.")
+    if within:
+        ratios = [r["unidextok"]["mpjae_deg"] / r["equal_bits"]["at_rate"]["mpjae_deg"] for r in within]
+        parts.append(f"Within UniDexTok's measured rate (b capped at {max_bits}), binning's MPJAE is {span(ratios)} lower.")
+    return " ".join(parts)
+
+
 def curve_table(result: dict, key: str, digits: int) -> str:
     bits = [c["bits"] for c in result["rows"][0]["binning"]] if result["rows"] else []
     rows = [[r["set"], *(f"{c[key]:.{digits}f}" for c in r["binning"])] for r in result["rows"]]
@@ -254,6 +281,7 @@ def markdown(result: dict) -> str:
         "entropy, estimated from the set's rows: at most log2(rows) bits per position). MPJAE in degrees over "
         "active DoFs.", "",
         summary_table(result), "",
+        verdict(result), "",
         "Binning MPJAE (deg) at b bits per active joint:", "",
         curve_table(result, "mpjae_deg", 3), "",
         "Binning measured rate (bits per state) at b bits per active joint:", "",

@@ -37,6 +37,22 @@ def test_equal_bits_picks_the_largest_b_within_the_rate_and_the_smallest_b_that_
     assert eq == {"at_rate": None, "to_match": None}
 
 
+def test_verdict_of_a_worked_example():
+    def row(rate, mpjae, match_bits, within_mpjae):
+        match = {"nominal_bits": match_bits} if match_bits else None
+        return {"unidextok": {"rate_bits": rate, "nominal_bits": 320.0, "mpjae_deg": mpjae},
+                "equal_bits": {"to_match": match, "at_rate": {"mpjae_deg": within_mpjae}}}  # fmt: skip
+
+    # set 1: 100 / 50 = 2x fewer bits than the measured rate, 320 / 50 = 6.4x than nominal, MPJAE 1.0 / 0.25 = 4x
+    # set 2: binning never matches 0.5 deg within 8 bits; within the rate its MPJAE is 0.5 / 0.25 = 2x lower
+    result = {"config": {"max_bits": 8}, "rows": [row(100.0, 1.0, 50.0, 0.25), row(60.0, 0.5, None, 0.25)]}
+    assert rd.verdict(result) == (
+        "Binning reaches UniDexTok's MPJAE on 1 of 2 sets with 2.0-2.0x fewer bits than UniDexTok's measured rate "
+        "(6.4-6.4x fewer than its nominal bits). On 1 of 2 sets binning needs more than b = 8. Within UniDexTok's "
+        "measured rate (b capped at 8), binning's MPJAE is 2.0-4.0x lower."
+    )
+
+
 @pytest.mark.parametrize("hand", ["inspire_rh56_unitree", "human"])
 def test_binning_at_b_bits_is_within_half_a_bin(hand):
     data = range_states(hand, 400, seed=3)
@@ -125,4 +141,4 @@ def test_runs_end_to_end_and_fills_its_results_page_section(converted_linker, ti
     text = update_sections(tmp_path, page, ["rate_distortion"])
     assert "measured elsewhere" in text and "## rate_distortion\n\nCommand: `python experiments/rate_distortion.py --checkpoint=" in text
     assert f"tokenizer `{tiny_checkpoint}` (untrained)" in text and "Reduced-size run" not in text
-    assert rd.summary_table(result) in text
+    assert rd.summary_table(result) in text and rd.verdict(result) in text
