@@ -155,7 +155,7 @@ def evaluation_sets(cfg: RateDistortionConfig) -> dict[str, HandStates]:
 
 
 def checkpoint_about(checkpoint: str) -> dict:
-    """The checkpoint's resolved folder (when local) and its training steps (training_state.json), if any."""
+    """The checkpoint as given and its training steps and chosen step (its folder's training_state.json), if any."""
     from lerobot_unidextok.pretrained import resolve
 
     folder = Path(resolve(checkpoint))
