@@ -10,6 +10,7 @@ EXPERIMENTS: tuple[str, ...] = (
     "transfer",
     "probe",
     "policy_tokens",
+    "rate_distortion",
 )
 
 __all__ = ["EXPERIMENTS", "PRESETS", "ExperimentConfig", "parse_config"]

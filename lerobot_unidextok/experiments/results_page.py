@@ -18,13 +18,14 @@ from lerobot_unidextok.experiments import (
     main_table,
     policy_tokens,
     probe,
+    rate_distortion,
     transfer,
 )
 
 logger = logging.getLogger(__name__)
 MARKDOWN = {"main_table": main_table.markdown, "ablation_human": ablation_human.markdown,
             "ablation_mapping": ablation_mapping.markdown, "transfer": transfer.markdown, "probe": probe.markdown,
-            "policy_tokens": policy_tokens.markdown}  # fmt: skip
+            "policy_tokens": policy_tokens.markdown, "rate_distortion": rate_distortion.markdown}  # fmt: skip
 COMMANDS = {name: f"python experiments/{name}.py" for name in EXPERIMENTS}
 MAX_PNG_BYTES = 300_000
 
@@ -86,10 +87,36 @@ def data_label(result: dict) -> str:
 def _provenance_line(result: dict) -> str:
     p = result["provenance"]
     data = f"{data_label(result)}: " + ", ".join(p["data"]["datasets"])
+    if "checkpoint" in p:  # scores a trained checkpoint, trains nothing
+        c = p["checkpoint"]
+        trained = f"{c['steps']} training steps, checkpoint of step {c['best_step']}" if c.get("steps") else "untrained"
+        return (f"_Data: {data} ({p['data']['test_rows']} test rows, hands {', '.join(p['data']['hands'])}); "
+                f"tokenizer `{c['checkpoint']}` ({trained}), seed {p['seed']}, commit `{p['git_commit'][:12]}`, "
+                f"{p['date_utc']}, wall time {p['wall_seconds']} s._")  # fmt: skip
     steps = p["config"]["train"]["steps"] if "train" in p["config"] else p["config"]["steps"]  # flat in older files
     return (f"_Data: {data} ({p['data']['train_rows']} train / {p['data']['test_rows']} held-out rows, hands "
             f"{', '.join(p['data']['hands'])}); preset `{p['preset']}`, {steps} steps, seed {p['seed']}, "
             f"commit `{p['git_commit'][:12]}`, {p['date_utc']}, wall time {p['wall_seconds']} s._")  # fmt: skip
+
+
+def reduced_size_note(result: dict) -> str | None:
+    """A section's first line when its UniDexTok trained fewer steps than the shipped schedule
+    (`configs/train/small.yaml` = `TrainConfig().steps`), else None. Only the experiments that train UniDexTok
+    through `ExperimentConfig.train` (their provenance config has `train`) are concerned."""
+    from lerobot_unidextok.experiments.config import ExperimentTraining
+    from lerobot_unidextok.training import TrainConfig
+
+    config = result.get("provenance", {}).get("config", {})
+    if "train" not in config:
+        return None
+    steps, shipped = int(config["train"]["steps"]), TrainConfig().steps
+    if steps >= shipped:
+        return None
+    return (f"**Reduced-size run: UniDexTok trained {steps} steps here** (`--train.steps`; the experiments' default "
+            f"is {ExperimentTraining().steps}, `configs/experiments/default.yaml`), not the shipped schedules "
+            f"(`configs/train/small.yaml`, {shipped} steps; `configs/train/universal.yaml`), which score far lower "
+            "errors: the shipped figures are in `docs/tokenizer.md`, \"Measured on data the model never trained on\" "
+            "and \"The shipped universal tokenizer\".")  # fmt: skip
 
 
 def section(name: str, r: dict | None, image_dir: Path, page: Path) -> list[str]:
@@ -98,7 +125,9 @@ def section(name: str, r: dict | None, image_dir: Path, page: Path) -> list[str]
         return [f"## {name}", "", f"Not run yet: `{COMMANDS[name]}`.", ""]
     body = MARKDOWN[name](r).split("\n")
     body = body[2:] if body and body[0].startswith("# ") else body  # drop the experiment's own title
-    out = [f"## {name}", "", f"Command: `{r.get('command', COMMANDS[name])}`", "", _provenance_line(r), "", *body, ""]
+    note = reduced_size_note(r)
+    out = [f"## {name}", "", *([note, ""] if note else []), f"Command: `{r.get('command', COMMANDS[name])}`", "",
+           _provenance_line(r), "", *body, ""]  # fmt: skip
     return out + _copy_figures(name, r.get("figures", {}), image_dir, page) + [""]
 
 

@@ -73,22 +73,29 @@ def load_keypoints(path: str | Path) -> dict[str, np.ndarray]:
 # ---------------------------------------------------------------------------------------------
 # the no-training reference
 # ---------------------------------------------------------------------------------------------
-def binning_reconstruction(data: HandStates, num_bins: int = 256, specs: dict | None = None) -> np.ndarray:
-    """Per-joint uniform binning (RT-2 / OpenVLA, 8 bits at 256 bins) over each hand's range (human: the UDHM
-    joint limits): decode(encode(x)) of every row. A hand's spec is `specs[name]` (`HandSpec`s of hands that
-    are not registered, e.g. loaded with `hands.load_spec`), else the registered one."""
+def hand_binning(hand: str, num_bins: int = 256, spec=None):
+    """Per-joint uniform binning of `hand` over its range (human: the UDHM joint limits; a robot: the union over
+    its sides), `num_bins` bins per active joint. `spec`: a `HandSpec` of a hand that is not registered (e.g.
+    loaded with `hands.load_spec`), else the registered one."""
     from lerobot_unidextok import hands, udhm
     from lerobot_unidextok.baselines import BinningConfig, HandRange, UniformBinning
 
+    spec = spec or hands.get(hand)
+    if spec.kind == "keypoints":
+        limits = udhm.JOINT_LIMITS_RAD
+    else:  # union over the hand's sides
+        los, his = zip(*(spec.udhm_limits_rad(s) for s in spec.sides), strict=True)
+        limits = np.stack([np.min(los, 0), np.max(his, 0)], axis=1)
+    return UniformBinning({hand: HandRange.from_limits(limits, spec.active_mask)}, BinningConfig(num_bins))
+
+
+def binning_reconstruction(data: HandStates, num_bins: int = 256, specs: dict | None = None) -> np.ndarray:
+    """Per-joint uniform binning (RT-2 / OpenVLA, 8 bits at 256 bins) over each hand's range (`hand_binning`):
+    decode(encode(x)) of every row. A hand's spec is `specs[name]` (`HandSpec`s of hands that are not
+    registered), else the registered one."""
     out = np.zeros_like(data.states_rad)
     for hand in data.hand_names():
-        spec = (specs or {}).get(hand) or hands.get(hand)
-        if spec.kind == "keypoints":
-            limits = udhm.JOINT_LIMITS_RAD
-        else:  # union over the hand's sides
-            los, his = zip(*(spec.udhm_limits_rad(s) for s in spec.sides), strict=True)
-            limits = np.stack([np.min(los, 0), np.max(his, 0)], axis=1)
-        binning = UniformBinning({hand: HandRange.from_limits(limits, spec.active_mask)}, BinningConfig(num_bins))
+        binning = hand_binning(hand, num_bins, (specs or {}).get(hand))
         rows = data.hands == hand
         out[rows] = binning.decode(binning.encode(data.states_rad[rows], hand), hand).numpy()
     return out

@@ -259,6 +259,9 @@ def test_results_page(tiny_cfg, main_result, tmp_path):
     assert f"| {first['hand']} | {first['method']} | {first['trained_on']} |" in text  # rows from the JSON
     assert "SYNTHETIC sample" in text
     assert result["provenance"]["git_commit"][:12] in text
+    steps = tiny_cfg.train.steps  # the tiny size: each UniDexTok section opens with the reduced-size line
+    for name in ("main_table", "ablation_human", "ablation_mapping", "transfer", "probe"):
+        assert f"## {name}\n\n**Reduced-size run: UniDexTok trained {steps} steps here**" in text
     links = [line.split("](")[1].rstrip(")") for line in text.splitlines() if line.startswith("![")]
     assert links and all((page.parent / link).is_file() for link in links)
     stale = page.parent / "results" / "main_table_render_no_such_hand.png"  # a figure of an earlier page

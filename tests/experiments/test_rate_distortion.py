@@ -1,0 +1,144 @@
+"""The rate-distortion experiment: entropy and bits arithmetic on worked examples, binning's error bound, and an
+end-to-end run of an untrained tiny tokenizer on a converted sample dataset (no ../shared needed)."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from lerobot_unidextok.experiments import rate_distortion as rd
+from lerobot_unidextok.experiments.unseen_data import hand_binning
+from lerobot_unidextok.training.coverage import range_states
+
+
+# ---------------------------------------------------------------------------------------------
+# arithmetic
+# ---------------------------------------------------------------------------------------------
+def test_entropy_and_rate_of_a_worked_example():
+    # position 0: codes 0,1,0,1 -> p = (1/2, 1/2) -> 1 bit; position 1: always 7 -> 0 bits;
+    # position 2: 0,1,2,2 -> p = (1/4, 1/4, 1/2) -> 1/4*2 + 1/4*2 + 1/2*1 = 1.5 bits
+    codes = np.array([[0, 7, 0], [1, 7, 1], [0, 7, 2], [1, 7, 2]])
+    np.testing.assert_allclose(rd.entropy_bits(codes), [1.0, 0.0, 1.5])
+    assert rd.measured_rate_bits(codes) == pytest.approx(2.5)
+    # 32 equiprobable codes at one position: log2(32) = 5 bits, the nominal bits of one UniDexTok group
+    assert rd.measured_rate_bits(np.arange(32)[:, None]) == pytest.approx(5.0)
+    with pytest.raises(ValueError, match="rows >= 1"):
+        rd.entropy_bits(np.zeros((0, 3), int))
+
+
+def test_equal_bits_picks_the_largest_b_within_the_rate_and_the_smallest_b_that_matches():
+    curve = [{"bits": b, "nominal_bits": 6.0 * b, "mpjae_deg": 12.0 / 2**b} for b in range(1, 9)]
+    # 6 DoFs: b = 3 is 18 bits <= 20 < 24; 12 / 2**b <= 1.0 first at b = 4 (0.75)
+    eq = rd.equal_bits({"rate_bits": 20.0, "mpjae_deg": 1.0}, curve)
+    assert eq["at_rate"]["bits"] == 3 and eq["to_match"]["bits"] == 4
+    # an error binning never reaches within 8 bits, and a rate below its 1-bit cost: no b qualifies
+    eq = rd.equal_bits({"rate_bits": 5.0, "mpjae_deg": 0.01}, curve)
+    assert eq == {"at_rate": None, "to_match": None}
+
+
+def test_verdict_of_a_worked_example():
+    def row(rate, mpjae, match_bits, within_mpjae):
+        match = {"nominal_bits": match_bits} if match_bits else None
+        return {"unidextok": {"rate_bits": rate, "nominal_bits": 320.0, "mpjae_deg": mpjae},
+                "equal_bits": {"to_match": match, "at_rate": {"mpjae_deg": within_mpjae}}}  # fmt: skip
+
+    # set 1: 100 / 50 = 2x fewer bits than the measured rate, 320 / 50 = 6.4x than nominal, MPJAE 1.0 / 0.25 = 4x
+    # set 2: binning never matches 0.5 deg within 8 bits; within the rate its MPJAE is 0.5 / 0.25 = 2x lower
+    result = {"config": {"max_bits": 8}, "rows": [row(100.0, 1.0, 50.0, 0.25), row(60.0, 0.5, None, 0.25)]}
+    assert rd.verdict(result) == (
+        "Binning reaches UniDexTok's MPJAE on 1 of 2 sets with 2.0-2.0x fewer bits than UniDexTok's measured rate "
+        "(6.4-6.4x fewer than its nominal bits). On 1 of 2 sets binning needs more than b = 8. Within UniDexTok's "
+        "measured rate (b capped at 8), binning's MPJAE is 2.0-4.0x lower."
+    )
+
+
+@pytest.mark.parametrize("hand", ["inspire_rh56_unitree", "human"])
+def test_binning_at_b_bits_is_within_half_a_bin(hand):
+    data = range_states(hand, 400, seed=3)
+    binning_dofs = int(data.masks.any(0).sum())
+    previous = math.inf
+    for b in range(1, 9):
+        binning = hand_binning(hand, 2**b)
+        mask = binning.ranges[hand].active_mask
+        pred = binning.decode(binning.encode(data.states_rad, hand), hand).numpy()
+        err = np.abs(pred - data.states_rad)[:, mask]  # (rows, active DoFs) radians
+        assert (err <= binning.bin_width_rad(hand) / 2 + 1e-6).all()
+        point = rd.binning_point(data, b)
+        assert point["nominal_bits"] == b * binning_dofs
+        # uniform states fill every bin: the measured rate is close to, and never above, the nominal bits
+        assert 0.9 * point["nominal_bits"] <= point["rate_bits"] <= point["nominal_bits"] + 1e-9
+        assert point["mpjae_deg"] < previous / 1.8  # one more bit halves the error (uniform states: bin / 4)
+        previous = point["mpjae_deg"]
+
+
+def test_config_rejects_the_cards_seed_and_an_empty_run():
+    with pytest.raises(ValueError, match="range_seed 0"):
+        rd.RateDistortionConfig(range_seed=0)
+    with pytest.raises(ValueError, match="nothing to score"):
+        rd.RateDistortionConfig(datasets=[], range_rows=0)
+
+
+def test_missing_dataset_names_the_command_that_writes_it(tmp_path):
+    cfg = rd.RateDistortionConfig(datasets=[str(tmp_path / "absent")], range_rows=0)
+    with pytest.raises(FileNotFoundError, match="experiments/universal_data.py"):
+        rd.evaluation_sets(cfg)
+
+
+# ---------------------------------------------------------------------------------------------
+# end to end
+# ---------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def converted_linker(tmp_path_factory):
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.conversion.samples import write_samples
+
+    raw = write_samples(tmp_path_factory.mktemp("raw"), sources=["linkerhand"], episodes_per_source=5,
+                        frames_per_episode=30)["linkerhand"]  # fmt: skip
+    root = tmp_path_factory.mktemp("conv") / "linker"
+    convert(ConvertOptions(source="linkerhand", input=raw, root=root, progress=False))
+    return root
+
+
+@pytest.fixture(scope="module")
+def tiny_checkpoint(tmp_path_factory):
+    from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
+
+    path = tmp_path_factory.mktemp("tok") / "tiny"
+    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["linkerhand_l10"])).save_pretrained(path)
+    return path
+
+
+def test_runs_end_to_end_and_fills_its_results_page_section(converted_linker, tiny_checkpoint, tmp_path):
+    from lerobot_unidextok.experiments.results_page import update_sections
+    from lerobot_unidextok.tokenizer import UniDexTok
+
+    argv = [f"--checkpoint={tiny_checkpoint}", f"--datasets=[{converted_linker}]",
+            "--range_hands=[linkerhand_l10,human]", "--range_rows=60", "--max_bits=4", f"--output_root={tmp_path}"]  # fmt: skip
+    result = rd.run(rd.parse(argv))
+    cfg = UniDexTok.from_pretrained(str(tiny_checkpoint)).config
+    nominal = cfg.num_tokens * cfg.num_groups * math.log2(cfg.codebook_size)
+    sets = {r["set"]: r for r in result["rows"]}
+    test_sets = [s for s in sets if s.startswith("linker test episodes: ")]
+    assert test_sets and {"in-range states: linkerhand_l10", "in-range states: human"} <= set(sets)
+    for r in sets.values():
+        u = r["unidextok"]
+        assert u["nominal_bits"] == nominal
+        assert 0.0 <= u["rate_bits"] <= min(nominal, cfg.num_tokens * cfg.num_groups * math.log2(r["rows"])) + 1e-9
+        assert [c["bits"] for c in r["binning"]] == [1, 2, 3, 4]
+        assert [c["nominal_bits"] for c in r["binning"]] == [b * r["dofs"] for b in (1, 2, 3, 4)]
+        assert r["equal_bits"] == rd.equal_bits(u, r["binning"])
+    assert sets["in-range states: human"]["dofs"] == 22 and not sets["in-range states: human"]["known_hand"]
+
+    folder = tmp_path / "rate_distortion"
+    assert json.loads((folder / "rate_distortion.json").read_text())["rows"] == result["rows"]
+    md = (folder / "rate_distortion.md").read_text()
+    assert md == rd.markdown(result) + "\n" and "| in-range states: human (unknown hand) | 60 | 22 | " in md
+    assert (folder / "rate_distortion.png").stat().st_size > 10_000
+
+    page = tmp_path / "RESULTS.md"
+    page.write_text("# Results\n\nintro\n\n## main_table\n\nmeasured elsewhere\n")
+    text = update_sections(tmp_path, page, ["rate_distortion"])
+    assert "measured elsewhere" in text and "## rate_distortion\n\nCommand: `python experiments/rate_distortion.py --checkpoint=" in text
+    assert f"tokenizer `{tiny_checkpoint}` (untrained)" in text and "Reduced-size run" not in text
+    assert rd.summary_table(result) in text and rd.verdict(result) in text
