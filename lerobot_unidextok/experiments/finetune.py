@@ -152,7 +152,7 @@ def scores(model, test) -> dict:
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer
 
     report = evaluate_tokenizer(model, test)
-    per_hand = {h: {k: float(e[k]) for k in (*METRICS, "rows")} for h, e in report["per_hand"].items()}
+    per_hand = {h: {**{k: float(e[k]) for k in METRICS}, "rows": int(e["rows"])} for h, e in report["per_hand"].items()}
     return {"overall": {k: float(report["overall"][k]) for k in METRICS}, "per_hand": per_hand}
 
 
@@ -216,7 +216,7 @@ def run(cfg: FinetuneConfig) -> dict:
         r = done.get(_key(resolved))
         if r is None:
             logger.info("training %s (%d steps, seed %d, lr %g)", cond.name, cond.steps, cond.seed, cond.lr)
-            r = run_condition(cfg, cond, train, test, folder, resolved)
+            r = json.loads(json.dumps(run_condition(cfg, cond, train, test, folder, resolved)))  # as cached
             with cache.open("a") as f:
                 f.write(json.dumps(r) + "\n")
         runs.append(r)

@@ -107,16 +107,33 @@ def test_finished_runs_are_cached_and_only_new_budgets_train(result, converted_g
     assert "| fine-tuned | 3 | 0.003 | 1 |" in md and "| checkpoint as it is | 0 | - | - |" in md
 
 
-def test_another_checkpoint_is_another_cache_key(result, converted_g1, tmp_path):
-    """A retrained checkpoint (here: the scratch run's model) must train its fine-tuned rows again."""
-    res, _ = result
-    other = _row(res, "scratch")["model_dir"]
-    cfg = finetune.parse(_argv(converted_g1, tmp_path, f"--checkpoint={other}", f"--finetune_lrs=[{NO_STEP}]"))
-    from lerobot_unidextok.tokenizer import UniDexTok
+def test_a_retrained_checkpoint_retrains_the_finetuned_rows_only(result, converted_g1, tmp_path):
+    """The same checkpoint name with other weights (a retrained universal tokenizer; here the folder first holds
+    the shipped model, then the scratch run's) retrains the fine-tuned rows; the scratch rows do not depend on
+    it and are reused."""
+    import shutil
 
-    keys = {finetune.model_fingerprint(UniDexTok.from_pretrained(c)) for c in (DEFAULT_TOKENIZER, other)}
-    assert len(keys) == 2
-    assert [c.init_from for c in finetune.conditions(cfg)] == [None, other]
+    from lerobot_unidextok.pretrained import SHIPPED
+
+    res, _ = result
+    ckpt = tmp_path / "checkpoint"
+    shutil.copytree(SHIPPED[DEFAULT_TOKENIZER], ckpt)
+    argv = _argv(converted_g1, tmp_path / "out", f"--finetune_lrs=[{NO_STEP}]", f"--checkpoint={ckpt}")
+    first = finetune.run(finetune.parse(argv))
+    cache = tmp_path / "out" / "finetune" / "runs.jsonl"
+    assert len(cache.read_text().splitlines()) == 2
+    shutil.rmtree(ckpt)
+    shutil.copytree(_row(res, "scratch")["model_dir"], ckpt)
+    second = finetune.run(finetune.parse(argv))
+    lines = [json.loads(line) for line in cache.read_text().splitlines()]
+    assert len(lines) == 3 and lines[2]["condition"] == "fine-tuned"
+    assert first["checkpoint_fingerprint"] != second["checkpoint_fingerprint"]
+    assert _row(second, "scratch") == _row(first, "scratch")
+    # with NO_STEP a fine-tuned row keeps its checkpoint's figures: the shipped model's, then the other one's
+    for r in (first, second):
+        assert _row(r, "fine-tuned")["overall"]["mpjae_deg"] == pytest.approx(
+            _row(r, "checkpoint as it is")["overall"]["mpjae_deg"], rel=1e-4)
+    assert _row(second, "checkpoint as it is")["overall"] == pytest.approx(_row(res, "scratch")["overall"])
 
 
 def test_bad_inputs_fail_with_one_clear_line(tmp_path):
