@@ -49,6 +49,9 @@ class FinetuneConfig:
     steps: list[int] = field(default_factory=lambda: [500, 1500, 5000])  # step budgets, each for both trainings
     seeds: list[int] = field(default_factory=lambda: [0])  # batches, splits and scratch initialisation
     finetune_lrs: list[float] = field(default_factory=list)  # peak lr of the fine-tuned rows; empty = the recipe's
+    # Train only these conditions ("scratch", "fine-tuned"; empty = both), e.g. the scratch rows while the
+    # checkpoint is still being trained. A later run without it reuses them from the cache.
+    only: list[str] = field(default_factory=list)
     output_root: str = "outputs/experiments"
 
     def __post_init__(self) -> None:
@@ -56,6 +59,8 @@ class FinetuneConfig:
             raise ValueError(f"steps must be a non-empty list of budgets >= 1, got {self.steps}")
         if not self.seeds:
             raise ValueError("seeds must list at least one seed, e.g. --seeds='[0]'")
+        if set(self.only) - {SCRATCH, FINETUNED}:
+            raise ValueError(f"only takes {SCRATCH!r} and {FINETUNED!r}, got {self.only}")
         if any(lr <= 0 for lr in self.finetune_lrs):
             raise ValueError(f"finetune_lrs must be > 0, got {self.finetune_lrs}")
 
@@ -95,7 +100,7 @@ def conditions(cfg: FinetuneConfig) -> list[Condition]:
         for seed in cfg.seeds:
             out.append(Condition(SCRATCH, steps, seed, base_lr, None))
             out += [Condition(FINETUNED, steps, seed, lr, cfg.checkpoint) for lr in cfg.finetune_lrs or [base_lr]]
-    return out
+    return [c for c in out if not cfg.only or c.name in cfg.only]
 
 
 def train_config(cfg: FinetuneConfig, cond: Condition, output_dir: Path):

@@ -145,3 +145,15 @@ def test_bad_inputs_fail_with_one_clear_line(tmp_path):
     with pytest.raises(ValueError, match="steps must be a non-empty list of budgets >= 1"):
         finetune.FinetuneConfig(steps=[0])
     assert not (tmp_path / "finetune").exists()  # nothing written
+    with pytest.raises(ValueError, match="only takes 'scratch' and 'fine-tuned'"):
+        finetune.FinetuneConfig(only=["finetuned"])
+
+
+def test_only_trains_the_named_condition():
+    """`only=[scratch]` keeps the scratch trainings of every budget and seed and drops the fine-tuned ones
+    (catches the filter inverted or ignored)."""
+    cfg = finetune.FinetuneConfig(recipe=str(TINY_RECIPE), steps=[2, 3], seeds=[0, 1], finetune_lrs=[0.1, 0.2])
+    assert len(finetune.conditions(cfg)) == 2 * 2 * 3
+    only = finetune.conditions(finetune.FinetuneConfig(recipe=str(TINY_RECIPE), steps=[2, 3], seeds=[0, 1],
+                                                       only=["scratch"]))  # fmt: skip
+    assert [(c.name, c.steps, c.seed) for c in only] == [("scratch", s, d) for s in (2, 3) for d in (0, 1)]
