@@ -8,6 +8,7 @@ a screening length, and is scored on
 The test episodes and held-out recordings, which the card reports, are not loaded here.
 
     python experiments/universal_screen.py --variants='[shipped,wide]' --steps=3000
+    python experiments/universal_screen.py --runs='[outputs/run_a,outputs/run_b]'   # finished full-length runs
 
 Each variant's result is cached in <output_root>/universal_screen/runs.jsonl (keyed by its resolved settings).
 """
@@ -58,6 +59,9 @@ class ScreenConfig:
     variants: list[str] = field(default_factory=lambda: ["shipped", "anneal"])
     steps: int = 3000  # screening length (the recipe's own steps are not used)
     range_rows: int = 2000  # in-range states scored per registered hand
+    # Finished `unidextok-train` run folders of the recipe (e.g. full-length candidates) to score the same way
+    # (their best/ checkpoint) instead of training variants.
+    runs: list[str] = field(default_factory=list)
     output_root: str = "outputs/experiments"
 
 
@@ -77,40 +81,67 @@ def resolved(cfg: ScreenConfig, name: str) -> dict:
     return {"train": train, "model": VARIANTS[name].model, "range_rows": cfg.range_rows}
 
 
+def selection_split(tcfg):
+    """The run's (fit, select) rows: its training split minus the held-out selection episodes."""
+    from lerobot_unidextok.training import load_hand_states
+    from lerobot_unidextok.training.run import _fit_and_select
+
+    train = load_hand_states(tcfg.datasets, split="train", holdout=tcfg.holdout)  # the test split stays unread
+    return _fit_and_select(tcfg, train)
+
+
+def score(model, select, range_rows: int) -> dict:
+    """MPJAE (deg) per hand on the selection episodes, and per registered hand on in-range states (SCREEN_SEED)."""
+    from lerobot_unidextok import hands
+    from lerobot_unidextok.evaluation.report import evaluate_tokenizer
+    from lerobot_unidextok.training.coverage import range_states
+
+    select_report = evaluate_tokenizer(model, select)
+    in_range = {}
+    for hand in hands.names():
+        rep = evaluate_tokenizer(model, range_states(hand, range_rows, SCREEN_SEED))
+        in_range[hand] = rep["per_hand"][hand]["mpjae_deg"]
+    return {"select_deg": {h: e["mpjae_deg"] for h, e in select_report["per_hand"].items()},
+            "select_rows": len(select), "in_range_deg": in_range,
+            "in_range_mean": float(np.mean(list(in_range.values()))),
+            "in_range_max": float(max(in_range.values())), "params": sum(p.numel() for p in model.parameters())}  # fmt: skip
+
+
 def run_variant(cfg: ScreenConfig, name: str, folder: Path) -> dict:
     import torch
 
-    from lerobot_unidextok import hands
-    from lerobot_unidextok.evaluation.report import evaluate_tokenizer
     from lerobot_unidextok.tokenizer import UniDexTok
-    from lerobot_unidextok.training.coverage import range_states
     from lerobot_unidextok.training.loop import build_model, train_tokenizer
-    from lerobot_unidextok.training.run import _fit_and_select
-    from lerobot_unidextok.training import load_hand_states
 
     variant = VARIANTS[name]
     tcfg = recipe_config(cfg, variant, folder / "models" / name)
-    train = load_hand_states(tcfg.datasets, split="train", holdout=tcfg.holdout)  # the test split stays unread
-    fit, select = _fit_and_select(tcfg, train)
+    fit, select = selection_split(tcfg)
     torch.manual_seed(tcfg.seed)
     model = build_model(tcfg, fit, **variant.model)
     cpu0 = time.process_time()
     res = train_tokenizer(tcfg, fit, select, model=model)
     cpu = time.process_time() - cpu0
-    best = UniDexTok.from_pretrained(res.best_dir)
-    select_report = evaluate_tokenizer(best, select)
-    in_range = {}
-    for hand in hands.names():
-        rep = evaluate_tokenizer(best, range_states(hand, cfg.range_rows, SCREEN_SEED))
-        in_range[hand] = rep["per_hand"][hand]["mpjae_deg"]
-    return {
-        "variant": name, "steps": res.steps, "best_step": res.best_step, "train_cpu_s": round(cpu, 1),
-        "params": sum(p.numel() for p in best.parameters()),
-        "select_deg": {h: e["mpjae_deg"] for h, e in select_report["per_hand"].items()},
-        "select_rows": len(select), "in_range_deg": in_range,
-        "in_range_mean": float(np.mean(list(in_range.values()))), "in_range_max": float(max(in_range.values())),
-        "git_commit": git_commit(), "resolved": resolved(cfg, name),
-    }  # fmt: skip
+    return {"variant": name, "steps": res.steps, "best_step": res.best_step, "train_cpu_s": round(cpu, 1),
+            **score(UniDexTok.from_pretrained(res.best_dir), select, cfg.range_rows),
+            "git_commit": git_commit(), "resolved": resolved(cfg, name)}  # fmt: skip
+
+
+def score_runs(cfg: ScreenConfig) -> list[dict]:
+    """Finished run folders of the recipe, scored like the variants (selection split from the recipe's seed)."""
+    import draccus
+
+    from lerobot_unidextok.tokenizer import UniDexTok
+    from lerobot_unidextok.training import TrainConfig
+
+    _, select = selection_split(draccus.parse(TrainConfig, config_path=cfg.recipe, args=[]))
+    out = []
+    for folder in map(Path, cfg.runs):
+        if not (folder / "best" / "config.json").is_file():
+            raise FileNotFoundError(f"{folder}/best not found: pass finished unidextok-train run folders")
+        state = json.loads((folder / "best" / "training_state.json").read_text())
+        out.append({"variant": str(folder), "steps": state.get("steps"), "best_step": state.get("step"),
+                    "train_cpu_s": None, **score(UniDexTok.from_pretrained(folder / "best"), select, cfg.range_rows)})  # fmt: skip
+    return out
 
 
 def run(cfg: ScreenConfig) -> dict:
@@ -119,6 +150,11 @@ def run(cfg: ScreenConfig) -> dict:
         raise ValueError(f"unknown variants {unknown}; choose from {sorted(VARIANTS)}")
     folder = Path(cfg.output_root) / NAME
     folder.mkdir(parents=True, exist_ok=True)
+    if cfg.runs:
+        result = {"experiment": NAME, "config": dataclasses.asdict(cfg), "runs": score_runs(cfg),
+                  "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
+        (folder / "runs_scored.json").write_text(json.dumps(result, indent=2, default=str))
+        return result
     cache = folder / "runs.jsonl"
     done = {}
     if cache.is_file():
@@ -145,17 +181,23 @@ def run(cfg: ScreenConfig) -> dict:
 def markdown(result: dict) -> str:
     hands_sel = sorted({h for r in result["runs"] for h in r["select_deg"]})
     rows = [[r["variant"], r["steps"], r["best_step"], *[r["select_deg"].get(h) for h in hands_sel],
-             r["in_range_mean"], r["in_range_max"], r["params"], r["train_cpu_s"], VARIANTS[r["variant"]].note
+             r["in_range_mean"], r["in_range_max"], r["params"], r["train_cpu_s"] or "-", VARIANTS[r["variant"]].note
              if r["variant"] in VARIANTS else ""] for r in result["runs"]]  # fmt: skip
     return "\n".join([
         f"# {NAME}", "",
-        f"Recipe {result['config']['recipe']} at {result['config']['steps']} steps per variant. MPJAE (deg) on the "
+        f"Recipe {result['config']['recipe']}"
+        + (" (finished run folders). " if result["config"]["runs"] else f" at {result['config']['steps']} steps per variant. ")
+        + "MPJAE (deg) on the "
         "selection episodes (training episodes held out from training) per hand, and on states uniform inside "
         f"each registered hand's ranges (seed {SCREEN_SEED}, {result['config']['range_rows']} per hand: mean and "
         "worst hand). CPU s: training, one thread.", "",
         md_table(["variant", "steps", "best step", *[f"select: {h}" for h in hands_sel], "in-range mean",
                   "in-range worst", "params", "CPU s", "what"], rows),
     ])  # fmt: skip
+
+
+def parse(argv: list[str] | None = None) -> ScreenConfig:
+    return runtime.parse(ScreenConfig, argv)
 
 
 def main(argv: list[str] | None = None) -> None:

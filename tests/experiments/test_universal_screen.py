@@ -1,0 +1,64 @@
+"""Screening the universal recipe at a tiny size on a converted synthetic G1 sample (no ../shared needed):
+variants train and are scored on the selection episodes and in-range states, runs are cached, and a finished
+run folder scores the same as the variant that wrote it."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from lerobot_unidextok import hands
+from lerobot_unidextok.experiments import universal_screen
+
+
+@pytest.fixture(scope="module")
+def recipe(tmp_path_factory) -> Path:
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples
+
+    raw = write_samples(tmp_path_factory.mktemp("raw"), sources=["lerobot"], episodes_per_source=6,
+                        frames_per_episode=30)["lerobot"]  # fmt: skip
+    root = tmp_path_factory.mktemp("conv") / "g1"
+    convert(ConvertOptions(source="lerobot", input=raw, root=root, progress=False,
+                           source_options=SAMPLE_SOURCE_OPTIONS["lerobot"]))  # fmt: skip
+    path = tmp_path_factory.mktemp("cfg") / "recipe.yaml"
+    path.write_text(f"preset: tiny\ndatasets: [{root}]\nrange_hands: [linkerhand_l6]\nbatch_size: 16\n"
+                    "warmup_steps: 1\neval_every: 2\nselect_fraction: 0.25\nnum_threads: 1\n")  # fmt: skip
+    return path
+
+
+def test_variants_are_scored_on_selection_episodes_and_cached(recipe, tmp_path):
+    argv = [f"--recipe={recipe}", "--variants=[shipped,anneal]", "--steps=2", "--range_rows=20",
+            f"--output_root={tmp_path}"]  # fmt: skip
+    result = universal_screen.run(universal_screen.parse(argv))
+    runs = {r["variant"]: r for r in result["runs"]}
+    assert set(runs) == {"shipped", "anneal"}
+    for r in runs.values():
+        assert r["steps"] == 2 and r["select_rows"] > 0
+        assert set(r["select_deg"]) == {"inspire_rh56_unitree"}  # the recorded hand; range hands have no episodes
+        assert set(r["in_range_deg"]) == set(hands.names())  # every registered hand on its in-range states
+        assert r["in_range_max"] == max(r["in_range_deg"].values())
+    assert runs["anneal"]["resolved"]["train"]["reseed_until"] == 0.7
+    cache = tmp_path / "universal_screen" / "runs.jsonl"
+    lines = cache.read_text().splitlines()
+    again = universal_screen.run(universal_screen.parse(argv))  # cached: nothing trains again
+    assert cache.read_text().splitlines() == lines
+    assert again["runs"] == json.loads(json.dumps(result["runs"]))
+
+    # a finished run folder is scored the same way: the shipped variant's own folder gives its figures
+    folder = tmp_path / "universal_screen" / "models" / "shipped"
+    scored = universal_screen.run(universal_screen.parse([f"--recipe={recipe}", f"--runs=[{folder}]",
+                                                          "--range_rows=20", f"--output_root={tmp_path}"]))  # fmt: skip
+    (row,) = scored["runs"]
+    assert row["select_deg"] == pytest.approx(runs["shipped"]["select_deg"])
+    assert row["in_range_deg"] == pytest.approx(runs["shipped"]["in_range_deg"])
+    assert "finished run folders" in universal_screen.markdown(scored)
+
+
+def test_unknown_variants_and_missing_runs_fail_clearly(recipe, tmp_path):
+    with pytest.raises(ValueError, match="unknown variants \\['nope'\\]"):
+        universal_screen.run(universal_screen.parse([f"--recipe={recipe}", "--variants=[nope]",
+                                                     f"--output_root={tmp_path}"]))  # fmt: skip
+    with pytest.raises(FileNotFoundError, match="best not found"):
+        universal_screen.run(universal_screen.parse([f"--recipe={recipe}", f"--runs=[{tmp_path / 'none'}]",
+                                                     f"--output_root={tmp_path}"]))  # fmt: skip
