@@ -46,10 +46,8 @@ VARIANTS: dict[str, Variant] = {
     "anneal": Variant("lr decays to 0 and no dead-code re-seeding in the last 30 % of steps",
                       {"min_lr_ratio": 0.0, "reseed_until": 0.7}),  # fmt: skip
     "wide": Variant("C = 128 (small preset otherwise)", model={"hidden_dim": 128}),
-    "wide_anneal": Variant("C = 128 and anneal", {"min_lr_ratio": 0.0, "reseed_until": 0.7}, {"hidden_dim": 128}),
     "fourier": Variant("Fourier input features (6 octaves)", model={"fourier_octaves": 6}),
     "l1": Variant("L1 loss added (weight 1)", model={"l1_weight": 1.0}),
-    "deep": Variant("3 + 3 blocks", model={"encoder_depth": 3, "decoder_depth": 3}),
 }
 
 
@@ -180,9 +178,14 @@ def run(cfg: ScreenConfig) -> dict:
 
 def markdown(result: dict) -> str:
     hands_sel = sorted({h for r in result["runs"] for h in r["select_deg"]})
-    rows = [[r["variant"], r["steps"], r["best_step"], *[r["select_deg"].get(h) for h in hands_sel],
-             r["in_range_mean"], r["in_range_max"], r["params"], r["train_cpu_s"] or "-", VARIANTS[r["variant"]].note
-             if r["variant"] in VARIANTS else ""] for r in result["runs"]]  # fmt: skip
+    def deg(x: float | None) -> str:
+        return "-" if x is None else f"{x:.3f}"
+
+    rows = [[r["variant"], r["steps"], r["best_step"], *[deg(r["select_deg"].get(h)) for h in hands_sel],
+             deg(r["in_range_mean"]), deg(r["in_range_max"]), r["params"],
+             f"{r['train_cpu_s']:.0f}" if r["train_cpu_s"] else "-",
+             VARIANTS[r["variant"]].note if r["variant"] in VARIANTS else "finished run folder"]
+            for r in result["runs"]]  # fmt: skip
     return "\n".join([
         f"# {NAME}", "",
         f"Recipe {result['config']['recipe']}"
