@@ -1,0 +1,113 @@
+"""Where a tokenizer's error comes from: the code snapping, or the encoder and decoder themselves.
+
+Each state goes through the tokenizer twice: through its codes (`encode` then `decode`, what the tokenizer
+gives), and with the quantiser's snapping left out (the decoder fed the unit-norm group vectors the codes are
+searched for, `quantizer.unit_groups`). The second error is what the same networks would reach with infinitely
+fine codes; the difference is the cost of snapping to 32 codes per group. The mean cosine between each group
+vector and its code says how close the encoder already puts its vectors to the codes.
+
+    python experiments/error_split.py                         # the shipped unidextok/universal-small
+    python experiments/error_split.py --checkpoint=outputs/unidextok_universal/best
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from lerobot_unidextok.experiments import runtime
+from lerobot_unidextok.experiments.common import git_commit, md_table
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+
+NAME = "error_split"
+
+
+@dataclass
+class ErrorSplitConfig:
+    checkpoint: str = DEFAULT_TOKENIZER  # a local folder, a shipped id or a Hub repo id
+    # Converted UDHM datasets scored on their test split (absent ones are skipped with a note).
+    datasets: list[str] = field(
+        default_factory=lambda: ["outputs/universal_data/g1_inspire", "outputs/universal_data/human_clip"]
+    )
+    range_rows: int = 2000  # states per registered hand uniform inside its registered ranges (0 = none)
+    range_seed: int = 1  # not 0: the card's in-range figures use seed 0
+    output_root: str = "outputs/experiments"
+
+
+def split_errors(model, data) -> dict:
+    """{rows, coded_deg, unsnapped_deg, cosine} of one set of hand states (`HandStates`)."""
+    import torch
+
+    from lerobot_unidextok.evaluation import mpjae_deg
+
+    x = torch.as_tensor(data.states_rad, dtype=torch.float32)  # (B, 22)
+    with torch.no_grad():
+        c = model.hand_embed(model.hand_ids(list(data.hands), len(x), allow_unknown=True))  # (B, C)
+        z = model._encode_latent(x, c)  # (B, N, C)
+        vq = model.quantizer
+        u = vq.unit_groups(z)  # (B, N, K, d)
+        codes = vq.nearest_indices(z)  # (B, N, K)
+        coded = model._decode_latent(vq.get_output_from_indices(codes), c)  # (B, 22)
+        unsnapped = model._decode_latent(vq.project_out(u.flatten(-2)), c)  # (B, 22)
+        cosine = (u * vq.indices_to_codes(codes)).sum(-1).mean()
+    return {"rows": len(x), "coded_deg": mpjae_deg(coded.numpy(), data.states_rad, data.masks),
+            "unsnapped_deg": mpjae_deg(unsnapped.numpy(), data.states_rad, data.masks), "cosine": float(cosine)}  # fmt: skip
+
+
+def run(cfg: ErrorSplitConfig) -> dict:
+    from lerobot_unidextok import hands
+    from lerobot_unidextok.tokenizer import UniDexTok
+    from lerobot_unidextok.training import load_hand_states
+    from lerobot_unidextok.training.coverage import range_states
+
+    model = UniDexTok.from_pretrained(cfg.checkpoint)
+    sets, skipped = {}, []
+    for root in cfg.datasets:
+        if not Path(root).is_dir():
+            skipped.append(root)
+            continue
+        test = load_hand_states([root], split="test")
+        for hand in test.hand_names():
+            sets[f"{Path(root).name} test episodes: {hand}"] = test.only(hand)
+    if cfg.range_rows:
+        for hand in hands.names():
+            sets[f"in-range states: {hand}"] = range_states(hand, cfg.range_rows, cfg.range_seed)
+    if not sets:
+        raise FileNotFoundError(f"none of {cfg.datasets} exists and range_rows=0: nothing to score")
+    result = {"experiment": NAME, "checkpoint": cfg.checkpoint, "config": dataclasses.asdict(cfg),
+              "skipped_datasets": skipped, "sets": {name: split_errors(model, data) for name, data in sets.items()},
+              "git_commit": git_commit(), "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
+    folder = Path(cfg.output_root) / NAME
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{NAME}.json").write_text(json.dumps(result, indent=2))
+    (folder / f"{NAME}.md").write_text(markdown(result) + "\n")
+    return result
+
+
+def markdown(result: dict) -> str:
+    rows = [[name, s["rows"], f"{s['coded_deg']:.3f}", f"{s['unsnapped_deg']:.3f}",
+             f"{s['coded_deg'] - s['unsnapped_deg']:+.3f}", f"{s['cosine']:.5f}"]
+            for name, s in result["sets"].items()]  # fmt: skip
+    note = f" Skipped (absent): {', '.join(result['skipped_datasets'])}." if result["skipped_datasets"] else ""
+    return "\n".join([
+        f"# {NAME}", "",
+        f"Checkpoint `{result['checkpoint']}`. MPJAE (deg) through the codes, and with the decoder fed the "
+        "unsnapped group vectors (no code snapping); cosine = mean cosine between a group vector and its code."
+        + note, "",
+        md_table(["set", "rows", "through codes (deg)", "unsnapped (deg)", "snapping costs (deg)", "cosine"], rows),
+    ])  # fmt: skip
+
+
+def parse(argv: list[str] | None = None) -> ErrorSplitConfig:
+    return runtime.parse(ErrorSplitConfig, argv)
+
+
+def main(argv: list[str] | None = None) -> None:
+    runtime.cli(ErrorSplitConfig, run, markdown, argv)
+
+
+if __name__ == "__main__":
+    main()
