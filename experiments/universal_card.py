@@ -82,6 +82,10 @@ def main(argv: list[str] | None = None) -> None:
         commands["figures"],
         "```",
         "",
+        "The schedule was chosen among full-length runs on their selection episodes and on in-range states "
+        "of another seed than the table's (`python experiments/universal_screen.py --runs=...`, docs/tokenizer.md "
+        "\"How the recipe was chosen\"), never on the figures above.",
+        "",
         "The evaluation table above is `eval.json` (`results`): test episodes / held-out recordings of each "
         "converted dataset, and every registered hand on in-range states (" + about["in_range"] + "). "
         "The G1 row equals `" + commands["G1 test episodes, same figure"] + "`.",
