@@ -1,4 +1,7 @@
-"""A tiny experiment configuration in a temp dir, shared by the experiment tests (one data + model cache)."""
+"""A tiny experiment configuration in a temp dir, shared by the experiment tests (one data + model cache), and a
+converted synthetic G1 sample for the experiments that take one converted dataset."""
+
+from pathlib import Path
 
 import pytest
 
@@ -56,3 +59,17 @@ def one_torch_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(before)
+
+
+@pytest.fixture(scope="session")
+def converted_g1(tmp_path_factory) -> Path:
+    """The synthetic G1 + Inspire sample (the shipped checkpoint's hand), 5 episodes: 4 train, 1 test."""
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples
+
+    raw = write_samples(tmp_path_factory.mktemp("raw"), sources=["lerobot"], episodes_per_source=5,
+                        frames_per_episode=40)["lerobot"]  # fmt: skip
+    root = tmp_path_factory.mktemp("conv") / "g1"
+    convert(ConvertOptions(source="lerobot", input=raw, root=root, progress=False,
+                           source_options=SAMPLE_SOURCE_OPTIONS["lerobot"]))
+    return root

@@ -14,20 +14,6 @@ TINY_RECIPE = Path(__file__).resolve().parents[2] / "configs" / "train" / "tiny.
 NO_STEP = 1e-12  # a fine-tune lr whose updates stay far below float32 resolution of the weights
 
 
-@pytest.fixture(scope="module")
-def converted_g1(tmp_path_factory) -> Path:
-    """The synthetic G1 + Inspire sample (the shipped checkpoint's hand), 5 episodes: 4 train, 1 test."""
-    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples
-
-    raw = write_samples(tmp_path_factory.mktemp("raw"), sources=["lerobot"], episodes_per_source=5,
-                        frames_per_episode=40)["lerobot"]  # fmt: skip
-    root = tmp_path_factory.mktemp("conv") / "g1"
-    convert(ConvertOptions(source="lerobot", input=raw, root=root, progress=False,
-                           source_options=SAMPLE_SOURCE_OPTIONS["lerobot"]))
-    return root
-
-
 def _argv(dataset: Path, out: Path, *extra: str) -> list[str]:
     return [f"--dataset={dataset}", f"--recipe={TINY_RECIPE}", "--steps=[2]", "--seeds=[0]",
             f"--finetune_lrs=[{NO_STEP},0.003]", f"--output_root={out}", *extra]  # fmt: skip

@@ -1,4 +1,4 @@
-"""Screening the universal recipe at a tiny size on a converted synthetic G1 sample (no ../shared needed):
+"""Screening the universal recipe at a tiny size on the converted synthetic G1 sample (no ../shared needed):
 variants train and are scored on the selection episodes and in-range states, runs are cached, and a finished
 run folder scores the same as the variant that wrote it."""
 
@@ -12,17 +12,9 @@ from lerobot_unidextok.experiments import universal_screen
 
 
 @pytest.fixture(scope="module")
-def recipe(tmp_path_factory) -> Path:
-    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples
-
-    raw = write_samples(tmp_path_factory.mktemp("raw"), sources=["lerobot"], episodes_per_source=6,
-                        frames_per_episode=30)["lerobot"]  # fmt: skip
-    root = tmp_path_factory.mktemp("conv") / "g1"
-    convert(ConvertOptions(source="lerobot", input=raw, root=root, progress=False,
-                           source_options=SAMPLE_SOURCE_OPTIONS["lerobot"]))  # fmt: skip
+def recipe(converted_g1, tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("cfg") / "recipe.yaml"
-    path.write_text(f"preset: tiny\ndatasets: [{root}]\nrange_hands: [linkerhand_l6]\nbatch_size: 16\n"
+    path.write_text(f"preset: tiny\ndatasets: [{converted_g1}]\nrange_hands: [linkerhand_l6]\nbatch_size: 16\n"
                     "warmup_steps: 1\neval_every: 2\nselect_fraction: 0.25\nnum_threads: 1\n")  # fmt: skip
     return path
 
