@@ -58,23 +58,13 @@ def split_errors(model, data) -> dict:
 
 
 def run(cfg: ErrorSplitConfig) -> dict:
-    from lerobot_unidextok import hands
+    from lerobot_unidextok.experiments.rate_distortion import test_and_range_sets
     from lerobot_unidextok.tokenizer import UniDexTok
-    from lerobot_unidextok.training import load_hand_states
-    from lerobot_unidextok.training.coverage import range_states
 
     model = UniDexTok.from_pretrained(cfg.checkpoint)
-    sets, skipped = {}, []
-    for root in cfg.datasets:
-        if not Path(root).is_dir():
-            skipped.append(root)
-            continue
-        test = load_hand_states([root], split="test")
-        for hand in test.hand_names():
-            sets[f"{Path(root).name} test episodes: {hand}"] = test.only(hand)
-    if cfg.range_rows:
-        for hand in hands.names():
-            sets[f"in-range states: {hand}"] = range_states(hand, cfg.range_rows, cfg.range_seed)
+    present = [root for root in cfg.datasets if Path(root).is_dir()]
+    skipped = [root for root in cfg.datasets if root not in present]
+    sets = test_and_range_sets(present, [], cfg.range_rows, cfg.range_seed)
     if not sets:
         raise FileNotFoundError(f"none of {cfg.datasets} exists and range_rows=0: nothing to score")
     result = {"experiment": NAME, "checkpoint": cfg.checkpoint, "config": dataclasses.asdict(cfg),

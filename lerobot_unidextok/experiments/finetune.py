@@ -170,10 +170,10 @@ def run_condition(cfg: FinetuneConfig, cond: Condition, train, test, folder: Pat
     checkpoint on the test rows."""
     from lerobot_unidextok.tokenizer import UniDexTok
     from lerobot_unidextok.training import train_tokenizer
-    from lerobot_unidextok.training.run import _fit_and_select
+    from lerobot_unidextok.training.run import fit_and_select
 
     tcfg = train_config(cfg, cond, folder / "models" / cond.slug)
-    fit, select = _fit_and_select(tcfg, train)
+    fit, select = fit_and_select(tcfg, train)
     cpu0 = time.process_time()
     res = train_tokenizer(tcfg, fit, select)
     cpu = time.process_time() - cpu0

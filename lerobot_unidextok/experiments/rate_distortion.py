@@ -136,21 +136,28 @@ def _one_hand(data: HandStates) -> str:
 # ---------------------------------------------------------------------------------------------
 def evaluation_sets(cfg: RateDistortionConfig) -> dict[str, HandStates]:
     """{label: one hand's rows}: each dataset's test episodes per hand, then each hand's in-range states."""
+    return test_and_range_sets(cfg.datasets, cfg.range_hands, cfg.range_rows, cfg.range_seed)
+
+
+def test_and_range_sets(datasets: list[str], range_hands: list[str], range_rows: int,
+                        range_seed: int) -> dict[str, HandStates]:  # fmt: skip
+    """{label: one hand's rows}: each converted dataset's test episodes per hand, then `range_rows` states
+    uniform inside each of `range_hands`' registered ranges (empty = every registered hand; 0 rows = none)."""
     from lerobot_unidextok import hands
     from lerobot_unidextok.training import load_hand_states
     from lerobot_unidextok.training.coverage import range_states
 
     sets = {}
-    for root in cfg.datasets:
+    for root in datasets:
         if not Path(root).is_dir():
             raise FileNotFoundError(f"{root}: no converted dataset there; write it with `{DATA_COMMAND}` "
                                     "or pass --datasets='[<converted root>,...]'")  # fmt: skip
         data = load_hand_states([root], split="test")
         for hand in data.hand_names():
             sets[f"{Path(root).name} test episodes: {hand}"] = data.only(hand)
-    if cfg.range_rows:
-        for hand in cfg.range_hands or list(hands.names()):
-            sets[f"in-range states: {hand}"] = range_states(hand, cfg.range_rows, cfg.range_seed)
+    if range_rows:
+        for hand in range_hands or list(hands.names()):
+            sets[f"in-range states: {hand}"] = range_states(hand, range_rows, range_seed)
     return sets
 
 

@@ -28,15 +28,17 @@ def _summary(entry: dict) -> dict:
     return {k: entry[k] for k in SUMMARY}
 
 
-def in_range_figures(model, hand_names: list[str] | None = None) -> dict[str, dict]:
-    """{f"in-range states: {hand}": summary} for every registered hand (or `hand_names`)."""
+def in_range_figures(model, hand_names: list[str] | None = None, rows: int = IN_RANGE_ROWS,
+                     seed: int = IN_RANGE_SEED) -> dict[str, dict]:  # fmt: skip
+    """{f"in-range states: {hand}": summary} for every registered hand (or `hand_names`): `rows` states each,
+    drawn with `seed` (the card's set by default)."""
     from lerobot_unidextok import hands
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer
     from lerobot_unidextok.training.coverage import range_states
 
     out = {}
     for hand in hand_names or list(hands.names()):
-        report = evaluate_tokenizer(model, range_states(hand, IN_RANGE_ROWS, IN_RANGE_SEED))
+        report = evaluate_tokenizer(model, range_states(hand, rows, seed))
         out[IN_RANGE_PREFIX + hand] = _summary(report["per_hand"][hand])
     return out
 

@@ -82,23 +82,20 @@ def resolved(cfg: ScreenConfig, name: str) -> dict:
 def selection_split(tcfg):
     """The run's (fit, select) rows: its training split minus the held-out selection episodes."""
     from lerobot_unidextok.training import load_hand_states
-    from lerobot_unidextok.training.run import _fit_and_select
+    from lerobot_unidextok.training.run import fit_and_select
 
     train = load_hand_states(tcfg.datasets, split="train", holdout=tcfg.holdout)  # the test split stays unread
-    return _fit_and_select(tcfg, train)
+    return fit_and_select(tcfg, train)
 
 
 def score(model, select, range_rows: int) -> dict:
     """MPJAE (deg) per hand on the selection episodes, and per registered hand on in-range states (SCREEN_SEED)."""
-    from lerobot_unidextok import hands
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer
-    from lerobot_unidextok.training.coverage import range_states
+    from lerobot_unidextok.experiments.universal import IN_RANGE_PREFIX, in_range_figures
 
     select_report = evaluate_tokenizer(model, select)
-    in_range = {}
-    for hand in hands.names():
-        rep = evaluate_tokenizer(model, range_states(hand, range_rows, SCREEN_SEED))
-        in_range[hand] = rep["per_hand"][hand]["mpjae_deg"]
+    in_range = {name.removeprefix(IN_RANGE_PREFIX): entry["mpjae_deg"]
+                for name, entry in in_range_figures(model, rows=range_rows, seed=SCREEN_SEED).items()}  # fmt: skip
     return {"select_deg": {h: e["mpjae_deg"] for h, e in select_report["per_hand"].items()},
             "select_rows": len(select), "in_range_deg": in_range,
             "in_range_mean": float(np.mean(list(in_range.values()))),
@@ -178,6 +175,7 @@ def run(cfg: ScreenConfig) -> dict:
 
 def markdown(result: dict) -> str:
     hands_sel = sorted({h for r in result["runs"] for h in r["select_deg"]})
+
     def deg(x: float | None) -> str:
         return "-" if x is None else f"{x:.3f}"
 

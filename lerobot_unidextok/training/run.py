@@ -36,7 +36,7 @@ def _load_split(datasets: list[str], split: str | None, holdout: str) -> HandSta
         return HandStates(np.zeros((0, 22)), np.zeros(0, str), np.zeros((0, 22), bool), np.zeros(0), np.zeros(0))
 
 
-def _fit_and_select(cfg: TrainConfig, train: HandStates) -> tuple[HandStates, HandStates]:
+def fit_and_select(cfg: TrainConfig, train: HandStates) -> tuple[HandStates, HandStates]:
     """Held-out selection episodes first, then the few-shot fraction of the rest."""
     if cfg.exclude_hands:
         train = train.without(cfg.exclude_hands)
@@ -52,7 +52,7 @@ def load_splits(cfg: TrainConfig) -> tuple[HandStates | HandRowStore, HandStates
     if not cfg.streaming:
         train = load_hand_states(cfg.datasets, split="train", holdout=cfg.holdout)
         test = _load_split(cfg.datasets, "test", cfg.holdout)
-        fit, select = _fit_and_select(cfg, train)
+        fit, select = fit_and_select(cfg, train)
         return fit, select, test
     from accelerate import PartialState
 
@@ -89,7 +89,7 @@ def run_kfold(cfg: TrainConfig) -> dict:
     pooled = load_hand_states(cfg.datasets, split=None, holdout=cfg.holdout)
     folds = []
     for k, (train, test) in enumerate(kfold_by_episode(pooled, cfg.folds, seed=cfg.seed)):
-        fit, select = _fit_and_select(cfg, train)
+        fit, select = fit_and_select(cfg, train)
         fold_cfg = dataclasses.replace(cfg, output_dir=str(Path(cfg.output_dir) / "folds" / f"fold_{k}"), resume=False)
         result = train_tokenizer(fold_cfg, fit, select)
         report = evaluate_tokenizer(UniDexTok.from_pretrained(result.best_dir), test)
