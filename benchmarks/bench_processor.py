@@ -17,6 +17,7 @@ tokenizer step on the converted state.
     .venv/bin/python benchmarks/bench_processor.py --threads 1 --num_hands 1 --presets small --batches 1
     .venv/bin/python benchmarks/bench_processor.py --threads 1 --layout robot --presets small --batches 1
     .venv/bin/python benchmarks/bench_processor.py --threads 1 --layout robot --presets small --native
+    .venv/bin/python benchmarks/bench_processor.py --threads 1 --presets small --search_rounds 2   # code search
 """
 
 from __future__ import annotations
@@ -65,6 +66,7 @@ def main() -> None:
     parser.add_argument("--layout", choices=("hands", "robot"), default="hands", help="robot: 14 arm joints first")
     parser.add_argument("--threads", type=int, default=0, help="torch threads (0 = torch default)")
     parser.add_argument("--native", action="store_true", help="also time unidextok.native_to_udhm (native input)")
+    parser.add_argument("--search_rounds", type=int, default=0, help="code search rounds of the step (0 = nearest)")
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
@@ -81,7 +83,8 @@ def main() -> None:
     print(
         f"torch {torch.__version__}, {torch.get_num_threads()} threads, CPU, load average "
         f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; median of {args.repeats} (batch 1) / "
-        f"{args.repeats_large} (larger) calls; state layout {args.layout} ({len(names)} columns)"
+        f"{args.repeats_large} (larger) calls; state layout {args.layout} ({len(names)} columns); code search "
+        f"rounds {args.search_rounds}"
     )
     print(
         f"{'preset':<7} {'batch':>5} {'states':>6} | {'step CPU ms':>11} {'CPU ms/state':>12} {'wall ms':>9} | "
@@ -89,7 +92,8 @@ def main() -> None:
     )
     native_rows = []
     for preset in args.presets:
-        step = UniDexTokStateTokenizerStep(hand_layout=hands, state_names=names, preset=preset)
+        step = UniDexTokStateTokenizerStep(hand_layout=hands, state_names=names, preset=preset,
+                                           search_rounds=args.search_rounds)
         pipe = PolicyProcessorPipeline(steps=[step], name="policy_preprocessor")
         to_udhm = NativeToUDHMStateStep.from_layout(native_layout)
         native_pipe = PolicyProcessorPipeline(steps=[to_udhm], name="policy_preprocessor")
@@ -107,7 +111,7 @@ def main() -> None:
                 pipe({OBS_STATE: x})
 
             def run_bare(rows=rows, row_hands=row_hands, tok=tok):
-                tok.decode(tok.encode(rows, row_hands), row_hands)
+                tok.decode(tok.encode(rows, row_hands, search_rounds=args.search_rounds), row_hands)
 
             def run_native(xn=xn, native_pipe=native_pipe):
                 native_pipe({OBS_STATE: xn})

@@ -1,10 +1,12 @@
 """Score the universal run on data it never trained on and write the shipped package folder + card.
 
     python experiments/universal_card.py --run=outputs/unidextok_universal --data=outputs/universal_data \
-        --cpu_s=<training CPU seconds> --commit=<commit the run trained at>
+        --cpu_s=<training CPU seconds> --commit=<commit the run trained at> --search_rounds=2 --search_sweeps=2
 
 Writes lerobot_unidextok/pretrained/universal-small/ (config.json, model.safetensors, training_state.json,
-eval.json, README.md) from <run>/best; `lerobot_unidextok.experiments.universal` holds the figures.
+eval.json, README.md) from <run>/best; `lerobot_unidextok.experiments.universal` holds the figures. The package's
+config.json gets the code search settings (its default encoding); the figures are measured with them (eval.json
+`results`, the card's evaluation table) and with the nearest codes, the paper's encoding (`nearest_codes`).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import json
 import subprocess
 from pathlib import Path
 
+from lerobot_unidextok.evaluation.report import encoding
 from lerobot_unidextok.experiments.universal import figures, write_package
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, SHIPPED
 from lerobot_unidextok.tokenizer import UniDexTok
@@ -44,10 +47,16 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--data", type=Path, default=Path("outputs/universal_data"))
     p.add_argument("--cpu_s", type=float, required=True, help="training CPU time (user + sys), seconds")
     p.add_argument("--commit", default="", help="commit of the code the run trained with (default: HEAD)")
+    p.add_argument("--search_rounds", type=int, default=2, help="code search rounds of the package (0 = nearest)")
+    p.add_argument("--search_sweeps", type=int, default=2, help="sweeps per code search round")
     args = p.parse_args(argv)
-    commit = args.commit or subprocess.check_output(["git", "-C", str(REPO), "rev-parse", "HEAD"], text=True).strip()
+    commit = subprocess.check_output(["git", "-C", str(REPO), "rev-parse", args.commit or "HEAD"], text=True).strip()
     model = UniDexTok.from_pretrained(str(args.run / "best"))
     datasets = {label: str(args.data / name) for label, name in DATA.items()}
+    search = {"search_rounds": args.search_rounds, "search_sweeps": args.search_sweeps}
+    model.config.search_rounds, model.config.search_sweeps = 0, args.search_sweeps
+    nearest = figures(model, datasets)
+    model.config.search_rounds = args.search_rounds
     results = figures(model, datasets)
     state = json.loads((args.run / "best" / "training_state.json").read_text())
     data_cmd = "python experiments/universal_data.py --out=outputs/universal_data"
@@ -56,7 +65,8 @@ def main(argv: list[str] | None = None) -> None:
         "data": data_cmd,
         "train": train_cmd,
         "figures": "python experiments/universal_card.py --run=outputs/unidextok_universal "
-        f"--cpu_s={args.cpu_s:.0f} --commit={commit[:12]}",
+        f"--cpu_s={args.cpu_s:.0f} --commit={commit[:12]} --search_rounds={args.search_rounds} "
+        f"--search_sweeps={args.search_sweeps}",
         "G1 test episodes, same figure": f"unidextok-eval --checkpoint={DEFAULT_TOKENIZER} "
         "--datasets='[outputs/universal_data/g1_inspire]'",
     }
@@ -66,10 +76,25 @@ def main(argv: list[str] | None = None) -> None:
         "steps": state.get("steps"),
         "best_step": state.get("step"),
         "commands": commands,
+        "encoding": encoding(model.config),
+        "nearest_codes": nearest,
         "in_range": "5000 states per hand, uniform inside its registered ranges, random side, seed 0 "
         "(lerobot_unidextok.experiments.universal.in_range_figures)",
     }
     sections = [
+        "## Encoding",
+        "",
+        f"This package's config.json sets `search_rounds={args.search_rounds}`, `search_sweeps={args.search_sweeps}`: "
+        "`encode` refines each group's nearest code with the decoder-aware code search (docs/tokenizer.md \"Code "
+        "search\"; same tokens, same decoder), and the evaluation table above is measured that way. "
+        "`encode(..., search_rounds=0)` (`unidextok-eval --search_rounds=0`, the processor step's default) gives "
+        "the nearest codes, the paper's encoding; on the same rows they measure (`eval.json` `nearest_codes`):",
+        "",
+        "| | rows | mpjae_deg | mpjpe_mm | fingertip_mm |",
+        "|---|---|---|---|---|",
+        *[f"| {name} | {e['rows']} | {e['mpjae_deg']:.4g} | {e['mpjpe_mm']:.4g} | {e['fingertip_mm']:.4g} |"
+          for name, e in nearest.items()],
+        "",
         "## Recipe",
         "",
         f"Trained at commit `{commit[:12]}` of lerobot-unidextok, {state.get('steps')} steps "
@@ -82,9 +107,10 @@ def main(argv: list[str] | None = None) -> None:
         commands["figures"],
         "```",
         "",
-        "The schedule was chosen among full-length runs on their selection episodes and on in-range states "
-        "of another seed than the table's (`python experiments/universal_screen.py --runs=...`, docs/tokenizer.md "
-        "\"How the recipe was chosen\"), never on the figures above.",
+        "The schedule, and then the code search settings, were chosen among full-length runs and settings on "
+        "their selection episodes and on in-range states of another seed than the table's (`python "
+        "experiments/universal_screen.py --runs=... [--search_rounds='[0,1,2]' --search_sweeps='[1,2,3,4]']`, "
+        "docs/tokenizer.md \"How the recipe was chosen\"), never on the figures above.",
         "",
         "The evaluation table above is `eval.json` (`results`): test episodes / held-out recordings of each "
         "converted dataset, and every registered hand on in-range states (" + about["in_range"] + "). "
@@ -92,7 +118,7 @@ def main(argv: list[str] | None = None) -> None:
         "",
     ]
     target = write_package(args.run / "best", SHIPPED[DEFAULT_TOKENIZER], DEFAULT_TOKENIZER, results, about,
-                           sections, RECORDINGS)  # fmt: skip
+                           sections, RECORDINGS, config_overrides=search)  # fmt: skip
     print(json.dumps(results, indent=2))
     print(f"wrote {target}")
 

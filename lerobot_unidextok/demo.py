@@ -174,7 +174,7 @@ def demo_pictures(out: Path, model, test_data, seed: int) -> None:
     _banner("5. Pictures")
     plots = out / "plots"
     rng = np.random.default_rng(seed)
-    rec = reconstruct(model, test_data.states_rad, test_data.hands, allow_unknown=True)
+    rec = reconstruct(model, test_data.states_rad, test_data.hands, allow_unknown=True, masks=test_data.masks)
     ranges = {}
     for hand in test_data.hand_names():
         spec = hands.get(hand)

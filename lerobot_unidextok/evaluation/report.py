@@ -14,7 +14,8 @@ from lerobot_unidextok.utils.files import jsonable
 def evaluate_tokenizer(model, data, batch_size: int = 4096) -> dict:
     """Per-hand and overall metrics of decode(encode(x)); hands unknown to the model are scored
     zero-shot through its unknown-hand embedding and flagged `zero_shot`."""
-    rec = reconstruct(model, data.states_rad, data.hands, batch_size=batch_size, allow_unknown=True)
+    rec = reconstruct(model, data.states_rad, data.hands, batch_size=batch_size, allow_unknown=True,
+                      masks=data.masks)
     report = reconstruction_metrics(rec.states_rad, data.states_rad, data.hands, data.masks)
     size = model.config.codebook_size
     report["overall"]["codebook"] = codebook_usage(rec.codes, size)
@@ -22,8 +23,16 @@ def evaluate_tokenizer(model, data, batch_size: int = 4096) -> dict:
         entry["zero_shot"] = not model.knows_hand(hand)
         entry["codebook"] = codebook_usage(rec.codes[data.hands == hand], size)
     report["model"] = {"hand_names": list(model.config.hand_names), "num_tokens": model.config.num_tokens,
-                       "num_groups": model.config.num_groups, "codebook_size": size}  # fmt: skip
+                       "num_groups": model.config.num_groups, "codebook_size": size,
+                       "encoding": encoding(model.config)}  # fmt: skip
     return report
+
+
+def encoding(config) -> str:
+    """How codes were picked: the nearest codes (the paper's encoding) or the decoder-aware code search."""
+    if not config.search_rounds:
+        return "nearest codes"
+    return f"code search, {config.search_rounds} round(s) x {config.search_sweeps} sweep(s)"
 
 
 HAND_ROWS = "hand-rows: one row per hand per frame (a two-hand frame gives two rows)"
@@ -74,6 +83,8 @@ def _fmt(x: float, digits: int = 3) -> str:
 def markdown_table(report: dict) -> str:
     """What was scored (when the report says), the per-hand summary table, then the per-joint MAE (deg) table."""
     lines = [scored_markdown(report["scored"]), ""] if report.get("scored") else []
+    if report.get("model", {}).get("encoding"):
+        lines += [f"Encoding: {report['model']['encoding']}.", ""]
     lines += [
         "| hand | rows | active DoFs | MPJAE (deg) | MPJPE (mm) | fingertip (mm) | code usage | zero-shot |",
         "|---|---|---|---|---|---|---|---|",

@@ -273,7 +273,7 @@ def reconstruct_unidextok(model, data: HandStates) -> tuple[np.ndarray, np.ndarr
     """(decoded (N, 22) rad, codes (N, T, K)); hands unknown to the model go through its unknown-hand embedding."""
     from lerobot_unidextok.evaluation import reconstruct
 
-    rec = reconstruct(model, data.states_rad, data.hands, allow_unknown=True)
+    rec = reconstruct(model, data.states_rad, data.hands, allow_unknown=True, masks=data.masks)
     return rec.states_rad, rec.codes
 
 

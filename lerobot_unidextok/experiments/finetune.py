@@ -39,6 +39,7 @@ logger = logging.getLogger(__name__)
 NAME = "finetune"
 METRICS = ("mpjae_deg", "mpjpe_mm", "fingertip_mm")
 SCRATCH, FINETUNED, CHECKPOINT = "scratch", "fine-tuned", "checkpoint as it is"
+USE_SETTINGS = ("search_rounds", "search_sweeps")  # config fields that change encoding only, not training
 
 
 @dataclass
@@ -52,6 +53,9 @@ class FinetuneConfig:
     # Train only these conditions ("scratch", "fine-tuned"; empty = both), e.g. the scratch rows while the
     # checkpoint is still being trained. A later run without it reuses them from the cache.
     only: list[str] = field(default_factory=list)
+    # Every kept model is also scored with this many rounds of the code search (docs/tokenizer.md "Code search";
+    # the shipped setting); the main columns use the nearest codes, as each model was trained. 0 = no second score.
+    search_rounds: int = 2
     output_root: str = "outputs/experiments"
 
     def __post_init__(self) -> None:
@@ -123,9 +127,11 @@ def _key(resolved: dict) -> str:
 
 
 def model_fingerprint(model) -> str:
-    """Of a model's config and every tensor of its state dict: changes when a checkpoint is retrained."""
+    """Of a model's config and every tensor of its state dict: changes when a checkpoint is retrained, not with
+    the settings of its use (the code search, which training never runs)."""
     tensors = [t.detach().cpu().numpy() for t in model.state_dict().values()]
-    return fingerprint(dataclasses.asdict(model.config), *tensors)
+    config = {k: v for k, v in dataclasses.asdict(model.config).items() if k not in USE_SETTINGS}
+    return fingerprint(config, *tensors)
 
 
 def data_fingerprint(train, test) -> str:
@@ -152,10 +158,12 @@ def load_dataset(cfg: FinetuneConfig, holdout: str):
     return train, test
 
 
-def scores(model, test) -> dict:
-    """Overall and per-hand MPJAE (deg), MPJPE (mm), fingertip error (mm) on the test rows."""
+def scores(model, test, search_rounds: int = 0) -> dict:
+    """Overall and per-hand MPJAE (deg), MPJPE (mm), fingertip error (mm) on the test rows, encoded with
+    `search_rounds` rounds of code search (0 = the nearest codes, whatever the model's config says)."""
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer
 
+    model.config.search_rounds = search_rounds
     report = evaluate_tokenizer(model, test)
     per_hand = {h: {**{k: float(e[k]) for k in METRICS}, "rows": int(e["rows"])} for h, e in report["per_hand"].items()}
     return {"overall": {k: float(report["overall"][k]) for k in METRICS}, "per_hand": per_hand}
@@ -225,6 +233,10 @@ def run(cfg: FinetuneConfig) -> dict:
             with cache.open("a") as f:
                 f.write(json.dumps(r) + "\n")
         runs.append(r)
+    if cfg.search_rounds:  # not cached: seconds per model, and no training
+        for r in runs:
+            model = pretrained if r["condition"] == CHECKPOINT else UniDexTok.from_pretrained(r["model_dir"])
+            r["searched"] = scores(model, test, cfg.search_rounds)["overall"]
     result = {"experiment": NAME, "dataset": cfg.dataset, "checkpoint": cfg.checkpoint,
               "checkpoint_fingerprint": checkpoint_id, "data_fingerprint": data_id,
               "test_episodes": _episodes(test), "train_episodes": _episodes(train), "test_rows": len(test),
@@ -249,6 +261,10 @@ def summarise(runs: list[dict]) -> list[dict]:
             vals = np.array([r["overall"][k] for r in rs])
             entry[k] = float(vals.mean())
             entry[f"{k}_std"] = float(vals.std(ddof=1)) if len(vals) > 1 else 0.0
+        if all("searched" in r for r in rs):
+            vals = np.array([r["searched"]["mpjae_deg"] for r in rs])
+            entry["searched_mpjae_deg"] = float(vals.mean())
+            entry["searched_mpjae_deg_std"] = float(vals.std(ddof=1)) if len(vals) > 1 else 0.0
         out.append(entry)
     return out
 
@@ -260,8 +276,10 @@ def _cell(s: dict, k: str) -> str:
 def markdown(result: dict) -> str:
     rows = [[s["condition"], s["steps"], "-" if s["lr"] is None else f"{s['lr']:g}",
              "-" if s["seeds"] == [None] else len(s["seeds"]), *[_cell(s, k) for k in METRICS],
+             _cell(s, "searched_mpjae_deg") if "searched_mpjae_deg" in s else "-",
              ", ".join("-" if b is None else str(b) for b in s["best_steps"]), f"{s['train_cpu_s']:.0f}"]
             for s in result["summary"]]  # fmt: skip
+    rounds = result["config"].get("search_rounds", 0)
     return "\n".join([
         f"# {NAME}", "",
         f"Dataset {result['dataset']}: trained on its train-split episodes {result['train_episodes']} (the recipe's "
@@ -269,9 +287,11 @@ def markdown(result: dict) -> str:
         f"{result['test_episodes']} ({result['test_rows']} hand-rows). Fine-tuned = `init_from={result['checkpoint']}` "
         f"(weights {result['checkpoint_fingerprint']}); recipe {result['config']['recipe']} with the steps, lr and "
         "seed of each row. Mean (+- std over seeds); CPU s = training CPU time (time.process_time, one torch "
-        "thread).", "",
-        md_table(["model", "steps", "lr", "seeds", "MPJAE (deg)", "MPJPE (mm)", "fingertip (mm)", "best step",
-                  "CPU s"], rows),
+        "thread). MPJAE, MPJPE and fingertip through the nearest codes; "
+        + (f"'code search' = MPJAE with codes picked by {rounds} round(s) of the code search." if rounds
+           else "no code search score."), "",
+        md_table(["model", "steps", "lr", "seeds", "MPJAE (deg)", "MPJPE (mm)", "fingertip (mm)",
+                  "MPJAE, code search (deg)", "best step", "CPU s"], rows),
     ])  # fmt: skip
 
 

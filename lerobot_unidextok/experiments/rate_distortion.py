@@ -52,6 +52,9 @@ class RateDistortionConfig:
     range_rows: int = 5000  # in-range states per hand (0 = no in-range sets)
     range_seed: int = 1  # not 0: the card's in-range figures use seed 0
     max_bits: int = 8  # binning at b = 1..max_bits bits per active joint
+    # Code search rounds when encoding (docs/tokenizer.md "Code search"): None = the checkpoint config's,
+    # 0 = the nearest codes (the paper's encoding).
+    search_rounds: int | None = None
     output_root: str = "outputs/experiments"
 
     def __post_init__(self) -> None:
@@ -59,6 +62,8 @@ class RateDistortionConfig:
             raise ValueError(f"max_bits must be in [1, 16], got {self.max_bits}")
         if self.range_rows < 0:
             raise ValueError(f"range_rows must be >= 0, got {self.range_rows}")
+        if self.search_rounds is not None and self.search_rounds < 0:
+            raise ValueError(f"search_rounds must be >= 0 (0 = nearest codes), got {self.search_rounds}")
         if self.range_seed == 0:
             raise ValueError("range_seed 0 draws the card's own in-range states; pick another seed, e.g. 1")
         if not self.datasets and self.range_rows == 0:
@@ -91,7 +96,7 @@ def unidextok_point(model, data: HandStates) -> dict:
     from lerobot_unidextok.evaluation import mpjae_deg, reconstruct
 
     cfg = model.config
-    rec = reconstruct(model, data.states_rad, data.hands, allow_unknown=True)
+    rec = reconstruct(model, data.states_rad, data.hands, allow_unknown=True, masks=data.masks)
     return {
         "nominal_bits": cfg.num_tokens * cfg.num_groups * math.log2(cfg.codebook_size),
         "rate_bits": measured_rate_bits(rec.codes.reshape(len(data), -1)),
@@ -172,11 +177,14 @@ def checkpoint_about(checkpoint: str) -> dict:
 
 
 def run(cfg: RateDistortionConfig) -> dict:
+    from lerobot_unidextok.evaluation.report import encoding
     from lerobot_unidextok.tokenizer import UniDexTok
 
     t0 = time.time()
     model = UniDexTok.from_pretrained(cfg.checkpoint)
     model.eval()
+    if cfg.search_rounds is not None:
+        model.config.search_rounds = cfg.search_rounds
     rows = []
     for label, data in evaluation_sets(cfg).items():
         hand = _one_hand(data)
@@ -189,7 +197,7 @@ def run(cfg: RateDistortionConfig) -> dict:
     folder.mkdir(parents=True, exist_ok=True)
     png = plot(rows, folder / f"{NAME}.png")
     result = {"experiment": NAME, "command": command_line(cfg), "config": dataclasses.asdict(cfg),
-              "tokenizer": checkpoint_about(cfg.checkpoint), "rows": rows, "figures": {"rate_distortion": str(png)},
+              "tokenizer": {**checkpoint_about(cfg.checkpoint), "encoding": encoding(model.config)}, "rows": rows, "figures": {"rate_distortion": str(png)},
               "provenance": provenance(cfg, rows, time.time() - t0)}  # fmt: skip
     (folder / f"{NAME}.json").write_text(json.dumps(result, indent=2))
     (folder / f"{NAME}.md").write_text(markdown(result) + "\n")
@@ -280,7 +288,7 @@ def markdown(result: dict) -> str:
                else "no training_state.json")  # fmt: skip
     return "\n".join([
         f"# {NAME}", "",
-        f"Tokenizer `{tok['checkpoint']}` ({trained}) against per-joint uniform binning over each hand's "
+        f"Tokenizer `{tok['checkpoint']}` ({trained}; encoding: {tok.get('encoding', 'nearest codes')}) against per-joint uniform binning over each hand's "
         "registered range at b bits per active joint, on each set's rows (one hand per set; test episodes never "
         f"trained on; in-range states: uniform inside the hand's registered ranges, seed {result['config']['range_seed']}). "
         "Nominal bits: UniDexTok N x K x log2(codebook size), binning b x DoFs. Measured rate: the sum over code "

@@ -68,10 +68,12 @@ def write_package(
     about: dict,
     sections: list[str],
     data_lines: list[str],
+    config_overrides: dict | None = None,
 ) -> Path:
     """`target` rebuilt from `checkpoint` (config, weights, training state), `eval.json` ({"results", **about})
     and README.md: the generated tokenizer card with `data_lines` as its "## Training data" (the recordings;
-    the card's `datasets:` metadata stays for Hub dataset ids) and `sections` (markdown lines) before "## Use"."""
+    the card's `datasets:` metadata stays for Hub dataset ids) and `sections` (markdown lines) before "## Use".
+    `config_overrides` replace fields of the copied config.json."""
     from lerobot_unidextok.hub.card import tokenizer_card
 
     checkpoint, target = Path(checkpoint), Path(target)
@@ -80,6 +82,16 @@ def write_package(
     target.mkdir(parents=True)
     for name in CHECKPOINT_FILES:
         shutil.copy2(checkpoint / name, target / name)
+    if config_overrides:  # settings of use, not of training (e.g. the code search): config.json only
+        from dataclasses import fields
+
+        from lerobot_unidextok.tokenizer import UniDexTokConfig
+
+        unknown = set(config_overrides) - {f.name for f in fields(UniDexTokConfig)}
+        if unknown:
+            raise ValueError(f"config_overrides {sorted(unknown)} are not UniDexTokConfig fields")
+        config = json.loads((target / "config.json").read_text())
+        (target / "config.json").write_text(json.dumps({**config, **config_overrides}, indent=2, sort_keys=True) + "\n")
     (target / "eval.json").write_text(json.dumps({"results": results, **about}, indent=2) + "\n")
     card = tokenizer_card(target, repo_id).replace(
         "## Training data\n\n- not recorded in this checkpoint\n", "## Training data\n\n" + "\n".join(data_lines) + "\n"

@@ -9,6 +9,8 @@ The test episodes and held-out recordings, which the card reports, are not loade
 
     python experiments/universal_screen.py --variants='[shipped,wide]' --steps=3000
     python experiments/universal_screen.py --runs='[outputs/run_a,outputs/run_b]'   # finished full-length runs
+    python experiments/universal_screen.py --runs='[outputs/unidextok_universal]' \
+        --search_rounds='[0,1,2]' --search_sweeps='[1,2,3,4]'                      # the code search's settings
 
 Each variant's result is cached in <output_root>/universal_screen/runs.jsonl (keyed by its resolved settings).
 """
@@ -60,6 +62,10 @@ class ScreenConfig:
     # Finished `unidextok-train` run folders of the recipe (e.g. full-length candidates) to score the same way
     # (their best/ checkpoint) instead of training variants.
     runs: list[str] = field(default_factory=list)
+    # Code search settings the runs are scored with (every rounds x sweeps pair; rounds 0 = the nearest codes,
+    # once): how `search_rounds` / `search_sweeps` of the shipped config were chosen.
+    search_rounds: list[int] = field(default_factory=lambda: [0])
+    search_sweeps: list[int] = field(default_factory=lambda: [3])
     output_root: str = "outputs/experiments"
 
 
@@ -121,8 +127,14 @@ def run_variant(cfg: ScreenConfig, name: str, folder: Path) -> dict:
             "git_commit": git_commit(), "resolved": resolved(cfg, name)}  # fmt: skip
 
 
+def search_settings(cfg: ScreenConfig) -> list[tuple[int, int]]:
+    """(rounds, sweeps) pairs the runs are scored with: the nearest codes once, then every searched pair."""
+    return sorted({(r, s if r else 0) for r in cfg.search_rounds for s in cfg.search_sweeps})
+
+
 def score_runs(cfg: ScreenConfig) -> list[dict]:
-    """Finished run folders of the recipe, scored like the variants (selection split from the recipe's seed)."""
+    """Finished run folders of the recipe, scored like the variants (selection split from the recipe's seed),
+    once per code search setting."""
     import draccus
 
     from lerobot_unidextok.tokenizer import UniDexTok
@@ -134,8 +146,14 @@ def score_runs(cfg: ScreenConfig) -> list[dict]:
         if not (folder / "best" / "config.json").is_file():
             raise FileNotFoundError(f"{folder}/best not found: pass finished unidextok-train run folders")
         state = json.loads((folder / "best" / "training_state.json").read_text())
-        out.append({"variant": str(folder), "steps": state.get("steps"), "best_step": state.get("step"),
-                    "train_cpu_s": None, **score(UniDexTok.from_pretrained(folder / "best"), select, cfg.range_rows)})  # fmt: skip
+        model = UniDexTok.from_pretrained(folder / "best")
+        for rounds, sweeps in search_settings(cfg):
+            model.config.search_rounds, model.config.search_sweeps = rounds, max(sweeps, 1)
+            cpu0 = time.process_time()
+            scored = score(model, select, cfg.range_rows)
+            out.append({"variant": str(folder), "search": f"{rounds} x {sweeps}" if rounds else "nearest codes",
+                        "steps": state.get("steps"), "best_step": state.get("step"), "train_cpu_s": None,
+                        "score_cpu_s": round(time.process_time() - cpu0, 1), **scored})  # fmt: skip
     return out
 
 
@@ -149,6 +167,7 @@ def run(cfg: ScreenConfig) -> dict:
         result = {"experiment": NAME, "config": dataclasses.asdict(cfg), "runs": score_runs(cfg),
                   "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
         (folder / "runs_scored.json").write_text(json.dumps(result, indent=2, default=str))
+        (folder / "runs_scored.md").write_text(markdown(result) + "\n")
         return result
     cache = folder / "runs.jsonl"
     done = {}
@@ -179,10 +198,12 @@ def markdown(result: dict) -> str:
     def deg(x: float | None) -> str:
         return "-" if x is None else f"{x:.3f}"
 
-    rows = [[r["variant"], r["steps"], r["best_step"], *[deg(r["select_deg"].get(h)) for h in hands_sel],
+    rows = [[r["variant"] + (f" ({r['search']})" if "search" in r else ""), r["steps"], r["best_step"],
+             *[deg(r["select_deg"].get(h)) for h in hands_sel],
              deg(r["in_range_mean"]), deg(r["in_range_max"]), r["params"],
              f"{r['train_cpu_s']:.0f}" if r["train_cpu_s"] else "-",
-             VARIANTS[r["variant"]].note if r["variant"] in VARIANTS else "finished run folder"]
+             VARIANTS[r["variant"]].note if r["variant"] in VARIANTS
+             else "finished run folder" + (f", scored in {r['score_cpu_s']:.0f} CPU-s" if "score_cpu_s" in r else "")]
             for r in result["runs"]]  # fmt: skip
     return "\n".join([
         f"# {NAME}", "",

@@ -115,7 +115,7 @@ def run(cfg: HumanConfig) -> dict:
         res = train_tokenizer(tcfg, train, None, model=build_model(tcfg, train, **v.model))
         info[name] = {"steps": res.steps, "train_cpu_s": round(time.process_time() - cpu0, 1), "note": v.note}
         model = UniDexTok.from_pretrained(res.best_dir)
-        rows[name] = {k: mpjae_deg(reconstruct(model, d.states_rad, d.hands).states_rad, d.states_rad, d.masks)
+        rows[name] = {k: mpjae_deg(reconstruct(model, d.states_rad, d.hands, masks=d.masks).states_rad, d.states_rad, d.masks)
                       for k, d in scored.items()}  # fmt: skip
     result = {"experiment": NAME, "config": dataclasses.asdict(cfg), "train_rows": len(train),
               "rows": {k: len(v) for k, v in scored.items()}, "mpjae_deg": rows, "training": info,

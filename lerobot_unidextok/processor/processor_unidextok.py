@@ -120,6 +120,10 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     # True = tokenise them zero-shot with the tokenizer's "unknown hand" embedding (logged once).
     allow_unknown: bool = False
     range_check: str = "raise"  # states outside the hands' ranges (degrees, normalised): raise | warn | off
+    # Rounds of decoder-aware code search (tokenizer/search.py): 0 = each group's nearest code, the paper's
+    # encoding and the fast one (a policy's features); R > 0 = codes that decode closer to the state, at about
+    # 1-3 ms per hand-row on one CPU thread (docs/tokenizer.md "Code search").
+    search_rounds: int = 0
     input_key: str = OBS_STATE
     token_key: str = OBS_HAND_TOKENS
     features_key: str = OBS_HAND_TOKEN_FEATURES
@@ -134,6 +138,8 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     def __post_init__(self) -> None:
         if self.representation not in REPRESENTATIONS:
             raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {self.representation!r}")
+        if self.search_rounds < 0:
+            raise ValueError(f"search_rounds must be >= 0 (0 = nearest codes), got {self.search_rounds}")
         if self.range_check not in RANGE_CHECKS:
             raise ValueError(f"range_check must be one of {RANGE_CHECKS}, got {self.range_check!r}")
         self.hand_layout, self.state_names = list(self.hand_layout), list(self.state_names)
@@ -237,10 +243,11 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
         if self._hand_ids.device != rows.device:
             self._hand_ids = self._hand_ids.to(rows.device)
         ids = self._hand_ids if b == 1 else self._hand_ids.repeat(b)  # (B*H,) one id per row, block order
-        codes = tok.encode(rows.reshape(b * h, UDHM_DIM), ids)  # (B*H, N, K)
+        if self._active.device != rows.device:
+            self._active = self._active.to(rows.device)
+        mask = self._active.repeat(b, 1) if self.search_rounds else None  # (B*H, 22)
+        codes = tok.encode(rows.reshape(b * h, UDHM_DIM), ids, mask=mask, search_rounds=self.search_rounds)
         if self.representation == "dequantized":
-            if self._active.device != rows.device:
-                self._active = self._active.to(rows.device)
             decoded = tok.decode(codes, ids).reshape(b, h, UDHM_DIM)  # (B, H, 22) radians
             view = decoded * self._active  # (B, H, 22), slots a hand does not have set to zero
         else:
@@ -280,6 +287,7 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             "representation": self.representation,
             "allow_unknown": self.allow_unknown,
             "range_check": self.range_check,
+            "search_rounds": self.search_rounds,
             "input_key": self.input_key,
             "token_key": self.token_key,
             "features_key": self.features_key,

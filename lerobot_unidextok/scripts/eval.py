@@ -3,6 +3,7 @@
     unidextok-eval --checkpoint=outputs/small --datasets='[data/sample_mixture]'   # a run folder: uses best/
     unidextok-eval --checkpoint=outputs/small/best --datasets='[data/sample_mixture]'
     unidextok-eval --checkpoint=me/unidextok-small --datasets='[me/inspire_udhm]' --split=test
+    unidextok-eval --checkpoint=unidextok/universal-small --datasets='[data/g1]' --search_rounds=0   # nearest codes
 
 Hands the checkpoint never saw are evaluated zero-shot (unknown-hand embedding) and flagged.
 Writes <output>.json and <output>.md and prints them: first what was scored (the checkpoint folder, and per
@@ -27,6 +28,9 @@ class EvalConfig:
     split: str = "test"  # train | test | all
     holdout: str = "auto"  # datasets without a recorded test split (lerobot-edit-dataset): auto | recorded | hash
     hands: list[str] = field(default_factory=list)  # evaluate only these hands (empty = all)
+    # Rounds of decoder-aware code search when encoding (docs/tokenizer.md "Code search"): None = the
+    # checkpoint config's `search_rounds`; 0 = each group's nearest code (the paper's encoding).
+    search_rounds: int | None = None
     output: str = "outputs/unidextok_eval/eval"  # path stem of the .json / .md report
     device: str = "cpu"
 
@@ -52,6 +56,10 @@ def run(cfg: EvalConfig) -> dict:
     except FileNotFoundError as exc:
         raise SystemExit(f"error: {exc}") from exc
     model = UniDexTok.from_pretrained(checkpoint).to(cfg.device)
+    if cfg.search_rounds is not None:
+        if cfg.search_rounds < 0:
+            raise SystemExit(f"error: --search_rounds must be >= 0 (0 = nearest codes), got {cfg.search_rounds}")
+        model.config.search_rounds = cfg.search_rounds
     report = evaluate_tokenizer(model, data)
     report["checkpoint"], report["datasets"], report["split"] = checkpoint, cfg.datasets, cfg.split
     report["scored"] = describe_scored(data, cfg.datasets, cfg.split, checkpoint)

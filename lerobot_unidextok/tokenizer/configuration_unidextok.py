@@ -82,6 +82,14 @@ class UniDexTokConfig:
     dead_code_threshold: float = 0.03
     usage_decay: float = 0.99  # EMA decay of per-code usage counts
 
+    # --- encoding ----------------------------------------------------------------------------------
+    # Departure (option): decoder-aware code search (tokenizer/search.py). 0 = the paper's encoding, each group
+    # vector snapped to its nearest code; R > 0 refines those codes by R rounds of coordinate descent on the
+    # decoder linearised around them (each round `search_sweeps` passes over the N x K positions; about 1-3 ms
+    # per state on one CPU thread for `small`). Same codes, same decoder; training always uses the nearest codes.
+    search_rounds: int = 0
+    search_sweeps: int = 2
+
     # --- reconstruction loss ------------------------------------------------------------------------
     # In angle / pi units: MSE (paper: plain MSE) + optional SmoothL1 (paper mentions it, weight unknown) +
     # optional L1 (departure: the reported metric is a mean absolute error). Restricting them to active DoFs
@@ -121,6 +129,10 @@ class UniDexTokConfig:
             )
         if self.codebook_update not in ("gradient", "ema"):
             raise ValueError(f"codebook_update must be 'gradient' or 'ema', got {self.codebook_update!r}")
+        if self.search_rounds < 0 or self.search_sweeps < 1:
+            raise ValueError(
+                f"search_rounds must be >= 0 and search_sweeps >= 1, got {self.search_rounds}, {self.search_sweeps}"
+            )
         if min(self.mse_weight, self.smooth_l1_weight, self.l1_weight) < 0:
             raise ValueError("mse_weight, smooth_l1_weight and l1_weight must be >= 0")
         if len(set(self.hand_names)) != len(self.hand_names):

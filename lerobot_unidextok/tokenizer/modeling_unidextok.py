@@ -4,6 +4,7 @@ No `from __future__ import annotations` here: the Hub mixin reads the real `UniD
 annotation of `__init__` to rebuild the config from config.json.
 """
 
+import logging
 import math
 import os
 from collections.abc import Sequence
@@ -19,8 +20,10 @@ from lerobot_unidextok.constants import ANGLE_SCALE_RAD
 from lerobot_unidextok.tokenizer.configuration_unidextok import UniDexTokConfig
 from lerobot_unidextok.tokenizer.layers import AdaLNBlock, AdaLNFinalNorm, HandEmbedder
 from lerobot_unidextok.tokenizer.quantizer import FactorizedCosineVQ
+from lerobot_unidextok.tokenizer.search import search_codes
 
 HandArg = str | Sequence[str] | torch.Tensor
+logger = logging.getLogger(__name__)
 
 
 @dataclass
@@ -48,6 +51,7 @@ class UniDexTok(
         self.config = config
         c, n = config.hidden_dim, config.num_tokens
         self._hand_index = {name: i for i, name in enumerate(config.hand_names)}
+        self._search_skipped: set[str] = set()  # hands the code search could not search (logged once each)
 
         # hand-type embedding c_h; last row = "unknown hand"
         self.hand_embed = HandEmbedder(len(config.hand_names), c)
@@ -218,12 +222,56 @@ class UniDexTok(
     # public tokenizer API
     # -----------------------------------------------------------------------------------------
     @torch.no_grad()
-    def encode(self, states_rad: torch.Tensor, hand: HandArg, allow_unknown: bool = False) -> torch.Tensor:
-        """(B, 22) radians -> (B, N, K) int64 codes."""
+    def encode(
+        self,
+        states_rad: torch.Tensor,
+        hand: HandArg,
+        allow_unknown: bool = False,
+        mask: torch.Tensor | None = None,
+        search_rounds: int | None = None,
+    ) -> torch.Tensor:
+        """(B, 22) radians -> (B, N, K) int64 codes.
+
+        With `search_rounds` 0 each group vector takes its nearest code (the paper's encoding); with R > 0 those
+        codes are refined by R rounds of decoder-aware search (`tokenizer.search`) over the active DoFs: `mask`
+        (B, 22) bool, or each registered hand's spec when None. `search_rounds=None` = the config's."""
         x_rad = self._check_states(states_rad)  # (B, 22)
-        c = self.hand_embed(self.hand_ids(hand, x_rad.shape[0], allow_unknown))  # (B, C)
+        ids = self.hand_ids(hand, x_rad.shape[0], allow_unknown)  # (B,)
+        c = self.hand_embed(ids)  # (B, C)
         z = self._encode_latent(x_rad, c)  # (B, N, C)
-        return self.quantizer.nearest_indices(z)  # (B, N, K) int64
+        codes = self.quantizer.nearest_indices(z)  # (B, N, K) int64
+        rounds = self.config.search_rounds if search_rounds is None else search_rounds
+        if rounds:
+            active = self.active_dofs(ids) if mask is None else torch.as_tensor(mask, device=x_rad.device)
+            if active.shape != x_rad.shape:
+                raise ValueError(f"mask must have the states' shape {tuple(x_rad.shape)}, got {tuple(active.shape)}")
+            codes = search_codes(self, x_rad, codes, c, active, rounds, self.config.search_sweeps)  # (B, N, K)
+        return codes
+
+    def active_dofs(self, ids: torch.Tensor) -> torch.Tensor:
+        """(B,) hand ids -> (B, 22) bool active DoFs of each row's hand, from the registered hand specs. Rows of
+        a hand without a registered spec (the unknown-hand row, a custom vocabulary name) get no active DoF, so
+        the code search leaves them at their nearest codes (logged once per hand)."""
+        from lerobot_unidextok import hands
+
+        unique, row_of = ids.unique(return_inverse=True)  # (U,), (B,)
+        masks, skipped = [], []
+        for i in unique.tolist():
+            name = self.config.hand_names[i] if i < self.unknown_hand_id else None
+            if name is not None and name in hands.names():
+                masks.append(torch.as_tensor(hands.get(name).active_mask, device=ids.device))
+            else:
+                masks.append(torch.zeros(self.config.state_dim, dtype=torch.bool, device=ids.device))
+                skipped.append(name or "the unknown-hand row")
+        new = [s for s in skipped if s not in self._search_skipped]
+        if new:
+            self._search_skipped.update(new)
+            logger.warning(
+                "code search skipped for %s (no registered hand spec tells the active DoFs): those rows get their "
+                "nearest codes; pass mask=(B, 22) bool to encode() to search them",
+                ", ".join(new),
+            )
+        return torch.stack(masks)[row_of]  # (B, 22)
 
     @torch.no_grad()
     def embed(self, states_rad: torch.Tensor, hand: HandArg, allow_unknown: bool = False) -> torch.Tensor:

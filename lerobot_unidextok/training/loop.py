@@ -114,7 +114,8 @@ def evaluate_mae_deg(model: UniDexTok, data: HandStates, max_frames: int, seed: 
     if len(data) > max_frames:
         rows = np.sort(np.random.default_rng(seed).choice(len(data), max_frames, replace=False))
         data = data.select(rows)
-    rec = reconstruct(model, data.states_rad, data.hands, allow_unknown=True)
+    # the nearest codes (what training optimises), whatever code search the model's config asks for at use
+    rec = reconstruct(model, data.states_rad, data.hands, allow_unknown=True, masks=data.masks, search_rounds=0)
     return mpjae_deg(rec.states_rad, data.states_rad, data.masks), codebook_usage(rec.codes, model.config.codebook_size)
 
 

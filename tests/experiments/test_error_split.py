@@ -24,6 +24,7 @@ def test_through_codes_is_the_tokenizers_reconstruction_error(model):
     assert split["coded_deg"] == pytest.approx(mpjae_deg(rec, data.states_rad, data.masks), rel=1e-5)
     assert split["unsnapped_deg"] != pytest.approx(split["coded_deg"])  # random codes: snapping moves the output
     assert -1.0 <= split["cosine"] < 0.999
+    assert split["searched_deg"] < split["coded_deg"]  # codes chosen through the decoder fit closer
 
 
 def test_codes_on_the_group_vectors_cost_nothing(model):

@@ -25,6 +25,13 @@ def result(converted_g1, tmp_path_factory) -> tuple[dict, Path]:
     return finetune.run(finetune.parse(_argv(converted_g1, out))), out
 
 
+def _scored(model, test, search_rounds: int) -> dict:
+    from lerobot_unidextok.evaluation.report import evaluate_tokenizer
+
+    model.config.search_rounds = search_rounds
+    return evaluate_tokenizer(model, test)["overall"]
+
+
 def _row(result: dict, condition: str, lr: float | None = None) -> dict:
     rows = [r for r in result["runs"] if r["condition"] == condition and (lr is None or r["lr"] == lr)]
     assert len(rows) == 1, (condition, lr, [(r["condition"], r["lr"]) for r in result["runs"]])
@@ -51,12 +58,18 @@ def test_every_row_is_scored_on_the_test_split_only(result, converted_g1):
             assert sorted(r["fit_episodes"] + r["select_episodes"]) == train_eps
             assert len(r["select_episodes"]) == 1 and not set(r["fit_episodes"]) & set(test_eps)
             assert r["best_step"] == 2 and r["train_cpu_s"] > 0
-            # its figures are its kept checkpoint's on exactly the test rows
-            again = evaluate_tokenizer(UniDexTok.from_pretrained(r["model_dir"]), test)["overall"]
+            # its figures are its kept checkpoint's on exactly the test rows, through the nearest codes and with
+            # the code search (a fine-tuned model inherits the shipped config's search; the main columns do not use it)
+            again = _scored(UniDexTok.from_pretrained(r["model_dir"]), test, 0)
             assert r["overall"] == pytest.approx({k: again[k] for k in r["overall"]}, rel=1e-9)
+            searched = _scored(UniDexTok.from_pretrained(r["model_dir"]), test, 2)
+            assert r["searched"]["mpjae_deg"] == pytest.approx(searched["mpjae_deg"], rel=1e-9)
+            assert r["searched"]["mpjae_deg"] < r["overall"]["mpjae_deg"]
     # the checkpoint row is the shipped model evaluated on exactly these rows
-    shipped = evaluate_tokenizer(UniDexTok.from_pretrained(DEFAULT_TOKENIZER), test)["overall"]
+    shipped = _scored(UniDexTok.from_pretrained(DEFAULT_TOKENIZER), test, 0)
     assert _row(res, "checkpoint as it is")["overall"]["mpjae_deg"] == pytest.approx(shipped["mpjae_deg"], rel=1e-9)
+    assert res["summary"][0]["searched_mpjae_deg"] == pytest.approx(evaluate_tokenizer(
+        UniDexTok.from_pretrained(DEFAULT_TOKENIZER), test)["overall"]["mpjae_deg"], rel=1e-9)  # the shipped encoding
 
 
 def test_finetuned_rows_start_from_the_checkpoint_and_scratch_does_not(result):

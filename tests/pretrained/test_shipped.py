@@ -15,6 +15,7 @@ import torch
 from linkerhand_udhm import subprocess_env
 
 from lerobot_unidextok import hands
+from lerobot_unidextok.evaluation.report import encoding
 from lerobot_unidextok.experiments.universal import IN_RANGE_PREFIX, in_range_figures, held_out_figures
 from lerobot_unidextok.hub.card import CARD_MARKER, card_status
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, SHIPPED, resolve, shipped_folder
@@ -79,35 +80,54 @@ def test_every_registered_hand_is_trained_or_goes_through_the_unknown_hand_path(
     assert err_deg < 2.0
 
 
-def test_the_card_table_is_the_recorded_evaluation(recorded):
-    """Every row of the card's evaluation table is a row of eval.json with the same numbers (as the card
-    formats them), and every eval.json row is in the card."""
-    text = (FOLDER / "README.md").read_text()
-    assert CARD_MARKER in text
+def _card_table(text: str, section: str) -> dict[str, list[str]]:
     rows = {}
-    for line in text.split("## Evaluation", 1)[1].split("\n## ", 1)[0].splitlines():
+    for line in text.split(f"## {section}", 1)[1].split("\n## ", 1)[0].splitlines():
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
         if len(cells) == 5 and cells[1] not in ("rows", "---"):
             rows[cells[0]] = cells[1:]
-    assert set(rows) == set(recorded["results"])
+    return rows
+
+
+@pytest.mark.parametrize(("section", "key"), [("Evaluation", "results"), ("Encoding", "nearest_codes")])
+def test_the_card_tables_are_the_recorded_evaluation(recorded, section, key):
+    """Every row of the card's evaluation table (the package's encoding) and of its nearest-codes table is a row
+    of eval.json with the same numbers (as the card formats them), and every eval.json row is in the card."""
+    text = (FOLDER / "README.md").read_text()
+    assert CARD_MARKER in text
+    rows = _card_table(text, section)
+    assert set(rows) == set(recorded[key]) and len(rows) >= 17
     for name, cells in rows.items():
-        want = recorded["results"][name]
+        want = recorded[key][name]
         assert int(cells[0]) == want["rows"]
-        for cell, key in zip(cells[1:], ("mpjae_deg", "mpjpe_mm", "fingertip_mm"), strict=True):
-            assert cell == f"{want[key]:.4g}", (name, key)
+        for cell, metric in zip(cells[1:], ("mpjae_deg", "mpjpe_mm", "fingertip_mm"), strict=True):
+            assert cell == f"{want[metric]:.4g}", (name, metric)
     assert recorded["commit"] and re.fullmatch(r"[0-9a-f]{40}", recorded["commit"])
     assert "unidextok-train --config_path=configs/train/universal.yaml" in text
 
 
+def test_the_package_encodes_with_the_code_search_its_card_reports(shipped, recorded):
+    cfg = shipped.config
+    assert (cfg.search_rounds, cfg.search_sweeps) == (2, 2)
+    assert recorded["encoding"] == encoding(cfg)
+    assert f"search_rounds={cfg.search_rounds}" in recorded["commands"]["figures"]
+
+
 def test_the_in_range_figures_are_what_the_shipped_weights_measure(shipped, recorded):
-    """Recomputed for the two recorded hands and one range-only hand (each hand's rows cost seconds)."""
-    want = {k: v for k, v in recorded["results"].items() if k.startswith(IN_RANGE_PREFIX)}
-    assert set(want) == {IN_RANGE_PREFIX + h for h in shipped.config.trained_hands}
-    got = in_range_figures(shipped, ["human", "inspire_rh56_unitree", "shadow"])
-    assert len(got) == 3
-    for name, entry in ((k, want[k]) for k in got):
-        for key, value in entry.items():
-            assert got[name][key] == pytest.approx(value, rel=1e-4, abs=1e-6), (name, key)
+    """Recomputed through the nearest codes for the two recorded hands and one range-only hand, and with the
+    package's code search for the G1's hand (the search costs about 1 ms per Inspire state, 3 per human one)."""
+    for key, search_rounds, hands_scored in [("nearest_codes", 0, ["human", "inspire_rh56_unitree", "shadow"]),
+                                             ("results", None, ["inspire_rh56_unitree"])]:  # fmt: skip
+        want = {k: v for k, v in recorded[key].items() if k.startswith(IN_RANGE_PREFIX)}
+        assert set(want) == {IN_RANGE_PREFIX + h for h in shipped.config.trained_hands}
+        model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
+        if search_rounds is not None:
+            model.config.search_rounds = search_rounds
+        got = in_range_figures(model, hands_scored)
+        assert len(got) == len(hands_scored)
+        for name, entry in ((k, want[k]) for k in got):
+            for metric, value in entry.items():
+                assert got[name][metric] == pytest.approx(value, rel=1e-4, abs=1e-6), (key, name, metric)
 
 
 @pytest.mark.slow

@@ -504,3 +504,22 @@ def test_the_default_tokenizer_is_the_shipped_universal_one_and_a_preset_only_wh
     assert untrained.pretrained is None and untrained.tokenizer.config.num_tokens == 4
     assert untrained.get_config()["tokenizer_config"] is not None  # a reload rebuilds the tiny model, not the default
     assert UniDexTokStateTokenizerStep(hand_layout=[INSPIRE], pretrained=None).tokenizer.config.trained_hands == []
+
+
+def test_search_rounds_give_a_closer_dequantized_view_and_survive_a_reload():
+    """The step encodes with the nearest codes by default (fast, a policy's features); `search_rounds` asks for
+    the decoder-aware search, which decodes closer to the state on the hands' active DoFs."""
+    states = torch.from_numpy(inspire_states(16, seed=2))  # (16, 44) two Inspire hands
+    nearest = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE])
+    searched = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE], search_rounds=1)
+    active = nearest.active_masks.reshape(-1).repeat(16, 1)  # (16, 44)
+    errors = []
+    for step in (nearest, searched):
+        _, view = step.tokenize(states)
+        errors.append(float((view - states).abs()[active].mean()))
+    assert errors[1] < 0.6 * errors[0]
+    again = UniDexTokStateTokenizerStep(**json.loads(json.dumps(searched.get_config())))
+    again.load_state_dict(searched.state_dict())  # as the pipeline reloads a step
+    assert again.search_rounds == 1 and torch.equal(again.tokenize(states)[0], searched.tokenize(states)[0])
+    with pytest.raises(ValueError, match="search_rounds"):
+        UniDexTokStateTokenizerStep(hand_layout=[INSPIRE], search_rounds=-1)
