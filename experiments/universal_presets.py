@@ -2,7 +2,7 @@
 never trained on): `linkerhand-ros2-sdk/<model>_positions.yaml`, both sides, for the models the registry has.
 Hands added by a YAML spec only (zero-shot, the unknown-hand embedding): experiments/universal_zeroshot.py.
 
-    python experiments/universal_presets.py [--real=../shared/data/real]
+    python experiments/universal_presets.py [--real=../shared/data/real] [--search_rounds=0]   # 0: nearest codes
 """
 
 from __future__ import annotations
@@ -40,8 +40,13 @@ def preset_states(real: Path) -> HandStates:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--real", type=Path, default=REPO.parent / "shared" / "data" / "real")
+    p.add_argument("--search_rounds", type=int, default=None, help="code search rounds (default: the package's)")
+    args = p.parse_args()
     model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
-    report = evaluate_tokenizer(model, preset_states(p.parse_args().real))
+    if args.search_rounds is not None:
+        model.config.search_rounds = args.search_rounds
+    report = evaluate_tokenizer(model, preset_states(args.real))
+    print(f"encoding: {report['model']['encoding']}")
     print("| hand | presets (both sides) | MPJAE (deg) | MPJPE (mm) | fingertip (mm) |\n|---|---|---|---|---|")
     for hand, e in report["per_hand"].items():
         print(f"| {hand} | {e['rows']} | {e['mpjae_deg']:.3f} | {e['mpjpe_mm']:.3f} | {e['fingertip_mm']:.3f} |")

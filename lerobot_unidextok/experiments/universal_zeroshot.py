@@ -51,6 +51,7 @@ class ZeroShotConfig:
     real_data_dir: str = ""  # the real data folder (empty = ../shared/data/real or UNIDEXTOK_REAL_DATA)
     rows: int = IN_RANGE_ROWS  # in-range states per hand (the card's count)
     seed: int = IN_RANGE_SEED  # of the in-range states (the card's seed)
+    search_rounds: int | None = None  # code search rounds (None = the checkpoint config's; 0 = nearest codes)
     output_root: str = "outputs/experiments"
 
 
@@ -133,6 +134,8 @@ def run(cfg: ZeroShotConfig) -> dict:
     if registered:
         raise ValueError(f"specs {registered} are registered hands; zero-shot needs hands outside the registry")
     model = UniDexTok.from_pretrained(cfg.checkpoint)
+    if cfg.search_rounds is not None:
+        model.config.search_rounds = cfg.search_rounds
     real_dir = Path(cfg.real_data_dir or default_real_data_dir())
     rows, presets = [], {}
     in_range = f"in-range ({cfg.rows}, seed {cfg.seed})"
@@ -148,7 +151,10 @@ def run(cfg: ZeroShotConfig) -> dict:
         rows.append(score(model, own, spec, in_range, "own"))
         copy = HandStates(own.states_rad, np.full(len(own), UNKNOWN_PREFIX + name), own.masks)
         rows.append(score(model, copy, spec, in_range, "unknown"))
-    return {"experiment": NAME, "config": asdict(cfg), "model": checkpoint_info(cfg.checkpoint, model),
+    from lerobot_unidextok.evaluation.report import encoding
+
+    return {"experiment": NAME, "config": asdict(cfg),
+            "model": {**checkpoint_info(cfg.checkpoint, model), "encoding": encoding(model.config)},
             "specs": {s.name: p for s, p in zip(specs, cfg.specs, strict=True)}, "presets": presets, "rows": rows,
             "git_commit": git_commit(), "wall_seconds": round(time.time() - t0, 1),
             "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
@@ -167,7 +173,8 @@ def run_and_write(cfg: ZeroShotConfig) -> dict:
     result = run(cfg)
     folder = Path(cfg.output_root) / NAME
     folder.mkdir(parents=True, exist_ok=True)
-    write_result(folder, NAME, result, f"# {NAME}\n\n{cfg.checkpoint}\n\n{markdown(result)}")
+    write_result(folder, NAME, result,
+                 f"# {NAME}\n\n{cfg.checkpoint} (encoding: {result['model']['encoding']})\n\n{markdown(result)}")
     return result
 
 

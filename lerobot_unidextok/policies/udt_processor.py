@@ -48,6 +48,7 @@ def insert_udt_steps(
         representation=config.udt_representation,
         allow_unknown=config.udt_allow_unknown,
         range_check=config.udt_range_check,
+        search_rounds=config.udt_search_rounds,
     )
     steps = list(pre.steps)
     after_batch = [i + 1 for i, s in enumerate(steps) if isinstance(s, AddBatchDimensionProcessorStep)]

@@ -44,12 +44,13 @@ def test_verdict_of_a_worked_example():
                 "equal_bits": {"to_match": match, "at_rate": {"mpjae_deg": within_mpjae}}}  # fmt: skip
 
     # set 1: 100 / 50 = 2x fewer bits than the measured rate, 320 / 50 = 6.4x than nominal, MPJAE 1.0 / 0.25 = 4x
-    # set 2: binning never matches 0.5 deg within 8 bits; within the rate its MPJAE is 0.5 / 0.25 = 2x lower
-    result = {"config": {"max_bits": 8}, "rows": [row(100.0, 1.0, 50.0, 0.25), row(60.0, 0.5, None, 0.25)]}
+    # set 2: binning never matches 0.05 deg within 8 bits; within the rate UniDexTok is 0.05 / 0.25 = 0.2 of it
+    result = {"config": {"max_bits": 8}, "rows": [row(100.0, 1.0, 50.0, 0.25), row(60.0, 0.05, None, 0.25)]}
     assert rd.verdict(result) == (
         "Binning reaches UniDexTok's MPJAE on 1 of 2 sets with 2.0-2.0x fewer bits than UniDexTok's measured rate "
         "(6.4-6.4x fewer than its nominal bits). On 1 of 2 sets binning needs more than b = 8. Within UniDexTok's "
-        "measured rate (b capped at 8), binning's MPJAE is 2.0-4.0x lower."
+        "measured rate (b capped at 8), binning's MPJAE is lower on 1 of 2 sets (UniDexTok's MPJAE over binning's: "
+        "0.20-4.00; below 1, UniDexTok is the more accurate)."
     )
 
 

@@ -120,6 +120,8 @@ def test_config_errors_name_the_fix(tok_dir, g1_like):
         _config(ACTUdtConfig, tok_dir).validate_features()
     with pytest.raises(ValueError, match="udt_range_check must be one of"):
         ACTUdtConfig(udt_range_check="sometimes")
+    with pytest.raises(ValueError, match="udt_search_rounds must be >= 0"):
+        ACTUdtConfig(udt_search_rounds=-1)
     meta = _Meta(g1_like["root"])
     meta.features = {**meta.features, OBS_HAND_TOKEN_FEATURES: {"dtype": "float32", "shape": (3,), "names": None}}
     cfg = _config(ACTUdtConfig, tok_dir, width=58)
@@ -178,6 +180,9 @@ def test_pre_processor_takes_the_robots_native_state(tok_dir, g1_like):
     robot = {PipelineFeatureType.OBSERVATION: {OBS_STATE: PolicyFeature(FeatureType.STATE, (26,))}}
     seen = pre.transform_features(robot)[PipelineFeatureType.OBSERVATION]
     assert {k: seen[k] for k in cfg.input_features} == cfg.input_features
+    searched = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"], udt_search_rounds=1)
+    step = next(s for s in make_act_udt_pre_post_processors(searched)[0].steps if hasattr(s, "search_rounds"))
+    assert step.search_rounds == 1 and a[OBS_HAND_TOKENS].shape == step.tokenize(converted[:1])[0].shape
     off = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"], udt_native_state=False)
     assert off.udt_native_state_layout == {}
     with pytest.raises(ValueError, match="width 26, but this step was set up for 58 columns"):
