@@ -117,7 +117,7 @@ def resolved_settings(cfg: FinetuneConfig, cond: Condition, checkpoint_id: str, 
     """Every training setting of a condition (defaults included) and what it starts from and trains on: the
     cache key of its run."""
     train = dataclasses.asdict(train_config(cfg, cond, Path(".")))
-    for volatile in ("output_dir", "progress", "datasets"):
+    for volatile in ("output_dir", "progress", "datasets", "search_rounds"):  # search: use, not training
         train.pop(volatile)
     return {"train": train, "checkpoint": checkpoint_id if cond.init_from else None, "data": data_id}
 

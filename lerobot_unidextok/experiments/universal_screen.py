@@ -81,7 +81,7 @@ def recipe_config(cfg: ScreenConfig, variant: Variant, output_dir: Path):
 
 def resolved(cfg: ScreenConfig, name: str) -> dict:
     tcfg = recipe_config(cfg, VARIANTS[name], Path("."))
-    train = {k: v for k, v in dataclasses.asdict(tcfg).items() if k not in ("output_dir", "progress")}
+    train = {k: v for k, v in dataclasses.asdict(tcfg).items() if k not in ("output_dir", "progress", "search_rounds")}
     return {"train": train, "model": VARIANTS[name].model, "range_rows": cfg.range_rows}
 
 
@@ -122,8 +122,10 @@ def run_variant(cfg: ScreenConfig, name: str, folder: Path) -> dict:
     cpu0 = time.process_time()
     res = train_tokenizer(tcfg, fit, select, model=model)
     cpu = time.process_time() - cpu0
+    best = UniDexTok.from_pretrained(res.best_dir)
+    best.config.search_rounds = 0  # variants are compared through the nearest codes, as they trained
     return {"variant": name, "steps": res.steps, "best_step": res.best_step, "train_cpu_s": round(cpu, 1),
-            **score(UniDexTok.from_pretrained(res.best_dir), select, cfg.range_rows),
+            **score(best, select, cfg.range_rows),
             "git_commit": git_commit(), "resolved": resolved(cfg, name)}  # fmt: skip
 
 

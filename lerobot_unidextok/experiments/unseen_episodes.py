@@ -160,11 +160,11 @@ def resolved_settings(cfg: UnseenConfig, name: str) -> dict:
 
     variant = VARIANTS[name]
     train = dataclasses.asdict(_train_config(cfg, variant, Path(".")))
-    for volatile in ("output_dir", "progress", "datasets"):
+    for volatile in ("output_dir", "progress", "datasets", "search_rounds"):  # search: use, not training
         train.pop(volatile)
     model = dataclasses.asdict(UniDexTokConfig.from_preset(train["preset"], **variant.model))
-    for filled_by_training in ("hand_names", "trained_hands", "joint_range_rad"):
-        model.pop(filled_by_training)
+    for not_training in ("hand_names", "trained_hands", "joint_range_rad", "search_rounds", "search_sweeps"):
+        model.pop(not_training)
     return {"train": train, "model": model}
 
 

@@ -20,6 +20,7 @@ output_dir/best (use this one), output_dir/last (resume with --resume=true), eac
 (README.md), and the per-hand evaluation of best on the test episodes as output_dir/eval.{json,md}.
 """
 
+import atexit
 import logging
 from pathlib import Path
 
@@ -50,7 +51,14 @@ def train_cli(cfg: TrainConfig) -> None:
     run(cfg)
 
 
+def _leave_process_group() -> None:
+    from lerobot_unidextok.training.distributed import leave_process_group
+
+    leave_process_group()
+
+
 def main() -> None:
+    atexit.register(_leave_process_group)  # several processes: close the group before the interpreter ends
     configure_output()
     # force: importing lerobot already gave the root logger a WARNING handler (a module-level logging.debug
     # call in lerobot.utils.import_utils), which would make this a no-op and hide our INFO lines

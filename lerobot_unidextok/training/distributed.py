@@ -65,3 +65,18 @@ def check_replicas(module: nn.Module, step: int) -> None:
             f"{' ...' if len(differ) > 8 else ''}: a state change outside the optimiser was not synchronised "
             "(see training/distributed.py)"
         )
+
+
+def leave_process_group() -> None:
+    """Destroy this process's torch.distributed group, if any (registered at exit by unidextok-train): a process
+    that exits with its gloo group alive can abort in interpreter shutdown ("terminate called without an active
+    exception", exit code -6), which accelerate then reports as a failed run."""
+    from datetime import timedelta
+
+    import torch.distributed as dist
+
+    if dist.is_available() and dist.is_initialized():
+        try:  # every process reaches the end before any tears the group (and rank 0's store) down
+            dist.monitored_barrier(timeout=timedelta(seconds=120))
+        finally:
+            dist.destroy_process_group()

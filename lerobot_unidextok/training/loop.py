@@ -98,12 +98,16 @@ def build_model(cfg: TrainConfig, train_data: HandStates | HandRowStore, **overr
         model = UniDexTok.from_pretrained(cfg.init_from)
         model.add_hands([*cfg.hand_names, *train_data.hand_names(), *resolve_range_hands(cfg.range_hands,
                                                                                          cfg.exclude_hands)])
+        if cfg.search_rounds is not None:
+            model.config.search_rounds = cfg.search_rounds
         return model
     preset = UniDexTokConfig.from_preset(cfg.preset)
     if overrides.get("input_norm", preset.input_norm) == "range" and "joint_range_rad" not in overrides:
         overrides["joint_range_rad"] = joint_ranges_rad(
             train_data, range_hands=resolve_range_hands(cfg.range_hands, cfg.exclude_hands)
         )
+    if cfg.search_rounds is not None:
+        overrides.setdefault("search_rounds", cfg.search_rounds)
     return UniDexTok(
         UniDexTokConfig.from_preset(cfg.preset, hand_names=training_vocabulary(cfg, train_data), **overrides)
     )
