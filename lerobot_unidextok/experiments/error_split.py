@@ -75,7 +75,8 @@ def run(cfg: ErrorSplitConfig) -> dict:
     if not sets:
         raise FileNotFoundError(f"none of {cfg.datasets} exists and range_rows=0: nothing to score")
     result = {"experiment": NAME, "checkpoint": cfg.checkpoint, "config": dataclasses.asdict(cfg),
-              "skipped_datasets": skipped, "sets": {name: split_errors(model, data, cfg.search_rounds) for name, data in sets.items()},
+              "skipped_datasets": skipped,
+              "sets": {name: split_errors(model, data, cfg.search_rounds) for name, data in sets.items()},
               "git_commit": git_commit(), "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
     folder = Path(cfg.output_root) / NAME
     folder.mkdir(parents=True, exist_ok=True)

@@ -139,8 +139,10 @@ def run_fold(cfg: UnseenConfig, name: str, k: int, train: HandStates, test: Hand
         "variant": name, "fold": k, "steps": res.steps, "best_step": res.best_step, "train_cpu_s": round(cpu, 1),
         "train_wall_s": round(res.seconds, 1), "fit_rows": len(fit), "select_rows": len(select),
         "test_rows": len(test), "test_episodes": int(len(np.unique(test.episode_keys()))),
-        "heldout_deg": _score(reconstruct(best, test.states_rad, test.hands, allow_unknown=True, masks=test.masks).states_rad, test),
-        "range_deg": _score(reconstruct(best, unif.states_rad, unif.hands, allow_unknown=True, masks=unif.masks).states_rad, unif),
+        "heldout_deg": _score(reconstruct(best, test.states_rad, test.hands, allow_unknown=True,
+                                          masks=test.masks).states_rad, test),
+        "range_deg": _score(reconstruct(best, unif.states_rad, unif.hands, allow_unknown=True,
+                                        masks=unif.masks).states_rad, unif),
         "git_commit": git_commit(), "resolved": resolved_settings(cfg, name),
     }  # fmt: skip
 

@@ -85,8 +85,9 @@ class UniDexTokConfig:
     # --- encoding ----------------------------------------------------------------------------------
     # Departure (option): decoder-aware code search (tokenizer/search.py). 0 = the paper's encoding, each group
     # vector snapped to its nearest code; R > 0 refines those codes by R rounds of coordinate descent on the
-    # decoder linearised around them (each round `search_sweeps` passes over the N x K positions; about 1-3 ms
-    # per state on one CPU thread for `small`). Same codes, same decoder; training always uses the nearest codes.
+    # decoder linearised around them (each round `search_sweeps` passes over the N x K positions; 2 x 2 costs
+    # `small` 1.4-2.9 ms per hand-row at batch 256, about 7 at batch 1, on one CPU thread). Same codes, same
+    # decoder; training always uses the nearest codes.
     search_rounds: int = 0
     search_sweeps: int = 2
 

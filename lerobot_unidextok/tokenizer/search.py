@@ -14,8 +14,10 @@ linearised squared error (radians, active DoFs). A round ends with an exact deco
 started the round with unless the exact error went down, so the search never makes a row worse on its
 objective. Same tokens, same decoder: analysis by synthesis, as speech codecs pick their codebook entries (CELP).
 
-Cost: one Jacobian (22 decoder backward passes) per round; about 1 ms per state on one CPU thread for the
-`small` preset (`benchmarks/bench_processor.py`), against 0.005 ms for the nearest codes at batch 256.
+Cost: per round one Jacobian (a backward pass through one copy of the batch per active DoF) and N*K*sweeps small
+steps. For the `small` preset, 2 rounds x 2 sweeps, one CPU thread (`benchmarks/bench_processor.py --search_rounds
+2`, two 6-DoF Inspire hands): 1.4 ms per hand-row at batch 256 and 14 ms per frame at batch 1, against 0.08 and
+1.1 ms for the nearest codes; hands with more DoFs cost more (the card's 14 hands: 2.9 ms per row on average).
 """
 
 import torch

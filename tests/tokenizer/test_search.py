@@ -37,7 +37,8 @@ def test_decoder_jacobian_matches_autograd_on_a_random_model():
     outputs = torch.tensor([0, 5, 21])
     got = decoder_jacobian(model, zq, cond, outputs)  # (3, 3, N, C)
     for b in range(3):
-        full = torch.autograd.functional.jacobian(lambda z, b=b: model._decode_latent(z[None], cond[b : b + 1])[0], zq[b])
+        decode = lambda z, b=b: model._decode_latent(z[None], cond[b : b + 1])[0]  # noqa: E731
+        full = torch.autograd.functional.jacobian(decode, zq[b])  # (22, N, C)
         torch.testing.assert_close(got[b], full[outputs], rtol=1e-4, atol=1e-6)
 
 
