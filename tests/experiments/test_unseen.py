@@ -37,6 +37,12 @@ def test_unseen_episodes_kfold_scores_each_episode_once_and_caches_runs(converte
         assert runs["binning_8bit", k]["heldout_deg"]["all"] < 0.5  # 256 bins over ranges of a few radians
     s = result["summary"]["shipped"]
     assert s["folds"] == 2 and s["heldout_min"] <= s["heldout_mean"] <= s["heldout_max"]
+    # the same models scored with the code search: closer on both sets (the search never worsens a row)
+    for k in (0, 1):
+        r = runs["shipped", k]
+        assert r["search_rounds"] == 2 and r["heldout_searched_deg"]["all"] < r["heldout_deg"]["all"]
+        assert r["range_searched_deg"]["all"] < r["range_deg"]["all"]
+    assert s["heldout_searched_mean"] < s["heldout_mean"]
     cache = tmp_path / "unseen_episodes" / "runs_tiny.jsonl"
     lines = cache.read_text().splitlines()
     assert len(lines) == 2 and all(json.loads(line)["variant"] == "shipped" for line in lines)
@@ -45,6 +51,12 @@ def test_unseen_episodes_kfold_scores_each_episode_once_and_caches_runs(converte
     assert len(cache.read_text().splitlines()) == 2
     assert again["summary"]["shipped"]["heldout_mean"] == s["heldout_mean"]
     assert "| shipped | 2 |" in (tmp_path / "unseen_episodes" / "unseen_episodes.md").read_text()
+    # a run cached without the searched score (an older cache, or --search_rounds=0) trains again when asked for it
+    plain = unseen_episodes.run(unseen_episodes.parse([*argv, "--search_rounds=0", f"--output_root={tmp_path / 'p'}"]))
+    assert "heldout_searched_mean" not in plain["summary"]["shipped"]
+    again = unseen_episodes.run(unseen_episodes.parse([*argv, f"--output_root={tmp_path / 'p'}"]))
+    assert len((tmp_path / "p" / "unseen_episodes" / "runs_tiny.jsonl").read_text().splitlines()) == 4
+    assert again["summary"]["shipped"]["heldout_mean"] == pytest.approx(s["heldout_mean"])  # deterministic
 
 
 def test_unseen_episodes_rejects_unknown_variants(converted_linker, tmp_path):
