@@ -6,7 +6,8 @@ searched for, `quantizer.unit_groups`). The second error is what the same networ
 fine codes; the difference is the cost of snapping to 32 codes per group. The mean cosine between each group
 vector and its code says how close the encoder already puts its vectors to the codes. A third path keeps the
 codes but picks them with the decoder-aware code search (`tokenizer/search.py`, `--search_rounds` rounds of
-`search_sweeps` in the model's config): how much of the snapping cost better-chosen codes win back.
+`search_sweeps` in the model's config): how much of the snapping cost better-chosen codes win back. Last, how
+stable each encoding is: the share of code positions that change when every active joint moves by NUDGE_DEG.
 
     python experiments/error_split.py                         # the shipped unidextok/universal-small
     python experiments/error_split.py --checkpoint=outputs/unidextok_universal/best
@@ -25,6 +26,7 @@ from lerobot_unidextok.experiments.common import git_commit, md_table
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 
 NAME = "error_split"
+NUDGE_DEG = 0.5  # joint motion for the codes' sensitivity: about the tokenizer's own error
 
 
 @dataclass
@@ -41,7 +43,8 @@ class ErrorSplitConfig:
 
 
 def split_errors(model, data, search_rounds: int = 2) -> dict:
-    """{rows, coded_deg, unsnapped_deg, searched_deg, cosine} of one set of hand states (`HandStates`)."""
+    """{rows, coded_deg, unsnapped_deg, searched_deg, cosine, changed_nearest, changed_searched} of one set of
+    hand states (`HandStates`)."""
     import torch
 
     from lerobot_unidextok.evaluation import mpjae_deg
@@ -61,7 +64,22 @@ def split_errors(model, data, search_rounds: int = 2) -> dict:
         searched = model._decode_latent(vq.get_output_from_indices(found), c)  # (B, 22)
     return {"rows": len(x), "coded_deg": mpjae_deg(coded.numpy(), data.states_rad, data.masks),
             "unsnapped_deg": mpjae_deg(unsnapped.numpy(), data.states_rad, data.masks),
-            "searched_deg": mpjae_deg(searched.numpy(), data.states_rad, data.masks), "cosine": float(cosine)}  # fmt: skip
+            "searched_deg": mpjae_deg(searched.numpy(), data.states_rad, data.masks), "cosine": float(cosine),
+            "changed_nearest": changed_share(model, x, data, codes, 0),
+            "changed_searched": changed_share(model, x, data, found, search_rounds)}  # fmt: skip
+
+
+def changed_share(model, x, data, codes, search_rounds: int) -> float:
+    """Mean share of the N x K code positions that change when every active joint of every row moves by
+    NUDGE_DEG (random sign, seed 0), the codes picked as in `codes` (the nearest codes for 0 rounds)."""
+    import numpy as np
+    import torch
+
+    signs = np.random.default_rng(0).choice([-1.0, 1.0], size=data.states_rad.shape)  # (B, 22)
+    moved = x + torch.as_tensor(np.radians(NUDGE_DEG) * signs * data.masks, dtype=torch.float32)  # (B, 22)
+    again = model.encode(moved, list(data.hands), allow_unknown=True, mask=torch.tensor(data.masks),
+                         search_rounds=search_rounds)  # (B, N, K)
+    return float((again != codes).float().mean())
 
 
 def run(cfg: ErrorSplitConfig) -> dict:
@@ -87,18 +105,24 @@ def run(cfg: ErrorSplitConfig) -> dict:
 
 def markdown(result: dict) -> str:
     rows = [[name, s["rows"], f"{s['coded_deg']:.3f}", f"{s['unsnapped_deg']:.3f}",
-             f"{s['coded_deg'] - s['unsnapped_deg']:+.3f}", f"{s['cosine']:.5f}", f"{s['searched_deg']:.3f}"]
+             f"{s['coded_deg'] - s['unsnapped_deg']:+.3f}", f"{s['cosine']:.5f}", f"{s['searched_deg']:.3f}",
+             _share(s.get("changed_nearest")), _share(s.get("changed_searched"))]
             for name, s in result["sets"].items()]  # fmt: skip
     note = f" Skipped (absent): {', '.join(result['skipped_datasets'])}." if result["skipped_datasets"] else ""
     return "\n".join([
         f"# {NAME}", "",
         f"Checkpoint `{result['checkpoint']}`. MPJAE (deg) through the codes, and with the decoder fed the "
         "unsnapped group vectors (no code snapping); cosine = mean cosine between a group vector and its code; "
-        f"searched = through codes picked by the code search ({result['config']['search_rounds']} round(s))."
-        + note, "",
+        f"searched = through codes picked by the code search ({result['config']['search_rounds']} round(s)); "
+        f"codes changed = mean share of the 64 code positions that change when every active joint moves by "
+        f"{NUDGE_DEG} deg, nearest / searched." + note, "",
         md_table(["set", "rows", "through codes (deg)", "unsnapped (deg)", "snapping costs (deg)", "cosine",
-                  "searched (deg)"], rows),
+                  "searched (deg)", "codes changed, nearest", "codes changed, searched"], rows),
     ])  # fmt: skip
+
+
+def _share(x: float | None) -> str:
+    return "-" if x is None else f"{x:.2f}"
 
 
 def parse(argv: list[str] | None = None) -> ErrorSplitConfig:

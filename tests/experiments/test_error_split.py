@@ -25,6 +25,7 @@ def test_through_codes_is_the_tokenizers_reconstruction_error(model):
     assert split["unsnapped_deg"] != pytest.approx(split["coded_deg"])  # random codes: snapping moves the output
     assert -1.0 <= split["cosine"] < 0.999
     assert split["searched_deg"] < split["coded_deg"]  # codes chosen through the decoder fit closer
+    assert 0.0 <= split["changed_nearest"] <= 1.0 and 0.0 <= split["changed_searched"] <= 1.0
 
 
 def test_codes_on_the_group_vectors_cost_nothing(model):
