@@ -33,13 +33,13 @@ import numpy as np
 from lerobot_unidextok.experiments import runtime
 from lerobot_unidextok.experiments.common import git_commit, md_table
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.tokenizer.configuration_unidextok import ENCODING_FIELDS
 from lerobot_unidextok.utils.files import fingerprint
 
 logger = logging.getLogger(__name__)
 NAME = "finetune"
 METRICS = ("mpjae_deg", "mpjpe_mm", "fingertip_mm")
 SCRATCH, FINETUNED, CHECKPOINT = "scratch", "fine-tuned", "checkpoint as it is"
-USE_SETTINGS = ("search_rounds", "search_sweeps")  # config fields that change encoding only, not training
 
 
 @dataclass
@@ -117,8 +117,9 @@ def resolved_settings(cfg: FinetuneConfig, cond: Condition, checkpoint_id: str, 
     """Every training setting of a condition (defaults included) and what it starts from and trains on: the
     cache key of its run."""
     train = dataclasses.asdict(train_config(cfg, cond, Path(".")))
-    for volatile in ("output_dir", "progress", "datasets", "search_rounds"):  # search: use, not training
+    for volatile in ("output_dir", "progress", "datasets"):
         train.pop(volatile)
+    train = {k: v for k, v in train.items() if k not in ENCODING_FIELDS}
     return {"train": train, "checkpoint": checkpoint_id if cond.init_from else None, "data": data_id}
 
 
@@ -130,7 +131,7 @@ def model_fingerprint(model) -> str:
     """Of a model's config and every tensor of its state dict: changes when a checkpoint is retrained, not with
     the settings of its use (the code search, which training never runs)."""
     tensors = [t.detach().cpu().numpy() for t in model.state_dict().values()]
-    config = {k: v for k, v in dataclasses.asdict(model.config).items() if k not in USE_SETTINGS}
+    config = {k: v for k, v in dataclasses.asdict(model.config).items() if k not in ENCODING_FIELDS}
     return fingerprint(config, *tensors)
 
 

@@ -197,7 +197,8 @@ def run(cfg: RateDistortionConfig) -> dict:
     folder.mkdir(parents=True, exist_ok=True)
     png = plot(rows, folder / f"{NAME}.png")
     result = {"experiment": NAME, "command": command_line(cfg), "config": dataclasses.asdict(cfg),
-              "tokenizer": {**checkpoint_about(cfg.checkpoint), "encoding": encoding(model.config)}, "rows": rows, "figures": {"rate_distortion": str(png)},
+              "tokenizer": {**checkpoint_about(cfg.checkpoint), "encoding": encoding(model.config)}, "rows": rows,
+              "figures": {"rate_distortion": str(png)},
               "provenance": provenance(cfg, rows, time.time() - t0)}  # fmt: skip
     (folder / f"{NAME}.json").write_text(json.dumps(result, indent=2))
     (folder / f"{NAME}.md").write_text(markdown(result) + "\n")
@@ -291,7 +292,8 @@ def markdown(result: dict) -> str:
                else "no training_state.json")  # fmt: skip
     return "\n".join([
         f"# {NAME}", "",
-        f"Tokenizer `{tok['checkpoint']}` ({trained}; encoding: {tok.get('encoding', 'nearest codes')}) against per-joint uniform binning over each hand's "
+        f"Tokenizer `{tok['checkpoint']}` ({trained}; encoding: {tok.get('encoding', 'nearest codes')}) against "
+        "per-joint uniform binning over each hand's "
         "registered range at b bits per active joint, on each set's rows (one hand per set; test episodes never "
         f"trained on; in-range states: uniform inside the hand's registered ranges, seed {result['config']['range_seed']}). "
         "Nominal bits: UniDexTok N x K x log2(codebook size), binning b x DoFs. Measured rate: the sum over code "

@@ -81,7 +81,10 @@ def recipe_config(cfg: ScreenConfig, variant: Variant, output_dir: Path):
 
 def resolved(cfg: ScreenConfig, name: str) -> dict:
     tcfg = recipe_config(cfg, VARIANTS[name], Path("."))
-    train = {k: v for k, v in dataclasses.asdict(tcfg).items() if k not in ("output_dir", "progress", "search_rounds")}
+    from lerobot_unidextok.tokenizer.configuration_unidextok import ENCODING_FIELDS
+
+    skip = ("output_dir", "progress", *ENCODING_FIELDS)
+    train = {k: v for k, v in dataclasses.asdict(tcfg).items() if k not in skip}
     return {"train": train, "model": VARIANTS[name].model, "range_rows": cfg.range_rows}
 
 

@@ -169,15 +169,17 @@ def binning_fold(k: int, test: HandStates, fit: HandStates, range_n: int) -> dic
 def resolved_settings(cfg: UnseenConfig, name: str) -> dict:
     """Every training and model setting of a variant (defaults included): the cache key of its runs."""
     from lerobot_unidextok.tokenizer import UniDexTokConfig
+    from lerobot_unidextok.tokenizer.configuration_unidextok import ENCODING_FIELDS
 
     variant = VARIANTS[name]
     train = dataclasses.asdict(_train_config(cfg, variant, Path(".")))
-    for volatile in ("output_dir", "progress", "datasets", "search_rounds"):  # search: use, not training
+    for volatile in ("output_dir", "progress", "datasets"):
         train.pop(volatile)
     model = dataclasses.asdict(UniDexTokConfig.from_preset(train["preset"], **variant.model))
-    for not_training in ("hand_names", "trained_hands", "joint_range_rad", "search_rounds", "search_sweeps"):
-        model.pop(not_training)
-    return {"train": train, "model": model}
+    for filled_by_training in ("hand_names", "trained_hands", "joint_range_rad"):
+        model.pop(filled_by_training)
+    drop = lambda d: {k: v for k, v in d.items() if k not in ENCODING_FIELDS}  # noqa: E731
+    return {"train": drop(train), "model": drop(model)}
 
 
 def _key(r: dict) -> tuple:

@@ -7,6 +7,10 @@ from lerobot_unidextok.constants import UDHM_DIM
 # Bump when a change makes old checkpoints unloadable (layer names, shapes, semantics of fields).
 FORMAT_VERSION = 1
 
+# Config fields (of UniDexTokConfig, and of TrainConfig where it has them) that only change how `encode` picks
+# codes at use, never training: cache keys and fingerprints of trainings leave them out.
+ENCODING_FIELDS: tuple[str, ...] = ("search_rounds", "search_sweeps")
+
 # Hand-type vocabulary used for conditioning by default. Names are hand-spec names (side-independent);
 # any other name maps to the "unknown hand" embedding when `allow_unknown=True`.
 DEFAULT_HAND_NAMES: tuple[str, ...] = (
