@@ -125,9 +125,13 @@ def test_the_in_range_figures_are_what_the_shipped_weights_measure(shipped, reco
             model.config.search_rounds = search_rounds
         got = in_range_figures(model, hands_scored)
         assert len(got) == len(hands_scored)
+        # The nearest codes are a continuous function of the weights: equal to 1e-4 on any CPU. The search makes
+        # discrete choices on sums whose rounding differs between CPUs and BLAS builds (on an AMD EPYC it picked
+        # other codes for a few states: 0.04232 against the recorded 0.04230 deg), so its figures agree to 1 %.
+        rel = 1e-4 if search_rounds == 0 else 1e-2
         for name, entry in ((k, want[k]) for k in got):
             for metric, value in entry.items():
-                assert got[name][metric] == pytest.approx(value, rel=1e-4, abs=1e-6), (key, name, metric)
+                assert got[name][metric] == pytest.approx(value, rel=rel, abs=1e-6), (key, name, metric)
 
 
 @pytest.mark.slow
