@@ -23,15 +23,9 @@ from lerobot_unidextok.udhm.fk import slots_to_angles
 from lerobot_unidextok.udhm.frames import palm_frame, to_canonical
 from lerobot_unidextok.udhm.ik import _initial_slots
 from lerobot_unidextok.udhm.joints import JOINT_LIMITS_RAD
+from lerobot_unidextok.utils.shared_data import real_data_dir
 
-CLIP = (
-    Path(__file__).resolve().parents[1].parent
-    / "shared"
-    / "data"
-    / "real"
-    / "dex-retargeting"
-    / "human_joint_right.npy"
-)
+CLIP = real_data_dir(Path(__file__).resolve().parents[1]) / "dex-retargeting" / "human_joint_right.npy"
 LIMIT_WEIGHT_M_PER_RAD = 1.0
 
 

@@ -4,7 +4,7 @@ Runs the real `lerobot-train` (its `main()`, in this process) with the given fla
 `update_policy` (forward, backward, optimiser step) with `time.process_time()`; data loading is outside it.
 Prints the CPU seconds of each update and the size of the saved checkpoint (model + processors + optimiser state).
 
-    OMP_NUM_THREADS=1 python benchmarks/bench_policy_step.py --config_path=configs/lerobot/act_udt.yaml \
+    OMP_NUM_THREADS=1 python benchmarks/bench_policy_step.py --config_path=lerobot/act_udt \
         --dataset.repo_id=lab/g1_udhm --dataset.root=data/g1_udhm --policy.udt_pretrained=<tokenizer> \
         --batch_size=8 --steps=4 --save_freq=4 --num_workers=0 --output_dir=outputs/bench_act_udt
 

@@ -18,15 +18,16 @@ from __future__ import annotations
 
 import argparse
 import logging
-import os
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.utils.shared_data import real_data_dir
+
 REPO = Path(__file__).resolve().parents[1]
-REAL = Path(os.environ.get("UNIDEXTOK_REAL_DATA", REPO.parent / "shared" / "data" / "real")) / "g1-inspire"
+REAL = real_data_dir(REPO) / "g1-inspire"
 HANDS = {"hands": {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}}
 
 

@@ -1,6 +1,359 @@
-"""`python experiments/rate_distortion.py [--<field>=<value> ...]` (see `--help`)."""
+"""Rate-distortion of a UniDexTok checkpoint against per-joint uniform binning, at equal bits per hand state.
 
-from lerobot_unidextok.experiments.rate_distortion import main
+    python experiments/rate_distortion.py                                   # the shipped unidextok/universal-small
+    python experiments/rate_distortion.py --checkpoint=outputs/unidextok_universal/best --range_rows=1000
+
+Evaluation sets, one hand each: the test split of each converted dataset (default: the real G1 Inspire
+recordings and the real human clip as `experiments/universal_data.py` converts them), and every registered
+hand on `range_rows` states uniform inside its registered joint ranges (`training.coverage.range_states`, seed
+`range_seed`; the card's in-range figures use seed 0, so this set is a different draw). Per set:
+
+- UniDexTok: nominal bits = N tokens x K groups x log2(codebook size); measured rate = the sum over the N x K
+  code positions of the empirical (plug-in) entropy of that position's code on the set, an upper bound of
+  the joint entropy of the codes (the positions are not independent), itself estimated from the set's rows
+  (a plug-in estimate is biased low on small sets: at most log2(rows) bits per position); MPJAE (deg).
+- Per-joint uniform binning over the hand's registered range (`unseen_data.hand_binning`) at b = 1..`max_bits`
+  bits per active joint: nominal bits = b x active DoFs, the same entropy of its codes, MPJAE.
+- Binning at equal bits: binning at the largest b whose nominal bits fit in UniDexTok's measured rate, and
+  the smallest b whose MPJAE matches or beats UniDexTok's (the bits binning needs for UniDexTok's error).
+
+Writes `<output_root>/rate_distortion/rate_distortion.{json,md}` and `rate_distortion.png`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on sys.path, for `experiments.*`
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from experiments import runtime
+from experiments.common import git_commit, md_table
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.training import HandStates
+
+NAME = "rate_distortion"
+DEFAULT_DATASETS = ("outputs/universal_data/g1_inspire", "outputs/universal_data/human_clip")
+DATA_COMMAND = "python experiments/universal_data.py --out=outputs/universal_data"
+
+
+@dataclass
+class RateDistortionConfig:
+    # Tokenizer checkpoint: a local folder, a shipped id or a Hub repo id.
+    checkpoint: str = DEFAULT_TOKENIZER
+    # Converted UDHM datasets (local roots) scored on their test split, one set per hand in each.
+    datasets: list[str] = field(default_factory=lambda: list(DEFAULT_DATASETS))
+    # Registered hands scored on states uniform inside their registered ranges; empty = every registered hand.
+    range_hands: list[str] = field(default_factory=list)
+    range_rows: int = 5000  # in-range states per hand (0 = no in-range sets)
+    range_seed: int = 1  # not 0: the card's in-range figures use seed 0
+    max_bits: int = 12  # binning at b = 1..max_bits bits per active joint
+    # Code search rounds when encoding (docs/tokenizer.md "Code search"): None = the checkpoint config's,
+    # 0 = the nearest codes (the paper's encoding).
+    search_rounds: int | None = None
+    output_root: str = "outputs/experiments"
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.max_bits <= 16:
+            raise ValueError(f"max_bits must be in [1, 16], got {self.max_bits}")
+        if self.range_rows < 0:
+            raise ValueError(f"range_rows must be >= 0, got {self.range_rows}")
+        if self.search_rounds is not None and self.search_rounds < 0:
+            raise ValueError(f"search_rounds must be >= 0 (0 = nearest codes), got {self.search_rounds}")
+        if self.range_seed == 0:
+            raise ValueError("range_seed 0 draws the card's own in-range states; pick another seed, e.g. 1")
+        if not self.datasets and self.range_rows == 0:
+            raise ValueError("nothing to score: pass --datasets='[...]' or --range_rows > 0")
+
+
+# ---------------------------------------------------------------------------------------------
+# rate arithmetic
+# ---------------------------------------------------------------------------------------------
+def entropy_bits(codes: np.ndarray) -> np.ndarray:
+    """(M, P) integer codes -> (P,) empirical entropy in bits of each position's code over the M rows."""
+    codes = np.asarray(codes)
+    if codes.ndim != 2 or codes.shape[0] == 0:
+        raise ValueError(f"codes must be (rows, positions) with rows >= 1, got shape {codes.shape}")
+    out = np.zeros(codes.shape[1])
+    for p in range(codes.shape[1]):
+        _, counts = np.unique(codes[:, p], return_counts=True)
+        q = counts / codes.shape[0]
+        out[p] = max(0.0, float(-(q * np.log2(q)).sum()))
+    return out
+
+
+def measured_rate_bits(codes: np.ndarray) -> float:
+    """Sum over code positions of each position's empirical entropy (bits per state)."""
+    return float(entropy_bits(codes).sum())
+
+
+def unidextok_point(model, data: HandStates) -> dict:
+    """Nominal bits, measured rate (bits) and MPJAE (deg) of `model` on `data` (one hand)."""
+    from lerobot_unidextok.evaluation import mpjae_deg, reconstruct
+
+    cfg = model.config
+    rec = reconstruct(model, data.states_rad, data.hands, allow_unknown=True, masks=data.masks)
+    return {
+        "nominal_bits": cfg.num_tokens * cfg.num_groups * math.log2(cfg.codebook_size),
+        "rate_bits": measured_rate_bits(rec.codes.reshape(len(data), -1)),
+        "mpjae_deg": mpjae_deg(rec.states_rad, data.states_rad, data.masks),
+    }
+
+
+def binning_point(data: HandStates, bits: int) -> dict:
+    """Per-joint uniform binning at `bits` bits per active joint on `data` (one hand)."""
+    from experiments.unseen_data import hand_binning
+    from lerobot_unidextok.evaluation import mpjae_deg
+
+    hand = _one_hand(data)
+    binning = hand_binning(hand, 2**bits)
+    codes = binning.encode(data.states_rad, hand)  # (M, active DoFs)
+    pred = binning.decode(codes, hand).numpy()
+    return {
+        "bits": bits,
+        "nominal_bits": float(binning.rate(hand).bits_per_state),
+        "rate_bits": measured_rate_bits(codes.numpy()),
+        "mpjae_deg": mpjae_deg(pred, data.states_rad, data.masks),
+    }
+
+
+def equal_bits(unidextok: dict, curve: list[dict]) -> dict:
+    """Binning (curve sorted by b) at the largest b whose nominal bits <= UniDexTok's measured rate, and at the
+    smallest b whose MPJAE <= UniDexTok's; None where no b of the curve qualifies."""
+    fits = [c for c in curve if c["nominal_bits"] <= unidextok["rate_bits"]]
+    beats = [c for c in curve if c["mpjae_deg"] <= unidextok["mpjae_deg"]]
+    return {"at_rate": fits[-1] if fits else None, "to_match": beats[0] if beats else None}
+
+
+def _one_hand(data: HandStates) -> str:
+    names = data.hand_names()
+    if len(names) != 1:
+        raise ValueError(f"an evaluation set holds one hand, got {names}")
+    return names[0]
+
+
+# ---------------------------------------------------------------------------------------------
+# evaluation sets and the run
+# ---------------------------------------------------------------------------------------------
+def evaluation_sets(cfg: RateDistortionConfig) -> dict[str, HandStates]:
+    """{label: one hand's rows}: each dataset's test episodes per hand, then each hand's in-range states."""
+    return test_and_range_sets(cfg.datasets, cfg.range_hands, cfg.range_rows, cfg.range_seed)
+
+
+def test_and_range_sets(datasets: list[str], range_hands: list[str], range_rows: int,
+                        range_seed: int) -> dict[str, HandStates]:  # fmt: skip
+    """{label: one hand's rows}: each converted dataset's test episodes per hand, then `range_rows` states
+    uniform inside each of `range_hands`' registered ranges (empty = every registered hand; 0 rows = none)."""
+    from lerobot_unidextok import hands
+    from lerobot_unidextok.training import load_hand_states
+    from lerobot_unidextok.training.coverage import range_states
+
+    sets = {}
+    for root in datasets:
+        if not Path(root).is_dir():
+            raise FileNotFoundError(f"{root}: no converted dataset there; write it with `{DATA_COMMAND}` "
+                                    "or pass --datasets='[<converted root>,...]'")  # fmt: skip
+        data = load_hand_states([root], split="test")
+        for hand in data.hand_names():
+            sets[f"{Path(root).name} test episodes: {hand}"] = data.only(hand)
+    if range_rows:
+        for hand in range_hands or list(hands.names()):
+            sets[f"in-range states: {hand}"] = range_states(hand, range_rows, range_seed)
+    return sets
+
+
+def checkpoint_about(checkpoint: str) -> dict:
+    """The checkpoint as given and its training steps and chosen step (its folder's training_state.json), if any."""
+    from lerobot_unidextok.pretrained import resolve
+
+    folder = Path(resolve(checkpoint))
+    state_file = folder / "training_state.json"
+    state = json.loads(state_file.read_text()) if state_file.is_file() else {}
+    return {"checkpoint": checkpoint, "steps": state.get("steps"), "best_step": state.get("step")}
+
+
+def run(cfg: RateDistortionConfig) -> dict:
+    from lerobot_unidextok.evaluation.report import encoding
+    from lerobot_unidextok.tokenizer import UniDexTok
+
+    t0 = time.time()
+    model = UniDexTok.from_pretrained(cfg.checkpoint)
+    model.eval()
+    if cfg.search_rounds is not None:
+        model.config.search_rounds = cfg.search_rounds
+    rows = []
+    for label, data in evaluation_sets(cfg).items():
+        hand = _one_hand(data)
+        udt = unidextok_point(model, data)
+        curve = [binning_point(data, b) for b in range(1, cfg.max_bits + 1)]
+        rows.append({"set": label, "hand": hand, "rows": len(data), "dofs": int(data.masks.any(0).sum()),
+                     "known_hand": model.knows_hand(hand), "unidextok": udt, "binning": curve,
+                     "equal_bits": equal_bits(udt, curve)})  # fmt: skip
+    folder = Path(cfg.output_root) / NAME
+    folder.mkdir(parents=True, exist_ok=True)
+    png = plot(rows, folder / f"{NAME}.png")
+    result = {"experiment": NAME, "command": command_line(cfg), "config": dataclasses.asdict(cfg),
+              "tokenizer": {**checkpoint_about(cfg.checkpoint), "encoding": encoding(model.config)}, "rows": rows,
+              "figures": {"rate_distortion": str(png)},
+              "provenance": provenance(cfg, rows, time.time() - t0)}  # fmt: skip
+    (folder / f"{NAME}.json").write_text(json.dumps(result, indent=2))
+    (folder / f"{NAME}.md").write_text(markdown(result) + "\n")
+    return result
+
+
+def command_line(cfg: RateDistortionConfig) -> str:
+    """`python experiments/rate_distortion.py` with every flag that differs from the defaults."""
+    flags = []
+    for f in dataclasses.fields(cfg):
+        value, default = getattr(cfg, f.name), getattr(RateDistortionConfig(), f.name)
+        if value != default:
+            flags.append(f"--{f.name}='[{','.join(map(str, value))}]'" if isinstance(value, list) else f"--{f.name}={value}")
+    return " ".join(["python experiments/rate_distortion.py", *flags])
+
+
+def provenance(cfg: RateDistortionConfig, rows: list[dict], seconds: float) -> dict:
+    """What `make_results` prints above the tables (no training: the checkpoint instead of a preset)."""
+    source = "real" if list(cfg.datasets) == list(DEFAULT_DATASETS) else "datasets"
+    return {"data": {"source": source, "synthetic_sample": False, "datasets": list(cfg.datasets),
+                     "test_rows": sum(r["rows"] for r in rows if "test episodes" in r["set"]),
+                     "hands": sorted({r["hand"] for r in rows})},
+            "checkpoint": checkpoint_about(cfg.checkpoint), "seed": cfg.range_seed, "git_commit": git_commit(),
+            "config": dataclasses.asdict(cfg), "wall_seconds": round(seconds, 1),
+            "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------------------
+# tables and figure
+# ---------------------------------------------------------------------------------------------
+def _binning_cell(c: dict | None, what: str) -> str:
+    if c is None:
+        return f"none at b <= {what}"
+    return f"{c['bits']} ({c['nominal_bits']:.0f} bits): {c['mpjae_deg']:.3f}"
+
+
+def summary_table(result: dict) -> str:
+    """One row per set: UniDexTok's bits and MPJAE next to binning at equal bits."""
+    max_bits = result["config"]["max_bits"]
+    rows = []
+    for r in result["rows"]:
+        u, eq = r["unidextok"], r["equal_bits"]
+        name = r["set"] if r["known_hand"] else f"{r['set']} (unknown hand)"
+        rows.append([name, r["rows"], r["dofs"], f"{u['nominal_bits']:.0f}", f"{u['rate_bits']:.1f}",
+                     f"{u['mpjae_deg']:.3f}", _binning_cell(eq["at_rate"], str(max_bits)),
+                     _binning_cell(eq["to_match"], str(max_bits))])  # fmt: skip
+    return md_table(["set", "rows", "DoFs", "UniDexTok nominal bits", "UniDexTok measured rate (bits)",
+                     "UniDexTok MPJAE (deg)", f"binning, largest b <= {max_bits} within that rate: b (bits): MPJAE",
+                     "binning, smallest b matching UniDexTok: b (bits): MPJAE"], rows)  # fmt: skip
+
+
+def verdict(result: dict) -> str:
+    """Over the sets: how many times fewer bits binning needs for UniDexTok's MPJAE, and how many times lower
+    binning's MPJAE is within UniDexTok's measured rate."""
+    rows, max_bits = result["rows"], result["config"]["max_bits"]
+    match = [r for r in rows if r["equal_bits"]["to_match"]]
+    within = [r for r in rows if r["equal_bits"]["at_rate"]]
+
+    def span(values: list[float]) -> str:
+        return f"{min(values):.1f}-{max(values):.1f}x"
+
+    parts = []
+    if match:
+        need = [r["equal_bits"]["to_match"]["nominal_bits"] for r in match]
+        parts.append(
+            f"Binning reaches UniDexTok's MPJAE on {len(match)} of {len(rows)} sets with "
+            f"{span([r['unidextok']['rate_bits'] / n for r, n in zip(match, need, strict=True)])} fewer bits than "
+            f"UniDexTok's measured rate ({span([r['unidextok']['nominal_bits'] / n for r, n in zip(match, need, strict=True)])} "
+            "fewer than its nominal bits)."
+        )
+    if len(match) < len(rows):
+        parts.append(f"On {len(rows) - len(match)} of {len(rows)} sets binning needs more than b = {max_bits}.")
+    if within:
+        ratios = [r["unidextok"]["mpjae_deg"] / r["equal_bits"]["at_rate"]["mpjae_deg"] for r in within]
+        ahead = sum(x > 1 for x in ratios)
+        parts.append(f"Within UniDexTok's measured rate (b capped at {max_bits}), binning's MPJAE is lower on {ahead} "
+                     f"of {len(within)} sets (UniDexTok's MPJAE over binning's: {min(ratios):.2f}-{max(ratios):.2f}; "
+                     "below 1, UniDexTok is the more accurate).")
+    return " ".join(parts)
+
+
+def curve_table(result: dict, key: str, digits: int) -> str:
+    bits = [c["bits"] for c in result["rows"][0]["binning"]] if result["rows"] else []
+    rows = [[r["set"], *(f"{c[key]:.{digits}f}" for c in r["binning"])] for r in result["rows"]]
+    return md_table(["set", *(f"b={b}" for b in bits)], rows)
+
+
+def markdown(result: dict) -> str:
+    tok = result["tokenizer"]
+    trained = (f"{tok['steps']} training steps, checkpoint of step {tok['best_step']}" if tok.get("steps")
+               else "no training_state.json")  # fmt: skip
+    return "\n".join([
+        f"# {NAME}", "",
+        f"Tokenizer `{tok['checkpoint']}` ({trained}; encoding: {tok.get('encoding', 'nearest codes')}) against "
+        "per-joint uniform binning over each hand's "
+        "registered range at b bits per active joint, on each set's rows (one hand per set; test episodes never "
+        f"trained on; in-range states: uniform inside the hand's registered ranges, seed {result['config']['range_seed']}). "
+        "Nominal bits: UniDexTok N x K x log2(codebook size), binning b x DoFs. Measured rate: the sum over code "
+        "positions of each position's empirical code entropy on the set (an upper bound of the codes' joint "
+        "entropy, estimated from the set's rows: at most log2(rows) bits per position). MPJAE in degrees over "
+        "active DoFs.", "",
+        summary_table(result), "",
+        verdict(result), "",
+        "Binning MPJAE (deg) at b bits per active joint:", "",
+        curve_table(result, "mpjae_deg", 3), "",
+        "Binning measured rate (bits per state) at b bits per active joint:", "",
+        curve_table(result, "rate_bits", 1),
+    ])  # fmt: skip
+
+
+def plot(rows: list[dict], out_path: Path) -> Path:
+    """Bits per state (x, log2) vs MPJAE (y, log): binning curve per set, UniDexTok at nominal (hollow) and
+    measured rate (filled); recorded test sets left, in-range states right."""
+    from matplotlib import colormaps
+    from matplotlib.figure import Figure
+
+    from lerobot_unidextok.viz.style import save
+
+    panels = [("test episodes", [r for r in rows if "test episodes" in r["set"]]),
+              ("in-range states", [r for r in rows if "test episodes" not in r["set"]])]  # fmt: skip
+    panels = [(t, rs) for t, rs in panels if rs]
+    fig = Figure(figsize=(6.2 * len(panels), 4.8))
+    for i, (title, rs) in enumerate(panels):
+        ax = fig.add_subplot(1, len(panels), i + 1)
+        colors = [colormaps["tab20"](j % 20) for j in range(len(rs))]
+        for r, color in zip(rs, colors, strict=True):
+            curve = r["binning"]
+            ax.plot([c["nominal_bits"] for c in curve], [c["mpjae_deg"] for c in curve], "-", color=color,
+                    lw=1.2, marker=".", label=r["set"].split(": ")[-1] if "in-range" in title else r["set"])  # fmt: skip
+            u = r["unidextok"]
+            ax.scatter([u["nominal_bits"]], [u["mpjae_deg"]], facecolor="none", edgecolor=color, s=60, zorder=3)
+            ax.scatter([u["rate_bits"]], [u["mpjae_deg"]], color=color, edgecolor="#222222", marker="*", s=110, zorder=4)
+        ax.set_xscale("log", base=2)
+        ax.set_yscale("log")
+        ax.set_xlabel("bits per hand state (log2)")
+        ax.set_ylabel("MPJAE (deg, log)")
+        ax.set_title(f"{title}: binning (lines), UniDexTok (o nominal, * measured)", fontsize=9)
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=6, frameon=False, ncol=2 if len(rs) > 8 else 1)
+    return save(fig, out_path)
+
+
+def parse(argv: list[str] | None = None) -> RateDistortionConfig:
+    return runtime.parse(RateDistortionConfig, argv)
+
+
+def main(argv: list[str] | None = None) -> None:
+    runtime.cli(RateDistortionConfig, run, markdown, argv)
+
 
 if __name__ == "__main__":
     main()

@@ -24,7 +24,6 @@ hand straight on the forearm and turned 15 deg toward the little finger (the res
 from __future__ import annotations
 
 import json
-import os
 import sys
 from pathlib import Path
 
@@ -37,11 +36,12 @@ from tracker_layouts import LAYOUTS, mano21_keypoints_m  # noqa: E402  (tests/fi
 
 from lerobot_unidextok import udhm  # noqa: E402
 from lerobot_unidextok.udhm.joints import joint_index  # noqa: E402
+from lerobot_unidextok.utils.shared_data import real_data_dir  # noqa: E402
 
 FINGERS = ("index", "middle", "ring", "pinky")
 OPEN_FLEX_DEG = 45.0  # MCP + PIP + DIP flexion of an extended finger (tests/udhm/test_ik_real.py EXTENDED_RAD)
 PALM_M = 0.097  # wrist -> middle MCP used to scale the 2D landmarks (MediaPipe world-landmark median)
-REAL = Path(os.environ.get("UNIDEXTOK_REAL_DATA", ROOT.parent / "shared" / "data" / "real"))
+REAL = real_data_dir(ROOT)
 
 
 def abductions_deg(angles_rad: np.ndarray) -> np.ndarray:

@@ -4,7 +4,7 @@
         --cpu_s=<training CPU seconds> --commit=<commit the run trained at> --search_rounds=2 --search_sweeps=2
 
 Writes lerobot_unidextok/pretrained/universal-small/ (config.json, model.safetensors, training_state.json,
-eval.json, README.md) from <run>/best; `lerobot_unidextok.experiments.universal` holds the figures. The package's
+eval.json, README.md) from <run>/best; `experiments.universal` holds the figures. The package's
 config.json gets the code search settings (its default encoding); the figures are measured with them (eval.json
 `results`, the card's evaluation table) and with the nearest codes, the paper's encoding (`nearest_codes`).
 """
@@ -16,8 +16,14 @@ import json
 import subprocess
 from pathlib import Path
 
+if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on sys.path, for `experiments.*`
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from experiments.universal import figures, write_package
 from lerobot_unidextok.evaluation.report import encoding
-from lerobot_unidextok.experiments.universal import figures, write_package
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, SHIPPED
 from lerobot_unidextok.tokenizer import UniDexTok
 
@@ -60,7 +66,7 @@ def main(argv: list[str] | None = None) -> None:
     results = figures(model, datasets)
     state = json.loads((args.run / "best" / "training_state.json").read_text())
     data_cmd = "python experiments/universal_data.py --out=outputs/universal_data"
-    train_cmd = "nice -n 10 unidextok-train --config_path=configs/train/universal.yaml"
+    train_cmd = "nice -n 10 unidextok-train --config_path=train/universal"
     commands = {
         "data": data_cmd,
         "train": train_cmd,
@@ -79,7 +85,7 @@ def main(argv: list[str] | None = None) -> None:
         "encoding": encoding(model.config),
         "nearest_codes": nearest,
         "in_range": "5000 states per hand, uniform inside its registered ranges, random side, seed 0 "
-        "(lerobot_unidextok.experiments.universal.in_range_figures)",
+        "(experiments.universal.in_range_figures)",
     }
     sections = [
         "## Encoding",

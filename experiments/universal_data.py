@@ -1,4 +1,4 @@
-"""The training data of the universal tokenizer (`configs/train/universal.yaml`): every real recording in
+"""The training data of the universal tokenizer (`lerobot_unidextok/configs/train/universal.yaml`): every real recording in
 ../shared/data/real that a converter reads, converted with `unidextok-convert` into `--out`.
 
     python experiments/universal_data.py                       # -> outputs/universal_data/{g1_inspire,human_clip,mediapipe}
@@ -30,8 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.utils.shared_data import real_data_dir
+
 REPO = Path(__file__).resolve().parents[1]
-DEFAULT_REAL = REPO.parent / "shared" / "data" / "real"
+DEFAULT_REAL = real_data_dir(REPO)
 CLIP_FPS = 30  # upstream video rate (../shared/data/real/README.md)
 SEGMENT_FRAMES = 2 * CLIP_FPS  # 2 s segments, as experiments/real_data.py cuts the clip
 G1_HANDS = {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}

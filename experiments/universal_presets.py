@@ -18,6 +18,7 @@ from lerobot_unidextok.evaluation.report import evaluate_tokenizer
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 from lerobot_unidextok.tokenizer import UniDexTok
 from lerobot_unidextok.training import HandStates
+from lerobot_unidextok.utils.shared_data import real_data_dir
 
 REPO = Path(__file__).resolve().parents[1]
 SIDES = {"RIGHT_HAND": "right", "LEFT_HAND": "left"}
@@ -39,7 +40,7 @@ def preset_states(real: Path) -> HandStates:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--real", type=Path, default=REPO.parent / "shared" / "data" / "real")
+    p.add_argument("--real", type=Path, default=real_data_dir(REPO))
     p.add_argument("--search_rounds", type=int, default=None, help="code search rounds (default: the package's)")
     args = p.parse_args()
     model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)

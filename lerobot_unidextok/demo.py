@@ -25,14 +25,14 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_unidextok.utils.cli import configure_output
+from lerobot_unidextok.utils.shared_data import real_data_dir
 
 DEFAULT_OUT = Path("outputs/demo")
-REAL_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 # Training schedule of the full demo: short enough for a first command, on the recordings only (no coverage
 # sampling). On the demo's sample mixture, held-out MPJAE (test episodes) and training CPU time, one thread:
 #   this schedule (2500 steps, batch 128, lr 1e-2, recordings only)  0.948 deg  171 s
 #   the same with coverage sampling (TrainConfig's default mixture)   1.043 deg  178 s  (3000 steps: 1.042, 208 s)
-#   configs/train/small.yaml (5000 steps, batch 256, lr 6e-3, coverage) 0.667 deg  586 s (loop wall, load 2-3.5)
+#   lerobot_unidextok/configs/train/small.yaml (5000 steps, batch 256, lr 6e-3, coverage) 0.667 deg  586 s (loop wall, load 2-3.5)
 # (docs/tokenizer.md, "Demo"); `unidextok-train` keeps coverage sampling on by default.
 DEMO_STEPS = 2500
 DEMO_BATCH_SIZE = 128
@@ -72,7 +72,7 @@ def demo_udhm(seed: int) -> None:
         ang_err_deg = np.degrees(np.abs(res.angles_rad - track.angles_rad)).mean()
         rows.append([f"synthetic gestures ({side})", len(keypoints_m), f"{err_mm:.4f}", f"{ang_err_deg:.4f}",
                      f"{len(keypoints_m) / dt:,.0f}"])  # fmt: skip
-    clip = REAL_DATA / "dex-retargeting" / "human_joint_right.npy"
+    clip = real_data_dir() / "dex-retargeting" / "human_joint_right.npy"
     if clip.is_file():
         keypoints_m = np.load(clip)  # (621, 21, 3) real MediaPipe right hand, metres
         t0 = time.perf_counter()

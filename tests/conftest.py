@@ -24,8 +24,10 @@ os.environ.setdefault("HTTPS_PROXY", "http://127.0.0.1:9")
 os.environ.setdefault("HTTP_PROXY", "http://127.0.0.1:9")
 os.environ.setdefault("NO_PROXY", "127.0.0.1,localhost")
 
+from lerobot_unidextok.utils.shared_data import real_data_dir  # noqa: E402  (after the HF variables)
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
-REAL_DATA_DIR = Path(os.environ.get("UNIDEXTOK_REAL_DATA", REPO_ROOT.parent / "shared" / "data" / "real"))
+REAL_DATA_DIR = real_data_dir(REPO_ROOT)
 
 
 @pytest.fixture(scope="session")

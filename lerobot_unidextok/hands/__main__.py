@@ -12,17 +12,17 @@ up under --urdf-dir (default: $UNIDEXTOK_URDF_DIR, else ../shared/data/urdf from
 from __future__ import annotations
 
 import argparse
-import os
 import re
 import sys
 from pathlib import Path
 
 from lerobot_unidextok.constants import FINGERS
 from lerobot_unidextok.hands.registry import describe
+from lerobot_unidextok.utils.shared_data import urdf_dir
 
 
 def _default_urdf_dir() -> Path:
-    return Path(os.environ.get("UNIDEXTOK_URDF_DIR", Path("..") / "shared" / "data" / "urdf"))
+    return urdf_dir()
 
 
 def _load(spec_arg: str):

@@ -8,7 +8,7 @@ Resolution of a name (`resolve`): an existing local folder, then a shipped id, t
 HF cache / Hub). `DEFAULT_TOKENIZER` is the tokenizer of the `<type>_udt` policies and of
 `UniDexTokStateTokenizerStep` unless they are given another one or an untrained preset explicitly.
 Each shipped folder is a Hub-format checkpoint (config.json, model.safetensors, README.md card, eval.json with
-the card's figures); `configs/train/universal.yaml` is its recipe. Imports nothing of the package.
+the card's figures); `lerobot_unidextok/configs/train/universal.yaml` is its recipe. Imports nothing of the package.
 """
 
 from __future__ import annotations

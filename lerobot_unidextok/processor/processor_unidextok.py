@@ -36,6 +36,7 @@ from lerobot_unidextok.constants import (
     OBS_STATE,
     UDHM_DIM,
 )
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 from lerobot_unidextok.processor.guards import (
     RANGE_CHECKS,
     check_ranges,
@@ -43,7 +44,6 @@ from lerobot_unidextok.processor.guards import (
     layout_bounds,
     untrained_hands,
 )
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 from lerobot_unidextok.processor.layout import HandLayout, NativeLayout, hand_layout_from_dataset
 from lerobot_unidextok.tokenizer import PRESETS, UniDexTok, UniDexTokConfig
 

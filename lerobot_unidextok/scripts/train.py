@@ -1,15 +1,15 @@
 """`unidextok-train`: train or adapt a UniDexTok tokenizer on converted UDHM datasets.
 
-    unidextok-train --config_path=configs/train/small.yaml --datasets='[data/sample_mixture]'
+    unidextok-train --config_path=train/small --datasets='[data/sample_mixture]'
     unidextok-train --preset=tiny --steps=300 --datasets='[me/dexycb_udhm]' --output_dir=outputs/tiny
     # zero-shot: leave a hand out (it is not in the vocabulary; unidextok-eval scores it zero-shot)
-    unidextok-train --config_path=configs/train/small.yaml --datasets='[...]' --exclude_hands='[inspire_rh56_unitree]'
+    unidextok-train --config_path=train/small --datasets='[...]' --exclude_hands='[inspire_rh56_unitree]'
     # few-shot: 6 % of an unseen hand's frames for 2 epochs, starting from a trained tokenizer
-    unidextok-train --config_path=configs/train/fewshot.yaml --init_from=outputs/small/best --datasets='[data/inspire]'
+    unidextok-train --config_path=train/fewshot --init_from=outputs/small/best --datasets='[data/inspire]'
     # small datasets: also k-fold over episodes (mean and spread of the held-out figures)
-    unidextok-train --config_path=configs/train/small.yaml --datasets='[data/g1]' --folds=5
+    unidextok-train --config_path=train/small --datasets='[data/g1]' --folds=5
     # training data larger than memory: a memory-mapped per-hand row store instead of loading every frame
-    unidextok-train --config_path=configs/train/small.yaml --datasets='[...]' --streaming=true
+    unidextok-train --config_path=train/small --datasets='[...]' --streaming=true
     # several processes (effective batch = batch_size x processes); on CPU too (--device=cpu, gloo):
     accelerate launch --multi_gpu --num_processes=4 -m lerobot_unidextok.scripts.train --device=cuda ...
     torchrun --nproc_per_node=2 -m lerobot_unidextok.scripts.train --device=cpu ...

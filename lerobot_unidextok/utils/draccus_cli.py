@@ -17,6 +17,9 @@ Five draccus (0.11) habits this corrects:
 - a ValueError raised by a config's `__post_init__` (a bad flag value) reaches the caller wrapped in
   `ParsingError("Couldn't instantiate class ...")`; it is raised as itself, with its own message.
 
+One addition: `--config_path` takes a file or the name of a config shipped in the package (`train/small`,
+`lerobot_unidextok/configs/`), so the documented commands work from any folder.
+
     @wrap()
     def train_cli(cfg: TrainConfig) -> None: ...
 
@@ -37,6 +40,8 @@ from collections.abc import Callable, Sequence
 import yaml
 from draccus.argparsing import ArgumentParser
 from draccus.utils import ParsingError
+
+from lerobot_unidextok.configs import resolve_config_path
 
 
 def config_parser[T](config_class: type[T], config_path: str | None = None) -> ArgumentParser:
@@ -78,7 +83,9 @@ def _drop_stray_config_flags(parser: argparse.ArgumentParser, nested: set[str]) 
 
 def parse_config[T](config_class: type[T], args: Sequence[str] | None = None, config_path: str | None = None) -> T:
     """`draccus.parse` (`--config_path=...` and `--field=value` flags; `sys.argv[1:]` when `args` is None)."""
-    args = sys.argv[1:] if args is None else list(args)
+    args = _resolve_config_paths(sys.argv[1:] if args is None else list(args))
+    if config_path is not None:
+        config_path = resolve_config_path(config_path)
     nested = set(_nested_paths(config_class))
     for arg in args:
         name, _, value = arg.partition("=")
@@ -100,6 +107,17 @@ def parse_config[T](config_class: type[T], args: Sequence[str] | None = None, co
         if isinstance(exc.__cause__, ValueError):  # a __post_init__ check: its message names the flag
             raise exc.__cause__ from None
         raise
+
+
+def _resolve_config_paths(args: list[str]) -> list[str]:
+    """`--config_path=<file or shipped name>` with a shipped name (`train/small`) replaced by its file."""
+    out = list(args)
+    for i, arg in enumerate(out):
+        if arg.startswith("--config_path="):
+            out[i] = "--config_path=" + resolve_config_path(arg.partition("=")[2])
+        elif arg == "--config_path" and i + 1 < len(out):
+            out[i + 1] = resolve_config_path(out[i + 1])
+    return out
 
 
 def _is_group_value(value: str) -> bool:

@@ -20,6 +20,7 @@ pytest.importorskip(
     "datatrove", reason="datatrove is an optional extra: pip install 'lerobot_policy_unidextok[datatrove]'"
 )
 
+from lerobot_unidextok.configs import shipped_config
 from lerobot_unidextok.conversion.pipeline import (  # noqa: E402
     ConvertOptions,
     SetupError,
@@ -153,12 +154,12 @@ def test_rerun_resumes_completed_shards_and_refuses_other_settings(raw, single, 
 
 
 def test_slurm_executor_from_documented_config(raw, tmp_path):
-    """configs/convert/slurm.yaml (draccus, as the CLI reads it) builds both Slurm executors; no cluster."""
+    """lerobot_unidextok/configs/convert/slurm.yaml (draccus, as the CLI reads it) builds both Slurm executors; no cluster."""
     from lerobot_unidextok.conversion.datatrove import build_executors
 
     cfg = draccus.parse(
         ConvertConfig,
-        config_path=str(REPO / "configs" / "convert" / "slurm.yaml"),
+        config_path=str(shipped_config("convert/slurm")),
         args=[f"--input={raw}", f"--root={tmp_path / 'egodex_udhm'}", "--executor.slurm.sbatch_args={account: lab}"],
     )
     ex = cfg.executor

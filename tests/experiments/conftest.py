@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from lerobot_unidextok.experiments import ExperimentConfig
+from experiments import ExperimentConfig
 
 
 @pytest.fixture(scope="session")
@@ -45,7 +45,7 @@ def real_cfg(tmp_path_factory, real_data_dir) -> ExperimentConfig:
 
 @pytest.fixture(scope="session")
 def main_result(tiny_cfg):
-    from lerobot_unidextok.experiments import main_table
+    from experiments import main_table
 
     return main_table.run(tiny_cfg)
 

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import torch
 
+from experiments import error_split
 from lerobot_unidextok.evaluation import mpjae_deg, reconstruct
-from lerobot_unidextok.experiments import error_split
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 from lerobot_unidextok.training.coverage import range_states
 

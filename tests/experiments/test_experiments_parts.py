@@ -6,17 +6,17 @@ import draccus
 import numpy as np
 import pytest
 
-from lerobot_unidextok.experiments import ExperimentConfig, parse_config
-from lerobot_unidextok.experiments.ablation_mapping import append_to_semantic_perm
-from lerobot_unidextok.experiments.common import reduction_pct, selection_split
-from lerobot_unidextok.experiments.probe import knn_majority, linear_probe, probe_scores
-from lerobot_unidextok.experiments.real_data import segment_split
+from experiments import ExperimentConfig, parse_config
+from experiments.ablation_mapping import append_to_semantic_perm
+from experiments.common import reduction_pct, selection_split
+from experiments.probe import knn_majority, linear_probe, probe_scores
+from experiments.real_data import segment_split
 from lerobot_unidextok.training import HandStates
 
 
 def test_parse_config_is_draccus_with_yaml_presets(tmp_path):
     """One config system: draccus flags and --config_path, like the CLIs (the hand-written parser is gone)."""
-    tiny = Path(__file__).resolve().parents[2] / "configs" / "experiments" / "tiny.yaml"
+    tiny = Path(__file__).resolve().parents[2] / "experiments" / "configs" / "tiny.yaml"
     cfg = parse_config([f"--config_path={tiny}", "--train.steps=7", "--datasets=[a,b]", "--with_qae=false"])
     assert cfg.train.preset == "tiny" and cfg.train.steps == 7 and cfg.datasets == ["a", "b"] and cfg.with_qae is False
     path = tmp_path / "c.yaml"
@@ -40,7 +40,7 @@ def test_parse_config_is_draccus_with_yaml_presets(tmp_path):
 
 
 def test_tiny_yaml_is_the_tiny_preset():
-    tiny = Path(__file__).resolve().parents[2] / "configs" / "experiments" / "tiny.yaml"
+    tiny = Path(__file__).resolve().parents[2] / "experiments" / "configs" / "tiny.yaml"
     assert parse_config([f"--config_path={tiny}"]) == ExperimentConfig.from_preset("tiny")
 
 
@@ -124,7 +124,7 @@ def test_reduction_pct():
 def test_pca_verdict_is_per_hand_and_follows_the_rows():
     """The PCA verdict reads the rows: per hand, not only the row-weighted overall mean (which one hand with
     many held-out rows can dominate)."""
-    from lerobot_unidextok.experiments.main_table import pca_verdict
+    from experiments.main_table import pca_verdict
 
     def row(method, hand, mae):
         return {"protocol": "a", "method": method, "hand": hand, "mpjae_deg": mae, "tokens_per_state": 8,

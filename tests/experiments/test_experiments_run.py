@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lerobot_unidextok.experiments import (
+from experiments import (
     ablation_human,
     ablation_mapping,
     probe,
@@ -80,7 +80,7 @@ def test_main_table(tiny_cfg, main_result):
 def test_main_table_on_real_data(real_cfg):
     """Default data path: real G1 Inspire + the real human clip; protocol (b) on the clip retargeted onto
     LinkerHand L10 and Inspire; UniHM trained on the retargeted pairs; UniDexTok zero-shot."""
-    from lerobot_unidextok.experiments import main_table
+    from experiments import main_table
 
     result = main_table.run(real_cfg)
     assert (
@@ -110,7 +110,7 @@ def test_main_table_on_real_data(real_cfg):
 
 
 def test_tokenizer_cache_is_reused(tiny_cfg, main_result):
-    from lerobot_unidextok.experiments.common import (
+    from experiments.common import (
         load_data,
         selection_split,
         trained_unidextok,
@@ -239,7 +239,7 @@ def test_probe_on_real_presets_and_human_gestures(real_cfg):
 
 
 def test_results_page(tiny_cfg, main_result, tmp_path):
-    from lerobot_unidextok.experiments.results_page import build_page
+    from experiments.make_results import build_page
 
     for mod in (ablation_human, ablation_mapping, transfer, probe):
         if not (Path(tiny_cfg.output_root) / mod.NAME / f"{mod.NAME}.json").is_file():
@@ -271,7 +271,7 @@ def test_results_page(tiny_cfg, main_result, tmp_path):
 
 
 def test_results_page_without_results(tmp_path):
-    from lerobot_unidextok.experiments.results_page import build_page
+    from experiments.make_results import build_page
 
     with pytest.raises(FileNotFoundError, match="run e.g."):
         build_page(tmp_path, tmp_path / "RESULTS.md")

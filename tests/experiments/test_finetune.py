@@ -7,10 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lerobot_unidextok.experiments import finetune
+from experiments import finetune
+from lerobot_unidextok.configs import shipped_config
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 
-TINY_RECIPE = Path(__file__).resolve().parents[2] / "configs" / "train" / "tiny.yaml"
+TINY_RECIPE = shipped_config("train/tiny")
 NO_STEP = 1e-12  # a fine-tune lr whose updates stay far below float32 resolution of the weights
 
 

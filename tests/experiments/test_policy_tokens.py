@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from lerobot_unidextok.experiments import policy_tokens
-from lerobot_unidextok.experiments.policy_data import (
+from experiments import policy_tokens
+from experiments.policy_data import (
     chunk_index,
     copy_state_prediction,
     hand_input,
@@ -79,7 +79,7 @@ def test_policy_tokens_runs_every_input_on_every_fold_and_caches(g1_like, tmp_pa
 
 
 def test_policy_tokens_on_the_results_page(g1_like, tmp_path):
-    from lerobot_unidextok.experiments.results_page import build_page, update_sections
+    from experiments.make_results import build_page, update_sections
 
     argv = [f"--datasets=[{g1_like['root']}]", f"--output_root={tmp_path}", "--inputs=[udhm]", *TINY]
     policy_tokens.run(policy_tokens.parse(argv))

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from lerobot_unidextok.experiments import rate_distortion as rd
-from lerobot_unidextok.experiments.unseen_data import hand_binning
+from experiments import rate_distortion as rd
+from experiments.unseen_data import hand_binning
 from lerobot_unidextok.training.coverage import range_states
 
 
@@ -111,7 +111,7 @@ def tiny_checkpoint(tmp_path_factory):
 
 
 def test_runs_end_to_end_and_fills_its_results_page_section(converted_linker, tiny_checkpoint, tmp_path):
-    from lerobot_unidextok.experiments.results_page import update_sections
+    from experiments.make_results import update_sections
     from lerobot_unidextok.tokenizer import UniDexTok
 
     argv = [f"--checkpoint={tiny_checkpoint}", f"--datasets=[{converted_linker}]",

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from experiments import universal_screen
 from lerobot_unidextok import hands
-from lerobot_unidextok.experiments import universal_screen
 
 
 @pytest.fixture(scope="module")

@@ -12,9 +12,7 @@ import numpy as np
 import pytest
 import yaml
 
-from lerobot_unidextok import hands
-from lerobot_unidextok.constants import UDHM_INDEX
-from lerobot_unidextok.experiments.universal_zeroshot import (
+from experiments.universal_zeroshot import (
     GUI_PRESETS,
     SDK_DIR,
     ZeroShotConfig,
@@ -23,6 +21,8 @@ from lerobot_unidextok.experiments.universal_zeroshot import (
     spec_path,
     vendor_presets,
 )
+from lerobot_unidextok import hands
+from lerobot_unidextok.constants import UDHM_INDEX
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 from lerobot_unidextok.tokenizer import UniDexTok
 from lerobot_unidextok.training.coverage import range_states

@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from lerobot_unidextok.experiments import unseen_episodes, unseen_human
-from lerobot_unidextok.experiments.unseen_data import all_episodes
+from experiments import unseen_episodes, unseen_human
+from experiments.unseen_data import all_episodes
 
 
 @pytest.fixture(scope="module")

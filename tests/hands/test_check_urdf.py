@@ -11,20 +11,18 @@ finger order (the left Allegro's index/ring).
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
 
 from lerobot_unidextok import hands
+from lerobot_unidextok.utils.shared_data import urdf_dir as shared_urdf_dir
 
 pytest.importorskip("yourdfpy")
 
 from lerobot_unidextok.hands.check import check_spec  # noqa: E402
 
-URDF_DIR = Path(
-    os.environ.get("UNIDEXTOK_URDF_DIR", Path(__file__).resolve().parents[2].parent / "shared" / "data" / "urdf")
-)
+URDF_DIR = shared_urdf_dir(Path(__file__).resolve().parents[2])
 URDF_HANDS = [n for n in hands.names() if hands.get(n).urdf is not None]
 CASES = [(n, s) for n in URDF_HANDS for s in hands.get(n).sides]
 

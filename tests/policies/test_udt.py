@@ -18,6 +18,7 @@ from lerobot.configs.types import FeatureType, PolicyFeature
 from linkerhand_udhm import subprocess_env
 from robot_udhm import INSPIRE, NATIVE_NAMES, STATE_NAMES, to_converted
 
+from lerobot_unidextok.configs import shipped_config
 from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE
 from lerobot_unidextok.policies import UDT_CONFIGS, ACTUdtConfig, DiffusionUdtConfig
 from lerobot_unidextok.policies.act_udt import make_act_udt_pre_post_processors
@@ -360,7 +361,7 @@ def test_lerobot_train_act_and_diffusion_resume_and_reload(tok_dir, g1_like, tmp
     data = ["--dataset.repo_id=test/g1_like_udhm", f"--dataset.root={root}", f"--policy.udt_pretrained={tok_dir}"]
     plugin = "--policy.discover_packages_path=lerobot_unidextok"
     # ACT from the shipped config file, overridden by flags
-    act = _train([f"--config_path={REPO / 'configs/lerobot/act_udt.yaml'}", plugin, *data, "--steps=3",
+    act = _train([f"--config_path={shipped_config('lerobot/act_udt')}", plugin, *data, "--steps=3",
                   "--batch_size=4", "--num_workers=0", *TINY_ACT], tmp_path / "act", hf)  # fmt: skip
     # Diffusion from flags only (n_obs_steps=2: the step sees (B, 2, 58) states)
     diff = _train(["--policy.type=diffusion_udt", plugin, *data, "--policy.device=cpu", "--policy.push_to_hub=false",

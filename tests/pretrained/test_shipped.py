@@ -14,9 +14,8 @@ import pytest
 import torch
 from linkerhand_udhm import subprocess_env
 
-from lerobot_unidextok import hands
+from experiments.universal import IN_RANGE_PREFIX, held_out_figures, in_range_figures
 from lerobot_unidextok.evaluation.report import encoding
-from lerobot_unidextok.experiments.universal import IN_RANGE_PREFIX, in_range_figures, held_out_figures
 from lerobot_unidextok.hub.card import CARD_MARKER, card_status
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, SHIPPED, resolve, shipped_folder
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
@@ -103,7 +102,7 @@ def test_the_card_tables_are_the_recorded_evaluation(recorded, section, key):
         for cell, metric in zip(cells[1:], ("mpjae_deg", "mpjpe_mm", "fingertip_mm"), strict=True):
             assert cell == f"{want[metric]:.4g}", (name, metric)
     assert recorded["commit"] and re.fullmatch(r"[0-9a-f]{40}", recorded["commit"])
-    assert "unidextok-train --config_path=configs/train/universal.yaml" in text
+    assert "unidextok-train --config_path=train/universal" in text
 
 
 def test_the_package_encodes_with_the_code_search_its_card_reports(shipped, recorded):

@@ -8,7 +8,7 @@ from importlib.metadata import entry_points
 
 import pytest
 
-from lerobot_unidextok.experiments.config import ExperimentConfig
+from experiments.config import ExperimentConfig
 from lerobot_unidextok.utils.draccus_cli import config_parser
 
 COMMANDS = sorted(ep.name for ep in entry_points(group="console_scripts") if ep.name.startswith("unidextok-"))
@@ -39,7 +39,7 @@ def _check(text: str) -> list[str]:
 
 
 def test_every_command_is_checked():
-    assert COMMANDS == ["unidextok-convert", "unidextok-demo", "unidextok-eval", "unidextok-pull", "unidextok-push",
+    assert COMMANDS == ["unidextok-config", "unidextok-convert", "unidextok-demo", "unidextok-eval", "unidextok-pull", "unidextok-push",
                         "unidextok-train", "unidextok-view"]  # fmt: skip
 
 

@@ -1,4 +1,4 @@
-"""The universal recipe (configs/train/universal.yaml): registered hands without recordings train on in-range
+"""The universal recipe (lerobot_unidextok/configs/train/universal.yaml): registered hands without recordings train on in-range
 states (`range_hands`), and the recipe itself rebuilds at a tiny size in seconds."""
 
 from pathlib import Path
@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from lerobot_unidextok import hands
+from lerobot_unidextok.configs import shipped_config
 from lerobot_unidextok.training import HandStates, TrainConfig
 from lerobot_unidextok.training.coverage import CoverageConfig, MixtureSampler, range_states, resolve_range_hands
 
@@ -59,12 +60,12 @@ def test_range_hands_all_is_every_registered_hand_minus_the_excluded_and_names_a
 
 
 def test_the_universal_recipe_rebuilds_at_a_tiny_size(g1_like_hands, tmp_path):
-    """configs/train/universal.yaml with the tiny preset, 30 steps and the synthetic G1-like dataset: a model
+    """lerobot_unidextok/configs/train/universal.yaml with the tiny preset, 30 steps and the synthetic G1-like dataset: a model
     whose vocabulary and trained hands are every registered hand, scored on the dataset's test episodes."""
     from lerobot_unidextok.tokenizer import UniDexTok
     from lerobot_unidextok.training.run import train_and_evaluate
 
-    cfg = draccus.parse(TrainConfig, config_path=REPO / "configs" / "train" / "universal.yaml", args=[
+    cfg = draccus.parse(TrainConfig, config_path=shipped_config("train/universal"), args=[
         "--preset=tiny", "--steps=30", "--batch_size=64", "--warmup_steps=5", "--eval_every=15",
         "--save_last_every=30", f"--datasets=[{g1_like_hands['root']}]", f"--output_dir={tmp_path / 'run'}"])  # fmt: skip
     assert cfg.range_hands == ["all"] and cfg.hand_weights == {"human": 2.0, INSPIRE: 2.0}

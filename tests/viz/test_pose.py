@@ -2,7 +2,6 @@
 and a given URDF draws the robot's own kinematics in the same wrist frame."""
 
 import dataclasses
-import os
 from pathlib import Path
 
 import numpy as np
@@ -11,11 +10,10 @@ from robot_udhm import INSPIRE
 
 from lerobot_unidextok import hands
 from lerobot_unidextok.constants import KEYPOINT_NAMES, UDHM_INDEX
+from lerobot_unidextok.utils.shared_data import urdf_dir as shared_urdf_dir
 from lerobot_unidextok.viz.pose import coupled_state, find_urdf, spec_keypoints_m, urdf_keypoints_m
 
-URDF_DIR = Path(
-    os.environ.get("UNIDEXTOK_URDF_DIR", Path(__file__).resolve().parents[2].parent / "shared" / "data" / "urdf")
-)
+URDF_DIR = shared_urdf_dir(Path(__file__).resolve().parents[2])
 KP = {name: i for i, name in enumerate(KEYPOINT_NAMES)}
 OPEN = np.ones(6)  # Inspire native [little, ring, middle, index, thumb_bend, thumb_rotation], 1 = open
 TIPS = [KP[f"{f}_tip"] for f in ("index", "middle", "ring", "pinky")]
