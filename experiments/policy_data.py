@@ -40,7 +40,7 @@ class RobotFrames:
 
     @property
     def passthrough_columns(self) -> np.ndarray:
-        from lerobot_unidextok.state_layout import passthrough_indices
+        from lerobot_unidextok.blocks import passthrough_indices
 
         return np.asarray(passthrough_indices(self.names), dtype=np.int64)
 

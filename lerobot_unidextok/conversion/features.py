@@ -14,7 +14,7 @@ import numpy as np
 
 from lerobot_unidextok.constants import ACTION, HAND_TYPE_KEY, OBS_STATE, UDHM_MASK_KEY
 from lerobot_unidextok.conversion.mapping import UdhmEpisode
-from lerobot_unidextok.state_layout import udhm_state_names
+from lerobot_unidextok.blocks import udhm_state_names
 
 
 def udhm_features(

@@ -16,7 +16,7 @@ import numpy as np
 
 from lerobot_unidextok.constants import ACTION, MAPPINGS, OBS_STATE, SIDES, UDHM_DIM
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode, VideoSegment
-from lerobot_unidextok.state_layout import udhm_state_names
+from lerobot_unidextok.blocks import udhm_state_names
 
 ANGLE_BOUND_RAD = 2 * np.pi  # no UDHM joint angle is beyond this: larger values are unit errors
 

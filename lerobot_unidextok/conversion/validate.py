@@ -31,7 +31,7 @@ from lerobot_unidextok.constants import (
     UDHM_MASK_KEY,
 )
 from lerobot_unidextok.conversion.mapping import ANGLE_BOUND_RAD
-from lerobot_unidextok.state_layout import feature_names, find_udhm_blocks, udhm_state_names
+from lerobot_unidextok.blocks import feature_names, find_udhm_blocks, udhm_state_names
 
 LIMIT_TOL_RAD = 1e-3
 

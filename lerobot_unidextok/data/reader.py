@@ -1,7 +1,7 @@
 """Read a converted UDHM LeRobotDataset (v3.0) into per-hand rows with pyarrow, no per-frame Python.
 
 Each frame of an H-hand dataset gives H rows (frame-major: frame 0 hand 0, frame 0 hand 1, ...).
-The UDHM blocks are found by name (`state_layout.find_udhm_blocks`) inside a state that may also hold
+The UDHM blocks are found by name (`blocks.find_udhm_blocks`) inside a state that may also hold
 the robot's other columns (arms, grippers); the train/test split comes from `data.splits`.
 """
 
@@ -19,7 +19,7 @@ import pyarrow.parquet as pq
 
 from lerobot_unidextok.constants import ACTION, DATA_GLOB, HAND_TYPE_KEY, INFO_PATH, OBS_STATE, UDHM_DIM, UDHM_MASK_KEY
 from lerobot_unidextok.data.splits import HOLDOUTS, SPLITS, EpisodeSplit, SplitError, resolve_split
-from lerobot_unidextok.state_layout import UdhmBlock, feature_names, find_udhm_blocks
+from lerobot_unidextok.blocks import UdhmBlock, feature_names, find_udhm_blocks
 
 
 @dataclass

@@ -47,7 +47,7 @@ from lerobot_unidextok.processor import (
     tokenizer_output_dims,
 )
 from lerobot_unidextok.processor.layout import dataset_hand_types, feature_names
-from lerobot_unidextok.state_layout import find_udhm_blocks
+from lerobot_unidextok.blocks import find_udhm_blocks
 
 logger = logging.getLogger(__name__)
 

@@ -2,7 +2,7 @@
 
 No lerobot import here. A converted vector is `[passthrough columns] + [one 22-wide UDHM block per hand]`
 (docs/architecture.md, "Converted dataset contract"); blocks are found by name with
-`state_layout.find_udhm_blocks`, never by position.
+`blocks.find_udhm_blocks`, never by position.
 
 - `HandLayout`: hand spec name, side and columns of each UDHM block of `observation.state` (the pre-processor).
 - `NativeLayout`: the robot's native vector <-> the converted vector. `to_native` (the post-processor, actions):
@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from lerobot_unidextok.constants import ACTION, CONVERSION_PATH, HAND_TYPE_KEY, INFO_PATH, OBS_STATE, SIDES, UDHM_DIM
-from lerobot_unidextok.state_layout import feature_names, find_udhm_blocks, passthrough_indices
+from lerobot_unidextok.blocks import feature_names, find_udhm_blocks, passthrough_indices
 
 
 @dataclass
@@ -299,7 +299,7 @@ class NativeLayout:
     def from_hands(cls, hands: list[str], sides: list[str], names: list[str] | None = None) -> NativeLayout:
         """Native = passthrough columns of `names` then each hand's native joints (`<side>_<joint>`), block order."""
         from lerobot_unidextok import hands as hand_registry
-        from lerobot_unidextok.state_layout import udhm_state_names
+        from lerobot_unidextok.blocks import udhm_state_names
 
         names = list(names) if names else udhm_state_names(sides)
         entries = [

@@ -17,7 +17,7 @@ from robot_udhm import HAND_NAMES, INSPIRE, NATIVE_NAMES, STATE_NAMES, native_la
 
 from lerobot_unidextok.constants import OBS_STATE
 from lerobot_unidextok.processor import NATIVE_STATE_STEP_NAME, NativeLayout, NativeToUDHMStateStep
-from lerobot_unidextok.state_layout import udhm_state_names
+from lerobot_unidextok.blocks import udhm_state_names
 
 
 @pytest.fixture(scope="module")

@@ -1,9 +1,9 @@
-"""state_layout: UDHM blocks found by name inside wider vectors (arms + hands)."""
+"""blocks: UDHM blocks found by name inside wider vectors (arms + hands)."""
 
 import numpy as np
 import pytest
 
-from lerobot_unidextok.state_layout import (
+from lerobot_unidextok.blocks import (
     feature_names,
     find_udhm_blocks,
     passthrough_indices,

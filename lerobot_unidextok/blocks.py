@@ -1,4 +1,4 @@
-"""Where the UDHM hand blocks sit in a (possibly wider) state or action vector, found by feature names.
+"""UDHM blocks: where the 22-wide hand blocks sit in a (possibly wider) state or action vector, found by name.
 
 Layer 0: names only, no lerobot import. A converted dataset's `observation.state` / `action` is
 
