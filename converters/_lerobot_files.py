@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.blocks import flatten_names
 from lerobot_unidextok.constants import EPISODES_META_GLOB, INFO_PATH
 from lerobot_unidextok.conversion.episode import VideoSegment
-from lerobot_unidextok.blocks import flatten_names
 
 SUPPORTED_VERSIONS = ("v2.0", "v2.1", "v3.0")
 DEFAULT_KEYS = ("timestamp", "frame_index", "episode_index", "index", "task_index")  # rebuilt by the writer

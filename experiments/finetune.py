@@ -169,7 +169,7 @@ def scores(model, test, search_rounds: int = 0) -> dict:
     `search_rounds` rounds of code search (0 = the nearest codes, whatever the model's config says)."""
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer
 
-    model.config.search_rounds = search_rounds
+    model.with_encoding(search_rounds=search_rounds)
     report = evaluate_tokenizer(model, test)
     per_hand = {h: {**{k: float(e[k]) for k in METRICS}, "rows": int(e["rows"])} for h, e in report["per_hand"].items()}
     return {"overall": {k: float(report["overall"][k]) for k in METRICS}, "per_hand": per_hand}

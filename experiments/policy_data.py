@@ -47,7 +47,7 @@ class RobotFrames:
     @property
     def block_columns(self) -> np.ndarray:
         """(22 * H,) the columns of the UDHM blocks, block after block."""
-        from lerobot_unidextok.processor.layout import HandLayout
+        from lerobot_unidextok.layout import HandLayout
 
         return HandLayout(self.hands, state_names=self.names).block_columns
 
@@ -65,9 +65,9 @@ class RobotFrames:
         return np.concatenate([self.passthrough_columns, self.active_block_columns])
 
     def native_layout(self, key: str = ACTION):
-        from lerobot_unidextok.processor.layout import NativeLayout
+        from lerobot_unidextok.data import UdhmDatasetMeta
 
-        layout = NativeLayout.from_dataset(self.root, key=key)
+        layout = UdhmDatasetMeta(self.root).native_layout(key)
         if layout is None:
             raise ValueError(f"{self.root}: its hands have no native joints, so it has no native layout")
         return layout
@@ -84,13 +84,13 @@ def load_frames(root: str | Path) -> RobotFrames:
     import pandas as pd
     import pyarrow.parquet as pq
 
+    from lerobot_unidextok.data import UdhmDatasetMeta
     from lerobot_unidextok.data.reader import data_files
-    from lerobot_unidextok.processor.layout import hand_layout_from_dataset
 
     root = Path(root)
     if not (root / INFO_PATH).is_file():
         raise FileNotFoundError(f"{root / INFO_PATH} not found: pass the root of a dataset written by unidextok-convert")
-    layout = hand_layout_from_dataset(root)
+    layout = UdhmDatasetMeta(root).hand_layout()
     columns = [OBS_STATE, ACTION, "episode_index", "index"]
     tables = [pq.read_table(f, columns=columns).to_pandas() for f in data_files(root)]
     df = pd.concat(tables, ignore_index=True).sort_values("index")
@@ -105,13 +105,12 @@ def load_frames(root: str | Path) -> RobotFrames:
 
 
 def recorded_test_episodes(root: str | Path) -> list[int]:
-    """The held-out episodes the converter recorded (`meta/unidextok_conversion.json`), [] when none."""
-    import json
+    """The held-out episodes the converter recorded (`meta/unidextok_conversion.json`), [] when none, or when
+    the record no longer describes the dataset (edited after conversion)."""
+    from lerobot_unidextok.data import UdhmDatasetMeta
 
-    from lerobot_unidextok.constants import CONVERSION_PATH
-
-    path = Path(root) / CONVERSION_PATH
-    return list(json.loads(path.read_text()).get("test_episodes", [])) if path.is_file() else []
+    meta = UdhmDatasetMeta(root)
+    return [] if meta.record_problem else list(meta.record.test_episodes)
 
 
 # ---------------------------------------------------------------------------------------------

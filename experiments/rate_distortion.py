@@ -40,6 +40,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 from experiments import runtime
 from experiments.common import git_commit, md_table
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.tokenizer.configuration_unidextok import check_encoding
 from lerobot_unidextok.training import HandStates
 
 NAME = "rate_distortion"
@@ -68,8 +69,7 @@ class RateDistortionConfig:
             raise ValueError(f"max_bits must be in [1, 16], got {self.max_bits}")
         if self.range_rows < 0:
             raise ValueError(f"range_rows must be >= 0, got {self.range_rows}")
-        if self.search_rounds is not None and self.search_rounds < 0:
-            raise ValueError(f"search_rounds must be >= 0 (0 = nearest codes), got {self.search_rounds}")
+        check_encoding(self.search_rounds)
         if self.range_seed == 0:
             raise ValueError("range_seed 0 draws the card's own in-range states; pick another seed, e.g. 1")
         if not self.datasets and self.range_rows == 0:
@@ -187,10 +187,7 @@ def run(cfg: RateDistortionConfig) -> dict:
     from lerobot_unidextok.tokenizer import UniDexTok
 
     t0 = time.time()
-    model = UniDexTok.from_pretrained(cfg.checkpoint)
-    model.eval()
-    if cfg.search_rounds is not None:
-        model.config.search_rounds = cfg.search_rounds
+    model = UniDexTok.from_pretrained(cfg.checkpoint, search_rounds=cfg.search_rounds)
     rows = []
     for label, data in evaluation_sets(cfg).items():
         hand = _one_hand(data)

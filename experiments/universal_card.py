@@ -60,9 +60,9 @@ def main(argv: list[str] | None = None) -> None:
     model = UniDexTok.from_pretrained(str(args.run / "best"))
     datasets = {label: str(args.data / name) for label, name in DATA.items()}
     search = {"search_rounds": args.search_rounds, "search_sweeps": args.search_sweeps}
-    model.config.search_rounds, model.config.search_sweeps = 0, args.search_sweeps
+    model.with_encoding(search_rounds=0, search_sweeps=args.search_sweeps)
     nearest = figures(model, datasets)
-    model.config.search_rounds = args.search_rounds
+    model.with_encoding(search_rounds=args.search_rounds)
     results = figures(model, datasets)
     state = json.loads((args.run / "best" / "training_state.json").read_text())
     data_cmd = "python experiments/universal_data.py --out=outputs/universal_data"

@@ -43,9 +43,7 @@ def main() -> None:
     p.add_argument("--real", type=Path, default=real_data_dir(REPO))
     p.add_argument("--search_rounds", type=int, default=None, help="code search rounds (default: the package's)")
     args = p.parse_args()
-    model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
-    if args.search_rounds is not None:
-        model.config.search_rounds = args.search_rounds
+    model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER, search_rounds=args.search_rounds)
     report = evaluate_tokenizer(model, preset_states(args.real))
     print(f"encoding: {report['model']['encoding']}")
     print("| hand | presets (both sides) | MPJAE (deg) | MPJPE (mm) | fingertip (mm) |\n|---|---|---|---|---|")

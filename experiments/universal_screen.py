@@ -133,7 +133,7 @@ def run_variant(cfg: ScreenConfig, name: str, folder: Path) -> dict:
     res = train_tokenizer(tcfg, fit, select, model=model)
     cpu = time.process_time() - cpu0
     best = UniDexTok.from_pretrained(res.best_dir)
-    best.config.search_rounds = 0  # variants are compared through the nearest codes, as they trained
+    best.with_encoding(search_rounds=0)  # variants are compared through the nearest codes, as they trained
     return {"variant": name, "steps": res.steps, "best_step": res.best_step, "train_cpu_s": round(cpu, 1),
             **score(best, select, cfg.range_rows),
             "git_commit": git_commit(), "resolved": resolved(cfg, name)}  # fmt: skip
@@ -160,7 +160,7 @@ def score_runs(cfg: ScreenConfig) -> list[dict]:
         state = json.loads((folder / "best" / "training_state.json").read_text())
         model = UniDexTok.from_pretrained(folder / "best")
         for rounds, sweeps in search_settings(cfg):
-            model.config.search_rounds, model.config.search_sweeps = rounds, max(sweeps, 1)
+            model.with_encoding(search_rounds=rounds, search_sweeps=max(sweeps, 1))
             cpu0 = time.process_time()
             scored = score(model, select, cfg.range_rows)
             out.append({"variant": str(folder), "search": f"{rounds} x {sweeps}" if rounds else "nearest codes",

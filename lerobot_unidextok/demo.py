@@ -207,14 +207,15 @@ def demo_lerobot(out: Path, roots: dict[str, Path]) -> None:
     from lerobot.datasets import LeRobotDataset
     from lerobot.processor import PolicyProcessorPipeline
 
+    from lerobot_unidextok.data import UdhmDatasetMeta
     from lerobot_unidextok.hub import cache_via_loopback
-    from lerobot_unidextok.processor import UniDexTokStateTokenizerStep, hand_layout_from_dataset, token_preview
+    from lerobot_unidextok.processor import UniDexTokStateTokenizerStep, token_preview
     from lerobot_unidextok.tokenizer import UniDexTok
 
     _banner("6. LeRobot: the tokenizer as a processor step on converted frames, and the local hub cache")
     root = roots.get("lerobot") or next(iter(roots.values()))
     ds = LeRobotDataset(f"demo/{root.name}_udhm", root=root, video_backend="pyav")  # state-only: no decoder probe
-    layout = hand_layout_from_dataset(root)
+    layout = UdhmDatasetMeta(root).hand_layout()
     step = UniDexTokStateTokenizerStep.from_dataset(root, pretrained=str(out / "tokenizer"))  # blocks found by name
     pipeline = PolicyProcessorPipeline(steps=[step], name="policy_preprocessor")
     frames = torch.stack([ds[i]["observation.state"] for i in (0, len(ds) // 2)])  # (2, D): passthrough + 22 * H

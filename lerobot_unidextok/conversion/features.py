@@ -3,7 +3,7 @@
 `observation.state` / `action` = the source's passthrough columns (arms, grippers, base: source names,
 source order, values unchanged) followed by one 22-wide UDHM block per hand (`<side>_<udhm joint>`);
 `hand_type`, `udhm_mask`; then every copied source feature (images, other observations) and video
-unchanged. `native_layout` records how to rebuild the robot's own vectors (docs/architecture.md).
+unchanged. `native_layouts` says how to rebuild the robot's own vectors (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -12,9 +12,10 @@ from copy import deepcopy
 
 import numpy as np
 
+from lerobot_unidextok.blocks import udhm_state_names
 from lerobot_unidextok.constants import ACTION, HAND_TYPE_KEY, OBS_STATE, UDHM_MASK_KEY
 from lerobot_unidextok.conversion.mapping import UdhmEpisode
-from lerobot_unidextok.blocks import udhm_state_names
+from lerobot_unidextok.layout import NativeLayout
 
 
 def udhm_features(
@@ -74,19 +75,18 @@ def _with_passthrough(ep: UdhmEpisode, key: str, udhm: np.ndarray) -> np.ndarray
     return np.concatenate([p.values.astype(np.float32, copy=False), udhm], axis=1)  # float32 source: bit-identical
 
 
-def native_layout(ep: UdhmEpisode) -> dict[str, dict]:
-    """How to rebuild the robot's native vectors from the converted ones (robot hands only).
+def native_layouts(ep: UdhmEpisode, mapping: str) -> dict[str, NativeLayout]:
+    """How to rebuild the robot's native vectors from the converted ones (robot hands only), per key.
 
-    {"observation.state": {"names": [every source column, source order],
-                           "hands": [{"side", "hand", "columns": [source columns of the hand]}]}, "action": ...}
-    Native vector = `names`; passthrough columns copied by name; each hand's `columns` =
-    `hands.get(hand).from_udhm(block, side)`. Keypoint (human) hands have no native joint columns.
-    A hands-only conversion (`--keep=hands`) has no passthrough columns: `names` are then the hand columns in
-    source order and `"source_names"` lists every source column (where the robot's vector puts them).
+    Native vector = the source's column names in source order; passthrough columns copied by name; each hand's
+    `columns` = `hands.get(hand).from_udhm(block, side, mapping)`. Keypoint (human) hands have no native joint
+    columns. A hands-only conversion (`--keep=hands`) has no passthrough columns: the native names are then the
+    hand columns in source order and `source_names` lists every source column (where the robot's vector puts them).
     """
-    out: dict[str, dict] = {}
+    features = episode_features(ep)
+    out: dict[str, NativeLayout] = {}
     for key, which in ((OBS_STATE, 0), (ACTION, 1)):
-        if key == ACTION and ep.action_rad is None:
+        if key not in features:
             continue
         hands = [
             {"side": side, "hand": hand, "columns": list(cols[which])}
@@ -97,14 +97,13 @@ def native_layout(ep: UdhmEpisode) -> dict[str, dict]:
         ]
         if not hands:
             continue
-        names = ep.native_names.get(key) or [
-            *_passthrough_names(ep, key),
-            *(c for h in hands for c in h["columns"]),
-        ]
-        entry = {"names": list(names), "hands": hands}
-        if key in ep.source_names:  # --keep=hands: `names` are the hand columns of these source names
-            entry["source_names"] = list(ep.source_names[key])
-        if key in ep.native_keys:
-            entry["source_key"] = ep.native_keys[key]
-        out[key] = entry
+        native = ep.native_names.get(key) or [*_passthrough_names(ep, key), *(c for h in hands for c in h["columns"])]
+        out[key] = NativeLayout(
+            names=features[key]["names"],
+            native_names=native,
+            hands=hands,
+            mapping=mapping,
+            source_names=ep.source_names.get(key, []),
+            source_key=ep.native_keys.get(key),
+        )
     return out

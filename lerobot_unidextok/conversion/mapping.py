@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
+from lerobot_unidextok.blocks import udhm_state_names
 from lerobot_unidextok.constants import ACTION, MAPPINGS, OBS_STATE, SIDES, UDHM_DIM
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode, VideoSegment
-from lerobot_unidextok.blocks import udhm_state_names
 
 ANGLE_BOUND_RAD = 2 * np.pi  # no UDHM joint angle is beyond this: larger values are unit errors
 
@@ -69,7 +69,7 @@ class UdhmEpisode:
         return ",".join(self.hands)
 
     @property
-    def layout(self) -> tuple:
+    def signature(self) -> tuple:
         """What must match across a dataset's episodes: block sides, actions, passthrough columns, copied
         features and videos (the dataset's features are set by its first episode)."""
         return (
@@ -290,7 +290,7 @@ def _trim_video(video: VideoSegment, first: int, last: int, fps: float) -> Video
     return VideoSegment(video.path, video.from_s + first / fps, min(video.to_s, video.from_s + last / fps))
 
 
-def to_layout(ep: UdhmEpisode, sides: tuple[str, ...]) -> UdhmEpisode:
+def to_sides(ep: UdhmEpisode, sides: tuple[str, ...]) -> UdhmEpisode:
     """Reorder `ep`'s blocks to `sides`; sides the episode lacks get zeros, a False mask and the
     spec name of its first hand in `hand_type` (a single-hand source whose sequences are left or right)."""
     if ep.sides == tuple(sides):

@@ -21,6 +21,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import os
@@ -44,8 +45,8 @@ from lerobot_unidextok.constants import (
     SIDES,
 )
 from lerobot_unidextok.conversion.card import write_card
-from lerobot_unidextok.conversion.features import episode_features, episode_frames, native_layout, udhm_features
-from lerobot_unidextok.conversion.mapping import EpisodeError, UdhmEpisode, map_episode, to_layout
+from lerobot_unidextok.conversion.features import episode_features, episode_frames, native_layouts, udhm_features
+from lerobot_unidextok.conversion.mapping import EpisodeError, UdhmEpisode, map_episode, to_sides
 from lerobot_unidextok.conversion.registry import (
     CONVERTERS_PACKAGE,
     SetupError,
@@ -54,7 +55,9 @@ from lerobot_unidextok.conversion.registry import (
     make_reader,
 )
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
+from lerobot_unidextok.data.record import ConversionRecord, EpisodeRecord, load_record, write_record
 from lerobot_unidextok.data.splits import split_order
+from lerobot_unidextok.layout import NativeLayout
 from lerobot_unidextok.utils.cli import UserError
 from lerobot_unidextok.utils.files import replace_folder
 
@@ -67,7 +70,6 @@ __all__ = [
     "SetupError",
     "convert",
     "merge_shards",
-    "read_settings",
     "udhm_features",
 ]
 
@@ -407,15 +409,11 @@ def convert(opts: ConvertOptions) -> ConvertReport:
                 f"no episode of {opts.source!r} could be converted ({len(state.failures)} failed); first: "
                 + (f"{first.source_file}: {first.reason}" if first else "none")
             )
-        settings = state.finish(opts, reader_cls, plan)
+        record = state.finish(opts, reader_cls, plan)
         write_card(
             tmp,
             repo_id=opts.repo_id,
-            source=opts.source,
-            description=getattr(reader_cls, "description", ""),
-            license_text=getattr(reader_cls, "license", "unknown"),
-            settings=settings,
-            num_episodes=state.writer.num_episodes,
+            record=record,
             num_frames=state.writer.num_frames,
             features=state.writer.features,
             failures=[asdict(f) for f in state.failures],
@@ -451,11 +449,11 @@ class _RunState:
     sides: tuple[str, ...] | None
     robot_type: str | None = None
     writer: UdhmDatasetWriter | None = None
-    layout: tuple | None = None
+    signature: tuple | None = None  # UdhmEpisode.signature of the first episode: every episode must match it
     fps: int = 0
-    native: dict = field(default_factory=dict)
+    native: dict[str, NativeLayout] = field(default_factory=dict)
     failures: list[EpisodeFailure] = field(default_factory=list)
-    records: list[dict] = field(default_factory=list)
+    records: list[EpisodeRecord] = field(default_factory=list)
     test_episodes: list[int] = field(default_factory=list)
     hands_seen: dict[str, None] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=lambda: {"trimmed_frames": 0, "absent_hand_frames": 0})
@@ -465,11 +463,11 @@ class _RunState:
             raise EpisodeError(result.source_file, result.reason)
         fps = _int_fps(result.fps, result.source_file)
         if self.sides is not None:
-            result = to_layout(result, self.sides)
+            result = to_sides(result, self.sides)
         if opts.keep == "hands":
             result = result.without_robot()
         if self.writer is None:
-            self.layout, self.fps = result.layout, fps
+            self.signature, self.fps = result.signature, fps
             try:
                 features = episode_features(result)
             except ValueError as exc:
@@ -477,9 +475,9 @@ class _RunState:
             # the source's robot type, the same in every shard (aggregate_datasets requires equal robot_type);
             # UDHM itself is marked by the hand_type / udhm_mask features and meta/unidextok_conversion.json
             self.writer = UdhmDatasetWriter(tmp, opts.repo_id, fps, features, robot_type=self.robot_type)
-            self.native = native_layout(result)
-        elif (result.layout, fps) != (self.layout, self.fps):
-            raise EpisodeError(result.source_file, _layout_difference(result, fps, self.layout, self.fps))
+            self.native = native_layouts(result, opts.mapping)
+        elif (result.signature, fps) != (self.signature, self.fps):
+            raise EpisodeError(result.source_file, _signature_difference(result, fps, self.signature, self.fps))
         index = self.writer.add_episode(
             episode_frames(result),
             task=result.task,
@@ -487,12 +485,19 @@ class _RunState:
             videos=result.videos,
             copied_stats=result.copied_stats,
         )
-        record = {"episode_index": index, "source": key, "split": split, "length": result.num_frames}
-        record.update(result.source_episode)
-        own_native = native_layout(result)
-        if own_native != self.native:  # mixed hand models: this episode decodes with its own layout
-            record["native_layout"] = own_native
-        self.records.append(record)
+        own_native = native_layouts(result, opts.mapping)
+        self.records.append(
+            EpisodeRecord(
+                episode_index=index,
+                source=key,
+                split=split,
+                length=result.num_frames,
+                hand_type=result.hand_type,
+                origin=dict(result.source_episode),
+                # mixed hand models: this episode decodes with its own layouts
+                native_layouts=own_native if own_native != self.native else {},
+            )
+        )
         if split == "test":
             self.test_episodes.append(index)
         for h in result.hands:
@@ -501,56 +506,57 @@ class _RunState:
         self.counts["trimmed_frames"] += result.trimmed_frames
         self.counts["absent_hand_frames"] += result.absent_hand_frames
 
-    def finish(self, opts: ConvertOptions, reader_cls: type, plan: _Plan) -> dict:
+    def finish(self, opts: ConvertOptions, reader_cls: type, plan: _Plan) -> ConversionRecord:
         total = self.writer.num_episodes
         self.writer.finalize(splits={"train": f"0:{total}"})  # LeRobot's own convention: one range, all episodes
-        sides, with_action, passthrough, copied, videos = self.layout
-        settings = {
-            "source": opts.source,
-            "license": getattr(reader_cls, "license", "unknown"),
-            "description": getattr(reader_cls, "description", ""),
-            "source_options": opts.source_options,
-            "robot_type": self.robot_type,
-            "mapping": opts.mapping,
-            "on_error": opts.on_error,
-            "keep": opts.keep,
-            "fps": self.fps,
-            "test_fraction": opts.test_fraction,
-            "split_method": SPLIT_METHOD,
-            "shard": f"{opts.shard_index}/{opts.num_shards}",
-            "max_episodes": opts.max_episodes,
-            "sides": list(sides),
-            "hands": list(self.hands_seen),
-            "has_action": with_action,
-            "passthrough": {k: list(names) for k, names in passthrough},
-            "copied_features": list(copied),
-            "video_features": list(videos),
-            "synthetic": self.synthetic,
-            "listed_episodes": plan.num_listed,
-            "skipped_episodes": len(self.failures),
-            **self.counts,
-            "num_episodes": total,
-            "test_episodes": self.test_episodes,
-            "native_layout": self.native,
-            "episodes": self.records,
-        }
-        _record_settings(self.writer.root, settings)
-        return settings
+        sides, with_action, passthrough, copied, videos = self.signature
+        record = ConversionRecord(
+            source=opts.source,
+            license=getattr(reader_cls, "license", "unknown"),
+            description=getattr(reader_cls, "description", ""),
+            source_options=opts.source_options,
+            robot_type=self.robot_type,
+            synthetic=self.synthetic,
+            mapping=opts.mapping,
+            on_error=opts.on_error,
+            keep=opts.keep,
+            fps=self.fps,
+            test_fraction=opts.test_fraction,
+            split_method=SPLIT_METHOD,
+            shard=f"{opts.shard_index}/{opts.num_shards}",
+            max_episodes=opts.max_episodes,
+            sides=list(sides),
+            hands=list(self.hands_seen),
+            has_action=with_action,
+            passthrough={k: list(names) for k, names in passthrough},
+            copied_features=list(copied),
+            video_features=list(videos),
+            listed_episodes=plan.num_listed,
+            skipped_episodes=len(self.failures),
+            trimmed_frames=self.counts["trimmed_frames"],
+            absent_hand_frames=self.counts["absent_hand_frames"],
+            num_episodes=total,
+            test_episodes=self.test_episodes,
+            native_layouts=self.native,
+            episodes=self.records,
+        )
+        write_record(self.writer.root, record)
+        return record
 
 
-def _layout_difference(ep: UdhmEpisode, fps: int, layout: tuple, layout_fps: int) -> str:
+def _signature_difference(ep: UdhmEpisode, fps: int, signature: tuple, signature_fps: int) -> str:
     names = ("hand sides", "actions", "passthrough columns", "copied features", "videos")
-    diffs = [f"{n} {a} vs {b}" for n, a, b in zip(names, ep.layout, layout, strict=True) if a != b]
-    if fps != layout_fps:
-        diffs.append(f"fps {fps} vs {layout_fps}")
+    diffs = [f"{n} {a} vs {b}" for n, a, b in zip(names, ep.signature, signature, strict=True) if a != b]
+    if fps != signature_fps:
+        diffs.append(f"fps {fps} vs {signature_fps}")
     hint = (
         "; for a source whose episodes are left or right hands pass --sides=right,left"
-        if ep.layout[0] != layout[0]
+        if ep.signature[0] != signature[0]
         else ""
     )
-    if fps != layout_fps:
-        hint += f"; pass --fps={layout_fps} to resample time-stamped sources (bags, keypoint files) onto one grid"
-    return f"episode layout differs from the dataset's (set by its first episode): {'; '.join(diffs)}{hint}"
+    if fps != signature_fps:
+        hint += f"; pass --fps={signature_fps} to resample time-stamped sources (bags, keypoint files) onto one grid"
+    return f"episode differs from the dataset's (set by its first episode): {'; '.join(diffs)}{hint}"
 
 
 def format_failures(failures: list[EpisodeFailure], limit: int = 50) -> str:
@@ -558,16 +564,6 @@ def format_failures(failures: list[EpisodeFailure], limit: int = 50) -> str:
     if len(failures) > limit:
         lines.append(f"  ... and {len(failures) - limit} more")
     return "\n".join(lines)
-
-
-def _record_settings(root: Path, settings: dict) -> None:
-    (root / CONVERSION_PATH).write_text(json.dumps(settings, indent=1, default=str))
-
-
-def read_settings(root: str | Path) -> dict:
-    """Conversion settings and records kept next to the dataset metadata ({} if absent)."""
-    path = Path(root) / CONVERSION_PATH
-    return json.loads(path.read_text()) if path.is_file() else {}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -591,8 +587,8 @@ def merge_shards(
     if target.exists() and not overwrite:
         raise FileExistsError(f"{target} already exists; pass overwrite=True or choose another root")
     shard_roots = [Path(r) for r in shard_roots]
-    shard_settings = [read_settings(r) for r in shard_roots]
-    missing = [str(r) for r, s in zip(shard_roots, shard_settings, strict=True) if not s]
+    shard_records = [load_record(r) for r in shard_roots]
+    missing = [str(r) for r, rec in zip(shard_roots, shard_records, strict=True) if rec is None]
     if missing:
         raise ValueError(f"not converted shards (no {CONVERSION_PATH}): {missing}")
     tmp = _temp_dir(target)
@@ -609,29 +605,34 @@ def merge_shards(
         total = int(info["total_episodes"])
         info["splits"] = {"train": f"0:{total}"}
         path.write_text(json.dumps(info, indent=4))
-        settings = dict(shard_settings[0])
-        settings["shard"] = f"merged {len(shard_roots)} shards"
-        for key in ("skipped_episodes", "trimmed_frames", "absent_hand_frames"):
-            settings[key] = sum(s.get(key, 0) for s in shard_settings)
-        settings["hands"] = sorted({h for s in shard_settings for h in s.get("hands", [])})
-        settings["synthetic"] = any(s.get("synthetic", False) for s in shard_settings)
-        offset, records, test = 0, [], []
-        for s in shard_settings:
-            records += [{**r, "episode_index": r["episode_index"] + offset} for r in s.get("episodes", [])]
-            test += [i + offset for i in s.get("test_episodes", [])]
-            offset += int(s.get("num_episodes", 0))
+        offset, episodes, test = 0, [], []
+        base = shard_records[0].native_layouts
+        for rec in shard_records:
+            for e in rec.episodes:
+                # an episode decodes with its own layouts, else its shard's: the merged dataset keeps shard 0's
+                own = e.native_layouts or (rec.native_layouts if rec.native_layouts != base else {})
+                episodes.append(dataclasses.replace(e, episode_index=e.episode_index + offset, native_layouts=own))
+            test += [i + offset for i in rec.test_episodes]
+            offset += rec.num_episodes
         if offset != total:
             raise ValueError(f"shard records count {offset} episodes, the merged dataset {total}")
-        settings.update(num_episodes=total, episodes=records, test_episodes=test)
-        _record_settings(tmp, settings)
+        record = dataclasses.replace(
+            shard_records[0],
+            shard=f"merged {len(shard_roots)} shards",
+            skipped_episodes=sum(r.skipped_episodes for r in shard_records),
+            trimmed_frames=sum(r.trimmed_frames for r in shard_records),
+            absent_hand_frames=sum(r.absent_hand_frames for r in shard_records),
+            hands=sorted({h for r in shard_records for h in r.hands}),
+            synthetic=any(r.synthetic for r in shard_records),
+            num_episodes=total,
+            episodes=episodes,
+            test_episodes=test,
+        )
+        write_record(tmp, record)
         write_card(
             tmp,
             repo_id=repo_id,
-            source=settings.get("source", "unknown"),
-            description=settings.get("description", ""),
-            license_text=settings.get("license", "unknown"),
-            settings=settings,
-            num_episodes=total,
+            record=record,
             num_frames=int(info["total_frames"]),
             features=info["features"],
         )

@@ -19,9 +19,9 @@ import numpy as np
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
+from lerobot_unidextok.blocks import feature_names, find_udhm_blocks, udhm_state_names
 from lerobot_unidextok.constants import (
     ACTION,
-    CONVERSION_PATH,
     DATA_GLOB,
     EPISODES_META_GLOB,
     HAND_TYPE_KEY,
@@ -31,7 +31,8 @@ from lerobot_unidextok.constants import (
     UDHM_MASK_KEY,
 )
 from lerobot_unidextok.conversion.mapping import ANGLE_BOUND_RAD
-from lerobot_unidextok.blocks import feature_names, find_udhm_blocks, udhm_state_names
+from lerobot_unidextok.data.meta import UdhmDatasetMeta
+from lerobot_unidextok.data.record import ConversionRecord, RecordError
 
 LIMIT_TOL_RAD = 1e-3
 
@@ -70,28 +71,20 @@ class ValidationReport:
         return "\n".join(lines)
 
 
-def _native_layout_problems(layout: dict, feats: dict) -> list[str]:
-    """What in `native_layout` does not fit the dataset's features (names to decode back to the robot)."""
+def _native_layout_problems(record: ConversionRecord, feats: dict) -> list[str]:
+    """What in the recorded native layouts does not fit the dataset's features. (Each layout already checked
+    itself when the record was read: hand columns among the native names, passthrough columns among the
+    converted ones, a UDHM block for every hand.)"""
     problems = []
-    for key, entry in layout.items():
+    for key, layout in record.native_layouts.items():
         if key not in feats:
             problems.append(f"{key}: not a feature of the dataset")
             continue
-        names = list(entry.get("names", []))
-        hand_cols = [c for h in entry.get("hands", []) for c in h.get("columns", [])]
-        if not set(hand_cols) <= set(names):
-            problems.append(f"{key}: hand columns {sorted(set(hand_cols) - set(names))[:4]} not in names")
-        converted = feature_names(feats[key])
-        passthrough = [n for n in names if n not in set(hand_cols)]
-        if converted[: len(passthrough)] != passthrough:
-            problems.append(f"{key}: passthrough columns {passthrough[:4]}... are not the first converted columns")
-        source_names = entry.get("source_names")  # a hands-only conversion: `names` are some source columns
-        if source_names is not None and [n for n in source_names if n in set(names)] != names:
-            problems.append(f"{key}: names are not the source_names {source_names[:4]}... in source order")
-        sides = [h.get("side") for h in entry.get("hands", [])]
-        blocks = [b.side for b in find_udhm_blocks(converted)]
-        if not set(sides) <= set(blocks):
-            problems.append(f"{key}: hands {sides} have no UDHM block in {blocks}")
+        if layout.names != feature_names(feats[key]):
+            problems.append(f"{key}: the layout's converted names are not the feature's names in meta/info.json")
+        native = set(layout.native_names)
+        if layout.source_names and [n for n in layout.source_names if n in native] != layout.native_names:
+            problems.append(f"{key}: native names are not the source_names {layout.source_names[:4]}... in source order")
     return problems
 
 
@@ -118,14 +111,17 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
     total_eps = int(info.get("total_episodes", -1))
     _check_counts(rep, info, rows, total_eps)
     _check_values(rep, rows)
-    settings_path = root / CONVERSION_PATH
-    settings = json.loads(settings_path.read_text()) if settings_path.is_file() else {}
-    _check_hand_types(rep, rows, state.sides, settings.get("mapping", "semantic"))
-    _check_splits(rep, root, info, total_eps)
-    layout = settings.get("native_layout")
-    if layout:
-        problems = _native_layout_problems(layout, feats)
-        rep.add("native layout", not problems, "; ".join(problems) or f"{sorted(layout)}")
+    try:
+        meta = UdhmDatasetMeta(root)
+    except RecordError as exc:
+        rep.add("conversion record", False, str(exc))
+        return rep
+    record = meta.record
+    _check_hand_types(rep, rows, state.sides, record.mapping if record else "semantic")
+    _check_splits(rep, meta)
+    if record is not None and record.native_layouts:
+        problems = _native_layout_problems(record, feats)
+        rep.add("native layout", not problems, "; ".join(problems) or f"{sorted(record.native_layouts)}")
     _check_files(rep, root, rows.num_rows, total_eps)
     if load:
         _check_lerobot_load(rep, root, repo_id or info.get("repo_id") or f"local/{root.name}", state.dim)
@@ -340,11 +336,10 @@ def _check_hand_types(rep: ValidationReport, rows: _Rows, sides: list[str], mapp
     )
 
 
-def _check_splits(rep: ValidationReport, root: Path, info: dict, total_eps: int) -> None:
+def _check_splits(rep: ValidationReport, meta: UdhmDatasetMeta) -> None:
     """LeRobot's `splits` ranges in info.json, and the recorded test episodes (warned when missing)."""
-    from lerobot_unidextok.data.splits import recorded_split
-
-    splits = info.get("splits", {})
+    total_eps = meta.total_episodes
+    splits = meta.info.get("splits", {})
     bad = []
     for name, value in (splits or {}).items():
         try:
@@ -358,7 +353,7 @@ def _check_splits(rep: ValidationReport, root: Path, info: dict, total_eps: int)
         bool(splits) and not bad,
         "; ".join(bad) if bad else (f"{splits}" if splits else "no splits"),
     )
-    recorded, why = recorded_split(root, info)
+    recorded, why = meta.recorded_split()
     rep.add(
         "recorded test episodes",
         recorded is not None,

@@ -7,7 +7,6 @@ the robot's other columns (arms, grippers); the train/test split comes from `dat
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,9 +16,10 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from lerobot_unidextok.constants import ACTION, DATA_GLOB, HAND_TYPE_KEY, INFO_PATH, OBS_STATE, UDHM_DIM, UDHM_MASK_KEY
-from lerobot_unidextok.data.splits import HOLDOUTS, SPLITS, EpisodeSplit, SplitError, resolve_split
 from lerobot_unidextok.blocks import UdhmBlock, feature_names, find_udhm_blocks
+from lerobot_unidextok.constants import ACTION, DATA_GLOB, HAND_TYPE_KEY, INFO_PATH, OBS_STATE, UDHM_DIM, UDHM_MASK_KEY
+from lerobot_unidextok.data.meta import UdhmDatasetMeta
+from lerobot_unidextok.data.splits import HOLDOUTS, SPLITS, EpisodeSplit, SplitError
 
 
 @dataclass
@@ -69,11 +69,6 @@ def resolve_root(root: str | Path | None, repo_id: str | None) -> Path:
             "`unidextok-convert --source=... --input=... --root=...`"
         )
     return root
-
-
-def read_info(root: str | Path) -> dict:
-    """meta/info.json of a dataset folder."""
-    return json.loads((Path(root) / INFO_PATH).read_text())
 
 
 def split_episode_range(info: dict, split: str) -> tuple[int, int]:
@@ -165,7 +160,7 @@ def data_files(root: Path) -> list[Path]:
     return files
 
 
-def _split_episodes(root: Path, info: dict, split: str | None, holdout: str) -> np.ndarray | None:
+def _split_episodes(meta: UdhmDatasetMeta, split: str | None, holdout: str) -> np.ndarray | None:
     """Episode indices of `split` (None: every episode); a clear error for an empty split."""
     if split is not None and split not in SPLITS:
         raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
@@ -173,11 +168,11 @@ def _split_episodes(root: Path, info: dict, split: str | None, holdout: str) -> 
         raise ValueError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
     if split in (None, "all"):
         return None
-    episode_split: EpisodeSplit = resolve_split(root, info, holdout)
+    episode_split: EpisodeSplit = meta.split(holdout)
     wanted = episode_split.episodes(split)
     if not len(wanted):
         raise SplitError(
-            f"{root} has no {split} episodes ({episode_split.origin}: {len(episode_split.test)} test of "
+            f"{meta.root} has no {split} episodes ({episode_split.origin}: {len(episode_split.test)} test of "
             f"{episode_split.num_episodes}); use split='all'"
         )
     return wanted
@@ -240,9 +235,8 @@ def _open(root, repo_id, split: str | None, holdout: str):
         raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
     if holdout not in HOLDOUTS:
         raise ValueError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
-    root = resolve_root(root, repo_id)
-    info = read_info(root)
-    return info, _layout(info), data_files(root), _split_episodes(root, info, split, holdout)
+    meta = UdhmDatasetMeta(resolve_root(root, repo_id))
+    return meta.info, _layout(meta.info), data_files(meta.root), _split_episodes(meta, split, holdout)
 
 
 def load_udhm_frames(

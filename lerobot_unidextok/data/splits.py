@@ -17,14 +17,11 @@ one. `holdout` chooses what happens then:
 from __future__ import annotations
 
 import hashlib
-import json
 import logging
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
-from lerobot_unidextok.constants import CONVERSION_PATH, EPISODES_META_GLOB
 
 logger = logging.getLogger(__name__)
 
@@ -71,76 +68,29 @@ def hash_test_episodes(num_episodes: int, fraction: float = HASH_TEST_FRACTION) 
     return tuple(split_order([f"episode_{i:06d}" for i in range(num_episodes)], fraction)[1])
 
 
-def episode_lengths(root: Path) -> dict[int, int] | None:
-    """{episode index: length} from `meta/episodes/*.parquet` (None when absent)."""
-    import pyarrow.parquet as pq
-
-    files = sorted(root.glob(EPISODES_META_GLOB))
-    if not files:
-        return None
-    table = pq.read_table(files, columns=["episode_index", "length"])
-    return dict(zip(table["episode_index"].to_pylist(), table["length"].to_pylist(), strict=True))
-
-
-def recorded_split(root: Path, info: dict) -> tuple[EpisodeSplit | None, str]:
-    """The dataset's own record of its test episodes, or (None, why there is none usable)."""
-    total = int(info.get("total_episodes", 0))
-    path = root / CONVERSION_PATH
-    why = f"no {CONVERSION_PATH}"
-    if path.is_file():
-        settings = json.loads(path.read_text())
-        test = settings.get("test_episodes")
-        records = settings.get("episodes") or []
-        lengths = episode_lengths(root)
-        recorded_lengths = {int(r["episode_index"]): int(r["length"]) for r in records if "length" in r}
-        if test is None:
-            why = f"{CONVERSION_PATH} has no test_episodes (converted by an older version)"
-        elif int(settings.get("num_episodes", -1)) != total or (
-            lengths is not None and recorded_lengths and recorded_lengths != lengths
-        ):
-            why = (
-                f"{CONVERSION_PATH} describes {settings.get('num_episodes')} episodes but the dataset has "
-                f"{total} (or other episode lengths): it was edited after conversion (e.g. lerobot-edit-dataset)"
-            )
-        elif any(not 0 <= int(i) < total for i in test):
-            why = f"{CONVERSION_PATH} test_episodes {test} reach beyond the {total} episodes"
-        else:
-            return EpisodeSplit(total, tuple(int(i) for i in test), "conversion record"), ""
-    splits = info.get("splits") or {}
-    if "test" in splits:
-        try:
-            a, b = (int(x) for x in str(splits["test"]).split(":"))
-        except ValueError:
-            return None, f"{why}; meta/info.json splits['test'] = {splits['test']!r} is not 'a:b'"
-        if 0 <= a <= b <= total:
-            return EpisodeSplit(total, tuple(range(a, b)), "meta/info.json splits"), ""
-        return None, f"{why}; meta/info.json splits['test'] = {splits['test']!r} is outside 0:{total}"
-    return None, f"{why}, and meta/info.json splits {sorted(splits)} have no 'test'"
-
-
-def resolve_split(root: str | Path, info: dict, holdout: str = "auto") -> EpisodeSplit:
-    """The test episodes of the dataset at `root` under the `holdout` policy (module docstring)."""
+def choose_split(
+    where: str | Path, num_episodes: int, recorded: EpisodeSplit | None, why: str, holdout: str = "auto"
+) -> EpisodeSplit:
+    """The test episodes of a dataset under the `holdout` policy (module docstring), given its own record of
+    them (`recorded`, None with `why` there is none usable; `data.meta.UdhmDatasetMeta.split` reads it)."""
     if holdout not in HOLDOUTS:
         raise SplitError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
-    root = Path(root)
-    total = int(info.get("total_episodes", 0))
     if holdout == "hash":
-        return EpisodeSplit(total, hash_test_episodes(total), "episode hash")
-    split, why = recorded_split(root, info)
-    if split is not None:
-        return split
+        return EpisodeSplit(num_episodes, hash_test_episodes(num_episodes), "episode hash")
+    if recorded is not None:
+        return recorded
     if holdout == "recorded":
         raise SplitError(
-            f"{root} records no test episodes ({why}). Choose: --holdout=hash to hold out a deterministic "
+            f"{where} records no test episodes ({why}). Choose: --holdout=hash to hold out a deterministic "
             f"{HASH_TEST_FRACTION:.0%} of its episodes, --split=all to use every episode, or pass a dataset "
             "converted by unidextok-convert"
         )
     logger.warning(
         "%s records no test episodes (%s); holding out %d of %d episodes by episode hash (--holdout=hash). "
         "Pass --holdout=recorded to require a recorded split or --split=all to use every episode.",
-        root,
+        where,
         why,
-        len(hash_test_episodes(total)),
-        total,
+        len(hash_test_episodes(num_episodes)),
+        num_episodes,
     )
-    return EpisodeSplit(total, hash_test_episodes(total), "episode hash")
+    return EpisodeSplit(num_episodes, hash_test_episodes(num_episodes), "episode hash")

@@ -323,13 +323,11 @@ def write_run_cards(run_dir: str | Path, results: dict[str, dict], training: dic
 
 
 def _policy_tokenizer(config: dict) -> str:
-    """The tokenizer a `<type>_udt` config names (as `UdtConfigMixin.untrained_preset` decides)."""
-    from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+    """The tokenizer a `<type>_udt` config names (`pretrained.untrained_preset`'s rule)."""
+    from lerobot_unidextok.pretrained import untrained_preset
 
-    pretrained, preset = config.get("udt_pretrained"), config.get("udt_preset")
-    if pretrained is None or (preset and pretrained == DEFAULT_TOKENIZER):
-        return f"untrained preset {preset or 'small'}"
-    return pretrained
+    preset = untrained_preset(config.get("udt_pretrained"), config.get("udt_preset"))
+    return f"untrained preset {preset}" if preset is not None else config["udt_pretrained"]
 
 
 def policy_card(folder: str | Path, repo_id: str, training_data: list[str] | None = None) -> str:

@@ -28,26 +28,23 @@ What the mixin adds to the stock config, in `validate_features` (run when the po
 
 from __future__ import annotations
 
-import json
 import logging
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from lerobot.configs.types import FeatureType, NormalizationMode, PolicyFeature
 
+from lerobot_unidextok.blocks import find_udhm_blocks
 from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE, UDHM_DIM
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.data.meta import UdhmDatasetMeta
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, untrained_preset
 from lerobot_unidextok.processor import (
     RANGE_CHECKS,
     REPRESENTATIONS,
     HandLayout,
-    NativeLayout,
-    load_tokenizer,
     tokenizer_output_dims,
 )
-from lerobot_unidextok.processor.layout import dataset_hand_types, feature_names
-from lerobot_unidextok.blocks import find_udhm_blocks
+from lerobot_unidextok.tokenizer import UniDexTokConfig, check_encoding
 
 logger = logging.getLogger(__name__)
 
@@ -110,52 +107,44 @@ class UdtConfigMixin:
         super().__post_init__()
         if self.udt_representation not in REPRESENTATIONS:
             raise ValueError(f"udt_representation must be one of {REPRESENTATIONS}, got {self.udt_representation!r}")
+        check_encoding(self.udt_search_rounds, flag="udt_search_rounds")
         if self.udt_range_check not in RANGE_CHECKS:
             raise ValueError(f"udt_range_check must be one of {RANGE_CHECKS}, got {self.udt_range_check!r}")
-        if self.udt_search_rounds < 0:
-            raise ValueError(f"udt_search_rounds must be >= 0 (0 = nearest codes), got {self.udt_search_rounds}")
         if self.udt_relative_actions:  # offsets around the state: the absolute action stats do not describe them
             self.normalization_mapping = {**self.normalization_mapping, "ACTION": NormalizationMode.IDENTITY}
 
     # ----------------------------------------------------------------------------------------------
     def tokenizer_config(self):
         """The UniDexTokConfig the step will use (config.json of udt_pretrained, else the preset)."""
-        from lerobot_unidextok.tokenizer import UniDexTokConfig
-
-        if self.untrained_preset() is not None:
-            return UniDexTokConfig.from_preset(self.untrained_preset())
-        local = Path(self.udt_pretrained) / "config.json"
-        if local.is_file():
-            return UniDexTokConfig(**json.loads(local.read_text()))
-        return load_tokenizer(self.udt_pretrained).config
+        preset = self.untrained_preset()
+        return UniDexTokConfig.from_preset(preset) if preset else UniDexTokConfig.from_pretrained(self.udt_pretrained)
 
     def untrained_preset(self) -> str | None:
         """The preset of an untrained tokenizer when one was asked for (as `UniDexTokStateTokenizerStep`
         decides: `udt_preset` with the default udt_pretrained, or udt_pretrained=None), else None."""
-        if self.udt_pretrained is None:
-            return self.udt_preset or "small"
-        return self.udt_preset if self.udt_pretrained == DEFAULT_TOKENIZER else None
+        return untrained_preset(self.udt_pretrained, self.udt_preset)
 
     def _fill_from_dataset(self) -> None:
         """Hand layout, state names and native action layout from the dataset lerobot-train loaded."""
-        meta = getattr(self, "_runtime_dataset_meta", None)
-        if meta is None or self.udt_state_names:
+        lerobot_meta = getattr(self, "_runtime_dataset_meta", None)
+        if lerobot_meta is None or self.udt_state_names:
             return
+        meta = UdhmDatasetMeta.from_lerobot(lerobot_meta)
         if OBS_HAND_TOKEN_FEATURES in meta.features:
             raise ValueError(
                 f"the dataset already has '{OBS_HAND_TOKEN_FEATURES}', which the UniDexTok step writes; drop or "
                 f"rename it (lerobot-edit-dataset), or train the stock --policy.type={self.type.removesuffix(UDT_SUFFIX)}"
             )
-        names = feature_names(meta.features.get(OBS_STATE, {}))
-        hands = self.udt_hand_layout or dataset_hand_types(meta.root)
+        names = meta.names(OBS_STATE)
+        hands = self.udt_hand_layout or meta.block_hands()
         if len(hands) == 1:
             hands = hands * max(1, len(find_udhm_blocks(names)))
         layout = HandLayout.from_state_names(names, hands)
         self.udt_hand_layout, self.udt_sides, self.udt_state_names = layout.hands, layout.sides, layout.state_names
-        self.udt_action_names = feature_names(meta.features.get(ACTION, {}))
-        native = NativeLayout.from_dataset(meta.root, ACTION) if self.udt_native_action else None
+        self.udt_action_names = meta.names(ACTION)
+        native = meta.native_layout(ACTION) if self.udt_native_action else None
         self.udt_native_layout = native.to_dict() if native is not None else {}
-        state = NativeLayout.from_dataset(meta.root, OBS_STATE) if self.udt_native_state else None
+        state = meta.native_layout(OBS_STATE) if self.udt_native_state else None
         self.udt_native_state_layout = state.to_dict() if state is not None and state.invertible else {}
         logger.info(
             "%s: hands %s (sides %s), %d passthrough state columns, native state %s, native action %s, from %s",

@@ -61,12 +61,12 @@ def insert_udt_steps(
     at = min(after_batch[:1] + normalizer[:1])  # after batching, before normalising
     steps.insert(at, step)
     if config.udt_native_state and config.udt_native_state_layout:
-        steps.insert(at, NativeToUDHMStateStep.from_layout(NativeLayout(**config.udt_native_state_layout)))
+        steps.insert(at, NativeToUDHMStateStep.from_layout(NativeLayout.from_dict(config.udt_native_state_layout)))
     if config.udt_relative_actions:
         _insert_relative_pair(config, steps, post)
     pre.steps = steps
     if config.udt_native_action and config.udt_native_layout:
-        post.steps = [*post.steps, UDHMToNativeCommandStep.from_layout(NativeLayout(**config.udt_native_layout))]
+        post.steps = [*post.steps, UDHMToNativeCommandStep.from_layout(NativeLayout.from_dict(config.udt_native_layout))]
     return pre, post
 
 

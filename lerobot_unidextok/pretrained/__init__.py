@@ -1,37 +1,110 @@
-"""Tokenizers shipped inside the package, resolvable by id with no network and an empty HF cache.
+"""Where a tokenizer checkpoint is: the name resolution behind `UniDexTok.from_pretrained` (the one door).
 
-    UniDexTok.from_pretrained("unidextok/universal-small")        # this folder's universal-small/
-    unidextok-eval --checkpoint=unidextok/universal-small
-    lerobot-train --policy.type=act_udt ...                        # the default `udt_pretrained`
+    UniDexTok.from_pretrained("unidextok/universal-small")        # shipped in this package: no network
+    UniDexTok.from_pretrained("outputs/small")                    # a unidextok-train run folder: its best/
+    UniDexTok.from_pretrained("outputs/small/best")               # a checkpoint folder
+    UniDexTok.from_pretrained("lab/unidextok-small")              # a Hub repo id (the HF cache serves it offline)
+    UniDexTokConfig.from_pretrained(...)                          # the same names, config.json only
 
-Resolution of a name (`resolve`): an existing local folder, then a shipped id, then the name unchanged (the
-HF cache / Hub). `DEFAULT_TOKENIZER` is the tokenizer of the `<type>_udt` policies and of
-`UniDexTokStateTokenizerStep` unless they are given another one or an untrained preset explicitly.
-Each shipped folder is a Hub-format checkpoint (config.json, model.safetensors, README.md card, eval.json with
-the card's figures); `lerobot_unidextok/configs/train/universal.yaml` is its recipe. Imports nothing of the package.
+`resolve(name)`: an existing checkpoint folder as given, a run folder's `best/`, a shipped id's package folder,
+else the name unchanged (a Hub repo id). `hub_errors(name)` turns the Hub's failures (offline and not cached,
+not a repo id, no such repo) into one `CheckpointNotFoundError` that says how to fix it. `DEFAULT_TOKENIZER`
+is the tokenizer of the `<type>_udt` policies and of `UniDexTokStateTokenizerStep` unless they are given
+another one or an untrained preset explicitly. Each shipped folder is a Hub-format checkpoint (config.json,
+model.safetensors, README.md card, eval.json with the card's figures); `train/universal` is its recipe.
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
+from collections.abc import Iterator
 from pathlib import Path
+
+from lerobot_unidextok.errors import CheckpointNotFoundError
+
+logger = logging.getLogger(__name__)
 
 DEFAULT_TOKENIZER = "unidextok/universal-small"
 HERE = Path(__file__).resolve().parent
 SHIPPED: dict[str, Path] = {"unidextok/universal-small": HERE / "universal-small"}
+CONFIG_FILE = "config.json"
+RUN_BEST = "best"  # the checkpoint a unidextok-train run folder keeps for use
 
 
 def shipped_folder(name: str) -> Path | None:
     """The package folder of shipped id `name`, or None when `name` is not a shipped id."""
     folder = SHIPPED.get(str(name))
-    return folder if folder is not None and (folder / "config.json").is_file() else None
+    return folder if folder is not None and (folder / CONFIG_FILE).is_file() else None
 
 
-def resolve(name: str | Path) -> str:
-    """A local folder as given; else the shipped folder of a shipped id; else `name` (a Hub repo id)."""
-    if Path(name).expanduser().is_dir():
-        return str(name)
+def resolve(name: str | Path, checkpoint: bool = False) -> str:
+    """A folder as given (a `unidextok-train` run folder: its `best/`); a shipped id's package folder; else `name`
+    unchanged (a Hub repo id). `checkpoint=True`: a folder that holds no tokenizer is a CheckpointNotFoundError."""
+    path = Path(name).expanduser()
+    if path.is_dir():
+        if (path / CONFIG_FILE).is_file():
+            return str(name)
+        if (path / RUN_BEST / CONFIG_FILE).is_file():
+            logger.info("%s is a unidextok-train run folder: using its %s/ checkpoint", path, RUN_BEST)
+            return str(path / RUN_BEST)
+        if not checkpoint:
+            return str(name)
+        raise CheckpointNotFoundError(
+            f"{path} holds no tokenizer: expected {CONFIG_FILE} + model.safetensors, or a unidextok-train run "
+            f"folder with {RUN_BEST}/ (pass that folder or its {RUN_BEST}/)"
+        )
     folder = shipped_folder(str(name))
     return str(folder) if folder is not None else str(name)
 
 
-__all__ = ["DEFAULT_TOKENIZER", "SHIPPED", "resolve", "shipped_folder"]
+@contextlib.contextmanager
+def hub_errors(name: str) -> Iterator[None]:
+    """Turn huggingface_hub's failures to find `name` into a CheckpointNotFoundError naming the fix."""
+    from huggingface_hub.errors import (  # the Hub client: only when a name goes to the HF cache / Hub
+        EntryNotFoundError,
+        HFValidationError,
+        LocalEntryNotFoundError,
+        OfflineModeIsEnabled,
+        RepositoryNotFoundError,
+    )
+
+    not_here = f"{name!r} is not a folder here, nor a shipped id ({', '.join(SHIPPED)})"
+    try:
+        yield
+    except (LocalEntryNotFoundError, OfflineModeIsEnabled) as err:
+        raise CheckpointNotFoundError(
+            f"{not_here}, and as a Hub repo id it is not in the local HF cache while the Hub is unreachable "
+            f"(HF_HUB_OFFLINE or no network): run `unidextok-pull --repo_id={name}` first, or unset HF_HUB_OFFLINE"
+        ) from err
+    except HFValidationError as err:
+        raise CheckpointNotFoundError(f"{not_here}, nor a Hub repo id (namespace/name)") from err
+    except (RepositoryNotFoundError, EntryNotFoundError) as err:
+        raise CheckpointNotFoundError(
+            f"{not_here}, and the Hub has no UniDexTok checkpoint {name!r} ({type(err).__name__}); check the id, or "
+            "HF_TOKEN for a private repo"
+        ) from err
+
+
+def untrained_preset(pretrained: str | None, preset: str | None) -> str | None:
+    """The preset of an untrained tokenizer when one is asked for, else None (load `pretrained`): `preset` given
+    with `pretrained` left at `DEFAULT_TOKENIZER`, or `pretrained=None` (then `preset`, else "small"). The rule of
+    `UniDexTokStateTokenizerStep`, the `<type>_udt` configs and their cards."""
+    if pretrained is None:
+        return preset or "small"
+    return preset if pretrained == DEFAULT_TOKENIZER else None
+
+
+def config_path(name: str | Path, revision: str | None = None) -> Path:
+    """The `config.json` of checkpoint `name` (resolved as `resolve` does; from the HF cache / Hub for a repo
+    id, the config alone)."""
+    resolved = resolve(name, checkpoint=True) if revision is None else str(name)
+    if Path(resolved).is_dir():
+        return Path(resolved) / CONFIG_FILE
+    from huggingface_hub import hf_hub_download  # the Hub client: only for a repo id
+
+    with hub_errors(str(name)):
+        return Path(hf_hub_download(repo_id=resolved, filename=CONFIG_FILE, revision=revision))
+
+
+__all__ = ["DEFAULT_TOKENIZER", "SHIPPED", "config_path", "hub_errors", "resolve", "shipped_folder", "untrained_preset"]

@@ -1,8 +1,8 @@
-"""LeRobot processor steps around UniDexTok: hand states -> tokens (pre), UDHM -> native commands (post).
+"""The UniDexTok processor step: hand states -> tokens (pre-processor).
 
-With `native_state.py` (native robot state -> converted layout), the only modules of the package that import
-`lerobot.processor`. Registry names contain no '/'
-(a '/' breaks `save_pretrained` of stateful steps in lerobot 0.6).
+With `native.py` (the robot's native vectors <-> the converted layout), the only modules of the package that
+import `lerobot.processor`. Registry names contain no '/' (a '/' breaks `save_pretrained` of stateful steps in
+lerobot 0.6).
 
 The state may be a whole robot: only the UDHM blocks (found by name) are tokenised.
 Keys written by `UniDexTokStateTokenizerStep`:
@@ -25,7 +25,6 @@ import torch
 from lerobot.configs.types import FeatureType, PipelineFeatureType, PolicyFeature
 from lerobot.processor import (
     ObservationProcessorStep,
-    PolicyActionProcessorStep,
     ProcessorStepRegistry,
 )
 
@@ -36,7 +35,9 @@ from lerobot_unidextok.constants import (
     OBS_STATE,
     UDHM_DIM,
 )
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.data.meta import UdhmDatasetMeta
+from lerobot_unidextok.layout import HandLayout
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, untrained_preset
 from lerobot_unidextok.processor.guards import (
     RANGE_CHECKS,
     check_ranges,
@@ -44,41 +45,17 @@ from lerobot_unidextok.processor.guards import (
     layout_bounds,
     untrained_hands,
 )
-from lerobot_unidextok.processor.layout import HandLayout, NativeLayout, hand_layout_from_dataset
-from lerobot_unidextok.tokenizer import PRESETS, UniDexTok, UniDexTokConfig
+from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig, check_encoding
 
 logger = logging.getLogger(__name__)
 
 STEP_NAME = "unidextok.state_tokenizer"
-NATIVE_STEP_NAME = "unidextok.udhm_to_native"
 REPRESENTATIONS = ("dequantized", "embedding")
 
 
 # ---------------------------------------------------------------------------------------------
 # tokenizer loading
 # ---------------------------------------------------------------------------------------------
-def load_tokenizer(pretrained: str) -> UniDexTok:
-    """A UniDexTok checkpoint from a folder or a Hub repo id (the HF cache serves it offline)."""
-    from huggingface_hub.errors import (
-        HFValidationError,
-        LocalEntryNotFoundError,
-        OfflineModeIsEnabled,
-    )
-
-    try:
-        return UniDexTok.from_pretrained(pretrained)
-    except (LocalEntryNotFoundError, OfflineModeIsEnabled) as err:
-        raise FileNotFoundError(
-            f"UniDexTok checkpoint {pretrained!r} is not in the local HF cache and the Hub is unreachable "
-            f"(HF_HUB_OFFLINE or no network): run `unidextok-pull --repo_id={pretrained}` first, "
-            "or unset HF_HUB_OFFLINE"
-        ) from err
-    except HFValidationError as err:
-        raise FileNotFoundError(
-            f"{pretrained!r} is neither a checkpoint folder nor a Hub repo id (namespace/name)"
-        ) from err
-
-
 def tokenizer_output_dims(config: UniDexTokConfig, num_hands: int, representation: str) -> tuple[int, int]:
     """(token count, float feature width) the step adds for `num_hands` hands."""
     if representation not in REPRESENTATIONS:
@@ -138,21 +115,18 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     def __post_init__(self) -> None:
         if self.representation not in REPRESENTATIONS:
             raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {self.representation!r}")
-        if self.search_rounds < 0:
-            raise ValueError(f"search_rounds must be >= 0 (0 = nearest codes), got {self.search_rounds}")
         if self.range_check not in RANGE_CHECKS:
             raise ValueError(f"range_check must be one of {RANGE_CHECKS}, got {self.range_check!r}")
+        check_encoding(self.search_rounds)  # the step's own setting, not the checkpoint's: 0 = nearest codes
         self.hand_layout, self.state_names = list(self.hand_layout), list(self.state_names)
         check_registry(self.hand_layout)  # before any weights are loaded or anything is logged
         self._layout = HandLayout(self.hand_layout, state_names=self.state_names)
+        preset = untrained_preset(self.pretrained, self.preset)
         if self.tokenizer_config is not None and (self.embed_weights or self.pretrained is None):
             self._tokenizer = UniDexTok(UniDexTokConfig(**self.tokenizer_config)).eval()
-        elif self.pretrained is not None and (self.preset is None or self.pretrained != DEFAULT_TOKENIZER):
-            self._tokenizer = load_tokenizer(self.pretrained)
+        elif preset is None:
+            self._tokenizer = UniDexTok.from_pretrained(self.pretrained)
         else:
-            preset = self.preset or "small"
-            if preset not in PRESETS:
-                raise ValueError(f"unknown preset {preset!r}; choose one of {sorted(PRESETS)}")
             logger.warning("UniDexTok step built from preset %r with untrained weights", preset)
             self.pretrained = None  # the weights are this preset's, not the default checkpoint's
             self._tokenizer = UniDexTok(UniDexTokConfig.from_preset(preset)).eval()
@@ -186,7 +160,7 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     @classmethod
     def from_dataset(cls, root: str | Path, **kwargs: Any) -> UniDexTokStateTokenizerStep:
         """A step for a converted dataset folder: hands, sides and state columns read from it."""
-        layout = hand_layout_from_dataset(root)
+        layout = UdhmDatasetMeta(root).hand_layout()
         return cls(hand_layout=layout.hands, state_names=layout.state_names, **kwargs)
 
     @property
@@ -303,100 +277,3 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             device = self.tokenizer.enc_pos.device
             self.tokenizer.load_state_dict({k: v.to(device) for k, v in state.items()}, strict=True)
             self.tokenizer.eval()
-
-
-# ---------------------------------------------------------------------------------------------
-# decoding side: UDHM states / tokens -> a robot's native command units
-# ---------------------------------------------------------------------------------------------
-def udhm_to_native(states_rad: torch.Tensor | np.ndarray, layout: HandLayout | NativeLayout) -> np.ndarray:
-    """(..., D) converted vectors -> the robot's native vectors (float64).
-
-    With a `HandLayout` the input is its state (`state_names`, or the UDHM blocks only when it has none)
-    and the output its passthrough columns, then each hand's native joints in block order; with a
-    `NativeLayout` the input is the converted vector and the output the robot's native vector in the
-    converter's recorded order (passthrough copied by name).
-    """
-    if isinstance(layout, HandLayout):
-        sides = layout.sides or ["right"] * layout.num_hands
-        layout = NativeLayout.from_hands(layout.hands, sides, layout.state_names or None)
-    return layout.to_native(torch.as_tensor(states_rad).detach().cpu().numpy())
-
-
-def tokens_to_native(tokens: torch.Tensor, tokenizer: UniDexTok, layout: HandLayout) -> np.ndarray:
-    """(B, H*N*K) or (H*N*K,) codes -> decoded UDHM -> each hand's native commands (see `udhm_to_native`)."""
-    tokens = torch.as_tensor(tokens)
-    squeeze = tokens.ndim == 1
-    b = 1 if squeeze else tokens.shape[0]
-    cfg = tokenizer.config
-    codes = tokens.reshape(b * layout.num_hands, cfg.num_tokens, cfg.num_groups)  # (B*H, N, K)
-    states = tokenizer.decode(codes, layout.hands * b, allow_unknown=True).reshape(b, -1)  # (B, 22*H)
-    native = udhm_to_native(states, HandLayout(layout.hands, layout.sides))
-    return native[0] if squeeze else native
-
-
-@ProcessorStepRegistry.register(NATIVE_STEP_NAME)
-@dataclass
-class UDHMToNativeCommandStep(PolicyActionProcessorStep):
-    """Post-processor: a predicted converted action (..., D) -> the robot's native action (..., D_native).
-
-    Whole robot: `names` (the converted action's names), `native_names` and `native_hands` (one
-    `{"side", "hand", "columns"}` per block) as in `meta/unidextok_conversion.json` "native_layout";
-    passthrough columns (arms...) are copied unchanged, hands go to native units via the hand registry.
-    Hands only (`names` empty): the action is the UDHM blocks of `hand_layout` / `sides`, the output each
-    hand's native joints in block order.
-    """
-
-    hand_layout: list[str] = field(default_factory=lambda: ["inspire_rh56"])  # hand spec per block
-    sides: list[str] = field(default_factory=list)  # side per block; [] = all right
-    names: list[str] = field(default_factory=list)  # converted action names (whole robot)
-    native_names: list[str] = field(default_factory=list)  # native action names, in the robot's order
-    native_hands: list[dict[str, Any]] = field(default_factory=list)  # {"side", "hand", "columns"} per block
-
-    _native: NativeLayout | None = field(default=None, init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        if self.names:
-            self._native = NativeLayout(self.names, self.native_names, self.native_hands)
-        else:
-            sides = list(self.sides) or ["right"] * len(self.hand_layout)
-            self._native = NativeLayout.from_hands(list(self.hand_layout), sides)
-
-    @classmethod
-    def from_layout(cls, layout: NativeLayout) -> UDHMToNativeCommandStep:
-        return cls(
-            hand_layout=[h["hand"] for h in layout.hands],
-            sides=[h["side"] for h in layout.hands],
-            names=layout.names,
-            native_names=layout.native_names,
-            native_hands=layout.hands,
-        )
-
-    @property
-    def layout(self) -> NativeLayout:
-        assert self._native is not None
-        return self._native
-
-    def action(self, action: torch.Tensor) -> torch.Tensor:
-        action = torch.as_tensor(action)
-        native = self.layout.to_native(action.detach().cpu().numpy())
-        return torch.as_tensor(native, dtype=torch.float32, device=action.device)
-
-    def native_dim(self) -> int:
-        return self.layout.native_dim
-
-    def transform_features(
-        self, features: dict[PipelineFeatureType, dict[str, PolicyFeature]]
-    ) -> dict[PipelineFeatureType, dict[str, PolicyFeature]]:
-        acts = dict(features.get(PipelineFeatureType.ACTION, {}))
-        for key, feat in acts.items():
-            acts[key] = PolicyFeature(type=feat.type, shape=(self.native_dim(),))
-        return {**features, PipelineFeatureType.ACTION: acts}
-
-    def get_config(self) -> dict[str, Any]:
-        return {
-            "hand_layout": list(self.hand_layout),
-            "sides": list(self.sides),
-            "names": list(self.names),
-            "native_names": list(self.native_names),
-            "native_hands": [dict(h) for h in self.native_hands],
-        }

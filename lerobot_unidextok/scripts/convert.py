@@ -151,12 +151,12 @@ def _run_executor(cfg: ConvertConfig) -> int:
 def _print_train_episodes(root: Path) -> None:
     """How to keep the recorded test episodes out of `lerobot-train` (which ignores info.json splits)."""
     from lerobot_unidextok.conversion.card import lerobot_train_episodes_flag
-    from lerobot_unidextok.conversion.pipeline import read_settings
+    from lerobot_unidextok.data.record import load_record
 
-    settings = read_settings(root)
-    if settings.get("test_episodes") and int(settings.get("num_episodes", 0)) <= 2000:
-        flag = lerobot_train_episodes_flag(int(settings["num_episodes"]), settings["test_episodes"])
-        print(f"lerobot-train without the {len(settings['test_episodes'])} test episodes: {flag}")
+    record = load_record(root)
+    if record is not None and record.test_episodes and record.num_episodes <= 2000:
+        flag = lerobot_train_episodes_flag(record.num_episodes, record.test_episodes)
+        print(f"lerobot-train without the {len(record.test_episodes)} test episodes: {flag}")
 
 
 def main() -> None:

@@ -13,6 +13,7 @@ two rows), then the per-hand table.
 
 import logging
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from lerobot_unidextok.utils.cli import configure_output
 from lerobot_unidextok.utils.draccus_cli import wrap
@@ -38,9 +39,9 @@ class EvalConfig:
 def run(cfg: EvalConfig) -> dict:
     from lerobot_unidextok.evaluation import evaluate_tokenizer, write_report
     from lerobot_unidextok.evaluation.report import describe_scored
+    from lerobot_unidextok.pretrained import resolve
     from lerobot_unidextok.tokenizer import UniDexTok
     from lerobot_unidextok.training import load_hand_states
-    from lerobot_unidextok.training.checkpoint import resolve_checkpoint
 
     if not cfg.checkpoint:
         raise SystemExit("error: --checkpoint is required (a folder with config.json + model.safetensors or a repo id)")
@@ -51,15 +52,9 @@ def run(cfg: EvalConfig) -> dict:
         data = data.only(cfg.hands)
         if len(data) == 0:
             raise SystemExit(f"error: no rows for hands {cfg.hands} in {cfg.datasets}")
-    try:
-        checkpoint = resolve_checkpoint(cfg.checkpoint)
-    except FileNotFoundError as exc:
-        raise SystemExit(f"error: {exc}") from exc
-    model = UniDexTok.from_pretrained(checkpoint).to(cfg.device)
-    if cfg.search_rounds is not None:
-        if cfg.search_rounds < 0:
-            raise SystemExit(f"error: --search_rounds must be >= 0 (0 = nearest codes), got {cfg.search_rounds}")
-        model.config.search_rounds = cfg.search_rounds
+    # the folder scored (a run folder's best/), or the id as given (shipped or Hub)
+    checkpoint = resolve(cfg.checkpoint) if Path(cfg.checkpoint).expanduser().is_dir() else cfg.checkpoint
+    model = UniDexTok.from_pretrained(cfg.checkpoint, search_rounds=cfg.search_rounds).to(cfg.device)
     report = evaluate_tokenizer(model, data)
     report["checkpoint"], report["datasets"], report["split"] = checkpoint, cfg.datasets, cfg.split
     report["scored"] = describe_scored(data, cfg.datasets, cfg.split, checkpoint)

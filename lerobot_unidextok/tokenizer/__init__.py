@@ -1,13 +1,34 @@
-"""UniDexTok tokenizer (layer 2): config, adaLN blocks, factorised cosine VQ, Hub-format model."""
+"""UniDexTok tokenizer (layer 2): config, adaLN blocks, factorised cosine VQ, Hub-format model.
+
+The config module imports no torch, so configs that take an encoding setting (`check_encoding`) stay light;
+the model and the quantiser are imported on first use (PEP 562).
+"""
+
+import importlib
 
 from lerobot_unidextok.tokenizer.configuration_unidextok import (
     DEFAULT_HAND_NAMES,
     FORMAT_VERSION,
     PRESETS,
     UniDexTokConfig,
+    check_encoding,
 )
-from lerobot_unidextok.tokenizer.modeling_unidextok import UniDexTok, UniDexTokOutput, count_parameters
-from lerobot_unidextok.tokenizer.quantizer import FactorizedCosineVQ
+
+_LAZY = {
+    "UniDexTok": "lerobot_unidextok.tokenizer.modeling_unidextok",
+    "UniDexTokOutput": "lerobot_unidextok.tokenizer.modeling_unidextok",
+    "count_parameters": "lerobot_unidextok.tokenizer.modeling_unidextok",
+    "FactorizedCosineVQ": "lerobot_unidextok.tokenizer.quantizer",
+}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "DEFAULT_HAND_NAMES",
@@ -17,5 +38,6 @@ __all__ = [
     "UniDexTok",
     "UniDexTokConfig",
     "UniDexTokOutput",
+    "check_encoding",
     "count_parameters",
 ]

@@ -11,6 +11,15 @@ FORMAT_VERSION = 1
 # codes at use, never training: cache keys and fingerprints of trainings leave them out.
 ENCODING_FIELDS: tuple[str, ...] = ("search_rounds", "search_sweeps")
 
+def check_encoding(search_rounds: int | None, search_sweeps: int | None = None, flag: str = "search_rounds") -> None:
+    """The one rule for the encoding settings (None = unset): `search_rounds` >= 0 (0 = the nearest codes) and
+    `search_sweeps` >= 1; a ValueError naming `flag`, the field or flag that carries `search_rounds`."""
+    if search_rounds is not None and search_rounds < 0:
+        raise ValueError(f"{flag} must be >= 0 (0 = nearest codes), got {search_rounds}")
+    if search_sweeps is not None and search_sweeps < 1:
+        raise ValueError(f"search_sweeps must be >= 1, got {search_sweeps}")
+
+
 # Hand-type vocabulary used for conditioning by default. Names are hand-spec names (side-independent);
 # any other name maps to the "unknown hand" embedding when `allow_unknown=True`.
 DEFAULT_HAND_NAMES: tuple[str, ...] = (
@@ -134,14 +143,29 @@ class UniDexTokConfig:
             )
         if self.codebook_update not in ("gradient", "ema"):
             raise ValueError(f"codebook_update must be 'gradient' or 'ema', got {self.codebook_update!r}")
-        if self.search_rounds < 0 or self.search_sweeps < 1:
-            raise ValueError(
-                f"search_rounds must be >= 0 and search_sweeps >= 1, got {self.search_rounds}, {self.search_sweeps}"
-            )
+        check_encoding(self.search_rounds, self.search_sweeps)
         if min(self.mse_weight, self.smooth_l1_weight, self.l1_weight) < 0:
             raise ValueError("mse_weight, smooth_l1_weight and l1_weight must be >= 0")
         if len(set(self.hand_names)) != len(self.hand_names):
             raise ValueError(f"hand_names has duplicates: {self.hand_names}")
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "UniDexTokConfig":
+        """A config from config.json's dict; a file without `format_version` is read as `format_version=None`
+        (refused), not as the current version."""
+        return cls(**{"format_version": None, **data})
+
+    @classmethod
+    def from_pretrained(cls, pretrained_model_name_or_path: str, revision: str | None = None) -> "UniDexTokConfig":
+        """The config of a checkpoint (any name `UniDexTok.from_pretrained` takes), without its weights."""
+        import json
+
+        from lerobot_unidextok.pretrained import config_path  # names -> files: the door's resolution
+
+        path = config_path(pretrained_model_name_or_path, revision)
+        if not path.is_file():
+            raise FileNotFoundError(f"{path} not found: a UniDexTok checkpoint folder holds config.json")
+        return cls.from_dict(json.loads(path.read_text()))
 
     @property
     def group_dim(self) -> int:

@@ -4,6 +4,7 @@ No `from __future__ import annotations` here: the Hub mixin reads the real `UniD
 annotation of `__init__` to rebuild the config from config.json.
 """
 
+import dataclasses
 import logging
 import math
 import os
@@ -17,6 +18,7 @@ from huggingface_hub import constants as hf_constants
 from torch import nn
 
 from lerobot_unidextok.constants import ANGLE_SCALE_RAD
+from lerobot_unidextok.pretrained import hub_errors, resolve
 from lerobot_unidextok.tokenizer.configuration_unidextok import UniDexTokConfig
 from lerobot_unidextok.tokenizer.layers import AdaLNBlock, AdaLNFinalNorm, HandEmbedder
 from lerobot_unidextok.tokenizer.quantizer import FactorizedCosineVQ
@@ -318,23 +320,41 @@ class UniDexTok(
     # Hub loading: format check, safetensors only, strict
     # -----------------------------------------------------------------------------------------
     @classmethod
-    def from_pretrained(cls, pretrained_model_name_or_path, *args, **kwargs) -> "UniDexTok":
-        """Load a checkpoint: a local folder, else a tokenizer shipped in the package by its id
-        (`lerobot_unidextok.pretrained`, e.g. "unidextok/universal-small"; no network, no HF cache), else a
-        repo id from the HF cache / Hub. An explicit `revision` always means the Hub repo."""
-        from lerobot_unidextok.pretrained import resolve
+    def from_pretrained(
+        cls,
+        pretrained_model_name_or_path,
+        *args,
+        search_rounds: int | None = None,
+        search_sweeps: int | None = None,
+        **kwargs,
+    ) -> "UniDexTok":
+        """The one door to a trained tokenizer: a checkpoint folder, a `unidextok-train` run folder (its
+        `best/`), a tokenizer shipped in the package by its id (e.g. "unidextok/universal-small"; no network,
+        no HF cache), or a Hub repo id (the HF cache serves it offline; an explicit `revision` always means the
+        Hub). A name found nowhere is a `CheckpointNotFoundError` saying how to fix it (`pretrained.resolve`).
 
-        name = pretrained_model_name_or_path
+        `search_rounds` / `search_sweeps`: the encoding to use instead of the checkpoint's (None keeps it;
+        `search_rounds=0` = the nearest codes), checked by `UniDexTokConfig` like every config field."""
+        name = str(pretrained_model_name_or_path)
         if kwargs.get("revision") is None:
-            name = resolve(name)
-        return super().from_pretrained(name, *args, **kwargs)
+            name = resolve(name, checkpoint=True)
+        with hub_errors(str(pretrained_model_name_or_path)):
+            model = super().from_pretrained(name, *args, **kwargs)
+        return model.with_encoding(search_rounds=search_rounds, search_sweeps=search_sweeps)
+
+    def with_encoding(self, search_rounds: int | None = None, search_sweeps: int | None = None) -> "UniDexTok":
+        """Set how `encode` picks codes (None keeps a setting; checked by `UniDexTokConfig`); returns self."""
+        changes = {k: v for k, v in (("search_rounds", search_rounds), ("search_sweeps", search_sweeps)) if v is not None}
+        if changes:
+            self.config = dataclasses.replace(self.config, **changes)
+        return self
 
     @classmethod
     def _decode_arg(cls, expected_type, value):
         """huggingface_hub passes config.json's dict here to build the config; a file without `format_version`
         is read as `format_version=None` (refused by `UniDexTokConfig`), not as the current version."""
         if expected_type is UniDexTokConfig and isinstance(value, dict):
-            value = {"format_version": None, **value}
+            return UniDexTokConfig.from_dict(value)
         return super()._decode_arg(expected_type, value)
 
     @classmethod

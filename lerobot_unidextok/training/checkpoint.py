@@ -67,18 +67,3 @@ def load_training_state(directory: Path) -> dict:
     if not path.is_file():
         raise FileNotFoundError(f"{path} not found; nothing to resume")
     return json.loads(path.read_text())
-
-
-def resolve_checkpoint(checkpoint: str) -> str:
-    """A checkpoint folder, the `best/` of a `unidextok-train` run folder, or a Hub repo id (unchanged);
-    FileNotFoundError for a folder that holds neither."""
-    path = Path(checkpoint).expanduser()
-    if not path.is_dir() or (path / "config.json").is_file():
-        return checkpoint
-    if (path / "best" / "config.json").is_file():
-        logger.info("%s is a training run folder: using its best/ checkpoint", path)
-        return str(path / "best")
-    raise FileNotFoundError(
-        f"{path} holds no tokenizer: expected config.json + model.safetensors, or a unidextok-train run "
-        "folder with best/ (pass that folder or its best/)"
-    )

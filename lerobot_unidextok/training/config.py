@@ -6,6 +6,7 @@ the first field of each section has one of the first two, so the section divider
 
 from dataclasses import dataclass, field
 
+from lerobot_unidextok.tokenizer.configuration_unidextok import check_encoding
 from lerobot_unidextok.training.coverage import CoverageConfig
 
 
@@ -99,8 +100,7 @@ class TrainConfig:
     progress: bool = True  # tqdm bar
 
     def __post_init__(self) -> None:
-        if self.search_rounds is not None and self.search_rounds < 0:
-            raise ValueError(f"search_rounds must be >= 0 (0 = nearest codes), got {self.search_rounds}")
+        check_encoding(self.search_rounds)
         if not 0.0 < self.fraction <= 1.0:
             raise ValueError(f"fraction must be in (0, 1], got {self.fraction}")
         if self.steps < 1 and self.epochs <= 0:

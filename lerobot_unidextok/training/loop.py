@@ -95,11 +95,9 @@ def build_model(cfg: TrainConfig, train_data: HandStates | HandRowStore, **overr
     hands (`joint_ranges_rad`) unless given.
     """
     if cfg.init_from:
-        model = UniDexTok.from_pretrained(cfg.init_from)
+        model = UniDexTok.from_pretrained(cfg.init_from, search_rounds=cfg.search_rounds)
         model.add_hands([*cfg.hand_names, *train_data.hand_names(), *resolve_range_hands(cfg.range_hands,
                                                                                          cfg.exclude_hands)])
-        if cfg.search_rounds is not None:
-            model.config.search_rounds = cfg.search_rounds
         return model
     preset = UniDexTokConfig.from_preset(cfg.preset)
     if overrides.get("input_norm", preset.input_norm) == "range" and "joint_range_rad" not in overrides:

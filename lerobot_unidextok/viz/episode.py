@@ -85,9 +85,9 @@ def load_episode(
     (folder or repo id) also its tokens and the decoded hands. Every `stride`-th frame, at most `max_frames`.
     Robot hands are drawn from their spec (skeleton and coupled joints), or with `urdf` (a URDF file, or a
     folder holding each hand's `urdf.file`) by the URDF's own kinematics."""
-    import json
 
-    from lerobot_unidextok.processor import UniDexTokStateTokenizerStep, hand_layout_from_dataset
+    from lerobot_unidextok.data import UdhmDatasetMeta
+    from lerobot_unidextok.processor import UniDexTokStateTokenizerStep
     from lerobot_unidextok.utils.hf_cache import dataset_root
 
     root = Path(dataset)
@@ -97,8 +97,8 @@ def load_episode(
         root = dataset_root(str(dataset))
     if stride < 1:
         raise ValueError(f"stride must be >= 1, got {stride}")
-    info = json.loads((root / INFO_PATH).read_text())
-    layout = hand_layout_from_dataset(root)
+    meta = UdhmDatasetMeta(root)
+    info, layout = meta.info, meta.hand_layout()
     states, frame_index = _episode_states(root, episode)
     take = np.arange(0, len(states), stride)[:max_frames]
     states, frame_index = states[take], frame_index[take]

@@ -26,10 +26,10 @@ from lerobot_unidextok.conversion.pipeline import (  # noqa: E402
     SetupError,
     convert,
     merge_shards,
-    read_settings,
 )
 from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples  # noqa: E402
 from lerobot_unidextok.conversion.sharded import ExecutorOptions, SlurmOptions, convert_with_executor  # noqa: E402
+from lerobot_unidextok.data import load_record
 from lerobot_unidextok.scripts.convert import ConvertConfig, run  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
@@ -74,7 +74,7 @@ def assert_same_dataset(single: Path, merged: Path) -> None:
     assert a.column_names == b.column_names and a.num_rows == b.num_rows
     for col in a.column_names:  # aggregate writes list<> instead of fixed_size_list<>: compare values
         assert a.column(col).to_pylist() == b.column(col).to_pylist(), col
-    sa, sb = read_settings(single), read_settings(merged)
+    sa, sb = load_record(single).to_dict(), load_record(merged).to_dict()
     assert sb["test_episodes"] == sa["test_episodes"] and sa["test_episodes"]
     assert sb["episodes"] == sa["episodes"]  # sources, splits, lengths, source episode indices, in order
     assert sb["native_layout"] == sa["native_layout"]

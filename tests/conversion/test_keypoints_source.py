@@ -114,9 +114,9 @@ def test_tracker_rates_are_resampled_onto_fps(tmp_path, rate_hz, frames, fps, ou
     truth = hands.get("human").to_udhm(_keypoints_at(np.arange(out_frames) / out_fps), "right")
     err_deg = np.degrees(np.abs(out.states_rad - truth))
     assert err_deg.mean() < 0.05 and err_deg.max() < 1.0, (err_deg.mean(), err_deg.max())
-    from lerobot_unidextok.conversion.pipeline import read_settings
+    from lerobot_unidextok.data import load_record
 
-    (record,) = read_settings(root)["episodes"]
+    (record,) = load_record(root).to_dict()["episodes"]
     assert (record["source_fps"], record["resampled_fps"]) == (rate_hz, out_fps)
 
 

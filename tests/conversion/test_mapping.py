@@ -12,7 +12,7 @@ import pyarrow as pa
 import pytest
 
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode, VideoSegment
-from lerobot_unidextok.conversion.mapping import EpisodeError, map_episode, to_layout
+from lerobot_unidextok.conversion.mapping import EpisodeError, map_episode, to_sides
 
 NUM, FPS = 20, 30.0
 HEAD, TAIL = 2, 3  # frames without a tracked hand at the start and the end
@@ -54,7 +54,7 @@ def test_to_layout_adds_the_missing_side_as_an_absent_hand():
     right block is unchanged, and the absent frames are counted. Catches an absent block marked present
     (mask filled with True) and a wrong absent-frame count."""
     ep = map_episode(_episode("right"))
-    both = to_layout(ep, ("left", "right"))
+    both = to_sides(ep, ("left", "right"))
     assert both.sides == ("left", "right") and both.hands == (ep.hands[0], ep.hands[0])
     assert not both.state_rad[:, :22].any() and not both.mask[:, :22].any()
     assert not both.action_rad[:, :22].any()
@@ -62,6 +62,6 @@ def test_to_layout_adds_the_missing_side_as_an_absent_hand():
     np.testing.assert_array_equal(both.mask[:, 22:], ep.mask)
     assert both.absent_hand_frames == ep.absent_hand_frames + ep.num_frames
     assert both.hand_columns == ((None, None), ep.hand_columns[0])
-    assert to_layout(ep, ("right",)) is ep
+    assert to_sides(ep, ("right",)) is ep
     with pytest.raises(EpisodeError, match=r"hand side\(s\) \['right'\] outside the dataset layout \('left',\)"):
-        to_layout(ep, ("left",))
+        to_sides(ep, ("left",))

@@ -21,7 +21,6 @@ from lerobot_unidextok.conversion.pipeline import (
     convert,
     episode_key,
     merge_shards,
-    read_settings,
 )
 from lerobot_unidextok.conversion.registry import (
     get_source,
@@ -29,7 +28,7 @@ from lerobot_unidextok.conversion.registry import (
     unregister_source,
 )
 from lerobot_unidextok.conversion.validate import validate_dataset
-from lerobot_unidextok.data import load_udhm_frames
+from lerobot_unidextok.data import UdhmDatasetMeta, load_record, load_udhm_frames
 from lerobot_unidextok.data.splits import split_order
 
 
@@ -99,7 +98,7 @@ def test_robot_source_contract_and_round_trip(samples, linker):
 
     src = get_source("linkerhand")()
     refs = src.list_episodes(samples["linkerhand"])
-    settings = read_settings(root)
+    settings = load_record(root).to_dict()
     assert settings["source"] == "linkerhand" and settings["synthetic"] is True
     keys = [str(r).replace(str(samples["linkerhand"]) + "/", "") for r in refs]
     _, test_pos = split_order(keys, 0.2)
@@ -138,7 +137,7 @@ def test_split_deterministic_worker_and_folder_independent(samples, linker, tmp_
                            progress=False))  # fmt: skip
     assert _data(root).equals(_data(again))
     assert json.loads((again / "meta/info.json").read_text())["splits"] == {"train": "0:6"}
-    first, second = read_settings(root), read_settings(again)
+    first, second = load_record(root).to_dict(), load_record(again).to_dict()
     assert second["test_episodes"] == first["test_episodes"]
     keys = [r["source"] for r in first["episodes"]]
     assert keys == [r["source"] for r in second["episodes"]]  # keys relative to --input, not absolute paths
@@ -216,7 +215,7 @@ def test_shards_merge_equals_single_run(samples, linker, tmp_path):
     merged = merge_shards(shards, tmp_path / "merged", repo_id="t/merged")
     info = json.loads((merged / "meta/info.json").read_text())
     assert info["splits"] == {"train": "0:6"} and info["total_episodes"] == 6
-    single_settings, merged_settings = read_settings(root), read_settings(merged)
+    single_settings, merged_settings = load_record(root).to_dict(), load_record(merged).to_dict()
     assert merged_settings["test_episodes"] == single_settings["test_episodes"]
     assert [r["source"] for r in merged_settings["episodes"]] == [r["source"] for r in single_settings["episodes"]]
     single, both = _data(root), _data(merged)
@@ -262,24 +261,24 @@ def test_human_source_left_or_right_sequences(samples, tmp_path, monkeypatch):
     every = load_udhm_frames(root, drop_absent=False)
     assert len(every) > len(frames)  # each sequence has one hand: the other block is masked
     assert validate_dataset(root).ok
-    assert read_settings(root)["synthetic"] is True  # npz marker unread by the reader: the labels file says so
+    assert load_record(root).to_dict()["synthetic"] is True  # npz marker unread by the reader: the labels file says so
     assert "SYNTHETIC" in (root / "README.md").read_text()
 
 
-def test_layout_difference_names_what_differs_and_hints_sides_only_for_sides():
-    """The mixed-layout error lists each difference; the `--sides` hint appears only when the hand sides
-    differ. Catches the hint keyed on another part of the layout (then every layout error, e.g. an
+def test_signature_difference_names_what_differs_and_hints_sides_only_for_sides():
+    """The mixed-episode error lists each difference; the `--sides` hint appears only when the hand sides
+    differ. Catches the hint keyed on another part of the signature (then every such error, e.g. an
     episode without actions, wrongly suggests --sides)."""
     from types import SimpleNamespace
 
-    from lerobot_unidextok.conversion.pipeline import _layout_difference
+    from lerobot_unidextok.conversion.pipeline import _signature_difference
 
     first = (("right",), True, (), (), ())
-    no_actions = _layout_difference(SimpleNamespace(layout=(("right",), False, (), (), ())), 30, first, 30)
+    no_actions = _signature_difference(SimpleNamespace(signature=(("right",), False, (), (), ())), 30, first, 30)
     assert "actions False vs True" in no_actions and "--sides" not in no_actions
-    other_fps = _layout_difference(SimpleNamespace(layout=first), 25, first, 30)
+    other_fps = _signature_difference(SimpleNamespace(signature=first), 25, first, 30)
     assert "fps 25 vs 30" in other_fps and "--sides" not in other_fps
-    left = _layout_difference(SimpleNamespace(layout=(("left",), True, (), (), ())), 30, first, 30)
+    left = _signature_difference(SimpleNamespace(signature=(("left",), True, (), (), ())), 30, first, 30)
     assert "hand sides ('left',) vs ('right',)" in left and "--sides=right,left" in left
 
 
@@ -376,7 +375,7 @@ def test_on_error_skip_reports_each_file_and_reason(broken_input, tmp_path):
     assert "robo_x" in reasons["/data/unknown_hand.json"]
     frames = load_udhm_frames(tmp_path / "out")
     assert np.isfinite(frames.states_rad).all() and len(frames) == 60
-    assert read_settings(tmp_path / "out")["skipped_episodes"] == 4
+    assert load_record(tmp_path / "out").to_dict()["skipped_episodes"] == 4
     assert "Skipped episodes (4)" in (tmp_path / "out" / "README.md").read_text()
 
 
@@ -450,12 +449,12 @@ def test_real_g1_inspire_end_to_end(real_data_dir, tmp_path):
     assert ds[0]["task"] == "Pick up the yellow bottle on the table."
     assert validate_dataset(root).ok
     assert ds.meta.robot_type == source_info["robot_type"] == "Unitree_G1_Inspire"  # the robot, not "udhm"
-    settings = read_settings(root)
+    settings = load_record(root).to_dict()
     assert settings["synthetic"] is False and "SYNTHETIC" not in (root / "README.md").read_text()
     assert [r["source_episode_index"] for r in settings["episodes"]] == list(range(10))  # source order, recorded
     assert len(settings["test_episodes"]) == 2
     layout = settings["native_layout"]["observation.state"]
-    assert layout["names"] == source_names and [h["columns"][0] for h in layout["hands"]] == [
+    assert layout["native_names"] == source_names and [h["columns"][0] for h in layout["hands"]] == [
         "kLeftHandPinky",
         "kRightHandPinky",
     ]
@@ -481,7 +480,6 @@ def test_real_g1_inspire_keep_hands(real_data_dir, tmp_path):
     columns (Inspire 0-1 values, source order)."""
     import pyarrow.parquet as pq
 
-    from lerobot_unidextok.processor.layout import NativeLayout
 
     src_root = real_data_dir / "g1-inspire"
     root = tmp_path / "g1_hands"
@@ -493,9 +491,9 @@ def test_real_g1_inspire_keep_hands(real_data_dir, tmp_path):
     info = json.loads((root / "meta/info.json").read_text())
     assert info["robot_type"] == "Unitree_G1_Inspire" and info["features"]["action"]["shape"] == [44]
     source_names = json.loads((src_root / "meta/info.json").read_text())["features"]["action"]["names"][0]
-    layout = NativeLayout.from_dataset(root, "action")
+    layout = UdhmDatasetMeta(root).native_layout("action")
     assert layout.native_names == source_names[14:]  # the 12 hand columns, source order
-    assert read_settings(root)["native_layout"]["action"]["source_names"] == source_names
+    assert load_record(root).to_dict()["native_layout"]["action"]["source_names"] == source_names
     converted = pq.read_table(sorted((root / "data").rglob("*.parquet")))
     for ep_index in range(2):
         raw = np.stack(
@@ -528,7 +526,7 @@ def test_append_pad_mapping_and_stale_temp_cleanup(samples, tmp_path):
         n_active = hands.get(hand).num_active
         rows = frames.masks[frames.hands == hand]
         assert rows[:, :n_active].all() and not rows[:, n_active:].any()  # packed at the front
-    assert read_settings(target)["mapping"] == "append_pad"
+    assert load_record(target).to_dict()["mapping"] == "append_pad"
     assert validate_dataset(target).ok  # the validator checks masks against the recorded mapping
 
 

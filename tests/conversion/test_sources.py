@@ -513,5 +513,5 @@ def test_linkerhand_lerobot_v30_export_with_state_key_and_pos_names(name_of, tmp
         expected = spec.to_udhm(values.reshape(-1, 20)[:, cols].astype(np.float64), side)
         np.testing.assert_allclose(got, expected, atol=1e-5)
     layout = json.loads((root / "meta/unidextok_conversion.json").read_text())["native_layout"]
-    assert layout["observation.state"]["names"] == names and layout["observation.state"]["source_key"] == "state"
+    assert layout["observation.state"]["native_names"] == names and layout["observation.state"]["source_key"] == "state"
     assert json.loads((root / "meta/info.json").read_text())["robot_type"] == "linkerhand"

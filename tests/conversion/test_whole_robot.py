@@ -14,8 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert, read_settings
+from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
 from lerobot_unidextok.conversion.validate import validate_dataset
+from lerobot_unidextok.data import UdhmDatasetMeta, load_record
 
 ARM = [f"k{side}{j}" for side in ("Left", "Right") for j in ("ShoulderPitch", "ShoulderRoll", "Elbow", "WristRoll")]
 HAND = [
@@ -112,23 +113,22 @@ def test_v30_keeps_arms_observations_images_and_videos(v30_source, v30_converted
     stats = json.loads((v30_converted / "meta/stats.json").read_text())
     assert {"observation.images.cam_high", "observation.images.wrist", "observation.velocity"} <= set(stats)
     assert validate_dataset(v30_converted).ok
-    assert read_settings(v30_converted)["video_features"] == ["observation.images.cam_high"]
+    assert load_record(v30_converted).to_dict()["video_features"] == ["observation.images.cam_high"]
 
 
 def test_v30_keeps_the_source_robot_type(v30_converted):
     """The converted dataset is still the source's robot (LeRobot's robot_type); catches the converter that
     wrote robot_type "udhm" for every dataset."""
     assert json.loads((v30_converted / "meta/info.json").read_text())["robot_type"] == "g1"
-    assert read_settings(v30_converted)["robot_type"] == "g1"
+    assert load_record(v30_converted).to_dict()["robot_type"] == "g1"
 
 
 def _native_action(root: Path, names: list[str]) -> np.ndarray:
     """The source action columns `names` rebuilt from a converted dataset with its recorded native layout."""
     import pyarrow.parquet as pq
 
-    from lerobot_unidextok.processor.layout import NativeLayout
 
-    layout = NativeLayout.from_dataset(root, "action")
+    layout = UdhmDatasetMeta(root).native_layout("action")
     assert layout is not None and layout.native_names == names
     table = pq.read_table(sorted((root / "data").rglob("*.parquet")))
     action = np.stack(table["action"].to_numpy(zero_copy_only=False))
@@ -156,9 +156,9 @@ def test_keep_hands_writes_the_hands_only_dataset(v30_source, tmp_path):
     assert info["robot_type"] == "g1"
     report = validate_dataset(root)
     assert report.ok, report.table()
-    layout = read_settings(root)["native_layout"]
+    layout = load_record(root).to_dict()["native_layout"]
     for key in ("observation.state", "action"):
-        assert layout[key]["names"] == HAND and layout[key]["source_names"] == NAMES
+        assert layout[key]["native_names"] == HAND and layout[key]["source_names"] == NAMES
     source_action = np.concatenate([_episode(i, n)["action"] for i, n in enumerate(LENGTHS)])
     np.testing.assert_allclose(_native_action(root, HAND), source_action[:, 8:], atol=1e-5)  # native units back
 

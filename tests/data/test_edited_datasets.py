@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert, read_settings
+from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
 from lerobot_unidextok.conversion.validate import validate_dataset
-from lerobot_unidextok.data import SplitError, load_udhm_frames, resolve_split
+from lerobot_unidextok.data import SplitError, UdhmDatasetMeta, load_record, load_udhm_frames
 from lerobot_unidextok.data.splits import hash_test_episodes
 
 BIN = Path(sys.executable).parent
@@ -40,8 +40,8 @@ def _edit(*args: str) -> None:
 
 
 def test_recorded_split_of_a_fresh_conversion(converted):
-    settings = read_settings(converted)
-    split = resolve_split(converted, json.loads((converted / "meta/info.json").read_text()), holdout="recorded")
+    settings = load_record(converted).to_dict()
+    split = UdhmDatasetMeta(converted).split(holdout="recorded")
     assert split.origin == "conversion record" and list(split.test) == settings["test_episodes"]
     test = load_udhm_frames(converted, split="test", holdout="recorded")
     assert set(test.episode_index) == set(settings["test_episodes"])
@@ -84,7 +84,7 @@ def test_split_operation_gives_datasets_usable_whole(converted, tmp_path):
 
 def test_lerobot_train_episodes_flag_in_card(converted):
     """The card names the flag that keeps the recorded test episodes out of `lerobot-train`."""
-    settings = read_settings(converted)
+    settings = load_record(converted).to_dict()
     train = [i for i in range(settings["num_episodes"]) if i not in settings["test_episodes"]]
     card = (converted / "README.md").read_text()
     assert f"--dataset.episodes='{json.dumps(train)}'" in card

@@ -20,10 +20,11 @@ from robot_udhm import INSPIRE, NATIVE_NAMES, STATE_NAMES, to_converted
 
 from lerobot_unidextok.configs import shipped_config
 from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE
+from lerobot_unidextok.data import UdhmDatasetMeta
 from lerobot_unidextok.policies import UDT_CONFIGS, ACTUdtConfig, DiffusionUdtConfig
 from lerobot_unidextok.policies.act_udt import make_act_udt_pre_post_processors
 from lerobot_unidextok.policies.diffusion_udt import make_diffusion_udt_pre_post_processors
-from lerobot_unidextok.processor import NATIVE_STATE_STEP_NAME, NATIVE_STEP_NAME, STEP_NAME
+from lerobot_unidextok.processor import NATIVE_TO_UDHM_STEP_NAME, STEP_NAME, UDHM_TO_NATIVE_STEP_NAME
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 
 REPO = Path(__file__).resolve().parents[2]
@@ -91,11 +92,11 @@ def test_every_wrapped_type_resolves_through_the_stock_factory():
 def test_the_default_tokenizer_is_the_shipped_universal_one_and_a_preset_only_when_asked():
     from lerobot_unidextok.hub.card import _policy_tokenizer
     from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
-    from lerobot_unidextok.processor import load_tokenizer
+    from lerobot_unidextok.tokenizer import UniDexTok
 
     cfg = ACTUdtConfig(device="cpu")
     assert cfg.udt_pretrained == DEFAULT_TOKENIZER and cfg.untrained_preset() is None
-    assert cfg.tokenizer_config() == load_tokenizer(DEFAULT_TOKENIZER).config
+    assert cfg.tokenizer_config() == UniDexTok.from_pretrained(DEFAULT_TOKENIZER).config
     assert _policy_tokenizer({"udt_pretrained": DEFAULT_TOKENIZER, "udt_preset": None}) == DEFAULT_TOKENIZER
     tiny = ACTUdtConfig(device="cpu", udt_preset="tiny")  # explicit request: untrained
     assert tiny.untrained_preset() == "tiny" and tiny.tokenizer_config().num_tokens == 4
@@ -155,7 +156,7 @@ def test_whole_robot_layout_comes_from_the_dataset(tok_dir, g1_like):
     native = post(actions)
     assert native.shape == (2, 26)
     torch.testing.assert_close(native, torch.from_numpy(g1_like["native_action"][:2]).float(), atol=1e-5, rtol=0)
-    assert post.steps[-1]._registry_name == NATIVE_STEP_NAME
+    assert post.steps[-1]._registry_name == UDHM_TO_NATIVE_STEP_NAME
     off = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"], udt_native_action=False)
     assert make_act_udt_pre_post_processors(off)[1](torch.zeros(2, 58)).shape == (2, 58)
 
@@ -316,9 +317,9 @@ from lerobot.policies.factory import get_policy_class, make_pre_post_processors
 from lerobot.datasets import LeRobotDataset
 from lerobot.processor import TransitionKey
 import numpy as np
-from lerobot_unidextok.processor import NativeLayout
+from lerobot_unidextok.data import UdhmDatasetMeta
 ds = LeRobotDataset("test/g1_like_udhm", root=sys.argv[1])
-layout = NativeLayout.from_dataset(sys.argv[1])
+layout = UdhmDatasetMeta(sys.argv[1]).native_layout()
 native_states = np.load(sys.argv[2])  # (N, 26) the robot's own states of the dataset frames
 for path in sys.argv[3:]:
     cfg = PreTrainedConfig.from_pretrained(path)
@@ -371,9 +372,9 @@ def test_lerobot_train_act_and_diffusion_resume_and_reload(tok_dir, g1_like, tmp
         assert cfg["type"] == udt_type and cfg["udt_state_names"] == STATE_NAMES
         pre = [s["registry_name"] for s in json.loads((ckpt / "policy_preprocessor.json").read_text())["steps"]]
         assert pre.index("to_batch_processor") < pre.index(STEP_NAME) < pre.index("normalizer_processor")
-        assert pre.index(NATIVE_STATE_STEP_NAME) == pre.index(STEP_NAME) - 1
+        assert pre.index(NATIVE_TO_UDHM_STEP_NAME) == pre.index(STEP_NAME) - 1
         post = [s["registry_name"] for s in json.loads((ckpt / "policy_postprocessor.json").read_text())["steps"]]
-        assert post[-1] == NATIVE_STEP_NAME
+        assert post[-1] == UDHM_TO_NATIVE_STEP_NAME
     # resume the diffusion policy from its checkpoint with the same plugin flag
     resumed = _train([f"--policy.path={diff}", plugin, *data[:2], "--policy.device=cpu", "--policy.push_to_hub=false",
                       "--steps=3", "--batch_size=4", "--wandb.enable=false"], tmp_path / "resumed", hf)  # fmt: skip
@@ -431,9 +432,8 @@ def test_real_g1_inspire_select_action_returns_the_native_action(tok_dir, g1_dat
     frames, and a wrong width gets one line naming both layouts."""
     from g1_real import native_states
 
-    from lerobot_unidextok.processor import NativeLayout
 
-    assert NativeLayout.from_dataset(g1_dataset).native_dim == 26  # 14 arm joints + 2 x 6 Inspire values
+    assert UdhmDatasetMeta(g1_dataset).native_layout().native_dim == 26  # 14 arm joints + 2 x 6 Inspire values
     native = np.concatenate([native_states(real_data_dir, e) for e in range(3)])  # the 3 converted episodes
     np.save(tmp_path / "native.npy", native)
     ckpt = _train(["--policy.type=act_udt", "--policy.discover_packages_path=lerobot_unidextok",

@@ -15,9 +15,10 @@ from lerobot.configs.types import FeatureType, PipelineFeatureType, PolicyFeatur
 from lerobot.processor import PolicyProcessorPipeline, ProcessorStepRegistry
 from robot_udhm import HAND_NAMES, INSPIRE, NATIVE_NAMES, STATE_NAMES, native_layout, native_motion, to_converted
 
-from lerobot_unidextok.constants import OBS_STATE
-from lerobot_unidextok.processor import NATIVE_STATE_STEP_NAME, NativeLayout, NativeToUDHMStateStep
 from lerobot_unidextok.blocks import udhm_state_names
+from lerobot_unidextok.constants import OBS_STATE
+from lerobot_unidextok.data import UdhmDatasetMeta
+from lerobot_unidextok.processor import NATIVE_TO_UDHM_STEP_NAME, NativeLayout, NativeToUDHMStateStep
 
 
 @pytest.fixture(scope="module")
@@ -91,17 +92,17 @@ def test_features_a_robot_reports_become_those_the_policy_reads(step):
 def test_saved_with_the_pipeline_and_reloaded_by_name(step, native, tmp_path):
     """The whole layout is the step's JSON config: `save_pretrained` / `from_pretrained` bring it back, and
     overrides reach it by registry name (what `preprocessor_overrides` of the stock factory does)."""
-    assert "/" not in NATIVE_STATE_STEP_NAME
-    assert ProcessorStepRegistry.get(NATIVE_STATE_STEP_NAME) is NativeToUDHMStateStep
+    assert "/" not in NATIVE_TO_UDHM_STEP_NAME
+    assert ProcessorStepRegistry.get(NATIVE_TO_UDHM_STEP_NAME) is NativeToUDHMStateStep
     pipe = PolicyProcessorPipeline(steps=[step], name="policy_preprocessor")
     pipe.save_pretrained(tmp_path)
     saved = json.loads((tmp_path / "policy_preprocessor.json").read_text())["steps"][0]
-    assert saved["registry_name"] == NATIVE_STATE_STEP_NAME and saved["config"]["native_names"] == NATIVE_NAMES
+    assert saved["registry_name"] == NATIVE_TO_UDHM_STEP_NAME and saved["config"]["native_names"] == NATIVE_NAMES
     again = PolicyProcessorPipeline.from_pretrained(tmp_path, config_filename="policy_preprocessor.json")
     x = torch.from_numpy(native[:4])
     assert torch.equal(again({OBS_STATE: x})[OBS_STATE], pipe({OBS_STATE: x})[OBS_STATE])
     clip = PolicyProcessorPipeline.from_pretrained(tmp_path, config_filename="policy_preprocessor.json",
-                                                   overrides={NATIVE_STATE_STEP_NAME: {"on_out_of_range": "clip"}})  # fmt: skip
+                                                   overrides={NATIVE_TO_UDHM_STEP_NAME: {"on_out_of_range": "clip"}})  # fmt: skip
     assert clip.steps[0].on_out_of_range == "clip"
 
 
@@ -141,7 +142,7 @@ def test_real_g1_native_frames_give_the_converters_frames(real_data_dir, tmp_pat
     from lerobot.datasets import LeRobotDataset
 
     root = convert_g1(real_data_dir, tmp_path / "g1", max_episodes=1)
-    layout = NativeLayout.from_dataset(root, OBS_STATE)
+    layout = UdhmDatasetMeta(root).native_layout(OBS_STATE)
     assert layout.native_dim == 26 and layout.converted_dim == 58
     step = NativeToUDHMStateStep.from_layout(layout)
     native = torch.from_numpy(native_states(real_data_dir, 0))

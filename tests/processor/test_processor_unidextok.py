@@ -17,14 +17,13 @@ from robot_udhm import ARM_NAMES, INSPIRE, NATIVE_NAMES, STATE_NAMES, UDHM_JOINT
 
 from lerobot_unidextok import hands
 from lerobot_unidextok.constants import OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE
+from lerobot_unidextok.data import UdhmDatasetMeta
 from lerobot_unidextok.processor import (
-    NATIVE_STEP_NAME,
     STEP_NAME,
+    UDHM_TO_NATIVE_STEP_NAME,
     HandLayout,
-    NativeLayout,
     UDHMToNativeCommandStep,
     UniDexTokStateTokenizerStep,
-    hand_layout_from_dataset,
     tokens_to_native,
     udhm_to_native,
 )
@@ -60,8 +59,8 @@ def robot_step(tok_dir):
 
 def test_registered_names_have_no_slash():
     names = ProcessorStepRegistry.list()
-    assert STEP_NAME in names and NATIVE_STEP_NAME in names
-    assert "/" not in STEP_NAME + NATIVE_STEP_NAME
+    assert STEP_NAME in names and UDHM_TO_NATIVE_STEP_NAME in names
+    assert "/" not in STEP_NAME + UDHM_TO_NATIVE_STEP_NAME
 
 
 def test_tokens_and_dequantized_view_match_the_tokenizer(step, states):
@@ -254,7 +253,7 @@ def test_hand_without_spec_fails_before_logging(tok_dir, caplog):
 
 
 def test_layout_from_converted_whole_robot_dataset(g1_like):
-    layout = hand_layout_from_dataset(g1_like["root"])
+    layout = UdhmDatasetMeta(g1_like["root"]).hand_layout()
     assert layout.hands == PAIR and layout.sides == ["left", "right"]
     assert layout.state_names == STATE_NAMES and layout.passthrough_names == ARM_NAMES
     np.testing.assert_array_equal(layout.block_columns, np.arange(14, 58))
@@ -270,7 +269,7 @@ def test_native_layout_decodes_the_dataset_action_back_to_the_robot(g1_like):
     """Decoding returns the 26-wide G1 vector: arms bit-identical, hands back in Unitree's [0, 1] units."""
     from lerobot.datasets import LeRobotDataset
 
-    layout = NativeLayout.from_dataset(g1_like["root"])
+    layout = UdhmDatasetMeta(g1_like["root"]).native_layout()
     assert layout.native_names == NATIVE_NAMES and layout.native_dim == 26
     ds = LeRobotDataset("test/g1_like_udhm", root=g1_like["root"])
     actions = torch.stack([ds[i]["action"] for i in range(len(ds))])  # (N, 58)
@@ -288,19 +287,25 @@ def test_native_layout_decodes_the_dataset_action_back_to_the_robot(g1_like):
     assert feats[PipelineFeatureType.ACTION]["action"].shape == (26,)
 
 
-def test_native_layout_without_recorded_layout_is_derived(g1_like, tmp_path):
+def test_without_a_conversion_record_a_whole_robot_is_not_decoded_but_hands_only_are(
+    g1_like, g1_like_hands, tmp_path, caplog
+):
+    """lerobot-edit-dataset drops meta/unidextok_conversion.json. Where the robot's hand columns sat among its arms
+    is then unknown: rebuilding the native vector from the hand specs (arms first) was silently wrong for a source
+    whose hands come first, so a whole robot gets no native layout and a warning naming the fix; a hands-only
+    vector is the blocks' hand joints in block order."""
     import shutil
 
-    root = tmp_path / "ds"
-    shutil.copytree(g1_like["root"], root)
-    (root / "meta" / "unidextok_conversion.json").unlink()
-    layout = NativeLayout.from_dataset(root)
-    assert layout.native_names[:14] == ARM_NAMES
-    assert layout.native_names[14:20] == [f"left_{j}" for j in hands.get(INSPIRE).joint_names]
-    x = np.concatenate([np.zeros((1, 14)), inspire_states(1)], axis=1)
-    np.testing.assert_allclose(
-        layout.to_native(x)[0, 14:], udhm_to_native(x[:, 14:], HandLayout(PAIR, ["left", "right"]))[0]
-    )
+    for name, fixture in (("robot", g1_like), ("hands", g1_like_hands)):
+        shutil.copytree(fixture["root"], tmp_path / name)
+        (tmp_path / name / "meta" / "unidextok_conversion.json").unlink()
+    with caplog.at_level("WARNING"):
+        assert UdhmDatasetMeta(tmp_path / "robot").native_layout() is None
+    assert "where the robot's hand columns sit" in caplog.text and "Copy meta/unidextok_conversion.json" in caplog.text
+    layout = UdhmDatasetMeta(tmp_path / "hands").native_layout()
+    assert layout.native_names == [f"{s}_{j}" for s in ("left", "right") for j in hands.get(INSPIRE).joint_names]
+    x = inspire_states(1)
+    np.testing.assert_allclose(layout.to_native(x)[0], udhm_to_native(x, HandLayout(PAIR, ["left", "right"]))[0])
 
 
 def test_tokens_to_native_decodes_each_block_with_its_side(step, states):
@@ -370,7 +375,7 @@ def test_layout_refuses_a_dataset_that_mixes_hands(tmp_path):
     report = convert(ConvertOptions(source="linkerhand", input=raw["linkerhand"], root=tmp_path / "ds", progress=False))
     assert {"linkerhand_l10", "linkerhand_l20"} <= set(report.hands)
     with pytest.raises(ValueError, match="mixes hand layouts.*linkerhand_l10.*linkerhand_l20"):
-        hand_layout_from_dataset(report.root)
+        UdhmDatasetMeta(report.root).hand_layout()
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,28 +1,37 @@
-"""Where the hands sit in a converted state / action vector, and how to get back to the robot's own vector.
+"""Layouts: where the hands sit in a converted state / action vector, and how to get back to the robot's own.
 
-No lerobot import here. A converted vector is `[passthrough columns] + [one 22-wide UDHM block per hand]`
-(docs/architecture.md, "Converted dataset contract"); blocks are found by name with
-`blocks.find_udhm_blocks`, never by position.
+The word "layout" means these two and nothing else (docs/architecture.md). A converted vector is
+`[passthrough columns] + [one 22-wide UDHM block per hand]` (the converted-dataset contract); blocks are found
+by name with `blocks.find_udhm_blocks`, never by position.
 
-- `HandLayout`: hand spec name, side and columns of each UDHM block of `observation.state` (the pre-processor).
-- `NativeLayout`: the robot's native vector <-> the converted vector. `to_native` (the post-processor, actions):
+- `HandLayout`: hand spec name, side and columns of each UDHM block of `observation.state` (what the tokenizer
+  step reads).
+- `NativeLayout`: the robot's native vector <-> the converted vector. `to_native` (actions, the post-processor):
   passthrough columns copied by name, each hand's native columns from `hands.get(hand).from_udhm(block, side)`;
-  `to_converted` (the pre-processor, the robot's `observation.state`): the inverse, each hand's native columns
-  through `hands.get(hand).to_udhm(values, side)` into its UDHM block.
+  `to_converted` (the robot's `observation.state`, the pre-processor): the inverse, each hand's native columns
+  through `hands.get(hand).to_udhm(values, side)` into its UDHM block. `to_dict()` is its one schema, written
+  by the converter into `meta/unidextok_conversion.json` and by the policies into their configs.
+
+Reading them from a converted dataset folder: `data.meta.UdhmDatasetMeta`.
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 
-from lerobot_unidextok.constants import ACTION, CONVERSION_PATH, HAND_TYPE_KEY, INFO_PATH, OBS_STATE, SIDES, UDHM_DIM
-from lerobot_unidextok.blocks import feature_names, find_udhm_blocks, passthrough_indices
+from lerobot_unidextok.blocks import find_udhm_blocks, passthrough_indices, udhm_state_names
+from lerobot_unidextok.constants import OBS_STATE, SIDES, UDHM_DIM
+
+
+def _hand_spec(name: str):
+    """The registered hand spec `name`. The registry imports torch, so it is imported here, on first use:
+    `unidextok-convert --help` reaches this module through the conversion record without needing torch."""
+    from lerobot_unidextok import hands
+
+    return hands.get(name)
 
 
 @dataclass
@@ -112,54 +121,6 @@ class HandLayout:
         return cls(hands=hands, sides=[b.side for b in blocks], state_names=names)
 
 
-# ---------------------------------------------------------------------------------------------
-# reading a converted dataset folder
-# ---------------------------------------------------------------------------------------------
-def _read_info(root: Path) -> dict:
-    info_path = root / INFO_PATH
-    if not info_path.is_file():
-        raise FileNotFoundError(f"{info_path} not found: pass the root folder of a LeRobotDataset v3.0")
-    return json.loads(info_path.read_text())
-
-
-def dataset_hand_types(root: str | Path) -> list[str]:
-    """Hand spec name of each UDHM block of a converted dataset (from its `hand_type` column)."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-    import pyarrow.parquet as pq
-
-    root = Path(root)
-    features = _read_info(root)["features"]
-    if HAND_TYPE_KEY not in features:
-        raise ValueError(f"{root} has no '{HAND_TYPE_KEY}' column; convert it to UDHM with unidextok-convert")
-    files = sorted((root / "data").rglob("*.parquet"))
-    if not files:
-        raise FileNotFoundError(f"no data parquet under {root / 'data'}")
-    column = pa.concat_arrays([pq.read_table(f, columns=[HAND_TYPE_KEY]).column(0).combine_chunks() for f in files])
-    if pa.types.is_list(column.type) or pa.types.is_fixed_size_list(column.type):
-        column = pc.list_flatten(column)
-    hand_types = sorted(pc.unique(column).to_pylist())
-    if len(hand_types) != 1:
-        raise ValueError(
-            f"{root} mixes hand layouts across frames ({hand_types}), but a processor step tokenises every "
-            "frame with one fixed layout. Convert each hand into its own dataset (e.g. --max_episodes or "
-            "separate inputs), or pass hand_layout explicitly if one layout is really meant for all frames"
-        )
-    return str(hand_types[0]).split(",")
-
-
-def hand_layout_from_dataset(root: str | Path) -> HandLayout:
-    """Layout of a converted dataset folder: blocks and sides from the state names, hands from `hand_type`."""
-    root = Path(root)
-    features = _read_info(root)["features"]
-    if OBS_STATE not in features:
-        raise ValueError(f"{root} lacks '{OBS_STATE}'; convert it to UDHM with unidextok-convert")
-    return HandLayout.from_state_names(feature_names(features[OBS_STATE]), dataset_hand_types(root))
-
-
-# ---------------------------------------------------------------------------------------------
-# back to the robot's native vector
-# ---------------------------------------------------------------------------------------------
 def names_summary(names: list[str], head: int = 2) -> str:
     """`a, b, ..., z` for long name lists (error messages): the first `head` names and the last."""
     names = list(names)
@@ -180,11 +141,14 @@ class NativeLayout:
     native_names: list[str]
     hands: list[dict[str, Any]]
     mapping: str = "semantic"
+    # hands-only conversions (`--keep=hands`): every column name of the robot's full source vector, in its order
+    # (where the native `native_names`, the hand columns, sit in it); [] = the native vector is the full one
+    source_names: list[str] = field(default_factory=list)
+    source_key: str | None = None  # the source feature of this vector when not the converted key (Dexora `states`)
 
     def __post_init__(self) -> None:
-        from lerobot_unidextok import hands as hand_registry
-
         self.names, self.native_names = list(self.names), list(self.native_names)
+        self.source_names = list(self.source_names)
         self.hands = [dict(h, columns=list(h["columns"])) for h in self.hands]
         blocks = {b.side: b for b in find_udhm_blocks(self.names)}
         native_index = {n: i for i, n in enumerate(self.native_names)}
@@ -192,7 +156,7 @@ class NativeLayout:
         hand_columns = {c for h in self.hands for c in h["columns"]}
         self._decoders = []  # (spec, side, block slice, native indices)
         for h in self.hands:
-            spec = hand_registry.get(h["hand"])
+            spec = _hand_spec(h["hand"])
             if h["side"] not in blocks:
                 raise ValueError(f"native layout names a {h['side']} hand, but the vector has blocks {sorted(blocks)}")
             missing = [c for c in h["columns"] if c not in native_index]
@@ -275,7 +239,10 @@ class NativeLayout:
         """
         if self._inverse_gaps:
             raise ValueError(f"this native layout cannot rebuild the converted vector: {'; '.join(self._inverse_gaps)}")
-        is_torch = isinstance(native, torch.Tensor)
+        is_torch = type(native).__module__.startswith("torch")
+        if is_torch:
+            import torch  # only for tensor input: `unidextok-convert --help` imports this module without torch
+
         x = (native if native.is_floating_point() else native.float()) if is_torch else np.asarray(native, np.float64)
         if x.shape[-1] != self.native_dim:
             raise ValueError(f"expected a vector of width {self.native_dim} (native layout), got {tuple(x.shape)}")
@@ -293,50 +260,32 @@ class NativeLayout:
         return out
 
     def to_dict(self) -> dict[str, Any]:
-        return {"names": self.names, "native_names": self.native_names, "hands": self.hands, "mapping": self.mapping}
+        """The layout's one schema (JSON): `NativeLayout.from_dict(layout.to_dict()) == layout`."""
+        out = {"names": self.names, "native_names": self.native_names, "hands": self.hands, "mapping": self.mapping}
+        if self.source_names:
+            out["source_names"] = self.source_names
+        if self.source_key is not None:
+            out["source_key"] = self.source_key
+        return out
 
     @classmethod
-    def from_hands(cls, hands: list[str], sides: list[str], names: list[str] | None = None) -> NativeLayout:
-        """Native = passthrough columns of `names` then each hand's native joints (`<side>_<joint>`), block order."""
-        from lerobot_unidextok import hands as hand_registry
-        from lerobot_unidextok.blocks import udhm_state_names
+    def from_dict(cls, data: dict[str, Any]) -> NativeLayout:
+        """A layout from `to_dict()`'s schema; a ValueError naming unknown or missing keys."""
+        known = {"names", "native_names", "hands", "mapping", "source_names", "source_key"}
+        unknown, missing = sorted(set(data) - known), sorted({"names", "native_names", "hands"} - set(data))
+        if unknown or missing:
+            raise ValueError(f"a native layout has the keys {sorted(known)}; got unknown {unknown}, missing {missing}")
+        return cls(**data)
 
+    @classmethod
+    def from_hands(
+        cls, hands: list[str], sides: list[str], names: list[str] | None = None, mapping: str = "semantic"
+    ) -> NativeLayout:
+        """Native = passthrough columns of `names` then each hand's native joints (`<side>_<joint>`), block order."""
         names = list(names) if names else udhm_state_names(sides)
         entries = [
-            {"side": s, "hand": h, "columns": [f"{s}_{j}" for j in hand_registry.get(h).joint_names]}
+            {"side": s, "hand": h, "columns": [f"{s}_{j}" for j in _hand_spec(h).joint_names]}
             for h, s in zip(hands, sides, strict=True)
         ]
         native = [names[i] for i in passthrough_indices(names)] + [c for e in entries for c in e["columns"]]
-        return cls(names=names, native_names=native, hands=entries)
-
-    @classmethod
-    def from_dataset(cls, root: str | Path, key: str = ACTION) -> NativeLayout | None:
-        """The layout of `key` in a converted dataset, or None when it cannot be decoded to robot units.
-
-        Read from `meta/unidextok_conversion.json` "native_layout" when the converter recorded it; otherwise
-        derived (passthrough, then each hand's native joints). None when `key` has no UDHM block or a block
-        belongs to a hand without native joints (the human hand's native form is keypoints, not commands).
-        """
-        from lerobot_unidextok import hands as hand_registry
-
-        root = Path(root)
-        features = _read_info(root)["features"]
-        if key not in features:
-            return None
-        names = feature_names(features[key])
-        if not find_udhm_blocks(names):
-            return None
-        meta_path = root / CONVERSION_PATH
-        settings = json.loads(meta_path.read_text()) if meta_path.is_file() else {}
-        recorded = settings.get("native_layout", {}).get(key)
-        mapping = settings.get("mapping", "semantic")
-        if recorded:
-            if any(hand_registry.get(h["hand"]).kind != "joints" for h in recorded["hands"]):
-                return None
-            return cls(names=names, native_names=recorded["names"], hands=recorded["hands"], mapping=mapping)
-        hand_types = dataset_hand_types(root)
-        if any(hand_registry.get(h).kind != "joints" for h in hand_types):
-            return None
-        layout = cls.from_hands(hand_types, [b.side for b in find_udhm_blocks(names)], names)
-        layout.mapping = mapping
-        return layout
+        return cls(names=names, native_names=native, hands=entries, mapping=mapping)

@@ -1,11 +1,12 @@
-"""processor.layout: the native layout's column checks."""
+"""layout: the native layout's column checks."""
 
 from __future__ import annotations
 
 import pytest
 from robot_udhm import HAND_NAMES, INSPIRE, NATIVE_NAMES, STATE_NAMES
 
-from lerobot_unidextok.processor.layout import NativeLayout
+from lerobot_unidextok.data import UdhmDatasetMeta
+from lerobot_unidextok.layout import NativeLayout
 
 
 def _hands(right_columns):
@@ -31,7 +32,7 @@ def test_native_layout_rebuilds_the_converted_vector_from_the_recorded_layout(g1
     import torch
     from robot_udhm import to_converted
 
-    layout = NativeLayout.from_dataset(g1_like["root"], "observation.state")
+    layout = UdhmDatasetMeta(g1_like["root"]).native_layout("observation.state")
     assert layout.mapping == "semantic" and layout.invertible and NativeLayout(**layout.to_dict()) == layout
     native = g1_like["native_state"][:8]  # (8, 26) float32
     np.testing.assert_allclose(layout.to_converted(native), to_converted(native.astype(np.float64)), atol=1e-6)
