@@ -69,6 +69,10 @@ HAND_TYPE_KEY = "hand_type"  # string feature: hand spec name(s) of the frame, e
 UDHM_MASK_KEY = "udhm_mask"  # bool feature: which UDHM slots are real DoFs of the source hand
 OBS_HAND_TOKENS = "observation.hand_tokens"  # int64 codes added by the processor step
 OBS_HAND_TOKEN_FEATURES = "observation.environment_state"  # float view of the tokens for policies
+# int64 (H,) per frame of a mixed dataset (unidextok-mix): each block's hand as an index into the record's
+# `hand_vocabulary`, -1 where the block holds no hand; the tokenizer step reads it and the policy never does
+OBS_HAND_IDS = "observation.hand_ids"
+PASSTHROUGH_MASK_KEY = "passthrough_mask"  # bool feature of a mix with --keep=all: which common columns are real
 
 SIDES: tuple[str, ...] = ("right", "left")
 

@@ -135,6 +135,11 @@ class NativeLayout:
     `hands.get(hand).from_udhm(block, side)` fills, in that order. Every other native name must be a
     passthrough column of `names` and is copied unchanged. `mapping` is the converter's native -> UDHM
     mapping ("semantic", or the "append_pad" ablation), recorded in `meta/unidextok_conversion.json`.
+
+    A robot bound into a mix of robots (`unidextok-deploy`) may have fewer hands than the mix has blocks
+    (`absent_sides`: blocks that stay zero on the way in and are not decoded on the way out) and native columns
+    the mix does not carry (`dropped`: read past on the way in, e.g. the arms of a hands-only mix; a layout
+    with dropped columns maps the native vector in only).
     """
 
     names: list[str]
@@ -145,10 +150,14 @@ class NativeLayout:
     # (where the native `native_names`, the hand columns, sit in it); [] = the native vector is the full one
     source_names: list[str] = field(default_factory=list)
     source_key: str | None = None  # the source feature of this vector when not the converted key (Dexora `states`)
+    absent_sides: list[str] = field(default_factory=list)  # blocks that hold no hand of this robot: zeros
+    dropped: list[str] = field(default_factory=list)  # native columns the converted vector does not carry
 
     def __post_init__(self) -> None:
         self.names, self.native_names = list(self.names), list(self.native_names)
-        self.source_names = list(self.source_names)
+        self.source_names, self.absent_sides, self.dropped = (
+            list(self.source_names), list(self.absent_sides), list(self.dropped)
+        )  # fmt: skip
         self.hands = [dict(h, columns=list(h["columns"])) for h in self.hands]
         blocks = {b.side: b for b in find_udhm_blocks(self.names)}
         native_index = {n: i for i, n in enumerate(self.native_names)}
@@ -166,7 +175,10 @@ class NativeLayout:
                     f"names of the native vector; missing: {missing}"
                 )
             self._decoders.append((spec, h["side"], blocks[h["side"]].slice, [native_index[c] for c in h["columns"]]))
-        copy = [n for n in self.native_names if n not in hand_columns]
+        stray = [n for n in self.dropped if n not in native_index or n in hand_columns or n in pass_names]
+        if stray:
+            raise ValueError(f"dropped columns {stray[:5]} must be native columns that are neither hand nor passthrough")
+        copy = [n for n in self.native_names if n not in hand_columns and n not in set(self.dropped)]
         unknown = [n for n in copy if n not in pass_names]
         if unknown:
             raise ValueError(f"native columns {unknown[:5]} are neither a hand column nor a passthrough column")
@@ -174,6 +186,11 @@ class NativeLayout:
         self._copy_dst = np.array([native_index[n] for n in copy], dtype=np.int64)
         # the inverse needs every converted column: each block from a hand, each passthrough from a native name
         covered = {h["side"] for h in self.hands}
+        both = covered & set(self.absent_sides)
+        if both or not set(self.absent_sides) <= set(blocks):
+            raise ValueError(f"absent_sides {self.absent_sides} must be blocks of the vector without a hand entry")
+        covered |= set(self.absent_sides)
+        self._absent = [blocks[s].slice for s in self.absent_sides]
         self._inverse_gaps = [f"the {s} UDHM block has no hand entry" for s in blocks if s not in covered] + [
             f"passthrough column {n!r} is not a native name" for n in pass_names if n not in native_index
         ]
@@ -220,6 +237,11 @@ class NativeLayout:
 
     def to_native(self, x: np.ndarray) -> np.ndarray:
         """(..., len(names)) converted values -> (..., len(native_names)) native values (float64)."""
+        if self.dropped:
+            raise ValueError(
+                f"this layout reads the robot's columns {self.dropped[:4]}... past (it maps the native vector in "
+                "only), so it cannot produce the robot's whole vector; use the action layout to decode actions"
+            )
         x = np.asarray(x, dtype=np.float64)
         if x.shape[-1] != len(self.names):
             raise ValueError(f"expected a vector of width {len(self.names)} (converted action), got {x.shape}")
@@ -266,12 +288,16 @@ class NativeLayout:
             out["source_names"] = self.source_names
         if self.source_key is not None:
             out["source_key"] = self.source_key
+        if self.absent_sides:
+            out["absent_sides"] = self.absent_sides
+        if self.dropped:
+            out["dropped"] = self.dropped
         return out
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> NativeLayout:
         """A layout from `to_dict()`'s schema; a ValueError naming unknown or missing keys."""
-        known = {"names", "native_names", "hands", "mapping", "source_names", "source_key"}
+        known = {"names", "native_names", "hands", "mapping", "source_names", "source_key", "absent_sides", "dropped"}
         unknown, missing = sorted(set(data) - known), sorted({"names", "native_names", "hands"} - set(data))
         if unknown or missing:
             raise ValueError(f"a native layout has the keys {sorted(known)}; got unknown {unknown}, missing {missing}")

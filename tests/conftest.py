@@ -87,3 +87,24 @@ def g1_like_hands(tmp_path_factory) -> dict:
     from robot_udhm import write_g1_like_dataset
 
     return write_g1_like_dataset(tmp_path_factory.mktemp("g1_like_hands") / "ds", arms=False)
+
+
+@pytest.fixture(scope="session")
+def l10_robot(tmp_path_factory) -> Path:
+    """A robot with one LinkerHand L10 on the right (synthetic motion in SDK units), recorded as a plain LeRobot
+    v3.0 dataset and converted by the project's converter (tests/fixtures/l10_robot.py)."""
+    from l10_robot import convert_l10_robot, write_l10_robot
+
+    base = tmp_path_factory.mktemp("l10_robot")
+    return convert_l10_robot(write_l10_robot(base / "raw", episodes=5), base / "udhm")
+
+
+@pytest.fixture(scope="session")
+def g1_l10_mix(g1_like, l10_robot, tmp_path_factory) -> Path:
+    """The synthetic G1-like robot (two Inspire hands, arms) mixed with the right-only L10 robot (unidextok-mix)."""
+    from lerobot_unidextok.conversion.mix import MixOptions, mix
+
+    root = tmp_path_factory.mktemp("mix") / "g1_l10"
+    mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(root), repo_id="test/g1_l10_mix",
+                   progress=False))  # fmt: skip
+    return root

@@ -54,6 +54,12 @@ class UdhmFrames:
         )
 
 
+def dataset_folder(name: str | Path) -> Path:
+    """A dataset given as a folder or a repo id (found in the local caches): its folder, with meta/info.json."""
+    path = Path(name).expanduser()
+    return resolve_root(path, None) if path.exists() else resolve_root(None, str(name))
+
+
 def resolve_root(root: str | Path | None, repo_id: str | None) -> Path:
     """The dataset folder: `root`, else `repo_id` found in the local caches; it must hold meta/info.json."""
     if root is None:

@@ -55,6 +55,29 @@ class EpisodeRecord:
 
 
 @dataclass
+class MixedSource:
+    """One input of a mixed dataset (`unidextok-mix`): what it was and where its episodes went."""
+
+    dataset: str  # the input as given: a converted dataset folder or a repo id
+    robot_type: str | None  # the input's robot type
+    source: str  # the input's own source (its conversion record's `source`)
+    sides: list[str]  # its UDHM block sides
+    hands: list[str]  # its hand specs
+    num_episodes: int  # its episodes
+    test_episodes: list[int]  # its test episodes, in its own numbering
+    weight: float = 1.0  # the training-frame share asked for (`--weights`)
+    repeats: int = 1  # how many times each of its training episodes was written (test episodes: once)
+    has_action: bool = True  # False: actions made by the mix's rule (`action_rule`)
+    # its native layouts per key, as its own record has them (relative to its own converted columns)
+    native_layouts: dict[str, NativeLayout] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "native_layouts"}
+        out["native_layout"] = {k: v.to_dict() for k, v in self.native_layouts.items()}
+        return out
+
+
+@dataclass
 class ConversionRecord:
     """What one `unidextok-convert` run (or a merge of its shards) recorded about the dataset it wrote."""
 
@@ -90,6 +113,11 @@ class ConversionRecord:
     # the dataset's native layout per vector ("observation.state", "action"), robot hands only
     native_layouts: dict[str, NativeLayout] = field(default_factory=dict)
     episodes: list[EpisodeRecord] = field(default_factory=list)
+    # -- mixed datasets (`unidextok-mix`) ------------------------------------------------------------------------
+    # the hands `observation.hand_ids` indexes; [] = not a mix (one hand layout, from hand_type)
+    hand_vocabulary: list[str] = field(default_factory=list)
+    sources: list[MixedSource] = field(default_factory=list)  # the inputs, in order; episodes' origin["mix_source"]
+    action_rule: str = ""  # how actions were made for inputs without them ("" = every input had actions)
     record_version: int = RECORD_VERSION
 
     def __post_init__(self) -> None:
@@ -114,8 +142,10 @@ class ConversionRecord:
 
     def to_dict(self) -> dict[str, Any]:
         """The on-disk form (JSON)."""
-        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("native_layouts", "episodes")}
+        skip = ("native_layouts", "episodes", "sources")
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in skip}
         out["native_layout"] = {k: v.to_dict() for k, v in self.native_layouts.items()}
+        out["sources"] = [s.to_dict() for s in self.sources]
         out["episodes"] = [e.to_dict() for e in self.episodes]
         return out
 
@@ -168,10 +198,19 @@ def record_from_dict(data: dict[str, Any], v1_features: dict | None = None) -> C
             return {key: NativeLayout.from_dict(entry) for key, entry in entries.items()}
         return {key: _v1_layout(entry, v1_features, key, mapping) for key, entry in entries.items()}
 
-    known = {f.name for f in fields(ConversionRecord)} - {"native_layouts", "episodes", "record_version"}
+    known = {f.name for f in fields(ConversionRecord)} - {"native_layouts", "episodes", "sources", "record_version"}
     kwargs = {k: v for k, v in data.items() if k in known}
     episodes = [_episode(e, layouts) for e in data.get("episodes") or []]
-    return ConversionRecord(**kwargs, native_layouts=layouts(data.get("native_layout")), episodes=episodes)
+    sources = [_mixed_source(s) for s in data.get("sources") or []]
+    return ConversionRecord(
+        **kwargs, native_layouts=layouts(data.get("native_layout")), episodes=episodes, sources=sources
+    )
+
+
+def _mixed_source(entry: dict[str, Any]) -> MixedSource:
+    layouts = {k: NativeLayout.from_dict(v) for k, v in (entry.get("native_layout") or {}).items()}
+    known = {f.name for f in fields(MixedSource)} - {"native_layouts"}
+    return MixedSource(**{k: v for k, v in entry.items() if k in known}, native_layouts=layouts)
 
 
 _EPISODE_KEYS = ("episode_index", "source", "split", "length", "hand_type", "native_layout")
@@ -208,6 +247,7 @@ __all__ = [
     "RECORD_VERSION",
     "ConversionRecord",
     "EpisodeRecord",
+    "MixedSource",
     "RecordError",
     "load_record",
     "record_from_dict",

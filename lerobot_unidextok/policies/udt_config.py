@@ -35,7 +35,14 @@ from typing import Any
 from lerobot.configs.types import FeatureType, NormalizationMode, PolicyFeature
 
 from lerobot_unidextok.blocks import find_udhm_blocks
-from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE, UDHM_DIM
+from lerobot_unidextok.constants import (
+    ACTION,
+    OBS_HAND_IDS,
+    OBS_HAND_TOKEN_FEATURES,
+    OBS_HAND_TOKENS,
+    OBS_STATE,
+    UDHM_DIM,
+)
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, untrained_preset
 from lerobot_unidextok.processor import (
@@ -99,6 +106,14 @@ class UdtConfigMixin:
     udt_relative_actions: bool = False
     # Column names of the action (converted layout); filled from the dataset.
     udt_action_names: list[str] = field(default_factory=list)
+    # A dataset mixing robots and people (unidextok-mix): the hands its observation.hand_ids index; each row is
+    # tokenised with its own hands and the policy sees a one-hot hand identity per block. Filled from the dataset.
+    udt_hand_vocabulary: list[str] = field(default_factory=list)
+    # A mixed checkpoint bound to one robot (unidextok-deploy): that robot's hand per block (an index into
+    # udt_hand_vocabulary, -1 = the block holds no hand of it), used when the observation has no hand ids.
+    udt_fixed_hand_ids: list[int] = field(default_factory=list)
+    # Its hands the mix never had (unidextok-deploy --zero_shot=true): ids after udt_hand_vocabulary, no identity.
+    udt_extra_hands: list[str] = field(default_factory=list)
     # Accepted and ignored, so --policy.discover_packages_path=lerobot_unidextok also works with
     # --policy.path=<checkpoint> (LeRobot passes every --policy.* flag to the loaded config).
     discover_packages_path: str | None = None
@@ -136,12 +151,15 @@ class UdtConfigMixin:
                 f"rename it (lerobot-edit-dataset), or train the stock --policy.type={self.type.removesuffix(UDT_SUFFIX)}"
             )
         names = meta.names(OBS_STATE)
+        self.udt_action_names = meta.names(ACTION)
+        if OBS_HAND_IDS in meta.features:  # a mix of robots and people: hands per row, no one native layout
+            self._fill_from_mix(meta, names)
+            return
         hands = self.udt_hand_layout or meta.block_hands()
         if len(hands) == 1:
             hands = hands * max(1, len(find_udhm_blocks(names)))
         layout = HandLayout.from_state_names(names, hands)
         self.udt_hand_layout, self.udt_sides, self.udt_state_names = layout.hands, layout.sides, layout.state_names
-        self.udt_action_names = meta.names(ACTION)
         native = meta.native_layout(ACTION) if self.udt_native_action else None
         self.udt_native_layout = native.to_dict() if native is not None else {}
         state = meta.native_layout(OBS_STATE) if self.udt_native_state else None
@@ -153,13 +171,42 @@ class UdtConfigMixin:
             f"{native.native_dim} wide" if native else "not decoded", meta.root,
         )  # fmt: skip
 
+    def _fill_from_mix(self, meta: UdhmDatasetMeta, names: list[str]) -> None:
+        """A dataset written by unidextok-mix: its hand vocabulary and blocks; actions stay in the mix's layout
+        (each robot's own comes back when `unidextok-deploy` binds the checkpoint to it)."""
+        if meta.record is None or not meta.record.hand_vocabulary:
+            raise ValueError(
+                f"{meta.root} has '{OBS_HAND_IDS}' but its conversion record names no hand_vocabulary: it was not "
+                "written by unidextok-mix (or its meta/unidextok_conversion.json was dropped); mix it again"
+            )
+        self.udt_hand_vocabulary = list(meta.record.hand_vocabulary)
+        self.udt_sides = [b.side for b in find_udhm_blocks(names)]
+        self.udt_state_names = names
+        self.udt_native_layout, self.udt_native_state_layout = {}, {}
+        logger.info(
+            "%s: a mix of hands %s (blocks %s, hands per row from %s), from %s",
+            self.type, self.udt_hand_vocabulary, self.udt_sides, OBS_HAND_IDS, meta.root,
+        )  # fmt: skip
+
+    @property
+    def num_udt_blocks(self) -> int:
+        """UDHM blocks of the state the step tokenises."""
+        return len(self.udt_sides) if self.udt_hand_vocabulary else len(self.udt_hand_layout)
+
     def validate_features(self) -> None:
         self._fill_from_dataset()
         state = self.input_features.get(OBS_STATE)
         if state is None:
             raise ValueError(f"{self.type} needs '{OBS_STATE}' (UDHM hand states) among the dataset features")
         width = state.shape[0]
-        if not self.udt_hand_layout:
+        self.input_features.pop(OBS_HAND_IDS, None)  # read by the tokenizer step, never by the policy
+        if self.udt_hand_vocabulary:
+            if len(self.udt_state_names) != width or not self.udt_sides:
+                raise ValueError(
+                    f"{self.type} on a mix needs udt_state_names ({len(self.udt_state_names)}) for the {width}-wide "
+                    f"{OBS_STATE}: train on the dataset written by unidextok-mix, which fills them"
+                )
+        elif not self.udt_hand_layout:
             raise ValueError(
                 f"{self.type}: set --policy.udt_hand_layout='[<hand>, ...]' (one hand spec per UDHM block), "
                 "or train on a dataset converted with unidextok-convert (its hand_type column names the hands)"
@@ -179,7 +226,7 @@ class UdtConfigMixin:
                 "udt_native_state_layout.names must be the converted state names (udt_state_names); both are filled "
                 "from the training dataset, so leave them unset, or set --policy.udt_native_state=false"
             )
-        num_hands = len(self.udt_hand_layout)
+        num_hands = self.num_udt_blocks
         if not self.udt_state_names and num_hands * UDHM_DIM != width:
             raise ValueError(
                 f"udt_hand_layout {self.udt_hand_layout} names {num_hands} hands but {OBS_STATE} (width {width}) "
@@ -189,7 +236,9 @@ class UdtConfigMixin:
             self._check_relative_layout(width)
         self.input_features.pop(OBS_HAND_TOKENS, None)  # int64 ids must not reach the normalizer
         if OBS_HAND_TOKEN_FEATURES not in self.input_features:  # a reloaded config has it already
-            _, env_width = tokenizer_output_dims(self.tokenizer_config(), num_hands, self.udt_representation)
+            _, env_width = tokenizer_output_dims(
+                self.tokenizer_config(), num_hands, self.udt_representation, len(self.udt_hand_vocabulary)
+            )
             self.input_features[OBS_HAND_TOKEN_FEATURES] = PolicyFeature(type=FeatureType.ENV, shape=(env_width,))
         super().validate_features()
 

@@ -12,8 +12,10 @@ passes unchanged); it is there when the training dataset recorded a native state
 `udt_native_state` is on. With `udt_relative_actions`, LeRobot's own `RelativeActionsProcessorStep` (action -=
 converted state, the state cached) sits just before the normaliser and its `AbsoluteActionsProcessorStep` (action
 += that cached state) just after the unnormaliser, as in LeRobot's pi0 processors; both are saved with the
-checkpoint and LeRobot's factory re-pairs them on reload (`make_pre_post_processors(pretrained_path=...)`). Each `processor_<type>_udt.make_<type>_udt_pre_post_processors` builds the stock
-pair and passes it through `insert_udt_steps`.
+checkpoint and LeRobot's factory re-pairs them on reload (`make_pre_post_processors(pretrained_path=...)`). On a
+dataset written by `unidextok-mix` the tokenizer step is `unidextok.mixed_state_tokenizer` (hands per row,
+`processor/mixed.py`). Each `processor_<type>_udt.make_<type>_udt_pre_post_processors` builds the stock pair and
+passes it through `insert_udt_steps`.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from lerobot_unidextok.processor import (
     NativeLayout,
     NativeToUDHMStateStep,
     UDHMToNativeCommandStep,
+    UniDexTokMixedTokenizerStep,
     UniDexTokStateTokenizerStep,
 )
 
@@ -40,8 +43,7 @@ def insert_udt_steps(
     config: UdtConfigMixin, pre: PolicyProcessorPipeline, post: PolicyProcessorPipeline
 ) -> tuple[PolicyProcessorPipeline, PolicyProcessorPipeline]:
     """The stock `pre`, `post` of `config`'s policy with the UniDexTok step (and the native-action decoder)."""
-    step = UniDexTokStateTokenizerStep(
-        hand_layout=config.udt_hand_layout,
+    common = dict(
         state_names=config.udt_state_names,
         pretrained=config.udt_pretrained,
         preset=config.udt_preset,
@@ -50,6 +52,15 @@ def insert_udt_steps(
         range_check=config.udt_range_check,
         search_rounds=config.udt_search_rounds,
     )
+    if config.udt_hand_vocabulary:  # a mix of robots and people: hands per row, and their identity
+        step = UniDexTokMixedTokenizerStep(
+            hand_vocabulary=config.udt_hand_vocabulary,
+            fixed_hand_ids=config.udt_fixed_hand_ids,
+            extra_hands=config.udt_extra_hands,
+            **common,
+        )
+    else:
+        step = UniDexTokStateTokenizerStep(hand_layout=config.udt_hand_layout, **common)
     steps = list(pre.steps)
     after_batch = [i + 1 for i, s in enumerate(steps) if isinstance(s, AddBatchDimensionProcessorStep)]
     normalizer = [i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep)]
@@ -66,7 +77,10 @@ def insert_udt_steps(
         _insert_relative_pair(config, steps, post)
     pre.steps = steps
     if config.udt_native_action and config.udt_native_layout:
-        post.steps = [*post.steps, UDHMToNativeCommandStep.from_layout(NativeLayout.from_dict(config.udt_native_layout))]
+        post.steps = [
+            *post.steps,
+            UDHMToNativeCommandStep.from_layout(NativeLayout.from_dict(config.udt_native_layout)),
+        ]
     return pre, post
 
 

@@ -1,8 +1,10 @@
 """LeRobot processor steps wrapping UniDexTok (registered in ProcessorStepRegistry on import): the tokenizer step
-(`processor_unidextok.py`) and the two native steps, one per direction (`native.py`)."""
+(`processor_unidextok.py`), its per-row variant for mixed datasets (`mixed.py`) and the two native steps, one per
+direction (`native.py`)."""
 
 from lerobot_unidextok.layout import HandLayout, NativeLayout
 from lerobot_unidextok.processor.guards import RANGE_CHECKS, hand_bounds_rad
+from lerobot_unidextok.processor.mixed import MIXED_STEP_NAME, UniDexTokMixedTokenizerStep
 from lerobot_unidextok.processor.native import (
     NATIVE_TO_UDHM_STEP_NAME,
     UDHM_TO_NATIVE_STEP_NAME,
@@ -20,6 +22,7 @@ from lerobot_unidextok.processor.processor_unidextok import (
 )
 
 __all__ = [
+    "MIXED_STEP_NAME",
     "NATIVE_TO_UDHM_STEP_NAME",
     "RANGE_CHECKS",
     "REPRESENTATIONS",
@@ -29,6 +32,7 @@ __all__ = [
     "NativeLayout",
     "NativeToUDHMStateStep",
     "UDHMToNativeCommandStep",
+    "UniDexTokMixedTokenizerStep",
     "UniDexTokStateTokenizerStep",
     "hand_bounds_rad",
     "token_preview",

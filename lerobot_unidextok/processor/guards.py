@@ -48,16 +48,21 @@ def layout_bounds(hands: list[str], sides: list[str]) -> tuple[torch.Tensor, tor
     return lo_t, hi_t
 
 
-def range_problem(rows: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor, hands: list[str], key: str) -> str | None:
-    """None when every block of `rows` (B, H, 22) lies inside [lo, hi] (H, 22); else what is wrong and the fix."""
+def range_problem(
+    rows: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor, hands: list[str] | list[list[str]], key: str
+) -> str | None:
+    """None when every block of `rows` (B, H, 22) lies inside [lo, hi] ((H, 22), or (B, H, 22) with per-row
+    hands `hands[b][h]`); else what is wrong and the fix."""
     bad = (rows < lo) | (rows > hi)  # (B, H, 22)
     if not bool(bad.any()):
         return None
     b, h, j = (int(i) for i in bad.nonzero()[0])
     value = float(rows[b, h, j])
+    low, high = (float(t[b, h, j]) if t.ndim == 3 else float(t[h, j]) for t in (lo, hi))
+    hand = hands[b][h] if lo.ndim == 3 else hands[h]
     where = (
-        f"{key} block {h} ({hands[h]}) joint {UDHM_JOINT_NAMES[j]} = {value:.3f} at batch row {b}, outside "
-        f"[{float(lo[h, j]) + RANGE_MARGIN_RAD:.3f}, {float(hi[h, j]) - RANGE_MARGIN_RAD:.3f}] rad"
+        f"{key} block {h} ({hand}) joint {UDHM_JOINT_NAMES[j]} = {value:.3f} at batch row {b}, outside "
+        f"[{low + RANGE_MARGIN_RAD:.3f}, {high - RANGE_MARGIN_RAD:.3f}] rad"
     )
     fraction = float(bad.float().mean())
     if float(rows.abs().max()) > 2 * math.pi:
@@ -72,7 +77,9 @@ def range_problem(rows: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor, hands:
     )
 
 
-def check_ranges(rows: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor, hands: list[str], key: str, mode: str) -> None:
+def check_ranges(
+    rows: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor, hands: list[str] | list[list[str]], key: str, mode: str
+) -> None:
     """Apply `mode` ("raise" | "warn" | "off") to `range_problem`."""
     if mode == "off":
         return

@@ -59,6 +59,9 @@ class NativeToUDHMStateStep(ObservationProcessorStep):
     native_names: list[str] = field(default_factory=list)  # the robot's state names, in its order
     native_hands: list[dict[str, Any]] = field(default_factory=list)  # {"side", "hand", "columns"} per block
     mapping: str = "semantic"  # the converter's native -> UDHM mapping (meta/unidextok_conversion.json)
+    # a robot bound into a mix (unidextok-deploy): blocks it has no hand for (zeros), native columns read past
+    absent_sides: list[str] = field(default_factory=list)
+    dropped: list[str] = field(default_factory=list)
     input_layout: str = "auto"  # "auto": decided by width | "native" | "converted" (pass unchanged)
     on_out_of_range: str = "raise"  # native hand values outside their range: "raise" (as the converter) | "clip"
     input_key: str = OBS_STATE
@@ -75,7 +78,8 @@ class NativeToUDHMStateStep(ObservationProcessorStep):
                 f"{NATIVE_TO_UDHM_STEP_NAME} needs the converted state names and the native ones; build it with "
                 "NativeToUDHMStateStep.from_layout(UdhmDatasetMeta(root).native_layout('observation.state'))"
             )
-        self._layout = NativeLayout(self.names, self.native_names, self.native_hands, mapping=self.mapping)
+        self._layout = NativeLayout(self.names, self.native_names, self.native_hands, mapping=self.mapping,
+                                    absent_sides=self.absent_sides, dropped=self.dropped)  # fmt: skip
         if not self._layout.invertible:
             self._layout.to_converted(torch.zeros(self._layout.native_dim))  # raises naming what is missing
         if self.input_layout == "auto" and self.ambiguous:
@@ -92,6 +96,8 @@ class NativeToUDHMStateStep(ObservationProcessorStep):
             native_names=layout.native_names,
             native_hands=layout.hands,
             mapping=layout.mapping,
+            absent_sides=layout.absent_sides,
+            dropped=layout.dropped,
             **kwargs,
         )
 
@@ -165,6 +171,8 @@ class NativeToUDHMStateStep(ObservationProcessorStep):
             "input_layout": self.input_layout,
             "on_out_of_range": self.on_out_of_range,
             "input_key": self.input_key,
+            **({"absent_sides": list(self.absent_sides)} if self.absent_sides else {}),
+            **({"dropped": list(self.dropped)} if self.dropped else {}),
         }
 
 
@@ -214,12 +222,15 @@ class UDHMToNativeCommandStep(PolicyActionProcessorStep):
     names: list[str] = field(default_factory=list)  # converted action names (whole robot)
     native_names: list[str] = field(default_factory=list)  # native action names, in the robot's order
     native_hands: list[dict[str, Any]] = field(default_factory=list)  # {"side", "hand", "columns"} per block
+    mapping: str = "semantic"  # the converter's native -> UDHM mapping (meta/unidextok_conversion.json)
+    absent_sides: list[str] = field(default_factory=list)  # blocks of a mix this robot has no hand for
 
     _native: NativeLayout | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.names:
-            self._native = NativeLayout(self.names, self.native_names, self.native_hands)
+            self._native = NativeLayout(self.names, self.native_names, self.native_hands, mapping=self.mapping,
+                                        absent_sides=self.absent_sides)  # fmt: skip
         else:
             sides = list(self.sides) or ["right"] * len(self.hand_layout)
             self._native = NativeLayout.from_hands(list(self.hand_layout), sides)
@@ -232,6 +243,8 @@ class UDHMToNativeCommandStep(PolicyActionProcessorStep):
             names=layout.names,
             native_names=layout.native_names,
             native_hands=layout.hands,
+            mapping=layout.mapping,
+            absent_sides=layout.absent_sides,
         )
 
     @property
@@ -262,6 +275,8 @@ class UDHMToNativeCommandStep(PolicyActionProcessorStep):
             "names": list(self.names),
             "native_names": list(self.native_names),
             "native_hands": [dict(h) for h in self.native_hands],
+            **({"mapping": self.mapping} if self.mapping != "semantic" else {}),
+            **({"absent_sides": list(self.absent_sides)} if self.absent_sides else {}),
         }
 
 

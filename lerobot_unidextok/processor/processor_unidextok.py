@@ -56,13 +56,16 @@ REPRESENTATIONS = ("dequantized", "embedding")
 # ---------------------------------------------------------------------------------------------
 # tokenizer loading
 # ---------------------------------------------------------------------------------------------
-def tokenizer_output_dims(config: UniDexTokConfig, num_hands: int, representation: str) -> tuple[int, int]:
-    """(token count, float feature width) the step adds for `num_hands` hands."""
+def tokenizer_output_dims(
+    config: UniDexTokConfig, num_hands: int, representation: str, vocabulary_size: int = 0
+) -> tuple[int, int]:
+    """(token count, float feature width) the step adds for `num_hands` hands; a mixed dataset's step also
+    appends a one-hot identity over its `vocabulary_size` hands per block."""
     if representation not in REPRESENTATIONS:
         raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {representation!r}")
     tokens = num_hands * config.num_tokens * config.num_groups
     width = UDHM_DIM if representation == "dequantized" else config.num_tokens * config.codebook_dim
-    return tokens, num_hands * width
+    return tokens, num_hands * (width + vocabulary_size)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -113,14 +116,28 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     _bounds: tuple[torch.Tensor, torch.Tensor] | None = field(default=None, init=False, repr=False)  # (H, 22) x2
 
     def __post_init__(self) -> None:
+        self._check_settings()
+        self.hand_layout, self.state_names = list(self.hand_layout), list(self.state_names)
+        check_registry(self.hand_layout)  # before any weights are loaded or anything is logged
+        self._layout = HandLayout(self.hand_layout, state_names=self.state_names)
+        self._load_tokenizer()
+        self._hand_ids = torch.tensor(self._tokenizer_hand_ids(self.hand_layout))
+        # (H, 22) active-DoF masks: decoded values on slots a hand does not have are zeroed, as in the data.
+        self._active = torch.as_tensor(np.stack([hands.get(h).active_mask for h in self.hand_layout]))
+        columns = self._layout.block_columns
+        self._columns = None if np.array_equal(columns, np.arange(self._layout.state_dim)) else torch.as_tensor(columns)
+        self._bounds = layout_bounds(self.hand_layout, self._layout.sides)
+
+    def _check_settings(self) -> None:
         if self.representation not in REPRESENTATIONS:
             raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {self.representation!r}")
         if self.range_check not in RANGE_CHECKS:
             raise ValueError(f"range_check must be one of {RANGE_CHECKS}, got {self.range_check!r}")
         check_encoding(self.search_rounds)  # the step's own setting, not the checkpoint's: 0 = nearest codes
-        self.hand_layout, self.state_names = list(self.hand_layout), list(self.state_names)
-        check_registry(self.hand_layout)  # before any weights are loaded or anything is logged
-        self._layout = HandLayout(self.hand_layout, state_names=self.state_names)
+
+    def _load_tokenizer(self) -> None:
+        """The tokenizer from `tokenizer_config` (weights follow through `load_state_dict`), `pretrained`, or an
+        untrained preset when one is asked for (`pretrained.untrained_preset`)."""
         preset = untrained_preset(self.pretrained, self.preset)
         if self.tokenizer_config is not None and (self.embed_weights or self.pretrained is None):
             self._tokenizer = UniDexTok(UniDexTokConfig(**self.tokenizer_config)).eval()
@@ -131,8 +148,12 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             self.pretrained = None  # the weights are this preset's, not the default checkpoint's
             self._tokenizer = UniDexTok(UniDexTokConfig.from_preset(preset)).eval()
         self.tokenizer_config = asdict(self._tokenizer.config)
+
+    def _tokenizer_hand_ids(self, hand_names: list[str]) -> list[int]:
+        """The tokenizer's hand id of each name: refused (or, with `allow_unknown`, its unknown-hand id) for a
+        hand the tokenizer was not trained on."""
         cfg = self._tokenizer.config
-        unseen = untrained_hands(self.hand_layout, cfg.hand_names, cfg.trained_hands)
+        unseen = untrained_hands(hand_names, cfg.hand_names, cfg.trained_hands)
         if unseen and not self.allow_unknown:
             seen = cfg.trained_hands or cfg.hand_names
             raise ValueError(
@@ -147,15 +168,7 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
                 "embedding (allow_unknown=True)",
                 unseen,
             )
-        ids = [
-            cfg.hand_names.index(h) if h not in unseen else self._tokenizer.unknown_hand_id for h in self.hand_layout
-        ]
-        self._hand_ids = torch.tensor(ids)
-        # (H, 22) active-DoF masks: decoded values on slots a hand does not have are zeroed, as in the data.
-        self._active = torch.as_tensor(np.stack([hands.get(h).active_mask for h in self.hand_layout]))
-        columns = self._layout.block_columns
-        self._columns = None if np.array_equal(columns, np.arange(self._layout.state_dim)) else torch.as_tensor(columns)
-        self._bounds = layout_bounds(self.hand_layout, self._layout.sides)
+        return [cfg.hand_names.index(h) if h not in unseen else self._tokenizer.unknown_hand_id for h in hand_names]
 
     @classmethod
     def from_dataset(cls, root: str | Path, **kwargs: Any) -> UniDexTokStateTokenizerStep:

@@ -1,0 +1,439 @@
+"""Mix converted datasets of different robots and people into one LeRobot v3 dataset (`unidextok-mix`).
+
+    unidextok-mix --inputs='[data/g1_udhm, data/l10_udhm, data/human_udhm]' --root=data/mix --repo_id=lab/mix
+
+LeRobot's own `aggregate_datasets` (and `lerobot-edit-dataset --operation.type=merge`) needs identical features,
+robot type and fps (`lerobot/datasets/aggregate.py`), which datasets of different robots never have: their
+state holds other blocks, their arms other columns. So the mix is written anew, episode by episode, with the
+conversion's own writer (`conversion.writer`, LeRobot's file format and statistics), in one common layout:
+
+- `observation.state` / `action`: one 22-wide UDHM block per side any input has, in order of first appearance.
+  A side an input lacks is a zero block with a zero mask, never a fake hand. `--keep=hands` (the default) drops
+  every other column; `--keep=all` keeps the inputs' passthrough columns (arms, grippers), aligned by name
+  after `--name_map` (`{"source column": "common name"}`), zero where an input lacks one, with
+  `passthrough_mask` saying which are real.
+- `hand_type` (each block's hand spec; a lacking side repeats the input's first hand, as `--sides` does) and
+  `udhm_mask` per frame, as in any converted dataset; and `observation.hand_ids` ((H,) int64): each block's hand
+  as an index into the record's `hand_vocabulary`, -1 for a lacking side. The `<type>_udt` policies read it to
+  tokenise each row with its own hands and to tell the policy which embodiment it controls.
+- Actions: an input's own; an input without actions (human hands: keypoint files, EgoDex) gets the action rule
+  `action[t] = state[t + k]` (`--action_ahead=k`, the hand `k` frames later; the last frames hold the last
+  state; zero where the hand is absent at `t`), recorded as `action_rule`.
+- Every episode keeps its source: `meta/unidextok_conversion.json` lists the inputs (`sources`: dataset, robot
+  type, hands, sides, test episodes, native layouts) and, per mixed episode, the input and its episode index
+  there (`origin`). `test_episodes` are every input's test episodes, renumbered: splits stay whole-episode and
+  per source, and the printed `--dataset.episodes` flag keeps them out of `lerobot-train`.
+- `--weights` (training-frame share per input): `lerobot-train` samples every frame of the chosen episodes
+  equally (its `EpisodeAwareSampler` takes each episode once, whatever `--dataset.episodes` repeats), so weights
+  are honoured by writing an input's training episodes several times (`repeats`; test episodes once).
+
+Bad input (a dataset that was not converted, datasets at different fps, layouts that cannot share one vector)
+is one `MixError` naming the fix; nothing is written then.
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import time
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from lerobot_unidextok.blocks import find_udhm_blocks, passthrough_indices, udhm_state_names
+from lerobot_unidextok.constants import (
+    ACTION,
+    HAND_TYPE_KEY,
+    OBS_HAND_IDS,
+    OBS_STATE,
+    PASSTHROUGH_MASK_KEY,
+    UDHM_DIM,
+    UDHM_MASK_KEY,
+)
+from lerobot_unidextok.conversion.card import write_card
+from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
+from lerobot_unidextok.data.meta import UdhmDatasetMeta
+from lerobot_unidextok.data.reader import data_files, dataset_folder
+from lerobot_unidextok.data.record import ConversionRecord, EpisodeRecord, MixedSource, write_record
+from lerobot_unidextok.errors import UserError
+from lerobot_unidextok.utils.cli import progress_bar
+from lerobot_unidextok.utils.files import replace_folder
+
+logger = logging.getLogger(__name__)
+
+MIX_SOURCE = "mix"  # the `source` of a mixed dataset's record
+KEEP = ("hands", "all")
+MAX_GROWTH = 20.0  # weights that would write more than this many times the inputs' frames are refused
+
+
+class MixError(UserError, ValueError):
+    """The inputs cannot be mixed as asked; the message names the input, the problem and the fix."""
+
+
+@dataclass
+class MixOptions:
+    """What to mix and how (`unidextok-mix` takes the same fields as flags)."""
+
+    inputs: list[str] = field(default_factory=list)  # converted datasets: folders or repo ids (local caches)
+    root: str = ""  # output folder (must not exist unless `overwrite`, and then only a mix this tool wrote)
+    repo_id: str = "local/udhm_mix"  # dataset id of the mix (card, Hub)
+    keep: str = "hands"  # "hands": the UDHM blocks only | "all": also the passthrough columns, aligned by name
+    name_map: dict[str, str] = field(default_factory=dict)  # --keep=all: source column -> common column name
+    weights: list[float] = field(default_factory=list)  # training-frame share per input; [] = each episode once
+    action_ahead: int = 1  # inputs without actions: action[t] = state[t + action_ahead] (human hands)
+    overwrite: bool = False  # replace an earlier mix at root (never anything else)
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        self.inputs, self.weights = [str(i) for i in self.inputs], [float(w) for w in self.weights]
+        if not self.inputs:
+            raise MixError("no inputs: pass --inputs='[<converted dataset folder or repo id>, ...]'")
+        if self.keep not in KEEP:
+            raise MixError(f"keep must be one of {KEEP}, got {self.keep!r}")
+        if self.weights and (len(self.weights) != len(self.inputs) or min(self.weights) <= 0):
+            raise MixError(
+                f"--weights needs one positive weight per input ({len(self.inputs)}), got {self.weights}"
+            )
+        if self.action_ahead < 1:
+            raise MixError(f"action_ahead must be >= 1 frame, got {self.action_ahead}")
+        if not self.root:
+            raise MixError("pass --root=<output folder> for the mixed dataset")
+
+
+@dataclass
+class _Input:
+    """One input, read once: where its hands and columns sit and where they go in the mix."""
+
+    name: str  # as given
+    meta: UdhmDatasetMeta
+    sides: list[str]
+    state_pass: list[str]  # its passthrough state columns, after the name map
+    action_pass: list[str]
+    has_action: bool
+    test: set[int]
+
+    @property
+    def record(self) -> ConversionRecord:
+        return self.meta.record
+
+
+@dataclass
+class MixReport:
+    root: Path
+    num_episodes: int
+    num_frames: int
+    test_episodes: list[int]
+    sources: list[MixedSource]
+    train_shares: list[float]  # the training-frame share each input got
+    seconds: float
+
+
+# ---------------------------------------------------------------------------------------------
+# planning: read every input's metadata, check they fit one layout
+# ---------------------------------------------------------------------------------------------
+def _open_input(name: str, opts: MixOptions) -> _Input:
+    try:
+        root = dataset_folder(name)
+    except FileNotFoundError as err:
+        raise MixError(f"input {name}: {err}") from err
+    meta = UdhmDatasetMeta(root)
+    record = meta.record
+    if record is None:
+        raise MixError(
+            f"input {name} was not converted by unidextok-convert (no meta/unidextok_conversion.json): convert it "
+            "first (unidextok-convert --source=lerobot --input=... for a LeRobot dataset)"
+        )
+    if record.hand_vocabulary:
+        raise MixError(f"input {name} is itself a mix: mix the datasets it was made of instead")
+    if meta.record_problem:
+        raise MixError(f"input {name}: {meta.record_problem}; convert it again")
+    names = meta.names(OBS_STATE)
+    blocks = find_udhm_blocks(names)
+    if not blocks:
+        raise MixError(f"input {name}: {OBS_STATE} holds no UDHM block; convert it with unidextok-convert")
+    rename = opts.name_map.get
+    state_pass = [rename(names[i], names[i]) for i in passthrough_indices(names)]
+    action_names = meta.names(ACTION)
+    action_pass = [rename(action_names[i], action_names[i]) for i in passthrough_indices(action_names)]
+    if action_names and [b.side for b in find_udhm_blocks(action_names)] != [b.side for b in blocks]:
+        raise MixError(f"input {name}: its action blocks are not its state blocks; convert it again")
+    return _Input(name, meta, [b.side for b in blocks], state_pass, action_pass, bool(action_names),
+                  set(meta.split("recorded").test))  # fmt: skip
+
+
+def _check_compatible(inputs: list[_Input], opts: MixOptions) -> None:
+    fps = {i.name: i.meta.fps for i in inputs}
+    if len(set(fps.values())) > 1:
+        raise MixError(
+            f"the inputs have different frame rates {fps}: convert them onto one grid first (unidextok-convert "
+            "--fps=<rate> resamples time-stamped sources), then mix"
+        )
+    mappings = {i.name: i.record.mapping for i in inputs}
+    if len(set(mappings.values())) > 1:
+        raise MixError(
+            f"the inputs were converted with different UDHM mappings {mappings}: a block means one thing in a mix; "
+            "convert them with the same --mapping (semantic)"
+        )
+    if opts.keep == "all":
+        udhm_like = set(udhm_state_names(["right", "left"]))
+        clash = sorted({n for i in inputs for n in i.state_pass + i.action_pass if n in udhm_like})
+        if clash:
+            raise MixError(f"--name_map maps passthrough columns onto UDHM block names {clash[:4]}; choose other names")
+
+
+def _ordered_union(lists: list[list[str]]) -> list[str]:
+    return list(dict.fromkeys(n for names in lists for n in names))
+
+
+def repeat_factors(train_frames: list[int], weights: list[float]) -> list[int]:
+    """Whole repeats of each input's training episodes so their frame shares come near `weights` (the input
+    wanted least per frame is written once)."""
+    if not weights:
+        return [1] * len(train_frames)
+    per_frame = [w / sum(weights) / max(f, 1) for w, f in zip(weights, train_frames, strict=True)]
+    base = min(per_frame)
+    return [max(1, round(p / base)) for p in per_frame]
+
+
+# ---------------------------------------------------------------------------------------------
+# writing
+# ---------------------------------------------------------------------------------------------
+def _read_input(inp: _Input):
+    """(table of every row, tasks by index) of an input."""
+    import pyarrow as pa  # ~0.2 s; only when mixing
+    import pyarrow.parquet as pq
+
+    columns = [OBS_STATE, HAND_TYPE_KEY, UDHM_MASK_KEY, "episode_index", "task_index"]
+    columns += [ACTION] if inp.has_action else []
+    table = pa.concat_tables(pq.read_table(f, columns=columns) for f in data_files(inp.meta.root))
+    tasks = pq.read_table(inp.meta.root / "meta" / "tasks.parquet").to_pydict()
+    return table, dict(zip(tasks["task_index"], tasks["task"], strict=True))
+
+
+def _matrix(column, width: int, dtype) -> np.ndarray:
+    col = column.combine_chunks()
+    return col.values.to_numpy(zero_copy_only=False).reshape(len(col), width).astype(dtype, copy=False)
+
+
+class _Mixer:
+    """Places each input's columns into the common layout."""
+
+    def __init__(self, inputs: list[_Input], opts: MixOptions):
+        self.sides = _ordered_union([i.sides for i in inputs])
+        self.state_pass = _ordered_union([i.state_pass for i in inputs]) if opts.keep == "all" else []
+        self.action_pass = _ordered_union([i.action_pass for i in inputs]) if opts.keep == "all" else []
+        self.vocabulary = sorted({h for i in inputs for t in i.meta.hand_types for h in t.split(",")})
+        self.udhm = udhm_state_names(self.sides)
+        self.opts = opts
+        self.features = self._features()
+
+    @property
+    def num_hands(self) -> int:
+        return len(self.sides)
+
+    def _features(self) -> dict[str, dict]:
+        state, action = [*self.state_pass, *self.udhm], [*self.action_pass, *self.udhm]
+        features = {
+            OBS_STATE: {"dtype": "float32", "shape": (len(state),), "names": state},
+            ACTION: {"dtype": "float32", "shape": (len(action),), "names": action},
+            HAND_TYPE_KEY: {"dtype": "string", "shape": (1,), "names": None},
+            UDHM_MASK_KEY: {"dtype": "bool", "shape": (len(self.udhm),), "names": self.udhm},
+            OBS_HAND_IDS: {"dtype": "int64", "shape": (self.num_hands,), "names": [f"{s}_hand" for s in self.sides]},
+        }
+        if self.state_pass or self.action_pass:
+            common = _ordered_union([self.state_pass, self.action_pass])
+            features[PASSTHROUGH_MASK_KEY] = {"dtype": "bool", "shape": (len(common),), "names": common}
+        return features
+
+    def episode(self, inp: _Input, rows, tasks: dict[int, str]) -> tuple[dict[str, np.ndarray], str]:
+        """The mixed frames of one input episode (its rows of the input table)."""
+        n = rows.num_rows
+        names = inp.meta.names(OBS_STATE)
+        state_in = _matrix(rows.column(OBS_STATE), len(names), np.float32)
+        mask_in = _matrix(rows.column(UDHM_MASK_KEY), UDHM_DIM * len(inp.sides), bool)
+        hand_types = rows.column(HAND_TYPE_KEY).to_pylist()
+        if len(set(hand_types)) != 1:
+            raise MixError(f"input {inp.name} changes hands inside an episode ({sorted(set(hand_types))[:3]})")
+        own_hands = hand_types[0].split(",")
+        block_of = {b.side: b for b in find_udhm_blocks(names)}
+        state = np.zeros((n, len(self.state_pass) + UDHM_DIM * self.num_hands), np.float32)
+        mask = np.zeros((n, UDHM_DIM * self.num_hands), bool)
+        hand_ids = np.full((n, self.num_hands), -1, np.int64)
+        block_hands = []
+        for k, side in enumerate(self.sides):
+            out = slice(len(self.state_pass) + UDHM_DIM * k, len(self.state_pass) + UDHM_DIM * (k + 1))
+            if side in block_of:
+                j = inp.sides.index(side)
+                state[:, out] = state_in[:, block_of[side].slice]
+                mask[:, UDHM_DIM * k : UDHM_DIM * (k + 1)] = mask_in[:, UDHM_DIM * j : UDHM_DIM * (j + 1)]
+                hand_ids[:, k] = self.vocabulary.index(own_hands[j])
+                block_hands.append(own_hands[j])
+            else:  # a side this input lacks: zero block, zero mask, id -1 (hand_type names its first hand)
+                block_hands.append(own_hands[0])
+        frames = {OBS_STATE: state, UDHM_MASK_KEY: mask, OBS_HAND_IDS: hand_ids, HAND_TYPE_KEY: ",".join(block_hands)}
+        self._passthrough(frames, inp, state_in, names, OBS_STATE, self.state_pass, inp.state_pass)
+        frames[ACTION] = self._action(inp, rows, state, mask)
+        if PASSTHROUGH_MASK_KEY in self.features:
+            common = self.features[PASSTHROUGH_MASK_KEY]["names"]
+            real = set(inp.state_pass) | set(inp.action_pass)
+            frames[PASSTHROUGH_MASK_KEY] = np.tile(np.array([c in real for c in common]), (n, 1))
+        task_index = rows.column("task_index").to_numpy()
+        return frames, tasks[int(task_index[0])]
+
+    def _passthrough(self, frames, inp, values, names, key, common, own) -> None:
+        if not common:
+            return
+        for col, name in zip(passthrough_indices(names), own, strict=True):
+            frames[key][:, common.index(name)] = values[:, col]
+
+    def _action(self, inp: _Input, rows, state: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """The input's actions in the common layout, or the action rule's for an input without actions."""
+        n = rows.num_rows
+        width = len(self.action_pass) + UDHM_DIM * self.num_hands
+        if not inp.has_action:
+            ahead = np.minimum(np.arange(n) + self.opts.action_ahead, n - 1)
+            action = np.zeros((n, width), np.float32)
+            # the hand k frames later, where the hand is there now (an absent hand commands nothing)
+            action[:, len(self.action_pass) :] = state[ahead, len(self.state_pass) :] * mask
+            return action
+        action_names = inp.meta.names(ACTION)
+        values = _matrix(rows.column(ACTION), len(action_names), np.float32)
+        action = np.zeros((n, width), np.float32)
+        block_of = {b.side: b for b in find_udhm_blocks(action_names)}
+        for k, side in enumerate(self.sides):
+            if side in block_of:
+                at = len(self.action_pass) + UDHM_DIM * k
+                action[:, at : at + UDHM_DIM] = values[:, block_of[side].slice]
+        frames = {ACTION: action}
+        self._passthrough(frames, inp, values, action_names, ACTION, self.action_pass, inp.action_pass)
+        return action
+
+
+def mix(opts: MixOptions) -> MixReport:
+    """Mix `opts.inputs` into one dataset at `opts.root` (module docstring)."""
+    t0 = time.perf_counter()
+    target = Path(opts.root).expanduser().resolve()
+    inputs = [_open_input(name, opts) for name in opts.inputs]
+    _check_target(target, inputs, opts.overwrite)
+    _check_compatible(inputs, opts)
+    mixer = _Mixer(inputs, opts)
+    train_frames = [
+        sum(length for e, length in (i.meta.episode_lengths or {}).items() if e not in i.test) for i in inputs
+    ]
+    repeats = repeat_factors(train_frames, opts.weights)
+    written = sum(r * f for r, f in zip(repeats, train_frames, strict=True))
+    if written > MAX_GROWTH * max(sum(train_frames), 1):
+        raise MixError(
+            f"--weights {opts.weights} would write the training episodes {repeats} times ({written} frames, more "
+            f"than {MAX_GROWTH:g}x the inputs' {sum(train_frames)}): choose weights closer to the inputs' sizes"
+        )
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = target.parent / f".{target.name}.mix-{uuid.uuid4().hex[:8]}"
+    writer = UdhmDatasetWriter(tmp, opts.repo_id, int(inputs[0].meta.fps), mixer.features)
+    episodes: list[EpisodeRecord] = []
+    test: list[int] = []
+    total = sum(i.meta.total_episodes + (repeats[k] - 1) * (i.meta.total_episodes - len(i.test))
+                for k, i in enumerate(inputs))  # fmt: skip
+    bar = progress_bar(total=total, desc="mix", unit="ep", disable=not opts.progress)
+    try:
+        for k, inp in enumerate(inputs):
+            table, tasks = _read_input(inp)
+            index = table.column("episode_index").to_numpy()
+            for e in range(inp.meta.total_episodes):
+                rows = table.filter(index == e)
+                if rows.num_rows == 0:
+                    continue
+                frames, task = mixer.episode(inp, rows, tasks)
+                split = "test" if e in inp.test else "train"
+                for r in range(repeats[k] if split == "train" else 1):
+                    at = writer.add_episode(frames, task=task)
+                    origin = {"mix_source": k, "source_episode_index": e, **({"repeat": r} if r else {})}
+                    episodes.append(EpisodeRecord(at, f"{inp.name}#{e}", split, rows.num_rows,
+                                                  frames[HAND_TYPE_KEY], origin))  # fmt: skip
+                    if split == "test":
+                        test.append(at)
+                    bar.update(1)
+        bar.close()
+        writer.finalize(splits={"train": f"0:{writer.num_episodes}"})
+        sources = [
+            MixedSource(
+                dataset=i.name, robot_type=i.meta.robot_type, source=i.record.source, sides=i.sides,
+                hands=list(i.record.hands), num_episodes=i.meta.total_episodes, test_episodes=sorted(i.test),
+                weight=opts.weights[k] if opts.weights else 1.0, repeats=repeats[k], has_action=i.has_action,
+                native_layouts=i.record.native_layouts,
+            )
+            for k, i in enumerate(inputs)
+        ]  # fmt: skip
+        record = ConversionRecord(
+            source=MIX_SOURCE,
+            license="; ".join(dict.fromkeys(f"{i.record.source}: {i.record.license}" for i in inputs)),
+            description=f"mix of {len(inputs)} converted datasets: " + ", ".join(opts.inputs),
+            synthetic=any(i.record.synthetic for i in inputs),
+            mapping=inputs[0].record.mapping,
+            keep=opts.keep,
+            fps=int(inputs[0].meta.fps),
+            split_method="each input's own test episodes, renumbered",
+            sides=mixer.sides,
+            hands=mixer.vocabulary,
+            has_action=True,
+            passthrough={OBS_STATE: mixer.state_pass, ACTION: mixer.action_pass},
+            listed_episodes=sum(i.meta.total_episodes for i in inputs),
+            num_episodes=writer.num_episodes,
+            test_episodes=test,
+            episodes=episodes,
+            hand_vocabulary=mixer.vocabulary,
+            sources=sources,
+            action_rule=(
+                f"inputs without actions: action[t] = state[t + {opts.action_ahead}] (the last frames hold the last state)"
+                if not all(i.has_action for i in inputs)
+                else ""
+            ),
+        )
+        write_record(tmp, record)
+        write_card(tmp, repo_id=opts.repo_id, record=record, num_frames=writer.num_frames, features=writer.features)
+        replace_folder(tmp, target)
+    except BaseException:
+        bar.close()
+        writer.abort()
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    shares = [r * f for r, f in zip(repeats, train_frames, strict=True)]
+    return MixReport(target, writer.num_episodes, writer.num_frames, test, sources,
+                     [s / max(sum(shares), 1) for s in shares], time.perf_counter() - t0)  # fmt: skip
+
+
+def _check_target(target: Path, inputs: list[_Input], overwrite: bool) -> None:
+    """Refuse a root that is, holds or sits inside an input, and anything but an earlier mix to overwrite."""
+    for inp in inputs:
+        root = inp.meta.root.resolve()
+        if target == root or root.is_relative_to(target) or target.is_relative_to(root):
+            raise MixError(f"--root {target} is, holds or sits inside the input {inp.name}: choose another folder")
+    if not target.exists():
+        return
+    earlier = UdhmDatasetMeta(target).record if (target / "meta" / "info.json").is_file() else None
+    if not overwrite:
+        raise MixError(f"{target} already exists: choose another --root"
+                       + (", or pass --overwrite=true to replace this earlier mix" if earlier and earlier.hand_vocabulary else ""))  # fmt: skip
+    if earlier is None or earlier.source != MIX_SOURCE:
+        raise MixError(f"{target} is not a mix written by unidextok-mix, so --overwrite=true does not replace it: "
+                       "choose another --root")  # fmt: skip
+
+
+def format_report(report: MixReport) -> str:
+    """The summary `unidextok-mix` prints: per input, its episodes, repeats and training-frame share."""
+    lines = [
+        f"wrote {report.root}: {report.num_episodes} episodes, {report.num_frames} frames, "
+        f"{len(report.test_episodes)} test episodes ({report.seconds:.1f} s)"
+    ]
+    for s, share in zip(report.sources, report.train_shares, strict=True):
+        lines.append(
+            f"  {s.dataset}: {s.robot_type or s.source}, hands {', '.join(s.hands)} ({', '.join(s.sides)}), "
+            f"{s.num_episodes} episodes ({len(s.test_episodes)} test), training episodes x{s.repeats}: "
+            f"{share:.0%} of the training frames" + ("" if s.has_action else "; actions by the action rule")
+        )
+    return "\n".join(lines)
+
+
+__all__ = ["MixError", "MixOptions", "MixReport", "format_report", "mix", "repeat_factors"]

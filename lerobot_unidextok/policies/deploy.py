@@ -1,0 +1,193 @@
+"""Bind a policy trained on a mix of robots and people to one robot of the mix (`unidextok-deploy`).
+
+    unidextok-deploy --checkpoint=outputs/mix_act/checkpoints/last/pretrained_model \
+        --robot=data/g1_udhm --output=outputs/mix_act_g1
+
+A `<type>_udt` checkpoint trained on a dataset written by `unidextok-mix` reads the mix's layout (one UDHM block
+per side any source has) and each row's hands (`observation.hand_ids`), and predicts actions in that layout. A
+robot reports neither: its own `observation.state` (e.g. 14 G1 arm angles and 2 x 6 Inspire values) and it
+takes its own action. Binding writes a checkpoint whose saved processors do that robot's part, with the model
+and its normaliser statistics unchanged:
+
+- `unidextok.native_to_udhm` maps the robot's native state (read from the robot's converted dataset, its
+  `meta/unidextok_conversion.json` native layout) into the mix's layout: its hands into their blocks, a side the
+  robot lacks zero, columns the mix does not carry (the arms of a hands-only mix) read past; the robot's
+  converted state and the mix's own pass unchanged;
+- the mixed tokenizer step gets the robot's hands per block (`fixed_hand_ids`), so the policy sees the hand
+  identity it trained with;
+- `unidextok.udhm_to_native` decodes the predicted action to the robot's native action: its hands in native
+  units, its passthrough columns the mix carries; in the robot's order (columns the mix does not predict, such
+  as the arms of a hands-only mix, are left out: `source_names` says where the rest sit).
+
+The bound config says the same (`udt_fixed_hand_ids`, `udt_native_layout`, `udt_native_state_layout`), so
+LeRobot's stock factory, `lerobot-rollout` and `--policy.path` fine-tuning rebuild the same processors. A robot
+whose hands were never in the mix is refused unless `zero_shot`: its hands are then tokenised (by the
+tokenizer's own embedding, or its unknown-hand one) with an all-zero identity the policy never saw.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import shutil
+from pathlib import Path
+
+from lerobot.configs.policies import PreTrainedConfig
+from lerobot.processor import PolicyProcessorPipeline
+
+from lerobot_unidextok.blocks import find_udhm_blocks, passthrough_indices
+from lerobot_unidextok.constants import ACTION, OBS_STATE
+from lerobot_unidextok.data.meta import UdhmDatasetMeta
+from lerobot_unidextok.errors import UserError
+from lerobot_unidextok.layout import NativeLayout
+from lerobot_unidextok.policies.udt_config import UdtConfigMixin
+from lerobot_unidextok.processor import (
+    NativeToUDHMStateStep,
+    UDHMToNativeCommandStep,
+    UniDexTokMixedTokenizerStep,
+)
+
+logger = logging.getLogger(__name__)
+
+PREPROCESSOR = "policy_preprocessor.json"
+POSTPROCESSOR = "policy_postprocessor.json"
+KEPT_FILES = ("model.safetensors", "train_config.json", "README.md")
+
+
+class DeployError(UserError, ValueError):
+    """The checkpoint cannot be bound to that robot; the message names why and the fix."""
+
+
+@dataclasses.dataclass
+class Binding:
+    """What binding one robot into a mixed checkpoint's layout gives."""
+
+    fixed_hand_ids: list[int]
+    extra_hands: list[str]  # zero-shot hands appended after the mix's vocabulary (identity all zero)
+    state_layout: NativeLayout  # the robot's native state -> the mix's state
+    action_layout: NativeLayout  # the mix's action -> the robot's native action (what the mix predicts of it)
+
+
+def bind_layouts(config: UdtConfigMixin, robot: UdhmDatasetMeta, zero_shot: bool = False) -> Binding:
+    """The robot's place in the mix: its hands per block and its native layouts against the mix's columns."""
+    vocab, mix_sides = list(config.udt_hand_vocabulary), list(config.udt_sides)
+    if robot.record is not None and robot.record.hand_vocabulary:
+        raise DeployError(f"{robot.root} is a mix; pass one robot's converted dataset (one of the mix's inputs)")
+    hands, sides = robot.block_hands(), [b.side for b in find_udhm_blocks(robot.names(OBS_STATE))]
+    lacking = [s for s in sides if s not in mix_sides]
+    if lacking:
+        raise DeployError(f"the robot has a {lacking[0]} hand but the mix has no {lacking[0]} block ({mix_sides})")
+    unseen = sorted({h for h in hands if h not in vocab})
+    if unseen and not zero_shot:
+        raise DeployError(
+            f"the robot's hands {unseen} were never in the mix ({vocab}): the policy has never controlled them. "
+            "Mix a dataset of this robot in and train again, or pass --zero_shot=true to try it anyway"
+        )
+    extra = unseen
+    names = vocab + extra
+    fixed = [names.index(hands[sides.index(s)]) if s in sides else -1 for s in mix_sides]
+    state = robot.native_layout(OBS_STATE)
+    action = robot.native_layout(ACTION)
+    if state is None or action is None:
+        raise DeployError(
+            f"{robot.root} records no native state and action layout (a human dataset, or one converted without "
+            "actions): there is no robot to bind to"
+        )
+    return Binding(fixed, extra, _into_mix(state, config.udt_state_names, mix_sides, "state"),
+                   _into_mix(action, config.udt_action_names, mix_sides, "action"))  # fmt: skip
+
+
+def _into_mix(robot: NativeLayout, mix_names: list[str], mix_sides: list[str], what: str) -> NativeLayout:
+    """The robot's native layout against the mix's converted columns (its blocks at the mix's sides)."""
+    mix_pass = {mix_names[i] for i in passthrough_indices(mix_names)}
+    robot_pass = [robot.names[i] for i in passthrough_indices(robot.names)]
+    hand_columns = {c for h in robot.hands for c in h["columns"]}
+    carried = [n for n in robot_pass if n in mix_pass]
+    missing = sorted(mix_pass - set(robot.native_names))
+    if missing:
+        raise DeployError(
+            f"the mix's {what} has columns {missing[:4]} this robot does not report (--keep=all with other "
+            "robots' columns): bind a hands-only mix (unidextok-mix --keep=hands), or give the robot those columns"
+        )
+    robot_sides = {h["side"] for h in robot.hands}
+    if what == "state":
+        dropped = [n for n in robot.native_names if n not in hand_columns and n not in carried]
+        return NativeLayout(names=mix_names, native_names=robot.native_names, hands=robot.hands,
+                            mapping=robot.mapping, absent_sides=[s for s in mix_sides if s not in robot_sides],
+                            dropped=dropped)  # fmt: skip
+    native = [n for n in robot.native_names if n in hand_columns or n in carried]  # what the mix predicts of it
+    return NativeLayout(names=mix_names, native_names=native, hands=robot.hands, mapping=robot.mapping,
+                        source_names=robot.source_names or (robot.native_names if native != robot.native_names else []),
+                        absent_sides=[s for s in mix_sides if s not in robot_sides])  # fmt: skip
+
+
+def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_shot: bool = False) -> Path:
+    """Write the checkpoint at `checkpoint`, bound to the robot of the converted dataset `robot`, to `output`."""
+    checkpoint, output = Path(checkpoint), Path(output)
+    if not (checkpoint / "config.json").is_file() or not (checkpoint / PREPROCESSOR).is_file():
+        raise DeployError(
+            f"{checkpoint} is not a LeRobot policy checkpoint (config.json + {PREPROCESSOR}): pass the "
+            "pretrained_model folder of a lerobot-train run, e.g. outputs/<run>/checkpoints/last/pretrained_model"
+        )
+    if output.exists():
+        raise DeployError(f"{output} already exists: choose another --output")
+    config = PreTrainedConfig.from_pretrained(checkpoint)
+    if not isinstance(config, UdtConfigMixin) or not config.udt_hand_vocabulary:
+        raise DeployError(
+            f"{checkpoint} is a {config.type} policy trained on one robot's dataset, not on a mix (unidextok-mix): "
+            "it already takes that robot's own state; there is nothing to bind"
+        )
+    binding = bind_layouts(config, UdhmDatasetMeta(Path(robot)), zero_shot)
+    bound = dataclasses.replace(
+        config,
+        udt_fixed_hand_ids=binding.fixed_hand_ids,
+        udt_extra_hands=binding.extra_hands,
+        udt_allow_unknown=config.udt_allow_unknown or bool(binding.extra_hands),
+        udt_native_state_layout=binding.state_layout.to_dict() if config.udt_native_state else {},
+        udt_native_layout=binding.action_layout.to_dict() if config.udt_native_action else {},
+    )
+    pre = PolicyProcessorPipeline.from_pretrained(checkpoint, config_filename=PREPROCESSOR)
+    post = PolicyProcessorPipeline.from_pretrained(checkpoint, config_filename=POSTPROCESSOR)
+    pre.steps = _bound_pre_steps(pre.steps, bound, binding)
+    if bound.udt_native_layout:
+        post.steps = [*post.steps, UDHMToNativeCommandStep.from_layout(binding.action_layout)]
+    tmp = output.parent / f".{output.name}.deploy-tmp"
+    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        tmp.mkdir(parents=True)
+        for name in KEPT_FILES:
+            if (checkpoint / name).is_file():
+                shutil.copyfile(checkpoint / name, tmp / name)
+        bound.save_pretrained(tmp)
+        pre.save_pretrained(tmp, config_filename=PREPROCESSOR)
+        post.save_pretrained(tmp, config_filename=POSTPROCESSOR)
+        (tmp / "unidextok_deploy.json").write_text(json.dumps(
+            {"checkpoint": str(checkpoint), "robot": str(robot), "robot_type": UdhmDatasetMeta(robot).robot_type,
+             "fixed_hand_ids": binding.fixed_hand_ids, "zero_shot_hands": binding.extra_hands}, indent=2))  # fmt: skip
+        tmp.rename(output)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return output
+
+
+def _bound_pre_steps(steps: list, config: UdtConfigMixin, binding: Binding) -> list:
+    """The pre-processor's steps with the mixed step bound to the robot and the native state step before it."""
+    at = next((i for i, s in enumerate(steps) if isinstance(s, UniDexTokMixedTokenizerStep)), None)
+    if at is None:
+        raise DeployError("the checkpoint's pre-processor has no unidextok.mixed_state_tokenizer step: not a mix policy")
+    old = steps[at]
+    mixed = UniDexTokMixedTokenizerStep(**{**old.get_config(), "fixed_hand_ids": binding.fixed_hand_ids,
+                                           "extra_hands": binding.extra_hands,
+                                           "allow_unknown": config.udt_allow_unknown})  # fmt: skip
+    mixed.load_state_dict(old.state_dict())
+    out = [s for s in steps if not isinstance(s, NativeToUDHMStateStep)]
+    at = next(i for i, s in enumerate(out) if isinstance(s, UniDexTokMixedTokenizerStep))
+    out[at] = mixed
+    if config.udt_native_state_layout:
+        out.insert(at, NativeToUDHMStateStep.from_layout(binding.state_layout))
+    return out
+
+
+__all__ = ["Binding", "DeployError", "bind_layouts", "deploy"]

@@ -1,0 +1,48 @@
+"""`unidextok-deploy`: bind a policy trained on a mix of robots (`unidextok-mix`) to one robot of the mix.
+
+    unidextok-deploy --checkpoint=outputs/mix_act/checkpoints/last/pretrained_model --robot=data/g1_udhm \
+        --output=outputs/mix_act_g1
+    python experiments/eval_policy.py --checkpoint=outputs/mix_act_g1 --dataset=data/g1_udhm
+
+The bound checkpoint takes that robot's native `observation.state` (and its converted one) and returns its native
+action; LeRobot's stock factory and `lerobot-rollout` load it unchanged (`policies/deploy.py`).
+"""
+
+import logging
+from dataclasses import dataclass
+
+from lerobot_unidextok.utils.cli import run_cli
+from lerobot_unidextok.utils.draccus_cli import wrap
+
+
+@dataclass
+class DeployConfig:
+    # the mixed policy: a lerobot-train checkpoint folder (.../checkpoints/<step>/pretrained_model)
+    checkpoint: str = ""
+    # the robot: its converted dataset (a folder, or a repo id in the local caches), one of the mix's inputs
+    robot: str = ""
+    output: str = ""  # the bound checkpoint folder (must not exist)
+    # a robot whose hands were never in the mix: bind it anyway (its hands get no identity the policy knows)
+    zero_shot: bool = False
+
+
+@wrap()
+def deploy_cli(cfg: DeployConfig) -> None:
+    import lerobot_policy_unidextok  # noqa: F401  (registers the <type>_udt policies and steps; not for --help)
+    from lerobot_unidextok.data.reader import dataset_folder
+    from lerobot_unidextok.policies.deploy import DeployError, deploy
+
+    for flag in ("checkpoint", "robot", "output"):
+        if not getattr(cfg, flag):
+            raise DeployError(f"--{flag} is required (unidextok-deploy --help)")
+    out = deploy(cfg.checkpoint, dataset_folder(cfg.robot), cfg.output, zero_shot=cfg.zero_shot)
+    print(f"wrote {out}: {cfg.checkpoint} bound to the robot of {cfg.robot}")
+
+
+def main() -> None:
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", force=True)
+    run_cli(deploy_cli)
+
+
+if __name__ == "__main__":
+    main()

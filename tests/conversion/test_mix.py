@@ -1,0 +1,144 @@
+"""unidextok-mix: datasets of different robots and people in one LeRobot v3 dataset, each episode keeping its
+source, every side a block, absent sides zero, splits per source, weights as repeats, one error per bad input."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from l10_robot import HAND as L10
+from robot_udhm import INSPIRE
+
+from lerobot_unidextok.blocks import udhm_state_names
+from lerobot_unidextok.constants import ACTION, OBS_HAND_IDS, OBS_STATE, UDHM_DIM
+from lerobot_unidextok.conversion.mix import MixError, MixOptions, mix, repeat_factors
+from lerobot_unidextok.conversion.validate import validate_dataset
+from lerobot_unidextok.data import UdhmDatasetMeta, load_udhm_frames
+
+BIN = Path(sys.executable).parent
+
+
+def _table(root: Path):
+    return pq.read_table(sorted((root / "data").rglob("*.parquet")))
+
+
+def test_the_mix_has_a_block_per_side_and_each_row_its_own_hands(g1_like, l10_robot, g1_l10_mix):
+    meta = UdhmDatasetMeta(g1_l10_mix)
+    record = meta.record
+    assert meta.names(OBS_STATE) == meta.names(ACTION) == udhm_state_names(["left", "right"])  # --keep=hands
+    assert record.hand_vocabulary == sorted([INSPIRE, L10]) and meta.names(OBS_HAND_IDS) == ["left_hand", "right_hand"]
+    table = _table(g1_l10_mix)
+    ids = np.stack(table.column(OBS_HAND_IDS).to_pylist())
+    state = np.stack(table.column(OBS_STATE).to_pylist())
+    mask = np.stack(table.column("udhm_mask").to_pylist())
+    episodes = table.column("episode_index").to_numpy()
+    src = {e.episode_index: e.origin["mix_source"] for e in record.episodes}
+    l10_rows = np.array([src[e] == 1 for e in episodes])
+    inspire, l10 = record.hand_vocabulary.index(INSPIRE), record.hand_vocabulary.index(L10)
+    assert (ids[~l10_rows] == inspire).all()
+    assert (ids[l10_rows, 0] == -1).all() and (ids[l10_rows, 1] == l10).all()
+    # the L10 robot has no left hand: a zero block with a zero mask, never a fake hand
+    assert not state[l10_rows, :UDHM_DIM].any() and not mask[l10_rows, :UDHM_DIM].any()
+    assert mask[l10_rows, UDHM_DIM:].any()
+    # its right block is its own converted block, bit for bit
+    own = np.stack(_table(l10_robot).column(OBS_STATE).to_pylist())
+    np.testing.assert_array_equal(state[l10_rows, UDHM_DIM:], own)
+    # the G1's hands are its converted blocks; its arms are dropped (--keep=hands)
+    g1_state = np.stack(_table(g1_like["root"]).column(OBS_STATE).to_pylist())
+    np.testing.assert_array_equal(state[~l10_rows], g1_state[:, 14:])
+    assert validate_dataset(g1_l10_mix).ok, validate_dataset(g1_l10_mix).table()
+
+
+def test_every_episode_keeps_its_source_and_the_splits_stay_per_source(g1_like, l10_robot, g1_l10_mix):
+    record = UdhmDatasetMeta(g1_l10_mix).record
+    g1_meta, l10_meta = UdhmDatasetMeta(g1_like["root"]), UdhmDatasetMeta(l10_robot)
+    assert [s.dataset for s in record.sources] == [str(g1_like["root"]), str(l10_robot)]
+    assert [s.robot_type for s in record.sources] == [g1_meta.robot_type, l10_meta.robot_type]
+    assert record.sources[1].native_layouts[ACTION] == l10_meta.native_layout(ACTION)
+    origin = [(e.origin["mix_source"], e.origin["source_episode_index"]) for e in record.episodes]
+    assert origin == [(0, e) for e in range(3)] + [(1, e) for e in range(5)]
+    want = [i for i, (k, e) in enumerate(origin) if e in (g1_meta, l10_meta)[k].split("recorded").test]
+    assert record.test_episodes == want and len(want) == 2
+    assert all(record.episodes[i].split == "test" for i in want)
+    train = load_udhm_frames(g1_l10_mix, split="train", holdout="recorded")
+    assert not set(train.episode_index) & set(want)
+    assert set(train.hands) == {INSPIRE, L10}  # the tokenizer's reader takes each row's own hand
+
+
+def test_weights_repeat_the_small_inputs_training_episodes_not_its_test_episodes(g1_like, l10_robot, tmp_path):
+    assert repeat_factors([400, 100], [1, 1]) == [1, 4] and repeat_factors([400, 100], []) == [1, 1]
+    root = tmp_path / "weighted"
+    report = mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(root), weights=[1, 1],
+                            progress=False))  # fmt: skip
+    record = UdhmDatasetMeta(root).record
+    l10 = [e for e in record.episodes if e.origin["mix_source"] == 1]
+    train_frames = [80, 160]  # g1_like: 2 train episodes of 40 frames; the L10 robot: 4 of 40
+    assert [s.repeats for s in record.sources] == repeat_factors(train_frames, [1, 1]) == [2, 1]
+    assert report.train_shares == pytest.approx([0.5, 0.5])
+    g1 = [e for e in record.episodes if e.origin["mix_source"] == 0]
+    assert len(g1) == 2 * 2 + 1 and len(l10) == 5  # the test episode once
+    assert sum(1 for e in g1 if e.split == "test") == 1
+    assert UdhmDatasetMeta(root).total_episodes == len(record.episodes)
+
+
+def test_an_input_without_actions_gets_the_hand_k_frames_ahead(l10_robot, tmp_path):
+    """A human dataset has no actions: action[t] = state[t + k], zero where the hand is absent at t."""
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.conversion.samples import write_samples
+
+    raw = write_samples(tmp_path / "raw", sources=["egodex"], episodes_per_source=2, frames_per_episode=30)
+    human = tmp_path / "human"
+    convert(ConvertOptions(source="egodex", input=raw["egodex"], root=human, progress=False))
+    assert not UdhmDatasetMeta(human).names(ACTION)
+    root = tmp_path / "mix"
+    mix(MixOptions(inputs=[str(l10_robot), str(human)], root=str(root), action_ahead=2, progress=False))
+    record = UdhmDatasetMeta(root).record
+    assert "state[t + 2]" in record.action_rule and [s.has_action for s in record.sources] == [True, False]
+    table = _table(root)
+    episodes = table.column("episode_index").to_numpy()
+    human_episode = next(e.episode_index for e in record.episodes if e.origin["mix_source"] == 1)
+    rows = episodes == human_episode
+    state = np.stack(table.column(OBS_STATE).to_pylist())[rows]
+    action = np.stack(table.column(ACTION).to_pylist())[rows]
+    mask = np.stack(table.column("udhm_mask").to_pylist())[rows]
+    ahead = np.minimum(np.arange(len(state)) + 2, len(state) - 1)
+    np.testing.assert_array_equal(action, state[ahead] * mask)
+
+
+def test_bad_inputs_are_one_clear_error_and_nothing_is_written(g1_like, l10_robot, tmp_path):
+    root = tmp_path / "out"
+    raw = l10_robot.parent / "raw"  # the plain LeRobot recording the L10 robot was converted from
+    with pytest.raises(MixError, match="was not converted by unidextok-convert"):
+        mix(MixOptions(inputs=[str(raw), str(l10_robot)], root=str(root)))
+    slow = tmp_path / "l10_at_15"
+    shutil.copytree(l10_robot, slow)
+    info = json.loads((slow / "meta/info.json").read_text())
+    (slow / "meta/info.json").write_text(json.dumps({**info, "fps": 15}))
+    with pytest.raises(MixError, match=r"different frame rates .*30.*15.*--fps"):
+        mix(MixOptions(inputs=[str(g1_like["root"]), str(slow)], root=str(root)))
+    with pytest.raises(MixError, match="is, holds or sits inside the input"):
+        mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(l10_robot / "mix")))
+    with pytest.raises(MixError, match="one positive weight per input"):
+        MixOptions(inputs=["a", "b"], root=str(root), weights=[1])
+    assert not root.exists() and not list(tmp_path.glob(".out*"))
+    other = tmp_path / "not_a_mix"
+    other.mkdir()
+    (other / "keep.txt").write_text("mine")
+    with pytest.raises(MixError, match="not a mix written by unidextok-mix"):
+        mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(other), overwrite=True))
+    assert (other / "keep.txt").read_text() == "mine"
+
+
+def test_the_cli_mixes_and_prints_the_training_flag(g1_like, l10_robot, tmp_path):
+    out = tmp_path / "cli_mix"
+    r = subprocess.run([str(BIN / "unidextok-mix"), f"--inputs=[{g1_like['root']},{l10_robot}]", f"--root={out}",
+                        "--progress=false"], capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "training episodes x1" in r.stdout and "--dataset.episodes='[" in r.stdout
+    r = subprocess.run([str(BIN / "unidextok-mix"), f"--inputs=[{g1_like['root']}]", f"--root={out}"],
+                       capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert r.returncode == 2 and r.stderr.startswith("error: ") and "already exists" in r.stderr

@@ -1,0 +1,117 @@
+"""One policy, several robots: the real `lerobot-train` on a mix of two robots (unidextok-mix), then
+`unidextok-deploy` binds the checkpoint to each; LeRobot's stock factory reloads each bound checkpoint in a fresh
+process, takes that robot's native state and returns its native action."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from l10_robot import HAND as L10
+from linkerhand_udhm import subprocess_env
+from robot_udhm import INSPIRE
+
+from lerobot_unidextok.data import UdhmDatasetMeta
+from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
+
+BIN = Path(sys.executable).parent
+
+RELOAD = """
+import json, sys, numpy as np, torch
+from lerobot.utils.import_utils import register_third_party_plugins
+register_third_party_plugins()
+from lerobot.configs.policies import PreTrainedConfig
+from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+path, states = sys.argv[1], np.load(sys.argv[2])
+cfg = PreTrainedConfig.from_pretrained(path)
+policy = get_policy_class(cfg.type).from_pretrained(path).eval()
+pre, post = make_pre_post_processors(cfg, pretrained_path=path)
+out = [post(policy.select_action(pre({"observation.state": torch.from_numpy(s)}))).squeeze(0).tolist() for s in states]
+print(json.dumps({"actions": out, "pre": [type(s).__name__ for s in pre.steps]}))
+"""
+
+
+@pytest.fixture(scope="module")
+def mixed_policy(g1_l10_mix, tmp_path_factory) -> Path:
+    """act_udt trained 3 steps on the mix (a tiny tokenizer trained on neither hand: a wiring test)."""
+    base = tmp_path_factory.mktemp("mixed_policy")
+    torch.manual_seed(0)
+    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=[INSPIRE, L10])).save_pretrained(base / "tok")
+    out = base / "act"
+    r = subprocess.run([str(BIN / "lerobot-train"), "--policy.type=act_udt", "--dataset.repo_id=test/g1_l10_mix",
+                        f"--dataset.root={g1_l10_mix}", f"--policy.udt_pretrained={base / 'tok'}",
+                        "--policy.device=cpu", "--policy.push_to_hub=false", "--policy.dim_model=32",
+                        "--policy.n_heads=2", "--policy.dim_feedforward=64", "--policy.chunk_size=5",
+                        "--policy.n_action_steps=1", "--policy.udt_relative_actions=true", "--steps=3",
+                        "--batch_size=4", "--num_workers=0", "--save_freq=3", f"--output_dir={out}"],
+                       env=subprocess_env(HF_HOME=str(base / "hf")), capture_output=True, text=True,
+                       timeout=600)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    return out / "checkpoints" / "last" / "pretrained_model"
+
+
+def _deploy(checkpoint: Path, robot: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:
+    return subprocess.run([str(BIN / "unidextok-deploy"), f"--checkpoint={checkpoint}", f"--robot={robot}",
+                           f"--output={out}", *extra], capture_output=True, text=True, timeout=300)  # fmt: skip
+
+
+def _reload_and_act(bound: Path, native_states: np.ndarray, tmp_path: Path) -> dict:
+    np.save(tmp_path / "states.npy", native_states.astype(np.float32))
+    r = subprocess.run([sys.executable, "-c", RELOAD, str(bound), str(tmp_path / "states.npy")],
+                       env=subprocess_env(HF_HOME=str(tmp_path / "hf")), capture_output=True, text=True,
+                       timeout=300)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.slow
+def test_a_mixed_policy_bound_to_each_robot_takes_its_native_state_and_returns_its_native_action(
+    mixed_policy, g1_like, l10_robot, tmp_path
+):
+    config = json.loads((mixed_policy / "config.json").read_text())
+    assert config["udt_hand_vocabulary"] == sorted([INSPIRE, L10]) and config["udt_native_layout"] == {}
+    # the G1-like robot: 26 native columns (14 arm angles, 2 x 6 Inspire values); the mix is hands-only
+    r = _deploy(mixed_policy, g1_like["root"], tmp_path / "g1")
+    assert r.returncode == 0, r.stderr[-2000:]
+    g1 = _reload_and_act(tmp_path / "g1", g1_like["native_state"][:3], tmp_path)
+    assert g1["pre"].index("NativeToUDHMStateStep") == g1["pre"].index("UniDexTokMixedTokenizerStep") - 1
+    assert np.asarray(g1["actions"]).shape == (3, 12)  # its hand columns, in its own order
+    bound = json.loads((tmp_path / "g1" / "config.json").read_text())
+    g1_action = UdhmDatasetMeta(g1_like["root"]).native_layout("action")
+    assert bound["udt_native_layout"]["native_names"] == g1_action.native_names[14:]
+    assert bound["udt_native_layout"]["source_names"] == g1_action.native_names
+    assert bound["udt_fixed_hand_ids"] == [0, 0]
+    # the right-only L10 robot: 10 native SDK values in, 10 out; its lacking left block is zero
+    r = _deploy(mixed_policy, l10_robot, tmp_path / "l10")
+    assert r.returncode == 0, r.stderr[-2000:]
+    from l10_robot import l10_motion
+
+    l10 = _reload_and_act(tmp_path / "l10", l10_motion(3, seed=5), tmp_path)
+    assert np.asarray(l10["actions"]).shape == (3, 10)
+    assert json.loads((tmp_path / "l10" / "config.json").read_text())["udt_fixed_hand_ids"] == [-1, 1]
+
+
+@pytest.mark.slow
+def test_deploy_refuses_what_it_cannot_bind(mixed_policy, g1_like, tmp_path):
+    dexora = _dexora_robot(tmp_path)  # two XHand1 hands: never in the mix
+    r = _deploy(mixed_policy, dexora, tmp_path / "x")
+    assert r.returncode == 2 and r.stderr.startswith("error: ") and "never in the mix" in r.stderr
+    assert not (tmp_path / "x").exists()
+    r = _deploy(mixed_policy, dexora, tmp_path / "x", "--zero_shot=true")
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert json.loads((tmp_path / "x" / "config.json").read_text())["udt_extra_hands"] == ["xhand1"]
+    r = _deploy(tmp_path / "nowhere", g1_like["root"], tmp_path / "y")
+    assert r.returncode == 2 and "is not a LeRobot policy checkpoint" in r.stderr
+
+
+def _dexora_robot(tmp_path: Path) -> Path:
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.conversion.samples import write_samples
+
+    raw = write_samples(tmp_path / "raw", sources=["dexora"], episodes_per_source=2, frames_per_episode=20)
+    root = tmp_path / "dexora"
+    convert(ConvertOptions(source="dexora", input=raw["dexora"], root=root, progress=False, keep="hands"))
+    return root

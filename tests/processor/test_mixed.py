@@ -1,0 +1,97 @@
+"""unidextok.mixed_state_tokenizer: each row tokenised with its own hands, absent blocks zero, the hand identity
+beside the token view; the same numbers as the fixed step for the rows of each robot."""
+
+import numpy as np
+import pytest
+import torch
+from l10_robot import HAND as L10
+from l10_robot import l10_motion
+from lerobot.processor import PolicyProcessorPipeline
+from robot_udhm import INSPIRE, inspire_states
+
+from lerobot_unidextok import hands
+from lerobot_unidextok.blocks import udhm_state_names
+from lerobot_unidextok.constants import OBS_HAND_IDS, OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE, UDHM_DIM
+from lerobot_unidextok.processor import UniDexTokMixedTokenizerStep, UniDexTokStateTokenizerStep
+from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
+
+NAMES = udhm_state_names(["left", "right"])
+VOCAB = [INSPIRE, L10]
+
+
+@pytest.fixture(scope="module")
+def tok_dir(tmp_path_factory):
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("tok") / "tiny"
+    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["human", INSPIRE, L10])).save_pretrained(path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def rows():
+    """(10, 44) states and (10, 2) hand ids: 5 frames of two Inspire hands, 5 of a right-only L10."""
+    g1 = inspire_states(5, seed=1)
+    l10 = np.zeros((5, 2 * UDHM_DIM), np.float32)
+    l10[:, UDHM_DIM:] = hands.get(L10).to_udhm(l10_motion(5, seed=2).astype(np.float64), "right")
+    ids = np.array([[0, 0]] * 5 + [[-1, 1]] * 5)
+    return torch.from_numpy(np.concatenate([g1, l10])), torch.from_numpy(ids)
+
+
+def test_each_row_is_tokenised_as_the_fixed_step_tokenises_its_robot(tok_dir, rows):
+    states, ids = rows
+    mixed = UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, state_names=NAMES, pretrained=str(tok_dir))
+    out = mixed.observation({OBS_STATE: states, OBS_HAND_IDS: ids})
+    view, tokens = out[OBS_HAND_TOKEN_FEATURES], out[OBS_HAND_TOKENS]
+    assert view.shape == (10, 2 * (UDHM_DIM + len(VOCAB))) and tokens.shape == (10, 2 * 4 * 8)
+    g1 = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE], pretrained=str(tok_dir))
+    want = g1.observation({OBS_STATE: states[:5]})
+    torch.testing.assert_close(view[:5, : 2 * UDHM_DIM], want[OBS_HAND_TOKEN_FEATURES])
+    torch.testing.assert_close(tokens[:5], want[OBS_HAND_TOKENS])
+    l10 = UniDexTokStateTokenizerStep(hand_layout=[L10], state_names=NAMES[UDHM_DIM:], pretrained=str(tok_dir))
+    want = l10.observation({OBS_STATE: states[5:, UDHM_DIM:]})
+    torch.testing.assert_close(view[5:, UDHM_DIM : 2 * UDHM_DIM], want[OBS_HAND_TOKEN_FEATURES])
+    torch.testing.assert_close(tokens[5:, 32:], want[OBS_HAND_TOKENS])
+    # the absent left block of the L10 rows: a zero view, tokens -1, no identity
+    assert not view[5:, :UDHM_DIM].any() and (tokens[5:, :32] == -1).all()
+    identity = view[:, 2 * UDHM_DIM :].reshape(10, 2, len(VOCAB))
+    assert identity[:5].tolist() == [[[1, 0], [1, 0]]] * 5 and identity[5:].tolist() == [[[0, 0], [0, 1]]] * 5
+
+
+def test_a_bound_robot_needs_no_hand_ids_and_a_mixed_policy_refuses_a_state_without_them(tok_dir, rows):
+    states, ids = rows
+    bound = UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, state_names=NAMES, pretrained=str(tok_dir),
+                                        fixed_hand_ids=[-1, 1])  # fmt: skip
+    one = bound.observation({OBS_STATE: states[5]})  # a single frame, no batch, no hand ids
+    given = UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, state_names=NAMES, pretrained=str(tok_dir))
+    want = given.observation({OBS_STATE: states[5:6], OBS_HAND_IDS: ids[5]})  # one frame of ids beside a batch
+    torch.testing.assert_close(one[OBS_HAND_TOKEN_FEATURES], want[OBS_HAND_TOKEN_FEATURES][0])
+    with pytest.raises(KeyError, match="trained on a mix of hands. Bind it to your robot with `unidextok-deploy"):
+        given.observation({OBS_STATE: states[:2]})
+    with pytest.raises(ValueError, match=r"holds \[-1, 5\], outside -1 .. 1"):
+        given.observation({OBS_STATE: states[:1], OBS_HAND_IDS: torch.tensor([[5, -1]])})
+    with pytest.raises(ValueError, match="fixed_hand_ids"):
+        UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, state_names=NAMES, pretrained=str(tok_dir),
+                                    fixed_hand_ids=[0])  # fmt: skip
+
+
+def test_ranges_are_checked_with_each_rows_own_hand(tok_dir, rows):
+    states, ids = rows
+    step = UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, state_names=NAMES, pretrained=str(tok_dir))
+    bad = states[5:6].clone()
+    bad[0, UDHM_DIM + 2] = 3.0  # an L10 thumb slot far outside the L10's range
+    with pytest.raises(ValueError, match=f"block 0 \\({L10}\\)"):
+        step.observation({OBS_STATE: bad, OBS_HAND_IDS: ids[5:6]})
+
+
+def test_the_step_survives_a_pipeline_save_and_reload(tok_dir, rows, tmp_path):
+    states, ids = rows
+    step = UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, state_names=NAMES, pretrained=str(tok_dir),
+                                       fixed_hand_ids=[0, 0])  # fmt: skip
+    pipe = PolicyProcessorPipeline(steps=[step], name="policy_preprocessor")
+    pipe.save_pretrained(tmp_path)
+    again = PolicyProcessorPipeline.from_pretrained(tmp_path, config_filename="policy_preprocessor.json")
+    (loaded,) = again.steps
+    assert isinstance(loaded, UniDexTokMixedTokenizerStep) and loaded.fixed_hand_ids == [0, 0]
+    a = step.observation({OBS_STATE: states, OBS_HAND_IDS: ids})[OBS_HAND_TOKEN_FEATURES]
+    b = loaded.observation({OBS_STATE: states, OBS_HAND_IDS: ids})[OBS_HAND_TOKEN_FEATURES]
+    torch.testing.assert_close(a, b, rtol=0, atol=0)
