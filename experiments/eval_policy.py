@@ -8,7 +8,9 @@ the figures of docs/lerobot.md's CPU recipe.
 The checkpoint is reloaded as docs/lerobot.md shows (LeRobot's stock factory, its saved processors); each
 frame's converted `observation.state` goes through the saved pre-processor, `predict_action_chunk` and the
 saved post-processor, whose last step returns the robot's native action (checked against the converted
-prediction decoded with the dataset's native layout).
+prediction decoded with the dataset's native layout). A policy trained on a mix of robots (`unidextok-mix`) is
+scored once bound to the dataset's robot (`unidextok-deploy`): its predictions are in the mix's layout, taken
+into the robot's columns by name, and only the columns it predicts are scored (a hands-only mix: the hands).
 """
 
 from __future__ import annotations
@@ -65,6 +67,17 @@ def checkpoint_chunks(checkpoint: str | Path, state: np.ndarray, batch: int = 25
     return np.concatenate(converted).astype(np.float64), np.concatenate(native).astype(np.float64)
 
 
+def prediction_columns(policy_cfg, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """(the dataset's action columns, the checkpoint's) of what the checkpoint predicts, matched by name: all of
+    them for a policy of this dataset; the hands (and shared columns) for one of a mix bound to its robot."""
+    own = list(getattr(policy_cfg, "udt_action_names", None) or names)
+    index = {n: i for i, n in enumerate(own)}
+    pairs = [(i, index[n]) for i, n in enumerate(names) if n in index]
+    if not pairs:
+        raise ValueError(f"the checkpoint predicts none of the dataset's action columns ({names[:3]}...)")
+    return np.array([d for d, _ in pairs]), np.array([s for _, s in pairs])
+
+
 def mean_action_prediction(frames, rows: np.ndarray, chunk: int) -> np.ndarray:
     """(R, chunk, D) the no-state reference: the mean action of the episodes not scored, at every step."""
     mean = frames.action[~np.isin(np.arange(len(frames.action)), rows)].mean(0)
@@ -88,20 +101,32 @@ def run(cfg: EvalPolicyConfig) -> dict:
     rows = np.flatnonzero(np.isin(frames.episode, episodes))
     import lerobot_policy_unidextok  # noqa: F401  registers the _udt config types before the config is read
 
-    chunk = PreTrainedConfig.from_pretrained(cfg.checkpoint).chunk_size
+    policy_cfg = PreTrainedConfig.from_pretrained(cfg.checkpoint)
+    chunk = policy_cfg.chunk_size
+    if getattr(policy_cfg, "udt_hand_vocabulary", None) and not policy_cfg.udt_fixed_hand_ids:
+        raise ValueError(
+            f"{cfg.checkpoint} was trained on a mix of robots: bind it to {cfg.dataset}'s robot first "
+            f"(unidextok-deploy --checkpoint={cfg.checkpoint} --robot={cfg.dataset} --output=...)"
+        )
     t0 = time.process_time()
-    converted, native = checkpoint_chunks(cfg.checkpoint, frames.state[rows])
+    own, native = checkpoint_chunks(cfg.checkpoint, frames.state[rows])
     cpu = time.process_time() - t0
+    dataset_cols, own_cols = prediction_columns(policy_cfg, frames.names)
+    converted = np.zeros((*own.shape[:2], len(frames.names)))  # the prediction in the dataset's action columns
+    converted[..., dataset_cols] = own[..., own_cols]
+    covered = np.isin(np.arange(len(frames.names)), dataset_cols)
     layout = frames.native_layout()
-    gap = float(np.abs(layout.to_native(converted) - native).max())
-    if native.shape[-1] != layout.native_dim or gap > 1e-4:
+    returned = (getattr(policy_cfg, "udt_native_layout", None) or {}).get("native_names") or layout.native_names
+    decoded = layout.to_native(converted)[..., [layout.native_names.index(n) for n in returned]]
+    gap = float(np.abs(decoded - native).max()) if native.shape == decoded.shape else float("inf")
+    if gap > 1e-4:
         raise RuntimeError(f"the post-processor's native action differs from the decoded prediction (max {gap})")
     result = {
         "checkpoint": str(cfg.checkpoint), "dataset": str(cfg.dataset), "episodes": list(episodes), "rows": len(rows),
         "chunk_size": chunk, "native_width": int(native.shape[-1]), "inference_cpu_ms_per_frame": 1000 * cpu / len(rows),
-        "policy": open_loop_errors(converted, frames, rows, chunk),
-        "copy_state": open_loop_errors(copy_state_prediction(frames, rows, chunk), frames, rows, chunk),
-        "mean_action": open_loop_errors(mean_action_prediction(frames, rows, chunk), frames, rows, chunk),
+        "policy": open_loop_errors(converted, frames, rows, chunk, covered),
+        "copy_state": open_loop_errors(copy_state_prediction(frames, rows, chunk), frames, rows, chunk, covered),
+        "mean_action": open_loop_errors(mean_action_prediction(frames, rows, chunk), frames, rows, chunk, covered),
     }  # fmt: skip
     if cfg.output:
         Path(cfg.output).write_text(json.dumps(result, indent=2))

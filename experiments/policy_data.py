@@ -80,7 +80,8 @@ class RobotFrames:
 
 
 def load_frames(root: str | Path) -> RobotFrames:
-    """A converted whole-robot dataset (passthrough columns + UDHM blocks, hands with native joints)."""
+    """A converted robot dataset (passthrough columns, none for a hands-only one, + UDHM blocks; hands with
+    native joints)."""
     import pandas as pd
     import pyarrow.parquet as pq
 
@@ -98,8 +99,6 @@ def load_frames(root: str | Path) -> RobotFrames:
     action = np.stack(df[ACTION].to_numpy()).astype(np.float64)
     frames = RobotFrames(root, state, action, df["episode_index"].to_numpy(np.int64), layout.state_names,
                          layout.hands, layout.sides)  # fmt: skip
-    if len(frames.passthrough_columns) == 0:
-        raise ValueError(f"{root} holds hands only; the policy experiments need a whole robot (arms + hands)")
     frames.native_layout(ACTION)  # fails early for hands without native joints
     return frames
 
@@ -176,13 +175,20 @@ def chunk_index(episode: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndarray
     return np.minimum(rows, last[:, None]), pad
 
 
-def open_loop_errors(pred: np.ndarray, frames: RobotFrames, rows: np.ndarray, chunk: int) -> dict[str, float]:
+def open_loop_errors(
+    pred: np.ndarray, frames: RobotFrames, rows: np.ndarray, chunk: int, predicted: np.ndarray | None = None
+) -> dict[str, float]:
     """Mean absolute error of (R, chunk, D) predicted converted actions for `rows`, first action and over the
-    chunk (padded steps excluded): arms (deg), hands in UDHM (deg, the slots each hand has) and native units."""
+    chunk (padded steps excluded): arms (deg), hands in UDHM (deg, the slots each hand has) and native units.
+    `predicted`: the action columns the prediction covers (a policy of a hands-only mix predicts no arms); the
+    arms' figures are left out when it covers none (a hands-only dataset or policy)."""
     index, pad = chunk_index(frames.episode, chunk)
     index, valid = index[rows], ~pad[rows]  # (R, chunk)
     target = frames.action[index]  # (R, chunk, D)
-    arms, hand_udhm = frames.passthrough_columns, frames.active_block_columns
+    covered = np.ones(target.shape[-1], bool) if predicted is None else predicted
+    pred = np.where(covered, pred, target)  # uncovered columns are not scored (the native decode needs them)
+    arms = frames.passthrough_columns[covered[frames.passthrough_columns]]
+    hand_udhm = frames.active_block_columns
     layout = frames.native_layout(ACTION)
     native_hands = frames.native_hand_columns(ACTION)
     err = np.abs(pred - target)
@@ -190,7 +196,8 @@ def open_loop_errors(pred: np.ndarray, frames: RobotFrames, rows: np.ndarray, ch
     out = {}
     for name, window in (("first", np.s_[:, :1]), ("chunk", np.s_[:, :])):
         v = valid[window]
-        out[f"arms_deg_{name}"] = float(np.degrees(err[window][..., arms][v].mean()))
+        if len(arms):
+            out[f"arms_deg_{name}"] = float(np.degrees(err[window][..., arms][v].mean()))
         out[f"hands_udhm_deg_{name}"] = float(np.degrees(err[window][..., hand_udhm][v].mean()))
         out[f"hands_native_{name}"] = float(native_err[window][v].mean())
     return out

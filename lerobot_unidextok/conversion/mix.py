@@ -385,6 +385,7 @@ def mix(opts: MixOptions) -> MixReport:
             episodes=episodes,
             hand_vocabulary=mixer.vocabulary,
             sources=sources,
+            name_map=dict(opts.name_map),
             action_rule=(
                 f"inputs without actions: action[t] = state[t + {opts.action_ahead}] (the last frames hold the last state)"
                 if not all(i.has_action for i in inputs)

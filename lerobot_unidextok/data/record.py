@@ -118,6 +118,7 @@ class ConversionRecord:
     hand_vocabulary: list[str] = field(default_factory=list)
     sources: list[MixedSource] = field(default_factory=list)  # the inputs, in order; episodes' origin["mix_source"]
     action_rule: str = ""  # how actions were made for inputs without them ("" = every input had actions)
+    name_map: dict[str, str] = field(default_factory=dict)  # --keep=all: input column -> common column name
     record_version: int = RECORD_VERSION
 
     def __post_init__(self) -> None:

@@ -67,6 +67,7 @@ class Binding:
     extra_hands: list[str]  # zero-shot hands appended after the mix's vocabulary (identity all zero)
     state_layout: NativeLayout  # the robot's native state -> the mix's state
     action_layout: NativeLayout  # the mix's action -> the robot's native action (what the mix predicts of it)
+    robot_names: list[str]  # the robot's converted state columns (its dataset's), also taken by the bound step
 
 
 def bind_layouts(config: UdtConfigMixin, robot: UdhmDatasetMeta, zero_shot: bool = False) -> Binding:
@@ -94,8 +95,24 @@ def bind_layouts(config: UdtConfigMixin, robot: UdhmDatasetMeta, zero_shot: bool
             f"{robot.root} records no native state and action layout (a human dataset, or one converted without "
             "actions): there is no robot to bind to"
         )
+    rename = config.udt_name_map
+    state, action = _renamed(state, rename), _renamed(action, rename)
     return Binding(fixed, extra, _into_mix(state, config.udt_state_names, mix_sides, "state"),
-                   _into_mix(action, config.udt_action_names, mix_sides, "action"))  # fmt: skip
+                   _into_mix(action, config.udt_action_names, mix_sides, "action"),
+                   [rename.get(n, n) for n in robot.names(OBS_STATE)])  # fmt: skip
+
+
+def _renamed(layout: NativeLayout, rename: dict[str, str]) -> NativeLayout:
+    """`layout` with its passthrough columns under the mix's common names (`unidextok-mix --name_map`): the
+    robot's vector keeps its order and count, its columns their mix names."""
+    if not rename:
+        return layout
+    hand_columns = {c for h in layout.hands for c in h["columns"]}
+
+    def new(names: list[str]) -> list[str]:
+        return [n if n in hand_columns else rename.get(n, n) for n in names]
+
+    return dataclasses.replace(layout, names=new(layout.names), native_names=new(layout.native_names))
 
 
 def _into_mix(robot: NativeLayout, mix_names: list[str], mix_sides: list[str], what: str) -> NativeLayout:
@@ -186,7 +203,8 @@ def _bound_pre_steps(steps: list, config: UdtConfigMixin, binding: Binding) -> l
     at = next(i for i, s in enumerate(out) if isinstance(s, UniDexTokMixedTokenizerStep))
     out[at] = mixed
     if config.udt_native_state_layout:
-        out.insert(at, NativeToUDHMStateStep.from_layout(binding.state_layout))
+        robot = binding.robot_names if binding.robot_names != binding.state_layout.names else []
+        out.insert(at, NativeToUDHMStateStep.from_layout(binding.state_layout, robot_names=robot))
     return out
 
 

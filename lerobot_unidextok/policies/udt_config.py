@@ -114,6 +114,8 @@ class UdtConfigMixin:
     udt_fixed_hand_ids: list[int] = field(default_factory=list)
     # Its hands the mix never had (unidextok-deploy --zero_shot=true): ids after udt_hand_vocabulary, no identity.
     udt_extra_hands: list[str] = field(default_factory=list)
+    # The mix's column renames (unidextok-mix --keep=all --name_map); filled from the dataset.
+    udt_name_map: dict[str, str] = field(default_factory=dict)
     # Accepted and ignored, so --policy.discover_packages_path=lerobot_unidextok also works with
     # --policy.path=<checkpoint> (LeRobot passes every --policy.* flag to the loaded config).
     discover_packages_path: str | None = None
@@ -180,6 +182,7 @@ class UdtConfigMixin:
                 "written by unidextok-mix (or its meta/unidextok_conversion.json was dropped); mix it again"
             )
         self.udt_hand_vocabulary = list(meta.record.hand_vocabulary)
+        self.udt_name_map = dict(meta.record.name_map)
         self.udt_sides = [b.side for b in find_udhm_blocks(names)]
         self.udt_state_names = names
         self.udt_native_layout, self.udt_native_state_layout = {}, {}

@@ -62,13 +62,20 @@ class NativeToUDHMStateStep(ObservationProcessorStep):
     # a robot bound into a mix (unidextok-deploy): blocks it has no hand for (zeros), native columns read past
     absent_sides: list[str] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)
+    # ... and its own converted state (its converted dataset's columns), also accepted: columns taken by name
+    robot_names: list[str] = field(default_factory=list)
     input_layout: str = "auto"  # "auto": decided by width | "native" | "converted" (pass unchanged)
     on_out_of_range: str = "raise"  # native hand values outside their range: "raise" (as the converter) | "clip"
     input_key: str = OBS_STATE
 
     _layout: NativeLayout | None = field(default=None, init=False, repr=False)
+    _from_robot: tuple[list[int], list[int]] | None = field(default=None, init=False, repr=False)  # (dst, src)
 
     def __post_init__(self) -> None:
+        if self.robot_names:  # the robot's converted columns -> the converted layout, by name (absent ones zero)
+            where = {n: i for i, n in enumerate(self.robot_names)}
+            pairs = [(i, where[n]) for i, n in enumerate(self.names) if n in where]
+            self._from_robot = ([d for d, _ in pairs], [s for _, s in pairs])
         if self.input_layout not in INPUT_LAYOUTS:
             raise ValueError(f"input_layout must be one of {INPUT_LAYOUTS}, got {self.input_layout!r}")
         if self.on_out_of_range not in OUT_OF_RANGE:
@@ -138,7 +145,12 @@ class NativeToUDHMStateStep(ObservationProcessorStep):
         state = torch.as_tensor(observation[self.input_key])
         if state.ndim == 0:
             raise ValueError(f"{self.input_key} must be (D,), (B, D) or (B, T, D), got a scalar")
-        if self.is_native(state.shape[-1]):
+        if self._from_robot is not None and state.shape[-1] == len(self.robot_names) != self.layout.converted_dim:
+            dst, src = self._from_robot
+            out = state.new_zeros((*state.shape[:-1], self.layout.converted_dim))
+            out[..., dst] = state[..., src]
+            observation[self.input_key] = out
+        elif self.is_native(state.shape[-1]):
             try:
                 observation[self.input_key] = self.layout.to_converted(state, self.on_out_of_range)
             except ValueError as err:
@@ -158,7 +170,8 @@ class NativeToUDHMStateStep(ObservationProcessorStep):
         """A native-width state (what the robot reports) becomes the converted width the policy reads."""
         obs = dict(features.get(PipelineFeatureType.OBSERVATION, {}))
         feat = obs.get(self.input_key)
-        if feat is not None and feat.shape and self.is_native(feat.shape[-1]):
+        robot_width = len(self.robot_names) if self.robot_names else None
+        if feat is not None and feat.shape and (feat.shape[-1] == robot_width or self.is_native(feat.shape[-1])):
             obs[self.input_key] = PolicyFeature(type=feat.type, shape=(*feat.shape[:-1], self.layout.converted_dim))
         return {**features, PipelineFeatureType.OBSERVATION: obs}
 
@@ -173,6 +186,7 @@ class NativeToUDHMStateStep(ObservationProcessorStep):
             "input_key": self.input_key,
             **({"absent_sides": list(self.absent_sides)} if self.absent_sides else {}),
             **({"dropped": list(self.dropped)} if self.dropped else {}),
+            **({"robot_names": list(self.robot_names)} if self.robot_names else {}),
         }
 
 

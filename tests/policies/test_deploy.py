@@ -18,6 +18,7 @@ from lerobot_unidextok.data import UdhmDatasetMeta
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 
 BIN = Path(sys.executable).parent
+REPO = Path(__file__).resolve().parents[2]
 
 RELOAD = """
 import json, sys, numpy as np, torch
@@ -92,6 +93,20 @@ def test_a_mixed_policy_bound_to_each_robot_takes_its_native_state_and_returns_i
     l10 = _reload_and_act(tmp_path / "l10", l10_motion(3, seed=5), tmp_path)
     assert np.asarray(l10["actions"]).shape == (3, 10)
     assert json.loads((tmp_path / "l10" / "config.json").read_text())["udt_fixed_hand_ids"] == [-1, 1]
+    # each bound checkpoint is scored on its robot's own test episodes, next to copying the state; the G1 one
+    # on its whole-robot dataset too (its robot's converted state: arms + hands; only the hands are scored)
+    for bound, robot in ((tmp_path / "l10", l10_robot), (tmp_path / "g1", g1_like["root"])):
+        out = tmp_path / f"{bound.name}.json"
+        r = subprocess.run([sys.executable, str(REPO / "experiments" / "eval_policy.py"), f"--checkpoint={bound}",
+                            f"--dataset={robot}", f"--output={out}"], env=subprocess_env(HF_HOME=str(tmp_path / "hf")),
+                           capture_output=True, text=True, timeout=300)  # fmt: skip
+        assert r.returncode == 0, r.stderr[-3000:]
+        result = json.loads(out.read_text())
+        assert set(result["policy"]) == {f"hands_{k}_{w}" for k in ("udhm_deg", "native") for w in ("first", "chunk")}
+        assert result["episodes"] == UdhmDatasetMeta(robot).record.test_episodes
+    r = subprocess.run([sys.executable, str(REPO / "experiments" / "eval_policy.py"), f"--checkpoint={mixed_policy}",
+                        f"--dataset={l10_robot}"], capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert r.returncode != 0 and "bind it to" in r.stderr
 
 
 @pytest.mark.slow
