@@ -73,7 +73,7 @@ def main() -> None:
     from lerobot_unidextok.conversion.mapping import map_episode
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
     from lerobot_unidextok.conversion.registry import make_reader
-    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples
+    from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS, write_samples
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-convert-"))
     try:

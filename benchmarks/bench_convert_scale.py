@@ -70,8 +70,8 @@ def main() -> None:
     loguru_logger.remove()
 
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples
     from lerobot_unidextok.conversion.sharded import ExecutorOptions, convert_with_executor
+    from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS, write_samples
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-convert-scale-"))
     try:

@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from lerobot_unidextok.baselines.binning import HandRange, UniformBinning
-from lerobot_unidextok.conversion.sample_motion import gesture_track
+from lerobot_unidextok.samples.motion import gesture_track
 from lerobot_unidextok.tokenizer import PRESETS, UniDexTok, UniDexTokConfig, count_parameters
 from lerobot_unidextok.training.optim import make_optimizer
 

@@ -70,7 +70,7 @@ def _measure(cmd: list[str]) -> tuple[float, float, float, float]:
 def _convert_scale(tmp: Path, scale: int) -> tuple[list[str], int, float]:
     """Converted datasets of one scale: (roots, frames, parquet MB)."""
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, SAMPLE_SOURCES, write_samples
+    from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS, SAMPLE_SOURCES, write_samples
 
     raw = write_samples(tmp / f"raw{scale}", sources=list(SAMPLE_SOURCES), episodes_per_source=10 * scale,
                         frames_per_episode=150)  # fmt: skip

@@ -56,7 +56,7 @@ def main() -> None:
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING)
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples
+    from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS, write_samples
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-train-scale-"))
     try:

@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/bench_view.py [--frames 120] [--reference_frames 20]
 
 Data: episode 0 of the real G1 + Inspire fixture (../shared/data/real/g1-inspire, or $UNIDEXTOK_REAL_DATA)
-converted with `--source=lerobot`, else the synthetic G1 sample (`conversion.samples`) converted the same
+converted with `--source=lerobot`, else the synthetic G1 sample (`samples`) converted the same
 way. Rows (CPU time is the primary clock on shared cores; wall time is printed too):
 - reference, per-frame figure: the viewer as it was (a new Figure with one mplot3d axes per hand per frame,
   a Line3D per bone, bars and token grid redrawn), kept here as `_reference_frame`;
@@ -24,11 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.sources.lerobot import G1_INSPIRE_HANDS
 from lerobot_unidextok.utils.shared_data import real_data_dir
 
 REPO = Path(__file__).resolve().parents[1]
 REAL = real_data_dir(REPO) / "g1-inspire"
-HANDS = {"hands": {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}}
+HANDS = {"hands": G1_INSPIRE_HANDS}
 
 
 def _dataset(tmp: Path) -> tuple[Path, str]:
@@ -37,10 +38,10 @@ def _dataset(tmp: Path) -> tuple[Path, str]:
     if REAL.is_dir():
         source, what = REAL, f"real G1 + Inspire ({REAL.name}, converted)"
     else:
-        from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples
+        from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS, write_samples
 
         source = write_samples(tmp / "raw", sources=["lerobot"], episodes_per_source=1, frames_per_episode=400)
-        source, what = source["lerobot"], "synthetic G1 sample (conversion.samples, converted)"
+        source, what = source["lerobot"], "synthetic G1 sample (samples, converted)"
         HANDS.update(SAMPLE_SOURCE_OPTIONS["lerobot"])
     root = tmp / "g1_udhm"
     convert(ConvertOptions(source="lerobot", input=source, root=root, source_options=HANDS, progress=False))

@@ -126,11 +126,7 @@ def _valid_dataset(root: Path) -> bool:
 def prepare_sample_data(cfg: ExperimentConfig, mapping: str = "semantic") -> list[Path]:
     """Write the synthetic sample sources once and convert them with `mapping`; reused when present."""
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import (
-        SAMPLE_SOURCE_OPTIONS,
-        SAMPLE_SOURCES,
-        write_samples,
-    )
+    from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS, SAMPLE_SOURCES, write_samples
 
     raw = sample_raw_dir(cfg)
     if not (raw / "DONE").is_file():

@@ -207,7 +207,7 @@ def human_gestures(path: Path) -> dict[str, np.ndarray] | None:
 
 def _source_hand(source: str, entry: dict) -> str | None:
     """The hand spec of a sample episode (the bag samples name theirs in the labels file)."""
-    from lerobot_unidextok.conversion import samples
+    from lerobot_unidextok.samples import formats as samples
 
     if source in ("dexycb", "egodex"):
         return HUMAN
@@ -222,7 +222,7 @@ def sample_gestures(raw: Path, max_per_class: int, seed: int) -> dict[str, np.nd
     """Held gesture frames of every sample source: states (N, 22) rad, hands, labels, episode ids."""
     from lerobot_unidextok import hands as registry
     from lerobot_unidextok.constants import SAMPLE_LABELS_FILE
-    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCES, TRUTH_FILE
+    from lerobot_unidextok.samples import SAMPLE_SOURCES, TRUTH_FILE
 
     states, hands, labels, episodes = [], [], [], []
     for source in SAMPLE_SOURCES:

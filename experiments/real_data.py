@@ -20,6 +20,7 @@ import numpy as np
 
 from experiments.config import ExperimentConfig
 from lerobot_unidextok.constants import INFO_PATH
+from lerobot_unidextok.sources.lerobot import G1_INSPIRE_HANDS as G1_HANDS
 from lerobot_unidextok.training import HandStates, load_hand_states
 from lerobot_unidextok.utils.files import fingerprint
 
@@ -29,7 +30,6 @@ HUMAN = "human"
 G1_FOLDER = "g1-inspire"
 HUMAN_CLIP = Path("dex-retargeting") / "human_joint_right.npy"
 HUMAN_CLIP_FPS = 30.0  # upstream video, see ../shared/data/real/README.md
-G1_HANDS = {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}
 SEGMENT_EPISODE_BASE = 100_000  # human segment episode ids, apart from the G1 episode ids
 
 

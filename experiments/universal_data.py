@@ -30,13 +30,13 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.sources.lerobot import G1_INSPIRE_HANDS as G1_HANDS
 from lerobot_unidextok.utils.shared_data import real_data_dir
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_REAL = real_data_dir(REPO)
 CLIP_FPS = 30  # upstream video rate (../shared/data/real/README.md)
 SEGMENT_FRAMES = 2 * CLIP_FPS  # 2 s segments, as experiments/real_data.py cuts the clip
-G1_HANDS = {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}
 DATASETS = ("g1_inspire", "human_clip", "mediapipe")
 
 

@@ -66,7 +66,7 @@ class HumanConfig:
 def load_sets(cfg: HumanConfig) -> dict[str, HandStates]:
     """train / own_rest / synthetic / unseen rows."""
     from experiments.unseen_data import human_rows_from_keypoints, load_keypoints, real_data_dir
-    from lerobot_unidextok.conversion.sample_motion import gesture_track
+    from lerobot_unidextok.samples.motion import gesture_track
 
     train_files = cfg.train_keypoints or [str(real_data_dir() / "dex-retargeting" / "human_joint_right.npy")]
     unseen_files = cfg.unseen_keypoints or [str(real_data_dir() / "mediapipe" / "mediapipe_hand_fixtures.json")]

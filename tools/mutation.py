@@ -12,7 +12,7 @@ How it works (a small harness of our own rather than mutmut, which rewrites the 
 `mutants/` tree with trampolines that the editable install, LeRobot's plugin discovery and the subprocess
 tests of this repository would not see):
 
-1. The package (with `converters/`, installed as `lerobot_unidextok.converters`) is copied to a temp folder
+1. The package (with `lerobot_unidextok/sources/`, installed as `lerobot_unidextok.sources`) is copied to a temp folder
    that goes first on `sys.path` and `PYTHONPATH`, so in-process tests and the subprocesses they start
    (CLIs, `lerobot-train`, worker pools) import the mutated copy; the repository is never modified.
 2. One baseline run per module: the module's test folders under coverage with one context per test, which

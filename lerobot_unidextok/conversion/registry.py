@@ -1,6 +1,7 @@
 """Source registry: converters register a reader class under a source name.
 
-A source reader lives in `converters/<source>.py` (installed as `lerobot_unidextok.converters`)::
+A source reader lives in `lerobot_unidextok/sources/<source>.py` (or in any module of yours that imports
+`register_source` and is imported before the conversion)::
 
     @register_source("dexycb")
     class DexYCBSource:
@@ -23,10 +24,12 @@ import importlib
 import inspect
 import logging
 
+from lerobot_unidextok.errors import InvalidInputError
+
 logger = logging.getLogger(__name__)
 
 _SOURCES: dict[str, type] = {}
-CONVERTERS_PACKAGE = "lerobot_unidextok.converters"
+SOURCES_PACKAGE = "lerobot_unidextok.sources"
 
 
 def register_source(name: str):
@@ -54,10 +57,10 @@ def unregister_source(name: str) -> None:
     _SOURCES.pop(name, None)
 
 
-def import_converters() -> None:
-    """Import `lerobot_unidextok.converters` and its submodules so their decorators run."""
+def import_sources() -> None:
+    """Import `lerobot_unidextok.sources` and its submodules so their decorators run."""
     try:
-        pkg = importlib.import_module(CONVERTERS_PACKAGE)
+        pkg = importlib.import_module(SOURCES_PACKAGE)
     except ModuleNotFoundError as exc:
         logger.debug("no converters package: %s", exc)
         return
@@ -67,30 +70,30 @@ def import_converters() -> None:
         if info.name.startswith("_"):
             continue
         try:
-            importlib.import_module(f"{CONVERTERS_PACKAGE}.{info.name}")
+            importlib.import_module(f"{SOURCES_PACKAGE}.{info.name}")
         except ImportError as exc:  # an optional extra is missing: the source stays unavailable
             logger.warning("source module %s not importable: %s", info.name, exc)
 
 
 def available_sources() -> list[str]:
     """Names of all registered sources (after importing the converters package)."""
-    import_converters()
+    import_sources()
     return sorted(_SOURCES)
 
 
 def get_source(name: str) -> type:
     """The registered reader class for `name`; raises ValueError listing the known names."""
     if name not in _SOURCES:
-        import_converters()
+        import_sources()
     if name not in _SOURCES:
         raise ValueError(
             f"unknown source {name!r}; available sources: {sorted(_SOURCES) or 'none registered'}. "
-            f"Register one with @register_source({name!r}) in converters/{name}.py"
+            f"Register one with @register_source({name!r}) in lerobot_unidextok/sources/{name}.py"
         )
     return _SOURCES[name]
 
 
-class SetupError(ValueError):
+class SetupError(InvalidInputError):
     """The conversion cannot start (bad source options, unknown hand, nothing to read): raised once,
     before any episode is read, with the fix in the message."""
 

@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 from lerobot_unidextok.conversion.registry import get_source
-from lerobot_unidextok.conversion.samples import write_samples
+from lerobot_unidextok.samples import write_samples
 
 G1_HANDS = {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}
 
@@ -146,7 +146,7 @@ def test_linkerhand_wrong_width_for_model(samples):
 
 def test_linkerhand_lerobot_export(samples, tmp_path):
     """A LeRobot-style export with <side>_hand_joint_<k> names, mapped by model."""
-    from lerobot_unidextok.conversion.samples import _write_lerobot_v21
+    from lerobot_unidextok.samples.formats import _write_lerobot_v21
 
     rng = np.random.default_rng(0)
     names = [f"right_hand_joint_{k}" for k in range(10)]

@@ -12,8 +12,8 @@ import pytest
 from lerobot_unidextok import udhm
 from lerobot_unidextok.constants import UDHM_DIM
 from lerobot_unidextok.conversion.registry import get_source
-from lerobot_unidextok.conversion.sample_motion import GESTURES, gesture_track
-from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, SAMPLE_SOURCES, write_samples
+from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS, SAMPLE_SOURCES, write_samples
+from lerobot_unidextok.samples.motion import GESTURES, gesture_track
 
 EPISODES, FRAMES = 3, 45
 
@@ -64,7 +64,8 @@ def test_native_layouts(samples, tmp_path):
     scheme1 = json.loads((samples["dexora"] / "airbot_pick_and_place" / "meta" / "info.json").read_text())
     assert scheme1["features"]["observation.state"]["shape"] == [39]
     assert scheme1["features"]["action"]["names"][6] == "left_hand_joint_1"
-    from lerobot_unidextok.conversion.samples import SampleSpec, write_dexora_episodes
+    from lerobot_unidextok.samples import SampleSpec
+    from lerobot_unidextok.samples.formats import write_dexora_episodes
 
     write_dexora_episodes(tmp_path, SampleSpec(2, 20, 0), scheme=2)
     scheme2 = json.loads((tmp_path / "airbot_dexterous" / "meta" / "info.json").read_text())
@@ -189,7 +190,7 @@ def test_egodex_keypoints_invert_to_their_udhm_truth(samples):
 
 
 def test_failed_write_leaves_nothing_behind(tmp_path, monkeypatch):
-    from lerobot_unidextok.conversion import samples as samples_mod
+    from lerobot_unidextok.samples import formats as samples_mod
 
     def boom(folder, spec):
         (folder / "half.txt").write_text("x")

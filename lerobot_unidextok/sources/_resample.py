@@ -15,10 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.errors import SourceFormatError
+
 INTERPOLATIONS = ("linear", "nearest")
 
 
-class ResampleError(ValueError):
+class ResampleError(SourceFormatError):
     """Streams cannot be put on one grid (no common time span); the message names the file."""
 
 

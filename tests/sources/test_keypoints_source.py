@@ -14,8 +14,8 @@ import pytest
 from lerobot_unidextok import udhm
 from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
 from lerobot_unidextok.conversion.registry import get_source
-from lerobot_unidextok.conversion.sample_motion import gesture_track
 from lerobot_unidextok.data import load_udhm_frames
+from lerobot_unidextok.samples.motion import gesture_track
 
 
 def _hand(side: str, n: int = 40, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_unidextok.converters._resample import (  # noqa: F401  the bag readers' resampling, re-exported
+from lerobot_unidextok.errors import SourceFormatError
+from lerobot_unidextok.sources._resample import (  # noqa: F401  the bag readers' resampling, re-exported
     INTERPOLATIONS,
     Stream,
     grid_for,
@@ -49,7 +50,7 @@ KUAVO_MSGS: dict[str, str] = {
 BAG_SUFFIXES = (".bag", ".mcap", ".db3")
 
 
-class BagFormatError(ValueError):
+class BagFormatError(SourceFormatError):
     """A bag is unreadable or lacks a topic/field; the message names the file and the topic."""
 
 

@@ -23,13 +23,14 @@ import numpy as np
 from lerobot_unidextok.blocks import flatten_names
 from lerobot_unidextok.constants import EPISODES_META_GLOB, INFO_PATH
 from lerobot_unidextok.conversion.episode import VideoSegment
+from lerobot_unidextok.errors import SourceFormatError
 
 SUPPORTED_VERSIONS = ("v2.0", "v2.1", "v3.0")
 DEFAULT_KEYS = ("timestamp", "frame_index", "episode_index", "index", "task_index")  # rebuilt by the writer
 VISUAL_DTYPES = ("image", "video")
 
 
-class LeRobotFormatError(ValueError):
+class LeRobotFormatError(SourceFormatError):
     """A LeRobot dataset file is missing, unreadable or lacks a field; the message names both."""
 
 
@@ -39,6 +40,7 @@ class LeRobotEpisodeRef:
 
     root: str
     episode_index: int
+    absent_sides: tuple[str, ...] = ()  # hands whose columns are 0 throughout the dataset (never recorded)
 
     def __str__(self) -> str:
         return f"{self.root}#episode_{self.episode_index:06d}"
@@ -85,8 +87,10 @@ def load_info(root: str | Path) -> dict:
     return info
 
 
-def feature_names(info: dict, key: str, root: str | Path) -> list[str]:
-    """Flat names of a vector feature, checked against its declared shape."""
+def feature_names(info: dict, key: str, root: str | Path, notes: list[str] | None = None) -> list[str]:
+    """Flat names of a vector feature, checked against its declared shape. When the two disagree (seen:
+    `observation.state` shape [30] with 28 names) the data decide: rows as wide as the names keep the names,
+    and the disagreement is one line in `notes`; otherwise a LeRobotFormatError says what to fix."""
     where = f"{Path(root) / 'meta' / 'info.json'} features[{key!r}]"
     if key not in info["features"]:
         raise LeRobotFormatError(f"{where}: missing; available features: {sorted(info['features'])}")
@@ -99,8 +103,33 @@ def feature_names(info: dict, key: str, root: str | Path) -> list[str]:
         raise LeRobotFormatError(f"{where}: {exc}") from None
     size = int(np.prod(feature.get("shape", [len(names)])))
     if len(names) != size:
-        raise LeRobotFormatError(f"{where}: {len(names)} names for shape {feature.get('shape')}")
+        width = data_width(Path(root), info, key)
+        if width != len(names):
+            raise LeRobotFormatError(
+                f"{where}: {len(names)} names for shape {feature.get('shape')}, and the data rows are {width} wide: "
+                "which columns the names belong to cannot be told; fix the names in meta/info.json"
+            )
+        if notes is not None:
+            notes.append(
+                f"{where}: shape {feature.get('shape')} disagrees with its {len(names)} names; the data rows are "
+                f"{width} wide, so the names are used"
+            )
     return names
+
+
+def data_width(root: Path, info: dict, key: str) -> int | None:
+    """How wide the vector column `key` is in the dataset's first data file (None when it cannot be read)."""
+    import pyarrow.parquet as pq
+
+    files = sorted(root.glob("data/**/*.parquet"))
+    if not files:
+        return None
+    try:
+        column = pq.ParquetFile(files[0]).read_row_group(0, columns=[key]).column(0)
+    except Exception:  # noqa: BLE001 - an unreadable file is reported where the episode is read
+        return None
+    first = column[0].as_py() if len(column) else None
+    return len(first) if isinstance(first, list) else None
 
 
 def _read_jsonl(path: Path) -> list[dict]:
@@ -206,6 +235,7 @@ class EpisodeColumns:
     copied: dict = field(default_factory=dict)  # feature key -> (T,) pyarrow array, unchanged
     videos: dict[str, VideoSegment] = field(default_factory=dict)
     stats: dict[str, dict] = field(default_factory=dict)  # source per-episode stats of image/video features
+    timestamp_note: str | None = None  # `timestamp_note` of the source timestamps (None: they step by 1/fps)
 
 
 def other_features(info: dict, used: set[str]) -> tuple[dict[str, dict], dict[str, dict]]:
@@ -244,7 +274,7 @@ def read_episode(
         raise LeRobotFormatError(f"{path}: data file of episode {ref.episode_index} is missing")
     vector_keys = list(keys)
     keys = [*vector_keys, *(k for k in copy_keys if k not in vector_keys)]
-    wanted = [*keys, "episode_index", "frame_index", "task_index"]
+    wanted = [*keys, "episode_index", "frame_index", "task_index", "timestamp"]
     try:
         pf = pq.ParquetFile(path)
         schema_names = pf.schema_arrow.names
@@ -275,9 +305,28 @@ def read_episode(
     columns = {key: _vector_column(data[key], rows, path, key, ref.episode_index) for key in vector_keys}
     task = _task_text(root, info, tasks, data, rows)
     fps = float(info["fps"])
+    note = timestamp_note(data["timestamp"].to_numpy()[rows], fps) if "timestamp" in data else None
     videos = {key: _video_segment(root, info, ref.episode_index, meta_row, key, len(rows) / fps) for key in video_keys}
     stats = _source_stats(root, info, ref.episode_index, meta_row, (*copy_keys, *video_keys))
-    return EpisodeColumns(str(path), fps, columns, task, info, copied, videos, stats)
+    return EpisodeColumns(str(path), fps, columns, task, info, copied, videos, stats, note)
+
+
+def timestamp_note(timestamps_s: np.ndarray, fps: float) -> str | None:
+    """What is wrong with an episode's source timestamps (the writer rebuilds them as frame_index / fps, which
+    is right only when the frames were recorded 1/fps apart), or None when they step by 1/fps."""
+    t = np.asarray(timestamps_s, dtype=np.float64)
+    if len(t) < 2:
+        return None
+    if not t.any():
+        return "timestamps all 0"
+    steps = np.diff(t)
+    repeated = int((steps <= 0).sum())
+    if repeated:
+        return f"timestamps repeat or go back at {repeated} of {len(t)} frames"
+    off = np.abs(steps * fps - 1.0) > 0.5
+    if off.any():
+        return f"{int(off.sum())} of {len(t) - 1} frame steps are not 1/fps = {1 / fps:.4g} s (frames dropped or doubled?)"
+    return None
 
 
 def _combined(column):
@@ -302,8 +351,35 @@ def _video_segment(
         path = root / info["video_path"].format(episode_chunk=chunk, video_key=key, episode_index=episode_index)
         start, end = 0.0, _video_duration_s(path, duration_s)
     if not path.is_file():
-        raise LeRobotFormatError(f"{path}: video {key!r} of episode {episode_index} is missing")
+        moved = moved_file(root, path)
+        if moved is None:
+            raise LeRobotFormatError(f"{path}: video {key!r} of episode {episode_index} is missing")
+        path = moved
     return VideoSegment(str(path), start, end)
+
+
+def video_folder_note(root: Path, info: dict) -> str | None:
+    """One line when the dataset's videos are not under the folder `info.json`'s `video_path` names but under
+    another one that holds them (seen: `video/` for `videos/`), which the reader then uses; else None."""
+    template = info.get("video_path")
+    if not template or not any(ft.get("dtype") == "video" for ft in info["features"].values()):
+        return None
+    top = Path(template).parts[0]
+    if (root / top).is_dir():
+        return None
+    others = [d.name for d in sorted(root.iterdir()) if d.is_dir() and any(d.rglob("*.mp4"))]
+    if not others:
+        return f"meta/info.json video_path {template!r}: no {top}/ folder and no videos elsewhere"
+    return f"meta/info.json video_path says {top}/, but the videos are under {others[0]}/: reading them there"
+
+
+def moved_file(root: Path, path: Path) -> Path | None:
+    """`path` under another top folder of `root` than `info.json`'s template says (seen: `video/` for `videos/`),
+    when exactly one holds it; None otherwise."""
+    rel = path.relative_to(root)
+    found = [d / Path(*rel.parts[1:]) for d in sorted(root.iterdir()) if d.is_dir() and d.name != rel.parts[0]]
+    found = [p for p in found if p.is_file()]
+    return found[0] if len(found) == 1 else None
 
 
 def _video_duration_s(path: Path, fallback_s: float) -> float:

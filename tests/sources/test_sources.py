@@ -12,9 +12,11 @@ import yaml
 from lerobot_unidextok import hands
 from lerobot_unidextok.conversion.episode import RawEpisode
 from lerobot_unidextok.conversion.registry import available_sources, get_source
-from lerobot_unidextok.conversion.samples import SampleSpec, write_linkerhand_episodes, write_samples
+from lerobot_unidextok.samples import SampleSpec, write_samples
+from lerobot_unidextok.samples.formats import write_linkerhand_episodes
 
 EPISODES, FRAMES = 3, 40
+# Unitree's G1 + Inspire column names (xr_teleoperate teleop/robot_control/robot_hand_inspire.py), written out here
 G1_HANDS = {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}
 
 
@@ -192,7 +194,7 @@ def test_dexora(samples):
 def test_dexora_both_naming_schemes_give_the_generating_motion(scheme, tmp_path):
     """Scheme 2 (states/actions, joints 0..11, left_hand_action_k) reads like scheme 1. Catches the old
     reader, which accepted only left_hand_joint_1..12[_suffix] in observation.state."""
-    from lerobot_unidextok.conversion.samples import write_dexora_episodes
+    from lerobot_unidextok.samples.formats import write_dexora_episodes
 
     labels = write_dexora_episodes(tmp_path, SampleSpec(EPISODES, FRAMES, 3), scheme=scheme)
     truth = {f"{k}|{s}": v["_angles_rad"][s] for k, v in labels.items() for s in ("left", "right")}
@@ -378,7 +380,7 @@ def test_dexora_sample_converts_with_lerobots_v21_to_v30_script(samples, tmp_pat
 
 def test_generic_lerobot_hand_in_its_own_feature(tmp_path):
     """A dataset storing each hand in its own (unnamed) feature: `state_key` / `action_key` per hand."""
-    from lerobot_unidextok.conversion.samples import _write_lerobot_v21
+    from lerobot_unidextok.samples.formats import _write_lerobot_v21
 
     rng = np.random.default_rng(0)
     right = rng.uniform(0, 1, (30, 6))
@@ -515,3 +517,11 @@ def test_linkerhand_lerobot_v30_export_with_state_key_and_pos_names(name_of, tmp
     layout = json.loads((root / "meta/unidextok_conversion.json").read_text())["native_layout"]
     assert layout["observation.state"]["native_names"] == names and layout["observation.state"]["source_key"] == "state"
     assert json.loads((root / "meta/info.json").read_text())["robot_type"] == "linkerhand"
+
+
+def test_the_known_g1_inspire_layout_is_unitrees_column_names():
+    """`hands="unitree_g1_inspire"` names Unitree's own columns (written out above, not taken from the reader)."""
+    from lerobot_unidextok.sources.lerobot import KNOWN_HANDS, parse_hands
+
+    assert KNOWN_HANDS["unitree_g1_inspire"] == G1_HANDS
+    assert parse_hands("unitree_g1_inspire") == parse_hands(G1_HANDS)

@@ -30,7 +30,8 @@ import numpy as np
 
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode
 from lerobot_unidextok.conversion.registry import check_hand, register_source
-from lerobot_unidextok.converters import _rosbag as rb
+from lerobot_unidextok.errors import SourceFormatError
+from lerobot_unidextok.sources import _rosbag as rb
 
 logger = logging.getLogger(__name__)
 
@@ -47,7 +48,7 @@ CLAW_MARKER = "leju_claw"
 KUAVO_FULL_SCALE = 100.0
 
 
-class LETFormatError(ValueError):
+class LETFormatError(SourceFormatError):
     """A LET bag or sidecar is missing, truncated or lacks a topic; the message names both."""
 
 

@@ -3,7 +3,7 @@
 (written out here, independently of the readers): jittered, slightly drifting stamps (a 30 Hz topic
 measures ~30.14 Hz), a few dropped messages, topics at different rates, and the annotation sidecar.
 
-Used by `conversion.samples.write_samples` (sources "let" and "linkerhand"); needs the `ros` extra.
+Used by `samples.write_samples` (sources "let" and "linkerhand"); needs the `ros` extra.
 """
 
 from __future__ import annotations

@@ -25,6 +25,7 @@ import numpy as np
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
+from lerobot_unidextok.errors import SourceFormatError
 from lerobot_unidextok.utils.imports import require_package
 
 EGODEX_FPS = 30.0
@@ -56,7 +57,7 @@ def _text(value: object) -> str:
     return str(value)
 
 
-class EgoDexFormatError(ValueError):
+class EgoDexFormatError(SourceFormatError):
     """An EgoDex file is truncated or lacks a dataset/attribute; the message names both."""
 
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
-from lerobot_unidextok.utils.cli import UserError
+from lerobot_unidextok.errors import SourceFormatError, UnavailableError
 
 MANO_HELP = (
     "install the mano extra (pip install manotorch) and point --mano_assets to your licensed MANO files "
@@ -34,11 +34,11 @@ FPS_MOCAP = 120  # OakInk2-PreviewTool src/oakink2_toolkit/meta.py
 _PREFIX = {"right": "rh", "left": "lh"}
 
 
-class OakInk2FormatError(ValueError):
+class OakInk2FormatError(SourceFormatError):
     """An OakInk-v2 annotation is missing, truncated or lacks a field; the message names both."""
 
 
-class MissingManoError(UserError):
+class MissingManoError(UnavailableError):
     """OakInk-v2 needs the licensed MANO model and manotorch."""
 
 

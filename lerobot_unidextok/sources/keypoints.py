@@ -40,7 +40,8 @@ import numpy as np
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
-from lerobot_unidextok.converters import _resample
+from lerobot_unidextok.errors import SourceFormatError
+from lerobot_unidextok.sources import _resample
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 PALM_M = (0.06, 0.14)  # plausible wrist -> middle MCP length (m), adult hands (MediaPipe medians ~97 mm)
@@ -48,7 +49,7 @@ SIDE_TOKEN = re.compile(r"(?:^|[^a-z])(left|right)(?:[^a-z]|$)")
 HANDEDNESS_FRAMES = 24  # frames fitted with both sides for the handedness check
 
 
-class KeypointsFormatError(ValueError):
+class KeypointsFormatError(SourceFormatError):
     """A keypoint file is unreadable, has the wrong shape, units or handedness; the message names it."""
 
 

@@ -5,6 +5,7 @@
     {"left":  {"hand": "inspire_rh56_unitree", "state_names": ["kLeftHandPinky", ...]},
      "right": {"hand": "inspire_rh56_unitree", "prefix": "kRightHand"}}
     {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}   # shorthand
+    "unitree_g1_inspire"                                                                      # a known robot
 
 `prefix` selects the names starting with it, in dataset order. `action_names` default to the state names
 when the action feature has them all (else no action). A hand stored in a feature of its own takes
@@ -22,18 +23,28 @@ listed, so a typo fails before any episode is read.
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok import hands
 from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode
 from lerobot_unidextok.conversion.registry import check_hand, register_source
-from lerobot_unidextok.converters import _lerobot_files as lr
+from lerobot_unidextok.sources import _lerobot_files as lr
+
+logger = logging.getLogger(__name__)
 
 ALL_COLUMNS = ("*",)  # state_names meaning "every column of the hand's own feature"
+# The hands of robots whose LeRobot recordings are common, by name: `hands="unitree_g1_inspire"`.
+# Unitree G1 + two Inspire hands (unitreerobotics/xr_teleoperate, teleop/robot_control/robot_hand_inspire.py:
+# kLeftHand* / kRightHand* columns, normalised 0-1, 1 = open).
+G1_INSPIRE_HANDS = {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}
+KNOWN_HANDS: dict[str, dict] = {"unitree_g1_inspire": G1_INSPIRE_HANDS}
 OUT_STATE, OUT_ACTION = "observation.state", "action"  # the converted dataset's vectors
 
 
@@ -61,7 +72,15 @@ class HandColumns:
             raise lr.LeRobotFormatError(
                 f"{where}: no names start with prefix {self.prefix!r}; available names: {names}"
             )
-        return picked
+        return self.bind(picked, where)[0]
+
+    def bind(self, picked: list[str], where: str) -> tuple[list[str], str]:
+        """The prefix's columns in the hand's joint order: by name when they name its joints (another order
+        in the source is put right), else in the source's order ("position"; said once, when listing)."""
+        try:
+            return hands.get(self.hand).bind_columns(picked, self.prefix or "")
+        except ValueError as exc:
+            raise lr.LeRobotFormatError(f"{where}: {exc}") from None
 
 
 def check_keep(keep: str) -> str:
@@ -72,8 +91,10 @@ def check_keep(keep: str) -> str:
 
 
 def parse_hands(hands: dict | str) -> list[HandColumns]:
-    """Parse the `hands` option (dict or its JSON text) into one `HandColumns` per side."""
-    if isinstance(hands, str):
+    """Parse the `hands` option (dict, its JSON text, or a name of `KNOWN_HANDS`) into one `HandColumns` per side."""
+    if isinstance(hands, str) and hands in KNOWN_HANDS:
+        hands = KNOWN_HANDS[hands]
+    elif isinstance(hands, str):
         try:
             hands = json.loads(hands)
         except json.JSONDecodeError as exc:
@@ -125,6 +146,52 @@ def parse_hands(hands: dict | str) -> list[HandColumns]:
     return out
 
 
+STATE_KEYS = ("observation.state", "state", "states", "observation.states")  # what recordings call the state
+ACTION_KEYS = ("action", "actions")
+AUTO = "auto"
+
+
+def vector_keys(info: dict, state_key: str, action_key: str | None) -> tuple[str, str | None, str]:
+    """(state feature, action feature or None, a note when not LeRobot's own names): `auto` takes the first of
+    `STATE_KEYS` / `ACTION_KEYS` the dataset has (seen: `state` / `actions` for `observation.state` / `action`)."""
+    features = info["features"]
+    note = ""
+    if state_key == AUTO:
+        state_key = next((k for k in STATE_KEYS if k in features), STATE_KEYS[0])
+        if state_key != STATE_KEYS[0]:
+            note = f"its state is the feature {state_key!r} (not 'observation.state')"
+    if action_key == AUTO:
+        action_key = next((k for k in ACTION_KEYS if k in features), None)
+        if action_key not in (None, ACTION_KEYS[0]):
+            note += ("; " if note else "") + f"its action is the feature {action_key!r} (not 'action')"
+    return state_key, action_key, note
+
+
+def absent_sides(root: str, plan: list[tuple], state_key: str) -> tuple[str, ...]:
+    """Sides whose state columns hold 0 in every frame of the dataset: hands that were never recorded (a
+    two-hand layout with one hand's columns left at zero). 0 is a valid value of one joint (LinkerHand: fully
+    flexed), never of every joint in every frame of a recording."""
+    import pyarrow.parquet as pq
+
+    files = sorted(Path(root).glob("data/**/*.parquet"))
+    out = []
+    for h, s_key, s_cols, _, _ in plan:
+        if s_key != state_key or not files:
+            continue
+        names = lr.feature_names(lr.load_info(root), s_key, root)
+        idx = lr.select_columns(names, s_cols, root)
+        zero = True
+        for f in files:
+            column = pq.read_table(f, columns=[s_key]).column(0).combine_chunks()
+            values = column.values.to_numpy(zero_copy_only=False).reshape(len(column), -1)
+            if np.any(values[:, idx] != 0):
+                zero = False
+                break
+        if zero:
+            out.append(h.side)
+    return tuple(out)
+
+
 @register_source("lerobot")
 class LeRobotSource:
     license = "as stated by the source dataset (see its README / info.json)"
@@ -133,15 +200,15 @@ class LeRobotSource:
     def __init__(
         self,
         hands: dict | str | None = None,
-        state_key: str = "observation.state",
-        action_key: str | None = "action",
+        state_key: str = AUTO,
+        action_key: str | None = AUTO,
         keep: str = "all",
     ) -> None:
         if hands is None:
             raise ValueError(
                 "the lerobot source needs hands=: which columns belong to which hand, e.g. "
-                '--source_options=\'{"hands": {"left": "inspire_rh56_unitree:kLeftHand", '
-                '"right": "inspire_rh56_unitree:kRightHand"}}\''
+                '--source_options=\'{"hands": {"right": "linkerhand_l10:right_hand_"}}\', or a known robot: '
+                f"--source_options='{{\"hands\": \"unitree_g1_inspire\"}}' (known: {sorted(KNOWN_HANDS)})"
             )
         self.hands = parse_hands(hands)
         self.state_key = state_key
@@ -149,10 +216,39 @@ class LeRobotSource:
         self.keep = check_keep(keep)
 
     def list_episodes(self, input_path: str | Path) -> list[lr.LeRobotEpisodeRef]:
+        """Every episode, after checking once per dataset that its hands map, and saying in one line each what
+        does not look like LeRobot's own layout (other vector names, a shape that disagrees with its names,
+        videos in another folder, hand columns bound by position, hands never recorded)."""
         refs = lr.list_all_episodes(input_path)
+        absent: dict[str, tuple[str, ...]] = {}
         for root in sorted({r.root for r in refs}):  # setup check: every dataset maps, before any episode work
-            column_plan(lr.load_info(root), root, self.hands, self.state_key, self.action_key)
-        return refs
+            info = lr.load_info(root)
+            state_key, action_key, note = vector_keys(info, self.state_key, self.action_key)
+            notes = [note] if note else []
+            plan, _ = column_plan(info, root, self.hands, state_key, action_key, notes)
+            for h, _, s_cols, _, _ in plan:
+                if h.prefix is not None and h.bind(s_cols, "")[1] == "position":
+                    notes.append(
+                        f"the {h.side} hand's columns {s_cols} name none of the {h.hand} joints, so they are taken "
+                        f"in the source's order as {list(hands.get(h.hand).joint_names)} (pass state_names in the "
+                        "joint order if that is not theirs)"
+                    )
+            absent[root] = absent_sides(root, plan, state_key)
+            if len(absent[root]) == len(plan):
+                raise lr.LeRobotFormatError(
+                    f"{root}: every hand's columns are 0 in every frame ({[h.side for h, *_ in plan]}): no hand was "
+                    "recorded; check the hands option"
+                )
+            if absent[root]:
+                notes.append(
+                    f"the {' and '.join(absent[root])} hand's columns are 0 in every frame of every episode: that hand "
+                    "was not recorded, so it is left out (a dataset of the other hands)"
+                )
+            if self.keep == "all" and (video := lr.video_folder_note(Path(root), info)):
+                notes.append(video)
+            for n in notes:
+                logger.warning("%s: %s", root, n)
+        return [dataclasses.replace(r, absent_sides=absent[r.root]) for r in refs]
 
     def robot_type(self, refs: list) -> str | None:
         return lr.robot_type_of(refs)
@@ -162,10 +258,15 @@ class LeRobotSource:
 
 
 def column_plan(
-    info: dict, root: str | Path, hands: list[HandColumns], state_key: str, action_key: str | None
+    info: dict,
+    root: str | Path,
+    hands: list[HandColumns],
+    state_key: str,
+    action_key: str | None,
+    notes: list[str] | None = None,
 ) -> tuple[list[tuple], dict[str, list[str]]]:
     """Per hand (hand, state key, state columns, action key, action columns), and the names of each feature;
-    raises naming the info.json field when a hand's columns are not there."""
+    raises naming the info.json field when a hand's columns are not there; what it reads past goes to `notes`."""
     info_path = Path(root) / INFO_PATH
     names: dict[str, list[str]] = {}
 
@@ -175,7 +276,7 @@ def column_plan(
             if all_columns and feature is not None and feature.get("names") is None:  # unnamed own feature
                 names[key] = [f"{key}[{i}]" for i in range(int(np.prod(feature.get("shape", [0]))))]
             else:
-                names[key] = lr.feature_names(info, key, root)
+                names[key] = lr.feature_names(info, key, root, notes)
         return names[key]
 
     plan = []
@@ -225,7 +326,10 @@ def read_mapped_episode(
     `keep="hands"` (`--keep=hands`) reads no other feature and no video: their files need not exist."""
     info = lr.load_info(ref.root)
     info_path = str(Path(ref.root) / INFO_PATH)
+    state_key, action_key, _ = vector_keys(info, state_key, action_key)
     plan, names = column_plan(info, ref.root, hands, state_key, action_key)
+    absent = [p for p in plan if p[0].side in ref.absent_sides]  # hands never recorded: left out, columns dropped
+    plan = [p for p in plan if p[0].side not in ref.absent_sides]
     has_action = all(p[4] is not None for p in plan)
     vectors = {OUT_STATE: state_key}  # output vector -> source feature holding the hands' shared columns
     if has_action and action_key and action_key in info["features"]:
@@ -251,18 +355,22 @@ def read_mapped_episode(
                 action_columns=tuple(a_cols) if action is not None else None,
             )
         )
-    passthrough, native_names, native_keys = {}, {}, {}
+    passthrough, native_names, native_keys, dropped = {}, {}, {}, {}
     for out_key, src_key in vectors.items():
         if src_key not in info["features"]:
             continue
         src_names = names.get(src_key) or _names_or_indices(info, src_key, ref.root)
         if out_key == OUT_STATE:
             hand_cols = {c for _, s_key, s_cols, _, _ in plan if s_key == src_key for c in s_cols}
+            gone = [c for _, s_key, s_cols, _, _ in absent if s_key == src_key for c in s_cols]
         else:
             hand_cols = {c for _, _, _, a_key, a_cols in plan if a_key == src_key for c in a_cols}
-        keep = [i for i, n in enumerate(src_names) if n not in hand_cols]
+            gone = [c for _, _, _, a_key, a_cols in absent if a_key == src_key and a_cols for c in a_cols]
+        keep = [i for i, n in enumerate(src_names) if n not in hand_cols and n not in set(gone)]
         passthrough[out_key] = Passthrough(tuple(src_names[i] for i in keep), episode.columns[src_key][:, keep])
         native_names[out_key] = list(src_names)
+        if gone:
+            dropped[out_key] = gone
         if src_key != out_key:
             native_keys[out_key] = src_key
     return RawEpisode(
@@ -274,10 +382,12 @@ def read_mapped_episode(
             "robot_type": info.get("robot_type", ""),
             "episode_index": ref.episode_index,
             "codebase_version": info["codebase_version"],
+            **({"timestamp_note": episode.timestamp_note} if episode.timestamp_note else {}),
         },
         passthrough=passthrough,
         native_names=native_names,
         native_keys=native_keys,
+        dropped=dropped,
         copied=episode.copied,
         copied_features=copied_ft,
         copied_stats=episode.stats,

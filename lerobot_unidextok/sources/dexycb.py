@@ -18,6 +18,7 @@ import numpy as np
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
+from lerobot_unidextok.errors import SourceFormatError
 
 DEXYCB_FPS = 25.0  # NVlabs/handover-sim handover/dex_ycb.py: _TIME_STEP_RAW = 0.04 s per raw DexYCB frame
 # DexYCB object ids 1..21 (dex-ycb-toolkit `_YCB_CLASSES`), for the task text.
@@ -29,7 +30,7 @@ YCB_CLASSES = (
 )  # fmt: skip
 
 
-class DexYCBFormatError(ValueError):
+class DexYCBFormatError(SourceFormatError):
     """A DexYCB file is missing, truncated or lacks a field; the message names both."""
 
 

@@ -1,0 +1,171 @@
+"""What real LeRobot recordings of other robots look like, and what the lerobot reader makes of it: vectors
+named `state` / `actions`, a hand's columns in another order than its joints, a hand never recorded (its
+columns 0 throughout), a shape that disagrees with its names, videos in another folder than info.json says.
+Each one line saying what was read past, and a dataset converted right."""
+
+import json
+import logging
+import shutil
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from l10_robot import HAND, PREFIX, l10_motion, write_l10_robot
+
+from lerobot_unidextok import hands
+from lerobot_unidextok.blocks import udhm_state_names
+from lerobot_unidextok.constants import OBS_STATE
+from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+from lerobot_unidextok.data import UdhmDatasetMeta, load_udhm_frames
+
+JOINTS = list(hands.get(HAND).joint_names)
+
+
+def _convert(raw, root, hand_option, **kw):
+    return convert(ConvertOptions(source="lerobot", input=raw, root=root, progress=False,
+                                  source_options={"hands": hand_option}, **kw))  # fmt: skip
+
+
+def _state(root) -> np.ndarray:
+    return np.stack(pq.read_table(sorted((root / "data").rglob("*.parquet"))).column(OBS_STATE).to_pylist())
+
+
+def test_a_two_hand_export_named_state_actions_with_the_left_hand_at_zero(tmp_path, caplog):
+    """The export of a robot with one LinkerHand L10 on the right: `state` / `actions` of 20 columns, the left
+    hand's 10 at 0 in every frame. 0 is a fully flexed L10 joint: read as values it would be a closed fist."""
+    names = [f"{side}_hand_joint_{i}" for side in ("left", "right") for i in range(10)]
+    raw = write_l10_robot(tmp_path / "raw", episodes=3, keys=("state", "actions"), names=names, left_zero=True)
+    with caplog.at_level(logging.WARNING):
+        _convert(raw, tmp_path / "out", {"left": f"{HAND}:left_hand_", "right": f"{HAND}:right_hand_"})
+    text = caplog.text
+    assert "its state is the feature 'state'" in text and "its action is the feature 'actions'" in text
+    assert "the left hand's columns are 0 in every frame of every episode" in text
+    assert "name none of the linkerhand_l10 joints, so they are taken in the source's order" in text
+    meta = UdhmDatasetMeta(tmp_path / "out")
+    assert meta.names(OBS_STATE) == udhm_state_names(["right"]) and meta.block_hands() == [HAND]
+    layout = meta.native_layout("action")
+    assert layout.native_names == names and layout.dropped == names[:10]  # the robot's 20 columns, left zero
+    assert layout.to_native(np.zeros((1, 22)))[0, :10].tolist() == [0.0] * 10
+    # the right hand is the source's right columns, in the L10's SDK units through its spec
+    source = l10_motion(41, 0)[:-1]
+    np.testing.assert_allclose(_state(tmp_path / "out")[:40], hands.get(HAND).to_udhm(source.astype(float), "right"),
+                               atol=1e-5)  # fmt: skip
+
+
+def test_a_hand_zero_throughout_an_episode_is_absent_not_a_fist():
+    """0 is a fully flexed L10 joint; every joint at 0 in every frame is a hand that was not recorded."""
+    from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
+    from lerobot_unidextok.conversion.mapping import map_episode
+
+    moving = l10_motion(30, 0).astype(np.float64)
+    raw = RawEpisode("ep", 30.0, [HandStream("left", HAND, np.zeros_like(moving)), HandStream("right", HAND, moving)])
+    ep = map_episode(raw)
+    assert ep.zero_hand_sides == ("left",) and not ep.mask[:, :22].any() and not ep.state_rad[:, :22].any()
+    assert ep.absent_hand_frames == 30 and ep.mask[:, 22:].any()
+    kept = map_episode(raw, zero_hands="keep")
+    assert kept.zero_hand_sides == () and kept.mask[:, :22].any()  # read as values: the closed fist
+    alone = RawEpisode("ep", 30.0, [HandStream("right", HAND, np.zeros_like(moving))])
+    with pytest.raises(ValueError, match="every hand's state is 0 throughout"):
+        map_episode(alone)
+
+
+def test_hand_columns_are_bound_by_name_whatever_their_order(tmp_path):
+    """The same joints listed in another order than the hand spec's convert to the same UDHM state: columns
+    that name the joints are bound by name (before, by position: up to 43 deg off without a word)."""
+    ordered = [f"r_l10_{j}" for j in JOINTS]
+    shuffled = ordered[::-1]
+    a = write_l10_robot(tmp_path / "a", episodes=2, names=ordered)
+    b = write_l10_robot(tmp_path / "b", episodes=2, names=shuffled)
+    # the same motion written in the reversed column order
+    for path in sorted((b / "data").rglob("*.parquet")):
+        t = pq.read_table(path)
+        import pyarrow as pa
+
+        for key in ("observation.state", "action"):
+            v = np.stack(t.column(key).to_pylist())[:, ::-1].copy()
+            t = t.set_column(t.schema.get_field_index(key), key,
+                             pa.FixedSizeListArray.from_arrays(pa.array(v.reshape(-1), pa.float32()), 10))  # fmt: skip
+        pq.write_table(t, path)
+    _convert(a, tmp_path / "ua", {"right": f"{HAND}:r_l10_"})
+    _convert(b, tmp_path / "ub", {"right": f"{HAND}:r_l10_"})
+    np.testing.assert_array_equal(_state(tmp_path / "ua"), _state(tmp_path / "ub"))
+    assert UdhmDatasetMeta(tmp_path / "ub").native_layout().native_names == shuffled  # the robot's own order back
+    half = ordered[:5] + [f"r_l10_extra_{i}" for i in range(5)]
+    c = write_l10_robot(tmp_path / "c", episodes=1, names=half)
+    with pytest.raises(ValueError, match=r"only partly name the joints of linkerhand_l10.*name none"):
+        _convert(c, tmp_path / "uc", {"right": f"{HAND}:r_l10_"})
+
+
+def test_a_shape_that_disagrees_with_its_names_and_videos_in_another_folder(tmp_path, caplog):
+    raw = write_l10_robot(tmp_path / "raw", episodes=2)
+    info_path = raw / "meta" / "info.json"
+    info = json.loads(info_path.read_text())
+    info["features"]["observation.state"]["shape"] = [12]  # seen: shape [30] with 28 names (rows: 28 wide)
+    info_path.write_text(json.dumps(info))
+    with caplog.at_level(logging.WARNING):
+        _convert(raw, tmp_path / "out", {"right": f"{HAND}:r_l10_"})
+    assert "shape [12] disagrees with its 10 names; the data rows are 10 wide, so the names are used" in caplog.text
+    info["features"]["observation.state"]["names"] = info["features"]["observation.state"]["names"][:8]
+    info["features"]["observation.state"]["shape"] = [10]
+    info_path.write_text(json.dumps(info))
+    with pytest.raises(ValueError, match="8 names for shape .10., and the data rows are 10 wide"):
+        _convert(raw, tmp_path / "out2", {"right": f"{HAND}:r_l10_"})
+
+
+def test_videos_under_another_folder_than_info_json_says(tmp_path, caplog):
+    from lerobot_unidextok.sources._lerobot_files import moved_file, video_folder_note
+
+    root = tmp_path / "ds"
+    (root / "video" / "cam" / "chunk-000").mkdir(parents=True)
+    (root / "video" / "cam" / "chunk-000" / "file-000.mp4").write_bytes(b"x")
+    info = {"video_path": "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4",
+            "features": {"cam": {"dtype": "video"}}}  # fmt: skip
+    assert "video_path says videos/, but the videos are under video/: reading them there" in video_folder_note(root, info)
+    want = root / "videos" / "cam" / "chunk-000" / "file-000.mp4"
+    assert moved_file(root, want) == root / "video" / "cam" / "chunk-000" / "file-000.mp4"
+    (root / "videos").mkdir()
+    assert video_folder_note(root, info) is None
+
+
+def test_a_dataset_whose_every_hand_is_zero_is_refused(tmp_path):
+    names = [f"{side}_hand_joint_{i}" for side in ("left", "right") for i in range(10)]
+    raw = write_l10_robot(tmp_path / "raw", episodes=1, names=names, left_zero=True)
+    with pytest.raises(Exception, match="every hand's columns are 0 in every frame"):
+        _convert(raw, tmp_path / "out", {"left": f"{HAND}:left_hand_"})
+    assert not (tmp_path / "out").exists()
+    _ = shutil, load_udhm_frames
+
+
+def test_timestamps_all_zero_or_repeated_are_named_when_rebuilt(tmp_path, caplog):
+    """Source timestamps all 0 (episode 0) or repeating (episode 1) were rebuilt from the frame indices without
+    a word; now the conversion says which episodes and that the rebuilt clock assumes frames 1/fps apart."""
+    import pyarrow as pa
+
+    raw = write_l10_robot(tmp_path / "raw", episodes=3)
+    for path in sorted((raw / "data").rglob("*.parquet")):
+        table = pq.read_table(path)
+        episode = table.column("episode_index").to_numpy()
+        t = table.column("timestamp").to_numpy().copy()
+        t[episode == 0] = 0.0
+        t[np.flatnonzero(episode == 1)[5:8]] = t[np.flatnonzero(episode == 1)[4]]
+        pq.write_table(table.set_column(table.schema.get_field_index("timestamp"), "timestamp",
+                                        pa.array(t, table.schema.field("timestamp").type)), path)  # fmt: skip
+    with caplog.at_level(logging.WARNING):
+        report = _convert(raw, tmp_path / "out", {"right": f"{HAND}:{PREFIX}"})
+    assert report.num_episodes == 3
+    text = caplog.text
+    assert "2 episode(s) have source timestamps that do not step by 1/fps" in text and "frame_index / 30" in text
+    assert "timestamps all 0" in text and "repeat or go back at 3 of 40 frames" in text
+
+
+def test_the_test_split_does_not_depend_on_where_input_points(tmp_path):
+    """A dataset converted from its own folder or from a folder above it holds out the same episodes (before:
+    the keys kept the part of the path below --input, so `--input=$HF_LEROBOT_HOME/lab` gave other test
+    episodes than `--input=$HF_LEROBOT_HOME/lab/g1`)."""
+    write_l10_robot(tmp_path / "lab" / "g1", episodes=10)
+    option = {"right": f"{HAND}:{PREFIX}"}
+    splits = []
+    for i, where in enumerate([tmp_path / "lab" / "g1", tmp_path / "lab"]):
+        _convert(where, tmp_path / f"out{i}", option)
+        splits.append(UdhmDatasetMeta(tmp_path / f"out{i}").split("recorded").test)
+    assert len(splits[0]) == 2 and splits[1] == splits[0], splits
