@@ -89,6 +89,6 @@ EPISODES_META_GLOB = "meta/episodes/chunk-*/file-*.parquet"  # per-episode metad
 DATA_GLOB = "data/chunk-*/file-*.parquet"
 # settings of the conversion, its test episodes, per-episode records and the native layout
 CONVERSION_PATH = "meta/unidextok_conversion.json"
-# beside the raw files of a synthetic sample (`conversion.samples`): per-frame gesture labels and
+# beside the raw files of a synthetic sample (`samples`): per-frame gesture labels and
 # `"synthetic": true`, which marks the converted dataset synthetic
 SAMPLE_LABELS_FILE = "gestures.json"

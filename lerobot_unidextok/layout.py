@@ -137,9 +137,9 @@ class NativeLayout:
     mapping ("semantic", or the "append_pad" ablation), recorded in `meta/unidextok_conversion.json`.
 
     A robot bound into a mix of robots (`unidextok-deploy`) may have fewer hands than the mix has blocks
-    (`absent_sides`: blocks that stay zero on the way in and are not decoded on the way out) and native columns
-    the mix does not carry (`dropped`: read past on the way in, e.g. the arms of a hands-only mix; a layout
-    with dropped columns maps the native vector in only).
+    (`absent_sides`: blocks that stay zero on the way in and are not decoded on the way out), and a robot's
+    vector may hold columns the converted one does not carry (`dropped`: read past on the way in, zero on the
+    way out; a hand that was never recorded, or the arms of a hands-only mix).
     """
 
     names: list[str]
@@ -237,15 +237,10 @@ class NativeLayout:
 
     def to_native(self, x: np.ndarray) -> np.ndarray:
         """(..., len(names)) converted values -> (..., len(native_names)) native values (float64)."""
-        if self.dropped:
-            raise ValueError(
-                f"this layout reads the robot's columns {self.dropped[:4]}... past (it maps the native vector in "
-                "only), so it cannot produce the robot's whole vector; use the action layout to decode actions"
-            )
         x = np.asarray(x, dtype=np.float64)
         if x.shape[-1] != len(self.names):
             raise ValueError(f"expected a vector of width {len(self.names)} (converted action), got {x.shape}")
-        out = np.empty((*x.shape[:-1], self.native_dim), dtype=np.float64)
+        out = np.zeros((*x.shape[:-1], self.native_dim), dtype=np.float64)  # dropped columns stay zero
         out[..., self._copy_dst] = x[..., self._copy_src]
         for spec, side, block, dst in self._decoders:
             out[..., dst] = np.asarray(spec.from_udhm(x[..., block], side, mapping=self.mapping))

@@ -1,6 +1,6 @@
 """What a source reader hands to the conversion pipeline: raw episodes in native units.
 
-Readers (`converters/<source>.py`) only turn files into these objects; everything else
+Readers (`lerobot_unidextok/sources/<source>.py`) only turn files into these objects; everything else
 (UDHM mapping, validation, writing, splits, cards) is shared machinery in this package.
 
 A robot episode carries the whole robot, not only its hands (converted-dataset contract in
@@ -72,6 +72,9 @@ class RawEpisode:
     native_names: dict[str, list[str]] = field(default_factory=dict)
     # {"observation.state": "states"}: source feature key of each output vector when it differs
     native_keys: dict[str, str] = field(default_factory=dict)
+    # {"observation.state": [...]}: source columns the conversion leaves out (a hand that was never recorded):
+    # neither hand nor passthrough, zero when the robot's own vector is rebuilt
+    dropped: dict[str, list[str]] = field(default_factory=dict)
     # other source features copied unchanged: key -> (T,) pyarrow array, and their LeRobot feature specs
     copied: dict[str, Any] = field(default_factory=dict)
     copied_features: dict[str, dict] = field(default_factory=dict)

@@ -105,5 +105,6 @@ def native_layouts(ep: UdhmEpisode, mapping: str) -> dict[str, NativeLayout]:
             mapping=mapping,
             source_names=ep.source_names.get(key, []),
             source_key=ep.native_keys.get(key),
+            dropped=ep.dropped.get(key, []),
         )
     return out

@@ -17,11 +17,12 @@ import numpy as np
 from lerobot_unidextok.blocks import udhm_state_names
 from lerobot_unidextok.constants import ACTION, MAPPINGS, OBS_STATE, SIDES, UDHM_DIM
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode, VideoSegment
+from lerobot_unidextok.errors import InvalidInputError
 
 ANGLE_BOUND_RAD = 2 * np.pi  # no UDHM joint angle is beyond this: larger values are unit errors
 
 
-class EpisodeError(ValueError):
+class EpisodeError(InvalidInputError):
     """One episode cannot be converted; `source_file` and `reason` go into the error report."""
 
     def __init__(self, source_file: str, reason: str):
@@ -44,12 +45,14 @@ class UdhmEpisode:
     action_rad: np.ndarray | None = None  # (T, 22 * H) float32
     trimmed_frames: int = 0
     absent_hand_frames: int = 0  # hand-frames zero-filled because the hand was not present
+    zero_hand_sides: tuple[str, ...] = ()  # hands whose state was 0 throughout: converted as absent
     synthetic: bool = False
     extra: dict = field(default_factory=dict)
     # -- whole robot (see RawEpisode): trimmed like the hand arrays ------------------------------------
     passthrough: dict[str, Passthrough] = field(default_factory=dict)
     native_names: dict[str, list[str]] = field(default_factory=dict)
     native_keys: dict[str, str] = field(default_factory=dict)
+    dropped: dict[str, list[str]] = field(default_factory=dict)  # source columns left out (see RawEpisode)
     # every source column name where `native_names` lists only the kept (hand) columns (`--keep=hands`)
     source_names: dict[str, list[str]] = field(default_factory=dict)
     hand_columns: tuple[tuple[tuple[str, ...] | None, tuple[str, ...] | None], ...] = ()  # (H,) (state, action)
@@ -107,6 +110,7 @@ class UdhmEpisode:
             video_features={},
             native_names=native_names,
             source_names=source_names,
+            dropped={},  # the native vectors are the hand columns only
         )
 
 
@@ -188,8 +192,15 @@ def _check_stream(stream: HandStream, spec, num: int, src: str) -> np.ndarray:
     return valid
 
 
-def map_episode(raw: RawEpisode, mapping: str = "semantic") -> UdhmEpisode:
-    """Validate one raw episode and map every hand to UDHM; raises EpisodeError with the reason."""
+ZERO_HANDS = ("absent", "keep")
+
+
+def map_episode(raw: RawEpisode, mapping: str = "semantic", zero_hands: str = "absent") -> UdhmEpisode:
+    """Validate one raw episode and map every hand to UDHM; raises EpisodeError with the reason.
+
+    `zero_hands="absent"`: a robot hand whose state is 0 in every joint of every frame of the episode was not
+    recorded (a two-hand layout with one hand's columns left at zero): it is converted as absent (zero block,
+    zero mask) and listed in `zero_hand_sides`, never as a closed fist. "keep": converted as values."""
     from lerobot_unidextok import hands as hand_registry
 
     src = raw.source_file
@@ -212,18 +223,29 @@ def map_episode(raw: RawEpisode, mapping: str = "semantic") -> UdhmEpisode:
     if num == 0:
         raise EpisodeError(src, "episode has 0 frames")
 
-    specs, valids = [], []
+    if zero_hands not in ZERO_HANDS:
+        raise ValueError(f"zero_hands must be one of {ZERO_HANDS}, got {zero_hands!r}")
+    specs, valids, zero_sides = [], [], []
     for stream in raw.hands:
         try:
             spec = hand_registry.get(stream.hand)
         except (KeyError, ValueError) as exc:
             raise EpisodeError(src, f"unknown hand {stream.hand!r}: {exc}") from exc
         specs.append(spec)
-        valids.append(_check_stream(stream, spec, num, src))
+        valid = _check_stream(stream, spec, num, src)
+        if zero_hands == "absent" and spec.kind == "joints" and not np.any(np.asarray(stream.state_native)):
+            valid = np.zeros(num, dtype=bool)
+            zero_sides.append(stream.side)
+        valids.append(valid)
     present = np.stack(valids)  # (H, T)
     any_present = present.any(axis=0)
     if not any_present.any():
-        raise EpisodeError(src, "no frame has a present hand (all valid flags False)")
+        raise EpisodeError(
+            src,
+            "no frame has a present hand"
+            + (f" (every hand's state is 0 throughout: {zero_sides}; --zero_hands=keep converts zeros as values)"
+               if zero_sides else " (all valid flags False)"),
+        )  # fmt: skip
     first, last = int(np.argmax(any_present)), num - int(np.argmax(any_present[::-1]))
 
     states, masks, actions = [], [], []
@@ -249,11 +271,13 @@ def map_episode(raw: RawEpisode, mapping: str = "semantic") -> UdhmEpisode:
         action_rad=np.concatenate(actions, axis=1) if actions else None,
         trimmed_frames=num - (last - first),
         absent_hand_frames=int((~present[:, first:last]).sum()),
+        zero_hand_sides=tuple(zero_sides),
         synthetic=bool(raw.extra.get("synthetic", False)),
         extra=dict(raw.extra),
         passthrough={k: Passthrough(p.names, p.values[first:last]) for k, p in passthrough.items()},
         native_names={k: list(v) for k, v in raw.native_names.items()},
         native_keys=dict(raw.native_keys),
+        dropped={k: list(v) for k, v in raw.dropped.items()},
         hand_columns=tuple((s.state_columns, s.action_columns) for s in raw.hands),
         copied={k: _slice_column(v, first, last, num, src, k) for k, v in raw.copied.items()},
         copied_features=dict(raw.copied_features),
@@ -273,6 +297,16 @@ def _check_passthrough(raw: RawEpisode, num: int, src: str, has_action: bool) ->
             raise EpisodeError(src, f"{key} passthrough columns have {p.values.shape[0]} frames, the hands {num}")
         if key == "action" and not has_action:
             raise EpisodeError(src, "action passthrough columns given but the hands have no actions")
+        values = np.asarray(p.values)
+        if values.dtype.kind == "f" and not np.isfinite(values).all():
+            bad = ~np.isfinite(values)
+            columns = [p.names[i] for i in np.flatnonzero(bad.any(axis=0))]
+            raise EpisodeError(
+                src,
+                f"NaN/inf in {key} columns {columns[:6]}{' ...' if len(columns) > 6 else ''} at frames "
+                f"{_frames(np.flatnonzero(bad.any(axis=1)))}: these frames would make the dataset's statistics NaN "
+                "and every training loss NaN; fix or drop them in the source (--on_error=skip skips the episode)",
+            )
     missing = set(raw.copied_features) ^ set(raw.copied)
     if missing:
         raise EpisodeError(src, f"copied features and columns disagree: {sorted(missing)}")

@@ -14,7 +14,7 @@ conversion's own writer (`conversion.writer`, LeRobot's file format and statisti
   `passthrough_mask` saying which are real.
 - `hand_type` (each block's hand spec; a lacking side repeats the input's first hand, as `--sides` does) and
   `udhm_mask` per frame, as in any converted dataset; and `observation.hand_ids` ((H,) int64): each block's hand
-  as an index into the record's `hand_vocabulary`, -1 for a lacking side. The `<type>_udt` policies read it to
+  as an index into the record's `hand_vocabulary`, -1 for a lacking side and for frames where the hand is absent. The `<type>_udt` policies read it to
   tokenise each row with its own hands and to tell the policy which embodiment it controls.
 - Actions: an input's own; an input without actions (human hands: keypoint files, EgoDex) gets the action rule
   `action[t] = state[t + k]` (`--action_ahead=k`, the hand `k` frames later; the last frames hold the last
@@ -36,7 +36,6 @@ from __future__ import annotations
 import logging
 import shutil
 import time
-import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -53,13 +52,13 @@ from lerobot_unidextok.constants import (
     UDHM_MASK_KEY,
 )
 from lerobot_unidextok.conversion.card import write_card
+from lerobot_unidextok.conversion.output import check_output, move_into_place, remove_stale, temp_dir
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.data.reader import data_files, dataset_folder
 from lerobot_unidextok.data.record import ConversionRecord, EpisodeRecord, MixedSource, write_record
-from lerobot_unidextok.errors import UserError
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.utils.cli import progress_bar
-from lerobot_unidextok.utils.files import replace_folder
 
 logger = logging.getLogger(__name__)
 
@@ -68,7 +67,7 @@ KEEP = ("hands", "all")
 MAX_GROWTH = 20.0  # weights that would write more than this many times the inputs' frames are refused
 
 
-class MixError(UserError, ValueError):
+class MixError(InvalidInputError):
     """The inputs cannot be mixed as asked; the message names the input, the problem and the fix."""
 
 
@@ -267,8 +266,10 @@ class _Mixer:
             if side in block_of:
                 j = inp.sides.index(side)
                 state[:, out] = state_in[:, block_of[side].slice]
-                mask[:, UDHM_DIM * k : UDHM_DIM * (k + 1)] = mask_in[:, UDHM_DIM * j : UDHM_DIM * (j + 1)]
-                hand_ids[:, k] = self.vocabulary.index(own_hands[j])
+                block_mask = mask_in[:, UDHM_DIM * j : UDHM_DIM * (j + 1)]
+                mask[:, UDHM_DIM * k : UDHM_DIM * (k + 1)] = block_mask
+                # the hand where it is there (a frame where it was not tracked: no hand, as a lacking side)
+                hand_ids[:, k] = np.where(block_mask.any(axis=1), self.vocabulary.index(own_hands[j]), -1)
                 block_hands.append(own_hands[j])
             else:  # a side this input lacks: zero block, zero mask, id -1 (hand_type names its first hand)
                 block_hands.append(own_hands[0])
@@ -316,7 +317,7 @@ def mix(opts: MixOptions) -> MixReport:
     t0 = time.perf_counter()
     target = Path(opts.root).expanduser().resolve()
     inputs = [_open_input(name, opts) for name in opts.inputs]
-    _check_target(target, inputs, opts.overwrite)
+    check_output(target, [i.meta.root for i in inputs], opts.overwrite)
     _check_compatible(inputs, opts)
     mixer = _Mixer(inputs, opts)
     train_frames = [
@@ -330,7 +331,8 @@ def mix(opts: MixOptions) -> MixReport:
             f"than {MAX_GROWTH:g}x the inputs' {sum(train_frames)}): choose weights closer to the inputs' sizes"
         )
     target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = target.parent / f".{target.name}.mix-{uuid.uuid4().hex[:8]}"
+    remove_stale(target)
+    tmp = temp_dir(target)
     writer = UdhmDatasetWriter(tmp, opts.repo_id, int(inputs[0].meta.fps), mixer.features)
     episodes: list[EpisodeRecord] = []
     test: list[int] = []
@@ -394,7 +396,7 @@ def mix(opts: MixOptions) -> MixReport:
         )
         write_record(tmp, record)
         write_card(tmp, repo_id=opts.repo_id, record=record, num_frames=writer.num_frames, features=writer.features)
-        replace_folder(tmp, target)
+        move_into_place(tmp, target, opts.overwrite)
     except BaseException:
         bar.close()
         writer.abort()
@@ -403,23 +405,6 @@ def mix(opts: MixOptions) -> MixReport:
     shares = [r * f for r, f in zip(repeats, train_frames, strict=True)]
     return MixReport(target, writer.num_episodes, writer.num_frames, test, sources,
                      [s / max(sum(shares), 1) for s in shares], time.perf_counter() - t0)  # fmt: skip
-
-
-def _check_target(target: Path, inputs: list[_Input], overwrite: bool) -> None:
-    """Refuse a root that is, holds or sits inside an input, and anything but an earlier mix to overwrite."""
-    for inp in inputs:
-        root = inp.meta.root.resolve()
-        if target == root or root.is_relative_to(target) or target.is_relative_to(root):
-            raise MixError(f"--root {target} is, holds or sits inside the input {inp.name}: choose another folder")
-    if not target.exists():
-        return
-    earlier = UdhmDatasetMeta(target).record if (target / "meta" / "info.json").is_file() else None
-    if not overwrite:
-        raise MixError(f"{target} already exists: choose another --root"
-                       + (", or pass --overwrite=true to replace this earlier mix" if earlier and earlier.hand_vocabulary else ""))  # fmt: skip
-    if earlier is None or earlier.source != MIX_SOURCE:
-        raise MixError(f"{target} is not a mix written by unidextok-mix, so --overwrite=true does not replace it: "
-                       "choose another --root")  # fmt: skip
 
 
 def format_report(report: MixReport) -> str:

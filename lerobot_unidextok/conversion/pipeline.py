@@ -27,7 +27,6 @@ import logging
 import os
 import shutil
 import time
-import uuid
 from collections import deque
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
@@ -46,20 +45,21 @@ from lerobot_unidextok.constants import (
 )
 from lerobot_unidextok.conversion.card import write_card
 from lerobot_unidextok.conversion.features import episode_features, episode_frames, native_layouts, udhm_features
-from lerobot_unidextok.conversion.mapping import EpisodeError, UdhmEpisode, map_episode, to_sides
+from lerobot_unidextok.conversion.mapping import ZERO_HANDS, EpisodeError, UdhmEpisode, map_episode, to_sides
+from lerobot_unidextok.conversion.output import check_output, move_into_place, remove_stale, temp_dir
 from lerobot_unidextok.conversion.registry import (
-    CONVERTERS_PACKAGE,
+    SOURCES_PACKAGE,
     SetupError,
     get_source,
-    import_converters,
+    import_sources,
     make_reader,
 )
+from lerobot_unidextok.conversion.workers import PARENT_ENV, die_with
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 from lerobot_unidextok.data.record import ConversionRecord, EpisodeRecord, load_record, write_record
 from lerobot_unidextok.data.splits import split_order
+from lerobot_unidextok.errors import InvalidInputError, MissingInputError, UnavailableError
 from lerobot_unidextok.layout import NativeLayout
-from lerobot_unidextok.utils.cli import UserError
-from lerobot_unidextok.utils.files import replace_folder
 
 logger = logging.getLogger(__name__)
 
@@ -103,6 +103,9 @@ class ConvertOptions:
     # "all": the whole robot (arms, other features, videos) | "hands": UDHM blocks only (other features and videos
     # are not read, so missing video files do not matter; the native layout then names the hand columns)
     keep: str = "all"
+    # a robot hand whose state is 0 in every joint and frame of an episode: "absent" (not recorded: a zero
+    # block with a zero mask, listed at the end) | "keep" (convert the zeros as joint values)
+    zero_hands: str = "absent"
     shard_index: int = 0  # convert one contiguous shard of the episode list (multi-machine runs by hand)
     num_shards: int = 1  # how many such shards the episode list is cut into
     progress: bool = True  # progress bar
@@ -115,6 +118,8 @@ class ConvertOptions:
             raise ValueError(f"on_error must be 'raise' or 'skip', got {self.on_error!r}")
         if self.keep not in KEEP:
             raise ValueError(f"keep must be one of {KEEP}, got {self.keep!r}")
+        if self.zero_hands not in ZERO_HANDS:
+            raise ValueError(f"zero_hands must be one of {ZERO_HANDS}, got {self.zero_hands!r}")
         if self.num_workers < 1:
             raise ValueError(f"num_workers must be >= 1, got {self.num_workers}")
         if not 0.0 <= self.test_fraction < 1.0:
@@ -175,7 +180,7 @@ class ConvertReport:
         return self.num_frames / self.seconds if self.seconds > 0 else float("inf")
 
 
-class ConversionError(UserError):
+class ConversionError(UnavailableError):
     """The conversion stopped; nothing was written at the target."""
 
 
@@ -190,16 +195,32 @@ def episode_key(ref: Any, input_path: str | Path) -> str:
     return text
 
 
+def episode_keys(refs: list, input_path: str | Path) -> list[str]:
+    """The key of each ref that the test split hashes, the same wherever `--input` points: relative to the
+    deepest folder all refs share (their dataset roots for LeRobot refs, else their files) when that lies below
+    `--input`, so a dataset converted from a parent folder that holds only it gets its own keys."""
+    places = [str(getattr(r, "root", r)) for r in refs]
+    if len(set(places)) > 1:
+        common = os.path.commonpath(places)
+    else:
+        common = places[0] if hasattr(refs[0], "root") else os.path.dirname(places[0])
+    inside = os.path.abspath(common).startswith(os.path.abspath(input_path) + os.sep)
+    return [episode_key(r, common if inside else input_path) for r in refs]
+
+
 # ---------------------------------------------------------------------------------------------
 # workers
 # ---------------------------------------------------------------------------------------------
 _WORKER: dict[str, Any] = {}
 
 
-def _init_worker(source: str, source_options: dict, mapping: str) -> None:
-    import_converters()
+def _init_worker(source: str, source_options: dict, mapping: str, zero_hands: str, parent: int | None = None) -> None:
+    if parent is not None:  # a pool worker: it ends with the conversion (and the forkserver) whatever kills them
+        die_with(parent)
+    import_sources()
     _WORKER["reader"] = make_reader(source, source_options)
     _WORKER["mapping"] = mapping
+    _WORKER["zero_hands"] = zero_hands
 
 
 def _read_and_map(ref: Any) -> UdhmEpisode | EpisodeFailure:
@@ -209,7 +230,7 @@ def _read_and_map(ref: Any) -> UdhmEpisode | EpisodeFailure:
     except Exception as exc:  # noqa: BLE001  any reader error is this episode's failure
         return EpisodeFailure(str(ref), f"reader error {type(exc).__name__}: {exc}")
     try:
-        return map_episode(raw, _WORKER["mapping"])
+        return map_episode(raw, _WORKER["mapping"], _WORKER["zero_hands"])
     except EpisodeError as exc:
         return EpisodeFailure(exc.source_file, exc.reason)
     except Exception as exc:  # noqa: BLE001
@@ -219,7 +240,7 @@ def _read_and_map(ref: Any) -> UdhmEpisode | EpisodeFailure:
 def _iter_results(refs: list, opts: ConvertOptions, reader_options: dict):
     """Mapped episodes (or failures) in `refs` order; bounded look-ahead in the pool."""
     if opts.num_workers == 1:
-        _init_worker(opts.source, reader_options, opts.mapping)
+        _init_worker(opts.source, reader_options, opts.mapping, opts.zero_hands)
         for ref in refs:
             yield _read_and_map(ref)
         return
@@ -228,31 +249,38 @@ def _iter_results(refs: list, opts: ConvertOptions, reader_options: dict):
 
     ctx = multiprocessing.get_context(opts.mp_context)
     if opts.mp_context == "forkserver":  # import once in the server; workers fork from it
+        os.environ[PARENT_ENV] = str(os.getpid())  # the forkserver dies with this process (conversion.workers)
         ctx.set_forkserver_preload(
             [
+                "lerobot_unidextok.conversion.workers",
                 "lerobot_unidextok.conversion.pipeline",
                 "lerobot_unidextok.hands",
-                CONVERTERS_PACKAGE,
+                SOURCES_PACKAGE,
             ]
         )
-    with ProcessPoolExecutor(
+    pool = ProcessPoolExecutor(
         opts.num_workers,
         mp_context=ctx,
         initializer=_init_worker,
-        initargs=(opts.source, reader_options, opts.mapping),
-    ) as pool:
-        pending: deque = deque()
-        it = iter(refs)
-        try:
-            for ref in it:
-                pending.append(pool.submit(_read_and_map, ref))
-                if len(pending) >= window:
-                    yield pending.popleft().result()
-            while pending:
+        initargs=(opts.source, reader_options, opts.mapping, opts.zero_hands, os.getpid()),
+    )
+    pending: deque = deque()
+    finished = False
+    try:
+        for ref in refs:
+            pending.append(pool.submit(_read_and_map, ref))
+            if len(pending) >= window:
                 yield pending.popleft().result()
-        finally:
-            for fut in pending:
-                fut.cancel()
+        while pending:
+            yield pending.popleft().result()
+        finished = True
+    finally:
+        if finished:
+            pool.shutdown(wait=True)
+        else:  # an error, Ctrl-C or SIGTERM: stop the workers now instead of letting them finish their queue
+            pool.shutdown(wait=False, cancel_futures=True)
+            for process in list(multiprocessing.active_children()):
+                process.kill()
 
 
 def _int_fps(fps: float, src: str) -> int:
@@ -269,7 +297,7 @@ def _int_fps(fps: float, src: str) -> int:
 # convert
 # ---------------------------------------------------------------------------------------------
 def input_is_synthetic(input_path: Path) -> bool:
-    """True when `input_path` is (inside) a sample written by `conversion.samples` (its labels file says so),
+    """True when `input_path` is (inside) a sample written by `samples` (its labels file says so),
     so the card is marked synthetic even for formats whose reader cannot carry the marker."""
     path = input_path.resolve()
     for folder in [path, *path.parents][:3]:
@@ -280,32 +308,6 @@ def input_is_synthetic(input_path: Path) -> bool:
             except (json.JSONDecodeError, AttributeError):
                 return False
     return False
-
-
-def _temp_dir(target: Path) -> Path:
-    return target.parent / f".{target.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}"
-
-
-def _remove_stale_temps(target: Path) -> None:
-    """Delete temp folders of earlier runs on `target` whose process is gone (killed with SIGKILL)."""
-    for path in target.parent.glob(f".{target.name}.tmp-*"):
-        try:
-            pid = int(path.name.rsplit(".tmp-", 1)[1].split("-")[0])
-        except (IndexError, ValueError):
-            continue
-        try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            logger.warning("removing stale temp folder of a dead conversion run: %s", path)
-            shutil.rmtree(path, ignore_errors=True)
-        except PermissionError:
-            pass
-
-
-def _move_into_place(tmp: Path, target: Path, overwrite: bool) -> None:
-    if target.exists() and not overwrite:  # appeared while we were converting
-        raise ConversionError(f"{target} appeared during conversion; result left in {tmp}")
-    replace_folder(tmp, target)
 
 
 @dataclass
@@ -325,9 +327,8 @@ def plan_episodes(reader, opts: ConvertOptions, input_path: Path) -> _Plan:
         raise SetupError(f"source {opts.source!r} cannot list {input_path}: {exc}") from exc
     if not refs:
         raise SetupError(f"source {opts.source!r} found no episodes under {input_path}; check --input")
-    keys = [episode_key(r, input_path) for r in refs]
-    _, test_pos = split_order(keys, opts.test_fraction)
-    test = set(test_pos)
+    keys = episode_keys(refs, input_path)
+    test = set(split_order(keys, opts.test_fraction)[1])
     items = [(ref, key, "test" if i in test else "train") for i, (ref, key) in enumerate(zip(refs, keys, strict=True))]
     if opts.max_episodes is not None:
         items = items[: opts.max_episodes]
@@ -355,11 +356,10 @@ def source_robot_type(reader, refs: list) -> str | None:
 def checked_paths(opts: ConvertOptions) -> tuple[Path, Path]:
     """(output root, input path) of a conversion; refuses an existing root without --overwrite and a missing input."""
     target = Path(opts.root).expanduser().resolve()
-    if target.exists() and not opts.overwrite:
-        raise FileExistsError(f"{target} already exists; pass --overwrite=true to replace it, or choose another --root")
     input_path = Path(opts.input).expanduser()
     if not input_path.exists():
-        raise FileNotFoundError(f"--input {input_path} does not exist")
+        raise MissingInputError(f"--input {input_path} does not exist")
+    check_output(target, [input_path], opts.overwrite)
     return target, input_path
 
 
@@ -367,15 +367,15 @@ def convert(opts: ConvertOptions) -> ConvertReport:
     """Convert `opts.source` at `opts.input` into a UDHM LeRobotDataset at `opts.root`."""
     t0 = time.perf_counter()
     target, input_path = checked_paths(opts)
-    import_converters()
+    import_sources()
     reader_cls = get_source(opts.source)
     reader_options = opts.reader_options()
     reader = make_reader(opts.source, reader_options)
     plan = plan_episodes(reader, opts, input_path)
 
     target.parent.mkdir(parents=True, exist_ok=True)
-    _remove_stale_temps(target)
-    tmp = _temp_dir(target)
+    remove_stale(target)
+    tmp = temp_dir(target)
     state = _RunState(
         robot_type=plan.robot_type,
         synthetic=bool(getattr(reader_cls, "synthetic", False)) or input_is_synthetic(input_path),
@@ -418,7 +418,7 @@ def convert(opts: ConvertOptions) -> ConvertReport:
             features=state.writer.features,
             failures=[asdict(f) for f in state.failures],
         )
-        _move_into_place(tmp, target, opts.overwrite)
+        move_into_place(tmp, target, opts.overwrite)
     except BaseException:
         bar.close()
         if state.writer is not None:
@@ -436,6 +436,19 @@ def convert(opts: ConvertOptions) -> ConvertReport:
         failures=state.failures,
         hands=list(state.hands_seen),
     )
+    if state.zero_hands:
+        shown = ", ".join(state.zero_hands[:5]) + (f" and {len(state.zero_hands) - 5} more" if len(state.zero_hands) > 5 else "")
+        logger.warning(
+            "%d episode(s) have a hand whose state is 0 in every joint and frame, converted as absent (not recorded; "
+            "--zero_hands=keep converts the zeros as values): %s", len(state.zero_hands), shown,
+        )  # fmt: skip
+    if state.timestamp_notes:
+        notes = state.timestamp_notes
+        logger.warning(
+            "%d episode(s) have source timestamps that do not step by 1/fps; the converted timestamps are rebuilt as "
+            "frame_index / %d, right only if the frames were recorded 1/fps apart: %s", len(notes), state.writer.fps,
+            "; ".join(notes[:5]) + (f" and {len(notes) - 5} more" if len(notes) > 5 else ""),
+        )  # fmt: skip
     if state.failures:
         logger.warning("%d episode(s) skipped:\n%s", len(state.failures), format_failures(state.failures))
     return report
@@ -456,6 +469,8 @@ class _RunState:
     records: list[EpisodeRecord] = field(default_factory=list)
     test_episodes: list[int] = field(default_factory=list)
     hands_seen: dict[str, None] = field(default_factory=dict)
+    zero_hands: list[str] = field(default_factory=list)  # "<episode key>: <sides>" converted as absent (all 0)
+    timestamp_notes: list[str] = field(default_factory=list)  # "<episode key>: <what is wrong>" (sources/_lerobot_files)
     counts: dict[str, int] = field(default_factory=lambda: {"trimmed_frames": 0, "absent_hand_frames": 0})
 
     def add(self, result: UdhmEpisode | EpisodeFailure, key: str, split: str, opts: ConvertOptions, tmp: Path) -> None:
@@ -505,6 +520,10 @@ class _RunState:
         self.synthetic |= result.synthetic
         self.counts["trimmed_frames"] += result.trimmed_frames
         self.counts["absent_hand_frames"] += result.absent_hand_frames
+        if result.zero_hand_sides:
+            self.zero_hands.append(f"{key} ({', '.join(result.zero_hand_sides)})")
+        if result.extra.get("timestamp_note"):
+            self.timestamp_notes.append(f"{key}: {result.extra['timestamp_note']}")
 
     def finish(self, opts: ConvertOptions, reader_cls: type, plan: _Plan) -> ConversionRecord:
         total = self.writer.num_episodes
@@ -535,6 +554,7 @@ class _RunState:
             skipped_episodes=len(self.failures),
             trimmed_frames=self.counts["trimmed_frames"],
             absent_hand_frames=self.counts["absent_hand_frames"],
+            zero_hand_episodes=len(self.zero_hands),
             num_episodes=total,
             test_episodes=self.test_episodes,
             native_layouts=self.native,
@@ -584,14 +604,13 @@ def merge_shards(
     from lerobot.datasets.aggregate import aggregate_datasets
 
     target = Path(root).expanduser().resolve()
-    if target.exists() and not overwrite:
-        raise FileExistsError(f"{target} already exists; pass overwrite=True or choose another root")
     shard_roots = [Path(r) for r in shard_roots]
+    check_output(target, shard_roots, overwrite)
     shard_records = [load_record(r) for r in shard_roots]
     missing = [str(r) for r, rec in zip(shard_roots, shard_records, strict=True) if rec is None]
     if missing:
-        raise ValueError(f"not converted shards (no {CONVERSION_PATH}): {missing}")
-    tmp = _temp_dir(target)
+        raise InvalidInputError(f"not converted shards (no {CONVERSION_PATH}): {missing}")
+    tmp = temp_dir(target)
     try:
         aggregate_datasets(
             repo_ids=[f"{repo_id}_shard{k}" for k in range(len(shard_roots))],
@@ -622,6 +641,7 @@ def merge_shards(
             skipped_episodes=sum(r.skipped_episodes for r in shard_records),
             trimmed_frames=sum(r.trimmed_frames for r in shard_records),
             absent_hand_frames=sum(r.absent_hand_frames for r in shard_records),
+            zero_hand_episodes=sum(r.zero_hand_episodes for r in shard_records),
             hands=sorted({h for r in shard_records for h in r.hands}),
             synthetic=any(r.synthetic for r in shard_records),
             num_episodes=total,
@@ -636,7 +656,7 @@ def merge_shards(
             num_frames=int(info["total_frames"]),
             features=info["features"],
         )
-        _move_into_place(tmp, target, overwrite)
+        move_into_place(tmp, target, overwrite)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

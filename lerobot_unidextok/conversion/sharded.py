@@ -36,7 +36,8 @@ from lerobot_unidextok.conversion.pipeline import (
     checked_paths,
     plan_episodes,
 )
-from lerobot_unidextok.conversion.registry import import_converters, make_reader
+from lerobot_unidextok.conversion.registry import import_sources, make_reader
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.utils.imports import missing_package_message
 
 logger = logging.getLogger(__name__)
@@ -86,15 +87,15 @@ def convert_with_executor(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
     Returns the target folder (for Slurm: where the merge job will write it).
     """
     if cfg.type == "pool":
-        raise ValueError("ExecutorOptions(type='pool') converts in this process: call conversion.convert")
+        raise InvalidInputError("ExecutorOptions(type='pool') converts in this process: call conversion.convert")
     if opts.shard_index != 0 or opts.num_shards != 1:
-        raise ValueError("with an executor each task converts one shard: leave shard_index/num_shards unset")
+        raise InvalidInputError("with an executor each task converts one shard: leave shard_index/num_shards unset")
     try:  # datatrove is an optional extra: imported only when a run needs it
         import lerobot_unidextok.conversion.datatrove as dt
     except ImportError as exc:
         raise SetupError(f"{DATATROVE_MISSING}; {exc}") from exc
     target, input_path = checked_paths(opts)
-    import_converters()
+    import_sources()
     plan = plan_episodes(make_reader(opts.source, opts.reader_options()), opts, input_path)
     num_shards = min(cfg.tasks, len(plan.items))
     if num_shards < cfg.tasks:

@@ -111,6 +111,7 @@ def validate_dataset(root: str | Path, repo_id: str | None = None, load: bool = 
     total_eps = int(info.get("total_episodes", -1))
     _check_counts(rep, info, rows, total_eps)
     _check_values(rep, rows)
+    _check_finite_columns(rep, root, feats)
     try:
         meta = UdhmDatasetMeta(root)
     except RecordError as exc:
@@ -244,6 +245,27 @@ def _read_rows(rep: ValidationReport, root: Path, feats: dict, num_hands: int) -
 
     action = blocks(ACTION, np.float32) if action_udhm else None
     return _Rows(table, blocks(OBS_STATE, np.float32), blocks(UDHM_MASK_KEY, bool), action)
+
+
+def _check_finite_columns(rep: ValidationReport, root: Path, feats: dict) -> None:
+    """Every numeric feature, passthrough columns (arms) and copied observations included, holds no NaN/inf: one
+    would make `stats.json` NaN and every training loss NaN (lerobot-train then still exits 0)."""
+    keys = [k for k, ft in feats.items() if str(ft.get("dtype", "")).startswith("float")]
+    bad = []
+    for path in sorted(root.glob(DATA_GLOB)):
+        table = pq.read_table(path, columns=[*keys, "episode_index", "frame_index"])
+        for key in keys:
+            col = table.column(key).combine_chunks()
+            values = (col.flatten() if hasattr(col, "flatten") else col).to_numpy(zero_copy_only=False)
+            values = values.reshape(table.num_rows, -1)
+            rows, cols = np.nonzero(~np.isfinite(values))
+            if len(rows):
+                names = feature_names(feats[key]) or [f"{key}[{i}]" for i in range(values.shape[1])]
+                episodes = table.column("episode_index").to_numpy()[rows]
+                frames = table.column("frame_index").to_numpy()[rows]
+                where = ", ".join(f"episode {e} frame {f}" for e, f in list(zip(episodes, frames, strict=True))[:3])
+                bad.append(f"{key} {sorted({names[c] for c in cols})[:4]} at {where} ({len(rows)} values)")
+    rep.add("every numeric column finite", not bad, "; ".join(bad) or f"{len(keys)} features")
 
 
 def _check_counts(rep: ValidationReport, info: dict, rows: _Rows, total_eps: int) -> None:

@@ -22,6 +22,7 @@ from lerobot_unidextok.blocks import feature_names, find_udhm_blocks, passthroug
 from lerobot_unidextok.constants import ACTION, CONVERSION_PATH, EPISODES_META_GLOB, HAND_TYPE_KEY, INFO_PATH, OBS_STATE
 from lerobot_unidextok.data.record import ConversionRecord, load_record
 from lerobot_unidextok.data.splits import EpisodeSplit, choose_split
+from lerobot_unidextok.errors import InvalidInputError, MissingInputError
 from lerobot_unidextok.layout import HandLayout, NativeLayout
 
 logger = logging.getLogger(__name__)
@@ -34,7 +35,7 @@ class UdhmDatasetMeta:
         self.root = Path(root)
         info_path = self.root / INFO_PATH
         if not info_path.is_file():
-            raise FileNotFoundError(
+            raise MissingInputError(
                 f"{self.root} is not a LeRobotDataset: {INFO_PATH} missing. Pass the root folder of a dataset "
                 "converted with `unidextok-convert --source=... --input=... --root=...`"
             )
@@ -124,7 +125,7 @@ class UdhmDatasetMeta:
         """The distinct `hand_type` values (hand spec per block, comma-separated), sorted: from the record when
         it describes the dataset, else from the `hand_type` column of the data files."""
         if HAND_TYPE_KEY not in self.features:
-            raise ValueError(f"{self.root} has no '{HAND_TYPE_KEY}' column; convert it to UDHM with unidextok-convert")
+            raise InvalidInputError(f"{self.root} has no '{HAND_TYPE_KEY}' column; convert it to UDHM with unidextok-convert")
         record = self.record
         if not self.record_problem and record.episodes and all(e.hand_type for e in record.episodes):
             return sorted({e.hand_type for e in record.episodes})
@@ -137,7 +138,7 @@ class UdhmDatasetMeta:
 
         files = sorted((self.root / "data").rglob("*.parquet"))
         if not files:
-            raise FileNotFoundError(f"no data parquet under {self.root / 'data'}")
+            raise MissingInputError(f"no data parquet under {self.root / 'data'}")
         column = pa.concat_arrays([pq.read_table(f, columns=[HAND_TYPE_KEY]).column(0).combine_chunks() for f in files])
         if pa.types.is_list(column.type) or pa.types.is_fixed_size_list(column.type):
             column = pc.list_flatten(column)
@@ -147,7 +148,7 @@ class UdhmDatasetMeta:
         """The hand spec of each UDHM block, when every frame has the same hands; a ValueError otherwise."""
         types = self.hand_types
         if len(types) != 1:
-            raise ValueError(
+            raise InvalidInputError(
                 f"{self.root} mixes hand layouts across frames ({types}), but a processor step tokenises every "
                 "frame with one fixed layout. Convert each hand into its own dataset (e.g. --max_episodes or "
                 "separate inputs), or pass hand_layout explicitly if one layout is really meant for all frames"
@@ -157,7 +158,7 @@ class UdhmDatasetMeta:
     def hand_layout(self) -> HandLayout:
         """Blocks and sides of `observation.state` from its names, hands from `hand_type`."""
         if OBS_STATE not in self.features:
-            raise ValueError(f"{self.root} lacks '{OBS_STATE}'; convert it to UDHM with unidextok-convert")
+            raise InvalidInputError(f"{self.root} lacks '{OBS_STATE}'; convert it to UDHM with unidextok-convert")
         return HandLayout.from_state_names(self.names(OBS_STATE), self.block_hands())
 
     # ----------------------------------------------------------------------------------------- back to the robot
@@ -176,7 +177,7 @@ class UdhmDatasetMeta:
         if self.record is not None:
             layout = self.record.native_layouts.get(key)
             if layout is not None and layout.names != names:
-                raise ValueError(
+                raise InvalidInputError(
                     f"{self.root / CONVERSION_PATH} native_layout[{key!r}] names other columns than meta/info.json "
                     f"({layout.describe_converted()} vs {len(names)} columns): the dataset was changed after "
                     "conversion; convert it again"

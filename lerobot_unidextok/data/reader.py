@@ -20,6 +20,7 @@ from lerobot_unidextok.blocks import UdhmBlock, feature_names, find_udhm_blocks
 from lerobot_unidextok.constants import ACTION, DATA_GLOB, HAND_TYPE_KEY, INFO_PATH, OBS_STATE, UDHM_DIM, UDHM_MASK_KEY
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.data.splits import HOLDOUTS, SPLITS, EpisodeSplit, SplitError
+from lerobot_unidextok.errors import InvalidInputError, MissingInputError
 
 
 @dataclass
@@ -70,7 +71,7 @@ def resolve_root(root: str | Path | None, repo_id: str | None) -> Path:
         root = dataset_root(repo_id)  # $HF_LEROBOT_HOME/<repo_id>, then the HF cache (unidextok-pull)
     root = Path(root)
     if not (root / INFO_PATH).is_file():
-        raise FileNotFoundError(
+        raise MissingInputError(
             f"{root} is not a LeRobotDataset: meta/info.json missing. Convert a source first with "
             "`unidextok-convert --source=... --input=... --root=...`"
         )
@@ -81,7 +82,7 @@ def split_episode_range(info: dict, split: str) -> tuple[int, int]:
     """(first, end) episode indices of `split` from info.json `splits` ("a:b")."""
     splits = info.get("splits") or {}
     if split not in splits:
-        raise ValueError(
+        raise InvalidInputError(
             f"split {split!r} not in meta/info.json splits {sorted(splits)}; use one of them or split=None"
         )
     a, b = (int(x) for x in str(splits[split]).split(":"))
@@ -92,14 +93,14 @@ def udhm_blocks(info: dict, key: str = OBS_STATE) -> list[UdhmBlock]:
     """The UDHM blocks of a vector feature, found by name; a clear error when there are none."""
     ft = info["features"].get(key)
     if ft is None:
-        raise ValueError(f"dataset has no {key!r} feature; is it a UDHM conversion?")
+        raise InvalidInputError(f"dataset has no {key!r} feature; is it a UDHM conversion?")
     names = feature_names(ft)
     dim = int(ft["shape"][0])
     if len(names) != dim:
-        raise ValueError(f"{key} has {dim} values but {len(names)} names; UDHM blocks are found by name")
+        raise InvalidInputError(f"{key} has {dim} values but {len(names)} names; UDHM blocks are found by name")
     blocks = find_udhm_blocks(names)
     if not blocks:
-        raise ValueError(
+        raise InvalidInputError(
             f"{key} has no UDHM block (22 names '<side>_<udhm joint>', e.g. right_thumb_cmc_flex); "
             "convert the dataset with unidextok-convert first"
         )
@@ -150,7 +151,7 @@ def _layout(info: dict) -> _Layout:
             action_blocks = None  # an action without UDHM blocks (copied unchanged from the source)
         if action_blocks is not None:
             if [b.side for b in action_blocks] != sides:
-                raise ValueError(
+                raise InvalidInputError(
                     f"{ACTION} UDHM blocks {[b.side for b in action_blocks]} differ from {OBS_STATE} {sides}"
                 )
             columns.append(ACTION)
@@ -162,16 +163,16 @@ def data_files(root: Path) -> list[Path]:
     """The dataset's data parquet files in order; FileNotFoundError when there are none."""
     files = sorted(root.glob(DATA_GLOB))
     if not files:
-        raise FileNotFoundError(f"no data parquet files under {root / 'data'}")
+        raise MissingInputError(f"no data parquet files under {root / 'data'}")
     return files
 
 
 def _split_episodes(meta: UdhmDatasetMeta, split: str | None, holdout: str) -> np.ndarray | None:
     """Episode indices of `split` (None: every episode); a clear error for an empty split."""
     if split is not None and split not in SPLITS:
-        raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
+        raise InvalidInputError(f"split must be one of {SPLITS} or None, got {split!r}")
     if holdout not in HOLDOUTS:
-        raise ValueError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
+        raise InvalidInputError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
     if split in (None, "all"):
         return None
     episode_split: EpisodeSplit = meta.split(holdout)
@@ -204,7 +205,7 @@ def _frames_of_table(table: pa.Table, layout: _Layout, info: dict, drop_absent: 
     for s in ht.dictionary.to_pylist():
         parts = s.split(",")
         if len(parts) != num_hands:
-            raise ValueError(f"hand_type {s!r} names {len(parts)} hands but {OBS_STATE} has {num_hands} blocks")
+            raise InvalidInputError(f"hand_type {s!r} names {len(parts)} hands but {OBS_STATE} has {num_hands} blocks")
         per_value.append(parts)
     lut = np.array(per_value, dtype=object).reshape(-1, num_hands) if per_value else np.empty((0, num_hands), object)
     codes = ht.indices.to_numpy(zero_copy_only=False)
@@ -238,9 +239,9 @@ def _keep_episodes(table: pa.Table, wanted: np.ndarray | None) -> pa.Table:
 def _open(root, repo_id, split: str | None, holdout: str):
     """(info, layout, data files, wanted episodes) of a converted dataset, with the split arguments checked."""
     if split is not None and split not in SPLITS:
-        raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
+        raise InvalidInputError(f"split must be one of {SPLITS} or None, got {split!r}")
     if holdout not in HOLDOUTS:
-        raise ValueError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
+        raise InvalidInputError(f"holdout must be one of {HOLDOUTS}, got {holdout!r}")
     meta = UdhmDatasetMeta(resolve_root(root, repo_id))
     return meta.info, _layout(meta.info), data_files(meta.root), _split_episodes(meta, split, holdout)
 

@@ -20,13 +20,14 @@ from typing import Any
 
 from lerobot_unidextok.blocks import feature_names
 from lerobot_unidextok.constants import CONVERSION_PATH, INFO_PATH
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.layout import NativeLayout
 
 RECORD_VERSION = 2
 SPLIT_NAMES = ("train", "test")
 
 
-class RecordError(ValueError):
+class RecordError(InvalidInputError):
     """`meta/unidextok_conversion.json` cannot be read; the message names the file, the field and the fix."""
 
 
@@ -108,6 +109,7 @@ class ConversionRecord:
     skipped_episodes: int = 0  # episodes that failed with --on_error=skip
     trimmed_frames: int = 0  # leading / trailing frames without any hand
     absent_hand_frames: int = 0  # hand-frames written as absent (zero block, zero mask)
+    zero_hand_episodes: int = 0  # episodes with a hand at 0 throughout, converted as absent (--zero_hands)
     num_episodes: int = 0
     test_episodes: list[int] = field(default_factory=list)
     # the dataset's native layout per vector ("observation.state", "action"), robot hands only

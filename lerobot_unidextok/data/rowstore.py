@@ -31,6 +31,7 @@ import numpy as np
 
 from lerobot_unidextok.constants import CONVERSION_PATH, INFO_PATH, UDHM_DIM
 from lerobot_unidextok.data.reader import data_files, iter_udhm_frames, resolve_root
+from lerobot_unidextok.errors import InvalidInputError, MissingInputError
 from lerobot_unidextok.utils.files import replace_folder
 
 logger = logging.getLogger(__name__)
@@ -63,7 +64,7 @@ class HandRowStore:
         self.folder = Path(folder)
         path = self.folder / INDEX
         if not path.is_file():
-            raise FileNotFoundError(f"{self.folder} is not a row store ({INDEX} missing); build it with open_row_store")
+            raise MissingInputError(f"{self.folder} is not a row store ({INDEX} missing); build it with open_row_store")
         self.index = json.loads(path.read_text())
         if self.index.get("format") != STORE_FORMAT:
             raise ValueError(
@@ -162,7 +163,7 @@ def store_fingerprint(roots: list[Path], split: str | None, holdout: str) -> str
 
 def _roots(datasets: list[str | Path]) -> list[Path]:
     if not datasets:
-        raise ValueError("no datasets given: pass --datasets='[path/or/repo_id, ...]'")
+        raise InvalidInputError("no datasets given: pass --datasets='[path/or/repo_id, ...]'")
     roots = []
     for ds in datasets:
         path = Path(ds).expanduser()
@@ -189,7 +190,7 @@ def build_row_store(
             for frames in iter_udhm_frames(root=root, split=split, holdout=holdout, batch_rows=batch_rows):
                 bad = ~np.isfinite(frames.states_rad).all(axis=1)
                 if bad.any():
-                    raise ValueError(
+                    raise InvalidInputError(
                         f"{root}: {int(bad.sum())} rows with NaN/inf UDHM angles (episodes "
                         f"{np.unique(frames.episode_index[bad])[:10].tolist()}); re-convert or fix the dataset"
                     )
@@ -209,7 +210,7 @@ def build_row_store(
             for handle in entry.pop("handles").values():
                 handle.close()
         if not files:
-            raise ValueError(f"no {split} rows in {[str(r) for r in roots]}; check the split or the datasets")
+            raise InvalidInputError(f"no {split} rows in {[str(r) for r in roots]}; check the split or the datasets")
         index = {
             "format": STORE_FORMAT,
             "fingerprint": store_fingerprint(roots, split, holdout),

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.errors import InvalidInputError
+
 logger = logging.getLogger(__name__)
 
 HOLDOUTS = ("auto", "recorded", "hash")
@@ -30,7 +32,7 @@ SPLITS = ("train", "test", "all")
 HASH_TEST_FRACTION = 0.2
 
 
-class SplitError(ValueError):
+class SplitError(InvalidInputError):
     """The requested split cannot be given for this dataset; the message says why and what to choose."""
 
 

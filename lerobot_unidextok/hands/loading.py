@@ -9,6 +9,7 @@ from typing import Any
 import yaml
 
 from lerobot_unidextok.constants import FINGERS, KEYPOINT_NAMES, SIDES, UDHM_INDEX
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.hands.spec import (
     CoupledJoint,
     HandSpec,
@@ -24,7 +25,7 @@ _TOP_KEYS = {
     "joints", "coupled", "skeleton", "urdf",
 }  # fmt: skip
 _SIDE_KEYS = {"slot", "raw_range", "rad_at_raw_range", "sign", "rest_rad", "default_raw", "urdf_joint"}
-_JOINT_KEYS = {"name", "note", "judgement", *_SIDE_KEYS, *SIDES}
+_JOINT_KEYS = {"name", "note", "judgement", "aliases", *_SIDE_KEYS, *SIDES}
 _COUPLED_KEYS = {"joint", "follows", "ratio", "offset_rad", "note", "slot"}
 _SKELETON_KEYS = {"scale", "bone_lengths_m", "palm_offsets_m", "source", "note"}
 _URDF_KEYS = {"source", "file", "keypoints", "note", *SIDES}
@@ -41,7 +42,7 @@ def expand_side(name: str, side: str) -> str:
     return name
 
 
-class SpecError(ValueError):
+class SpecError(InvalidInputError):
     """A hand YAML that does not validate."""
 
 
@@ -144,6 +145,7 @@ def _joint(jd: Any, where: str, sides: list[str], fail) -> JointSpec:
         sides=per_side,
         note=str(jd.get("note", "")).strip(),
         judgement=str(jd.get("judgement", "")).strip(),
+        aliases=tuple(_string(a, f"{where}.aliases", fail) for a in jd.get("aliases") or ()),
     )
 
 

@@ -5,13 +5,14 @@ from __future__ import annotations
 from functools import cache
 from pathlib import Path
 
+from lerobot_unidextok.errors import UserError
 from lerobot_unidextok.hands.loading import load_spec
 from lerobot_unidextok.hands.spec import HandSpec
 
 SPECS_DIR = Path(__file__).parent / "specs"
 
 
-class UnknownHandError(KeyError, ValueError):
+class UnknownHandError(UserError, KeyError, ValueError):
     """A hand name that has no spec; the message lists the known ones."""
 
     def __str__(self) -> str:  # KeyError would repr() the message

@@ -79,6 +79,15 @@ class JointSpec:
     sides: dict[str, JointSide]
     note: str = ""
     judgement: str = ""  # non-empty = a judgement call, with its reason
+    # other names recordings give this joint (e.g. Unitree's "Pinky" for the Inspire's "little"): a source's
+    # hand columns are bound to joints by these names and `name` (`hands.spec.column_joint`)
+    aliases: tuple[str, ...] = ()
+
+
+def _name_key(name: str) -> str:
+    """A column or joint name for matching: lower case, letters and digits only, a trailing `pos` dropped."""
+    key = "".join(ch for ch in name.lower() if ch.isalnum())
+    return key.removesuffix("pos") if len(key) > 3 else key
 
 
 @dataclass(frozen=True)
@@ -250,6 +259,35 @@ class HandSpec:
     @property
     def num_native(self) -> int:
         return len(self.joints)
+
+    def bind_columns(self, columns: list[str], prefix: str = "") -> tuple[list[str], str]:
+        """A source's columns of this hand, in the spec's joint order, and how they were bound.
+
+        "name": each column names a joint (after `prefix`; case, separators and a trailing `pos` ignored; the
+        joint's name or one of its `aliases`), so the columns are put in the joints' order whatever the
+        source's order; "position": no column names a joint (`joint_1`, ...), so they are taken in the given
+        order as the joints' (the caller says so). A ValueError names the columns when only some name joints,
+        two name one joint, or the count is not the hand's.
+        """
+        if len(columns) != self.num_native:
+            raise ValueError(
+                f"{len(columns)} columns {columns} for the {self.num_native} joints of {self.name} "
+                f"{list(self.joint_names)}"
+            )
+        keys = {_name_key(n): j.name for j in self.joints for n in (j.name, *j.aliases)}
+        named = {c: keys.get(_name_key(c[len(prefix) :] if c.startswith(prefix) else c)) for c in columns}
+        if not any(named.values()):
+            return list(columns), "position"
+        unnamed = [c for c, j in named.items() if j is None]
+        twice = sorted({j for j in named.values() if j and list(named.values()).count(j) > 1})
+        if unnamed or twice:
+            raise ValueError(
+                f"columns {columns} only partly name the joints of {self.name} {list(self.joint_names)}: "
+                + (f"{unnamed} name none" if unnamed else f"two columns name {twice}")
+                + "; pass state_names listing the hand's columns in its joint order"
+            )
+        by_joint = {j: c for c, j in named.items()}
+        return [by_joint[j] for j in self.joint_names], "name"
 
     @cached_property
     def active_joint_indices(self) -> np.ndarray:

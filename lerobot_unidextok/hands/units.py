@@ -18,10 +18,12 @@ import math
 import numpy as np
 import torch
 
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.hands.registry import all_specs
 from lerobot_unidextok.hands.spec import HandSpec
 
 TINY_FRACTION = 0.01  # all values within 1 % of one end of every joint's range = wrong units
+GLITCH_SHARE = 0.05  # at most this share of frames outside the range, the rest inside: glitches, not units
 # (rescaling, label): what a value times the factor would be if that were the mistake.
 RESCALINGS: tuple[tuple[float, str], ...] = (
     (math.pi / 180.0, "degrees given where radians are expected: convert with np.deg2rad"),
@@ -36,7 +38,7 @@ RESCALINGS: tuple[tuple[float, str], ...] = (
 )
 
 
-class NativeUnitsError(ValueError):
+class NativeUnitsError(InvalidInputError):
     """Native values that do not look like the spec's units."""
 
 
@@ -100,6 +102,13 @@ def check_units(spec: HandSpec, raw, side: str = "right") -> None:
             f"{names[c]} reaches [{values[:, c].min():.4g}, {values[:, c].max():.4g}] of [{lo[c]:g}, {hi[c]:g}]"
             for c in cols[:6]
         )
+        bad_frames = int(outside.any(1).sum())
+        if bad_frames <= GLITCH_SHARE * len(values):  # the rest fits: a few bad frames, not other units
+            raise NativeUnitsError(
+                f"{where}: {bad_frames} of {len(values)} frames outside the native range ({detail}) while the "
+                "others fit it: glitches in the recording, not other units. Fix or drop those frames in the "
+                "source, or skip the episode (--on_error=skip)"
+            )
         fixes = _likely_fixes(spec, values, lo, hi, tol)
         raise NativeUnitsError(
             f"{where}: {int(outside.sum())} value(s) outside the native range: {detail}. "

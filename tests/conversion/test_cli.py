@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from lerobot_unidextok.errors import ConfigError
 from lerobot_unidextok.scripts.convert import ConvertConfig, run
 
 BIN = Path(sys.executable).parent
@@ -30,7 +31,7 @@ def _env(**overrides: str) -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def raw(tmp_path_factory):
-    from lerobot_unidextok.conversion.samples import write_samples
+    from lerobot_unidextok.samples import write_samples
 
     return write_samples(
         tmp_path_factory.mktemp("raw"),
@@ -58,9 +59,9 @@ def test_validate_reports_ok_and_catches_corruption(raw, tmp_path, capsys):
 
 
 def test_bad_flags_exit_with_message(tmp_path, capsys):
-    with pytest.raises(SystemExit, match="--source and --input are required"):
+    with pytest.raises(ConfigError, match="--source and --input are required"):
         run(ConvertConfig(root=str(tmp_path / "x")))
-    with pytest.raises(SystemExit, match="--source_options must be a JSON object"):
+    with pytest.raises(ConfigError, match="--source_options must be a JSON object"):
         run(
             ConvertConfig(
                 source="let",
@@ -118,9 +119,11 @@ def test_entry_point_config_file_flags_and_push_to_hub(raw, tmp_path, capsys):
     assert len(json.loads((root / "meta/unidextok_conversion.json").read_text())["test_episodes"]) == 1
     assert json.loads((root / "meta/unidextok_conversion.json").read_text())["on_error"] == "skip"  # flag beat file
 
-    # re-running onto the existing dataset refuses clearly
-    assert run(ConvertConfig(source="let", input=str(raw), root=str(root))) == 1
-    assert "already exists" in capsys.readouterr().err
+    # re-running onto the existing dataset refuses clearly: one line, exit 2 (docs/lerobot.md §6)
+    r = subprocess.run([str(BIN / "unidextok-convert"), "--source=let", f"--input={raw}", f"--root={root}"],
+                       capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert r.returncode == 2 and r.stderr.startswith("error: ") and "already exists" in r.stderr
+    assert "Traceback" not in r.stderr
 
 
 def test_source_options_json_flag_survives_draccus():

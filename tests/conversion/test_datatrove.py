@@ -27,9 +27,11 @@ from lerobot_unidextok.conversion.pipeline import (  # noqa: E402
     convert,
     merge_shards,
 )
-from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples  # noqa: E402
 from lerobot_unidextok.conversion.sharded import ExecutorOptions, SlurmOptions, convert_with_executor  # noqa: E402
 from lerobot_unidextok.data import load_record
+from lerobot_unidextok.errors import ConfigError
+from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS
+from lerobot_unidextok.samples.formats import write_samples  # noqa: E402
 from lerobot_unidextok.scripts.convert import ConvertConfig, run  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
@@ -250,7 +252,7 @@ def test_slurm_path_runs_with_stand_in_scheduler(raw, single, tmp_path, monkeypa
 
 def test_cli_local_executor_and_clear_errors(raw, single, tmp_path, capsys, monkeypatch):
     """--executor.type=local from the CLI (workers=1: tasks one after the other in this process); flag
-    mistakes exit 1 with the fix, before any task starts."""
+    mistakes exit 2 with one line naming the fix, before any task starts."""
     from lerobot_unidextok.scripts.convert import main
 
     def cli(*flags: str) -> int:
@@ -268,19 +270,34 @@ def test_cli_local_executor_and_clear_errors(raw, single, tmp_path, capsys, monk
     assert f"wrote {root}: {NUM_EPISODES} episodes" in out and "--dataset.episodes=" in out
     assert_same_dataset(single, root)
 
-    assert run(ConvertConfig(**base, root=str(tmp_path / "a"), executor=local, shard_index=1, num_shards=2)) == 1
-    assert "drop --shard_index/--num_shards" in capsys.readouterr().err
-    assert cli(*flags, f"--root={tmp_path / 'b'}", "--executor.type=slurm") == 1
+    with pytest.raises(ConfigError, match="drop --shard_index/--num_shards"):
+        run(ConvertConfig(**base, root=str(tmp_path / "a"), executor=local, shard_index=1, num_shards=2))
+    assert cli(*flags, f"--root={tmp_path / 'b'}", "--executor.type=slurm") == 2
     assert "--executor.slurm.partition" in capsys.readouterr().err
-    assert cli(*flags, f"--root={tmp_path / 'c'}", "--executor.type=ray") == 1
+    assert cli(*flags, f"--root={tmp_path / 'c'}", "--executor.type=ray") == 2
     assert "--executor.type must be pool, local or slurm" in capsys.readouterr().err
-    assert cli(*flags, f"--root={tmp_path / 'c'}", "--executor=local") == 1  # a group of flags, not a value
-    assert "--executor.<field>=..." in capsys.readouterr().err
+    assert cli(*flags, f"--root={tmp_path / 'c'}", "--executor=slurm") == 2  # the old spelling: read as a type
+    err = capsys.readouterr().err
+    assert "note: --executor is now --executor.type" in err and "--executor.slurm.partition" in err
+    assert cli(*flags, f"--root={tmp_path / 'c'}", "--executor.slurm=local") == 2  # a group of flags, not a value
+    assert "--executor.slurm.<field>=..." in capsys.readouterr().err
     bad = dict(base, source_options='{"hands": {"left": "no_such_hand:kLeftHand"}}')
-    assert run(ConvertConfig(**bad, root=str(tmp_path / "d"), executor=ExecutorOptions(type="local"))) == 1
-    assert "no_such_hand" in capsys.readouterr().err
+    with pytest.raises(SetupError, match="no_such_hand"):
+        run(ConvertConfig(**bad, root=str(tmp_path / "d"), executor=ExecutorOptions(type="local")))
     assert not (tmp_path / "d.datatrove").exists()  # set-up failed before the run folder was claimed
     assert not any((tmp_path / name).exists() for name in ("b", "b.datatrove", "c", "c.datatrove"))
+
+
+def test_old_executor_flags_are_read_for_one_release_with_a_note(capsys):
+    """`unidextok-convert --executor=local --tasks=4 --workers=2`, documented until the executor options became a
+    group, now reads as --executor.type/.tasks/.workers with one note per flag."""
+    from lerobot_unidextok.scripts.convert import renamed_flags
+
+    args = renamed_flags(["--source=x", "--executor=local", "--tasks=4", "--workers=2", "--executor={type: local}"])
+    assert args == ["--source=x", "--executor.type=local", "--executor.tasks=4", "--executor.workers=2",
+                    "--executor={type: local}"]  # fmt: skip
+    notes = capsys.readouterr().err.splitlines()
+    assert len(notes) == 3 and notes[0].startswith("note: --executor is now --executor.type")
 
 
 def test_missing_datatrove_is_a_setup_error_with_the_install_command(raw, tmp_path, monkeypatch):

@@ -16,6 +16,7 @@ from robot_udhm import INSPIRE
 from lerobot_unidextok.blocks import udhm_state_names
 from lerobot_unidextok.constants import ACTION, OBS_HAND_IDS, OBS_STATE, UDHM_DIM
 from lerobot_unidextok.conversion.mix import MixError, MixOptions, mix, repeat_factors
+from lerobot_unidextok.conversion.output import OutputError
 from lerobot_unidextok.conversion.validate import validate_dataset
 from lerobot_unidextok.data import UdhmDatasetMeta, load_udhm_frames
 
@@ -88,7 +89,7 @@ def test_weights_repeat_the_small_inputs_training_episodes_not_its_test_episodes
 def test_an_input_without_actions_gets_the_hand_k_frames_ahead(l10_robot, tmp_path):
     """A human dataset has no actions: action[t] = state[t + k], zero where the hand is absent at t."""
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import write_samples
+    from lerobot_unidextok.samples import write_samples
 
     raw = write_samples(tmp_path / "raw", sources=["egodex"], episodes_per_source=2, frames_per_episode=30)
     human = tmp_path / "human"
@@ -120,7 +121,7 @@ def test_bad_inputs_are_one_clear_error_and_nothing_is_written(g1_like, l10_robo
     (slow / "meta/info.json").write_text(json.dumps({**info, "fps": 15}))
     with pytest.raises(MixError, match=r"different frame rates .*30.*15.*--fps"):
         mix(MixOptions(inputs=[str(g1_like["root"]), str(slow)], root=str(root)))
-    with pytest.raises(MixError, match="is, holds or sits inside the input"):
+    with pytest.raises(OutputError, match="is, holds or sits inside the input"):
         mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(l10_robot / "mix")))
     with pytest.raises(MixError, match="one positive weight per input"):
         MixOptions(inputs=["a", "b"], root=str(root), weights=[1])
@@ -128,7 +129,7 @@ def test_bad_inputs_are_one_clear_error_and_nothing_is_written(g1_like, l10_robo
     other = tmp_path / "not_a_mix"
     other.mkdir()
     (other / "keep.txt").write_text("mine")
-    with pytest.raises(MixError, match="not a mix written by unidextok-mix"):
+    with pytest.raises(OutputError, match="not a dataset written by unidextok-convert or unidextok-mix"):
         mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(other), overwrite=True))
     assert (other / "keep.txt").read_text() == "mine"
 

@@ -34,7 +34,7 @@ from lerobot_unidextok.data.splits import split_order
 
 @pytest.fixture(scope="module")
 def samples(tmp_path_factory):
-    from lerobot_unidextok.conversion.samples import write_samples
+    from lerobot_unidextok.samples import write_samples
 
     return write_samples(
         tmp_path_factory.mktemp("raw"),
@@ -183,15 +183,36 @@ def test_existing_target_refused_then_overwritten(samples, linker, tmp_path):
         "progress": False,
         "max_episodes": 2,
     }
-    with pytest.raises(FileExistsError, match="--overwrite"):
+    # a folder this tool did not write: refused, even with --overwrite=true, and never touched
+    with pytest.raises(FileExistsError, match="already exists; choose another --root"):
         convert(ConvertOptions(**opts))
-    assert (target / "keep.txt").exists()
-    convert(ConvertOptions(**opts, overwrite=True))
-    assert (
-        not (target / "keep.txt").exists()
-        and json.loads((target / "meta/info.json").read_text())["total_episodes"] == 2
-    )
-    assert [p.name for p in tmp_path.iterdir()] == ["t"]  # no temp or backup folders left
+    with pytest.raises(FileExistsError, match="not a dataset written by unidextok-convert.*does not replace it"):
+        convert(ConvertOptions(**opts, overwrite=True))
+    assert [p.name for p in target.iterdir()] == ["keep.txt"]
+    # a converted dataset: the error recommends the flag, and the flag replaces it
+    target = tmp_path / "d"
+    convert(ConvertOptions(**{**opts, "root": target, "max_episodes": 1}))
+    with pytest.raises(FileExistsError, match="--overwrite=true to replace this converted dataset"):
+        convert(ConvertOptions(**{**opts, "root": target}))
+    convert(ConvertOptions(**{**opts, "root": target}, overwrite=True))
+    assert json.loads((target / "meta/info.json").read_text())["total_episodes"] == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d", "t"]  # no temp or backup folders left
+
+
+def test_a_root_that_is_holds_or_sits_inside_the_input_is_refused(samples, tmp_path):
+    """The default root of `--repo_id=lab/g1 --input=$HF_LEROBOT_HOME/lab/g1` is the input itself: refused,
+    with or without --overwrite, and the input is untouched."""
+    import shutil
+
+    raw = tmp_path / "raw"
+    shutil.copytree(samples["linkerhand"], raw)
+    before = sorted(str(p.relative_to(raw)) for p in raw.rglob("*"))
+    for root in (raw, raw / "sub" / "out", tmp_path):
+        for overwrite in (False, True):
+            with pytest.raises(FileExistsError, match="is, holds or sits inside the input"):
+                convert(ConvertOptions(source="linkerhand", input=raw, root=root, overwrite=overwrite,
+                                       progress=False))  # fmt: skip
+    assert sorted(str(p.relative_to(raw)) for p in raw.rglob("*")) == before
 
 
 def test_shards_merge_equals_single_run(samples, linker, tmp_path):
@@ -531,7 +552,7 @@ def test_append_pad_mapping_and_stale_temp_cleanup(samples, tmp_path):
 
 
 def test_input_is_synthetic_reads_the_sample_labels_up_to_two_folders_up(tmp_path):
-    """A sample written by `conversion.samples` carries a labels file saying it is synthetic; an input inside
+    """A sample written by `samples` carries a labels file saying it is synthetic; an input inside
     it (up to two folders down) is marked synthetic on the card, a labels file saying false or a damaged one
     is not (a damaged file must not stop the conversion)."""
     from lerobot_unidextok.constants import SAMPLE_LABELS_FILE
@@ -555,13 +576,14 @@ def test_stale_temp_cleanup_leaves_a_live_run_alone(tmp_path):
     nothing: any other signal would hit the live run (SIGHUP, `os.kill(pid, 1)`, ends this test process)."""
     import os
 
-    from lerobot_unidextok.conversion.pipeline import _remove_stale_temps
+    from lerobot_unidextok.conversion.output import remove_stale
 
     target = tmp_path / "ds"
     live = tmp_path / f".ds.tmp-{os.getpid()}-cafebabe"
     dead = tmp_path / ".ds.tmp-999999999-deadbeef"
+    dead_old = tmp_path / ".ds.old-999999999-deadbeef"  # set aside by an overwrite killed between its renames
     other = tmp_path / ".other.tmp-999999999-deadbeef"  # another dataset's temp folder: not ours to judge
-    for folder in (live, dead, other):
+    for folder in (live, dead, dead_old, other):
         (folder / "data").mkdir(parents=True)
-    _remove_stale_temps(target)
-    assert live.is_dir() and other.is_dir() and not dead.exists()
+    remove_stale(target)
+    assert live.is_dir() and other.is_dir() and not dead.exists() and not dead_old.exists()

@@ -25,7 +25,7 @@ HAND = [
     for j in ("Pinky", "Ring", "Middle", "Index", "ThumbBend", "ThumbRotation")
 ]
 NAMES = ARM + HAND  # 8 arm + 12 hand columns
-HANDS_OPT = {"hands": {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}}
+HANDS_OPT = {"hands": "unitree_g1_inspire"}
 LENGTHS = (9, 12, 7)
 H, W = 32, 48
 

@@ -23,7 +23,7 @@ BIN = Path(sys.executable).parent
 
 @pytest.fixture(scope="module")
 def converted(tmp_path_factory):
-    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples
+    from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS, write_samples
 
     base = tmp_path_factory.mktemp("edit")
     raw = write_samples(base / "raw", sources=["lerobot"], episodes_per_source=6, frames_per_episode=20)["lerobot"]

@@ -13,8 +13,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples
 from lerobot_unidextok.data import HandRowStore, build_row_store, iter_udhm_frames, load_udhm_frames, open_row_store
+from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS, write_samples
 
 
 @pytest.fixture(scope="module")

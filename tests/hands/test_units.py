@@ -96,5 +96,19 @@ def test_one_value_a_little_past_the_range_is_named():
     hands.check_units(spec, rad, "right")
     j = int(a[0])
     rad[7, j] = lim[j, 1] + 0.02 * (lim[j, 1] - lim[j, 0])
-    with pytest.raises(hands.NativeUnitsError, match=rf"1 value\(s\) outside the native range: {spec.joint_names[j]}"):
+    with pytest.raises(hands.NativeUnitsError, match=rf"1 of 50 frames outside the native range \({spec.joint_names[j]}"):
         hands.check_units(spec, rad, "right")
+
+
+def test_a_few_glitched_frames_are_not_called_other_units():
+    """One Unitree Inspire value of 3.0 (range 0-1) among 100 good frames got the advice "divide by 10" for
+    the whole stream; it is a glitch, named as one. Most frames outside still get the rescaling."""
+    spec = hands.get("inspire_rh56_unitree")
+    values = np.random.default_rng(0).uniform(0.05, 0.95, size=(100, spec.num_native))
+    values[40, 0] = 3.0
+    with pytest.raises(hands.NativeUnitsError, match="1 of 100 frames outside .* glitches") as err:
+        hands.check_units(spec, values, "right")
+    assert "divide" not in str(err.value)
+    values[40, 0] = 0.5
+    with pytest.raises(hands.NativeUnitsError, match="value\\(s\\) outside .* divide by 1000"):
+        hands.check_units(spec, values * 1000, "right")
