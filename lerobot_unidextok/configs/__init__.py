@@ -5,7 +5,7 @@
     unidextok-config                                            # lists the shipped configs
 
 A name is `<group>/<name>` (`train/small`, `lerobot/act_udt_cpu`, `convert/slurm`), with or without `.yaml`;
-a bare `<name>` works when one group has it. Imports nothing of the package.
+a bare `<name>` works when one group has it. Imports only the package's error classes.
 """
 
 from __future__ import annotations
@@ -13,6 +13,8 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+
+from lerobot_unidextok.errors import MissingInputError
 
 CONFIGS_DIR = Path(__file__).resolve().parent
 
@@ -41,7 +43,7 @@ def resolve_config_path(config_path: str, what: str = "--config_path") -> str:
     shipped = shipped_config(config_path)
     if shipped is not None:
         return str(shipped)
-    raise FileNotFoundError(
+    raise MissingInputError(
         f"{what} {config_path} not found: no such file and no shipped config of that name; shipped configs: "
         f"{', '.join(shipped_configs())} (`unidextok-config` prints their paths)"
     )

@@ -39,7 +39,7 @@ from lerobot.processor import PolicyProcessorPipeline
 from lerobot_unidextok.blocks import find_udhm_blocks, passthrough_indices
 from lerobot_unidextok.constants import ACTION, OBS_STATE
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
-from lerobot_unidextok.errors import UserError
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.layout import NativeLayout
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.processor import (
@@ -55,7 +55,7 @@ POSTPROCESSOR = "policy_postprocessor.json"
 KEPT_FILES = ("model.safetensors", "train_config.json", "README.md")
 
 
-class DeployError(UserError, ValueError):
+class DeployError(InvalidInputError):
     """The checkpoint cannot be bound to that robot; the message names why and the fix."""
 
 

@@ -23,12 +23,13 @@ from pathlib import Path
 import yaml
 
 from lerobot_unidextok.constants import KEYPOINT_NAMES, SIDES
+from lerobot_unidextok.errors import InvalidInputError
 
 SPECS_DIR = Path(__file__).parent / "specs"
 PALM_KEYS = ("index_mcp", "middle_mcp", "pinky_mcp")
 
 
-class RetargetSpecError(ValueError):
+class RetargetSpecError(InvalidInputError):
     """A retarget spec YAML is malformed; the message names the file and the field."""
 
 

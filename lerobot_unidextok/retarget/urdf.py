@@ -12,10 +12,11 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.hands.urdf import resolve_mimic_chains
 
 
-class URDFError(ValueError):
+class URDFError(InvalidInputError):
     """A URDF is missing or lacks a joint / link the retarget spec names."""
 
 

@@ -27,7 +27,8 @@ import yaml
 
 from lerobot_unidextok.conversion.pipeline import ConvertOptions
 from lerobot_unidextok.conversion.sharded import ExecutorOptions
-from lerobot_unidextok.utils.cli import UserError, configure_output
+from lerobot_unidextok.errors import ConfigError
+from lerobot_unidextok.utils.cli import EXIT_USER_ERROR, run_cli
 from lerobot_unidextok.utils.draccus_cli import parse_config
 
 
@@ -73,14 +74,14 @@ def _source_options(text: str) -> dict:
     try:
         value = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise SystemExit(f"error: --source_options must be a JSON object: {exc}") from exc
+        raise ConfigError(f"--source_options must be a JSON object: {exc}") from exc
     if not isinstance(value, dict):
-        raise SystemExit(f"error: --source_options must be a JSON object, got {type(value).__name__}")
+        raise ConfigError(f"--source_options must be a JSON object, got {type(value).__name__}")
     return value
 
 
 def run(cfg: ConvertConfig) -> int:
-    """Run the CLI config; returns the process exit code."""
+    """Run the CLI config; returns the process exit code (2: the dataset is INVALID); user mistakes raise."""
     from lerobot_unidextok.conversion import pipeline, registry
 
     if cfg.list_sources:
@@ -91,20 +92,10 @@ def run(cfg: ConvertConfig) -> int:
     root = _root(cfg)
     if not cfg.validate:
         if not cfg.source or not cfg.input:
-            raise SystemExit("error: --source and --input are required (or --validate=true / --list_sources=true)")
-        try:
-            if cfg.executor.type != "pool":
-                return _run_executor(cfg)
-            report = pipeline.convert(cfg.conversion())
-        except (
-            pipeline.ConversionError,
-            FileExistsError,
-            FileNotFoundError,
-            ValueError,
-            UserError,
-        ) as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 1
+            raise ConfigError("--source and --input are required (or --validate=true / --list_sources=true)")
+        if cfg.executor.type != "pool":
+            return _run_executor(cfg)
+        report = pipeline.convert(cfg.conversion())
         print(
             f"wrote {report.root}: {report.num_episodes} episodes ({report.num_train} train / {report.num_test} test), "
             f"{report.num_frames} frames, hands {', '.join(report.hands)}, {report.seconds:.1f} s "
@@ -122,9 +113,9 @@ def _after_conversion(cfg: ConvertConfig, root: Path) -> int:
     validation = validate_dataset(root, repo_id=cfg.repo_id)
     if cfg.validate or not validation.ok:
         print(validation.table())
-    _print_train_episodes(root)
     if not validation.ok:
-        return 2
+        return EXIT_USER_ERROR  # no training hint for a dataset that fails its checks
+    _print_train_episodes(root)
     if cfg.push_to_hub:
         from lerobot_unidextok.hub import push
 
@@ -138,7 +129,7 @@ def _run_executor(cfg: ConvertConfig) -> int:
     from lerobot_unidextok.conversion.sharded import convert_with_executor
 
     if cfg.shard_index != 0 or cfg.num_shards != 1:
-        raise ValueError("--executor.type chooses the shards (--executor.tasks); drop --shard_index/--num_shards")
+        raise ConfigError("--executor.type chooses the shards (--executor.tasks); drop --shard_index/--num_shards")
     root = convert_with_executor(cfg.conversion(), cfg.executor)
     if cfg.executor.type == "slurm":
         print(f"submitted the shard tasks and the merge into {root} (squeue lists them)")
@@ -159,19 +150,31 @@ def _print_train_episodes(root: Path) -> None:
         print(f"lerobot-train without the {len(record.test_episodes)} test episodes: {flag}")
 
 
+# Flags renamed when the executor options became a group (--executor.*), accepted for one release.
+RENAMED_FLAGS = {"--executor": "--executor.type", "--tasks": "--executor.tasks", "--workers": "--executor.workers"}
+
+
+def renamed_flags(args: list[str]) -> list[str]:
+    """`args` with the old spellings of renamed flags rewritten, one note on stderr for each."""
+    out = []
+    for arg in args:
+        name, sep, value = arg.partition("=")
+        new = RENAMED_FLAGS.get(name)
+        if new is not None and sep and not value.lstrip().startswith(("{", "include ")):
+            print(f"note: {name} is now {new} ({name}={value} read as {new}={value}); the old spelling goes in the "
+                  "next release", file=sys.stderr)  # fmt: skip
+            arg = f"{new}={value}"
+        out.append(arg)
+    return out
+
+
 def main() -> None:
-    configure_output()
     # force: importing lerobot already gave the root logger a WARNING handler (a module-level logging.debug
     # call in lerobot.utils.import_utils), which would make this a no-op and hide our INFO lines
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", force=True)
     for noisy in ("httpx", "lerobot.datasets.utils"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
-    try:
-        cfg = parse_config(ConvertConfig)
-    except ValueError as exc:  # a flag value the options refuse (--mapping, --keep, --executor.type, ...)
-        print(f"error: {exc}", file=sys.stderr)
-        sys.exit(1)
-    sys.exit(run(cfg))
+    run_cli(lambda: run(parse_config(ConvertConfig, renamed_flags(sys.argv[1:]))))
 
 
 if __name__ == "__main__":

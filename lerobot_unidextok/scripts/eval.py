@@ -15,7 +15,9 @@ import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from lerobot_unidextok.utils.cli import configure_output
+from lerobot_unidextok.errors import InvalidInputError
+from lerobot_unidextok.tokenizer.configuration_unidextok import check_encoding
+from lerobot_unidextok.utils.cli import run_cli
 from lerobot_unidextok.utils.draccus_cli import wrap
 
 logger = logging.getLogger(__name__)
@@ -35,6 +37,14 @@ class EvalConfig:
     output: str = "outputs/unidextok_eval/eval"  # path stem of the .json / .md report
     device: str = "cpu"
 
+    def __post_init__(self) -> None:
+        if not self.checkpoint:
+            raise InvalidInputError("--checkpoint is required (a folder with config.json + model.safetensors, a "
+                             "unidextok-train run folder, unidextok/universal-small, or a Hub repo id)")  # fmt: skip
+        if self.split not in ("train", "test", "all"):
+            raise InvalidInputError(f"--split must be train, test or all, got {self.split!r}")
+        check_encoding(self.search_rounds, flag="--search_rounds")
+
 
 def run(cfg: EvalConfig) -> dict:
     from lerobot_unidextok.evaluation import evaluate_tokenizer, write_report
@@ -43,15 +53,11 @@ def run(cfg: EvalConfig) -> dict:
     from lerobot_unidextok.tokenizer import UniDexTok
     from lerobot_unidextok.training import load_hand_states
 
-    if not cfg.checkpoint:
-        raise SystemExit("error: --checkpoint is required (a folder with config.json + model.safetensors or a repo id)")
-    if cfg.split not in ("train", "test", "all"):
-        raise SystemExit(f"error: --split must be train, test or all, got {cfg.split!r}")
     data = load_hand_states(cfg.datasets, split=None if cfg.split == "all" else cfg.split, holdout=cfg.holdout)
     if cfg.hands:
         data = data.only(cfg.hands)
         if len(data) == 0:
-            raise SystemExit(f"error: no rows for hands {cfg.hands} in {cfg.datasets}")
+            raise InvalidInputError(f"no rows for hands {cfg.hands} in {cfg.datasets}")
     # the folder scored (a run folder's best/), or the id as given (shipped or Hub)
     checkpoint = resolve(cfg.checkpoint) if Path(cfg.checkpoint).expanduser().is_dir() else cfg.checkpoint
     model = UniDexTok.from_pretrained(cfg.checkpoint, search_rounds=cfg.search_rounds).to(cfg.device)
@@ -69,9 +75,8 @@ def eval_cli(cfg: EvalConfig) -> None:
 
 
 def main() -> None:
-    configure_output()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    eval_cli()
+    run_cli(eval_cli)
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@ HF_ENDPOINT, HF_TOKEN, HF_HOME / HF_HUB_CACHE are honoured.
 import logging
 from dataclasses import dataclass, field
 
+from lerobot_unidextok.errors import ConfigError
 from lerobot_unidextok.hub import pull, push
 from lerobot_unidextok.utils.cli import run_cli
 from lerobot_unidextok.utils.draccus_cli import wrap
@@ -38,7 +39,7 @@ class PullConfig:
 
 def _require(value: str, flag: str) -> None:
     if not value:
-        raise SystemExit(f"error: {flag} is required, e.g. {flag}=namespace/name")
+        raise ConfigError(f"{flag} is required, e.g. {flag}=namespace/name")
 
 
 @wrap()

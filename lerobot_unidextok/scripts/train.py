@@ -20,12 +20,11 @@ output_dir/best (use this one), output_dir/last (resume with --resume=true), eac
 (README.md), and the per-hand evaluation of best on the test episodes as output_dir/eval.{json,md}.
 """
 
-import atexit
 import logging
 from pathlib import Path
 
 from lerobot_unidextok.training import TrainConfig
-from lerobot_unidextok.utils.cli import configure_output
+from lerobot_unidextok.utils.cli import run_cli
 from lerobot_unidextok.utils.draccus_cli import wrap
 
 
@@ -51,19 +50,11 @@ def train_cli(cfg: TrainConfig) -> None:
     run(cfg)
 
 
-def _leave_process_group() -> None:
-    from lerobot_unidextok.training.distributed import leave_process_group
-
-    leave_process_group()
-
-
 def main() -> None:
-    atexit.register(_leave_process_group)  # several processes: close the group before the interpreter ends
-    configure_output()
     # force: importing lerobot already gave the root logger a WARNING handler (a module-level logging.debug
     # call in lerobot.utils.import_utils), which would make this a no-op and hide our INFO lines
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s", force=True)
-    train_cli()
+    run_cli(train_cli)
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ import logging
 from dataclasses import dataclass
 from pathlib import Path
 
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.utils.cli import run_cli
 from lerobot_unidextok.utils.draccus_cli import wrap
 
@@ -34,10 +35,10 @@ def view_cli(cfg: ViewConfig) -> None:
     from lerobot_unidextok.viz.episode import VIDEO_SUFFIXES, load_episode, write_rerun, write_video
 
     if not cfg.dataset:
-        raise ValueError("--dataset is required: a converted dataset folder or a pulled repo id")
+        raise InvalidInputError("--dataset is required: a converted dataset folder or a pulled repo id")
     suffix = Path(cfg.output).suffix.lower()
     if suffix not in (*VIDEO_SUFFIXES, ".rrd"):
-        raise ValueError(f"--output must end in .mp4, .gif or .rrd, got {cfg.output!r}")
+        raise InvalidInputError(f"--output must end in .mp4, .gif or .rrd, got {cfg.output!r}")
     view = load_episode(cfg.dataset, cfg.episode, cfg.tokenizer, cfg.stride, cfg.max_frames, cfg.urdf)
     path = write_rerun(view, cfg.output) if suffix == ".rrd" else write_video(view, cfg.output, cfg.camera)
     print(f"wrote {path} ({view.num_frames} frames, hands {view.hands}, sides {view.sides})")

@@ -5,6 +5,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lerobot_unidextok.constants import UDHM_DIM
+from lerobot_unidextok.errors import InvalidInputError
 
 
 @dataclass
@@ -98,7 +99,7 @@ def load_hand_states(datasets: list[str], split: str | None, holdout: str = "aut
     from lerobot_unidextok.data import load_udhm_frames
 
     if not datasets:
-        raise ValueError("no datasets given: pass --datasets='[path/or/repo_id, ...]'")
+        raise InvalidInputError("no datasets given: pass --datasets='[path/or/repo_id, ...]'")
     parts = []
     for i, ds in enumerate(datasets):
         if Path(ds).expanduser().is_dir():

@@ -17,12 +17,13 @@ batch is `batch_size x num_processes`.
 
 from __future__ import annotations
 
+import atexit
 import hashlib
 
 import torch
 from torch import nn
 
-__all__ = ["broadcast_from_main", "check_replicas", "state_digests"]
+__all__ = ["broadcast_from_main", "check_replicas", "leave_at_exit", "leave_process_group", "state_digests"]
 
 
 def _tensors(module: nn.Module):
@@ -67,8 +68,16 @@ def check_replicas(module: nn.Module, step: int) -> None:
         )
 
 
+def leave_at_exit() -> None:
+    """Register `leave_process_group` to run when the interpreter exits (once, after the group exists: an
+    exit handler registered by a process that never imported torch failed in interpreter shutdown)."""
+    if not getattr(leave_at_exit, "registered", False):
+        atexit.register(leave_process_group)
+        leave_at_exit.registered = True
+
+
 def leave_process_group() -> None:
-    """Destroy this process's torch.distributed group, if any (registered at exit by unidextok-train): a process
+    """Destroy this process's torch.distributed group, if any (run at exit, `leave_at_exit`): a process
     that exits with its gloo group alive can abort in interpreter shutdown ("terminate called without an active
     exception", exit code -6), which accelerate then reports as a failed run."""
     from datetime import timedelta

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_unidextok.data.rowstore import HandRowStore
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.training.arrays import HandStates, load_hand_states, subsample_episodes
 from lerobot_unidextok.training.config import TrainConfig
 from lerobot_unidextok.training.loop import train_tokenizer
@@ -145,7 +146,7 @@ def train_and_evaluate(cfg: TrainConfig) -> tuple[dict, str]:
     from lerobot_unidextok.tokenizer import UniDexTok
 
     if cfg.folds and PartialState().num_processes > 1:
-        raise ValueError("--folds trains its fold models one after another in one process: launch without "
+        raise InvalidInputError("--folds trains its fold models one after another in one process: launch without "
                          "accelerate/torchrun, or drop --folds")  # fmt: skip
     fit, select, test = load_splits(cfg)
     result = train_tokenizer(cfg, fit, select)

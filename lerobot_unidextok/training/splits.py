@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from lerobot_unidextok.data.rowstore import HandRowStore
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.training.arrays import HandStates
 
 
@@ -72,7 +73,7 @@ def kfold_by_episode(data: HandStates, folds: int, seed: int = 0) -> list[tuple[
     keys = _keys(data)
     episodes = np.unique(keys)
     if folds < 2 or folds > len(episodes):
-        raise ValueError(f"folds must be in [2, {len(episodes)}] (the number of episodes), got {folds}")
+        raise InvalidInputError(f"folds must be in [2, {len(episodes)}] (the number of episodes), got {folds}")
     order = np.random.default_rng(seed).permutation(episodes)
     out = []
     for k in range(folds):

@@ -15,28 +15,20 @@ from __future__ import annotations
 import functools
 import logging
 import os
+import signal
 import sys
 from collections.abc import Callable, Iterable
 from typing import Any
 
 
-class UserError(RuntimeError):
-    """A mistake the user can fix from the message (e.g. a push while HF_HUB_OFFLINE is set, a missing licensed
-    model), where no builtin type such as ValueError or FileNotFoundError says it: one `error:` line in a CLI.
-    A RuntimeError, so callers that caught these as RuntimeError still do; a plain RuntimeError is a bug."""
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C's KeyboardInterrupt so that the same clean-up runs (temporary folders
+    removed, worker processes ended) before the tool exits with status 143."""
 
 
-# Mistakes a person can fix from the message (bad paths, values, missing downloads); anything else is a bug
-# and keeps its traceback. UNIDEXTOK_TRACEBACK=1 shows the traceback for these too.
-USER_ERRORS: tuple[type[BaseException], ...] = (
-    UserError,
-    ValueError,
-    FileNotFoundError,
-    FileExistsError,
-    NotADirectoryError,
-    PermissionError,
-    KeyError,
-)
+EXIT_USER_ERROR = 2  # a mistake the message says how to fix (docs/lerobot.md §6)
+EXIT_INTERRUPTED = 130  # Ctrl-C (128 + SIGINT)
+EXIT_TERMINATED = 143  # SIGTERM (128 + SIGTERM)
 TORCHCODEC_NOTE = (
     "note: torchcodec cannot load FFmpeg on this machine, so LeRobot will decode videos with pyav. "
     "State-only datasets need neither; for video datasets install FFmpeg (LeRobot's system dependency, see "
@@ -119,16 +111,33 @@ def configure_output() -> None:
     throttle_progress_bars()
 
 
+def _terminate(signum, frame) -> None:
+    raise Terminated()
+
+
 def run_cli(fn: Callable[[], object]) -> None:
-    """Run a CLI body after `configure_output()`; a user mistake prints `error: <message>` on stderr and exits
-    with status 2."""
+    """The one way every command-line tool ends. Runs the CLI body after `configure_output()`, with SIGTERM
+    handled as Ctrl-C. A `UserError` (`lerobot_unidextok.errors`) prints one `error: <message>` line on stderr
+    and exits with status 2; Ctrl-C / SIGTERM print one line and exit with 130 / 143 after the body's clean-up;
+    anything else is a bug and keeps its traceback. `UNIDEXTOK_TRACEBACK=1` shows the traceback of user errors.
+    The body may return an exit status (an int) for outcomes that are not errors (an INVALID dataset)."""
+    from lerobot_unidextok.errors import UserError  # layer 0: errors imports nothing of the package
+
     configure_output()
+    signal.signal(signal.SIGTERM, _terminate)
     try:
-        fn()
-    except USER_ERRORS as err:
+        status = fn()
+    except UserError as err:
         if os.environ.get("UNIDEXTOK_TRACEBACK", "0") not in ("", "0"):
             raise
         message = err.args[0] if isinstance(err, KeyError) and err.args else err
         print(f"error: {message}", file=sys.stderr)
         print("(set UNIDEXTOK_TRACEBACK=1 to see the traceback)", file=sys.stderr)
-        raise SystemExit(2) from None
+        raise SystemExit(EXIT_USER_ERROR) from None
+    except KeyboardInterrupt as stop:
+        terminated = isinstance(stop, Terminated)
+        print(f"{'terminated (SIGTERM)' if terminated else 'interrupted'}: stopped; nothing half-written was "
+              "left behind", file=sys.stderr)  # fmt: skip
+        raise SystemExit(EXIT_TERMINATED if terminated else EXIT_INTERRUPTED) from None
+    if isinstance(status, int) and status:
+        raise SystemExit(status)

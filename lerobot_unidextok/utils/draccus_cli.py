@@ -42,6 +42,7 @@ from draccus.argparsing import ArgumentParser
 from draccus.utils import ParsingError
 
 from lerobot_unidextok.configs import resolve_config_path
+from lerobot_unidextok.errors import ConfigError, UserError
 
 
 def config_parser[T](config_class: type[T], config_path: str | None = None) -> ArgumentParser:
@@ -93,20 +94,25 @@ def parse_config[T](config_class: type[T], args: Sequence[str] | None = None, co
             yaml.safe_load(value)
         except yaml.YAMLError as exc:
             problem = " ".join(str(getattr(exc, "problem", None) or exc).split())
-            raise ValueError(
+            raise ConfigError(
                 f"{name}: {value!r} is not valid YAML/JSON ({problem}); check its brackets and quotes"
             ) from None
         if name.removeprefix("--") in nested and value and not _is_group_value(value):
-            raise ValueError(
+            raise ConfigError(
                 f"{arg}: {name} is a group of flags ({name}.<field>=..., --help lists them), or all of them as "
                 f"one YAML mapping: {name}='{{field: value, ...}}'"
             )
     try:
         return config_parser(config_class, config_path).parse_args(args)
     except ParsingError as exc:
-        if isinstance(exc.__cause__, ValueError):  # a __post_init__ check: its message names the flag
-            raise exc.__cause__ from None
-        raise
+        cause = exc.__cause__
+        if isinstance(cause, UserError):
+            raise cause from None
+        if isinstance(cause, ValueError):  # a __post_init__ check: its message names the flag
+            raise ConfigError(str(cause)) from None
+        if isinstance(cause, TypeError):  # a value of the wrong type for a field, or a key it does not have
+            raise ConfigError(f"{cause}: check the config file's keys and value types against --help") from None
+        raise ConfigError(str(exc)) from None
 
 
 def _resolve_config_paths(args: list[str]) -> list[str]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import shutil
 import uuid
 from pathlib import Path
@@ -15,8 +16,8 @@ import numpy as np
 def replace_folder(tmp: Path, target: Path) -> None:
     """Rename the finished folder `tmp` to `target`. An existing `target` is renamed aside first and deleted
     after, so `target` is always either the old folder or the new one, never half of each."""
-    if target.exists():
-        old = target.parent / f".{target.name}.old-{uuid.uuid4().hex[:8]}"
+    if target.exists():  # the pid lets a later run remove it if this one dies between the renames
+        old = target.parent / f".{target.name}.old-{os.getpid()}-{uuid.uuid4().hex[:8]}"
         target.rename(old)
         tmp.rename(target)
         shutil.rmtree(old, ignore_errors=True)

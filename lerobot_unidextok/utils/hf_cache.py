@@ -19,6 +19,7 @@ import os
 from pathlib import Path
 
 from lerobot_unidextok.constants import INFO_PATH
+from lerobot_unidextok.errors import MissingInputError
 
 DATASET_REVISIONS = ("v3.0", "main")  # refs tried in a hub cache, in order
 
@@ -66,9 +67,20 @@ def find_dataset(repo_id: str) -> Path | None:
 def dataset_root(repo_id: str) -> Path:
     """Like `find_dataset`, but a FileNotFoundError listing every place looked at and how to fill one."""
     root = find_dataset(repo_id)
+    path = Path(repo_id).expanduser()
+    if root is None and path.is_dir():
+        raise MissingInputError(
+            f"{path} is a folder but not a LeRobot dataset (no {INFO_PATH}): pass the root of a converted dataset "
+            "(the --root of unidextok-convert)"
+        )
+    if root is None and (path.is_absolute() or repo_id.startswith((".", "~")) or repo_id.count("/") != 1):
+        raise MissingInputError(
+            f"dataset folder {path} does not exist: pass the root of a converted dataset (the --root of "
+            "unidextok-convert) or a repo id 'namespace/name'"
+        )
     if root is None:
         looked = "\n  ".join(str(p) for p in dataset_candidates(repo_id))
-        raise FileNotFoundError(
+        raise MissingInputError(
             f"dataset {repo_id!r} is not on this machine; looked in\n  {looked}\n"
             f"Pull it with `unidextok-pull --repo_id={repo_id} --repo_type=dataset`, or pass the dataset folder "
             "instead of the repo id"

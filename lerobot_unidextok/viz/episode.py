@@ -19,6 +19,7 @@ import numpy as np
 
 from lerobot_unidextok import hands as hand_registry
 from lerobot_unidextok.constants import INFO_PATH, OBS_STATE, UDHM_DIM
+from lerobot_unidextok.errors import InvalidInputError, MissingInputError
 from lerobot_unidextok.utils.imports import require_package
 from lerobot_unidextok.viz.pose import find_urdf, spec_keypoints_m, urdf_keypoints_m
 from lerobot_unidextok.viz.render import BONES, VIEWS, EpisodeRenderer
@@ -68,7 +69,7 @@ def _episode_states(root: Path, episode: int) -> tuple[np.ndarray, np.ndarray]:
             rows.append(np.stack(table[OBS_STATE].to_numpy(zero_copy_only=False)).astype(np.float64))
             frames.append(table["frame_index"].to_numpy())
     if not rows:
-        raise ValueError(f"episode {episode} is not in {root}; see meta/info.json total_episodes")
+        raise InvalidInputError(f"episode {episode} is not in {root}; see meta/info.json total_episodes")
     order = np.argsort(np.concatenate(frames), kind="stable")
     return np.concatenate(rows)[order], np.concatenate(frames)[order]
 
@@ -93,10 +94,10 @@ def load_episode(
     root = Path(dataset)
     if not (root / INFO_PATH).is_file():
         if root.exists() or str(dataset).count("/") != 1:
-            raise FileNotFoundError(f"{dataset} is not a LeRobotDataset folder (meta/info.json missing) nor a repo id")
+            raise MissingInputError(f"{dataset} is not a LeRobotDataset folder (meta/info.json missing) nor a repo id")
         root = dataset_root(str(dataset))
     if stride < 1:
-        raise ValueError(f"stride must be >= 1, got {stride}")
+        raise InvalidInputError(f"stride must be >= 1, got {stride}")
     meta = UdhmDatasetMeta(root)
     info, layout = meta.info, meta.hand_layout()
     states, frame_index = _episode_states(root, episode)

@@ -19,6 +19,7 @@ import numpy as np
 
 from lerobot_unidextok import udhm
 from lerobot_unidextok.constants import UDHM_INDEX
+from lerobot_unidextok.errors import InvalidInputError, MissingInputError
 from lerobot_unidextok.hands.spec import HandSpec
 from lerobot_unidextok.udhm.frames import palm_frame
 
@@ -47,19 +48,19 @@ def find_urdf(urdf: str | Path, spec: HandSpec, side: str) -> Path:
     ``urdf.file`` under the folder ``urdf`` (as laid out upstream), else that file's name in the folder."""
     path = Path(urdf)
     if spec.urdf is None:
-        raise ValueError(
+        raise InvalidInputError(
             f"hand {spec.name!r} has no `urdf:` keypoint map in its spec, so --urdf cannot draw it; drop --urdf "
             "or add the map (docs/hands.md)"
         )
     if path.is_file():
         return path
     if not path.is_dir():
-        raise FileNotFoundError(f"--urdf {urdf} is neither a URDF file nor a folder")
+        raise MissingInputError(f"--urdf {urdf} is neither a URDF file nor a folder")
     tried = [path / spec.urdf.files[side], path / Path(spec.urdf.files[side]).name]
     for candidate in tried:
         if candidate.is_file():
             return candidate
-    raise FileNotFoundError(
+    raise MissingInputError(
         f"no URDF for the {side} {spec.name} hand under {urdf}: tried {', '.join(str(t) for t in tried)}; "
         "pass the file itself or a folder holding it"
     )

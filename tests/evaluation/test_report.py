@@ -15,7 +15,7 @@ NAMES = [f"right_{j}" for j in UDHM_JOINT_NAMES]
 
 
 def _rows(n: int, hand: str, seed: int) -> HandStates:
-    from lerobot_unidextok.conversion.sample_motion import gesture_track
+    from lerobot_unidextok.samples.motion import gesture_track
 
     q = gesture_track(np.random.default_rng(seed), n, 30.0).angles_rad.astype(np.float32)
     return HandStates(q, np.full(n, hand), np.ones((n, 22), bool))
@@ -42,7 +42,7 @@ def write_udhm_dataset(root, hand: str, episodes: int, test_episodes: int, frame
     from lerobot.datasets import LeRobotDataset
 
     from lerobot_unidextok import hands
-    from lerobot_unidextok.conversion.sample_motion import gesture_track
+    from lerobot_unidextok.samples.motion import gesture_track
 
     features = {
         "observation.state": {"dtype": "float32", "shape": (22,), "names": NAMES},

@@ -65,7 +65,7 @@ def one_torch_thread():
 def converted_g1(tmp_path_factory) -> Path:
     """The synthetic G1 + Inspire sample (the shipped checkpoint's hand), 5 episodes: 4 train, 1 test."""
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples
+    from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS, write_samples
 
     raw = write_samples(tmp_path_factory.mktemp("raw"), sources=["lerobot"], episodes_per_source=5,
                         frames_per_episode=40)["lerobot"]  # fmt: skip

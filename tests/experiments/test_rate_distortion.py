@@ -92,7 +92,7 @@ def test_missing_dataset_names_the_command_that_writes_it(tmp_path):
 @pytest.fixture(scope="module")
 def converted_linker(tmp_path_factory):
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import write_samples
+    from lerobot_unidextok.samples import write_samples
 
     raw = write_samples(tmp_path_factory.mktemp("raw"), sources=["linkerhand"], episodes_per_source=5,
                         frames_per_episode=30)["linkerhand"]  # fmt: skip

@@ -13,7 +13,7 @@ from experiments.unseen_data import all_episodes
 @pytest.fixture(scope="module")
 def converted_linker(tmp_path_factory):
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import write_samples
+    from lerobot_unidextok.samples import write_samples
 
     raw = write_samples(tmp_path_factory.mktemp("raw"), sources=["linkerhand"], episodes_per_source=4,
                         frames_per_episode=40)["linkerhand"]  # fmt: skip
@@ -69,7 +69,7 @@ def test_unseen_episodes_rejects_unknown_variants(converted_linker, tmp_path):
 def test_unseen_human_on_keypoint_files(tmp_path):
     """Train on one keypoint recording, score on another person's (a different skeleton and motion)."""
     from lerobot_unidextok import udhm
-    from lerobot_unidextok.conversion.sample_motion import gesture_track
+    from lerobot_unidextok.samples.motion import gesture_track
 
     files = []
     for i, scale in enumerate((1.0, 0.9)):

@@ -124,7 +124,7 @@ def test_deploy_refuses_what_it_cannot_bind(mixed_policy, g1_like, tmp_path):
 
 def _dexora_robot(tmp_path: Path) -> Path:
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import write_samples
+    from lerobot_unidextok.samples import write_samples
 
     raw = write_samples(tmp_path / "raw", sources=["dexora"], episodes_per_source=2, frames_per_episode=20)
     root = tmp_path / "dexora"

@@ -369,7 +369,7 @@ def test_layout_refuses_a_dataset_that_mixes_hands(tmp_path):
     """A converted LinkerHand sample alternates L10 and L20 episodes: one fixed layout would silently
     tokenise L20 frames as L10, so the layout reader must refuse and name both hands."""
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import write_samples
+    from lerobot_unidextok.samples import write_samples
 
     raw = write_samples(tmp_path / "raw", sources=["linkerhand"], episodes_per_source=4, frames_per_episode=30)
     report = convert(ConvertOptions(source="linkerhand", input=raw["linkerhand"], root=tmp_path / "ds", progress=False))

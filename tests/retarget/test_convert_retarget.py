@@ -11,6 +11,12 @@ from lerobot_unidextok.data import load_udhm_frames
 from lerobot_unidextok.retarget import HandRetargeter
 
 
+def _empty(folder):
+    """An input folder apart from the output (a root inside the input is refused)."""
+    folder.mkdir(exist_ok=True)
+    return folder
+
+
 def test_keypoint_files_to_robot_dataset(urdf_dir, human_clip, tmp_path):
     """Two real keypoint clips become two LinkerHand L10 episodes whose UDHM states are the retargeter's."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
@@ -34,7 +40,7 @@ def test_keypoint_files_to_robot_dataset(urdf_dir, human_clip, tmp_path):
 
 def test_human_dataset_to_robot_dataset(urdf_dir, tmp_path):
     """A converted human dataset (sample DexYCB, UDHM) -> XHand1: every human frame gets a robot frame."""
-    from lerobot_unidextok.conversion.samples import write_samples
+    from lerobot_unidextok.samples import write_samples
 
     raw = write_samples(tmp_path / "raw", sources=["dexycb"], episodes_per_source=2, frames_per_episode=20)
     human = tmp_path / "human"
@@ -50,7 +56,7 @@ def test_human_dataset_to_robot_dataset(urdf_dir, tmp_path):
 
 def test_retarget_source_errors(tmp_path, urdf_dir):
     with pytest.raises(ValueError, match="needs the target hand and its URDF"):
-        convert(ConvertOptions(source="retarget", input=tmp_path, root=tmp_path / "o", progress=False))
+        convert(ConvertOptions(source="retarget", input=_empty(tmp_path / "in"), root=tmp_path / "o", progress=False))
     (tmp_path / "x.json").write_text(json.dumps({}))
     from lerobot_unidextok.conversion.pipeline import ConversionError
 

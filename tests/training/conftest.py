@@ -1,10 +1,10 @@
-"""Hand-state rows for training tests: smooth gesture trajectories (conversion.sample_motion),
+"""Hand-state rows for training tests: smooth gesture trajectories (samples.motion),
 human (all 22 DoFs) and an Inspire RH56 hand (its active-DoF mask from the hand registry)."""
 
 import numpy as np
 import pytest
 
-from lerobot_unidextok.conversion.sample_motion import gesture_track
+from lerobot_unidextok.samples.motion import gesture_track
 from lerobot_unidextok.training import HandStates
 
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-from lerobot_unidextok.conversion.samples import write_samples
 from lerobot_unidextok.data import open_row_store
+from lerobot_unidextok.samples import write_samples
 from lerobot_unidextok.training import TrainConfig, load_hand_states, train_tokenizer
 from lerobot_unidextok.training.coverage import CoverageConfig, MixtureSampler
 from lerobot_unidextok.training.splits import split_by_episode, split_store_by_episode

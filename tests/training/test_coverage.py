@@ -43,7 +43,7 @@ def _inspire_rows(n: int, seed: int) -> HandStates:
 
 
 def _human_rows(n: int, seed: int) -> HandStates:
-    from lerobot_unidextok.conversion.sample_motion import gesture_track
+    from lerobot_unidextok.samples.motion import gesture_track
 
     q = gesture_track(np.random.default_rng(seed), n, 30.0).angles_rad.astype(np.float32)
     return HandStates(q, np.full(n, "human"), np.ones((n, 22), bool), np.arange(n) // 20)

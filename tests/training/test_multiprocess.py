@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-from lerobot_unidextok.conversion.samples import write_samples
+from lerobot_unidextok.samples import write_samples
 
 PROBE = Path(__file__).with_name("ddp_probe.py")
 

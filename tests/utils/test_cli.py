@@ -6,6 +6,7 @@ import time
 
 import pytest
 
+from lerobot_unidextok.errors import ExistingOutputError, InvalidInputError, MissingInputError, UnavailableError
 from lerobot_unidextok.utils import cli
 
 
@@ -13,17 +14,38 @@ def test_run_cli_turns_user_mistakes_into_one_line(capsys, monkeypatch):
     monkeypatch.delenv("UNIDEXTOK_TRACEBACK", raising=False)
 
     def bad() -> None:
-        raise FileNotFoundError("data/x not found: convert it first")
+        raise MissingInputError("data/x not found: convert it first")
 
     with pytest.raises(SystemExit) as info:
         cli.run_cli(bad)
     assert info.value.code == 2
     assert capsys.readouterr().err.splitlines()[0] == "error: data/x not found: convert it first"
     monkeypatch.setenv("UNIDEXTOK_TRACEBACK", "1")
-    with pytest.raises(FileNotFoundError):
+    with pytest.raises(FileNotFoundError):  # a MissingInputError is a FileNotFoundError for callers
         cli.run_cli(bad)
     with pytest.raises(ZeroDivisionError):  # a bug keeps its traceback
         cli.run_cli(lambda: 1 / 0)
+
+
+def test_builtin_errors_are_bugs_only_user_errors_are_one_line(capsys, monkeypatch):
+    """ValueError / KeyError / FileNotFoundError counted as user mistakes, so bugs lost their tracebacks: only
+    `lerobot_unidextok.errors.UserError` is one line now."""
+    monkeypatch.delenv("UNIDEXTOK_TRACEBACK", raising=False)
+    for bug in (ValueError("shapes (3,) and (4,) not aligned"), KeyError("step"), FileNotFoundError("x")):
+
+        def raise_it(exc=bug):
+            raise exc
+
+        with pytest.raises(type(bug)):
+            cli.run_cli(raise_it)
+    for mistake in (InvalidInputError("bad value"), UnavailableError("offline"), ExistingOutputError("exists")):
+
+        def raise_it(exc=mistake):
+            raise exc
+
+        with pytest.raises(SystemExit) as info:
+            cli.run_cli(raise_it)
+        assert info.value.code == 2 and capsys.readouterr().err.startswith(f"error: {mistake}")
 
 
 def test_a_runtime_error_is_a_bug_and_a_user_error_is_one_line(capsys, monkeypatch):
@@ -34,7 +56,7 @@ def test_a_runtime_error_is_a_bug_and_a_user_error_is_one_line(capsys, monkeypat
         raise RuntimeError("step 10: model replicas differ")
 
     def offline_push() -> None:
-        raise cli.UserError("HF_HUB_OFFLINE is set: unset it (or set HF_HUB_OFFLINE=0) to push")
+        raise UnavailableError("HF_HUB_OFFLINE is set: unset it (or set HF_HUB_OFFLINE=0) to push")
 
     with pytest.raises(RuntimeError, match="replicas differ"):
         cli.run_cli(bug)
