@@ -6,6 +6,7 @@ huggingface_hub is imported lazily so `import lerobot_unidextok.hub` stays cheap
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
@@ -14,9 +15,9 @@ import tempfile
 from pathlib import Path
 
 from lerobot_unidextok.constants import INFO_PATH
+from lerobot_unidextok.errors import InvalidInputError, MissingInputError, UnavailableError
 from lerobot_unidextok.hub.card import card_status, model_card, with_repo_id, with_training_data
 from lerobot_unidextok.pretrained import resolve as resolve_pretrained
-from lerobot_unidextok.utils.cli import UserError
 from lerobot_unidextok.utils.hf_cache import DATASET_REVISIONS, cached_repo_snapshot, hub_cache, lerobot_home
 
 logger = logging.getLogger(__name__)
@@ -35,9 +36,9 @@ def _offline() -> bool:
 
 def _check_repo(repo_id: str, repo_type: str) -> None:
     if repo_type not in REPO_TYPES:
-        raise ValueError(f"repo_type must be one of {REPO_TYPES}, got {repo_type!r}")
+        raise InvalidInputError(f"repo_type must be one of {REPO_TYPES}, got {repo_type!r}")
     if repo_id.count("/") != 1 or not all(repo_id.split("/")):
-        raise ValueError(f"repo_id must look like 'namespace/name', got {repo_id!r}")
+        raise InvalidInputError(f"repo_id must look like 'namespace/name', got {repo_id!r}")
 
 
 def detect_repo_type(local_dir: Path) -> str:
@@ -46,10 +47,34 @@ def detect_repo_type(local_dir: Path) -> str:
         return "dataset"
     if (local_dir / "config.json").is_file():
         return "model"
-    raise ValueError(
+    raise InvalidInputError(
         f"{local_dir} is neither a LeRobotDataset (meta/info.json) nor a checkpoint (config.json); "
         "pass repo_type explicitly"
     )
+
+
+def check_loadable(local_dir: Path, repo_type: str) -> None:
+    """Read back what a push would upload, so a damaged folder (a truncated safetensors, a JSON file cut
+    short, an unreadable parquet file) is refused before anything reaches the Hub."""
+    from safetensors import SafetensorError
+    from safetensors.torch import load_file
+
+    if repo_type == "dataset":
+        import pyarrow.parquet as pq
+
+        checks = [(path, pq.read_metadata) for path in sorted(local_dir.glob("**/*.parquet"))]
+    else:
+        checks = [(path, load_file) for path in sorted(local_dir.glob("*.safetensors"))]
+    for path in [*sorted(local_dir.glob("*.json")), *sorted(local_dir.glob("meta/*.json"))]:
+        checks.append((path, lambda p: json.loads(p.read_text())))
+    for path, read in checks:
+        try:
+            read(path)
+        except (SafetensorError, OSError, ValueError) as e:  # pyarrow's ArrowInvalid is a ValueError
+            raise InvalidInputError(
+                f"{path} cannot be read ({type(e).__name__}: {e}): nothing was pushed; re-create it (re-train, "
+                "re-save or re-convert) and push again"
+            ) from None
 
 
 def cache_dir() -> str:
@@ -92,20 +117,21 @@ def push(
 
     local_dir = Path(resolve_pretrained(local_dir))  # a shipped id (unidextok/universal-small): its package folder
     if not local_dir.is_dir():
-        raise FileNotFoundError(f"{local_dir} is not a folder; pass the checkpoint or dataset directory")
+        raise MissingInputError(f"{local_dir} is not a folder; pass the checkpoint or dataset directory")
     local_dir = checkpoint_folder(local_dir)
     repo_type = repo_type or detect_repo_type(local_dir)
     _check_repo(repo_id, repo_type)
     if _offline():
-        raise UserError("HF_HUB_OFFLINE is set: unset it (or set HF_HUB_OFFLINE=0) to push")
+        raise UnavailableError("HF_HUB_OFFLINE is set: unset it (or set HF_HUB_OFFLINE=0) to push")
 
+    check_loadable(local_dir, repo_type)
     api = HfApi(endpoint=_endpoint(endpoint), token=token or os.environ.get("HF_TOKEN"))
     with tempfile.TemporaryDirectory(prefix="unidextok-push-") as staging:
         upload_dir = local_dir
         if repo_type == "dataset":
             info = json.loads((local_dir / INFO_PATH).read_text())
             if info.get("codebase_version") != DATASET_CODEBASE_TAG:
-                raise ValueError(
+                raise InvalidInputError(
                     f"{local_dir} is LeRobot dataset {info.get('codebase_version')!r}; only "
                     f"{DATASET_CODEBASE_TAG} is supported: re-convert it with unidextok-convert"
                 )
@@ -130,20 +156,21 @@ def push(
                 shutil.copytree(local_dir, upload_dir, ignore=shutil.ignore_patterns(".cache"))
                 (upload_dir / "README.md").write_text(card)
 
-        api.create_repo(repo_id, repo_type=repo_type, private=private, exist_ok=True)
-        commit = api.upload_folder(
-            repo_id=repo_id,
-            repo_type=repo_type,
-            folder_path=upload_dir,
-            commit_message=commit_message or f"Upload {repo_type} with lerobot-unidextok",
-            ignore_patterns=[".cache/**", "**/.cache/**", "images/**"],
-        )
-    if repo_type == "dataset":
-        try:
-            api.delete_tag(repo_id, tag=DATASET_CODEBASE_TAG, repo_type=repo_type)
-        except RevisionNotFoundError:
-            pass
-        api.create_tag(repo_id, tag=DATASET_CODEBASE_TAG, repo_type=repo_type)
+        with _hub_refusals(f"push to {repo_type} {repo_id}", endpoint):
+            api.create_repo(repo_id, repo_type=repo_type, private=private, exist_ok=True)
+            commit = api.upload_folder(
+                repo_id=repo_id,
+                repo_type=repo_type,
+                folder_path=upload_dir,
+                commit_message=commit_message or f"Upload {repo_type} with lerobot-unidextok",
+                ignore_patterns=[".cache/**", "**/.cache/**", "images/**"],
+            )
+            if repo_type == "dataset":
+                try:
+                    api.delete_tag(repo_id, tag=DATASET_CODEBASE_TAG, repo_type=repo_type)
+                except RevisionNotFoundError:
+                    pass
+                api.create_tag(repo_id, tag=DATASET_CODEBASE_TAG, repo_type=repo_type)
     logger.info("pushed %s %s at %s", repo_type, repo_id, commit.oid)
     return commit.oid
 
@@ -161,30 +188,91 @@ def pull(
     linked at `$HF_LEROBOT_HOME/<repo_id>`, so `LeRobotDataset(repo_id)`, `lerobot-train
     --dataset.repo_id=...`, `unidextok-train/-eval --datasets=[repo_id]` and `cached_snapshot` all find it.
     """
-    from huggingface_hub import snapshot_download
+    import httpx
+    from huggingface_hub import HfApi, snapshot_download
+    from huggingface_hub.errors import HfHubHTTPError, RepositoryNotFoundError, RevisionNotFoundError
 
     _check_repo(repo_id, repo_type)
     if _offline():
-        raise UserError(
+        raise UnavailableError(
             f"HF_HUB_OFFLINE is set, so {repo_id} cannot be downloaded: unset HF_HUB_OFFLINE "
             "(or set HF_HUB_OFFLINE=0) and run the pull again"
         )
     if revision is None and repo_type == "dataset":
         revision = DATASET_CODEBASE_TAG
-    path = snapshot_download(
-        repo_id,
-        repo_type=repo_type,
-        revision=revision,
-        cache_dir=cache_dir(),
-        token=token or os.environ.get("HF_TOKEN"),
-        endpoint=_endpoint(endpoint),
-    )
-    logger.info("pulled %s %s into %s", repo_type, repo_id, path)
+    token = token or os.environ.get("HF_TOKEN")
+    # Ask the Hub first: snapshot_download answers a refusal (a rejected token, a missing repo) with the cached
+    # snapshot when there is one, so a pull would report success with stale files.
+    api = HfApi(endpoint=_endpoint(endpoint), token=token)
+    try:
+        commit = api.repo_info(repo_id, repo_type=repo_type, revision=revision).sha
+    except (RepositoryNotFoundError, RevisionNotFoundError) as e:
+        raise MissingInputError(
+            f"the Hub has no {repo_type} {repo_id}{f' at revision {revision}' if revision else ''} readable with "
+            f"this token ({_reason(e)}): check the repo id, --revision and --token / HF_TOKEN"
+        ) from None
+    except HfHubHTTPError as e:  # 401 / 403 (a rejected token, a gated repo) or the Hub failing
+        raise UnavailableError(
+            f"the Hub refused {repo_type} {repo_id} ({_reason(e)}): check --token / HF_TOKEN and your access; "
+            f"nothing was pulled{_cached_note(repo_id, repo_type, revision)}"
+        ) from None
+    except (httpx.ConnectError, httpx.TimeoutException) as e:
+        cached = cached_repo_snapshot(hub_cache(), repo_id, repo_type, [revision or "main"])
+        if cached is None:
+            raise UnavailableError(
+                f"the Hub at {_endpoint(endpoint) or 'huggingface.co'} cannot be reached ({e}) and {repo_type} "
+                f"{repo_id} is not in the local HF cache ({cache_dir()}): pull again when online"
+            ) from None
+        logger.warning("the Hub cannot be reached (%s): using the cached snapshot %s, which may be older than the "
+                       "Hub's", e, cached)  # fmt: skip
+        commit, path = None, str(cached)
+    if commit is not None:
+        path = snapshot_download(repo_id, repo_type=repo_type, revision=commit, cache_dir=cache_dir(), token=token,
+                                 endpoint=_endpoint(endpoint))  # fmt: skip
+        if (revision or "main") != commit:  # the ref a later offline read resolves (main, v3.0)
+            _record_ref(repo_id, repo_type, revision or "main", commit)
+        logger.info("pulled %s %s at %s into %s", repo_type, repo_id, commit[:8], path)
     if repo_type == "dataset":
         link = link_into_lerobot_home(repo_id, Path(path))
         if link is not None:
             logger.info("linked %s -> %s: LeRobotDataset(%r) finds it without root", link, path, repo_id)
     return Path(path)
+
+
+@contextlib.contextmanager
+def _hub_refusals(what: str, endpoint: str | None):
+    """A Hub that refuses (401/403, a server error) or cannot be reached, as one UnavailableError."""
+    import httpx
+    from huggingface_hub.errors import HfHubHTTPError
+
+    try:
+        yield
+    except HfHubHTTPError as e:
+        raise UnavailableError(f"the Hub refused the {what} ({_reason(e)}): check --token / HF_TOKEN and your "
+                               "write access") from None  # fmt: skip
+    except (httpx.ConnectError, httpx.TimeoutException) as e:
+        raise UnavailableError(f"the Hub at {_endpoint(endpoint) or 'huggingface.co'} cannot be reached ({e}): "
+                               f"the {what} did not happen; try again when online") from None  # fmt: skip
+
+
+def _reason(error: Exception) -> str:
+    response = getattr(error, "response", None)
+    status = f"HTTP {response.status_code}" if response is not None else type(error).__name__
+    return f"{status}: {str(error).splitlines()[0]}"
+
+
+def _cached_note(repo_id: str, repo_type: str, revision: str | None) -> str:
+    cached = cached_repo_snapshot(hub_cache(), repo_id, repo_type, [revision or "main"])
+    return f" (the cached snapshot {cached} is left as it was)" if cached is not None else ""
+
+
+def _record_ref(repo_id: str, repo_type: str, revision: str, commit: str) -> None:
+    """Point the cache's ref `revision` at `commit`, as snapshot_download does when it resolves a name."""
+    from huggingface_hub.file_download import repo_folder_name
+
+    ref = Path(cache_dir()) / repo_folder_name(repo_id=repo_id, repo_type=repo_type) / "refs" / revision
+    ref.parent.mkdir(parents=True, exist_ok=True)
+    ref.write_text(commit)
 
 
 def cached_snapshot(repo_id: str, repo_type: str = "model", revision: str | None = None) -> Path:
@@ -197,7 +285,7 @@ def cached_snapshot(repo_id: str, repo_type: str = "model", revision: str | None
     snapshot = cached_repo_snapshot(hub_cache(), repo_id, repo_type, revisions)
     if snapshot is None:
         flag = "" if repo_type == "model" else f" --repo_type={repo_type}"
-        raise FileNotFoundError(
+        raise MissingInputError(
             f"{repo_type} {repo_id} (revision {' or '.join(revisions)}) is not in the local HF cache "
             f"({cache_dir()}): run `unidextok-pull --repo_id={repo_id}{flag}` (or unset HF_HUB_OFFLINE) first"
         )

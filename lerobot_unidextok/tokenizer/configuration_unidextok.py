@@ -1,8 +1,11 @@
 """UniDexTok configuration: one typed dataclass and named size presets."""
 
-from dataclasses import dataclass, field, replace
+import types
+import typing
+from dataclasses import dataclass, field, fields, replace
 
 from lerobot_unidextok.constants import UDHM_DIM
+from lerobot_unidextok.errors import ConfigError
 
 # Bump when a change makes old checkpoints unloadable (layer names, shapes, semantics of fields).
 FORMAT_VERSION = 1
@@ -13,11 +16,11 @@ ENCODING_FIELDS: tuple[str, ...] = ("search_rounds", "search_sweeps")
 
 def check_encoding(search_rounds: int | None, search_sweeps: int | None = None, flag: str = "search_rounds") -> None:
     """The one rule for the encoding settings (None = unset): `search_rounds` >= 0 (0 = the nearest codes) and
-    `search_sweeps` >= 1; a ValueError naming `flag`, the field or flag that carries `search_rounds`."""
+    `search_sweeps` >= 1; a ConfigError (a ValueError) naming `flag`, the field or flag that carries `search_rounds`."""
     if search_rounds is not None and search_rounds < 0:
-        raise ValueError(f"{flag} must be >= 0 (0 = nearest codes), got {search_rounds}")
+        raise ConfigError(f"{flag} must be >= 0 (0 = nearest codes), got {search_rounds}")
     if search_sweeps is not None and search_sweeps < 1:
-        raise ValueError(f"search_sweeps must be >= 1, got {search_sweeps}")
+        raise ConfigError(f"search_sweeps must be >= 1, got {search_sweeps}")
 
 
 # Hand-type vocabulary used for conditioning by default. Names are hand-spec names (side-independent);
@@ -98,8 +101,8 @@ class UniDexTokConfig:
     # --- encoding ----------------------------------------------------------------------------------
     # Departure (option): decoder-aware code search (tokenizer/search.py). 0 = the paper's encoding, each group
     # vector snapped to its nearest code; R > 0 refines those codes by R rounds of coordinate descent on the
-    # decoder linearised around them (each round `search_sweeps` passes over the N x K positions; 2 x 2 costs
-    # `small` 1.4-2.9 ms per hand-row at batch 256, about 7 at batch 1, on one CPU thread). Same codes, same
+    # decoder linearised around them (each round `search_sweeps` passes over the N x K positions; its cost:
+    # benchmarks/bench_tokenizer.py, docs/tokenizer.md). Same codes, same
     # decoder; training always uses the nearest codes.
     search_rounds: int = 0
     search_sweeps: int = 2
@@ -114,45 +117,58 @@ class UniDexTokConfig:
 
     def __post_init__(self) -> None:
         if self.format_version != FORMAT_VERSION:
-            raise ValueError(
+            raise ConfigError(
                 f"UniDexTok config format_version={self.format_version!r} does not match this code's "
                 f"FORMAT_VERSION={FORMAT_VERSION}; install the lerobot-unidextok version that wrote the checkpoint, "
                 "or re-train"
             )
         if self.hidden_dim % self.num_heads != 0:
-            raise ValueError(f"hidden_dim={self.hidden_dim} must be divisible by num_heads={self.num_heads}")
+            raise ConfigError(f"hidden_dim={self.hidden_dim} must be divisible by num_heads={self.num_heads}")
         if self.codebook_dim % self.num_groups != 0:
-            raise ValueError(f"codebook_dim={self.codebook_dim} must be divisible by num_groups={self.num_groups}")
+            raise ConfigError(f"codebook_dim={self.codebook_dim} must be divisible by num_groups={self.num_groups}")
         if self.fourier_octaves < 0:
-            raise ValueError(f"fourier_octaves must be >= 0, got {self.fourier_octaves}")
+            raise ConfigError(f"fourier_octaves must be >= 0, got {self.fourier_octaves}")
         for name in ("num_tokens", "hidden_dim", "num_heads", "codebook_size", "state_dim"):
             if getattr(self, name) < 1:
-                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+                raise ConfigError(f"{name} must be >= 1, got {getattr(self, name)}")
         self.hand_names = list(self.hand_names)  # JSON round trip gives lists; keep one type
         self.trained_hands = list(self.trained_hands)
         if self.input_norm not in ("pi", "range"):
-            raise ValueError(f"input_norm must be 'pi' or 'range', got {self.input_norm!r}")
+            raise ConfigError(f"input_norm must be 'pi' or 'range', got {self.input_norm!r}")
         if self.joint_range_rad is not None:
             rng = self.joint_range_rad
             if len(rng) != self.state_dim or any(len(r) != 2 or r[0] > r[1] for r in rng):
-                raise ValueError(f"joint_range_rad must be {self.state_dim} [lo, hi] pairs with lo <= hi, got {rng}")
+                raise ConfigError(f"joint_range_rad must be {self.state_dim} [lo, hi] pairs with lo <= hi, got {rng}")
             self.joint_range_rad = [[float(a), float(b)] for a, b in rng]
         if self.gradient_estimator not in ("straight_through", "rotation"):
-            raise ValueError(
+            raise ConfigError(
                 f"gradient_estimator must be 'straight_through' or 'rotation', got {self.gradient_estimator!r}"
             )
         if self.codebook_update not in ("gradient", "ema"):
-            raise ValueError(f"codebook_update must be 'gradient' or 'ema', got {self.codebook_update!r}")
+            raise ConfigError(f"codebook_update must be 'gradient' or 'ema', got {self.codebook_update!r}")
         check_encoding(self.search_rounds, self.search_sweeps)
         if min(self.mse_weight, self.smooth_l1_weight, self.l1_weight) < 0:
-            raise ValueError("mse_weight, smooth_l1_weight and l1_weight must be >= 0")
+            raise ConfigError("mse_weight, smooth_l1_weight and l1_weight must be >= 0")
         if len(set(self.hand_names)) != len(self.hand_names):
-            raise ValueError(f"hand_names has duplicates: {self.hand_names}")
+            raise ConfigError(f"hand_names has duplicates: {self.hand_names}")
 
     @classmethod
     def from_dict(cls, data: dict) -> "UniDexTokConfig":
         """A config from config.json's dict; a file without `format_version` is read as `format_version=None`
         (refused), not as the current version."""
+        unknown = sorted(set(data) - {f.name for f in fields(cls)})
+        if unknown:
+            raise ConfigError(
+                f"UniDexTok config.json has keys this version does not know: {unknown}; remove them, or install "
+                "the lerobot-unidextok version that wrote the checkpoint"
+            )
+        hints = typing.get_type_hints(cls)
+        for key, value in data.items():
+            if not _fits(value, hints[key]):
+                raise ConfigError(
+                    f"UniDexTok config.json: {key}={value!r} is a {type(value).__name__}, expected "
+                    f"{_type_name(hints[key])}; correct the value in config.json"
+                )
         return cls(**{"format_version": None, **data})
 
     @classmethod
@@ -175,8 +191,28 @@ class UniDexTokConfig:
     def from_preset(cls, name: str, **overrides) -> "UniDexTokConfig":
         """A preset by name (see PRESETS), with optional field overrides."""
         if name not in PRESETS:
-            raise ValueError(f"unknown UniDexTok preset {name!r}; choose one of {sorted(PRESETS)}")
+            raise ConfigError(f"unknown UniDexTok preset {name!r}; choose one of {sorted(PRESETS)}")
         return replace(PRESETS[name], **overrides)
+
+
+def _fits(value, hint) -> bool:
+    """Whether a JSON value fits a field's annotation (int, float, str, bool, list[...], X | None)."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        return any(_fits(value, a) for a in args)
+    if hint is type(None):
+        return value is None
+    if origin is list:
+        return isinstance(value, list) and (not args or all(_fits(v, args[0]) for v in value))
+    if hint is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    return isinstance(value, hint)
+
+
+def _type_name(hint) -> str:
+    return getattr(hint, "__name__", None) if typing.get_origin(hint) is None else str(hint).replace("typing.", "")
 
 
 # Named presets; keys double as the CLI choices. VQ is the paper's (256 -> 8 x 32-entry) in all.

@@ -15,9 +15,11 @@ import torch
 import torch.nn.functional as F
 from huggingface_hub import PyTorchModelHubMixin, hf_hub_download
 from huggingface_hub import constants as hf_constants
+from safetensors import SafetensorError
 from torch import nn
 
 from lerobot_unidextok.constants import ANGLE_SCALE_RAD
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.pretrained import hub_errors, resolve
 from lerobot_unidextok.tokenizer.configuration_unidextok import UniDexTokConfig
 from lerobot_unidextok.tokenizer.layers import AdaLNBlock, AdaLNFinalNorm, HandEmbedder
@@ -388,7 +390,13 @@ class UniDexTok(
             _fetch(hf_constants.CONFIG_NAME)  # raises the error that says where it looked
             raise FileNotFoundError(f"{model_id}: config.json could not be read")
         model = cls(**model_kwargs)
-        model = cls._load_as_safetensor(model, _fetch(hf_constants.SAFETENSORS_SINGLE_FILE), map_location, strict)
+        weights = _fetch(hf_constants.SAFETENSORS_SINGLE_FILE)
+        try:
+            model = cls._load_as_safetensor(model, weights, map_location, strict)
+        except SafetensorError as e:  # cut short by a kill or a full disk, or not a safetensors file
+            raise InvalidInputError(
+                f"{weights} is damaged ({e}): load another checkpoint, or re-train / re-download this one"
+            ) from e
         model.eval()
         return model
 

@@ -1,11 +1,21 @@
-"""Training checkpoints: Hub-format model folder + optimiser state in safetensors (no pickle)."""
+"""Training checkpoints: Hub-format model folder + optimiser state in safetensors (no pickle).
 
+Every checkpoint is written into a hidden sibling folder and renamed into place (`utils/files.replace_folder`),
+so a kill mid-save leaves the previous checkpoint whole; `training_state.json`, written last, records a hash
+of every file beside it, and `check_checkpoint` refuses a folder whose files disagree with it."""
+
+import hashlib
 import json
 import logging
+import os
+import shutil
 from pathlib import Path
 
 import torch
 from safetensors.torch import load_file, save_file
+
+from lerobot_unidextok.errors import InvalidInputError, MissingInputError
+from lerobot_unidextok.utils.files import replace_folder
 
 TRAINING_STATE = "training_state.json"
 OPTIMIZER_STATE = "optimizer.safetensors"
@@ -23,8 +33,12 @@ def save_checkpoint(
 ) -> Path:
     """Write config.json + model.safetensors (+ optimiser tensors, a JSON training state and the tensors
     an exact resume needs beyond the weights: random generator states, non-persistent statistics)."""
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
+    target = Path(directory)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    recover_checkpoint(target)
+    directory = target.parent / f".{target.name}.tmp-{os.getpid()}"
+    shutil.rmtree(directory, ignore_errors=True)
+    directory.mkdir()
     model.save_pretrained(directory)
     if optimizer is not None:
         tensors: dict[str, torch.Tensor] = {}
@@ -37,8 +51,50 @@ def save_checkpoint(
     if resume_tensors is not None:
         save_file({k: v.detach().cpu().contiguous() for k, v in resume_tensors.items()}, directory / RESUME_STATE)
     if state is not None:
-        (directory / TRAINING_STATE).write_text(json.dumps(state, indent=2))
-    return directory
+        files = {p.name: _sha1(p) for p in sorted(directory.iterdir()) if p.suffix == ".safetensors"}
+        (directory / TRAINING_STATE).write_text(json.dumps({**state, "files": files}, indent=2))
+    replace_folder(directory, target)
+    return target
+
+
+def recover_checkpoint(directory: Path) -> None:
+    """Tidy the hidden siblings of `directory` a killed save left: unfinished `.tmp-*` folders are removed; an
+    `.old-*` folder (a kill between the two renames of `replace_folder`) is the checkpoint itself when
+    `directory` is missing, and is put back."""
+    directory = Path(directory)
+    if not directory.parent.is_dir():
+        return
+    for tmp in directory.parent.glob(f".{directory.name}.tmp-*"):
+        shutil.rmtree(tmp, ignore_errors=True)
+    old = sorted(directory.parent.glob(f".{directory.name}.old-*"), key=lambda p: p.stat().st_mtime)
+    if old and not directory.exists():
+        logger.warning("%s: restored from %s (a save was cut short between its two renames)", directory, old[-1].name)
+        old.pop().rename(directory)
+    for folder in old:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def check_checkpoint(directory: Path) -> dict:
+    """The training state of a checkpoint folder, after checking every file it lists has the recorded hash
+    (a folder mixed from two saves, or a truncated file, is refused with the fix)."""
+    state = load_training_state(directory)
+    for name, digest in state.get("files", {}).items():  # absent in checkpoints written before hashes were kept
+        path = Path(directory) / name
+        if not path.is_file() or _sha1(path) != digest:
+            raise InvalidInputError(
+                f"{directory} is inconsistent: {name} is {'missing' if not path.is_file() else 'not the file'} "
+                f"{TRAINING_STATE} recorded (a save was cut short or the folder was edited); resume from another "
+                "checkpoint, or start again without --resume"
+            )
+    return state
+
+
+def _sha1(path: Path) -> str:
+    h = hashlib.sha1()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
 
 
 def load_resume_tensors(directory: Path) -> dict[str, torch.Tensor]:
@@ -51,7 +107,7 @@ def load_optimizer_state(optimizer: torch.optim.Optimizer, directory: Path) -> N
     """Restore optimiser tensors written by `save_checkpoint` (same parameter order)."""
     path = Path(directory) / OPTIMIZER_STATE
     if not path.is_file():
-        raise FileNotFoundError(f"{path} not found; cannot resume the optimiser (start without --resume)")
+        raise MissingInputError(f"{path} not found; cannot resume the optimiser (start without --resume)")
     tensors = load_file(path)
     params = [p for g in optimizer.param_groups for p in g["params"]]
     for name, t in tensors.items():
@@ -59,11 +115,11 @@ def load_optimizer_state(optimizer: torch.optim.Optimizer, directory: Path) -> N
         p = params[int(i)]
         optimizer.state[p][key] = t.to(p.device) if key != "step" else t
     if tensors and len({n.split(".")[0] for n in tensors}) > len(params):
-        raise ValueError(f"{path} has state for more parameters than the model; the architecture changed")
+        raise InvalidInputError(f"{path} has state for more parameters than the model; the architecture changed")
 
 
 def load_training_state(directory: Path) -> dict:
     path = Path(directory) / TRAINING_STATE
     if not path.is_file():
-        raise FileNotFoundError(f"{path} not found; nothing to resume")
+        raise MissingInputError(f"{path} not found; nothing to resume")
     return json.loads(path.read_text())

@@ -12,14 +12,16 @@ import torch
 
 from lerobot_unidextok.constants import UDHM_DIM
 from lerobot_unidextok.data.rowstore import HandRowStore
+from lerobot_unidextok.errors import ConfigError, MissingInputError
 from lerobot_unidextok.evaluation.metrics import mpjae_deg
 from lerobot_unidextok.evaluation.reconstruct import codebook_usage, reconstruct
 from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 from lerobot_unidextok.training.arrays import HandStates
 from lerobot_unidextok.training.checkpoint import (
+    check_checkpoint,
     load_optimizer_state,
     load_resume_tensors,
-    load_training_state,
+    recover_checkpoint,
     save_checkpoint,
 )
 from lerobot_unidextok.training.config import TrainConfig
@@ -30,7 +32,7 @@ from lerobot_unidextok.training.coverage import (
     recorded_tables,
     resolve_range_hands,
 )
-from lerobot_unidextok.training.distributed import broadcast_from_main, check_replicas
+from lerobot_unidextok.training.distributed import broadcast_from_main, check_replicas, leave_at_exit
 from lerobot_unidextok.training.optim import lr_at, make_optimizer
 from lerobot_unidextok.utils.cli import progress_bar
 
@@ -156,18 +158,20 @@ def _train(
     from accelerate import Accelerator
 
     accelerator = Accelerator(cpu=cfg.device == "cpu")
+    if accelerator.num_processes > 1:  # close the group before the interpreter ends (training/distributed.py)
+        leave_at_exit()
     torch.manual_seed(cfg.seed + accelerator.process_index)
     out = Path(cfg.output_dir)
     best_dir, last_dir = out / "best", out / "last"
 
+    state = _resume_state(cfg, last_dir, train_data) if cfg.resume else {}
     model = _prepare_model(cfg, train_data, model, last_dir)
     optimizer = make_optimizer(model, cfg.lr, cfg.weight_decay, cfg.betas)
     n_steps = total_steps(cfg, len(train_data), accelerator.num_processes)
     selection = _Selection(best_dir)
-    start, state = 0, {}
+    start = 0
     if cfg.resume:
         load_optimizer_state(optimizer, last_dir)
-        state = load_training_state(last_dir)
         start = state["step"]
         selection = _Selection(best_dir, state["best_mae_deg"], state["best_step"], state["history"])
     model, optimizer = accelerator.prepare(model, optimizer)
@@ -189,7 +193,7 @@ def _train(
         cfg.batch_size * accelerator.num_processes, mixture,
     )  # fmt: skip
     hand_id_of = torch.tensor([raw_model.hand_id(h) for h in sampler.hand_names])  # sampler hand -> model id
-    about = _about(cfg, n_steps, sampler.hand_names, mixture, eval_data)
+    about = _about(cfg, n_steps, sampler.hand_names, mixture, eval_data, len(train_data), train_data.hand_names())
 
     def _evaluate(step: int) -> None:
         if accelerator.is_main_process and eval_data is not None:
@@ -255,8 +259,6 @@ def _prepare_model(
     elif cfg.hand_names:
         model.add_hands(cfg.hand_names)
     if cfg.resume:
-        if not (last_dir / "config.json").is_file():
-            raise FileNotFoundError(f"--resume: no checkpoint at {last_dir}; run once without --resume first")
         model = UniDexTok.from_pretrained(last_dir)
     trained = list(dict.fromkeys([*train_data.hand_names(), *resolve_range_hands(cfg.range_hands, cfg.exclude_hands)]))
     unknown = [h for h in trained if not model.knows_hand(h)]
@@ -275,10 +277,35 @@ def _prepare_model(
     return model
 
 
-def _about(cfg: TrainConfig, n_steps: int, hands: list[str], mixture: dict, eval_data: HandStates | None) -> dict:
+def _resume_state(cfg: TrainConfig, last_dir: Path, train_data: HandStates | HandRowStore) -> dict:
+    """The training state `--resume` continues from, once the checkpoint is whole (`check_checkpoint`) and was
+    trained with this run's preset on the same training rows; a clear error otherwise."""
+    recover_checkpoint(last_dir)
+    if not (last_dir / "config.json").is_file():
+        raise MissingInputError(f"--resume: no checkpoint at {last_dir}; run once without --resume first")
+    state = check_checkpoint(last_dir)
+    if state.get("preset") not in (None, cfg.preset):
+        raise ConfigError(
+            f"--resume: {last_dir} was trained with --preset={state['preset']}, this run asks for "
+            f"--preset={cfg.preset}; resume with --preset={state['preset']}, or train into another --output_dir"
+        )
+    rows, hands = len(train_data), train_data.hand_names()
+    saved = state.get("train_rows"), state.get("train_hands")
+    if saved[0] is not None and saved != (rows, hands):
+        raise ConfigError(
+            f"--resume: {last_dir} was trained on {saved[0]} rows of hands {saved[1]}, this run reads {rows} rows "
+            f"of hands {hands} (other --datasets, --fraction or split); resume with the run's own data, or train "
+            "into another --output_dir"
+        )
+    return state
+
+
+def _about(cfg: TrainConfig, n_steps: int, hands: list[str], mixture: dict, eval_data: HandStates | None,
+           n_rows: int, train_hands: list[str]) -> dict:
     """What this run trains on; saved with every checkpoint (training_state.json) for the model card."""
     return {
         "preset": cfg.preset, "init_from": cfg.init_from, "adapt": cfg.adapt, "steps": n_steps,
+        "train_rows": n_rows, "train_hands": train_hands,
         "batch_size": cfg.batch_size, "lr": cfg.lr, "unknown_hand_prob": cfg.unknown_hand_prob,
         "hands_trained": hands, "mixture": mixture,
         "selection": {"rows": len(eval_data), "hands": eval_data.hand_names()} if eval_data is not None

@@ -244,8 +244,8 @@ def test_card_lists_only_the_hands_trained(tmp_path):
 def test_wrong_token_is_rejected(hub, tok_dir, tmp_path):
     r = run_cli(["unidextok-push", f"--local_dir={tok_dir}", "--repo_id=lab/other"],
                 HF_ENDPOINT=hub.url, HF_TOKEN="wrong", HF_HUB_OFFLINE="0", HF_HOME=str(tmp_path))  # fmt: skip
-    assert r.returncode != 0 and "401" in r.stderr
-    assert ("model", "lab/other") not in hub.repos
+    assert r.returncode == 2 and r.stderr.startswith("error: the Hub refused the push to model lab/other (HTTP 401")
+    assert "Traceback" not in r.stderr and ("model", "lab/other") not in hub.repos
 
 
 def test_user_mistakes_are_one_line_errors(tmp_path, monkeypatch, capsys):
@@ -322,3 +322,35 @@ print(path.parent.parent.name, tok.config.num_tokens)
                        capture_output=True, text=True, timeout=180)  # fmt: skip
     assert r.returncode == 0, r.stderr[-3000:]
     assert r.stdout.split()[-2:] == ["models--demo--unidextok-tiny", "4"]
+
+
+def test_pull_fails_when_the_hub_refuses_even_with_a_warm_cache(hub, tok_dir, tmp_path):
+    """A rejected token with the tokenizer already cached printed "pulled" and exited 0 with the stale
+    snapshot (snapshot_download falls back to the cache on any HTTP error). Now: exit 2, the refusal named,
+    the cache left as it was; an unreachable Hub falls back to the cache and says so."""
+    env = dict(HF_ENDPOINT=hub.url, HF_HUB_OFFLINE="0", HF_HOME=str(tmp_path / "hf"))
+    assert run_cli(["unidextok-push", f"--local_dir={tok_dir}", "--repo_id=lab/warm"], HF_TOKEN=TOKEN, **env).returncode == 0
+    warm = run_cli(["unidextok-pull", "--repo_id=lab/warm"], HF_TOKEN=TOKEN, **env)
+    assert warm.returncode == 0, warm.stderr[-2000:]
+    refused = run_cli(["unidextok-pull", "--repo_id=lab/warm"], HF_TOKEN="wrong", **env)
+    assert refused.returncode == 2, refused.stderr[-2000:]
+    assert refused.stderr.startswith("error: the Hub refused model lab/warm (HTTP 401") and "Traceback" not in refused.stderr
+    assert "the cached snapshot" in refused.stderr and "left as it was" in refused.stderr
+    assert "pulled" not in refused.stdout + refused.stderr.replace("nothing was pulled", "")
+    unreachable = run_cli(["unidextok-pull", "--repo_id=lab/warm"], HF_TOKEN=TOKEN,
+                          **{**env, "HF_ENDPOINT": "http://127.0.0.1:9"})  # fmt: skip
+    assert unreachable.returncode == 0, unreachable.stderr[-2000:]
+    assert "cannot be reached" in unreachable.stderr and "may be older than the Hub's" in unreachable.stderr
+    missing = run_cli(["unidextok-pull", "--repo_id=lab/never-pushed"], HF_TOKEN=TOKEN, **env)
+    assert missing.returncode == 2 and missing.stderr.startswith("error: the Hub has no model lab/never-pushed")
+
+
+def test_push_refuses_a_damaged_checkpoint_before_uploading(hub, tok_dir, tmp_path):
+    folder = tmp_path / "ckpt"
+    shutil.copytree(tok_dir, folder)
+    weights = folder / "model.safetensors"
+    weights.write_bytes(weights.read_bytes()[:-64])
+    r = run_cli(["unidextok-push", f"--local_dir={folder}", "--repo_id=lab/damaged"], HF_ENDPOINT=hub.url,
+                HF_TOKEN=TOKEN, HF_HUB_OFFLINE="0", HF_HOME=str(tmp_path / "hf"))  # fmt: skip
+    assert r.returncode == 2 and r.stderr.startswith(f"error: {weights} cannot be read"), r.stderr[-2000:]
+    assert "nothing was pushed" in r.stderr and ("model", "lab/damaged") not in hub.repos
