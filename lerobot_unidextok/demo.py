@@ -24,16 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_unidextok.utils.cli import configure_output
+from lerobot_unidextok.utils.cli import run_cli
 from lerobot_unidextok.utils.shared_data import real_data_dir
 
 DEFAULT_OUT = Path("outputs/demo")
 # Training schedule of the full demo: short enough for a first command, on the recordings only (no coverage
-# sampling). On the demo's sample mixture, held-out MPJAE (test episodes) and training CPU time, one thread:
-#   this schedule (2500 steps, batch 128, lr 1e-2, recordings only)  0.948 deg  171 s
-#   the same with coverage sampling (TrainConfig's default mixture)   1.043 deg  178 s  (3000 steps: 1.042, 208 s)
-#   lerobot_unidextok/configs/train/small.yaml (5000 steps, batch 256, lr 6e-3, coverage) 0.667 deg  586 s (loop wall, load 2-3.5)
-# (docs/tokenizer.md, "Demo"); `unidextok-train` keeps coverage sampling on by default.
+# sampling; `unidextok-train` keeps it on by default). How it compares with longer schedules and with coverage
+# sampling, in accuracy and CPU time: docs/tokenizer.md, "Demo".
 DEMO_STEPS = 2500
 DEMO_BATCH_SIZE = 128
 DEMO_LR = 1e-2
@@ -56,7 +53,7 @@ def _table(header: list[str], rows: list[list[object]]) -> str:
 # ---------------------------------------------------------------------------------------------
 def demo_udhm(seed: int) -> None:
     from lerobot_unidextok import udhm
-    from lerobot_unidextok.conversion.sample_motion import GESTURES, gesture_track
+    from lerobot_unidextok.samples.motion import GESTURES, gesture_track
 
     _banner("1. UDHM: 21 keypoints -> inverse kinematics (22 angles) -> forward kinematics -> 21 keypoints")
     rng = np.random.default_rng(seed)
@@ -103,10 +100,13 @@ def demo_hands() -> None:
 # ---------------------------------------------------------------------------------------------
 def demo_convert(out: Path, episodes: int, frames: int, seed: int) -> dict[str, Path]:
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.conversion.samples import SAMPLE_SOURCE_OPTIONS, write_samples
+    from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS, available_sample_sources, write_samples
 
     _banner("3. Converters: synthetic sample data in each source's native format -> UDHM LeRobotDataset v3")
-    raw = write_samples(out / "raw", episodes_per_source=episodes, frames_per_episode=frames, seed=seed,
+    sources, skipped = available_sample_sources()
+    for note in skipped:
+        print(note)
+    raw = write_samples(out / "raw", sources, episodes_per_source=episodes, frames_per_episode=frames, seed=seed,
                         overwrite=True)  # fmt: skip
     roots, rows = {}, []
     for source, folder in raw.items():
@@ -166,35 +166,60 @@ def demo_train(out: Path, roots: dict[str, Path], preset: str, steps: int, seed:
 # 5. pictures
 # ---------------------------------------------------------------------------------------------
 def demo_pictures(out: Path, model, test_data, seed: int) -> None:
+    """The shipped tokenizer (what `UniDexTok.from_pretrained("unidextok/universal-small")` gives, its default
+    encoding) beside the one trained above and 8-bit binning, on the same held-out rows: a table and pictures."""
     from lerobot_unidextok import hands, udhm
     from lerobot_unidextok.baselines import HandRange, UniformBinning
     from lerobot_unidextok.evaluation import reconstruct
+    from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+    from lerobot_unidextok.tokenizer import UniDexTok
     from lerobot_unidextok.viz import plot_codebook_usage, plot_hand_reconstructions, plot_per_joint_errors
 
-    _banner("5. Pictures")
+    _banner(f"5. The shipped tokenizer ({DEFAULT_TOKENIZER}) vs the one trained above vs 8-bit binning: table, pictures")
     plots = out / "plots"
     rng = np.random.default_rng(seed)
-    rec = reconstruct(model, test_data.states_rad, test_data.hands, allow_unknown=True, masks=test_data.masks)
+    shipped = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
     ranges = {}
     for hand in test_data.hand_names():
         spec = hands.get(hand)
         limits = udhm.JOINT_LIMITS_RAD if hand == "human" else np.stack(spec.udhm_limits_rad(), axis=1)
         ranges[hand] = HandRange.from_limits(limits, spec.active_mask)
     binning = UniformBinning(ranges)  # RT-2 / OpenVLA style: 256 bins per active joint, no training
-    paths = []
+    shipped_name, own_name, bins_name = "UniDexTok shipped", "trained here", "binning 8 bit"
+    states = {
+        shipped_name: reconstruct(shipped, test_data.states_rad, test_data.hands, allow_unknown=True,
+                                  masks=test_data.masks).states_rad,
+        own_name: (own := reconstruct(model, test_data.states_rad, test_data.hands, allow_unknown=True,
+                                      masks=test_data.masks)).states_rad,
+        bins_name: np.zeros_like(test_data.states_rad),
+    }  # fmt: skip
     for hand in test_data.hand_names():
         rows = np.flatnonzero(test_data.hands == hand)
-        pick = rng.choice(rows, size=min(3, len(rows)), replace=False)
-        gt = test_data.states_rad[pick]
-        binned = binning.decode(binning.encode(gt, hand), hand).numpy()
-        paths.append(plot_hand_reconstructions(gt, {"UniDexTok": rec.states_rad[pick], "binning (8 bit)": binned},
+        states[bins_name][rows] = binning.decode(binning.encode(test_data.states_rad[rows], hand), hand).numpy()
+    for name, rec in states.items():  # the slots a hand lacks are not decoded targets: drawn as recorded (0)
+        states[name] = np.where(test_data.masks, rec, test_data.states_rad)
+    errors_deg = {}
+    for name, rec in states.items():
+        err = np.degrees(np.abs(rec - test_data.states_rad))
+        err[~test_data.masks] = np.nan
+        errors_deg[name] = err
+    table = [[hand, *(f"{np.nanmean(e[test_data.hands == hand]):.3f}" for e in errors_deg.values())]
+             for hand in test_data.hand_names()]  # fmt: skip
+    table.append(["all test rows", *(f"{np.nanmean(e):.3f}" for e in errors_deg.values())])
+    print("MPJAE (deg) on the test episodes, active joints:")
+    print(_table(["hand", shipped_name, own_name, bins_name], table))
+    print(f"{shipped_name}: {DEFAULT_TOKENIZER}, in the package for every registered hand (its default encoding, "
+          f"the code search); {own_name}: the tokenizer of step 4, trained on this synthetic mixture only")  # fmt: skip
+    paths = []
+    for hand in test_data.hand_names():
+        pick = rng.choice(np.flatnonzero(test_data.hands == hand), size=min(3, int((test_data.hands == hand).sum())),
+                          replace=False)  # fmt: skip
+        paths.append(plot_hand_reconstructions(test_data.states_rad[pick], {n: r[pick] for n, r in states.items()},
                                                hand, plots / f"hands_{hand}.png", title=f"{hand}: ground truth "
-                                               "(grey) vs UniDexTok (green) vs binning (red)"))  # fmt: skip
-    err_deg = np.degrees(np.abs(rec.states_rad - test_data.states_rad))
-    err_deg[~test_data.masks] = np.nan
-    paths.append(plot_per_joint_errors({"UniDexTok": err_deg}, plots / "per_joint_error.png",
-                                       title="UniDexTok per-joint error on the held-out split"))  # fmt: skip
-    paths.append(plot_codebook_usage(rec.codes, model.config.codebook_size, plots / "codebook_usage.png"))
+                                               "(grey) vs the shipped UniDexTok (green) vs the demo's own and binning"))  # fmt: skip
+    paths.append(plot_per_joint_errors(errors_deg, plots / "per_joint_error.png",
+                                       title="per-joint error on the held-out split"))  # fmt: skip
+    paths.append(plot_codebook_usage(own.codes, model.config.codebook_size, plots / "codebook_usage.png"))
     for p in paths:
         print(f"wrote {p}")
 
@@ -252,9 +277,13 @@ def main(argv: list[str] | None = None) -> None:
     )
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
-    configure_output()
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     os.environ.setdefault("MPLBACKEND", "Agg")
+    run_cli(lambda: run(args))
+
+
+def run(args: argparse.Namespace) -> None:
+    """The tour, in order (module docstring)."""
     steps = args.steps or (300 if args.quick else DEMO_STEPS)
     episodes, frames = (4, 100) if args.quick else (10, 150)
     out = args.out

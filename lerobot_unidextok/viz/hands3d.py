@@ -79,7 +79,7 @@ def plot_hand_reconstructions(
             ax.view_init(elev=VIEWS[view][0], azim=-VIEWS[view][1] if side == "left" else VIEWS[view][1])  # mirrored
             ax.set_axis_off()
             if row == 0:
-                errs = "  ".join(
+                errs = "\n".join(  # one line per method: several methods' names do not fit one panel's width
                     f"{m}: {np.linalg.norm(kp[col] - kp_gt[col], axis=-1).mean() * 1000:.1f}"
                     for m, kp in kp_rec.items()
                 )

@@ -200,3 +200,20 @@ def test_failed_write_leaves_nothing_behind(tmp_path, monkeypatch):
     with pytest.raises(RuntimeError, match="disk full"):
         write_samples(tmp_path, sources=["let"], episodes_per_source=1, frames_per_episode=20)
     assert list(tmp_path.iterdir()) == []  # no target folder, no partial folder
+
+
+def test_sources_whose_extra_is_missing_are_left_out_with_the_install_command(monkeypatch):
+    """A plain install has no h5py (extra `egodex`) and no rosbags (extra `ros`): the demo converted every
+    sample and failed with ModuleNotFoundError: h5py. Now those samples are left out, each with a note."""
+    import importlib.util
+
+    from lerobot_unidextok.samples import SAMPLE_SOURCES, available_sample_sources
+
+    assert available_sample_sources() == (list(SAMPLE_SOURCES), [])  # the dev install has every extra
+    real_find_spec = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name in ("h5py", "rosbags")
+                        else real_find_spec(name, *a))  # fmt: skip
+    available, notes = available_sample_sources()
+    assert available == ["dexycb", "dexora", "lerobot"]
+    assert notes[0] == "egodex: skipped, it needs h5py (pip install 'lerobot_policy_unidextok[egodex]')"
+    assert [n.split(":")[0] for n in notes] == ["egodex", "let", "linkerhand"] and "[ros]" in notes[1]
