@@ -49,7 +49,8 @@ UNKNOWN_PREFIX = "unregistered_copy_of_"  # a registered hand's states under a n
 @dataclass
 class ZeroShotConfig:
     checkpoint: str = DEFAULT_TOKENIZER  # shipped id, local folder or Hub id of the tokenizer scored
-    # Hand YAMLs kept out of the registry (relative paths: to the working directory, else to the project root)
+    # Hands outside the tokenizer's vocabulary: YAMLs kept out of the registry (relative paths: to the working
+    # directory, else to the project root), or registered hands added after the tokenizer was trained, by name
     specs: list[str] = field(
         default_factory=lambda: ["experiments/hands/linkerhand_o6.yaml", "experiments/hands/linkerhand_l7.yaml"]
     )
@@ -135,11 +136,11 @@ def run(cfg: ZeroShotConfig) -> dict:
     from lerobot_unidextok.training.coverage import range_states
 
     t0 = time.time()
-    specs = [hands.load_spec(spec_path(p)) for p in cfg.specs]
-    registered = [s.name for s in specs if s.name in hands.names()]
-    if registered:
-        raise ValueError(f"specs {registered} are registered hands; zero-shot needs hands outside the registry")
+    specs = [hands.load_spec(spec_path(p)) if p.endswith(".yaml") else hands.get(p) for p in cfg.specs]
     model = UniDexTok.from_pretrained(cfg.checkpoint)
+    known = [s.name for s in specs if s.name in model.config.hand_names]
+    if known:
+        raise ValueError(f"specs {known} are in the tokenizer's vocabulary; zero-shot needs hands outside it")
     if cfg.search_rounds is not None:
         model.config.search_rounds = cfg.search_rounds
     real_dir = Path(cfg.real_data_dir or default_real_data_dir())

@@ -44,7 +44,10 @@ ALL_COLUMNS = ("*",)  # state_names meaning "every column of the hand's own feat
 # Unitree G1 + two Inspire hands (unitreerobotics/xr_teleoperate, teleop/robot_control/robot_hand_inspire.py:
 # kLeftHand* / kRightHand* columns, normalised 0-1, 1 = open).
 G1_INSPIRE_HANDS = {"left": "inspire_rh56_unitree:kLeftHand", "right": "inspire_rh56_unitree:kRightHand"}
-KNOWN_HANDS: dict[str, dict] = {"unitree_g1_inspire": G1_INSPIRE_HANDS}
+# Unitree G1 with its own Dex3-1 hands (unitree_lerobot exports): kLeftHandThumb0..kRightHandMiddle1, bound by
+# name (the SDK lists the left hand's middle finger before its index, the right hand's after it).
+G1_DEX3_HANDS = {"left": "unitree_dex3_1:kLeftHand", "right": "unitree_dex3_1:kRightHand"}
+KNOWN_HANDS: dict[str, dict] = {"unitree_g1_inspire": G1_INSPIRE_HANDS, "unitree_g1_dex3": G1_DEX3_HANDS}
 OUT_STATE, OUT_ACTION = "observation.state", "action"  # the converted dataset's vectors
 
 

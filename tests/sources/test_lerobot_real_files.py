@@ -169,3 +169,42 @@ def test_the_test_split_does_not_depend_on_where_input_points(tmp_path):
         _convert(where, tmp_path / f"out{i}", option)
         splits.append(UdhmDatasetMeta(tmp_path / f"out{i}").split("recorded").test)
     assert len(splits[0]) == 2 and splits[1] == splits[0], splits
+
+
+def test_a_g1_dex3_export_binds_each_hand_by_name(tmp_path):
+    """A Unitree G1 + Dex3-1 export as unitree_lerobot writes it: 14 arm columns, then the left hand (SDK order:
+    thumb, middle, index) and the right hand (thumb, index, middle). `hands="unitree_g1_dex3"` binds both by
+    name: each UDHM slot holds its own finger's column on both sides, the arms pass through unchanged."""
+    from lerobot.datasets import LeRobotDataset
+
+    arms = [f"k{s}{j}" for s in ("Left", "Right") for j in ("ShoulderPitch", "ShoulderRoll", "ShoulderYaw", "Elbow",
+                                                             "WristRoll", "WristPitch", "WristYaw")]  # fmt: skip
+    left = [f"kLeftHand{j}" for j in ("Thumb0", "Thumb1", "Thumb2", "Middle0", "Middle1", "Index0", "Index1")]
+    right = [f"kRightHand{j}" for j in ("Thumb0", "Thumb1", "Thumb2", "Index0", "Index1", "Middle0", "Middle1")]
+    names = arms + left + right
+    spec = hands.get("unitree_dex3_1")
+    rng = np.random.default_rng(0)
+    values = np.zeros((41, len(names)), np.float32)
+    values[:, :14] = rng.uniform(-0.5, 0.5, (41, 14))
+    for side, cols in (("left", left), ("right", right)):
+        lim = spec.raw_range(side)  # (7, 2), the spec's joint order
+        for k, (joint, (lo, hi)) in enumerate(zip(spec.joint_names, lim, strict=True)):  # a phase per joint
+            col = next(c for c in cols if c.lower().endswith(joint.replace("_", "")))
+            values[:, names.index(col)] = lo + (hi - lo) * (0.5 + 0.4 * np.sin(np.linspace(0, 3, 41) + k))
+    features = {k: {"dtype": "float32", "shape": (len(names),), "names": names} for k in ("observation.state", "action")}
+    ds = LeRobotDataset.create(repo_id="test/g1_dex3", fps=30, features=features, root=tmp_path / "raw",
+                               robot_type="unitree_g1_dex3", use_videos=False)  # fmt: skip
+    for state, action in zip(values[:-1], values[1:], strict=True):
+        ds.add_frame({"observation.state": state, "action": action, "task": "pick"})
+    ds.save_episode()
+    ds.finalize()
+    _convert(tmp_path / "raw", tmp_path / "out", "unitree_g1_dex3")
+    state = _state(tmp_path / "out")
+    meta = UdhmDatasetMeta(tmp_path / "out")
+    assert meta.block_hands() == ["unitree_dex3_1", "unitree_dex3_1"]
+    np.testing.assert_array_equal(state[:, :14], values[:-1, :14])  # the arms, bit for bit
+    for b, (side, cols) in enumerate((("left", left), ("right", right))):
+        native = np.stack([values[:-1, names.index(next(c for c in cols if c.lower().endswith(j.replace("_", ""))))]
+                           for j in spec.joint_names], axis=1)  # fmt: skip
+        np.testing.assert_allclose(state[:, 14 + 22 * b : 36 + 22 * b], spec.to_udhm(native.astype(float), side),
+                                   atol=1e-5)  # fmt: skip
