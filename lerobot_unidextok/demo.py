@@ -14,6 +14,8 @@ Run `python -m lerobot_unidextok.demo --help` for options (`--quick`: less data,
 takes ~3 CPU-minutes (docs/tokenizer.md, "Demo").
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 import argparse
 import logging
 import os

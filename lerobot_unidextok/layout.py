@@ -15,6 +15,8 @@ by name with `blocks.find_udhm_blocks`, never by position.
 Reading them from a converted dataset folder: `data.meta.UdhmDatasetMeta`.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -13,6 +13,8 @@ constructs the executors without running anything (e.g. to inspect a Slurm scrip
 optional extra (`pip install 'lerobot_policy_unidextok[datatrove]'`), imported only by this module.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 import json

@@ -7,6 +7,8 @@ leading/trailing frames where no hand is present are trimmed. Anything that woul
 (NaN, out-of-range raw values, wrong shapes, unknown hands/sides) raises `EpisodeError`.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace

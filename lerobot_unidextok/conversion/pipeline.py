@@ -18,7 +18,6 @@
 - Sharding: `shard_index/num_shards` converts one contiguous slice of the ordered episode list;
   `merge_shards` aggregates shard datasets with LeRobot's `aggregate_datasets` and merges the records.
 """
-
 from __future__ import annotations
 
 import dataclasses
@@ -60,6 +59,7 @@ from lerobot_unidextok.data.record import ConversionRecord, EpisodeRecord, load_
 from lerobot_unidextok.data.splits import split_order
 from lerobot_unidextok.errors import InvalidInputError, MissingInputError, UnavailableError
 from lerobot_unidextok.layout import NativeLayout
+from lerobot_unidextok.utils.cli import progress_bar
 
 logger = logging.getLogger(__name__)
 
@@ -381,7 +381,6 @@ def convert(opts: ConvertOptions) -> ConvertReport:
         synthetic=bool(getattr(reader_cls, "synthetic", False)) or input_is_synthetic(input_path),
         sides=opts.sides or (tuple(reader_cls.sides) if getattr(reader_cls, "sides", None) else None),
     )
-    from lerobot_unidextok.utils.cli import progress_bar
 
     bar = progress_bar(total=len(plan.items), desc=f"convert {opts.source}", unit="ep", disable=not opts.progress)
     try:

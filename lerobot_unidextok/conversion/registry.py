@@ -18,6 +18,8 @@ A source reader lives in `lerobot_unidextok/sources/<source>.py` (or in any modu
 `fps` and `keep` are filled from the `--fps` / `--keep` flags.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 import importlib

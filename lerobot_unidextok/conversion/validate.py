@@ -8,6 +8,8 @@ check says why. Datasets edited by `lerobot-edit-dataset` (no card, no conversio
 not failures: they still train and evaluate (`data.splits`).
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 import json

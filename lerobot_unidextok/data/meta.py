@@ -10,6 +10,8 @@ to it (`data.record.ConversionRecord`), so the training reader, the validator, t
 policies and the experiments read a dataset's hands, layouts and test episodes in one way.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 import json

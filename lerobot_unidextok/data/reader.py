@@ -4,7 +4,6 @@ Each frame of an H-hand dataset gives H rows (frame-major: frame 0 hand 0, frame
 The UDHM blocks are found by name (`blocks.find_udhm_blocks`) inside a state that may also hold
 the robot's other columns (arms, grippers); the train/test split comes from `data.splits`.
 """
-
 from __future__ import annotations
 
 from collections.abc import Iterator
@@ -21,6 +20,7 @@ from lerobot_unidextok.constants import ACTION, DATA_GLOB, HAND_TYPE_KEY, INFO_P
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.data.splits import HOLDOUTS, SPLITS, EpisodeSplit, SplitError
 from lerobot_unidextok.errors import InvalidInputError, MissingInputError
+from lerobot_unidextok.utils.hf_cache import dataset_root
 
 
 @dataclass
@@ -66,7 +66,6 @@ def resolve_root(root: str | Path | None, repo_id: str | None) -> Path:
     if root is None:
         if repo_id is None:
             raise ValueError("give root= (a converted dataset folder) or repo_id= (looked up in the local caches)")
-        from lerobot_unidextok.utils.hf_cache import dataset_root
 
         root = dataset_root(repo_id)  # $HF_LEROBOT_HOME/<repo_id>, then the HF cache (unidextok-pull)
     root = Path(root)

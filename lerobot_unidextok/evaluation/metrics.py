@@ -16,6 +16,7 @@ import logging
 
 import numpy as np
 
+from lerobot_unidextok import hands as hand_registry
 from lerobot_unidextok.constants import (
     FINGERTIP_INDICES,
     KEYPOINT_NAMES,
@@ -23,6 +24,8 @@ from lerobot_unidextok.constants import (
     NUM_KEYPOINTS,
     UDHM_JOINT_NAMES,
 )
+from lerobot_unidextok.udhm.fk import forward_kinematics
+from lerobot_unidextok.udhm.skeleton import Skeleton
 
 logger = logging.getLogger(__name__)
 
@@ -73,9 +76,6 @@ def per_joint_mae_deg(pred_rad: np.ndarray, true_rad: np.ndarray, masks: np.ndar
 def hand_skeleton(name: str):
     """The `udhm.Skeleton` of a registered hand (a robot's measured from its URDF where the spec has one);
     the default human skeleton for unregistered names. `skeleton_source` says which one a figure used."""
-    from lerobot_unidextok import hands as hand_registry
-    from lerobot_unidextok.udhm.skeleton import Skeleton
-
     try:
         spec = hand_registry.get(name)
     except (KeyError, ValueError):
@@ -86,8 +86,6 @@ def hand_skeleton(name: str):
 
 def skeleton_source(name: str) -> str:
     """Which skeleton keypoint metrics of hand `name` use (printed next to MPJPE / fingertip figures)."""
-    from lerobot_unidextok import hands as hand_registry
-
     try:
         return hand_registry.get(name).skeleton_spec.describe()
     except (KeyError, ValueError):
@@ -101,8 +99,6 @@ def keypoint_errors_mm(
 
     Inactive slots of `pred` are replaced by the true values (they are not DoFs of that hand).
     """
-    from lerobot_unidextok.udhm.fk import forward_kinematics
-
     m = _check(pred_rad, true_rad, masks)
     hands = np.asarray(hands).astype(str)
     if hands.shape != (len(true_rad),):

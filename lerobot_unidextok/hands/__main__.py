@@ -9,6 +9,8 @@ SPEC is a registered hand name or a path to a hand YAML. Without --urdf the spec
 up under --urdf-dir (default: $UNIDEXTOK_URDF_DIR, else ../shared/data/urdf from the current directory).
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 import argparse

@@ -20,6 +20,8 @@ straight finger):
 Dropped joints (``slot: null``) are listed with what they drive, for information.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 from dataclasses import dataclass, field

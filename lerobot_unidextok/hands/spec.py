@@ -7,6 +7,8 @@ far from UDHM zero). Slot, sign and rest may differ per side. Everything is batc
 numpy or torch.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 import logging

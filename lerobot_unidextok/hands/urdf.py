@@ -9,6 +9,8 @@ robot to the 21 anatomical points is data in the hand's YAML. Joints not given i
 to the root leader); they are posed explicitly, so a check can also move a leader with its followers held.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 import logging

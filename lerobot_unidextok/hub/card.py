@@ -5,6 +5,8 @@ Every card this module writes carries `CARD_MARKER`, so `unidextok-push` can tel
 huggingface_hub's generic mixin card (replaced).
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 import json

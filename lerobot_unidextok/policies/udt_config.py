@@ -85,7 +85,7 @@ class UdtConfigMixin:
     # States outside their hands' ranges (degrees fed as radians, normalised values): raise | warn | off.
     udt_range_check: str = "raise"
     # Rounds of the tokenizer's decoder-aware code search (docs/tokenizer.md "Code search"): 0 = the nearest
-    # codes (fast, the default); > 0 = codes that decode closer to the state (2: 1.4-7 ms per hand-row on a CPU thread).
+    # codes (fast, the default); > 0 = codes that decode closer to the state, at the cost measured there.
     udt_search_rounds: int = 0
     # Decode predicted actions to the robot's native action vector (arms copied, hands in native units) when
     # the dataset's hands have native joints; false keeps UDHM radians.

@@ -101,8 +101,8 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     allow_unknown: bool = False
     range_check: str = "raise"  # states outside the hands' ranges (degrees, normalised): raise | warn | off
     # Rounds of decoder-aware code search (tokenizer/search.py): 0 = each group's nearest code, the paper's
-    # encoding and the fast one (a policy's features); R > 0 = codes that decode closer to the state; R = 2 costs
-    # the `small` tokenizer 1.4-2.9 ms per hand-row at batch 256, about 7 at batch 1, on one CPU thread (docs/tokenizer.md).
+    # encoding and the fast one (a policy's features); R > 0 = codes that decode closer to the state, at a cost
+    # per hand-row measured in docs/tokenizer.md, "Code search".
     search_rounds: int = 0
     input_key: str = OBS_STATE
     token_key: str = OBS_HAND_TOKENS

@@ -18,6 +18,8 @@ previous frame. Our part is the glue, all data-driven from `retarget/specs/<hand
 Needs the `retarget` extra (`pip install 'lerobot_policy_unidextok[retarget]'`), imported when a retargeter is built.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 import contextlib

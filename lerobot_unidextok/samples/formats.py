@@ -37,10 +37,13 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_unidextok.constants import SAMPLE_LABELS_FILE
+from lerobot_unidextok import hands, udhm
+from lerobot_unidextok.constants import SAMPLE_LABELS_FILE, UDHM_INDEX
+from lerobot_unidextok.samples.bags import sample_at, write_let_bag, write_let_sidecar, write_linkerhand_bag
 from lerobot_unidextok.samples.motion import GestureTrack, gesture_track, wrist_track
 from lerobot_unidextok.sources.dexycb import DEXYCB_FPS
 from lerobot_unidextok.sources.egodex import EGODEX_FPS
+from lerobot_unidextok.utils.cli import progress_bar
 
 logger = logging.getLogger(__name__)
 
@@ -81,8 +84,6 @@ class SampleSpec:
 
 def _episodes(spec: SampleSpec, source: str):
     """Episode indices of one source, with a progress bar when asked."""
-    from lerobot_unidextok.utils.cli import progress_bar
-
     return progress_bar(
         range(spec.num_episodes), desc=f"sample {source}", unit="ep", disable=not spec.progress, leave=False
     )
@@ -245,8 +246,6 @@ def _write_readme(folder: Path, source: str, spec: SampleSpec) -> None:
 def _person_skeleton(rng: np.random.Generator):
     """One person's hand: the default skeleton scaled 0.85-1.15, each palm offset and bone varied ~4 %,
     expressed in its own palm frame (as IK measures it), so IK recovers the generating angles."""
-    from lerobot_unidextok import udhm
-
     base = udhm.Skeleton.default().scaled(rng.uniform(0.85, 1.15))
     offsets = np.asarray(base.palm_offsets_m) * rng.normal(1.0, 0.04, (5, 1)).clip(0.9, 1.1)
     bones = np.asarray(base.bone_lengths_m) * rng.normal(1.0, 0.04, (5, 3)).clip(0.9, 1.1)
@@ -255,16 +254,12 @@ def _person_skeleton(rng: np.random.Generator):
 
 def _human_keypoints_m(angles_rad: np.ndarray, skeleton, wrist_pose: np.ndarray, side: str) -> np.ndarray:
     """(T, 21, 3) keypoints in the frame of `wrist_pose` (T, 4, 4) via UDHM FK on `skeleton`."""
-    from lerobot_unidextok import udhm
-
     pose = (wrist_pose[:, :3, :3], wrist_pose[:, :3, 3])
     return np.asarray(udhm.forward_kinematics(angles_rad, skeleton, pose, side=side), dtype=np.float64)
 
 
 def _to_native(hand: str, angles_rad: np.ndarray, side: str) -> np.ndarray:
     """UDHM (T, 22) -> native values of hand spec `hand`, clipped into the hand's range."""
-    from lerobot_unidextok import hands
-
     return np.asarray(hands.get(hand).from_udhm(angles_rad, side=side), dtype=np.float64)
 
 
@@ -530,8 +525,6 @@ def _kuavo_scale(hand: str, angles_rad: np.ndarray, side: str) -> np.ndarray:
 
 
 def _write_let(folder: Path, spec: SampleSpec) -> Labels:
-    from lerobot_unidextok.samples.bags import sample_at, write_let_bag, write_let_sidecar
-
     labels: Labels = {}
     for ep in _episodes(spec, "let"):
         rng = _rng("let", spec, ep)
@@ -753,9 +746,6 @@ LINKERHAND_TASKS = ("grasp_bottle", "handover_cube")
 def write_linkerhand_episodes(folder: Path, spec: SampleSpec, models: tuple[str, ...] = ("L10", "L20")) -> Labels:
     """LinkerHand ROS 2 bag episodes; episode i uses hand model `models[i % len(models)]` and every third
     episode is stored as MCAP instead of sqlite3."""
-    from lerobot_unidextok import hands as hand_registry
-    from lerobot_unidextok.samples.bags import sample_at, write_linkerhand_bag
-
     unknown = [m for m in models if m not in HAND_LINKERHAND]
     if not models or unknown:
         raise ValueError(
@@ -773,7 +763,7 @@ def write_linkerhand_episodes(folder: Path, spec: SampleSpec, models: tuple[str,
         native = {s: _to_native(hand, tracks[s].angles_rad, s) for s in tracks}
         start = 1_720_000_000.0 + ep * 600.0
         track_t = start + np.arange(n) / LINKERHAND_FPS
-        spec_h = hand_registry.get(hand)
+        spec_h = hands.get(hand)
         name = f"episode_{ep:04d}"
         write_linkerhand_bag(
             folder / task / name,
@@ -815,8 +805,8 @@ def _write_lerobot(folder: Path, spec: SampleSpec) -> Labels:
         n = _num_frames(rng, spec)
         tracks = _robot_tracks(rng, n, G1_FPS, ("left", "right"))
         arms = _arm_motion(rng, n, G1_FPS, 14)
-        hands = [_to_native(HAND_G1, tracks[s].angles_rad, s) for s in ("left", "right")]
-        action = np.concatenate([arms, *hands], axis=1)  # (T, 26)
+        hand_values = [_to_native(HAND_G1, tracks[s].angles_rad, s) for s in ("left", "right")]
+        action = np.concatenate([arms, *hand_values], axis=1)  # (T, 26)
         state = _first_order_lag(action, G1_FPS, 0.05)
         episodes.append(({"observation.state": state, "action": action}, G1_TASKS[ep % len(G1_TASKS)]))
         labels[f"episode_{ep:06d}"] = _label_entry(tracks)
@@ -850,8 +840,6 @@ def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _mano_pose_quats(angles_rad: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """(T, 16, 4) wxyz: a flat-hand chain along +x, fingers flexing about +y and spreading about +z, in the
     MANO-native joint order (wrist; index, middle, pinky, ring, thumb x 3)."""
-    from lerobot_unidextok.constants import UDHM_INDEX
-
     num = len(angles_rad)
     a = lambda name: angles_rad[:, UDHM_INDEX[name]]
     y, z = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])

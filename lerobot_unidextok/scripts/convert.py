@@ -17,6 +17,8 @@
 --push_to_hub=true uploads the result (HF_ENDPOINT / HF_TOKEN honoured) and tags it v3.0.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 import json
 import logging
 import sys

@@ -8,6 +8,8 @@ The bound checkpoint takes that robot's native `observation.state` (and its conv
 action; LeRobot's stock factory and `lerobot-rollout` load it unchanged (`policies/deploy.py`).
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 import logging
 from dataclasses import dataclass
 

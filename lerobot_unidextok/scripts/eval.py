@@ -11,6 +11,8 @@ dataset the episodes of the split and their hand-rows: one row per hand per fram
 two rows), then the per-hand table.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path

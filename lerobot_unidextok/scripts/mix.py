@@ -9,6 +9,8 @@ printed `--dataset.episodes` flag, and `unidextok-deploy` to bind the checkpoint
 "One policy, several robots").
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 import logging
 
 from lerobot_unidextok.conversion.mix import MixOptions

@@ -20,6 +20,8 @@ output_dir/best (use this one), output_dir/last (resume with --resume=true), eac
 (README.md), and the per-hand evaluation of best on the test episodes as output_dir/eval.{json,md}.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 import logging
 from pathlib import Path
 

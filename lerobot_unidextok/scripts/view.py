@@ -9,6 +9,8 @@ URDF) next to its native values and, with a tokenizer, the tokens and the decode
         then: rerun outputs/view/ep0.rrd
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 import logging
 from dataclasses import dataclass
 from pathlib import Path

@@ -30,6 +30,8 @@ frames must fit the stated side better than the mirrored one, else the file says
 like; `check_handedness=false` skips it), and frames with NaN or no detection become absent frames.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 import json

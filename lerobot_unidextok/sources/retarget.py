@@ -16,6 +16,8 @@ Options: `hand` (a hand with a retarget spec: `lerobot_unidextok.retarget.retarg
 folder; required), `side`, `fps`, `scaling`, `low_pass_alpha`. Needs the `retarget` extra.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 from functools import lru_cache

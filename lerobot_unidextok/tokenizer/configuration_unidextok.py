@@ -1,11 +1,11 @@
 """UniDexTok configuration: one typed dataclass and named size presets."""
-
 import types
 import typing
 from dataclasses import dataclass, field, fields, replace
 
 from lerobot_unidextok.constants import UDHM_DIM
 from lerobot_unidextok.errors import ConfigError
+from lerobot_unidextok.pretrained import config_path
 
 # Bump when a change makes old checkpoints unloadable (layer names, shapes, semantics of fields).
 FORMAT_VERSION = 1
@@ -176,7 +176,6 @@ class UniDexTokConfig:
         """The config of a checkpoint (any name `UniDexTok.from_pretrained` takes), without its weights."""
         import json
 
-        from lerobot_unidextok.pretrained import config_path  # names -> files: the door's resolution
 
         path = config_path(pretrained_model_name_or_path, revision)
         if not path.is_file():

@@ -4,6 +4,8 @@ No `from __future__ import annotations` here: the Hub mixin reads the real `UniD
 annotation of `__init__` to rebuild the config from config.json.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 import dataclasses
 import logging
 import math

@@ -1,5 +1,7 @@
 """In-memory per-hand rows for training and evaluation (the batches come from `coverage.MixtureSampler`)."""
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from dataclasses import dataclass
 
 import numpy as np

@@ -27,6 +27,8 @@ Range-only hands (`range_hands`, `TrainConfig.range_hands`): registered hands wi
 registered hand, recorded or not.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 import logging

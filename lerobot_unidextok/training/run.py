@@ -6,6 +6,8 @@ k-fold over episodes when asked, write the report and the model cards.
     report, markdown = train_and_evaluate(TrainConfig(datasets=["data/g1_udhm"], output_dir="outputs/g1"))
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 import dataclasses
 import json
 import logging

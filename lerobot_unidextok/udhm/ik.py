@@ -16,6 +16,8 @@ Left hands: solved as their mirror-image right hand; `IKResult.side` makes FK mi
 `result.keypoints_m()` reproduces the input in its own frame.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 import logging

@@ -10,6 +10,8 @@ progress bars that do not flood logs.
 Nothing here runs on import: a CLI calls `configure_output()` (through `run_cli`) when it starts.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 import functools

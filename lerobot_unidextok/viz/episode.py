@@ -10,6 +10,8 @@ Frames come from `viz/render.py` (matplotlib object API, headless); mp4 is encod
 video dependency, its wheels bundle the codecs), gif with Pillow. No FFmpeg binary is needed.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -230,7 +232,7 @@ def _write_mp4(frames, path: Path, fps: float) -> None:
                 stream.height, stream.width = image.shape[:2]
                 stream.pix_fmt = "yuv420p"
                 if codec == "libx264":
-                    stream.options = {"preset": "veryfast"}  # 1.5x faster than the default, smaller files here
+                    stream.options = {"preset": "veryfast"}  # faster than the default preset (benchmarks/bench_view.py)
             container.mux(stream.encode(av.VideoFrame.from_ndarray(image, format="rgb24")))
         if stream is not None:
             container.mux(stream.encode(None))

@@ -11,6 +11,8 @@ Frames: canonical wrist frame of `udhm/frames.py` (x palmar, z distal); a right 
 left hand is the mirror image (thumb on -y), as `udhm.forward_kinematics(..., side="left")` returns it.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 from pathlib import Path

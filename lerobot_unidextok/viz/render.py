@@ -17,6 +17,8 @@ darker; the palm (wrist and the five finger bases, fixed in the wrist frame) is 
 matplotlib object API only (no pyplot): headless.
 """
 
+# Package modules used by only some functions are imported inside them, so importing this module stays
+# light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 from __future__ import annotations
 
 from dataclasses import dataclass
