@@ -48,14 +48,15 @@ class RetargetedPairs:
 def retarget_cached(cfg: ExperimentConfig, keypoints_m: np.ndarray, hand: str) -> tuple[np.ndarray, float] | None:
     """(T, 22) UDHM of `keypoints_m` (right hand) retargeted onto `hand`, and the mean target error (mm).
     None (with a warning) when no URDF of the hand is under urdf_dir or dex-retargeting is not installed."""
-    from lerobot_unidextok.retarget import HandRetargeter, URDFError, get_retarget_spec
+    from lerobot_unidextok.hands import SPECS_DIR
+    from lerobot_unidextok.retarget import HandRetargeter, URDFError
 
     try:
         retargeter = HandRetargeter(hand, cfg.urdf_root, "right")
     except (URDFError, ImportError) as e:
         logger.warning("%s not retargeted: %s", hand, e)
         return None
-    key = fingerprint(np.ascontiguousarray(keypoints_m).tobytes(), get_retarget_spec(hand).path.read_bytes(),
+    key = fingerprint(np.ascontiguousarray(keypoints_m).tobytes(), (SPECS_DIR / f"{hand}.yaml").read_bytes(),
                retargeter.urdf_path.read_bytes(), Path(__file__).read_bytes())  # fmt: skip
     cache = Path(cfg.data_dir) / "retargeted" / f"{hand}_{key}.npz"
     if cache.is_file():

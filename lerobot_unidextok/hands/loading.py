@@ -24,7 +24,8 @@ _TOP_KEYS = {
     "name", "embodiment", "kind", "description", "source", "sides", "native_units",
     "joints", "coupled", "skeleton", "urdf",
 }  # fmt: skip
-_SIDE_KEYS = {"slot", "raw_range", "rad_at_raw_range", "sign", "rest_rad", "default_raw", "urdf_joint"}
+_SIDE_KEYS = {"slot", "raw_range", "rad_at_raw_range", "sign", "rest_rad", "default_raw", "urdf_joint",
+              "raw_at_urdf_limits"}
 _JOINT_KEYS = {"name", "note", "judgement", "aliases", *_SIDE_KEYS, *SIDES}
 _COUPLED_KEYS = {"joint", "follows", "ratio", "offset_rad", "note", "slot"}
 _SKELETON_KEYS = {"scale", "bone_lengths_m", "palm_offsets_m", "source", "note"}
@@ -172,6 +173,11 @@ def _joint_side(d: dict, where: str, side: str, fail) -> JointSide:
     urdf_joint = d.get("urdf_joint")
     if urdf_joint is not None:
         urdf_joint = expand_side(_string(urdf_joint, f"{where}.urdf_joint", fail), side)
+    at_limits = d.get("raw_at_urdf_limits")
+    if at_limits is not None:
+        at_limits = _pair(at_limits, f"{where}.raw_at_urdf_limits", fail)
+        if at_limits[0] == at_limits[1]:
+            raise fail(f"{where}.raw_at_urdf_limits", f"{list(at_limits)} must be two different raw values")
     return JointSide(
         raw_range=raw,
         rad_at_raw_range=rad,
@@ -180,6 +186,7 @@ def _joint_side(d: dict, where: str, side: str, fail) -> JointSide:
         slot=slot,
         rest_rad=rest,
         urdf_joint=urdf_joint,
+        raw_at_urdf_limits=at_limits,
     )
 
 

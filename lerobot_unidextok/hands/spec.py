@@ -54,6 +54,9 @@ class JointSide:
     slot: str | None = None  # UDHM slot on this side (None = dropped)
     rest_rad: float = 0.0  # joint angle (rad) at which the UDHM slot reads 0
     urdf_joint: str | None = None  # the URDF joint this native joint drives (kinematic check); None = none
+    # Retargeting onto a URDF whose angles are not this spec's radians (LinkerHand L10's rewritten right file):
+    # the raw value at the URDF joint's lower and upper limit, linear between. None = the URDF angle is `rad`.
+    raw_at_urdf_limits: tuple[float, float] | None = None
 
     @property
     def scale(self) -> float:

@@ -1,4 +1,5 @@
-"""A robot hand's URDF as MANO-21 keypoints: forward kinematics by `yourdfpy` (optional extra ``urdf``).
+"""A robot hand's URDF: its joints and links read as XML, and its MANO-21 keypoints by forward kinematics with
+`yourdfpy` (optional extra ``urdf``).
 
     hand = UrdfHand.load("allegro_hand_right.urdf", spec.urdf.keypoints["right"])
     keypoints_m = hand.keypoints_m([{"joint_1.0": 0.5}, ...])   # (N, 21, 3) in the URDF base frame
@@ -14,6 +15,7 @@ to the root leader); they are posed explicitly, so a check can also move a leade
 from __future__ import annotations
 
 import logging
+import xml.etree.ElementTree as ET
 from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_unidextok.constants import KEYPOINT_NAMES
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.hands.spec import UrdfKeypoint
 from lerobot_unidextok.utils.imports import require_package
 
@@ -167,3 +170,73 @@ def measure_skeleton(hand: UrdfHand, side: str = "right"):
 
     keypoints_m = hand.keypoints_m([{}])  # (1, 21, 3)
     return Skeleton.from_keypoints(keypoints_m, per_frame=False, side=side)
+
+
+# ---------------------------------------------------------------------------------------------
+# the URDF as XML: find the user's file, read its joints and links, make mimic chains one level deep (retargeting:
+# dex-retargeting's mimic adaptor needs every mimic joint to follow an optimised joint)
+# ---------------------------------------------------------------------------------------------
+class URDFError(InvalidInputError):
+    """A URDF is missing or lacks a joint / link the retarget spec names."""
+
+
+@dataclass(frozen=True)
+class UrdfJoint:
+    name: str
+    type: str
+    lower: float
+    upper: float
+    mimic: tuple[str, float, float] | None  # (followed joint, multiplier, offset)
+
+
+def find_urdfs(urdf: str | Path, file_name: str) -> list[Path]:
+    """`urdf` is the file itself, or a folder searched (recursively) for files named `file_name`."""
+    path = Path(urdf)
+    if path.is_file():
+        return [path]
+    if not path.is_dir():
+        raise URDFError(f"URDF path {path} does not exist; pass the robot's URDF file or a folder holding {file_name}")
+    hits = sorted(path.rglob(file_name))
+    if not hits:
+        raise URDFError(
+            f"no {file_name} under {path}; pass the URDF file or a folder that holds it (e.g. a clone of the "
+            "vendor's URDF repository)"
+        )
+    return hits
+
+
+def read_joints(path: Path) -> dict[str, UrdfJoint]:
+    root = ET.parse(path).getroot()
+    out = {}
+    for j in root.findall("joint"):
+        lim, mim = j.find("limit"), j.find("mimic")
+        lower = float(lim.get("lower", 0.0)) if lim is not None else 0.0
+        upper = float(lim.get("upper", 0.0)) if lim is not None else 0.0
+        mimic = None
+        if mim is not None:
+            mimic = (mim.get("joint"), float(mim.get("multiplier", 1.0)), float(mim.get("offset", 0.0)))
+        out[j.get("name")] = UrdfJoint(j.get("name"), j.get("type"), lower, upper, mimic)
+    return out
+
+
+def link_names(path: Path) -> set[str]:
+    return {link.get("name") for link in ET.parse(path).getroot().findall("link")}
+
+
+def flatten_mimic_chains(src: Path, dst: Path) -> Path:
+    """Write `src` to `dst` with every mimic joint following a non-mimic joint (`hands.urdf.resolve_mimic_chains`)."""
+    joints = read_joints(src)
+    try:
+        roots = resolve_mimic_chains({n: j.mimic for n, j in joints.items() if j.mimic is not None}, joints)
+    except ValueError as err:
+        raise URDFError(f"{src}: {err}") from None
+    tree = ET.parse(src)
+    for j in tree.getroot().findall("joint"):
+        m = j.find("mimic")
+        if m is not None:
+            base, mul, off = roots[j.get("name")]
+            m.set("joint", base)
+            m.set("multiplier", repr(mul))
+            m.set("offset", repr(off))
+    tree.write(dst)
+    return dst

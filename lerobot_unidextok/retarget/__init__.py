@@ -5,10 +5,12 @@ res = HandRetargeter("linkerhand_l10", urdf="<folder with linkerhand_l10_right.u
 res.native      # (T, 10) SDK 0-255, as the hand spec defines the native units
 res.udhm_rad    # (T, 22) hands.get("linkerhand_l10").to_udhm(res.native, "right")
 
-Layer 3: imports `hands`, `udhm` and (lazily) dex-retargeting, the `retarget` extra. Per-hand URDF links and
-joint maps are data in `retarget/specs/<hand>.yaml`; users supply the URDF files.
+Layer 4: imports `hands`, `udhm` and (lazily) dex-retargeting, the `retarget` extra. What it needs of a hand
+(URDF file, palm and target links, joint map) is read from the hand's own spec (`hands/specs/<hand>.yaml`,
+`retarget/spec.py`); users supply the URDF files.
 """
 
+from lerobot_unidextok.hands.urdf import URDFError
 from lerobot_unidextok.retarget.retargeter import (
     HandRetargeter,
     RetargetConfig,
@@ -17,24 +19,15 @@ from lerobot_unidextok.retarget.retargeter import (
     require_dex_retargeting,
     retarget_keypoints,
 )
-from lerobot_unidextok.retarget.spec import (
-    RetargetSpec,
-    RetargetSpecError,
-    get_retarget_spec,
-    load_retarget_spec,
-    retarget_hands,
-)
-from lerobot_unidextok.retarget.urdf import URDFError
+from lerobot_unidextok.retarget.spec import SideRetargetSpec, get_retarget_spec, retarget_hands
 
 __all__ = [
     "HandRetargeter",
     "RetargetConfig",
     "RetargetResult",
-    "RetargetSpec",
-    "RetargetSpecError",
+    "SideRetargetSpec",
     "URDFError",
     "get_retarget_spec",
-    "load_retarget_spec",
     "palm_frame",
     "require_dex_retargeting",
     "retarget_hands",

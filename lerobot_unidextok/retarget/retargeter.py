@@ -3,7 +3,8 @@
 The field's standard, `dex-retargeting` (dexsuite/dex-retargeting, `retargeting_config.py`,
 `optimizer.py::VectorOptimizer`, `seq_retarget.py`), is used as it is: a `RetargetingConfig` of type
 "vector" built on the robot's URDF, solved frame after frame with SLSQP (nlopt), warm-started from the
-previous frame. Our part is the glue, all data-driven from `retarget/specs/<hand>.yaml`:
+previous frame. Our part is the glue, all data-driven from the hand's spec (`hands/specs/<hand>.yaml`, read
+through `retarget/spec.py`):
 
 1. Frames. Each keypoint frame is expressed in its own palm frame (wrist, index / middle / pinky MCP), and the
    robot's palm frame is read from its URDF at the zero pose (wrist link and MCP links), so human keypoints
@@ -11,8 +12,8 @@ previous frame. Our part is the glue, all data-driven from `retarget/specs/<hand
    replaces dex-retargeting's hand-tuned `OPERATOR2MANO` matrices, which fit only URDFs already aligned to MANO.
 2. Scale. `scaling` defaults to robot reach / human reach (wrist -> middle-finger target, robot at its zero
    pose vs the default UDHM human skeleton flat), in place of the configs' hand-tuned `scaling_factor`.
-3. Units. The optimised URDF angles become the hand's native values (`raw_at_limits`, linear over the URDF
-   limits, or radians as they are), then UDHM with `hands.get(hand).to_udhm(native, side)`: the hand spec
+3. Units. The optimised URDF angles become the hand's native values (the spec's own map from radians to raw
+   values, or `raw_at_urdf_limits` where the URDF's angles are not the spec's radians), then UDHM with `hands.get(hand).to_udhm(native, side)`: the hand spec
    decides slots and signs, nothing is repeated here.
 
 Needs the `retarget` extra (`pip install 'lerobot_policy_unidextok[retarget]'`), imported when a retargeter is built.
@@ -31,8 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_unidextok.constants import KEYPOINT_NAMES, NUM_KEYPOINTS, UDHM_DIM
-from lerobot_unidextok.retarget.spec import PALM_KEYS, SideRetargetSpec, get_retarget_spec
-from lerobot_unidextok.retarget.urdf import URDFError, find_urdfs, flatten_mimic_chains, link_names, read_joints
+from lerobot_unidextok.hands.urdf import URDFError, find_urdfs, flatten_mimic_chains, link_names, read_joints
+from lerobot_unidextok.retarget.spec import PALM_KEYS, JointLink, SideRetargetSpec, get_retarget_spec
 from lerobot_unidextok.utils.cli import progress_bar
 from lerobot_unidextok.utils.imports import require_package
 
@@ -122,7 +123,7 @@ class HandRetargeter:
         self.hand_spec = hands.get(hand)
         if self.hand_spec.kind != "joints":
             raise ValueError(f"hand {hand!r} is given as keypoints; retarget onto a robot hand with joints")
-        self.spec: SideRetargetSpec = get_retarget_spec(hand).side(side)
+        self.spec: SideRetargetSpec = get_retarget_spec(hand, side)
         errors = []
         for path in find_urdfs(urdf, self.spec.urdf):  # several files may share the name: take one that fits
             try:
@@ -139,17 +140,20 @@ class HandRetargeter:
     def _check_spec(self, path: Path) -> None:
         joints = read_joints(path)
         links = link_names(path)
-        where = f"{path} (retarget spec {self.hand}/{self.side})"
+        where = f"{path} (hand spec {self.hand}, {self.side})"
+        slots = {j.name: j.sides[self.side].slot for j in self.hand_spec.joints}
+        driven: list[JointLink] = []
         for j in self.spec.joints:
-            if j.native not in self.hand_spec.joint_names:
-                raise URDFError(f"{where}: native joint {j.native!r} is not in hand spec {self.hand!r} "
-                                f"({list(self.hand_spec.joint_names)})")  # fmt: skip
             if j.urdf not in joints or joints[j.urdf].type not in ("revolute", "prismatic", "continuous"):
-                raise URDFError(f"{where}: no movable joint {j.urdf!r}; movable joints: "
+                if slots[j.native] is None:
+                    continue  # a reserved channel the URDF does not have: it keeps its spec default
+                raise URDFError(f"{where}: no movable joint {j.urdf!r} for native joint {j.native!r}; movable joints: "
                                 f"{sorted(n for n, x in joints.items() if x.type != 'fixed')}")  # fmt: skip
             if joints[j.urdf].mimic is not None:
-                raise URDFError(f"{where}: joint {j.urdf!r} mimics {joints[j.urdf].mimic[0]!r}; map the native joint "
-                                "to the joint it follows")  # fmt: skip
+                raise URDFError(f"{where}: joint {j.urdf!r} mimics {joints[j.urdf].mimic[0]!r}; give native joint "
+                                f"{j.native!r} the `urdf_joint` it follows")  # fmt: skip
+            driven.append(j)
+        self.driven: tuple[JointLink, ...] = tuple(driven)
         wanted = [self.spec.wrist_link, *self.spec.palm_links.values(), *self.spec.target_links]
         missing = [name for name in wanted if name not in links]
         if missing:
@@ -161,7 +165,7 @@ class HandRetargeter:
 
         spec, cfg = self.spec, self.config
         k = len(spec.target_links)
-        self.urdf_joint_names = [j.urdf for j in spec.joints]
+        self.urdf_joint_names = [j.urdf for j in self.driven]
         with tempfile.TemporaryDirectory(prefix="unidextok-retarget-") as tmp:
             flat = flatten_mimic_chains(self.urdf_path, Path(tmp) / self.urdf_path.name)
             rc = RetargetingConfig(
@@ -238,15 +242,9 @@ class HandRetargeter:
         out = np.tile(np.array([j.sides[side].default_raw for j in self.hand_spec.joints], dtype=np.float64),
                       (len(qpos_rad), 1))  # fmt: skip
         names = list(self.hand_spec.joint_names)
-        for c, j in enumerate(self.spec.joints):
+        for c, j in enumerate(self.driven):
             q = np.clip(qpos_rad[:, c], *self._limits[c])
-            if j.raw_at_limits is None:
-                value = q
-            else:
-                lo, hi = self._limits[c]
-                frac = (q - lo) / (hi - lo) if hi > lo else np.zeros_like(q)
-                value = j.raw_at_limits[0] + frac * (j.raw_at_limits[1] - j.raw_at_limits[0])
-            out[:, names.index(j.native)] = value
+            out[:, names.index(j.native)] = j.to_native(q, tuple(self._limits[c]))
         return out
 
     def retarget(self, keypoints_m: np.ndarray) -> RetargetResult:

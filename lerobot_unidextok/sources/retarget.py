@@ -65,9 +65,9 @@ class RetargetSource:
                 '--source_options=\'{"hand": "linkerhand_l10", "urdf": "<URDF file or folder>"}\''
             )
         require_dex_retargeting()
-        get_retarget_spec(hand)  # raises listing the hands that have a spec
         if side not in (None, "left", "right"):
             raise ValueError(f"side must be 'left' or 'right', got {side!r}")
+        get_retarget_spec(hand, side or "right")  # raises listing the hands that have a URDF map
         if not Path(urdf).exists():
             raise FileNotFoundError(f"URDF {urdf} does not exist; pass the robot hand's URDF file or its folder")
         self.hand, self.urdf, self.side, self.fps = hand, str(urdf), side, float(fps)

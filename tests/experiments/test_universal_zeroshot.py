@@ -141,7 +141,12 @@ def test_the_experiment_scores_yaml_only_hands_zero_shot_end_to_end(tmp_path):
     assert len(table) == 2 + 5 and "unknown (zero-shot)" in table[2]
 
 
-def test_a_registered_spec_is_refused(tmp_path):
-    cfg = ZeroShotConfig(specs=[str(hands.SPECS_DIR / "linkerhand_l6.yaml")], rows=8, output_root=str(tmp_path))
-    with pytest.raises(ValueError, match="registered hands"):
-        run_and_write(cfg)
+def test_a_hand_in_the_vocabulary_is_refused_and_a_newer_registered_one_is_scored(tmp_path):
+    """Zero-shot means outside the tokenizer's vocabulary: the L6 (trained) is refused, by file or by name; the
+    Dex3-1, registered after the shipped tokenizer was trained, is scored through the unknown-hand row."""
+    for spec in (str(hands.SPECS_DIR / "linkerhand_l6.yaml"), "linkerhand_l6"):
+        with pytest.raises(ValueError, match=r"\['linkerhand_l6'\] are in the tokenizer's vocabulary"):
+            run_and_write(ZeroShotConfig(specs=[spec], rows=8, output_root=str(tmp_path)))
+    result = run_and_write(ZeroShotConfig(specs=["unitree_dex3_1"], relatives=[], rows=8, output_root=str(tmp_path)))
+    (row,) = result["rows"]
+    assert row["hand"] == "unitree_dex3_1" and row["zero_shot"] and row["rows"] == 8

@@ -1,8 +1,8 @@
-"""retarget.urdf: URDF mimic chains made one level deep for dex-retargeting (no URDF library needed)."""
+"""hands.urdf: URDF mimic chains made one level deep for dex-retargeting (no URDF library needed)."""
 
 import pytest
 
-from lerobot_unidextok.retarget.urdf import URDFError, flatten_mimic_chains, read_joints
+from lerobot_unidextok.hands.urdf import URDFError, flatten_mimic_chains, read_joints
 
 JOINT = '<joint name="{}" type="revolute"><limit lower="0" upper="1"/>{}</joint>'
 MIMIC = '<mimic joint="{}" multiplier="{}" offset="{}"/>'
