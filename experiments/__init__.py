@@ -11,6 +11,7 @@ EXPERIMENTS: tuple[str, ...] = (
     "probe",
     "policy_tokens",
     "rate_distortion",
+    "cross_embodiment",
 )
 
 __all__ = ["EXPERIMENTS", "PRESETS", "ExperimentConfig", "parse_config"]

@@ -21,6 +21,7 @@ from experiments import (
     EXPERIMENTS,
     ablation_human,
     ablation_mapping,
+    cross_embodiment,
     main_table,
     policy_tokens,
     probe,
@@ -31,7 +32,8 @@ from experiments import (
 logger = logging.getLogger(__name__)
 MARKDOWN = {"main_table": main_table.markdown, "ablation_human": ablation_human.markdown,
             "ablation_mapping": ablation_mapping.markdown, "transfer": transfer.markdown, "probe": probe.markdown,
-            "policy_tokens": policy_tokens.markdown, "rate_distortion": rate_distortion.markdown}  # fmt: skip
+            "policy_tokens": policy_tokens.markdown, "rate_distortion": rate_distortion.markdown,
+            "cross_embodiment": cross_embodiment.markdown}  # fmt: skip
 COMMANDS = {name: f"python experiments/{name}.py" for name in EXPERIMENTS}
 MAX_PNG_BYTES = 300_000
 

@@ -98,6 +98,18 @@ def _min_jerk(tau: np.ndarray) -> np.ndarray:
     return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
 
 
+def key_pose_motion(keys: np.ndarray, frames: int, seed: int, frames_per_move: int = 20) -> np.ndarray:
+    """(frames, J) minimum-jerk moves between key poses drawn (with replacement) from `keys` (K, J), one move
+    every `frames_per_move` frames, in the keys' own units (e.g. a robot's SDK values and its vendor presets)."""
+    rng = np.random.default_rng(seed)
+    num_keys = max(2, frames // frames_per_move + 2)
+    drawn = np.asarray(keys, dtype=np.float64)[rng.integers(0, len(keys), num_keys)]
+    t = np.linspace(0.0, num_keys - 1, frames)
+    k = np.minimum(t.astype(int), num_keys - 2)
+    s = _min_jerk(t - k)
+    return drawn[k] + (drawn[k + 1] - drawn[k]) * s[:, None]
+
+
 def _smooth_noise(rng: np.random.Generator, num_frames: int, dim: int, width: int, scale: float) -> np.ndarray:
     """Gaussian noise low-passed by a moving average of `width` frames, rescaled to std `scale`."""
     raw = rng.standard_normal((num_frames + width, dim))

@@ -474,3 +474,28 @@ print(tuple(a.shape))
     assert error.startswith("observation.state has width 25, neither the native nor the converted layout")
     assert "native 26 columns: kLeftShoulderPitch, kLeftShoulderRoll, ..., kRightWristYaw (14 passthrough)" in error
     assert "converted 58 columns: 14 passthrough + 2 UDHM blocks (left, right)" in error
+
+
+def test_a_single_robot_dataset_trains_exactly_as_before_the_mixing(tok_dir, g1_like):
+    """Mixing added per-row hands and a hand identity to the tokenizer step; a dataset of one robot takes none
+    of it: no hand vocabulary, no hand ids, the fixed-layout step (not the mixed one), and the tokens and
+    environment state it gives are those of a bare `UniDexTokStateTokenizerStep` on the same tokenizer (the
+    single-robot tensors, no identity columns appended)."""
+    from lerobot_unidextok.constants import OBS_HAND_IDS
+    from lerobot_unidextok.processor import UniDexTokStateTokenizerStep
+
+    cfg = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"])
+    assert cfg.udt_hand_vocabulary == [] and OBS_HAND_IDS not in cfg.input_features
+    pre, _ = make_act_udt_pre_post_processors(cfg)
+    names = [type(s).__name__ for s in pre.steps]
+    assert "UniDexTokStateTokenizerStep" in names and "UniDexTokMixedTokenizerStep" not in names
+    step = next(s for s in pre.steps if type(s).__name__ == "UniDexTokStateTokenizerStep")
+    bare = UniDexTokStateTokenizerStep(hand_layout=list(step.hand_layout), state_names=list(step.state_names),
+                                       pretrained=str(tok_dir), search_rounds=step.search_rounds)  # fmt: skip
+    converted = torch.from_numpy(to_converted(g1_like["native_state"][:4])).float()
+    tokens, features = bare.tokenize(converted)  # (4, H*N*K), (4, F)
+    for i in range(4):
+        ours = pre({OBS_STATE: converted[i]})
+        assert torch.equal(ours[OBS_HAND_TOKENS].reshape(-1), tokens[i])
+        torch.testing.assert_close(ours[OBS_HAND_TOKEN_FEATURES].reshape(-1), features[i], atol=1e-5, rtol=0)  # batch of 4 vs 1
+    assert cfg.input_features[OBS_HAND_TOKEN_FEATURES].shape == (features.shape[-1],)

@@ -1,0 +1,384 @@
+"""What a mix of embodiments buys a policy on one robot: the same small ACT trained on a few episodes of the
+target robot alone, or with other hands' data, scored open loop on the target's held-out episodes.
+
+    python experiments/cross_embodiment.py                               # CPU-sized: 3 target sizes x 4 arms x 3 seeds
+    python experiments/cross_embodiment.py --act.chunk_size=30 --target_episodes='[4]'   # the longer horizon
+
+Target: the real Unitree G1 + Inspire recording (`g1-inspire`, both hands, converted), its recorded test
+episodes held out, `target_episodes` of its training episodes trained on (the same episodes in every arm).
+Other embodiments, each labelled by what it is:
+- `human_clip` (real): the dex-retargeting MediaPipe clip of one right hand through UDHM IK, in 6 segments;
+- `l10_presets` (real poses, synthetic motion): a right LinkerHand L10 moving between the real L10 vendor
+  presets (`linkerhand-ros2-sdk/L10_positions.yaml`), minimum-jerk moves (`samples.motion.key_pose_motion`);
+- `xhand_gestures` (synthetic): XHand1 right hand, the sample gesture motion on its active slots.
+Action rule for sources without recorded actions: the hand state one frame ahead.
+
+Arms (same ACT, steps, seeds, batches): `target_only`; `udhm_mix` (every source in one UDHM layout, a left and
+a right block, a side a source lacks zero: semantic insertion); `native_packed` (each source's own joints
+packed at the front of one vector and zero-padded, pi0's way; the human hand's joints are its 22 UDHM angles);
+`tokens_dequantized` (`udhm_mix` with the hand input through the shipped tokenizer's codes and back). Every
+arm gets the embodiment as a one-hot `observation.state`. Targets: relative actions (the action chunk minus
+the current state, as `act_udt_cpu.yaml`), z-scored on the training rows. Metric: open-loop MAE on the
+target's held-out frames, first action and over the chunk, hands in UDHM degrees and in the Inspire's native
+units; `copy_state` (every future action = the current state) as reference.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on sys.path, for `experiments.*`
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from experiments import runtime
+from experiments.common import git_commit, md_table
+from experiments.policy_training import SmallACT
+from lerobot_unidextok.constants import ACTION, OBS_STATE, UDHM_DIM
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+
+logger = logging.getLogger(__name__)
+NAME = "cross_embodiment"
+ARMS = ("target_only", "udhm_mix", "native_packed", "tokens_dequantized")
+OTHERS = {"human_clip": "real", "l10_presets": "real poses, synthetic motion", "xhand_gestures": "synthetic"}
+SIDES = ("left", "right")  # the mixed UDHM layout: a left block, then a right block
+PACKED_WIDTH = UDHM_DIM  # the widest source's joints (the human hand's 22 angles)
+COPY = "copy_state"
+METRICS = ("hands_udhm_deg_first", "hands_udhm_deg_chunk", "hands_native_first", "hands_native_chunk")
+
+
+@dataclass
+class CrossEmbodimentConfig:
+    target_episodes: list[int] = field(default_factory=lambda: [2, 4, 8])  # target training episodes per run
+    arms: list[str] = field(default_factory=lambda: list(ARMS))
+    others: list[str] = field(default_factory=lambda: list(OTHERS))
+    other_episodes: int = 12  # episodes of each synthetic-motion source (l10_presets, xhand_gestures)
+    other_frames: int = 300  # frames per such episode (30 fps)
+    # How the relative actions are z-scored: "per_source" (each source with its own mean / std, the target's
+    # predictions un-scaled with the target's: a hand's small moves are not drowned by another's large ones) or
+    # "pooled" (one mean / std over every training row)
+    normalise: str = "per_source"
+    target_share: float = 0.5  # share of the training rows that are the target's (its rows repeated); 0 = as they come
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
+    act: SmallACT = field(default_factory=lambda: SmallACT(steps=600))  # act_udt_cpu.yaml's sizes; steps cut
+    target: str = ""  # a converted robot dataset with recorded test episodes; empty = the real G1 + Inspire recording
+    tokenizer: str = DEFAULT_TOKENIZER  # the tokenizer of `tokens_dequantized` (never trained on these episodes)
+    output_root: str = "outputs/experiments"
+    cache_dir: str = "outputs/experiments/_data"  # where the real G1 recording is converted once
+
+    def __post_init__(self) -> None:
+        if isinstance(self.act, dict):
+            self.act = SmallACT(**self.act)
+        for name, given, allowed in (("arms", self.arms, ARMS), ("others", self.others, OTHERS)):
+            unknown = sorted(set(given) - set(allowed))
+            if unknown:
+                raise ValueError(f"unknown {name} {unknown}; choose from {list(allowed)}")
+        if self.normalise not in ("per_source", "pooled"):
+            raise ValueError(f"normalise must be per_source or pooled, got {self.normalise!r}")
+        if not 0.0 <= self.target_share < 1.0:
+            raise ValueError(f"target_share must be in [0, 1), got {self.target_share}")
+        if not self.seeds or not self.target_episodes:
+            raise ValueError("give at least one seed and one target size, e.g. --seeds='[0]' --target_episodes='[4]'")
+
+
+# ---------------------------------------------------------------------------------------------
+# sources: each as UDHM blocks (left, right), its own packed joints, episodes, relative-action targets
+# ---------------------------------------------------------------------------------------------
+@dataclass
+class Source:
+    name: str
+    label: str
+    udhm: np.ndarray  # (N, 44) state, [left block, right block], radians; a missing side is 0
+    udhm_next: np.ndarray  # (N, 44) the action in the same layout
+    packed: np.ndarray  # (N, 22) the source's own joints at the front, zero-padded
+    packed_next: np.ndarray  # (N, 22)
+    episode: np.ndarray  # (N,)
+
+
+def _blocks(states: dict[str, np.ndarray], n: int) -> np.ndarray:
+    out = np.zeros((n, 2 * UDHM_DIM))
+    for i, side in enumerate(SIDES):
+        if side in states:
+            out[:, i * UDHM_DIM : (i + 1) * UDHM_DIM] = states[side]
+    return out
+
+
+def _pad(x: np.ndarray) -> np.ndarray:
+    return np.pad(x, ((0, 0), (0, PACKED_WIDTH - x.shape[1])))
+
+
+def _next_in_episode(x: np.ndarray, episode: np.ndarray) -> np.ndarray:
+    """x one frame ahead within each episode (the last frame repeats): the action rule of unrecorded actions."""
+    nxt = np.roll(x, -1, axis=0)
+    last = np.append(episode[1:] != episode[:-1], True)
+    nxt[last] = x[last]
+    return nxt
+
+
+def target_source(frames) -> Source:
+    """The target robot from its converted frames: recorded actions, its hands' native values (both sides:
+    a side it lacks is zero in the UDHM layout)."""
+    state_native = frames.native_layout(OBS_STATE).to_native(frames.state)
+    action_native = frames.native_layout(ACTION).to_native(frames.action)
+    cols = frames.native_hand_columns(ACTION)
+    by_side = {s: frames.block_columns[i * UDHM_DIM : (i + 1) * UDHM_DIM] for i, s in enumerate(frames.sides)}
+    n = len(frames.state)
+    return Source("target", "the target robot", _blocks({s: frames.state[:, c] for s, c in by_side.items()}, n),
+                  _blocks({s: frames.action[:, c] for s, c in by_side.items()}, n), _pad(state_native[:, cols]),
+                  _pad(action_native[:, cols]), frames.episode)  # fmt: skip
+
+
+def human_source(real: Path) -> Source:
+    from lerobot_unidextok import hands
+
+    q = np.asarray(hands.get("human").to_udhm(np.load(real / "dex-retargeting" / "human_joint_right.npy"), "right"))
+    episode = np.minimum(np.arange(len(q)) * 6 // len(q), 5)
+    nxt = _next_in_episode(q, episode)
+    return Source("human_clip", OTHERS["human_clip"], _blocks({"right": q}, len(q)), _blocks({"right": nxt}, len(q)),
+                  _pad(q), _pad(nxt), episode)  # fmt: skip
+
+
+def l10_source(real: Path, episodes: int, frames: int) -> Source:
+    import yaml
+
+    from lerobot_unidextok import hands
+    from lerobot_unidextok.samples.motion import key_pose_motion
+
+    data = yaml.safe_load((real / "linkerhand-ros2-sdk" / "L10_positions.yaml").read_text())
+    presets = np.array([p["POSITION"] for p in data.get("RIGHT_HAND") or []], dtype=np.float64)
+    native = np.concatenate([key_pose_motion(presets, frames, seed=e) for e in range(episodes)])
+    episode = np.repeat(np.arange(episodes), frames)
+    nxt = _next_in_episode(native, episode)
+    spec = hands.get("linkerhand_l10")
+    q, q_next = spec.to_udhm(native, "right"), spec.to_udhm(nxt, "right")
+    return Source("l10_presets", OTHERS["l10_presets"], _blocks({"right": q}, len(q)),
+                  _blocks({"right": q_next}, len(q)), _pad(native), _pad(nxt), episode)  # fmt: skip
+
+
+def xhand_source(episodes: int, frames: int) -> Source:
+    from lerobot_unidextok import hands
+    from lerobot_unidextok.samples.motion import gesture_track
+
+    spec = hands.get("xhand1")
+    rng = np.random.default_rng(123)
+    udhm = np.concatenate([gesture_track(rng, frames, 30.0).angles_rad for _ in range(episodes)])
+    native = np.clip(spec.from_udhm(udhm, "right"), *spec.raw_range("right").T)  # the hand's own joints, in range
+    q = spec.to_udhm(native, "right")
+    episode = np.repeat(np.arange(episodes), frames)
+    nxt = _next_in_episode(native, episode)
+    return Source("xhand_gestures", OTHERS["xhand_gestures"], _blocks({"right": q}, len(q)),
+                  _blocks({"right": spec.to_udhm(nxt, "right")}, len(q)), _pad(native), _pad(nxt), episode)  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------------------
+# one run
+# ---------------------------------------------------------------------------------------------
+def dequantized(x: np.ndarray, block_hands: list[str | None], tokenizer) -> np.ndarray:
+    """(N, 44) UDHM blocks through the tokenizer's codes and back, per block (a missing side stays 0)."""
+    import torch
+
+    out = np.zeros_like(x)
+    for i, hand in enumerate(block_hands):
+        if hand is None:
+            continue
+        block = torch.from_numpy(x[:, i * UDHM_DIM : (i + 1) * UDHM_DIM].astype(np.float32))
+        with torch.no_grad():
+            out[:, i * UDHM_DIM : (i + 1) * UDHM_DIM] = tokenizer.decode(tokenizer.encode(block, hand=hand), hand=hand).numpy()
+    return out
+
+
+def chunks(current: np.ndarray, future: np.ndarray, episode: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndarray]:
+    """((N, chunk, D) relative action chunks: the action k steps ahead minus the current state, (N, chunk) pad)."""
+    from experiments.policy_data import chunk_index
+
+    index, pad = chunk_index(episode, chunk)
+    return future[index] - current[:, None, :], pad
+
+
+def run_one(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], target_train: np.ndarray,
+            test_rows: np.ndarray, views: dict, seed: int) -> tuple[np.ndarray, dict]:  # fmt: skip
+    """(predicted absolute hand chunks of the target's test rows in the arm's space, facts)."""
+    from experiments.policy_training import Standardiser, train_act
+
+    chunk = cfg.act.chunk_size
+    used = sources[:1] if arm == "target_only" else sources
+    packed = arm == "native_packed"
+    xs, ys, pads, ids, scales = [], [], [], [], []
+    others = sum(len(src.episode) for src in used[1:])
+    for k, src in enumerate(used):
+        rows = target_train if k == 0 else np.arange(len(src.episode))
+        if k == 0 and others and cfg.target_share > 0:  # repeat the target's rows up to its share
+            rows = np.tile(rows, max(1, round(cfg.target_share / (1 - cfg.target_share) * others / len(rows))))
+        cur, nxt = (src.packed, src.packed_next) if packed else (src.udhm, src.udhm_next)
+        y, pad = chunks(cur, nxt, src.episode, chunk)
+        scale = Standardiser.fit(y[rows][:, 0])
+        scales.append(scale)
+        x = views[src.name] if arm == "tokens_dequantized" else cur
+        xs.append(x[rows]), pads.append(pad[rows]), ids.append(np.full(len(rows), k))
+        ys.append(scale(y[rows]) if cfg.normalise == "per_source" else y[rows])
+    identity = np.eye(len(sources))[np.concatenate(ids)]
+    model = train_act(cfg.act, identity, np.concatenate(xs), np.concatenate(ys), np.concatenate(pads), seed)
+    target = sources[0]
+    cur = target.packed if packed else target.udhm
+    x = views[target.name] if arm == "tokens_dequantized" else cur
+    delta = model.predict(np.eye(len(sources))[np.zeros(len(test_rows), int)], x[test_rows])
+    if cfg.normalise == "per_source":
+        delta = scales[0].inverse(delta)
+    return cur[test_rows][:, None, :] + delta, {"train_rows": int(sum(len(v) for v in xs)),
+                                                  "train_cpu_s": round(model.cpu_s, 1)}
+
+
+def to_target_layout(pred: np.ndarray, arm: str, frames, test_rows: np.ndarray) -> np.ndarray:
+    """(R, chunk, D) the prediction in the target's converted layout (its hand block columns filled)."""
+    out = np.repeat(frames.action[test_rows][:, None, :], pred.shape[1], axis=1)
+    if arm == "native_packed":  # the Inspire values back through the hand specs
+        layout = frames.native_layout(ACTION)
+        cols = frames.native_hand_columns(ACTION)
+        native = layout.to_native(out)
+        native[..., cols] = pred[..., : len(cols)]
+        return np.asarray(layout.to_converted(native, on_out_of_range="clip"))
+    for i, side in enumerate(frames.sides):
+        out[..., frames.block_columns[i * UDHM_DIM : (i + 1) * UDHM_DIM]] = pred[..., SIDES.index(side) * UDHM_DIM :][..., :UDHM_DIM]
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# the experiment
+# ---------------------------------------------------------------------------------------------
+def run(cfg: CrossEmbodimentConfig) -> dict:
+    from experiments.policy_data import copy_state_prediction, load_frames, open_loop_errors, recorded_test_episodes
+    from experiments.unseen_data import converted_g1, real_data_dir
+
+    t0 = time.time()
+    real = real_data_dir() if {"human_clip", "l10_presets"} & set(cfg.others) else None
+    frames = load_frames(cfg.target or converted_g1(cfg.cache_dir))
+    test_eps = recorded_test_episodes(frames.root)
+    train_eps = np.random.default_rng(0).permutation(np.setdiff1d(np.unique(frames.episode), test_eps))
+    if max(cfg.target_episodes) > len(train_eps):
+        raise ValueError(f"the target has {len(train_eps)} training episodes; --target_episodes={cfg.target_episodes}")
+    build = {"human_clip": lambda: human_source(real),
+             "l10_presets": lambda: l10_source(real, cfg.other_episodes, cfg.other_frames),
+             "xhand_gestures": lambda: xhand_source(cfg.other_episodes, cfg.other_frames)}  # fmt: skip
+    sources = [target_source(frames), *(build[name]() for name in cfg.others)]
+    block_hands = {"target": list(frames.hands), "human_clip": [None, "human"],
+                   "l10_presets": [None, "linkerhand_l10"], "xhand_gestures": [None, "xhand1"]}  # fmt: skip
+    views = {}
+    if "tokens_dequantized" in cfg.arms:
+        from lerobot_unidextok.tokenizer import UniDexTok
+
+        tok = UniDexTok.from_pretrained(cfg.tokenizer)
+        views = {s.name: dequantized(s.udhm, block_hands[s.name], tok) for s in sources}
+    test_rows = np.flatnonzero(np.isin(frames.episode, test_eps))
+    covered = np.zeros(frames.action.shape[1], bool)
+    covered[frames.block_columns] = True
+    chunk = cfg.act.chunk_size
+    runs = [{"arm": COPY, "target_episodes": None, "seed": None,
+             "errors": open_loop_errors(copy_state_prediction(frames, test_rows, chunk), frames, test_rows, chunk,
+                                        predicted=covered)}]  # fmt: skip
+    folder = Path(cfg.output_root) / NAME
+    folder.mkdir(parents=True, exist_ok=True)
+    for n in cfg.target_episodes:
+        target_train = np.flatnonzero(np.isin(frames.episode, train_eps[:n]))
+        for arm in cfg.arms:
+            for seed in cfg.seeds:
+                logger.info("%d target episodes, %s, seed %d: training ACT (%d steps)", n, arm, seed, cfg.act.steps)
+                pred, facts = run_one(cfg, arm, sources, target_train, test_rows, views, seed)
+                full = to_target_layout(pred, arm, frames, test_rows)
+                errors = open_loop_errors(full, frames, test_rows, chunk, predicted=covered)
+                runs.append({"arm": arm, "target_episodes": n, "seed": seed, "errors": errors, **facts})
+    result = {"experiment": NAME, "config": dataclasses.asdict(cfg), "test_episodes": list(map(int, test_eps)),
+              "target": "real G1 + Inspire (g1-inspire, converted)" if not cfg.target else str(cfg.target),
+              "train_episode_order": train_eps.tolist(),
+              "sources": [{"name": s.name, "label": s.label, "frames": len(s.episode),
+                           "episodes": int(len(np.unique(s.episode)))} for s in sources],
+              "summary": summarise(runs, cfg), "runs": runs, "git_commit": git_commit(),
+              "wall_seconds": round(time.time() - t0, 1), "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
+    result["command"] = command_line(cfg)
+    result["provenance"] = {
+        "data": {"source": "datasets" if cfg.target else "real", "synthetic_sample": False,
+                 "datasets": [f"{x['name']} ({x['label']})" for x in result["sources"]],
+                 "train_rows": f"target {min(cfg.target_episodes)}-{max(cfg.target_episodes)} episodes + the others",
+                 "test_rows": int(len(test_rows)), "hands": sorted(set(frames.hands))},
+        "preset": "ACT, act_udt_cpu.yaml's sizes", "seed": cfg.seeds, "git_commit": result["git_commit"],
+        "config": {"steps": cfg.act.steps}, "wall_seconds": result["wall_seconds"], "date_utc": result["date_utc"],
+    }  # fmt: skip
+    (folder / f"{NAME}.json").write_text(json.dumps(result, indent=2))
+    (folder / f"{NAME}.md").write_text(markdown(result) + "\n")
+    return result
+
+
+def command_line(cfg: CrossEmbodimentConfig) -> str:
+    """`python experiments/cross_embodiment.py` with the flags of the settings that differ from the defaults."""
+    default, flags = CrossEmbodimentConfig(), []
+    for f in dataclasses.fields(cfg):
+        value, base = getattr(cfg, f.name), getattr(default, f.name)
+        if dataclasses.is_dataclass(value):
+            flags += [f"--{f.name}.{g.name}={getattr(value, g.name)}" for g in dataclasses.fields(value)
+                      if getattr(value, g.name) != getattr(base, g.name)]  # fmt: skip
+        elif value != base:
+            flags.append(f"--{f.name}='{json.dumps(value)}'" if isinstance(value, list) else f"--{f.name}={value}")
+    return " ".join(["python experiments/cross_embodiment.py", *flags])
+
+
+def summarise(runs: list[dict], cfg: CrossEmbodimentConfig) -> dict:
+    """Per (target size, arm) and metric: mean and std over seeds; copy_state once."""
+    out = {COPY: {m: {"mean": runs[0]["errors"][m], "std": 0.0} for m in METRICS}}
+    for n in cfg.target_episodes:
+        for arm in cfg.arms:
+            rs = [r for r in runs if r["arm"] == arm and r["target_episodes"] == n]
+            out[f"{n}/{arm}"] = {m: {"mean": float(np.mean([r["errors"][m] for r in rs])),
+                                     "std": float(np.std([r["errors"][m] for r in rs], ddof=1)) if len(rs) > 1 else 0.0}
+                                 for m in METRICS}  # fmt: skip
+            out[f"{n}/{arm}"]["train_cpu_s"] = float(np.mean([r["train_cpu_s"] for r in rs]))
+    return out
+
+
+def markdown(result: dict) -> str:
+    cfg, s = result["config"], result["summary"]
+    act = cfg["act"]
+    header = ["target episodes", "arm", "hands UDHM deg, first", "hands UDHM deg, chunk", "hands native, first",
+              "hands native, chunk", "chunk vs target only", "ACT CPU s/run"]  # fmt: skip
+
+    def cell(v, m, d):
+        return f"{v[m]['mean']:.{d}f} +- {v[m]['std']:.{d}f}"
+
+    rows = [["-", COPY, *(f"{s[COPY][m]['mean']:.{2 if 'udhm' in m else 4}f}" for m in METRICS), "", ""]]
+    for n in cfg["target_episodes"]:
+        base = s.get(f"{n}/target_only")
+        for arm in cfg["arms"]:
+            v = s[f"{n}/{arm}"]
+            rel = "" if base is None or arm == "target_only" else \
+                f"{100 * (v['hands_udhm_deg_chunk']['mean'] / base['hands_udhm_deg_chunk']['mean'] - 1):+.1f} %"
+            rows.append([str(n), arm, cell(v, "hands_udhm_deg_first", 2), cell(v, "hands_udhm_deg_chunk", 2),
+                         cell(v, "hands_native_first", 4), cell(v, "hands_native_chunk", 4), rel,
+                         f"{v['train_cpu_s']:.0f}"])  # fmt: skip
+    srcs = "; ".join(f"`{x['name']}` ({x['label']}, {x['episodes']} episodes, {x['frames']} frames)" for x in result["sources"])
+    return "\n".join([
+        f"# {NAME}", "",
+        f"LeRobot's ACT (stock model, act_udt_cpu.yaml's sizes, chunk {act['chunk_size']}, {act['steps']} steps at "
+        f"batch {act['batch_size']}, one CPU thread), relative actions z-scored {cfg['normalise'].replace('_', ' ')}, "
+        f"the target {cfg['target_share']:.0%} of the mixed training rows, seeds {cfg['seeds']}. Target: "
+        f"{result['target']}, test episodes {result['test_episodes']}, its first N training episodes of the order "
+        f"{result['train_episode_order']}. Sources: {srcs}. Open-loop MAE on the target's test frames (hands: UDHM "
+        "degrees over the slots its hands have, and native units), mean +- std over seeds.", "",
+        md_table(header, rows), "",
+        "`chunk vs target only`: hands UDHM MAE over the chunk against `target_only` at the same size (-5 % = 5 % better).",
+        f"Wall time {result['wall_seconds']:.0f} s; command: `{result.get('command', 'python experiments/cross_embodiment.py')}`.",
+    ])  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> None:
+    runtime.cli(CrossEmbodimentConfig, run, markdown, argv)
+
+
+if __name__ == "__main__":
+    main()
