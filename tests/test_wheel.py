@@ -80,3 +80,22 @@ def test_readme_pip_commands_run_from_the_installed_wheel(installed, tmp_path):
                      f"--output_dir={tmp_path / 'policy'}", "--policy.udt_pretrained=unidextok/universal-small"],
          tmp_path)  # fmt: skip
     assert (tmp_path / "policy" / "checkpoints" / "last" / "pretrained_model" / "config.json").is_file()
+
+
+def test_the_sdist_is_the_library_with_its_licences(tmp_path):
+    """The sdist carried tests/test_*.py without the conftest and fixtures they need (MANIFEST.in prunes the
+    checkout's other folders); it holds the package data the wheel needs and the licences."""
+    import tarfile
+
+    src = tmp_path / "src"
+    shutil.copytree(REPO, src, ignore=shutil.ignore_patterns(".venv", ".git", "outputs", "__pycache__", "*.egg-info",
+                                                             "build", "dist", ".pytest_cache"))  # fmt: skip
+    subprocess.run([sys.executable, "-c", f"from setuptools import build_meta; build_meta.build_sdist({str(tmp_path)!r})"],
+                   cwd=src, check=True, capture_output=True, timeout=300)  # fmt: skip
+    (sdist,) = tmp_path.glob("lerobot_policy_unidextok-*.tar.gz")
+    names = [n.split("/", 1)[1] for n in tarfile.open(sdist).getnames() if "/" in n]
+    assert {"LICENSE", "NOTICE", "README.md", "pyproject.toml"} <= set(names)
+    assert "lerobot_unidextok/hands/specs/unitree_dex3_1.yaml" in names
+    assert "lerobot_unidextok/pretrained/universal-small/model.safetensors" in names
+    stray = [n for n in names if n.startswith(("tests/", "experiments/", "benchmarks/", "docs/", "tools/"))]
+    assert stray == [], stray[:5]
