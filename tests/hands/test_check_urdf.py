@@ -24,7 +24,10 @@ from lerobot_unidextok.hands.check import check_spec  # noqa: E402
 
 URDF_DIR = shared_urdf_dir(Path(__file__).resolve().parents[2])
 URDF_HANDS = [n for n in hands.names() if hands.get(n).urdf is not None]
-CASES = [(n, s) for n in URDF_HANDS for s in hands.get(n).sides]
+# Registered with a URDF map whose URDF is not in ../shared/data/urdf: checked when the spec was written (the
+# command and its result in docs/hands.md), skipped by `check all`, listed here so a new one is a decision.
+NOT_IN_SHARED = {"psyonic_ability"}
+CASES = [(n, s) for n in URDF_HANDS if n not in NOT_IN_SHARED for s in hands.get(n).sides]
 
 # (hand, side, joint): why no slot of UDHM agrees at every pose. Documented in docs/hands.md.
 KNOWN_DISAGREEMENTS = {
@@ -71,6 +74,8 @@ def test_check_all_cli_sums_every_hand_and_side(urdf_dir, capsys):
     out = capsys.readouterr().out
     summaries = [ln for ln in out.splitlines() if "mapped joints agree with the URDF kinematics" in ln]
     assert len(summaries) == len(CASES)
+    skipped = [ln for ln in out.splitlines() if ": skipped, " in ln]
+    assert sorted({ln.split(" (")[0] for ln in skipped}) == sorted(NOT_IN_SHARED)
     expected_total = sum(hands.get(n).num_active for n, _ in CASES)
     agree, total = (int(x) for x in out.split("total: ")[1].split(" ")[0].split("/"))
     assert total == expected_total
