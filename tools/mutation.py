@@ -357,7 +357,10 @@ def _run_child(src_root: Path, args: list[str], make_plugin: Callable[[], object
         os.dup2(devnull, 2)
         import pytest
 
-        base = ["-p", "no:cacheprovider", "-q", "-o", "addopts=--import-mode=importlib"]
+        # `pythonpath = ["."]` (pyproject, for `experiments.*`) would put the checkout's package ahead of the copy:
+        # the copy first, then the checkout root
+        sys.path.insert(1, str(ROOT))
+        base = ["-p", "no:cacheprovider", "-q", "-o", "addopts=--import-mode=importlib", "-o", "pythonpath="]
         code = int(pytest.main([*base, *args], plugins=[make_plugin()]))
     finally:
         os._exit(code)
@@ -452,7 +455,6 @@ def make_copy() -> Path:
     src_root = Path(tempfile.mkdtemp(prefix="unidextok-mutation-src-"))
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
     shutil.copytree(ROOT / PACKAGE, src_root / PACKAGE, ignore=ignore)
-    shutil.copytree(ROOT / "converters", src_root / PACKAGE / "converters", ignore=ignore)
     return src_root
 
 
