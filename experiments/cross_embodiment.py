@@ -57,6 +57,14 @@ METRICS = ("hands_udhm_deg_first", "hands_udhm_deg_chunk", "hands_native_first",
 
 
 @dataclass
+class CrossEmbodimentACT(SmallACT):
+    """act_udt_cpu.yaml's sizes, the steps cut to fit the CPU budget (a class default, so `--act.<field>=...`
+    keeps it: draccus builds a nested config from its class)."""
+
+    steps: int = 600
+
+
+@dataclass
 class CrossEmbodimentConfig:
     target_episodes: list[int] = field(default_factory=lambda: [2, 4, 8])  # target training episodes per run
     arms: list[str] = field(default_factory=lambda: list(ARMS))
@@ -69,7 +77,7 @@ class CrossEmbodimentConfig:
     normalise: str = "per_source"
     target_share: float = 0.5  # share of the training rows that are the target's (its rows repeated); 0 = as they come
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
-    act: SmallACT = field(default_factory=lambda: SmallACT(steps=600))  # act_udt_cpu.yaml's sizes; steps cut
+    act: CrossEmbodimentACT = field(default_factory=CrossEmbodimentACT)
     target: str = ""  # a converted robot dataset with recorded test episodes; empty = the real G1 + Inspire recording
     tokenizer: str = DEFAULT_TOKENIZER  # the tokenizer of `tokens_dequantized` (never trained on these episodes)
     output_root: str = "outputs/experiments"
@@ -77,7 +85,7 @@ class CrossEmbodimentConfig:
 
     def __post_init__(self) -> None:
         if isinstance(self.act, dict):
-            self.act = SmallACT(**self.act)
+            self.act = CrossEmbodimentACT(**self.act)
         for name, given, allowed in (("arms", self.arms, ARMS), ("others", self.others, OTHERS)):
             unknown = sorted(set(given) - set(allowed))
             if unknown:

@@ -56,6 +56,14 @@ class TokenizerTraining(TrainConfig):
 
 
 @dataclass
+class PolicyTokensACT(SmallACT):
+    """act_udt_cpu.yaml's sizes, steps cut to fit 30 CPU-minutes (a class default, so `--act.<field>=...` keeps
+    it: draccus builds a nested config from its class, which reset the steps to 5000)."""
+
+    steps: int = 800
+
+
+@dataclass
 class PolicyTokensConfig:
     datasets: list[str] = field(default_factory=list)  # one converted whole-robot dataset; empty = real G1 recordings
     inputs: list[str] = field(default_factory=lambda: list(HAND_INPUTS))  # hand inputs compared (see --help of policy_data)
@@ -64,7 +72,7 @@ class PolicyTokensConfig:
     split_seed: int = 0  # shuffles the episodes before they are dealt into folds
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])  # ACT initialisation and batch order
     # ACT sizes, batch, lr: lerobot_unidextok/configs/lerobot/act_udt_cpu.yaml's; steps cut to fit 30 CPU-minutes (--act.steps=...)
-    act: SmallACT = field(default_factory=lambda: SmallACT(steps=800))
+    act: PolicyTokensACT = field(default_factory=PolicyTokensACT)
     tokenizer: TokenizerTraining = field(default_factory=TokenizerTraining)  # per-fold tokenizer training
     # A tokenizer (folder or Hub repo id) used for every fold instead of training one; empty = train per fold.
     tokenizer_pretrained: str = ""
@@ -73,7 +81,7 @@ class PolicyTokensConfig:
 
     def __post_init__(self) -> None:
         if isinstance(self.act, dict):
-            self.act = SmallACT(**self.act)
+            self.act = PolicyTokensACT(**self.act)
         if isinstance(self.tokenizer, dict):
             self.tokenizer = TokenizerTraining(**self.tokenizer)
         unknown = sorted(set(self.inputs) - set(HAND_INPUTS))

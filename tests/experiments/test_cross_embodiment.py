@@ -46,3 +46,13 @@ def test_bad_options_are_named():
         ce.CrossEmbodimentConfig(arms=["target_only", "magic"])
     with pytest.raises(ValueError, match="normalise must be"):
         ce.CrossEmbodimentConfig(normalise="zscore")
+
+
+def test_a_nested_flag_keeps_the_experiments_step_budget():
+    """`--act.chunk_size=30` rebuilt the nested config from SmallACT's class defaults: 5000 steps instead of the
+    experiment's 600 (and policy_tokens' 800), silently ~8x the CPU budget."""
+    from experiments import policy_tokens
+
+    cfg = ce.runtime.parse(ce.CrossEmbodimentConfig, ["--act.chunk_size=30"])
+    assert (cfg.act.steps, cfg.act.chunk_size) == (600, 30)
+    assert ce.runtime.parse(policy_tokens.PolicyTokensConfig, ["--act.lr=0.002"]).act.steps == 800
