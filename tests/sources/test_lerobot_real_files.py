@@ -208,3 +208,4 @@ def test_a_g1_dex3_export_binds_each_hand_by_name(tmp_path):
                            for j in spec.joint_names], axis=1)  # fmt: skip
         np.testing.assert_allclose(state[:, 14 + 22 * b : 36 + 22 * b], spec.to_udhm(native.astype(float), side),
                                    atol=1e-5)  # fmt: skip
+
