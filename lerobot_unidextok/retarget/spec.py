@@ -24,6 +24,7 @@ from pathlib import Path
 from lerobot_unidextok import hands
 from lerobot_unidextok.constants import KEYPOINT_NAMES
 from lerobot_unidextok.errors import InvalidInputError
+from lerobot_unidextok.hands.spec import JointSide
 
 PALM_KEYS = ("index_mcp", "middle_mcp", "pinky_mcp")
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")
@@ -35,20 +36,22 @@ class JointLink:
 
     native: str
     urdf: str
-    raw_range: tuple[float, float]  # the spec's raw range ...
-    rad_at_raw_range: tuple[float, float]  # ... and its radians: native = linear in the URDF angle through these
-    raw_at_urdf_limits: tuple[float, float] | None  # else: raw at the URDF (lower, upper) limits, linear between
+    side: JointSide  # the spec's joint on this side: its linear raw <-> rad map and `raw_at_urdf_limits`
+
+    @property
+    def raw_at_urdf_limits(self) -> tuple[float, float] | None:
+        return self.side.raw_at_urdf_limits
 
     def to_native(self, angle_rad, limits_rad: tuple[float, float]):
-        """URDF angles (any shape) -> native values."""
+        """URDF angles (any shape) -> native values: linearly over the URDF limits where the spec says the URDF's
+        angles are not its radians (`raw_at_urdf_limits`), else the inverse of the spec's rad = offset + scale * raw."""
         if self.raw_at_urdf_limits is not None:
             lo, hi = limits_rad
             frac = (angle_rad - lo) / (hi - lo) if hi > lo else 0.0 * angle_rad
             return self.raw_at_urdf_limits[0] + frac * (self.raw_at_urdf_limits[1] - self.raw_at_urdf_limits[0])
-        (raw_a, raw_b), (rad_a, rad_b) = self.raw_range, self.rad_at_raw_range
-        if rad_a == rad_b:
-            return raw_a + 0.0 * angle_rad
-        return raw_a + (angle_rad - rad_a) / (rad_b - rad_a) * (raw_b - raw_a)
+        if self.side.scale == 0:  # a dropped joint with no radians: its raw value is fixed
+            return self.side.raw_range[0] + 0.0 * angle_rad
+        return (angle_rad - self.side.offset) / self.side.scale
 
 
 @dataclass(frozen=True)
@@ -84,11 +87,7 @@ def get_retarget_spec(hand: str, side: str) -> SideRetargetSpec:
         origins = [n for n in KEYPOINT_NAMES if n.startswith(f"{finger}_") and not any(keypoints[n].offset_m)]
         if origins:
             targets.append((keypoints[origins[-1]].link, KEYPOINT_NAMES.index(origins[-1])))
-    joints = tuple(
-        JointLink(j.name, j.sides[side].urdf_joint or j.name, j.sides[side].raw_range, j.sides[side].rad_at_raw_range,
-                  j.sides[side].raw_at_urdf_limits)
-        for j in spec.joints
-    )  # fmt: skip
+    joints = tuple(JointLink(j.name, j.sides[side].urdf_joint or j.name, j.sides[side]) for j in spec.joints)
     return SideRetargetSpec(
         urdf=Path(spec.urdf.files[side]).name,
         wrist_link=keypoints["wrist"].link,
