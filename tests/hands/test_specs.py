@@ -122,7 +122,7 @@ def test_from_udhm_clips_to_joint_limits(name):
 
 
 def test_vendor_directions():
-    """LinkerHand 255 = open, Inspire register 1000 = open, Unitree 1 = open, BrainCo 0 = open.
+    """LinkerHand 255 = open, Inspire register 1000 = open, Unitree 1 = open, BrainCo and ROHand 0 = open.
 
     Open is near UDHM zero (within the robots' rest offsets, < 0.3 rad), closed is flexed past 1 rad.
     """
@@ -131,11 +131,27 @@ def test_vendor_directions():
         ("inspire_rh56", 1000, 0, "index_mcp_flex"),
         ("inspire_rh56_unitree", 1.0, 0.0, "index_mcp_flex"),
         ("brainco_revo1", 0, 100, "index_mcp_flex"),
+        ("oymotion_rohand", 0, 65535, "index_mcp_flex"),
     ]:
         spec = hands.get(name)
         i = UDHM_INDEX[slot]
         assert abs(spec.to_udhm(np.full(spec.num_native, open_raw))[i]) < 0.3
         assert spec.to_udhm(np.full(spec.num_native, closed_raw))[i] > 1.0
+
+
+def test_rohand_logical_positions_follow_the_protocol():
+    """ROHand ModBus order [thumb, index, middle, ring, little, thumb_rotation]; 0 = extended, 65535 = bent; the
+    thumb rotation 0 = beside the palm, 65535 = opposed 90 deg (OHandModBusRTUProtocol)."""
+    spec = hands.get("oymotion_rohand")
+    assert spec.joint_names == ("thumb", "index", "middle", "ring", "little", "thumb_rotation")
+    opened, bent = spec.to_udhm(np.zeros(6)), spec.to_udhm(np.full(6, 65535.0))
+    fingers = [UDHM_INDEX[f"{f}_mcp_flex"] for f in ("index", "middle", "ring", "pinky")]
+    assert np.all(np.abs(opened[fingers]) < np.radians(10)) and np.all(bent[fingers] > np.radians(75))
+    rotation = UDHM_INDEX["thumb_cmc_flex"]
+    assert bent[rotation] - opened[rotation] == pytest.approx(np.pi / 2, abs=1e-3)
+    assert bent[UDHM_INDEX["thumb_mcp_flex"]] > opened[UDHM_INDEX["thumb_mcp_flex"]]
+    for side in spec.sides:  # the left hand reads the same logical positions the same way
+        np.testing.assert_allclose(spec.to_udhm(np.full(6, 30000.0), side), spec.to_udhm(np.full(6, 30000.0)))
 
 
 def test_linkerhand_l10_side_specific_ranges():
