@@ -23,6 +23,9 @@ conversion's own writer (`conversion.writer`, LeRobot's file format and statisti
   type, hands, sides, test episodes, native layouts) and, per mixed episode, the input and its episode index
   there (`origin`). `test_episodes` are every input's test episodes, renumbered: splits stay whole-episode and
   per source, and the printed `--dataset.episodes` flag keeps them out of `lerobot-train`.
+- `action_delta_stats` in the record: per block side and hand, the mean and std of `action - state` over the
+  training episodes, with which a relative-action policy scales each hand's offsets
+  (`processor/hand_action_scale.py`).
 - `--weights` (training-frame share per input): `lerobot-train` samples every frame of the chosen episodes
   equally (its `EpisodeAwareSampler` takes each episode once, whatever `--dataset.episodes` repeats), so weights
   are honoured by writing an input's training episodes several times (`repeats`; test episodes once).
@@ -92,9 +95,7 @@ class MixOptions:
         if self.keep not in KEEP:
             raise MixError(f"keep must be one of {KEEP}, got {self.keep!r}")
         if self.weights and (len(self.weights) != len(self.inputs) or min(self.weights) <= 0):
-            raise MixError(
-                f"--weights needs one positive weight per input ({len(self.inputs)}), got {self.weights}"
-            )
+            raise MixError(f"--weights needs one positive weight per input ({len(self.inputs)}), got {self.weights}")
         if self.action_ahead < 1:
             raise MixError(f"action_ahead must be >= 1 frame, got {self.action_ahead}")
         if not self.root:
@@ -312,6 +313,38 @@ class _Mixer:
         return action
 
 
+class _DeltaStats:
+    """Mean and std of the relative action (`action - state`) per UDHM block side and hand, over the training
+    episodes' frames where the block holds that hand: the scale `unidextok.hand_action_scale` gives each hand's
+    relative actions (`processor/hand_action_scale.py`)."""
+
+    def __init__(self, mixer: _Mixer):
+        self.mixer = mixer
+        self.sums: dict[tuple[str, str], np.ndarray] = {}  # (side, hand) -> (3, 22): count, sum, sum of squares
+
+    def add(self, frames: dict[str, np.ndarray]) -> None:
+        m = self.mixer
+        ids = frames[OBS_HAND_IDS]
+        for k, side in enumerate(m.sides):
+            s0, a0 = len(m.state_pass) + UDHM_DIM * k, len(m.action_pass) + UDHM_DIM * k
+            delta = frames[ACTION][:, a0 : a0 + UDHM_DIM].astype(np.float64) - frames[OBS_STATE][:, s0 : s0 + UDHM_DIM]
+            for v in np.unique(ids[:, k]):
+                if v < 0:
+                    continue
+                rows = delta[ids[:, k] == v]
+                acc = self.sums.setdefault((side, m.vocabulary[v]), np.zeros((3, UDHM_DIM)))
+                acc += [np.full(UDHM_DIM, len(rows)), rows.sum(0), (rows**2).sum(0)]
+
+    def to_dict(self) -> dict[str, dict[str, dict]]:
+        out: dict[str, dict[str, dict]] = {}
+        for (side, hand), (count, total, squares) in sorted(self.sums.items()):
+            mean = total / count
+            std = np.sqrt(np.maximum(squares / count - mean**2, 0.0))
+            out.setdefault(side, {})[hand] = {"mean": [round(float(x), 8) for x in mean],
+                                              "std": [round(float(x), 8) for x in std], "frames": int(count[0])}  # fmt: skip
+        return out
+
+
 def mix(opts: MixOptions) -> MixReport:
     """Mix `opts.inputs` into one dataset at `opts.root` (module docstring)."""
     t0 = time.perf_counter()
@@ -320,6 +353,7 @@ def mix(opts: MixOptions) -> MixReport:
     check_output(target, [i.meta.root for i in inputs], opts.overwrite)
     _check_compatible(inputs, opts)
     mixer = _Mixer(inputs, opts)
+    deltas = _DeltaStats(mixer)
     train_frames = [
         sum(length for e, length in (i.meta.episode_lengths or {}).items() if e not in i.test) for i in inputs
     ]
@@ -349,6 +383,8 @@ def mix(opts: MixOptions) -> MixReport:
                     continue
                 frames, task = mixer.episode(inp, rows, tasks)
                 split = "test" if e in inp.test else "train"
+                if split == "train":
+                    deltas.add(frames)
                 for r in range(repeats[k] if split == "train" else 1):
                     at = writer.add_episode(frames, task=task)
                     origin = {"mix_source": k, "source_episode_index": e, **({"repeat": r} if r else {})}
@@ -388,6 +424,7 @@ def mix(opts: MixOptions) -> MixReport:
             hand_vocabulary=mixer.vocabulary,
             sources=sources,
             name_map=dict(opts.name_map),
+            action_delta_stats=deltas.to_dict(),
             action_rule=(
                 f"inputs without actions: action[t] = state[t + {opts.action_ahead}] (the last frames hold the last state)"
                 if not all(i.has_action for i in inputs)

@@ -121,6 +121,8 @@ class ConversionRecord:
     sources: list[MixedSource] = field(default_factory=list)  # the inputs, in order; episodes' origin["mix_source"]
     action_rule: str = ""  # how actions were made for inputs without them ("" = every input had actions)
     name_map: dict[str, str] = field(default_factory=dict)  # --keep=all: input column -> common column name
+    # per block side and hand: {"mean", "std", "frames"} of action - state over the training episodes (22 each)
+    action_delta_stats: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
     record_version: int = RECORD_VERSION
 
     def __post_init__(self) -> None:

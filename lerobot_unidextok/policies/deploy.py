@@ -14,7 +14,8 @@ and its normaliser statistics unchanged:
   robot lacks zero, columns the mix does not carry (the arms of a hands-only mix) read past; the robot's
   converted state and the mix's own pass unchanged;
 - the mixed tokenizer step gets the robot's hands per block (`fixed_hand_ids`), so the policy sees the hand
-  identity it trained with;
+  identity it trained with, and so do the per-hand action scale steps (`unidextok.hand_action_scale`), so the
+  predicted offsets are restored with the robot's own hands' scale;
 - `unidextok.udhm_to_native` decodes the predicted action to the robot's native action: its hands in native
   units, its passthrough columns the mix carries; in the robot's order (columns the mix does not predict, such
   as the arms of a hands-only mix, are left out: `source_names` says where the rest sit).
@@ -43,6 +44,7 @@ from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.layout import NativeLayout
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.processor import (
+    HandActionScaleStep,
     NativeToUDHMStateStep,
     UDHMToNativeCommandStep,
     UniDexTokMixedTokenizerStep,
@@ -167,6 +169,7 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
     pre = PolicyProcessorPipeline.from_pretrained(checkpoint, config_filename=PREPROCESSOR)
     post = PolicyProcessorPipeline.from_pretrained(checkpoint, config_filename=POSTPROCESSOR)
     pre.steps = _bound_pre_steps(pre.steps, bound, binding)
+    pre.steps, post.steps = (_bound_scale(steps, binding) for steps in (pre.steps, post.steps))
     if bound.udt_native_layout:
         post.steps = [*post.steps, UDHMToNativeCommandStep.from_layout(binding.action_layout)]
     tmp = output.parent / f".{output.name}.deploy-tmp"
@@ -193,7 +196,9 @@ def _bound_pre_steps(steps: list, config: UdtConfigMixin, binding: Binding) -> l
     """The pre-processor's steps with the mixed step bound to the robot and the native state step before it."""
     at = next((i for i, s in enumerate(steps) if isinstance(s, UniDexTokMixedTokenizerStep)), None)
     if at is None:
-        raise DeployError("the checkpoint's pre-processor has no unidextok.mixed_state_tokenizer step: not a mix policy")
+        raise DeployError(
+            "the checkpoint's pre-processor has no unidextok.mixed_state_tokenizer step: not a mix policy"
+        )
     old = steps[at]
     mixed = UniDexTokMixedTokenizerStep(**{**old.get_config(), "fixed_hand_ids": binding.fixed_hand_ids,
                                            "extra_hands": binding.extra_hands,
@@ -206,6 +211,15 @@ def _bound_pre_steps(steps: list, config: UdtConfigMixin, binding: Binding) -> l
         robot = binding.robot_names if binding.robot_names != binding.state_layout.names else []
         out.insert(at, NativeToUDHMStateStep.from_layout(binding.state_layout, robot_names=robot))
     return out
+
+
+def _bound_scale(steps: list, binding: Binding) -> list:
+    """The per-hand action scale steps (if any) with the robot's hands per block."""
+    return [
+        HandActionScaleStep(**{**s.get_config(), "fixed_hand_ids": binding.fixed_hand_ids})
+        if isinstance(s, HandActionScaleStep) else s
+        for s in steps
+    ]  # fmt: skip
 
 
 __all__ = ["Binding", "DeployError", "bind_layouts", "deploy"]

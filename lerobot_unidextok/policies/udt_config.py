@@ -116,6 +116,13 @@ class UdtConfigMixin:
     udt_extra_hands: list[str] = field(default_factory=list)
     # The mix's column renames (unidextok-mix --keep=all --name_map); filled from the dataset.
     udt_name_map: dict[str, str] = field(default_factory=dict)
+    # On a mix with relative actions: z-score each UDHM block's action offsets with the statistics of the hand it
+    # holds in that row (step unidextok.hand_action_scale), so that hands moving more than the target do not set
+    # the scale. false: LeRobot's ACTION normalisation (IDENTITY with relative actions).
+    udt_hand_action_scale: bool = True
+    # Per block side and hand, the mean and std of action - state (the mix's action_delta_stats); filled from
+    # the dataset.
+    udt_action_delta_stats: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
     # Accepted and ignored, so --policy.discover_packages_path=lerobot_unidextok also works with
     # --policy.path=<checkpoint> (LeRobot passes every --policy.* flag to the loaded config).
     discover_packages_path: str | None = None
@@ -186,6 +193,13 @@ class UdtConfigMixin:
         self.udt_sides = [b.side for b in find_udhm_blocks(names)]
         self.udt_state_names = names
         self.udt_native_layout, self.udt_native_state_layout = {}, {}
+        if self.udt_relative_actions and self.udt_hand_action_scale:
+            if not meta.record.action_delta_stats:
+                raise ValueError(
+                    f"{meta.root} records no action_delta_stats (mixed by an older unidextok-mix): mix it again, or "
+                    "set --policy.udt_hand_action_scale=false to leave the relative actions unscaled"
+                )
+            self.udt_action_delta_stats = dict(meta.record.action_delta_stats)
         logger.info(
             "%s: a mix of hands %s (blocks %s, hands per row from %s), from %s",
             self.type, self.udt_hand_vocabulary, self.udt_sides, OBS_HAND_IDS, meta.root,

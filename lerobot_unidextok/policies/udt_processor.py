@@ -1,7 +1,8 @@
 """The processors of every `<type>_udt` type: the stock pipelines with the UniDexTok step inserted after batching.
 
-    rename -> to_batch [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer -> device [-> relative] -> normalizer
-    unnormalizer [-> absolute] -> to cpu [-> unidextok.udhm_to_native]                                          (post)
+    rename -> to_batch [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer -> device
+        [-> relative [-> unidextok.hand_action_scale]] -> normalizer                                           (pre)
+    unnormalizer [-> [unidextok.hand_action_scale ->] absolute] -> to cpu [-> unidextok.udhm_to_native]        (post)
 
 The steps sit after `to_batch_processor`, so their outputs have the batch dimensions of the batched state
 (LeRobot's batching step adds them only to its own keys: with the tokenizer step before it,
@@ -13,6 +14,8 @@ passes unchanged); it is there when the training dataset recorded a native state
 converted state, the state cached) sits just before the normaliser and its `AbsoluteActionsProcessorStep` (action
 += that cached state) just after the unnormaliser, as in LeRobot's pi0 processors; both are saved with the
 checkpoint and LeRobot's factory re-pairs them on reload (`make_pre_post_processors(pretrained_path=...)`). On a
+mix, `unidextok.hand_action_scale` sits inside that pair (after the relative step, before the absolute one) and
+scales each block's offsets by the hand it holds (`udt_hand_action_scale`). On a
 dataset written by `unidextok-mix` the tokenizer step is `unidextok.mixed_state_tokenizer` (hands per row,
 `processor/mixed.py`). Each `processor_<type>_udt.make_<type>_udt_pre_post_processors` builds the stock pair and
 passes it through `insert_udt_steps`.
@@ -29,8 +32,10 @@ from lerobot.processor import (
     UnnormalizerProcessorStep,
 )
 
+from lerobot_unidextok.constants import UDHM_DIM
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.processor import (
+    HandActionScaleStep,
     NativeLayout,
     NativeToUDHMStateStep,
     UDHMToNativeCommandStep,
@@ -98,4 +103,23 @@ def _insert_relative_pair(config: UdtConfigMixin, pre_steps: list, post: PolicyP
     pre_steps.insert(normalizer[0], relative)
     post_steps = list(post.steps)
     post_steps.insert(unnormalizer[0] + 1, AbsoluteActionsProcessorStep(enabled=True, relative_step=relative))
+    if config.udt_hand_vocabulary and config.udt_hand_action_scale and config.udt_action_delta_stats:
+        scale = hand_action_scale_step(config, "normalize")
+        pre_steps.insert(normalizer[0] + 1, scale)  # after the relative step, before the normaliser
+        post_steps.insert(unnormalizer[0] + 1, hand_action_scale_step(config, "unnormalize", pair=scale))
     post.steps = post_steps
+
+
+def hand_action_scale_step(
+    config: UdtConfigMixin, mode: str, pair: HandActionScaleStep | None = None
+) -> HandActionScaleStep:
+    """The per-hand relative-action scale of a mix policy (`processor/hand_action_scale.py`)."""
+    return HandActionScaleStep(
+        mode=mode,
+        sides=list(config.udt_sides),
+        hand_vocabulary=list(config.udt_hand_vocabulary),
+        stats=config.udt_action_delta_stats,
+        action_offset=len(config.udt_action_names) - UDHM_DIM * len(config.udt_sides),
+        fixed_hand_ids=list(config.udt_fixed_hand_ids),
+        pair=pair,
+    )

@@ -70,6 +70,28 @@ def test_every_episode_keeps_its_source_and_the_splits_stay_per_source(g1_like, 
     assert set(train.hands) == {INSPIRE, L10}  # the tokenizer's reader takes each row's own hand
 
 
+def test_the_record_holds_each_hands_relative_action_scale_over_training_episodes(g1_l10_mix):
+    """action_delta_stats: per block side and hand, mean and std of action - state over the training episodes'
+    frames where the block holds that hand (recomputed here from the written rows, test episodes left out)."""
+    record = UdhmDatasetMeta(g1_l10_mix).record
+    table = _table(g1_l10_mix)
+    ids = np.stack(table.column(OBS_HAND_IDS).to_pylist())
+    delta = np.stack(table.column(ACTION).to_pylist()).astype(np.float64) - np.stack(table.column(OBS_STATE).to_pylist())
+    train = ~np.isin(table.column("episode_index").to_numpy(), record.test_episodes)
+    stats = record.action_delta_stats
+    assert {side: sorted(hands) for side, hands in stats.items()} == {"left": [INSPIRE], "right": sorted([INSPIRE, L10])}
+    for k, side in enumerate(["left", "right"]):
+        for hand, entry in stats[side].items():
+            rows = train & (ids[:, k] == record.hand_vocabulary.index(hand))
+            block = delta[rows, k * UDHM_DIM : (k + 1) * UDHM_DIM]
+            assert entry["frames"] == rows.sum() > 0
+            np.testing.assert_allclose(entry["mean"], block.mean(0), atol=1e-6)
+            np.testing.assert_allclose(entry["std"], block.std(0), atol=1e-6)
+    # the two hands move at their own scales (what the per-hand scale is for)
+    l10_std, inspire_std = np.max(stats["right"][L10]["std"]), np.max(stats["right"][INSPIRE]["std"])
+    assert l10_std > 0 and inspire_std > 0 and l10_std != pytest.approx(inspire_std, rel=0.05)
+
+
 def test_weights_repeat_the_small_inputs_training_episodes_not_its_test_episodes(g1_like, l10_robot, tmp_path):
     assert repeat_factors([400, 100], [1, 1]) == [1, 4] and repeat_factors([400, 100], []) == [1, 1]
     root = tmp_path / "weighted"

@@ -31,7 +31,8 @@ cfg = PreTrainedConfig.from_pretrained(path)
 policy = get_policy_class(cfg.type).from_pretrained(path).eval()
 pre, post = make_pre_post_processors(cfg, pretrained_path=path)
 out = [post(policy.select_action(pre({"observation.state": torch.from_numpy(s)}))).squeeze(0).tolist() for s in states]
-print(json.dumps({"actions": out, "pre": [type(s).__name__ for s in pre.steps]}))
+print(json.dumps({"actions": out, "pre": [type(s).__name__ for s in pre.steps],
+                  "post": [type(s).__name__ for s in post.steps]}))
 """
 
 
@@ -70,10 +71,16 @@ def _reload_and_act(bound: Path, native_states: np.ndarray, tmp_path: Path) -> d
 
 @pytest.mark.slow
 def test_a_mixed_policy_bound_to_each_robot_takes_its_native_state_and_returns_its_native_action(
-    mixed_policy, g1_like, l10_robot, tmp_path
+    mixed_policy, g1_like, l10_robot, g1_l10_mix, tmp_path
 ):
     config = json.loads((mixed_policy / "config.json").read_text())
     assert config["udt_hand_vocabulary"] == sorted([INSPIRE, L10]) and config["udt_native_layout"] == {}
+    # relative actions on a mix: each hand's offsets scaled by its own statistics, between the relative pair
+    assert config["udt_action_delta_stats"] == UdhmDatasetMeta(g1_l10_mix).record.action_delta_stats
+    pre_steps = [s["registry_name"] for s in json.loads((mixed_policy / "policy_preprocessor.json").read_text())["steps"]]
+    post_steps = [s["registry_name"] for s in json.loads((mixed_policy / "policy_postprocessor.json").read_text())["steps"]]
+    assert pre_steps.index("unidextok.hand_action_scale") == pre_steps.index("relative_actions_processor") + 1
+    assert post_steps.index("unidextok.hand_action_scale") == post_steps.index("absolute_actions_processor") - 1
     # the G1-like robot: 26 native columns (14 arm angles, 2 x 6 Inspire values); the mix is hands-only
     r = _deploy(mixed_policy, g1_like["root"], tmp_path / "g1")
     assert r.returncode == 0, r.stderr[-2000:]
@@ -85,6 +92,10 @@ def test_a_mixed_policy_bound_to_each_robot_takes_its_native_state_and_returns_i
     assert bound["udt_native_layout"]["native_names"] == g1_action.native_names[14:]
     assert bound["udt_native_layout"]["source_names"] == g1_action.native_names
     assert bound["udt_fixed_hand_ids"] == [0, 0]
+    assert "HandActionScaleStep" in g1["post"]
+    scale = [s for s in json.loads((tmp_path / "g1" / "policy_postprocessor.json").read_text())["steps"]
+             if s["registry_name"] == "unidextok.hand_action_scale"]  # fmt: skip
+    assert [s["config"]["fixed_hand_ids"] for s in scale] == [[0, 0]]
     # the right-only L10 robot: 10 native SDK values in, 10 out; its lacking left block is zero
     r = _deploy(mixed_policy, l10_robot, tmp_path / "l10")
     assert r.returncode == 0, r.stderr[-2000:]
