@@ -12,6 +12,7 @@ EXPERIMENTS: tuple[str, ...] = (
     "policy_tokens",
     "rate_distortion",
     "cross_embodiment",
+    "mix_lerobot_train",
 )
 
 __all__ = ["EXPERIMENTS", "PRESETS", "ExperimentConfig", "parse_config"]

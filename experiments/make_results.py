@@ -23,6 +23,7 @@ from experiments import (
     ablation_mapping,
     cross_embodiment,
     main_table,
+    mix_lerobot_train,
     policy_tokens,
     probe,
     rate_distortion,
@@ -33,7 +34,8 @@ logger = logging.getLogger(__name__)
 MARKDOWN = {"main_table": main_table.markdown, "ablation_human": ablation_human.markdown,
             "ablation_mapping": ablation_mapping.markdown, "transfer": transfer.markdown, "probe": probe.markdown,
             "policy_tokens": policy_tokens.markdown, "rate_distortion": rate_distortion.markdown,
-            "cross_embodiment": cross_embodiment.markdown}  # fmt: skip
+            "cross_embodiment": cross_embodiment.markdown,
+            "mix_lerobot_train": mix_lerobot_train.markdown}  # fmt: skip
 COMMANDS = {name: f"python experiments/{name}.py" for name in EXPERIMENTS}
 MAX_PNG_BYTES = 300_000
 

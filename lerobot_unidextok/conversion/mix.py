@@ -313,36 +313,42 @@ class _Mixer:
         return action
 
 
-class _DeltaStats:
-    """Mean and std of the relative action (`action - state`) per UDHM block side and hand, over the training
-    episodes' frames where the block holds that hand: the scale `unidextok.hand_action_scale` gives each hand's
-    relative actions (`processor/hand_action_scale.py`)."""
+def action_delta_stats(root: str | Path, episodes: list[int]) -> dict[str, dict[str, dict]]:
+    """Per UDHM block side and hand, the mean and std of the relative action (`action - state`, 22 each) over
+    the frames of `episodes` of the mixed dataset at `root` where the block holds that hand: the scale
+    `unidextok.hand_action_scale` gives each hand's relative actions (`processor/hand_action_scale.py`).
+    `unidextok-mix` records it over the training episodes; to train on fewer of them, recompute it over those
+    and rewrite the record's `action_delta_stats`."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
 
-    def __init__(self, mixer: _Mixer):
-        self.mixer = mixer
-        self.sums: dict[tuple[str, str], np.ndarray] = {}  # (side, hand) -> (3, 22): count, sum, sum of squares
-
-    def add(self, frames: dict[str, np.ndarray]) -> None:
-        m = self.mixer
-        ids = frames[OBS_HAND_IDS]
-        for k, side in enumerate(m.sides):
-            s0, a0 = len(m.state_pass) + UDHM_DIM * k, len(m.action_pass) + UDHM_DIM * k
-            delta = frames[ACTION][:, a0 : a0 + UDHM_DIM].astype(np.float64) - frames[OBS_STATE][:, s0 : s0 + UDHM_DIM]
-            for v in np.unique(ids[:, k]):
-                if v < 0:
-                    continue
-                rows = delta[ids[:, k] == v]
-                acc = self.sums.setdefault((side, m.vocabulary[v]), np.zeros((3, UDHM_DIM)))
-                acc += [np.full(UDHM_DIM, len(rows)), rows.sum(0), (rows**2).sum(0)]
-
-    def to_dict(self) -> dict[str, dict[str, dict]]:
-        out: dict[str, dict[str, dict]] = {}
-        for (side, hand), (count, total, squares) in sorted(self.sums.items()):
-            mean = total / count
-            std = np.sqrt(np.maximum(squares / count - mean**2, 0.0))
-            out.setdefault(side, {})[hand] = {"mean": [round(float(x), 8) for x in mean],
-                                              "std": [round(float(x), 8) for x in std], "frames": int(count[0])}  # fmt: skip
-        return out
+    meta = UdhmDatasetMeta(Path(root))
+    state_names, action_names = meta.names(OBS_STATE), meta.names(ACTION)
+    vocabulary = meta.record.hand_vocabulary if meta.record else []
+    if not vocabulary or OBS_HAND_IDS not in meta.features:
+        raise MixError(
+            f"{root} is not a mixed dataset (no hand_vocabulary / {OBS_HAND_IDS}); write it with unidextok-mix"
+        )
+    columns = [OBS_STATE, ACTION, OBS_HAND_IDS, "episode_index"]
+    table = pa.concat_tables(pq.read_table(f, columns=columns) for f in data_files(meta.root))
+    rows = np.isin(table.column("episode_index").to_numpy(), list(episodes))
+    state = _matrix(table.column(OBS_STATE), len(state_names), np.float64)[rows]
+    action = _matrix(table.column(ACTION), len(action_names), np.float64)[rows]
+    ids = _matrix(table.column(OBS_HAND_IDS), len(meta.names(OBS_HAND_IDS)), np.int64)[rows]
+    in_state = {b.side: b.slice for b in find_udhm_blocks(state_names)}
+    out: dict[str, dict[str, dict]] = {}
+    for k, block in enumerate(find_udhm_blocks(action_names)):
+        delta = action[:, block.slice] - state[:, in_state[block.side]]  # (N, 22)
+        for v in np.unique(ids[:, k]):
+            if v < 0:
+                continue
+            d = delta[ids[:, k] == v]
+            out.setdefault(block.side, {})[vocabulary[v]] = {
+                "mean": [round(float(x), 8) for x in d.mean(0)],
+                "std": [round(float(x), 8) for x in d.std(0)],
+                "frames": len(d),
+            }
+    return out
 
 
 def mix(opts: MixOptions) -> MixReport:
@@ -353,7 +359,6 @@ def mix(opts: MixOptions) -> MixReport:
     check_output(target, [i.meta.root for i in inputs], opts.overwrite)
     _check_compatible(inputs, opts)
     mixer = _Mixer(inputs, opts)
-    deltas = _DeltaStats(mixer)
     train_frames = [
         sum(length for e, length in (i.meta.episode_lengths or {}).items() if e not in i.test) for i in inputs
     ]
@@ -383,8 +388,6 @@ def mix(opts: MixOptions) -> MixReport:
                     continue
                 frames, task = mixer.episode(inp, rows, tasks)
                 split = "test" if e in inp.test else "train"
-                if split == "train":
-                    deltas.add(frames)
                 for r in range(repeats[k] if split == "train" else 1):
                     at = writer.add_episode(frames, task=task)
                     origin = {"mix_source": k, "source_episode_index": e, **({"repeat": r} if r else {})}
@@ -424,13 +427,14 @@ def mix(opts: MixOptions) -> MixReport:
             hand_vocabulary=mixer.vocabulary,
             sources=sources,
             name_map=dict(opts.name_map),
-            action_delta_stats=deltas.to_dict(),
             action_rule=(
                 f"inputs without actions: action[t] = state[t + {opts.action_ahead}] (the last frames hold the last state)"
                 if not all(i.has_action for i in inputs)
                 else ""
             ),
         )
+        write_record(tmp, record)  # (the statistics below read the record's vocabulary)
+        record.action_delta_stats = action_delta_stats(tmp, [e.episode_index for e in episodes if e.split == "train"])
         write_record(tmp, record)
         write_card(tmp, repo_id=opts.repo_id, record=record, num_frames=writer.num_frames, features=writer.features)
         move_into_place(tmp, target, opts.overwrite)

@@ -15,14 +15,15 @@ VOCAB = ["hand_a", "hand_b"]
 
 
 def _stats(seed: int = 0) -> dict:
+    """Two hands at scales 30x apart; slot 3 never moves (std 0)."""
     rng = np.random.default_rng(seed)
-    entry = lambda scale: {"mean": rng.normal(0, scale, UDHM_DIM).tolist(), "std": rng.uniform(0.5, 2, UDHM_DIM) * scale}  # noqa: E731
-    stats = {"left": {"hand_a": entry(0.01)}, "right": {"hand_a": entry(0.01), "hand_b": entry(0.3)}}
-    for side in stats.values():
-        for e in side.values():
-            e["std"] = [float(x) for x in e["std"]]
-            e["std"][3] = 0.0  # a slot this hand never moves
-    return stats
+
+    def entry(scale: float) -> dict:
+        std = rng.uniform(0.5, 2, UDHM_DIM) * scale
+        std[3] = 0.0
+        return {"mean": rng.normal(0, scale, UDHM_DIM).tolist(), "std": std.tolist()}
+
+    return {"left": {"hand_a": entry(0.01)}, "right": {"hand_a": entry(0.01), "hand_b": entry(0.3)}}
 
 
 def _step(mode: str, **kwargs) -> HandActionScaleStep:
