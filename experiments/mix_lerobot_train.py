@@ -2,7 +2,7 @@
 `act_udt_cpu.yaml`, `unidextok-deploy` onto each robot, `experiments/eval_policy.py` on each robot's held-out
 episodes, next to copying the current state and to the same recipe on that robot alone.
 
-    python experiments/mix_lerobot_train.py          # CPU-sized: 2 target sizes x 3 arms x 2 seeds + the L10 alone
+    python experiments/mix_lerobot_train.py          # CPU-sized: 2 target sizes x 6 arms x 2 seeds + the L10 alone x 2
     python experiments/mix_lerobot_train.py --target_episodes='[2]' --seeds='[0]'
 
 Target: the real Unitree G1 + Inspire recording (`g1-inspire`, converted), `target_episodes` of its training
@@ -11,10 +11,15 @@ own joints in its SDK's units and converted with `unidextok-convert --source=ler
 - `l10_robot` (real poses, synthetic motion): a right LinkerHand L10 moving between the real L10 vendor presets
   (`linkerhand-ros2-sdk/L10_positions.yaml`, minimum-jerk moves), action = the next frame's state;
 - `xhand_robot` (synthetic): a right XHand1 playing the sample gestures, action = the next frame's state.
-Arms (same recipe, steps and seeds): `target_only` (`lerobot-train` on the G1 dataset's chosen episodes);
+Arms (same recipe, steps and seeds): `target_only` (`lerobot-train` on the G1 dataset's chosen episodes, the
+whole robot: arms and hands); `target_hands_only` (the same episodes converted with `--keep=hands`, the layout the
+mix has; the real G1 only);
 `mix_hand_scaled` (the mix, relative actions z-scored per hand: `unidextok.hand_action_scale`, the default);
 `mix_unscaled` (`--policy.udt_hand_action_scale=false`: relative actions as LeRobot leaves them, IDENTITY);
-`l10_only` (the L10 robot's training episodes alone). Mixed checkpoints are scored on both robots. The
+`l10_only` (the L10 robot's training episodes alone); and the same with `udt_copy_start` (act_udt_cpu.yaml's
+default since it was measured here: the action head starts at zero, so the untrained policy copies the state):
+`target_hands_copy_start`, `mix_copy_start` (hand-scaled), `l10_copy_start`; the other arms set it false.
+Mixed checkpoints are scored on both robots. The
 mix gives the target half of the training frames (its chosen episodes written several times, `--weights`), and
 its per-hand scale is recomputed over the episodes each run trains on (`conversion.mix.action_delta_stats`;
 `unidextok-mix` records it over every training episode, here the G1's others too).
@@ -45,7 +50,19 @@ from experiments.common import git_commit, md_table
 
 logger = logging.getLogger(__name__)
 NAME = "mix_lerobot_train"
-ARMS = ("target_only", "mix_hand_scaled", "mix_unscaled", "l10_only")
+NO_COPY = "--policy.udt_copy_start=false"
+# arm -> (training data: the target whole / its hands only / the mix / the L10 robot alone, lerobot-train flags)
+ARM_RECIPES = {
+    "target_only": ("target", (NO_COPY,)),
+    "target_hands_only": ("hands", (NO_COPY,)),
+    "mix_hand_scaled": ("mix", (NO_COPY,)),
+    "mix_unscaled": ("mix", (NO_COPY, "--policy.udt_hand_action_scale=false")),
+    "l10_only": ("l10", (NO_COPY,)),
+    "target_hands_copy_start": ("hands", ()),
+    "mix_copy_start": ("mix", ()),
+    "l10_copy_start": ("l10", ()),
+}
+ARMS = tuple(ARM_RECIPES)
 METRICS = ("hands_udhm_deg_first", "hands_udhm_deg_chunk", "hands_native_first", "hands_native_chunk")
 PREFIX = "r_"  # the other robots' column names: r_<joint>
 BIN = Path(sys.executable).parent
@@ -129,6 +146,22 @@ def xhand_episodes(episodes: int, frames: int) -> list[np.ndarray]:
             for _ in range(episodes)]  # fmt: skip
 
 
+def target_hands(cfg: MixTrainConfig) -> Path | None:
+    """The real G1 converted with `--keep=hands` (the mix's layout: its two UDHM blocks), once; None for `--target`."""
+    if cfg.target:
+        return None
+    from experiments.unseen_data import real_data_dir
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.sources.lerobot import G1_INSPIRE_HANDS
+
+    root = Path(cfg.cache_dir) / f"{NAME}_g1_hands"
+    if not (root / "meta" / "unidextok_conversion.json").is_file():
+        convert(ConvertOptions(source="lerobot", input=real_data_dir() / "g1-inspire", root=root, keep="hands",
+                               repo_id="local/g1_hands", source_options={"hands": G1_INSPIRE_HANDS},
+                               overwrite=True, progress=False))  # fmt: skip
+    return root
+
+
 def other_robots(cfg: MixTrainConfig, folder: Path) -> list[Path]:
     from experiments.unseen_data import real_data_dir
 
@@ -197,6 +230,7 @@ def run(cfg: MixTrainConfig) -> dict:
     target = Path(cfg.target) if cfg.target else converted_g1(cfg.cache_dir)
     others = other_robots(cfg, Path(cfg.cache_dir) / f"{NAME}_{cfg.l10_poses}_{cfg.other_episodes}x{cfg.other_frames}")
     g1 = UdhmDatasetMeta(target)
+    hands_root = target_hands(cfg)
     test_eps = recorded_test_episodes(target)
     train_eps = np.random.default_rng(0).permutation(np.setdiff1d(np.arange(g1.total_episodes), test_eps)).tolist()
     lengths = g1.episode_lengths
@@ -218,23 +252,21 @@ def run(cfg: MixTrainConfig) -> dict:
         # the per-hand scale from the episodes trained on (the mix records it over every training episode)
         record.action_delta_stats = action_delta_stats(root, mixed_eps)
         write_record(root, record)
+        data = {"target": (target, "local/g1_udhm", chosen), "hands": (hands_root, "local/g1_hands", chosen),
+                "mix": (root, f"local/mix_{n}", mixed_eps)}  # fmt: skip
         for seed in cfg.seeds:
             for arm in cfg.arms:
-                if arm == "l10_only":
-                    continue
-                if arm == "target_only":
-                    jobs.append(dict(n=n, arm=arm, seed=seed, data=target, repo="local/g1_udhm", eps=chosen, flags=()))
-                else:
-                    flags = () if arm == "mix_hand_scaled" else ("--policy.udt_hand_action_scale=false",)
-                    jobs.append(
-                        dict(n=n, arm=arm, seed=seed, data=root, repo=f"local/mix_{n}", eps=mixed_eps, flags=flags)
-                    )
+                kind, flags = ARM_RECIPES[arm]
+                if kind in data and data[kind][0] is not None:
+                    path, repo, eps = data[kind]
+                    jobs.append(dict(n=n, arm=arm, kind=kind, seed=seed, data=path, repo=repo, eps=eps, flags=flags))
     l10 = others[0]
     l10_train = sorted(set(UdhmDatasetMeta(l10).episode_lengths) - set(UdhmDatasetMeta(l10).record.test_episodes))
     jobs += [
-        dict(n=0, arm="l10_only", seed=seed, data=l10, repo="local/l10_udhm", eps=l10_train, flags=())
+        dict(n=0, arm=arm, kind="l10", seed=seed, data=l10, repo="local/l10_udhm", eps=l10_train, flags=flags)
         for seed in cfg.seeds
-        if "l10_only" in cfg.arms
+        for arm, (kind, flags) in ARM_RECIPES.items()
+        if kind == "l10" and arm in cfg.arms
     ]  # the second robot alone: the same recipe on all its training episodes
 
     def one(job: dict) -> dict:
@@ -245,10 +277,12 @@ def run(cfg: MixTrainConfig) -> dict:
         checkpoint = train(job["data"], job["repo"], job["eps"], out, seed, cfg.steps, *job["flags"])
         wall = time.time() - c0
         robots = (
-            {"g1": target, "l10": l10} if arm.startswith("mix") else {"l10" if arm == "l10_only" else "g1": job["data"]}
+            {"g1": target, "l10": l10}
+            if job["kind"] == "mix"
+            else {"l10" if job["kind"] == "l10" else "g1": job["data"]}
         )
         scores = {
-            name: score(checkpoint, robot, name, out, mixed=arm.startswith("mix")) for name, robot in robots.items()
+            name: score(checkpoint, robot, name, out, mixed=job["kind"] == "mix") for name, robot in robots.items()
         }
         return {"arm": arm, "target_episodes": n, "seed": seed, "train_episodes": len(job["eps"]),
                 "train_wall_s": round(wall, 1), "errors": {k: v["policy"] for k, v in scores.items()},

@@ -104,6 +104,9 @@ class UdtConfigMixin:
     # (true for unidextok-convert datasets). Actions are then not normalised (ACTION: IDENTITY). LeRobot 0.6.1's
     # lerobot-rollout refuses relative-action policies; the stock factory and select_action run them.
     udt_relative_actions: bool = False
+    # With relative actions: start training from a policy that copies the current state (the action head's
+    # weights and bias zero, so every predicted offset is 0 until the data say otherwise). ACT only.
+    udt_copy_start: bool = False
     # Column names of the action (converted layout); filled from the dataset.
     udt_action_names: list[str] = field(default_factory=list)
     # A dataset mixing robots and people (unidextok-mix): the hands its observation.hand_ids index; each row is

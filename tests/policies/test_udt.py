@@ -227,6 +227,31 @@ def test_relative_actions_round_trip_through_the_saved_and_reloaded_processors(t
     assert (relative - action).abs().max() > 0.1  # the state was really taken off
 
 
+def test_copy_start_makes_the_untrained_policy_copy_the_state(tok_dir, g1_like):
+    """udt_copy_start (act_udt_cpu.yaml): with relative actions the action head starts at zero, so before any
+    training every action of the chunk is the current state (a LinkerHand robot trained 1000 steps without it
+    stayed worse than copying the state: experiments/mix_lerobot_train.py)."""
+    from lerobot.processor import TransitionKey
+
+    from lerobot_unidextok.policies.act_udt import ACTUdtPolicy
+
+    stats = _Meta(g1_like["root"])._meta.stats
+    state = torch.from_numpy(to_converted(g1_like["native_state"][:3])).float()  # (3, 58)
+    for copy_start in (True, False):
+        torch.manual_seed(0)
+        cfg = _from_dataset(
+            ACTUdtConfig, tok_dir, g1_like["root"], udt_relative_actions=True, udt_copy_start=copy_start
+        )
+        policy = ACTUdtPolicy(cfg).eval()
+        pre, post = make_act_udt_pre_post_processors(cfg, dataset_stats=stats)
+        with torch.no_grad():
+            chunk = policy.predict_action_chunk(pre({OBS_STATE: state}))  # (3, chunk, 58) offsets
+        absolute = list(post.step_through(chunk))[-2][TransitionKey.ACTION]  # before the native decoding
+        copied = torch.allclose(absolute, state[:, None].expand_as(absolute), atol=1e-6)
+        assert copied == copy_start, copy_start
+    assert not ACTUdtConfig(udt_copy_start=True).udt_relative_actions  # opt-in; the recipe sets both
+
+
 def test_relative_actions_refuse_an_action_layout_that_is_not_the_states_first_columns(tok_dir, g1_like):
     meta = _Meta(g1_like["root"])
     shuffled = {**meta.features[ACTION], "names": STATE_NAMES[1:] + STATE_NAMES[:1]}
@@ -432,7 +457,6 @@ def test_real_g1_inspire_select_action_returns_the_native_action(tok_dir, g1_dat
     frames, and a wrong width gets one line naming both layouts."""
     from g1_real import native_states
 
-
     assert UdhmDatasetMeta(g1_dataset).native_layout().native_dim == 26  # 14 arm joints + 2 x 6 Inspire values
     native = np.concatenate([native_states(real_data_dir, e) for e in range(3)])  # the 3 converted episodes
     np.save(tmp_path / "native.npy", native)
@@ -451,7 +475,7 @@ cfg = PreTrainedConfig.from_pretrained(path)
 policy = get_policy_class(cfg.type).from_pretrained(path).eval()
 pre, post = make_pre_post_processors(cfg, pretrained_path=path)
 ds = LeRobotDataset("test/g1_udhm", root="{g1_dataset}")
-native = torch.from_numpy(np.load("{tmp_path / 'native.npy'}"))
+native = torch.from_numpy(np.load("{tmp_path / "native.npy"}"))
 assert native.shape == (len(ds), 26)
 def act(state):
     policy.reset()
@@ -497,5 +521,7 @@ def test_a_single_robot_dataset_trains_exactly_as_before_the_mixing(tok_dir, g1_
     for i in range(4):
         ours = pre({OBS_STATE: converted[i]})
         assert torch.equal(ours[OBS_HAND_TOKENS].reshape(-1), tokens[i])
-        torch.testing.assert_close(ours[OBS_HAND_TOKEN_FEATURES].reshape(-1), features[i], atol=1e-5, rtol=0)  # batch of 4 vs 1
+        torch.testing.assert_close(
+            ours[OBS_HAND_TOKEN_FEATURES].reshape(-1), features[i], atol=1e-5, rtol=0
+        )  # batch of 4 vs 1
     assert cfg.input_features[OBS_HAND_TOKEN_FEATURES].shape == (features.shape[-1],)
