@@ -2,6 +2,8 @@
 # Both create .venv with Python 3.12 if it is missing and install the package into it.
 VENV ?= .venv
 PY := $(VENV)/bin/python
+# test files run in this many processes (pytest-xdist; a file's tests share one process and its fixtures)
+TEST_WORKERS ?= 2
 PYTHON312 ?= $(shell command -v python3.12 || command -v python3)
 
 .PHONY: install demo test clean
@@ -18,7 +20,7 @@ demo: install
 	$(PY) -m lerobot_unidextok.demo $(ARGS)
 
 test: install
-	$(PY) -m pytest -q $(ARGS)
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile $(ARGS)
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache
