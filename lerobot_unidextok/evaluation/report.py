@@ -32,7 +32,9 @@ def encoding(config) -> str:
     """How codes were picked: the nearest codes (the paper's encoding) or the decoder-aware code search."""
     if not config.search_rounds:
         return "nearest codes"
-    return f"code search, {config.search_rounds} round(s) x {config.search_sweeps} sweep(s)"
+    if config.search_method == "sweeps":
+        return f"code search, {config.search_rounds} round(s) x {config.search_sweeps} sweep(s)"
+    return f"greedy code search, {config.search_rounds} round(s) x up to {config.search_changes} change(s)"
 
 
 HAND_ROWS = "hand-rows: one row per hand per frame (a two-hand frame gives two rows)"

@@ -12,15 +12,25 @@ FORMAT_VERSION = 1
 
 # Config fields (of UniDexTokConfig, and of TrainConfig where it has them) that only change how `encode` picks
 # codes at use, never training: cache keys and fingerprints of trainings leave them out.
-ENCODING_FIELDS: tuple[str, ...] = ("search_rounds", "search_sweeps")
+ENCODING_FIELDS: tuple[str, ...] = ("search_rounds", "search_method", "search_sweeps", "search_changes")
+SEARCH_METHODS: tuple[str, ...] = ("greedy", "sweeps")
+# What a config.json written before `search_method` existed searched with (`UniDexTokConfig.from_dict`).
+LEGACY_SEARCH_METHOD = "sweeps"
 
-def check_encoding(search_rounds: int | None, search_sweeps: int | None = None, flag: str = "search_rounds") -> None:
-    """The one rule for the encoding settings (None = unset): `search_rounds` >= 0 (0 = the nearest codes) and
-    `search_sweeps` >= 1; a ConfigError (a ValueError) naming `flag`, the field or flag that carries `search_rounds`."""
+
+def check_encoding(search_rounds: int | None, search_sweeps: int | None = None, flag: str = "search_rounds",
+                   search_method: str | None = None, search_changes: int | None = None) -> None:  # fmt: skip
+    """The one rule for the encoding settings (None = unset): `search_rounds` >= 0 (0 = the nearest codes),
+    `search_sweeps` >= 1, `search_method` one of SEARCH_METHODS, `search_changes` >= 1; a ConfigError (a
+    ValueError) naming `flag`, the field or flag that carries `search_rounds`."""
     if search_rounds is not None and search_rounds < 0:
         raise ConfigError(f"{flag} must be >= 0 (0 = nearest codes), got {search_rounds}")
     if search_sweeps is not None and search_sweeps < 1:
         raise ConfigError(f"search_sweeps must be >= 1, got {search_sweeps}")
+    if search_method is not None and search_method not in SEARCH_METHODS:
+        raise ConfigError(f"search_method must be one of {SEARCH_METHODS}, got {search_method!r}")
+    if search_changes is not None and search_changes < 1:
+        raise ConfigError(f"search_changes must be >= 1, got {search_changes}")
 
 
 # Hand-type vocabulary used for conditioning by default. Names are hand-spec names (side-independent);
@@ -100,12 +110,16 @@ class UniDexTokConfig:
 
     # --- encoding ----------------------------------------------------------------------------------
     # Departure (option): decoder-aware code search (tokenizer/search.py). 0 = the paper's encoding, each group
-    # vector snapped to its nearest code; R > 0 refines those codes by R rounds of coordinate descent on the
-    # decoder linearised around them (each round `search_sweeps` passes over the N x K positions; its cost:
-    # benchmarks/bench_tokenizer.py, docs/tokenizer.md). Same codes, same
-    # decoder; training always uses the nearest codes.
+    # vector snapped to its nearest code; R > 0 refines those codes by R rounds of descent on the decoder
+    # linearised around them (cost: benchmarks/bench_processor.py --encodings, docs/tokenizer.md "Code search").
+    # Same codes, same decoder; training always uses the nearest codes.
     search_rounds: int = 0
+    # How a round moves: "greedy" makes up to `search_changes` best single code changes; "sweeps" (coordinate
+    # descent, `search_sweeps` passes over the N x K positions) is what config.json files written before this
+    # field existed use, so they encode as they did.
+    search_method: str = "greedy"
     search_sweeps: int = 2
+    search_changes: int = 16
 
     # --- reconstruction loss ------------------------------------------------------------------------
     # In angle / pi units: MSE (paper: plain MSE) + optional SmoothL1 (paper mentions it, weight unknown) +
@@ -146,7 +160,8 @@ class UniDexTokConfig:
             )
         if self.codebook_update not in ("gradient", "ema"):
             raise ConfigError(f"codebook_update must be 'gradient' or 'ema', got {self.codebook_update!r}")
-        check_encoding(self.search_rounds, self.search_sweeps)
+        check_encoding(self.search_rounds, self.search_sweeps, search_method=self.search_method,
+                       search_changes=self.search_changes)
         if min(self.mse_weight, self.smooth_l1_weight, self.l1_weight) < 0:
             raise ConfigError("mse_weight, smooth_l1_weight and l1_weight must be >= 0")
         if len(set(self.hand_names)) != len(self.hand_names):
@@ -155,7 +170,8 @@ class UniDexTokConfig:
     @classmethod
     def from_dict(cls, data: dict) -> "UniDexTokConfig":
         """A config from config.json's dict; a file without `format_version` is read as `format_version=None`
-        (refused), not as the current version."""
+        (refused), not as the current version, and one without `search_method` as LEGACY_SEARCH_METHOD (the only
+        code search there was when it was written)."""
         unknown = sorted(set(data) - {f.name for f in fields(cls)})
         if unknown:
             raise ConfigError(
@@ -169,7 +185,7 @@ class UniDexTokConfig:
                     f"UniDexTok config.json: {key}={value!r} is a {type(value).__name__}, expected "
                     f"{_type_name(hints[key])}; correct the value in config.json"
                 )
-        return cls(**{"format_version": None, **data})
+        return cls(**{"format_version": None, "search_method": LEGACY_SEARCH_METHOD, **data})
 
     @classmethod
     def from_pretrained(cls, pretrained_model_name_or_path: str, revision: str | None = None) -> "UniDexTokConfig":

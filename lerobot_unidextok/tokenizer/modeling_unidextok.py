@@ -26,7 +26,7 @@ from lerobot_unidextok.pretrained import hub_errors, resolve
 from lerobot_unidextok.tokenizer.configuration_unidextok import UniDexTokConfig
 from lerobot_unidextok.tokenizer.layers import AdaLNBlock, AdaLNFinalNorm, HandEmbedder
 from lerobot_unidextok.tokenizer.quantizer import FactorizedCosineVQ
-from lerobot_unidextok.tokenizer.search import search_codes
+from lerobot_unidextok.tokenizer.search import greedy_codes, search_codes
 
 HandArg = str | Sequence[str] | torch.Tensor
 logger = logging.getLogger(__name__)
@@ -239,8 +239,9 @@ class UniDexTok(
         """(B, 22) radians -> (B, N, K) int64 codes.
 
         With `search_rounds` 0 each group vector takes its nearest code (the paper's encoding); with R > 0 those
-        codes are refined by R rounds of decoder-aware search (`tokenizer.search`) over the active DoFs: `mask`
-        (B, 22) bool, or each registered hand's spec when None. `search_rounds=None` = the config's."""
+        codes are refined by R rounds of the config's decoder-aware search (`search_method`, `tokenizer.search`)
+        over the active DoFs: `mask` (B, 22) bool, or each registered hand's spec when None. `search_rounds=None`
+        = the config's."""
         x_rad = self._check_states(states_rad)  # (B, 22)
         ids = self.hand_ids(hand, x_rad.shape[0], allow_unknown)  # (B,)
         c = self.hand_embed(ids)  # (B, C)
@@ -251,8 +252,15 @@ class UniDexTok(
             active = self.active_dofs(ids) if mask is None else torch.as_tensor(mask, device=x_rad.device)
             if active.shape != x_rad.shape:
                 raise ValueError(f"mask must have the states' shape {tuple(x_rad.shape)}, got {tuple(active.shape)}")
-            codes = search_codes(self, x_rad, codes, c, active, rounds, self.config.search_sweeps)  # (B, N, K)
+            codes = self._search(x_rad, codes, c, active, rounds)  # (B, N, K)
         return codes
+
+    def _search(self, x_rad, codes, c, active, rounds: int) -> torch.Tensor:
+        """The config's code search (`search_method`) from the nearest codes: (B, N, K) codes."""
+        cfg = self.config
+        if cfg.search_method == "sweeps":
+            return search_codes(self, x_rad, codes, c, active, rounds, cfg.search_sweeps)
+        return greedy_codes(self, x_rad, codes, c, active, rounds, cfg.search_changes)
 
     def active_dofs(self, ids: torch.Tensor) -> torch.Tensor:
         """(B,) hand ids -> (B, 22) bool active DoFs of each row's hand, from the registered hand specs. Rows of
@@ -330,6 +338,8 @@ class UniDexTok(
         *args,
         search_rounds: int | None = None,
         search_sweeps: int | None = None,
+        search_method: str | None = None,
+        search_changes: int | None = None,
         **kwargs,
     ) -> "UniDexTok":
         """The one door to a trained tokenizer: a checkpoint folder, a `unidextok-train` run folder (its
@@ -337,18 +347,23 @@ class UniDexTok(
         no HF cache), or a Hub repo id (the HF cache serves it offline; an explicit `revision` always means the
         Hub). A name found nowhere is a `CheckpointNotFoundError` saying how to fix it (`pretrained.resolve`).
 
-        `search_rounds` / `search_sweeps`: the encoding to use instead of the checkpoint's (None keeps it;
-        `search_rounds=0` = the nearest codes), checked by `UniDexTokConfig` like every config field."""
+        `search_rounds` / `search_method` / `search_sweeps` / `search_changes`: the encoding to use instead of the
+        checkpoint's (None keeps it; `search_rounds=0` = the nearest codes), checked by `UniDexTokConfig` like every
+        config field."""
         name = str(pretrained_model_name_or_path)
         if kwargs.get("revision") is None:
             name = resolve(name, checkpoint=True)
         with hub_errors(str(pretrained_model_name_or_path)):
             model = super().from_pretrained(name, *args, **kwargs)
-        return model.with_encoding(search_rounds=search_rounds, search_sweeps=search_sweeps)
+        return model.with_encoding(search_rounds=search_rounds, search_sweeps=search_sweeps,
+                                   search_method=search_method, search_changes=search_changes)  # fmt: skip
 
-    def with_encoding(self, search_rounds: int | None = None, search_sweeps: int | None = None) -> "UniDexTok":
+    def with_encoding(self, search_rounds: int | None = None, search_sweeps: int | None = None,
+                      search_method: str | None = None, search_changes: int | None = None) -> "UniDexTok":  # fmt: skip
         """Set how `encode` picks codes (None keeps a setting; checked by `UniDexTokConfig`); returns self."""
-        changes = {k: v for k, v in (("search_rounds", search_rounds), ("search_sweeps", search_sweeps)) if v is not None}
+        given = {"search_rounds": search_rounds, "search_sweeps": search_sweeps, "search_method": search_method,
+                 "search_changes": search_changes}  # fmt: skip
+        changes = {k: v for k, v in given.items() if v is not None}
         if changes:
             self.config = dataclasses.replace(self.config, **changes)
         return self

@@ -4,20 +4,27 @@ encoder's vectors.
 The paper encodes a state by snapping each of the N x K encoder group vectors to its nearest code (cosine). That
 snapping is most of a trained model's error (`experiments/error_split.py`): the decoder fed the unsnapped vectors
 errs 2-4x less. This module keeps the model and the token interface as they are and changes only how codes are
-picked: starting from the nearest codes, it runs coordinate descent on the decoder linearised around them,
+picked: starting from the nearest codes, it descends on the decoder linearised around them,
 
     x_hat(codes') ~= x_hat(codes) + sum_{n,k} J_n W_k (e_{k, codes'[n,k]} - e_{k, codes[n,k]})
 
 with J_n the decoder's Jacobian for its input token n, W_k the quantiser's output projection of group k and
-e_{k,s} the unit-norm codes. A sweep visits the N*K positions in turn and gives each the code that minimises the
-linearised squared error (radians, active DoFs). A round ends with an exact decode; a row keeps the codes it
+e_{k,s} the unit-norm codes, minimising the linearised squared error (radians, active DoFs). A round ends with an exact decode; a row keeps the codes it
 started the round with unless the exact error went down, so the search never makes a row worse on its
 objective. Same tokens, same decoder: analysis by synthesis, as speech codecs pick their codebook entries (CELP).
 
-Cost: per round one Jacobian (a backward pass through one copy of the batch per active DoF) and N*K*sweeps small
-steps. For the `small` preset, 2 rounds x 2 sweeps, one CPU thread (`benchmarks/bench_processor.py --search_rounds
-2`, two 6-DoF Inspire hands): 1.4 ms per hand-row at batch 256 and 14 ms per frame at batch 1, against 0.08 and
-1.1 ms for the nearest codes; hands with more DoFs cost more (the card's 14 hands: 2.9 ms per row on average).
+Two ways to move through the codes, both on the same linearisation and with the same exact check per round:
+- `search_method="sweeps"` (`search_codes`, the first one; checkpoints written before `search_method` existed use
+  it): coordinate descent, each sweep gives each of the N*K positions in turn its best code; N*K*sweeps small
+  sequential steps per round.
+- `search_method="greedy"` (`greedy_codes`): each step scores every single change (all N*K positions x S codes at once)
+  and makes the best one, up to `changes` steps per round, stopping early when no row gains. About as accurate
+  per round and cheaper: the few changes that matter (a round changes a quarter of the positions) instead of
+  N*K sequential steps, and the decoder's forward pass for the Jacobian also gives the round's start.
+
+Cost: per round one Jacobian (a backward pass through one copy of the batch per active DoF), which dominates at
+large batches; at batch 1 the per-step overhead counts too. Measured against the nearest codes in
+`benchmarks/bench_processor.py --encodings` (docs/tokenizer.md "Code search").
 """
 
 import torch
@@ -39,6 +46,30 @@ def decoder_jacobian(model, zq: torch.Tensor, cond: torch.Tensor, outputs: torch
     return grad.view(j, b, *zq.shape[1:]).transpose(0, 1)  # (B, J, N, C)
 
 
+def decoded_and_jacobian(model, zq: torch.Tensor, cond: torch.Tensor, outputs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """`decoder_jacobian` and the decoded states it linearises around, from the same forward pass:
+    ((B, J) x_hat_rad[:, outputs], (B, J, N, C))."""
+    b, j = zq.shape[0], len(outputs)
+    with torch.inference_mode(False), torch.enable_grad():
+        z = zq.detach().clone().repeat(j, 1, 1).requires_grad_(True)  # (J B, N, C)
+        out = model._decode_latent(z, cond.detach().clone().repeat(j, 1)).view(j, b, -1)  # (J, B, 22) radians
+        picked = out.gather(2, outputs.clone().view(j, 1, 1).expand(j, b, 1))  # (J, B, 1)
+        (grad,) = torch.autograd.grad(picked.sum(), z)  # (J B, N, C)
+    x_hat = out[0].detach()[:, outputs]  # (B, J): every copy decodes the same codes
+    return x_hat.clone(), grad.view(j, b, *zq.shape[1:]).transpose(0, 1)  # (B, J), (B, J, N, C)
+
+
+def _chunks(fn, model, states_rad, codes, cond, mask, rounds: int, per_round: int) -> torch.Tensor:
+    """Run `fn` over CHUNK_ROWS rows at a time after the checks both searches share."""
+    weight = torch.ones_like(states_rad) if mask is None else mask.to(states_rad.dtype)  # (B, 22)
+    if rounds == 0 or not bool(weight.any()):
+        return codes
+    parts = [fn(model, states_rad[i : i + CHUNK_ROWS], codes[i : i + CHUNK_ROWS], cond[i : i + CHUNK_ROWS],
+                weight[i : i + CHUNK_ROWS], rounds, per_round)  # fmt: skip
+             for i in range(0, len(codes), CHUNK_ROWS)]
+    return torch.cat(parts)
+
+
 @torch.no_grad()
 def search_codes(
     model,
@@ -54,15 +85,75 @@ def search_codes(
     <= that of `codes`."""
     if rounds < 0 or sweeps < 1:
         raise ValueError(f"code search needs rounds >= 0 and sweeps >= 1, got rounds={rounds}, sweeps={sweeps}")
-    weight = torch.ones_like(states_rad) if mask is None else mask.to(states_rad.dtype)  # (B, 22)
-    if rounds == 0 or not bool(weight.any()):
-        return codes
-    parts = [
-        _search_chunk(model, states_rad[i : i + CHUNK_ROWS], codes[i : i + CHUNK_ROWS], cond[i : i + CHUNK_ROWS],
-                      weight[i : i + CHUNK_ROWS], rounds, sweeps)  # fmt: skip
-        for i in range(0, len(codes), CHUNK_ROWS)
-    ]
-    return torch.cat(parts)
+    return _chunks(_search_chunk, model, states_rad, codes, cond, mask, rounds, sweeps)
+
+
+@torch.no_grad()
+def greedy_codes(
+    model,
+    states_rad: torch.Tensor,
+    codes: torch.Tensor,
+    cond: torch.Tensor,
+    mask: torch.Tensor | None = None,
+    rounds: int = 1,
+    changes: int = 16,
+) -> torch.Tensor:
+    """Like `search_codes`, moving by best single changes: per round up to `changes` steps, each making the one
+    change of one position's code that lowers the linearised error most (per row; a row stops when none does).
+    Returns new (B, N, K) int64 codes, each row's exact error <= that of `codes`."""
+    if rounds < 0 or changes < 1:
+        raise ValueError(f"code search needs rounds >= 0 and changes >= 1, got rounds={rounds}, changes={changes}")
+    return _chunks(_greedy_chunk, model, states_rad, codes, cond, mask, rounds, changes)
+
+
+def code_effects(model) -> torch.Tensor:
+    """(C, K S): the decoder input added by each code of each group (the quantiser's output projection of the
+    unit-norm codes), so that d zq = effects[:, k S + s'] - effects[:, k S + s] when group k's code s becomes s'."""
+    vq = model.quantizer
+    proj = vq.project_out.weight.view(-1, vq.num_groups, vq.group_dim)  # (C, K, d)
+    return torch.einsum("ckd,ksd->cks", proj, vq.normalized_codebooks()).flatten(1)  # (C, K S)
+
+
+def _greedy_chunk(model, x, codes, cond, weight, rounds: int, changes: int) -> torch.Tensor:
+    vq = model.quantizer
+    b, n_tok, n_grp = codes.shape
+    size, positions = vq.codebook_size, n_tok * n_grp
+    table = code_effects(model)  # (C, K S)
+    rows = torch.arange(b, device=x.device)  # (B,)
+    dofs = weight.any(0).nonzero().flatten()  # (J,) DoFs active in any row
+    x, weight = x[:, dofs], weight[:, dofs]  # (B, J)
+    j = len(dofs)
+    codes = codes.long()
+    for _ in range(rounds):
+        x_hat, jac = decoded_and_jacobian(model, vq.get_output_from_indices(codes), cond, dofs)  # (B, J), (B, J, N, C)
+        start_err = (((x_hat - x) * weight) ** 2).sum(-1)  # (B,)
+        # effect on x_hat of every code at every position: (B, P, S, J), P = N K positions
+        effect = (jac.transpose(1, 2) @ table).view(b, n_tok, j, n_grp, size)  # (B, N, J, K, S)
+        effect = effect.permute(0, 1, 3, 4, 2).reshape(b, positions, size, j) * weight[:, None, None, :]
+        chosen = codes.reshape(b, positions).clone()  # (B, P)
+        delta = effect - effect.gather(2, chosen[:, :, None, None].expand(b, positions, 1, j))  # (B, P, S, J)
+        delta = delta.view(b, positions * size, j)  # (B, P S, J): one row per single change
+        delta_sq = (delta**2).sum(-1, keepdim=True)  # (B, P S, 1)
+        residual = ((x - x_hat) * weight)[:, :, None]  # (B, J, 1) what the changes should add
+        for _ in range(changes):
+            # change in squared error of each single change: |r - d|^2 - |r|^2 = |d|^2 - 2 d.r
+            gain, best = torch.baddbmm(delta_sq, delta, residual, alpha=-2).squeeze(-1).min(1)  # (B,), (B,)
+            better = gain < 0  # (B,)
+            if not bool(better.any()):
+                break
+            pos = torch.where(better, best // size, 0)  # (B,) rows without a gain change nothing: their
+            code = torch.where(better, best % size, chosen[:, 0])  # position 0 keeps its code
+            residual = residual - delta[rows, pos * size + code, :, None]  # (B, J, 1)
+            chosen[rows, pos] = code
+            span = pos[:, None] * size + torch.arange(size, device=x.device)  # (B, S) the changes of `pos`
+            moved = effect[rows, pos] - effect[rows, pos, code][:, None, :]  # (B, S, J) relative to the new code
+            delta[rows[:, None], span] = moved
+            delta_sq[rows[:, None], span] = (moved**2).sum(-1, keepdim=True)
+        chosen = chosen.view(b, n_tok, n_grp)
+        x_new = model._decode_latent(vq.get_output_from_indices(chosen), cond)[:, dofs]  # (B, J)
+        new_err = (((x_new - x) * weight) ** 2).sum(-1)  # (B,)
+        codes = torch.where((new_err < start_err)[:, None, None], chosen, codes)  # (B, N, K)
+    return codes
 
 
 def _search_chunk(model, x, codes, cond, weight, rounds: int, sweeps: int) -> torch.Tensor:
