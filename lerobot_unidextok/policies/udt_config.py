@@ -84,9 +84,10 @@ class UdtConfigMixin:
     udt_allow_unknown: bool = False
     # States outside their hands' ranges (degrees fed as radians, normalised values): raise | warn | off.
     udt_range_check: str = "raise"
-    # Rounds of the tokenizer's decoder-aware code search (docs/tokenizer.md "Code search"): 0 = the nearest
-    # codes (fast, the default); > 0 = codes that decode closer to the state, at the cost measured there.
-    udt_search_rounds: int = 0
+    # Rounds of the tokenizer's decoder-aware code search (docs/tokenizer.md "Code search"): null = the
+    # tokenizer's own encoding (the default; the shipped tokenizer searches); 0 = the nearest codes (cheapest);
+    # > 0 = that many rounds of its search.
+    udt_search_rounds: int | None = None
     # Decode predicted actions to the robot's native action vector (arms copied, hands in native units) when
     # the dataset's hands have native joints; false keeps UDHM radians.
     udt_native_action: bool = True

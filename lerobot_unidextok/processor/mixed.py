@@ -175,8 +175,8 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
         active = self._vocab_active[v]  # (P, 22)
         if len(v):
             ids = self._vocab_tokenizer_ids[v]  # (P,)
-            mask = active if self.search_rounds else None
-            found = tok.encode(picked, ids, mask=mask, search_rounds=self.search_rounds)  # (P, N, K)
+            rounds = cfg.search_rounds if self.search_rounds is None else self.search_rounds
+            found = tok.encode(picked, ids, mask=active if rounds else None, search_rounds=rounds)  # (P, N, K)
             codes[present] = found
         if self.representation == "dequantized":
             view = torch.zeros(b, h, UDHM_DIM, device=device)

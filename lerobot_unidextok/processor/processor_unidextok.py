@@ -100,10 +100,10 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     # True = tokenise them zero-shot with the tokenizer's "unknown hand" embedding (logged once).
     allow_unknown: bool = False
     range_check: str = "raise"  # states outside the hands' ranges (degrees, normalised): raise | warn | off
-    # Rounds of decoder-aware code search (tokenizer/search.py): 0 = each group's nearest code, the paper's
-    # encoding and the fast one (a policy's features); R > 0 = codes that decode closer to the state, at a cost
-    # per hand-row measured in docs/tokenizer.md, "Code search".
-    search_rounds: int = 0
+    # Rounds of decoder-aware code search (tokenizer/search.py): None = the tokenizer's own encoding (the shipped
+    # tokenizer's config searches: docs/tokenizer.md "Code search", its cost per frame and per row); 0 = each
+    # group's nearest code, the paper's encoding and the cheapest; R > 0 = R rounds of the tokenizer's search.
+    search_rounds: int | None = None
     input_key: str = OBS_STATE
     token_key: str = OBS_HAND_TOKENS
     features_key: str = OBS_HAND_TOKEN_FEATURES
@@ -133,7 +133,7 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {self.representation!r}")
         if self.range_check not in RANGE_CHECKS:
             raise ValueError(f"range_check must be one of {RANGE_CHECKS}, got {self.range_check!r}")
-        check_encoding(self.search_rounds)  # the step's own setting, not the checkpoint's: 0 = nearest codes
+        check_encoding(self.search_rounds)  # None = the tokenizer's encoding, 0 = nearest codes
 
     def _load_tokenizer(self) -> None:
         """The tokenizer from `tokenizer_config` (weights follow through `load_state_dict`), `pretrained`, or an
@@ -232,8 +232,9 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
         ids = self._hand_ids if b == 1 else self._hand_ids.repeat(b)  # (B*H,) one id per row, block order
         if self._active.device != rows.device:
             self._active = self._active.to(rows.device)
-        mask = self._active.repeat(b, 1) if self.search_rounds else None  # (B*H, 22)
-        codes = tok.encode(rows.reshape(b * h, UDHM_DIM), ids, mask=mask, search_rounds=self.search_rounds)
+        rounds = tok.config.search_rounds if self.search_rounds is None else self.search_rounds
+        mask = self._active.repeat(b, 1) if rounds else None  # (B*H, 22)
+        codes = tok.encode(rows.reshape(b * h, UDHM_DIM), ids, mask=mask, search_rounds=rounds)
         if self.representation == "dequantized":
             decoded = tok.decode(codes, ids).reshape(b, h, UDHM_DIM)  # (B, H, 22) radians
             view = decoded * self._active  # (B, H, 22), slots a hand does not have set to zero

@@ -511,20 +511,28 @@ def test_the_default_tokenizer_is_the_shipped_universal_one_and_a_preset_only_wh
     assert UniDexTokStateTokenizerStep(hand_layout=[INSPIRE], pretrained=None).tokenizer.config.trained_hands == []
 
 
-def test_search_rounds_give_a_closer_dequantized_view_and_survive_a_reload():
-    """The step encodes with the nearest codes by default (fast, a policy's features); `search_rounds` asks for
-    the decoder-aware search, which decodes closer to the state on the hands' active DoFs."""
+def test_the_step_encodes_as_its_tokenizer_does_unless_told_and_keeps_it_on_reload():
+    """By default (`search_rounds=None`) the step encodes with its tokenizer's own encoding: for the shipped one,
+    the decoder-aware search, which decodes closer to the state on the hands' active DoFs than the nearest codes
+    (`search_rounds=0`, what steps saved before kept). Both settings survive a reload."""
     states = torch.from_numpy(inspire_states(16, seed=2))  # (16, 44) two Inspire hands
-    nearest = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE])
-    searched = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE], search_rounds=1)
+    default = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE])
+    nearest = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE], search_rounds=0)
+    tok = default.tokenizer
+    assert default.search_rounds is None and tok.config.search_rounds > 0
+    rows = states.reshape(-1, 22)  # (32, 22) one row per hand
+    assert torch.equal(default.tokenize(states)[0].reshape(-1, 8, 8), tok.encode(rows, INSPIRE))
+    assert torch.equal(nearest.tokenize(states)[0].reshape(-1, 8, 8), tok.encode(rows, INSPIRE, search_rounds=0))
     active = nearest.active_masks.reshape(-1).repeat(16, 1)  # (16, 44)
     errors = []
-    for step in (nearest, searched):
+    for step in (nearest, default):
         _, view = step.tokenize(states)
         errors.append(float((view - states).abs()[active].mean()))
     assert errors[1] < 0.6 * errors[0]
-    again = UniDexTokStateTokenizerStep(**json.loads(json.dumps(searched.get_config())))
-    again.load_state_dict(searched.state_dict())  # as the pipeline reloads a step
-    assert again.search_rounds == 1 and torch.equal(again.tokenize(states)[0], searched.tokenize(states)[0])
+    for step in (default, nearest):
+        again = UniDexTokStateTokenizerStep(**json.loads(json.dumps(step.get_config())))
+        again.load_state_dict(step.state_dict())  # as the pipeline reloads a step
+        assert again.search_rounds == step.search_rounds
+        assert torch.equal(again.tokenize(states)[0], step.tokenize(states)[0])
     with pytest.raises(ValueError, match="search_rounds"):
         UniDexTokStateTokenizerStep(hand_layout=[INSPIRE], search_rounds=-1)
