@@ -53,6 +53,9 @@ class TokenizerTraining(TrainConfig):
     lr: float = 6e-3
     warmup_steps: int = 50
     eval_every: int = 250
+    # written into the fold's checkpoint: the token inputs use the package's default encoding (the greedy code
+    # search, one round), as the shipped tokenizer and the processor step do
+    search_rounds: int | None = 1
 
 
 @dataclass
