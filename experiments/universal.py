@@ -56,8 +56,9 @@ def held_out_figures(model, datasets: dict[str, str]) -> dict[str, dict]:
     return out
 
 
-def figures(model, datasets: dict[str, str]) -> dict[str, dict]:
-    return {**held_out_figures(model, datasets), **in_range_figures(model)}
+def figures(model, datasets: dict[str, str], hand_names: list[str] | None = None) -> dict[str, dict]:
+    """The held-out figures of `datasets` and the in-range figures of `hand_names` (None = every registered hand)."""
+    return {**held_out_figures(model, datasets), **in_range_figures(model, hand_names)}
 
 
 def write_package(

@@ -1,12 +1,14 @@
 """Score the universal run on data it never trained on and write the shipped package folder + card.
 
     python experiments/universal_card.py --run=outputs/unidextok_universal --data=outputs/universal_data \
-        --cpu_s=<training CPU seconds> --commit=<commit the run trained at> --search_rounds=2 --search_sweeps=2
+        --cpu_s=<training CPU seconds> --commit=<commit the run trained at> --search_method=greedy \
+        --search_rounds=1 --search_changes=16
 
 Writes lerobot_unidextok/pretrained/universal-small/ (config.json, model.safetensors, training_state.json,
 eval.json, README.md) from <run>/best; `experiments.universal` holds the figures. The package's
 config.json gets the code search settings (its default encoding); the figures are measured with them (eval.json
-`results`, the card's evaluation table) and with the nearest codes, the paper's encoding (`nearest_codes`).
+`results`, the card's evaluation table) and with the nearest codes, the paper's encoding (`nearest_codes`). The
+in-range figures cover the hands the checkpoint trained on (hands registered later: experiments/universal_zeroshot.py).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from experiments.universal import figures, write_package
 from lerobot_unidextok.evaluation.report import encoding
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, SHIPPED
 from lerobot_unidextok.tokenizer import UniDexTok
+from lerobot_unidextok.tokenizer.configuration_unidextok import SEARCH_METHODS
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = {  # label -> converted dataset (experiments/universal_data.py)
@@ -53,17 +56,23 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--data", type=Path, default=Path("outputs/universal_data"))
     p.add_argument("--cpu_s", type=float, required=True, help="training CPU time (user + sys), seconds")
     p.add_argument("--commit", default="", help="commit of the code the run trained with (default: HEAD)")
-    p.add_argument("--search_rounds", type=int, default=2, help="code search rounds of the package (0 = nearest)")
-    p.add_argument("--search_sweeps", type=int, default=2, help="sweeps per code search round")
+    p.add_argument("--search_method", default="greedy", choices=SEARCH_METHODS, help="code search of the package")
+    p.add_argument("--search_rounds", type=int, default=1, help="code search rounds of the package (0 = nearest)")
+    p.add_argument("--search_changes", type=int, default=16, help="greedy: code changes per round, at most")
+    p.add_argument("--search_sweeps", type=int, default=2, help="sweeps: passes over the positions per round")
     args = p.parse_args(argv)
     commit = subprocess.check_output(["git", "-C", str(REPO), "rev-parse", args.commit or "HEAD"], text=True).strip()
     model = UniDexTok.from_pretrained(str(args.run / "best"))
     datasets = {label: str(args.data / name) for label, name in DATA.items()}
-    search = {"search_rounds": args.search_rounds, "search_sweeps": args.search_sweeps}
-    model.with_encoding(search_rounds=0, search_sweeps=args.search_sweeps)
-    nearest = figures(model, datasets)
-    model.with_encoding(search_rounds=args.search_rounds)
-    results = figures(model, datasets)
+    search = {"search_method": args.search_method, "search_rounds": args.search_rounds,
+              "search_changes": args.search_changes, "search_sweeps": args.search_sweeps}  # fmt: skip
+    hands = model.config.trained_hands or None
+    model.with_encoding(**{**search, "search_rounds": 0})
+    nearest = figures(model, datasets, hands)
+    model.with_encoding(**search)
+    results = figures(model, datasets, hands)
+    per_round = (f"--search_changes={args.search_changes}" if args.search_method == "greedy"
+                 else f"--search_sweeps={args.search_sweeps}")  # fmt: skip
     state = json.loads((args.run / "best" / "training_state.json").read_text())
     data_cmd = "python experiments/universal_data.py --out=outputs/universal_data"
     train_cmd = "nice -n 10 unidextok-train --config_path=train/universal"
@@ -71,8 +80,8 @@ def main(argv: list[str] | None = None) -> None:
         "data": data_cmd,
         "train": train_cmd,
         "figures": "python experiments/universal_card.py --run=outputs/unidextok_universal "
-        f"--cpu_s={args.cpu_s:.0f} --commit={commit[:12]} --search_rounds={args.search_rounds} "
-        f"--search_sweeps={args.search_sweeps}",
+        f"--cpu_s={args.cpu_s:.0f} --commit={commit[:12]} --search_method={args.search_method} "
+        f"--search_rounds={args.search_rounds} {per_round}",
         "G1 test episodes, same figure": f"unidextok-eval --checkpoint={DEFAULT_TOKENIZER} "
         "--datasets='[outputs/universal_data/g1_inspire]'",
     }
@@ -90,11 +99,13 @@ def main(argv: list[str] | None = None) -> None:
     sections = [
         "## Encoding",
         "",
-        f"This package's config.json sets `search_rounds={args.search_rounds}`, `search_sweeps={args.search_sweeps}`: "
-        "`encode` refines each group's nearest code with the decoder-aware code search (docs/tokenizer.md \"Code "
-        "search\"; same tokens, same decoder), and the evaluation table above is measured that way. "
-        "`encode(..., search_rounds=0)` (`unidextok-eval --search_rounds=0`, the processor step's default) gives "
-        "the nearest codes, the paper's encoding; on the same rows they measure (`eval.json` `nearest_codes`):",
+        f"This package's config.json sets `search_method={args.search_method}`, `search_rounds={args.search_rounds}` "
+        f"({per_round.removeprefix('--')}): `encode`, and so the processor step and every `<type>_udt` policy by "
+        "default, refines each group's nearest code with the decoder-aware code search (docs/tokenizer.md \"Code "
+        "search\", its cost per frame and per row; same tokens, same decoder), and the evaluation table above is "
+        "measured that way. `encode(..., search_rounds=0)` (`unidextok-eval --search_rounds=0`, the step's "
+        "`search_rounds=0`) gives the nearest codes, the paper's encoding; on the same rows they measure "
+        "(`eval.json` `nearest_codes`):",
         "",
         "| | rows | mpjae_deg | mpjpe_mm | fingertip_mm |",
         "|---|---|---|---|---|",
@@ -115,8 +126,9 @@ def main(argv: list[str] | None = None) -> None:
         "",
         "The schedule, and then the code search settings, were chosen among full-length runs and settings on "
         "their selection episodes and on in-range states of another seed than the table's (`python "
-        "experiments/universal_screen.py --runs=... [--search_rounds='[0,1,2]' --search_sweeps='[1,2,3,4]']`, "
-        "docs/tokenizer.md \"How the recipe was chosen\"), never on the figures above.",
+        "experiments/universal_screen.py --runs=... [--search_methods='[sweeps,greedy]' --search_rounds='[0,1,2]' "
+        "--search_sweeps='[...]' --search_changes='[...]']`, docs/tokenizer.md \"How the recipe was chosen\"), "
+        "never on the figures above.",
         "",
         "The evaluation table above is `eval.json` (`results`): test episodes / held-out recordings of each "
         "converted dataset, and every registered hand on in-range states (" + about["in_range"] + "). "

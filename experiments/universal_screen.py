@@ -11,6 +11,8 @@ The test episodes and held-out recordings, which the card reports, are not loade
     python experiments/universal_screen.py --runs='[outputs/run_a,outputs/run_b]'   # finished full-length runs
     python experiments/universal_screen.py --runs='[outputs/unidextok_universal]' \
         --search_rounds='[0,1,2]' --search_sweeps='[1,2,3,4]'                      # the code search's settings
+    python experiments/universal_screen.py --runs='[outputs/unidextok_universal]' --search_methods='[greedy]' \
+        --search_rounds='[0,1,2]' --search_changes='[4,8,16,32]'                   # the greedy search's settings
 
 Each variant's result is cached in <output_root>/universal_screen/runs.jsonl (keyed by its resolved settings).
 """
@@ -69,10 +71,13 @@ class ScreenConfig:
     # Finished `unidextok-train` run folders of the recipe (e.g. full-length candidates) to score the same way
     # (their best/ checkpoint) instead of training variants.
     runs: list[str] = field(default_factory=list)
-    # Code search settings the runs are scored with (every rounds x sweeps pair; rounds 0 = the nearest codes,
-    # once): how `search_rounds` / `search_sweeps` of the shipped config were chosen.
+    # Code search settings the runs are scored with (rounds 0 = the nearest codes, once; then per method in
+    # `search_methods` every rounds x sweeps pair ("sweeps") or rounds x changes pair ("greedy")): how the shipped
+    # config's encoding was chosen.
     search_rounds: list[int] = field(default_factory=lambda: [0])
+    search_methods: list[str] = field(default_factory=lambda: ["sweeps"])
     search_sweeps: list[int] = field(default_factory=lambda: [3])
+    search_changes: list[int] = field(default_factory=lambda: [16])
     output_root: str = "outputs/experiments"
 
 
@@ -139,9 +144,22 @@ def run_variant(cfg: ScreenConfig, name: str, folder: Path) -> dict:
             "git_commit": git_commit(), "resolved": resolved(cfg, name)}  # fmt: skip
 
 
-def search_settings(cfg: ScreenConfig) -> list[tuple[int, int]]:
-    """(rounds, sweeps) pairs the runs are scored with: the nearest codes once, then every searched pair."""
-    return sorted({(r, s if r else 0) for r in cfg.search_rounds for s in cfg.search_sweeps})
+def search_settings(cfg: ScreenConfig) -> list[dict]:
+    """The encodings the runs are scored with (`UniDexTok.with_encoding` keywords): the nearest codes once, then
+    every searched setting of each method."""
+    out = [{"search_rounds": 0}] if 0 in cfg.search_rounds else []
+    for method in cfg.search_methods:
+        key, values = ("search_sweeps", cfg.search_sweeps) if method == "sweeps" else ("search_changes", cfg.search_changes)
+        out += [{"search_method": method, "search_rounds": r, key: v}
+                for r in sorted(set(cfg.search_rounds) - {0}) for v in sorted(set(values))]  # fmt: skip
+    return out
+
+
+def search_label(setting: dict) -> str:
+    if not setting["search_rounds"]:
+        return "nearest codes"
+    per = setting.get("search_sweeps") or setting.get("search_changes")
+    return f"{setting['search_method']} {setting['search_rounds']} x {per}"
 
 
 def score_runs(cfg: ScreenConfig) -> list[dict]:
@@ -159,17 +177,21 @@ def score_runs(cfg: ScreenConfig) -> list[dict]:
             raise FileNotFoundError(f"{folder}/best not found: pass finished unidextok-train run folders")
         state = json.loads((folder / "best" / "training_state.json").read_text())
         model = UniDexTok.from_pretrained(folder / "best")
-        for rounds, sweeps in search_settings(cfg):
-            model.with_encoding(search_rounds=rounds, search_sweeps=max(sweeps, 1))
+        for setting in search_settings(cfg):
+            model.with_encoding(**setting)
             cpu0 = time.process_time()
             scored = score(model, select, cfg.range_rows)
-            out.append({"variant": str(folder), "search": f"{rounds} x {sweeps}" if rounds else "nearest codes",
+            out.append({"variant": str(folder), "search": search_label(setting),
                         "steps": state.get("steps"), "best_step": state.get("step"), "train_cpu_s": None,
                         "score_cpu_s": round(time.process_time() - cpu0, 1), **scored})  # fmt: skip
     return out
 
 
 def run(cfg: ScreenConfig) -> dict:
+    from lerobot_unidextok.tokenizer.configuration_unidextok import SEARCH_METHODS
+
+    if sorted(set(cfg.search_methods) - set(SEARCH_METHODS)):
+        raise ValueError(f"search_methods must be among {SEARCH_METHODS}, got {cfg.search_methods}")
     unknown = sorted(set(cfg.variants) - set(VARIANTS))
     if unknown:
         raise ValueError(f"unknown variants {unknown}; choose from {sorted(VARIANTS)}")

@@ -46,15 +46,17 @@ def test_variants_are_scored_on_selection_episodes_and_cached(recipe, tmp_path):
     assert row["in_range_deg"] == pytest.approx(runs["shipped"]["in_range_deg"])
     assert "finished run folders" in universal_screen.markdown(scored)
 
-    # ... and once per code search setting: the nearest codes first, then each rounds x sweeps pair
+    # ... and once per code search setting: the nearest codes first, then each method's rounds x sweeps or
+    # rounds x changes pairs
     searched = universal_screen.run(universal_screen.parse([f"--recipe={recipe}", f"--runs=[{folder}]",
                                                             "--range_rows=20", "--search_rounds=[0,1]",
+                                                            "--search_methods=[sweeps,greedy]", "--search_changes=[8]",
                                                             "--search_sweeps=[1,2]", f"--output_root={tmp_path}"]))  # fmt: skip
-    assert [r["search"] for r in searched["runs"]] == ["nearest codes", "1 x 1", "1 x 2"]
+    assert [r["search"] for r in searched["runs"]] == ["nearest codes", "sweeps 1 x 1", "sweeps 1 x 2", "greedy 1 x 8"]
     assert searched["runs"][0]["in_range_deg"] == pytest.approx(row["in_range_deg"])
     for r in searched["runs"][1:]:  # the search never worsens a row's squared error: the mean drops
         assert r["in_range_mean"] < searched["runs"][0]["in_range_mean"]
-    assert "(1 x 2)" in (tmp_path / "universal_screen" / "runs_scored.md").read_text()
+    assert "(sweeps 1 x 2)" in (tmp_path / "universal_screen" / "runs_scored.md").read_text()
 
 
 def test_unknown_variants_and_missing_runs_fail_clearly(recipe, tmp_path):
