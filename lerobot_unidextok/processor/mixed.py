@@ -176,12 +176,12 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
         if len(v):
             ids = self._vocab_tokenizer_ids[v]  # (P,)
             rounds = cfg.search_rounds if self.search_rounds is None else self.search_rounds
-            found = tok.encode(picked, ids, mask=active if rounds else None, search_rounds=rounds)  # (P, N, K)
-            codes[present] = found
+            found, decoded = tok.encode_decode(picked, ids, mask=active if rounds else None, search_rounds=rounds)
+            codes[present] = found  # (P, N, K)
         if self.representation == "dequantized":
             view = torch.zeros(b, h, UDHM_DIM, device=device)
             if len(v):
-                view[present] = tok.decode(found, ids) * active  # (P, 22), slots a hand lacks set to zero
+                view[present] = decoded * active  # (P, 22), slots a hand lacks set to zero
         else:
             view = torch.zeros(b, h, cfg.num_tokens * cfg.codebook_dim, device=device)
             if len(v):

@@ -234,11 +234,11 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             self._active = self._active.to(rows.device)
         rounds = tok.config.search_rounds if self.search_rounds is None else self.search_rounds
         mask = self._active.repeat(b, 1) if rounds else None  # (B*H, 22)
-        codes = tok.encode(rows.reshape(b * h, UDHM_DIM), ids, mask=mask, search_rounds=rounds)
         if self.representation == "dequantized":
-            decoded = tok.decode(codes, ids).reshape(b, h, UDHM_DIM)  # (B, H, 22) radians
-            view = decoded * self._active  # (B, H, 22), slots a hand does not have set to zero
+            codes, decoded = tok.encode_decode(rows.reshape(b * h, UDHM_DIM), ids, mask=mask, search_rounds=rounds)
+            view = decoded.reshape(b, h, UDHM_DIM) * self._active  # (B, H, 22), slots a hand lacks set to zero
         else:
+            codes = tok.encode(rows.reshape(b * h, UDHM_DIM), ids, mask=mask, search_rounds=rounds)
             view = tok.quantizer.indices_to_codes(codes).flatten(1)  # (B*H, N*K*d)
         return codes.reshape(b, -1), view.reshape(b, -1).float()
 

@@ -242,25 +242,42 @@ class UniDexTok(
         codes are refined by R rounds of the config's decoder-aware search (`search_method`, `tokenizer.search`)
         over the active DoFs: `mask` (B, 22) bool, or each registered hand's spec when None. `search_rounds=None`
         = the config's."""
+        return self._encode(states_rad, hand, allow_unknown, mask, search_rounds)[0]
+
+    @torch.no_grad()
+    def encode_decode(
+        self,
+        states_rad: torch.Tensor,
+        hand: HandArg,
+        allow_unknown: bool = False,
+        mask: torch.Tensor | None = None,
+        search_rounds: int | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """`encode` and `decode` of its codes: ((B, N, K) codes, (B, 22) radians). The greedy search decodes its
+        codes as it checks them, so this saves the decoder pass a separate `decode` would repeat."""
+        codes, decoded, ids = self._encode(states_rad, hand, allow_unknown, mask, search_rounds)
+        if decoded is None:
+            zq = self.quantizer.get_output_from_indices(codes)  # (B, N, C)
+            decoded = self._decode_latent(zq, self.hand_embed(ids))  # (B, 22) radians
+        return codes, decoded
+
+    def _encode(self, states_rad, hand, allow_unknown, mask, search_rounds):
+        """((B, N, K) codes, (B, 22) their decoded states when the search computed them else None, (B,) hand ids)."""
         x_rad = self._check_states(states_rad)  # (B, 22)
         ids = self.hand_ids(hand, x_rad.shape[0], allow_unknown)  # (B,)
         c = self.hand_embed(ids)  # (B, C)
         z = self._encode_latent(x_rad, c)  # (B, N, C)
         codes = self.quantizer.nearest_indices(z)  # (B, N, K) int64
         rounds = self.config.search_rounds if search_rounds is None else search_rounds
-        if rounds:
-            active = self.active_dofs(ids) if mask is None else torch.as_tensor(mask, device=x_rad.device)
-            if active.shape != x_rad.shape:
-                raise ValueError(f"mask must have the states' shape {tuple(x_rad.shape)}, got {tuple(active.shape)}")
-            codes = self._search(x_rad, codes, c, active, rounds)  # (B, N, K)
-        return codes
-
-    def _search(self, x_rad, codes, c, active, rounds: int) -> torch.Tensor:
-        """The config's code search (`search_method`) from the nearest codes: (B, N, K) codes."""
+        if not rounds:
+            return codes, None, ids
+        active = self.active_dofs(ids) if mask is None else torch.as_tensor(mask, device=x_rad.device)
+        if active.shape != x_rad.shape:
+            raise ValueError(f"mask must have the states' shape {tuple(x_rad.shape)}, got {tuple(active.shape)}")
         cfg = self.config
         if cfg.search_method == "sweeps":
-            return search_codes(self, x_rad, codes, c, active, rounds, cfg.search_sweeps)
-        return greedy_codes(self, x_rad, codes, c, active, rounds, cfg.search_changes)
+            return search_codes(self, x_rad, codes, c, active, rounds, cfg.search_sweeps), None, ids
+        return *greedy_codes(self, x_rad, codes, c, active, rounds, cfg.search_changes), ids
 
     def active_dofs(self, ids: torch.Tensor) -> torch.Tensor:
         """(B,) hand ids -> (B, 22) bool active DoFs of each row's hand, from the registered hand specs. Rows of

@@ -48,26 +48,27 @@ def decoder_jacobian(model, zq: torch.Tensor, cond: torch.Tensor, outputs: torch
 
 def decoded_and_jacobian(model, zq: torch.Tensor, cond: torch.Tensor, outputs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """`decoder_jacobian` and the decoded states it linearises around, from the same forward pass:
-    ((B, J) x_hat_rad[:, outputs], (B, J, N, C))."""
+    ((B, 22) x_hat_rad, (B, J, N, C))."""
     b, j = zq.shape[0], len(outputs)
     with torch.inference_mode(False), torch.enable_grad():
         z = zq.detach().clone().repeat(j, 1, 1).requires_grad_(True)  # (J B, N, C)
         out = model._decode_latent(z, cond.detach().clone().repeat(j, 1)).view(j, b, -1)  # (J, B, 22) radians
         picked = out.gather(2, outputs.clone().view(j, 1, 1).expand(j, b, 1))  # (J, B, 1)
         (grad,) = torch.autograd.grad(picked.sum(), z)  # (J B, N, C)
-    x_hat = out[0].detach()[:, outputs]  # (B, J): every copy decodes the same codes
-    return x_hat.clone(), grad.view(j, b, *zq.shape[1:]).transpose(0, 1)  # (B, J), (B, J, N, C)
+    x_hat = out[0].detach().clone()  # (B, 22): every copy decodes the same codes
+    return x_hat, grad.view(j, b, *zq.shape[1:]).transpose(0, 1)  # (B, 22), (B, J, N, C)
 
 
-def _chunks(fn, model, states_rad, codes, cond, mask, rounds: int, per_round: int) -> torch.Tensor:
-    """Run `fn` over CHUNK_ROWS rows at a time after the checks both searches share."""
+def _chunks(fn, model, states_rad, codes, cond, mask, rounds: int, per_round: int):
+    """Run `fn` over CHUNK_ROWS rows at a time after the checks both searches share; None when there is nothing
+    to search (no rounds, no active DoF)."""
     weight = torch.ones_like(states_rad) if mask is None else mask.to(states_rad.dtype)  # (B, 22)
     if rounds == 0 or not bool(weight.any()):
-        return codes
+        return None
     parts = [fn(model, states_rad[i : i + CHUNK_ROWS], codes[i : i + CHUNK_ROWS], cond[i : i + CHUNK_ROWS],
                 weight[i : i + CHUNK_ROWS], rounds, per_round)  # fmt: skip
              for i in range(0, len(codes), CHUNK_ROWS)]
-    return torch.cat(parts)
+    return tuple(torch.cat(p) for p in zip(*parts, strict=True)) if isinstance(parts[0], tuple) else torch.cat(parts)
 
 
 @torch.no_grad()
@@ -85,7 +86,8 @@ def search_codes(
     <= that of `codes`."""
     if rounds < 0 or sweeps < 1:
         raise ValueError(f"code search needs rounds >= 0 and sweeps >= 1, got rounds={rounds}, sweeps={sweeps}")
-    return _chunks(_search_chunk, model, states_rad, codes, cond, mask, rounds, sweeps)
+    found = _chunks(_search_chunk, model, states_rad, codes, cond, mask, rounds, sweeps)
+    return codes if found is None else found
 
 
 @torch.no_grad()
@@ -97,13 +99,15 @@ def greedy_codes(
     mask: torch.Tensor | None = None,
     rounds: int = 1,
     changes: int = 16,
-) -> torch.Tensor:
+) -> tuple[torch.Tensor, torch.Tensor | None]:
     """Like `search_codes`, moving by best single changes: per round up to `changes` steps, each making the one
     change of one position's code that lowers the linearised error most (per row; a row stops when none does).
-    Returns new (B, N, K) int64 codes, each row's exact error <= that of `codes`."""
+    Returns new (B, N, K) int64 codes, each row's exact error <= that of `codes`, and (B, 22) the states they
+    decode to, radians (the round's exact decode: no second pass; None when nothing was searched)."""
     if rounds < 0 or changes < 1:
         raise ValueError(f"code search needs rounds >= 0 and changes >= 1, got rounds={rounds}, changes={changes}")
-    return _chunks(_greedy_chunk, model, states_rad, codes, cond, mask, rounds, changes)
+    found = _chunks(_greedy_chunk, model, states_rad, codes, cond, mask, rounds, changes)
+    return (codes, None) if found is None else found
 
 
 def code_effects(model) -> torch.Tensor:
@@ -114,7 +118,7 @@ def code_effects(model) -> torch.Tensor:
     return torch.einsum("ckd,ksd->cks", proj, vq.normalized_codebooks()).flatten(1)  # (C, K S)
 
 
-def _greedy_chunk(model, x, codes, cond, weight, rounds: int, changes: int) -> torch.Tensor:
+def _greedy_chunk(model, x, codes, cond, weight, rounds: int, changes: int) -> tuple[torch.Tensor, torch.Tensor]:
     vq = model.quantizer
     b, n_tok, n_grp = codes.shape
     size, positions = vq.codebook_size, n_tok * n_grp
@@ -125,7 +129,8 @@ def _greedy_chunk(model, x, codes, cond, weight, rounds: int, changes: int) -> t
     j = len(dofs)
     codes = codes.long()
     for _ in range(rounds):
-        x_hat, jac = decoded_and_jacobian(model, vq.get_output_from_indices(codes), cond, dofs)  # (B, J), (B, J, N, C)
+        decoded, jac = decoded_and_jacobian(model, vq.get_output_from_indices(codes), cond, dofs)  # (B, 22), (B, J, N, C)
+        x_hat = decoded[:, dofs]  # (B, J)
         start_err = (((x_hat - x) * weight) ** 2).sum(-1)  # (B,)
         # effect on x_hat of every code at every position: (B, P, S, J), P = N K positions
         effect = (jac.transpose(1, 2) @ table).view(b, n_tok, j, n_grp, size)  # (B, N, J, K, S)
@@ -135,25 +140,28 @@ def _greedy_chunk(model, x, codes, cond, weight, rounds: int, changes: int) -> t
         delta = delta.view(b, positions * size, j)  # (B, P S, J): one row per single change
         delta_sq = (delta**2).sum(-1, keepdim=True)  # (B, P S, 1)
         residual = ((x - x_hat) * weight)[:, :, None]  # (B, J, 1) what the changes should add
+        codes_of_a_position = torch.arange(size, device=x.device)  # (S,)
         for _ in range(changes):
             # change in squared error of each single change: |r - d|^2 - |r|^2 = |d|^2 - 2 d.r
             gain, best = torch.baddbmm(delta_sq, delta, residual, alpha=-2).squeeze(-1).min(1)  # (B,), (B,)
             better = gain < 0  # (B,)
             if not bool(better.any()):
                 break
-            pos = torch.where(better, best // size, 0)  # (B,) rows without a gain change nothing: their
-            code = torch.where(better, best % size, chosen[:, 0])  # position 0 keeps its code
-            residual = residual - delta[rows, pos * size + code, :, None]  # (B, J, 1)
+            best = torch.where(better, best, chosen[:, 0])  # (B,) rows without a gain keep position 0's code
+            pos, code = best // size, best % size  # (B,), (B,)
+            residual = residual - delta[rows, best, :, None]  # (B, J, 1)
             chosen[rows, pos] = code
-            span = pos[:, None] * size + torch.arange(size, device=x.device)  # (B, S) the changes of `pos`
+            span = (pos * size)[:, None] + codes_of_a_position  # (B, S) the changes of `pos`
             moved = effect[rows, pos] - effect[rows, pos, code][:, None, :]  # (B, S, J) relative to the new code
             delta[rows[:, None], span] = moved
             delta_sq[rows[:, None], span] = (moved**2).sum(-1, keepdim=True)
         chosen = chosen.view(b, n_tok, n_grp)
-        x_new = model._decode_latent(vq.get_output_from_indices(chosen), cond)[:, dofs]  # (B, J)
-        new_err = (((x_new - x) * weight) ** 2).sum(-1)  # (B,)
-        codes = torch.where((new_err < start_err)[:, None, None], chosen, codes)  # (B, N, K)
-    return codes
+        decoded_new = model._decode_latent(vq.get_output_from_indices(chosen), cond)  # (B, 22)
+        new_err = (((decoded_new[:, dofs] - x) * weight) ** 2).sum(-1)  # (B,)
+        better = new_err < start_err  # (B,)
+        codes = torch.where(better[:, None, None], chosen, codes)  # (B, N, K)
+        decoded = torch.where(better[:, None], decoded_new, decoded)  # (B, 22)
+    return codes, decoded
 
 
 def _search_chunk(model, x, codes, cond, weight, rounds: int, sweeps: int) -> torch.Tensor:
