@@ -18,6 +18,20 @@ tokenizer step on the converted state.
     .venv/bin/python benchmarks/bench_processor.py --threads 1 --layout robot --presets small --batches 1
     .venv/bin/python benchmarks/bench_processor.py --threads 1 --layout robot --presets small --native
     .venv/bin/python benchmarks/bench_processor.py --threads 1 --presets small --search_rounds 2   # code search
+
+`--encodings` compares the encodings of a trained tokenizer (`--pretrained`, default the shipped one) in one run:
+the nearest codes, the code search as shipped before (sweeps, 2 rounds x 2), and the checkpoint's own encoding
+(the default of `encode` and of the step): the step's CPU ms per two-hand frame at batch 1 and per hand-row at
+batch 256 (ratios to the nearest codes), and MPJAE (deg) of each on `--error_rows` states uniform inside each of
+`--error_hands`' registered ranges (seed `--error_seed`; the card's in-range figures use seed 0).
+
+`--select_action` runs a robot's loop: every tick the pre-processor, `select_action` and the post-processor of a
+LeRobot ACT (`--act_config`'s sizes, re-predicting every tick) on one G1-like frame (14 arm joints + two Inspire
+hands), for the stock ACT on the state alone (the bare policy) and for `act_udt` with each encoding; p50 / p99 of
+the tick and of the tokenizer step inside it (CPU and wall ms), and the tick over the bare policy's.
+
+    .venv/bin/python benchmarks/bench_processor.py --threads 1 --encodings
+    .venv/bin/python benchmarks/bench_processor.py --threads 1 --select_action --ticks 1000
 """
 
 from __future__ import annotations
@@ -33,7 +47,8 @@ import numpy as np
 import torch
 from lerobot.processor import PolicyProcessorPipeline
 
-from lerobot_unidextok.constants import OBS_STATE
+from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_STATE
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 from lerobot_unidextok.processor import NativeLayout, NativeToUDHMStateStep, UniDexTokStateTokenizerStep
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fixtures"))
@@ -67,10 +82,24 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=0, help="torch threads (0 = torch default)")
     parser.add_argument("--native", action="store_true", help="also time unidextok.native_to_udhm (native input)")
     parser.add_argument("--search_rounds", type=int, default=0, help="code search rounds of the step (0 = nearest)")
+    parser.add_argument("--encodings", action="store_true", help="compare a trained tokenizer's encodings")
+    parser.add_argument("--select_action", action="store_true", help="a robot's loop around select_action")
+    parser.add_argument("--pretrained", default=DEFAULT_TOKENIZER, help="tokenizer of --encodings / --select_action")
+    parser.add_argument("--error_hands", nargs="+", default=["inspire_rh56_unitree", "human"])
+    parser.add_argument("--error_rows", type=int, default=1000, help="in-range states per hand for the MPJAE")
+    parser.add_argument("--error_seed", type=int, default=1, help="their seed (not 0, the card's)")
+    parser.add_argument("--ticks", type=int, default=500, help="--select_action: timed ticks per policy")
+    parser.add_argument("--act_config", default="lerobot/act_udt_cpu", help="--select_action: ACT sizes from it")
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
     torch.manual_seed(0)
+    if args.encodings:
+        compare_encodings(args)
+        return
+    if args.select_action:
+        select_action_loop(args)
+        return
     hands = [INSPIRE] * args.num_hands
     names = STATE_NAMES[14 : 14 + 22 * args.num_hands]
     g1 = native_motion(64, seed=0).astype(np.float32)  # (P, 26): 14 arm rad, left and right Inspire in [0, 1]
@@ -138,6 +167,144 @@ def main() -> None:
         for preset, batch, native_cpu, native_wall, both_cpu, extra in native_rows:
             print(f"{preset:<7} {batch:>5} | {native_cpu:>18.3f} {native_cpu / batch:>12.4f} {native_wall:>9.3f} | "
                   f"{both_cpu:>23.3f} {extra:>+22.3f}")  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------------------
+# a trained tokenizer's encodings, and the step inside a robot's loop
+# ---------------------------------------------------------------------------------------------
+ENCODINGS = {  # label -> UniDexTok.with_encoding keywords ({} = the checkpoint's own encoding)
+    "nearest codes": {"search_rounds": 0},
+    "code search as shipped before (sweeps, 2 x 2)": {"search_method": "sweeps", "search_rounds": 2, "search_sweeps": 2},
+    "default (the checkpoint's encoding)": {},
+}
+
+
+def g1_frames(frames: int) -> tuple[torch.Tensor, list[str]]:
+    """(frames, 58) G1-like converted states (14 arm joints, two Inspire UDHM blocks) and their column names."""
+    converted = to_converted(native_motion(frames, seed=0).astype(np.float32))
+    return torch.from_numpy(converted).float(), list(ARM_NAMES + STATE_NAMES[14:])
+
+
+def encoding_step(pretrained: str, names: list[str], encoding: dict) -> UniDexTokStateTokenizerStep:
+    """The tokenizer step on two Inspire blocks with `pretrained` set to `encoding` (the step follows it)."""
+    step = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE], state_names=names, pretrained=pretrained)
+    step.tokenizer.with_encoding(**encoding)
+    return step
+
+
+def describe(config) -> str:
+    from lerobot_unidextok.evaluation.report import encoding
+
+    return encoding(config)
+
+
+def compare_encodings(args) -> None:
+    from lerobot_unidextok.evaluation import mpjae_deg
+    from lerobot_unidextok.training.coverage import range_states
+
+    frames, names = g1_frames(256)
+    steps = {label: encoding_step(args.pretrained, names, enc) for label, enc in ENCODINGS.items()}
+    sets = {hand: range_states(hand, args.error_rows, args.error_seed) for hand in args.error_hands}
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, load average {os.getloadavg()[0]:.1f} on "
+          f"{os.cpu_count()} cores; tokenizer {args.pretrained}; the step on G1-like frames (two Inspire hands); "
+          f"MPJAE on {args.error_rows} in-range states per hand, seed {args.error_seed}")  # fmt: skip
+    cost = {}
+    for batch, repeats in ((1, args.repeats), (256, args.repeats_large)):
+        x = frames[0] if batch == 1 else frames[:batch]
+        pipes = [PolicyProcessorPipeline(steps=[st], name="policy_preprocessor") for st in steps.values()]
+        with torch.inference_mode():
+            timed = median_ms([lambda p=p: p({OBS_STATE: x}) for p in pipes], repeats)
+        cost[batch] = [cpu / (2 * batch) if batch > 1 else cpu for cpu, _ in timed]  # per frame / per hand-row
+    err = {label: {} for label in steps}
+    with torch.inference_mode():
+        for label, st in steps.items():
+            tok = st.tokenizer
+            for hand, data in sets.items():
+                x, m = torch.tensor(data.states_rad), torch.tensor(data.masks)
+                back = tok.decode(tok.encode(x, hand, mask=m), hand)
+                err[label][hand] = mpjae_deg(back.numpy(), data.states_rad, data.masks)
+    head = " | ".join(f"MPJAE {h} (deg)" for h in args.error_hands)
+    print(f"\n| encoding | {head} | CPU ms per frame, batch 1 | x nearest | CPU ms per hand-row, batch 256 | x nearest |")
+    print("|" + "---|" * (5 + len(args.error_hands)))
+    for i, (label, st) in enumerate(steps.items()):
+        errs = " | ".join(f"{err[label][h]:.3f}" for h in args.error_hands)
+        print(f"| {label}: {describe(st.tokenizer.config)} | {errs} | {cost[1][i]:.2f} | {cost[1][i] / cost[1][0]:.1f} | "
+              f"{cost[256][i]:.3f} | {cost[256][i] / cost[256][0]:.1f} |")  # fmt: skip
+
+
+def act_policy(names: list[str], frames: torch.Tensor, act_config: str, pretrained: str | None, encoding: dict):
+    """(policy, pre, post, step): LeRobot's ACT with `act_config`'s sizes on the G1-like state, re-predicting every
+    tick; `pretrained` None = the stock ACT on the state alone (step None), else `act_udt` with that tokenizer."""
+    import yaml
+    from lerobot.configs.types import FeatureType, PolicyFeature
+    from lerobot.policies.act.configuration_act import ACTConfig
+    from lerobot.policies.act.modeling_act import ACTPolicy
+    from lerobot.policies.act.processor_act import make_act_pre_post_processors
+
+    from lerobot_unidextok.configs import resolve_config_path
+    from lerobot_unidextok.policies.act_udt import ACTUdtConfig, make_act_udt_pre_post_processors
+
+    sizes = yaml.safe_load(Path(resolve_config_path(act_config, "lerobot")).read_text())["policy"]
+    sizes = {k: v for k, v in sizes.items() if k in ACTConfig.__dataclass_fields__ and k not in ("type", "device",
+                                                                                                 "push_to_hub")}
+    width = frames.shape[1]
+    features = dict(input_features={OBS_STATE: PolicyFeature(type=FeatureType.STATE, shape=(width,))},
+                    output_features={ACTION: PolicyFeature(type=FeatureType.ACTION, shape=(width,))})  # fmt: skip
+    stats = {key: {"mean": frames.mean(0), "std": frames.std(0) + 1e-3, "min": frames.min(0).values,
+                   "max": frames.max(0).values} for key in (OBS_STATE, ACTION)}  # fmt: skip
+    if pretrained is None:  # the same network reading the raw hand blocks where act_udt reads their decoded tokens
+        features["input_features"][OBS_HAND_TOKEN_FEATURES] = PolicyFeature(type=FeatureType.ENV, shape=(width - 14,))
+        cfg = ACTConfig(device="cpu", **features, **sizes)
+        return ACTPolicy(cfg).eval(), *make_act_pre_post_processors(cfg, dataset_stats=stats), None
+    cfg = ACTUdtConfig(device="cpu", **features, **sizes, udt_pretrained=pretrained, udt_hand_layout=[INSPIRE, INSPIRE],
+                       udt_state_names=names, udt_native_action=False, udt_native_state=False)  # fmt: skip
+    cfg.validate_features()
+    from lerobot_unidextok.policies.act_udt import ACTUdtPolicy
+
+    pre, post = make_act_udt_pre_post_processors(cfg, dataset_stats=stats)
+    step = next(s for s in pre.steps if isinstance(s, UniDexTokStateTokenizerStep))
+    step.tokenizer.with_encoding(**encoding)
+    return ACTUdtPolicy(cfg).eval(), pre, post, step
+
+
+def select_action_loop(args) -> None:
+    frames, names = g1_frames(args.ticks + 50)
+    loops = {"bare ACT (state only)": act_policy(names, frames, args.act_config, None, {})}
+    for label, enc in ENCODINGS.items():
+        loops[f"act_udt, {label}"] = act_policy(names, frames, args.act_config, args.pretrained, enc)
+    tick: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in loops}
+    step_ms = {k: [] for k in loops}
+    for label, (_, _, _, step) in loops.items():
+        if step is not None:  # time the step inside the pipeline
+            inner = step.observation
+
+            def timed(observation, inner=inner, out=step_ms[label]):
+                c0 = time.process_time()
+                result = inner(observation)
+                out.append(1e3 * (time.process_time() - c0))
+                return result
+
+            step.observation = timed
+    with torch.inference_mode():
+        for t in range(len(frames)):
+            for label, (policy, pre, post, step) in loops.items():  # interleaved: every policy sees the same load
+                c0, w0 = time.process_time(), time.perf_counter()
+                obs = {OBS_STATE: frames[t]} if step is not None else {OBS_STATE: frames[t], OBS_HAND_TOKEN_FEATURES: frames[t, 14:]}
+                post(policy.select_action(pre(obs)))
+                if t >= 50:  # warm-up ticks
+                    tick[label][0].append(1e3 * (time.process_time() - c0))
+                    tick[label][1].append(1e3 * (time.perf_counter() - w0))
+    bare = np.median(tick["bare ACT (state only)"][0])
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, load average {os.getloadavg()[0]:.1f} on "
+          f"{os.cpu_count()} cores; {args.ticks} ticks per policy (after 50 warm-up), interleaved; ACT sizes of "
+          f"{args.act_config}; tokenizer {args.pretrained}")  # fmt: skip
+    print("\n| policy | tick CPU ms p50 / p99 | tick wall ms p50 / p99 | tokenizer step CPU ms p50 / p99 | tick CPU over bare |")
+    print("|---|---|---|---|---|")
+    for label, (cpu, wall) in tick.items():
+        st = step_ms[label][50:]
+        steps = f"{np.median(st):.2f} / {np.percentile(st, 99):.2f}" if st else "-"
+        print(f"| {label} | {np.median(cpu):.2f} / {np.percentile(cpu, 99):.2f} | {np.median(wall):.2f} / "
+              f"{np.percentile(wall, 99):.2f} | {steps} | {np.median(cpu) / bare:.2f} |")  # fmt: skip
 
 
 if __name__ == "__main__":
