@@ -27,6 +27,45 @@ def test_entropy_and_rate_of_a_worked_example():
         rd.entropy_bits(np.zeros((0, 3), int))
 
 
+def test_coded_bits_of_a_worked_example():
+    # fitted on 0,0,0,1 at one position over an alphabet of 2: counts + 1/2 = (3.5, 1.5) of 5; coding 0 then 1:
+    # -log2(3.5/5) - log2(1.5/5) = 0.515 + 1.737 bits over 2 rows
+    fit, codes = np.array([[0], [0], [0], [1]]), np.array([[0], [1]])
+    assert rd.coded_bits(fit, codes, 2) == pytest.approx((-math.log2(0.7) - math.log2(0.3)) / 2)
+    # a symbol never seen in fitting still has a code: 1/2 of (4 + 32/2) over an alphabet of 32
+    assert rd.coded_bits(np.zeros((4, 1), int), np.array([[31]]), 32) == pytest.approx(-math.log2(0.5 / 20))
+    # positions add up; fitting on many uniform rows costs about log2(alphabet) per position
+    rng = np.random.default_rng(0)
+    uniform = rng.integers(0, 32, (20000, 3))
+    assert rd.coded_bits(uniform[:10000], uniform[10000:], 32) == pytest.approx(15.0, abs=0.05)
+    with pytest.raises(ValueError, match="alphabet"):
+        rd.coded_bits(fit, np.array([[2]]), 2)
+
+
+def test_the_lower_bound_is_below_binning_by_log2_e_over_2_per_joint():
+    """Uniform binning at b bits has MAE = bin / 4; the Shannon lower bound at that MAE is b - log2(e / 2) bits per
+    joint for a hand with one side (the human hand: the UDHM limits)."""
+    data = range_states("human", 200, seed=3)
+    binning = hand_binning("human", 256)
+    mask = binning.ranges["human"].active_mask
+    mae_deg = float(np.degrees(binning.bin_width_rad("human")[mask]).mean() / 4)
+    # equal bins on every joint would give exactly 8 - 0.443 per joint; widths differ, so compare per joint
+    widths = binning.bin_width_rad("human")[mask]
+    want = float(np.sum(np.log2(widths * 256)) - mask.sum() * math.log2(2 * math.e * math.radians(mae_deg)))
+    assert rd.slb_bits(data, mae_deg) == pytest.approx(want, rel=1e-6)
+    equal = float(np.sum(np.log2(widths * 256)) - np.sum(np.log2(2 * math.e * widths / 4)))
+    assert equal == pytest.approx(mask.sum() * (8 - math.log2(math.e / 2)), rel=1e-6)
+
+
+def test_pca_code_gets_finer_with_its_step_and_names_its_tokens():
+    data, fit = range_states("inspire_rh56_unitree", 300, seed=3), range_states("inspire_rh56_unitree", 600, seed=4)
+    curve = rd.pca_curve(data, fit, max_bits=6)
+    assert [c["bits"] for c in curve][:5] == [1.0, 1.25, 1.5, 1.75, 2.0] and curve[-1]["bits"] == 8.0
+    errs, bits = [c["mpjae_deg"] for c in curve], [c["coded_bits"] for c in curve]
+    assert errs[-1] < errs[0] / 50 and bits[-1] > bits[0]
+    assert all(c["tokens"] == 6 for c in curve[8:])  # six DoFs, six coefficients that vary
+
+
 def test_equal_bits_picks_the_largest_b_within_the_rate_and_the_smallest_b_that_matches():
     curve = [{"bits": b, "nominal_bits": 6.0 * b, "mpjae_deg": 12.0 / 2**b} for b in range(1, 9)]
     # 6 DoFs: b = 3 is 18 bits <= 20 < 24; 12 / 2**b <= 1.0 first at b = 4 (0.75)
@@ -115,7 +154,8 @@ def test_runs_end_to_end_and_fills_its_results_page_section(converted_linker, ti
     from lerobot_unidextok.tokenizer import UniDexTok
 
     argv = [f"--checkpoint={tiny_checkpoint}", f"--datasets=[{converted_linker}]",
-            "--range_hands=[linkerhand_l10,human]", "--range_rows=60", "--max_bits=4", f"--output_root={tmp_path}"]  # fmt: skip
+            "--range_hands=[linkerhand_l10,human]", "--range_rows=60", "--fit_rows=80", "--max_bits=4",
+            f"--output_root={tmp_path}"]  # fmt: skip
     result = rd.run(rd.parse(argv))
     cfg = UniDexTok.from_pretrained(str(tiny_checkpoint)).config
     nominal = cfg.num_tokens * cfg.num_groups * math.log2(cfg.codebook_size)
@@ -130,6 +170,10 @@ def test_runs_end_to_end_and_fills_its_results_page_section(converted_linker, ti
         assert [c["nominal_bits"] for c in r["binning"]] == [b * r["dofs"] for b in (1, 2, 3, 4)]
         assert r["equal_bits"] == rd.equal_bits(u, r["binning"])
     assert sets["in-range states: human"]["dofs"] == 22 and not sets["in-range states: human"]["known_hand"]
+    for r in sets.values():  # entropy-coded bits beside the measured rate, priors fitted on other rows
+        assert r["fit_rows"] > 0 and r["unidextok"]["coded_bits"] > 0 and r["pca"][0]["coded_bits"] > 0
+        assert all(c["coded_bits"] > 0 for c in r["binning"]) and ("slb" in r) == ("in-range" in r["set"])
+    assert "At 8-bit binning's error" not in rd.markdown(result)  # max_bits 4: no 8-bit reference, no table
 
     folder = tmp_path / "rate_distortion"
     assert json.loads((folder / "rate_distortion.json").read_text())["rows"] == result["rows"]
