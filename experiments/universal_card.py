@@ -2,7 +2,7 @@
 
     python experiments/universal_card.py --run=outputs/unidextok_universal --data=outputs/universal_data \
         --cpu_s=<training CPU seconds> --commit=<commit the run trained at> --search_method=greedy \
-        --search_rounds=1 --search_changes=16
+        --search_rounds=2 --search_changes=16 --search_tolerance_deg=0.1
 
 Writes lerobot_unidextok/pretrained/universal-small/ (config.json, model.safetensors, training_state.json,
 eval.json, README.md) from <run>/best; `experiments.universal` holds the figures. The package's
@@ -60,19 +60,21 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--search_rounds", type=int, default=1, help="code search rounds of the package (0 = nearest)")
     p.add_argument("--search_changes", type=int, default=16, help="greedy: code changes per round, at most")
     p.add_argument("--search_sweeps", type=int, default=2, help="sweeps: passes over the positions per round")
+    p.add_argument("--search_tolerance_deg", type=float, default=0.0, help="greedy: rows within it stop searching")
     args = p.parse_args(argv)
     commit = subprocess.check_output(["git", "-C", str(REPO), "rev-parse", args.commit or "HEAD"], text=True).strip()
     model = UniDexTok.from_pretrained(str(args.run / "best"))
     datasets = {label: str(args.data / name) for label, name in DATA.items()}
     search = {"search_method": args.search_method, "search_rounds": args.search_rounds,
-              "search_changes": args.search_changes, "search_sweeps": args.search_sweeps}  # fmt: skip
+              "search_changes": args.search_changes, "search_sweeps": args.search_sweeps,
+              "search_tolerance_deg": args.search_tolerance_deg}  # fmt: skip
     hands = model.config.trained_hands or None
     model.with_encoding(**{**search, "search_rounds": 0})
     nearest = figures(model, datasets, hands)
     model.with_encoding(**search)
     results = figures(model, datasets, hands)
-    per_round = (f"--search_changes={args.search_changes}" if args.search_method == "greedy"
-                 else f"--search_sweeps={args.search_sweeps}")  # fmt: skip
+    per_round = (f"--search_changes={args.search_changes} --search_tolerance_deg={args.search_tolerance_deg:g}"
+                 if args.search_method == "greedy" else f"--search_sweeps={args.search_sweeps}")  # fmt: skip
     state = json.loads((args.run / "best" / "training_state.json").read_text())
     data_cmd = "python experiments/universal_data.py --out=outputs/universal_data"
     train_cmd = "nice -n 10 unidextok-train --config_path=train/universal"
@@ -100,7 +102,7 @@ def main(argv: list[str] | None = None) -> None:
         "## Encoding",
         "",
         f"This package's config.json sets `search_method={args.search_method}`, `search_rounds={args.search_rounds}` "
-        f"({per_round.removeprefix('--')}): `encode`, and so the processor step and every `<type>_udt` policy by "
+        f"({per_round.replace('--', '')}): `encode`, and so the processor step and every `<type>_udt` policy by "
         "default, refines each group's nearest code with the decoder-aware code search (docs/tokenizer.md \"Code "
         "search\", its cost per frame and per row; same tokens, same decoder), and the evaluation table above is "
         "measured that way. `encode(..., search_rounds=0)` (`unidextok-eval --search_rounds=0`, the step's "

@@ -12,7 +12,7 @@ The test episodes and held-out recordings, which the card reports, are not loade
     python experiments/universal_screen.py --runs='[outputs/unidextok_universal]' \
         --search_rounds='[0,1,2]' --search_sweeps='[1,2,3,4]'                      # the code search's settings
     python experiments/universal_screen.py --runs='[outputs/unidextok_universal]' --search_methods='[greedy]' \
-        --search_rounds='[0,1,2]' --search_changes='[4,8,16,32]'                   # the greedy search's settings
+        --search_rounds='[0,1,2]' --search_changes='[4,8,16,32]' --search_tolerances='[0,0.1]'   # the greedy search's
 
 Each variant's result is cached in <output_root>/universal_screen/runs.jsonl (keyed by its resolved settings).
 """
@@ -78,6 +78,7 @@ class ScreenConfig:
     search_methods: list[str] = field(default_factory=lambda: ["sweeps"])
     search_sweeps: list[int] = field(default_factory=lambda: [3])
     search_changes: list[int] = field(default_factory=lambda: [16])
+    search_tolerances: list[float] = field(default_factory=lambda: [0.0])  # greedy: search_tolerance_deg values
     output_root: str = "outputs/experiments"
 
 
@@ -150,8 +151,11 @@ def search_settings(cfg: ScreenConfig) -> list[dict]:
     out = [{"search_rounds": 0}] if 0 in cfg.search_rounds else []
     for method in cfg.search_methods:
         key, values = ("search_sweeps", cfg.search_sweeps) if method == "sweeps" else ("search_changes", cfg.search_changes)
-        out += [{"search_method": method, "search_rounds": r, key: v}
-                for r in sorted(set(cfg.search_rounds) - {0}) for v in sorted(set(values))]  # fmt: skip
+        tolerances = sorted(set(cfg.search_tolerances)) if method == "greedy" else [None]
+        out += [{"search_method": method, "search_rounds": r, key: v,
+                 **({"search_tolerance_deg": t} if t is not None else {})}
+                for r in sorted(set(cfg.search_rounds) - {0}) for v in sorted(set(values))
+                for t in (tolerances if r > 1 else tolerances[:1])]  # fmt: skip
     return out
 
 
@@ -159,7 +163,8 @@ def search_label(setting: dict) -> str:
     if not setting["search_rounds"]:
         return "nearest codes"
     per = setting.get("search_sweeps") or setting.get("search_changes")
-    return f"{setting['search_method']} {setting['search_rounds']} x {per}"
+    tolerance = setting.get("search_tolerance_deg")
+    return f"{setting['search_method']} {setting['search_rounds']} x {per}" + (f", stop at {tolerance:g} deg" if tolerance else "")
 
 
 def score_runs(cfg: ScreenConfig) -> list[dict]:

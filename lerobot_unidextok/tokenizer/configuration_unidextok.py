@@ -12,17 +12,19 @@ FORMAT_VERSION = 1
 
 # Config fields (of UniDexTokConfig, and of TrainConfig where it has them) that only change how `encode` picks
 # codes at use, never training: cache keys and fingerprints of trainings leave them out.
-ENCODING_FIELDS: tuple[str, ...] = ("search_rounds", "search_method", "search_sweeps", "search_changes")
+ENCODING_FIELDS: tuple[str, ...] = ("search_rounds", "search_method", "search_sweeps", "search_changes",
+                                   "search_tolerance_deg")
 SEARCH_METHODS: tuple[str, ...] = ("greedy", "sweeps")
 # What a config.json written before `search_method` existed searched with (`UniDexTokConfig.from_dict`).
 LEGACY_SEARCH_METHOD = "sweeps"
 
 
 def check_encoding(search_rounds: int | None, search_sweeps: int | None = None, flag: str = "search_rounds",
-                   search_method: str | None = None, search_changes: int | None = None) -> None:  # fmt: skip
+                   search_method: str | None = None, search_changes: int | None = None,
+                   search_tolerance_deg: float | None = None) -> None:  # fmt: skip
     """The one rule for the encoding settings (None = unset): `search_rounds` >= 0 (0 = the nearest codes),
-    `search_sweeps` >= 1, `search_method` one of SEARCH_METHODS, `search_changes` >= 1; a ConfigError (a
-    ValueError) naming `flag`, the field or flag that carries `search_rounds`."""
+    `search_sweeps` >= 1, `search_method` one of SEARCH_METHODS, `search_changes` >= 1, `search_tolerance_deg`
+    >= 0; a ConfigError (a ValueError) naming `flag`, the field or flag that carries `search_rounds`."""
     if search_rounds is not None and search_rounds < 0:
         raise ConfigError(f"{flag} must be >= 0 (0 = nearest codes), got {search_rounds}")
     if search_sweeps is not None and search_sweeps < 1:
@@ -31,6 +33,8 @@ def check_encoding(search_rounds: int | None, search_sweeps: int | None = None, 
         raise ConfigError(f"search_method must be one of {SEARCH_METHODS}, got {search_method!r}")
     if search_changes is not None and search_changes < 1:
         raise ConfigError(f"search_changes must be >= 1, got {search_changes}")
+    if search_tolerance_deg is not None and search_tolerance_deg < 0:
+        raise ConfigError(f"search_tolerance_deg must be >= 0 (0 = every row runs every round), got {search_tolerance_deg}")
 
 
 # Hand-type vocabulary used for conditioning by default. Names are hand-spec names (side-independent);
@@ -120,6 +124,9 @@ class UniDexTokConfig:
     search_method: str = "greedy"
     search_sweeps: int = 2
     search_changes: int = 16
+    # "greedy": after a round, a row whose mean absolute error over its active DoFs is at most this (degrees)
+    # leaves the search, so later rounds cost only for the rows still above it (0 = every row runs every round)
+    search_tolerance_deg: float = 0.0
 
     # --- reconstruction loss ------------------------------------------------------------------------
     # In angle / pi units: MSE (paper: plain MSE) + optional SmoothL1 (paper mentions it, weight unknown) +
@@ -161,7 +168,7 @@ class UniDexTokConfig:
         if self.codebook_update not in ("gradient", "ema"):
             raise ConfigError(f"codebook_update must be 'gradient' or 'ema', got {self.codebook_update!r}")
         check_encoding(self.search_rounds, self.search_sweeps, search_method=self.search_method,
-                       search_changes=self.search_changes)
+                       search_changes=self.search_changes, search_tolerance_deg=self.search_tolerance_deg)
         if min(self.mse_weight, self.smooth_l1_weight, self.l1_weight) < 0:
             raise ConfigError("mse_weight, smooth_l1_weight and l1_weight must be >= 0")
         if len(set(self.hand_names)) != len(self.hand_names):

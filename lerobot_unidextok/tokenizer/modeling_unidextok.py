@@ -277,7 +277,9 @@ class UniDexTok(
         cfg = self.config
         if cfg.search_method == "sweeps":
             return search_codes(self, x_rad, codes, c, active, rounds, cfg.search_sweeps), None, ids
-        return *greedy_codes(self, x_rad, codes, c, active, rounds, cfg.search_changes), ids
+        found = greedy_codes(self, x_rad, codes, c, active, rounds, cfg.search_changes,
+                             math.radians(cfg.search_tolerance_deg))  # fmt: skip
+        return *found, ids
 
     def active_dofs(self, ids: torch.Tensor) -> torch.Tensor:
         """(B,) hand ids -> (B, 22) bool active DoFs of each row's hand, from the registered hand specs. Rows of
@@ -357,6 +359,7 @@ class UniDexTok(
         search_sweeps: int | None = None,
         search_method: str | None = None,
         search_changes: int | None = None,
+        search_tolerance_deg: float | None = None,
         **kwargs,
     ) -> "UniDexTok":
         """The one door to a trained tokenizer: a checkpoint folder, a `unidextok-train` run folder (its
@@ -364,8 +367,8 @@ class UniDexTok(
         no HF cache), or a Hub repo id (the HF cache serves it offline; an explicit `revision` always means the
         Hub). A name found nowhere is a `CheckpointNotFoundError` saying how to fix it (`pretrained.resolve`).
 
-        `search_rounds` / `search_method` / `search_sweeps` / `search_changes`: the encoding to use instead of the
-        checkpoint's (None keeps it; `search_rounds=0` = the nearest codes), checked by `UniDexTokConfig` like every
+        `search_rounds` / `search_method` / `search_sweeps` / `search_changes` / `search_tolerance_deg`: the encoding
+        to use instead of the checkpoint's (None keeps it; `search_rounds=0` = the nearest codes), checked by `UniDexTokConfig` like every
         config field."""
         name = str(pretrained_model_name_or_path)
         if kwargs.get("revision") is None:
@@ -373,13 +376,15 @@ class UniDexTok(
         with hub_errors(str(pretrained_model_name_or_path)):
             model = super().from_pretrained(name, *args, **kwargs)
         return model.with_encoding(search_rounds=search_rounds, search_sweeps=search_sweeps,
-                                   search_method=search_method, search_changes=search_changes)  # fmt: skip
+                                   search_method=search_method, search_changes=search_changes,
+                                   search_tolerance_deg=search_tolerance_deg)  # fmt: skip
 
     def with_encoding(self, search_rounds: int | None = None, search_sweeps: int | None = None,
-                      search_method: str | None = None, search_changes: int | None = None) -> "UniDexTok":  # fmt: skip
+                      search_method: str | None = None, search_changes: int | None = None,
+                      search_tolerance_deg: float | None = None) -> "UniDexTok":  # fmt: skip
         """Set how `encode` picks codes (None keeps a setting; checked by `UniDexTokConfig`); returns self."""
         given = {"search_rounds": search_rounds, "search_sweeps": search_sweeps, "search_method": search_method,
-                 "search_changes": search_changes}  # fmt: skip
+                 "search_changes": search_changes, "search_tolerance_deg": search_tolerance_deg}  # fmt: skip
         changes = {k: v for k, v in given.items() if v is not None}
         if changes:
             self.config = dataclasses.replace(self.config, **changes)

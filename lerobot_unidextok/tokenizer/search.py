@@ -20,7 +20,9 @@ Two ways to move through the codes, both on the same linearisation and with the 
 - `search_method="greedy"` (`greedy_codes`): each step scores every single change (all N*K positions x S codes at once)
   and makes the best one, up to `changes` steps per round, stopping early when no row gains. About as accurate
   per round and cheaper: the few changes that matter (a round changes a quarter of the positions) instead of
-  N*K sequential steps, and the decoder's forward pass for the Jacobian also gives the round's start.
+  N*K sequential steps, and the decoder's forward pass for the Jacobian also gives the round's start. A row
+  whose error is within `search_tolerance_deg` after a round leaves the search (early exit), so later rounds,
+  each a Jacobian, cost only for the rows that need them.
 
 Cost: per round one Jacobian (a backward pass through one copy of the batch per active DoF), which dominates at
 large batches; at batch 1 the per-step overhead counts too. Measured against the nearest codes in
@@ -99,14 +101,18 @@ def greedy_codes(
     mask: torch.Tensor | None = None,
     rounds: int = 1,
     changes: int = 16,
+    tolerance_rad: float = 0.0,
 ) -> tuple[torch.Tensor, torch.Tensor | None]:
     """Like `search_codes`, moving by best single changes: per round up to `changes` steps, each making the one
     change of one position's code that lowers the linearised error most (per row; a row stops when none does).
-    Returns new (B, N, K) int64 codes, each row's exact error <= that of `codes`, and (B, 22) the states they
-    decode to, radians (the round's exact decode: no second pass; None when nothing was searched)."""
-    if rounds < 0 or changes < 1:
-        raise ValueError(f"code search needs rounds >= 0 and changes >= 1, got rounds={rounds}, changes={changes}")
-    found = _chunks(_greedy_chunk, model, states_rad, codes, cond, mask, rounds, changes)
+    After a round, a row whose exact mean absolute error over its active DoFs is at most `tolerance_rad` leaves
+    the search (early exit: the later rounds, each a Jacobian, run on the rows still above it; 0 = every row runs
+    every round). Returns new (B, N, K) int64 codes, each row's exact error <= that of `codes`, and (B, 22) the
+    states they decode to, radians (the rounds' exact decodes: no second pass; None when nothing was searched)."""
+    if rounds < 0 or changes < 1 or tolerance_rad < 0:
+        raise ValueError(f"code search needs rounds >= 0, changes >= 1 and tolerance >= 0, got rounds={rounds}, "
+                         f"changes={changes}, tolerance_rad={tolerance_rad}")  # fmt: skip
+    found = _chunks(_greedy_chunk, model, states_rad, codes, cond, mask, rounds, (changes, tolerance_rad))
     return (codes, None) if found is None else found
 
 
@@ -118,50 +124,64 @@ def code_effects(model) -> torch.Tensor:
     return torch.einsum("ckd,ksd->cks", proj, vq.normalized_codebooks()).flatten(1)  # (C, K S)
 
 
-def _greedy_chunk(model, x, codes, cond, weight, rounds: int, changes: int) -> tuple[torch.Tensor, torch.Tensor]:
+def _greedy_chunk(model, x, codes, cond, weight, rounds: int, per_round: tuple[int, float]) -> tuple[torch.Tensor, torch.Tensor]:
+    changes, tolerance_rad = per_round
+    dofs = weight.any(0).nonzero().flatten()  # (J,) DoFs active in any row
+    x_active, weight = x[:, dofs], weight[:, dofs]  # (B, J)
+    codes, decoded = codes.long().clone(), None  # (B, N, K), filled in per round
+    todo = torch.arange(len(x), device=x.device)  # (T,) rows still searched
+    for _ in range(rounds):
+        new_codes, new_decoded = _greedy_round(model, x_active[todo], codes[todo], cond[todo], weight[todo], dofs,
+                                               changes)  # fmt: skip
+        codes[todo] = new_codes
+        decoded = new_decoded if decoded is None else decoded.index_copy(0, todo, new_decoded)  # (B, 22)
+        if tolerance_rad > 0:  # rows within the tolerance leave the search
+            mae = ((new_decoded[:, dofs] - x_active[todo]).abs() * weight[todo]).sum(-1) / weight[todo].sum(-1).clamp_min(1)
+            todo = todo[mae > tolerance_rad]
+            if not len(todo):
+                break
+    return codes, decoded
+
+
+def _greedy_round(model, x, codes, cond, weight, dofs, changes: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """One round on (B, J) active-DoF states `x`: ((B, N, K) codes, (B, 22) the states they decode to)."""
     vq = model.quantizer
     b, n_tok, n_grp = codes.shape
     size, positions = vq.codebook_size, n_tok * n_grp
     table = code_effects(model)  # (C, K S)
     rows = torch.arange(b, device=x.device)  # (B,)
-    dofs = weight.any(0).nonzero().flatten()  # (J,) DoFs active in any row
-    x, weight = x[:, dofs], weight[:, dofs]  # (B, J)
     j = len(dofs)
-    codes = codes.long()
-    for _ in range(rounds):
-        decoded, jac = decoded_and_jacobian(model, vq.get_output_from_indices(codes), cond, dofs)  # (B, 22), (B, J, N, C)
-        x_hat = decoded[:, dofs]  # (B, J)
-        start_err = (((x_hat - x) * weight) ** 2).sum(-1)  # (B,)
-        # effect on x_hat of every code at every position: (B, P, S, J), P = N K positions
-        effect = (jac.transpose(1, 2) @ table).view(b, n_tok, j, n_grp, size)  # (B, N, J, K, S)
-        effect = effect.permute(0, 1, 3, 4, 2).reshape(b, positions, size, j) * weight[:, None, None, :]
-        chosen = codes.reshape(b, positions).clone()  # (B, P)
-        delta = effect - effect.gather(2, chosen[:, :, None, None].expand(b, positions, 1, j))  # (B, P, S, J)
-        delta = delta.view(b, positions * size, j)  # (B, P S, J): one row per single change
-        delta_sq = (delta**2).sum(-1, keepdim=True)  # (B, P S, 1)
-        residual = ((x - x_hat) * weight)[:, :, None]  # (B, J, 1) what the changes should add
-        codes_of_a_position = torch.arange(size, device=x.device)  # (S,)
-        for _ in range(changes):
-            # change in squared error of each single change: |r - d|^2 - |r|^2 = |d|^2 - 2 d.r
-            gain, best = torch.baddbmm(delta_sq, delta, residual, alpha=-2).squeeze(-1).min(1)  # (B,), (B,)
-            better = gain < 0  # (B,)
-            if not bool(better.any()):
-                break
-            best = torch.where(better, best, chosen[:, 0])  # (B,) rows without a gain keep position 0's code
-            pos, code = best // size, best % size  # (B,), (B,)
-            residual = residual - delta[rows, best, :, None]  # (B, J, 1)
-            chosen[rows, pos] = code
-            span = (pos * size)[:, None] + codes_of_a_position  # (B, S) the changes of `pos`
-            moved = effect[rows, pos] - effect[rows, pos, code][:, None, :]  # (B, S, J) relative to the new code
-            delta[rows[:, None], span] = moved
-            delta_sq[rows[:, None], span] = (moved**2).sum(-1, keepdim=True)
-        chosen = chosen.view(b, n_tok, n_grp)
-        decoded_new = model._decode_latent(vq.get_output_from_indices(chosen), cond)  # (B, 22)
-        new_err = (((decoded_new[:, dofs] - x) * weight) ** 2).sum(-1)  # (B,)
-        better = new_err < start_err  # (B,)
-        codes = torch.where(better[:, None, None], chosen, codes)  # (B, N, K)
-        decoded = torch.where(better[:, None], decoded_new, decoded)  # (B, 22)
-    return codes, decoded
+    decoded, jac = decoded_and_jacobian(model, vq.get_output_from_indices(codes), cond, dofs)  # (B, 22), (B, J, N, C)
+    x_hat = decoded[:, dofs]  # (B, J)
+    start_err = (((x_hat - x) * weight) ** 2).sum(-1)  # (B,)
+    # effect on x_hat of every code at every position: (B, P, S, J), P = N K positions
+    effect = (jac.transpose(1, 2) @ table).view(b, n_tok, j, n_grp, size)  # (B, N, J, K, S)
+    effect = effect.permute(0, 1, 3, 4, 2).reshape(b, positions, size, j) * weight[:, None, None, :]
+    chosen = codes.reshape(b, positions).clone()  # (B, P)
+    delta = effect - effect.gather(2, chosen[:, :, None, None].expand(b, positions, 1, j))  # (B, P, S, J)
+    delta = delta.view(b, positions * size, j)  # (B, P S, J): one row per single change
+    delta_sq = (delta**2).sum(-1, keepdim=True)  # (B, P S, 1)
+    residual = ((x - x_hat) * weight)[:, :, None]  # (B, J, 1) what the changes should add
+    codes_of_a_position = torch.arange(size, device=x.device)  # (S,)
+    for _ in range(changes):
+        # change in squared error of each single change: |r - d|^2 - |r|^2 = |d|^2 - 2 d.r
+        gain, best = torch.baddbmm(delta_sq, delta, residual, alpha=-2).squeeze(-1).min(1)  # (B,), (B,)
+        better = gain < 0  # (B,)
+        if not bool(better.any()):
+            break
+        best = torch.where(better, best, chosen[:, 0])  # (B,) rows without a gain keep position 0's code
+        pos, code = best // size, best % size  # (B,), (B,)
+        residual = residual - delta[rows, best, :, None]  # (B, J, 1)
+        chosen[rows, pos] = code
+        span = (pos * size)[:, None] + codes_of_a_position  # (B, S) the changes of `pos`
+        moved = effect[rows, pos] - effect[rows, pos, code][:, None, :]  # (B, S, J) relative to the new code
+        delta[rows[:, None], span] = moved
+        delta_sq[rows[:, None], span] = (moved**2).sum(-1, keepdim=True)
+    chosen = chosen.view(b, n_tok, n_grp)
+    decoded_new = model._decode_latent(vq.get_output_from_indices(chosen), cond)  # (B, 22)
+    new_err = (((decoded_new[:, dofs] - x) * weight) ** 2).sum(-1)  # (B,)
+    better = new_err < start_err  # (B,)
+    return torch.where(better[:, None, None], chosen, codes), torch.where(better[:, None], decoded_new, decoded)
 
 
 def _search_chunk(model, x, codes, cond, weight, rounds: int, sweeps: int) -> torch.Tensor:

@@ -59,6 +59,15 @@ def test_variants_are_scored_on_selection_episodes_and_cached(recipe, tmp_path):
     assert "(sweeps 1 x 2)" in (tmp_path / "universal_screen" / "runs_scored.md").read_text()
 
 
+def test_search_settings_and_their_labels():
+    cfg = universal_screen.ScreenConfig(search_rounds=[0, 1, 2], search_methods=["greedy", "sweeps"],
+                                        search_changes=[8], search_sweeps=[2], search_tolerances=[0.0, 0.1])  # fmt: skip
+    labels = [universal_screen.search_label(s) for s in universal_screen.search_settings(cfg)]
+    # a tolerance only matters from the second round on: one-round settings are scored once
+    assert labels == ["nearest codes", "greedy 1 x 8", "greedy 2 x 8", "greedy 2 x 8, stop at 0.1 deg",
+                      "sweeps 1 x 2", "sweeps 2 x 2"]  # fmt: skip
+
+
 def test_unknown_variants_and_missing_runs_fail_clearly(recipe, tmp_path):
     with pytest.raises(ValueError, match="unknown variants \\['nope'\\]"):
         universal_screen.run(universal_screen.parse([f"--recipe={recipe}", "--variants=[nope]",

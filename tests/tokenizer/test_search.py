@@ -103,6 +103,25 @@ def test_greedy_changes_at_most_its_budget_per_round(shipped):
     assert _sq_err(shipped, two, x, mask, "shadow").sum() < _sq_err(shipped, start, x, mask, "shadow").sum()
 
 
+def test_rows_within_the_tolerance_leave_the_search(shipped):
+    """After a round, rows whose mean absolute error is within the tolerance are done: a tolerance no row misses
+    makes two rounds one, none makes every row run both, and between the two only the rows above it move on."""
+    x, mask = _rows("unitree_dex3_1", 24)
+    cond = shipped.hand_embed(shipped.hand_ids("unitree_dex3_1", 24, allow_unknown=True))
+    start = shipped.encode(x, "unitree_dex3_1", allow_unknown=True, search_rounds=0)
+    one, one_states = greedy_codes(shipped, x, start, cond, mask, rounds=1)
+    assert torch.equal(greedy_codes(shipped, x, start, cond, mask, rounds=2, tolerance_rad=np.pi)[0], one)
+    two, _ = greedy_codes(shipped, x, start, cond, mask, rounds=2)
+    mae = ((one_states - x).abs() * mask).sum(-1) / mask.sum(-1)  # (24,) radians after the first round
+    tolerance = float(mae.median())
+    mixed, states = greedy_codes(shipped, x, start, cond, mask, rounds=2, tolerance_rad=tolerance)
+    done = mae <= tolerance
+    assert torch.equal(mixed[done], one[done]) and torch.equal(mixed[~done], two[~done])
+    torch.testing.assert_close(states, shipped.decode(mixed, "unitree_dex3_1", allow_unknown=True))
+    with pytest.raises(ValueError, match="search_tolerance_deg"):
+        UniDexTokConfig(search_tolerance_deg=-1.0)
+
+
 def test_only_the_active_dofs_count(shipped):
     """The decoder is never trained on a hand's padded slots; the search ignores them (a mask over all 22 slots
     would chase their untrained outputs)."""
