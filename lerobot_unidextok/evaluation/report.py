@@ -34,7 +34,8 @@ def encoding(config) -> str:
         return "nearest codes"
     if config.search_method == "sweeps":
         return f"code search, {config.search_rounds} round(s) x {config.search_sweeps} sweep(s)"
-    return f"greedy code search, {config.search_rounds} round(s) x up to {config.search_changes} change(s)"
+    stop = f", rows within {config.search_tolerance_deg:g} deg stop" if config.search_tolerance_deg else ""
+    return f"greedy code search, {config.search_rounds} round(s) x up to {config.search_changes} change(s){stop}"
 
 
 HAND_ROWS = "hand-rows: one row per hand per frame (a two-hand frame gives two rows)"

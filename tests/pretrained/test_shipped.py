@@ -107,10 +107,10 @@ def test_the_card_tables_are_the_recorded_evaluation(recorded, section, key):
 
 def test_the_package_encodes_with_the_code_search_its_card_reports(shipped, recorded):
     cfg = shipped.config
-    assert (cfg.search_method, cfg.search_rounds, cfg.search_changes) == ("greedy", 1, 16)
+    assert (cfg.search_method, cfg.search_rounds, cfg.search_changes, cfg.search_tolerance_deg) == ("greedy", 2, 16, 0.1)
     assert recorded["encoding"] == encoding(cfg)
     for flag in (f"--search_method={cfg.search_method}", f"--search_rounds={cfg.search_rounds}",
-                 f"--search_changes={cfg.search_changes}"):  # fmt: skip
+                 f"--search_changes={cfg.search_changes}", f"--search_tolerance_deg={cfg.search_tolerance_deg:g}"):  # fmt: skip
         assert flag in recorded["commands"]["figures"]
 
 
