@@ -47,7 +47,7 @@ from lerobot_unidextok.conversion.features import episode_features, episode_fram
 from lerobot_unidextok.conversion.mapping import ZERO_HANDS, EpisodeError, UdhmEpisode, map_episode, to_sides
 from lerobot_unidextok.conversion.output import check_output, move_into_place, remove_stale, temp_dir
 from lerobot_unidextok.conversion.registry import (
-    SOURCES_PACKAGE,
+    CONVERTERS_PACKAGE,
     SetupError,
     get_source,
     import_sources,
@@ -255,7 +255,7 @@ def _iter_results(refs: list, opts: ConvertOptions, reader_options: dict):
                 "lerobot_unidextok.conversion.workers",
                 "lerobot_unidextok.conversion.pipeline",
                 "lerobot_unidextok.hands",
-                SOURCES_PACKAGE,
+                CONVERTERS_PACKAGE,
             ]
         )
     pool = ProcessPoolExecutor(
@@ -469,7 +469,7 @@ class _RunState:
     test_episodes: list[int] = field(default_factory=list)
     hands_seen: dict[str, None] = field(default_factory=dict)
     zero_hands: list[str] = field(default_factory=list)  # "<episode key>: <sides>" converted as absent (all 0)
-    timestamp_notes: list[str] = field(default_factory=list)  # "<episode key>: <what is wrong>" (sources/_lerobot_files)
+    timestamp_notes: list[str] = field(default_factory=list)  # "<episode key>: <what is wrong>" (converters/_lerobot_files.py)
     counts: dict[str, int] = field(default_factory=lambda: {"trimmed_frames": 0, "absent_hand_frames": 0})
 
     def add(self, result: UdhmEpisode | EpisodeFailure, key: str, split: str, opts: ConvertOptions, tmp: Path) -> None:

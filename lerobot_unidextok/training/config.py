@@ -52,7 +52,7 @@ class TrainConfig:
     # --- optimisation -------------------------------------------------------------------------------
     steps: int = 5000  # optimiser steps (derived from `epochs` when that is > 0)
     batch_size: int = 256  # rows per step and process
-    lr: float = 6e-3  # peak learning rate (the paper preset uses 5e-4: lerobot_unidextok/configs/train/paper.yaml)
+    lr: float = 6e-3  # peak learning rate (the paper preset uses 5e-4: configs/train/paper.yaml)
     min_lr_ratio: float = 0.05  # cosine decays to lr * min_lr_ratio
     warmup_steps: int = 200  # linear warmup from 0 to lr
     weight_decay: float = 0.01  # not applied to codebooks, norms, embeddings, biases

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_unidextok.errors import SourceFormatError
-from lerobot_unidextok.sources._resample import (  # noqa: F401  the bag readers' resampling, re-exported
+from lerobot_unidextok.converters._resample import (  # noqa: F401  the bag readers' resampling, re-exported
     INTERPOLATIONS,
     Stream,
     grid_for,

@@ -35,7 +35,7 @@ from lerobot_unidextok import hands
 from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode
 from lerobot_unidextok.conversion.registry import check_hand, register_source
-from lerobot_unidextok.sources import _lerobot_files as lr
+from lerobot_unidextok.converters import _lerobot_files as lr
 
 logger = logging.getLogger(__name__)
 

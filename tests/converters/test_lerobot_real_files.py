@@ -113,7 +113,7 @@ def test_a_shape_that_disagrees_with_its_names_and_videos_in_another_folder(tmp_
 
 
 def test_videos_under_another_folder_than_info_json_says(tmp_path, caplog):
-    from lerobot_unidextok.sources._lerobot_files import moved_file, video_folder_note
+    from lerobot_unidextok.converters._lerobot_files import moved_file, video_folder_note
 
     root = tmp_path / "ds"
     (root / "video" / "cam" / "chunk-000").mkdir(parents=True)
