@@ -42,8 +42,8 @@ import numpy as np
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
-from lerobot_unidextok.errors import SourceFormatError
 from lerobot_unidextok.converters import _resample
+from lerobot_unidextok.errors import SourceFormatError
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 PALM_M = (0.06, 0.14)  # plausible wrist -> middle MCP length (m), adult hands (MediaPipe medians ~97 mm)

@@ -39,10 +39,10 @@ import numpy as np
 
 from lerobot_unidextok import hands, udhm
 from lerobot_unidextok.constants import SAMPLE_LABELS_FILE, UDHM_INDEX
-from lerobot_unidextok.samples.bags import sample_at, write_let_bag, write_let_sidecar, write_linkerhand_bag
-from lerobot_unidextok.samples.motion import GestureTrack, gesture_track, wrist_track
 from lerobot_unidextok.converters.dexycb import DEXYCB_FPS
 from lerobot_unidextok.converters.egodex import EGODEX_FPS
+from lerobot_unidextok.samples.bags import sample_at, write_let_bag, write_let_sidecar, write_linkerhand_bag
+from lerobot_unidextok.samples.motion import GestureTrack, gesture_track, wrist_track
 from lerobot_unidextok.utils.cli import progress_bar
 
 logger = logging.getLogger(__name__)
