@@ -104,6 +104,12 @@ def source_options_help(cls: type) -> str:
     return ", ".join(f"{p.name}={p.default!r}" if p.default is not p.empty else p.name for p in params) or "none"
 
 
+def resamples(name: str) -> bool:
+    """Whether source `name` resamples time-stamped streams onto a frame grid (it takes `--fps`); the others
+    keep the rate their files record."""
+    return "fps" in inspect.signature(get_source(name)).parameters
+
+
 def make_reader(name: str, options: dict | None = None):
     """An instance of source `name` with `options`; bad options raise `SetupError` naming the fix."""
     cls = get_source(name)

@@ -80,6 +80,9 @@ class TrainConfig:
     eval_max_frames: int = 20000  # held-out rows used for checkpoint selection (all if fewer)
     output_dir: str = "outputs/unidextok"  # run folder: best/, last/, eval.{json,md}
     resume: bool = False  # continue from output_dir/last (model, optimiser, step)
+    # replace the run already at output_dir (its best/, last/ and reports are deleted when this one starts);
+    # without it (or --resume), an existing run is refused, never replaced
+    overwrite: bool = False
     save_last_every: int = 500  # steps between saves of output_dir/last
 
     # --- few-shot adaptation ------------------------------------------------------------------------
