@@ -386,6 +386,7 @@ def read_mapped_episode(
             "episode_index": ref.episode_index,
             "codebase_version": info["codebase_version"],
             **({"timestamp_note": episode.timestamp_note} if episode.timestamp_note else {}),
+            **({"source_notes": episode.notes} if episode.notes else {}),
         },
         passthrough=passthrough,
         native_names=native_names,
