@@ -146,6 +146,7 @@ def test_a_kill_between_the_renames_of_an_overwrite_is_restored_on_the_next_run(
     import logging
 
     from lerobot_unidextok.conversion.mix import MixOptions, mix
+    from lerobot_unidextok.errors import UserError
 
     source = tmp_path / "g1"
     convert(ConvertOptions(source="lerobot", input=g1_raw, root=source, progress=False, source_options=G1_OPTIONS))
@@ -158,7 +159,7 @@ def test_a_kill_between_the_renames_of_an_overwrite_is_restored_on_the_next_run(
     shutil.copytree(root, tmp_path / f".out.tmp-{DEAD}-bbbb")  # the killed run's finished output
     root.rename(tmp_path / f".out.old-{DEAD}-aaaa")
 
-    with caplog.at_level(logging.WARNING), pytest.raises(Exception):  # the next run fails (a bad option) ...
+    with caplog.at_level(logging.WARNING), pytest.raises(UserError):  # the next run fails (a bad option) ...
         if writer == "convert":
             convert(ConvertOptions(source="lerobot", input=g1_raw, root=root, overwrite=True, progress=False,
                                    source_options={"hands": "no_such_hand"}))  # fmt: skip
