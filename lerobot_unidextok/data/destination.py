@@ -103,12 +103,7 @@ def claim(target: str | Path, writes: Kind, *, inputs: list[Path] | tuple[Path, 
     messages."""
     target = recover(target)
     _refuse_inputs(target, inputs, flag)
-    unit = enclosing_unit(target)
-    if unit is not None:
-        raise DestinationError(
-            f"{flag} {target} sits inside {unit[1].value} ({unit[0]}), whose files other tools read as one unit: "
-            f"choose a {flag} outside it"
-        )
+    _refuse_inside_a_unit(target, f"{flag} {target}", flag)
     if not target.exists():
         return target
     if not target.is_dir():
@@ -149,12 +144,7 @@ def claim_files(paths: list[Path], *, inputs: list[Path] | tuple[Path, ...] = ()
     for path in paths:
         path = Path(path).expanduser().resolve()
         _refuse_inputs(path, inputs, flag)
-        unit = enclosing_unit(path)
-        if unit is not None:
-            raise DestinationError(
-                f"{flag} would write {path}, inside {unit[1].value} ({unit[0]}), whose files other tools read as "
-                f"one unit: choose a {flag} outside it"
-            )
+        _refuse_inside_a_unit(path, f"{flag} would write {path}, which", flag)
         if path.is_dir():
             raise DestinationError(f"{flag} would write {path}, which is a folder: choose another {flag}")
         if path.exists() and not (is_ours is not None and is_ours(path)):
@@ -176,6 +166,15 @@ def is_json_with(*keys: str):
         return isinstance(data, dict) and all(k in data for k in keys)
 
     return check
+
+
+def _refuse_inside_a_unit(path: Path, what: str, flag: str) -> None:
+    unit = enclosing_unit(path)
+    if unit is not None:
+        raise DestinationError(
+            f"{what} sits inside {unit[1].value} ({unit[0]}), whose files other tools read as one unit: choose a "
+            f"{flag} outside it"
+        )
 
 
 def _refuse_inputs(target: Path, inputs, flag: str) -> None:

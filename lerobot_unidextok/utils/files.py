@@ -49,7 +49,7 @@ def recover_folder(target: Path) -> list[str]:
         return []
     notes: list[str] = []
     leftovers = [(p, _writer_pid(p, _OLD)) for p in target.parent.glob(f".{target.name}{_OLD}*")]
-    olds = sorted((p for p, pid in leftovers if pid is not None and not _alive(pid)), key=lambda p: p.stat().st_mtime)
+    olds = sorted((p for p, pid in leftovers if _dead(pid)), key=lambda p: p.stat().st_mtime)
     tmps = [(p, _writer_pid(p, _TMP)) for p in target.parent.glob(f".{target.name}{_TMP}*")]
     if olds and not target.exists():
         old = olds.pop()
@@ -65,13 +65,19 @@ def recover_folder(target: Path) -> list[str]:
         notes.append(f"removed {old.name}: the folder an earlier run replaced {target.name} with is in place, only "
                      "the deletion of the old one had been cut short")  # fmt: skip
     for tmp, pid in tmps:
-        if tmp.exists() and pid is not None and not _alive(pid):
+        if tmp.exists() and _dead(pid):
             shutil.rmtree(tmp, ignore_errors=True)
             notes.append(f"removed {tmp.name}: the unfinished output of a run that was killed (pid {pid})")
     return notes
 
 
 _TMP, _OLD = ".tmp-", ".old-"
+
+
+def _dead(pid: int | None) -> bool:
+    """A leftover's writer is gone: no such process, or this one (its own leftovers are from an earlier, failed
+    attempt of this same run)."""
+    return pid is not None and (pid == os.getpid() or not process_alive(pid))
 
 
 def _writer_pid(path: Path, marker: str) -> int | None:
@@ -81,9 +87,8 @@ def _writer_pid(path: Path, marker: str) -> int | None:
         return None
 
 
-def _alive(pid: int) -> bool:
-    if pid == os.getpid():
-        return False  # this process's own leftovers are from an earlier, failed attempt of this same run
+def process_alive(pid: int) -> bool:
+    """Whether process `pid` runs (signal 0: probed, nothing delivered)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
