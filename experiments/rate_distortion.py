@@ -448,13 +448,15 @@ def coded_verdict(result: dict) -> str:
     rows = [r for r in result["rows"] if (_binning_at(r, 8) or {}).get("coded_bits") is not None]
     if not rows:
         return ""
-    udt_wins, pca_wins, slack = [], [], []
+    udt_wins, pca_wins, slack, over = [], [], [], []
     for r in rows:
         ref = _binning_at(r, 8)
         for key in ("unidextok", "unidextok_nearest"):
             u = r.get(key)
-            if u and u["mpjae_deg"] <= ref["mpjae_deg"] and u["coded_bits"] < ref["coded_bits"]:
-                udt_wins.append(r["set"])
+            if u and u["mpjae_deg"] <= ref["mpjae_deg"]:
+                over.append(u["coded_bits"] / ref["coded_bits"])
+                if u["coded_bits"] < ref["coded_bits"]:
+                    udt_wins.append(r["set"])
                 break
         pca = cheapest_within(r["pca"], ref["mpjae_deg"])
         if pca and pca["coded_bits"] < ref["coded_bits"]:
@@ -464,9 +466,12 @@ def coded_verdict(result: dict) -> str:
     parts = [f"At 8-bit binning's error, UniDexTok's entropy-coded codes spend fewer bits than binning's on "
              f"{len(set(udt_wins))} of {len(rows)} sets" + (f" ({', '.join(sorted(set(udt_wins)))})" if udt_wins else "")
              + f"; the PCA code on {len(pca_wins)} of {len(rows)}" + (f": {'; '.join(pca_wins)}" if pca_wins else "") + "."]
+    if over:
+        parts.append(f"Where UniDexTok reaches that error ({len(over)} of {len(rows)} sets) its codes cost "
+                     f"{min(over):.1f}-{max(over):.1f}x binning's bits.")
     if slack:
-        parts.append(f"On the in-range states no code can: binning spends {min(slack):.2f}-{max(slack):.2f} bits per "
-                     "active joint above the lower bound.")
+        parts.append(f"On the in-range states no code can save more than {min(slack):.2f}-{max(slack):.2f} bits per "
+                     "active joint at that error: binning's bits over the Shannon lower bound.")
     return " ".join(parts)
 
 
