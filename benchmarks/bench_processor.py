@@ -213,7 +213,7 @@ def compare_encodings(args) -> None:
         x = frames[0] if batch == 1 else frames[:batch]
         pipes = [PolicyProcessorPipeline(steps=[st], name="policy_preprocessor") for st in steps.values()]
         with torch.inference_mode():
-            timed = median_ms([lambda p=p: p({OBS_STATE: x}) for p in pipes], repeats)
+            timed = median_ms([lambda p=p, x=x: p({OBS_STATE: x}) for p in pipes], repeats)
         cost[batch] = [cpu / (2 * batch) if batch > 1 else cpu for cpu, _ in timed]  # per frame / per hand-row
     err = {label: {} for label in steps}
     with torch.inference_mode():

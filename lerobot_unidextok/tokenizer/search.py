@@ -9,16 +9,17 @@ picked: starting from the nearest codes, it descends on the decoder linearised a
     x_hat(codes') ~= x_hat(codes) + sum_{n,k} J_n W_k (e_{k, codes'[n,k]} - e_{k, codes[n,k]})
 
 with J_n the decoder's Jacobian for its input token n, W_k the quantiser's output projection of group k and
-e_{k,s} the unit-norm codes, minimising the linearised squared error (radians, active DoFs). A round ends with an exact decode; a row keeps the codes it
-started the round with unless the exact error went down, so the search never makes a row worse on its
-objective. Same tokens, same decoder: analysis by synthesis, as speech codecs pick their codebook entries (CELP).
+e_{k,s} the unit-norm codes, minimising the linearised squared error (radians, active DoFs). A round ends with an
+exact decode; a row keeps the codes it started the round with unless the exact error went down, so the search
+never makes a row worse on its objective. Same tokens, same decoder: analysis by synthesis, as speech codecs pick
+their codebook entries (CELP).
 
 Two ways to move through the codes, both on the same linearisation and with the same exact check per round:
 - `search_method="sweeps"` (`search_codes`, the first one; checkpoints written before `search_method` existed use
   it): coordinate descent, each sweep gives each of the N*K positions in turn its best code; N*K*sweeps small
   sequential steps per round.
-- `search_method="greedy"` (`greedy_codes`): each step scores every single change (all N*K positions x S codes at once)
-  and makes the best one, up to `changes` steps per round, stopping early when no row gains. About as accurate
+- `search_method="greedy"` (`greedy_codes`): each step scores every single change (all N*K positions x S codes at
+  once) and makes the best one, up to `changes` steps per round, stopping early when no row gains. About as accurate
   per round and cheaper: the few changes that matter (a round changes a quarter of the positions) instead of
   N*K sequential steps, and the decoder's forward pass for the Jacobian also gives the round's start. A row
   whose error is within `search_tolerance_deg` after a round leaves the search (early exit), so later rounds,
@@ -37,6 +38,14 @@ CHUNK_ROWS = 128  # rows per Jacobian batch: 22 x 128 decoder rows at a time bou
 def decoder_jacobian(model, zq: torch.Tensor, cond: torch.Tensor, outputs: torch.Tensor) -> torch.Tensor:
     """(B, N, C) decoder inputs, (B, C) hand conditions, (J,) output DoFs -> (B, J, N, C) d x_hat_rad[:, outputs] / d zq
     (one backward pass through J copies of the batch)."""
+    return decoded_and_jacobian(model, zq, cond, outputs)[1]
+
+
+def decoded_and_jacobian(
+    model, zq: torch.Tensor, cond: torch.Tensor, outputs: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """`decoder_jacobian` and the states the codes decode to, from the same forward pass: ((B, 22) x_hat_rad,
+    (B, J, N, C))."""
     b, j = zq.shape[0], len(outputs)
     # also under torch.inference_mode (a policy's select_action): the copies made here are normal tensors
     with torch.inference_mode(False), torch.enable_grad():
@@ -44,18 +53,6 @@ def decoder_jacobian(model, zq: torch.Tensor, cond: torch.Tensor, outputs: torch
         out = model._decode_latent(z, cond.detach().clone().repeat(j, 1)).view(j, b, -1)  # (J, B, 22) radians
         index = outputs.clone().view(j, 1, 1).expand(j, b, 1)  # (J, B, 1)
         picked = out.gather(2, index)  # (J, B, 1): output outputs[i] of copy i
-        (grad,) = torch.autograd.grad(picked.sum(), z)  # (J B, N, C)
-    return grad.view(j, b, *zq.shape[1:]).transpose(0, 1)  # (B, J, N, C)
-
-
-def decoded_and_jacobian(model, zq: torch.Tensor, cond: torch.Tensor, outputs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """`decoder_jacobian` and the decoded states it linearises around, from the same forward pass:
-    ((B, 22) x_hat_rad, (B, J, N, C))."""
-    b, j = zq.shape[0], len(outputs)
-    with torch.inference_mode(False), torch.enable_grad():
-        z = zq.detach().clone().repeat(j, 1, 1).requires_grad_(True)  # (J B, N, C)
-        out = model._decode_latent(z, cond.detach().clone().repeat(j, 1)).view(j, b, -1)  # (J, B, 22) radians
-        picked = out.gather(2, outputs.clone().view(j, 1, 1).expand(j, b, 1))  # (J, B, 1)
         (grad,) = torch.autograd.grad(picked.sum(), z)  # (J B, N, C)
     x_hat = out[0].detach().clone()  # (B, 22): every copy decodes the same codes
     return x_hat, grad.view(j, b, *zq.shape[1:]).transpose(0, 1)  # (B, 22), (B, J, N, C)
@@ -124,7 +121,9 @@ def code_effects(model) -> torch.Tensor:
     return torch.einsum("ckd,ksd->cks", proj, vq.normalized_codebooks()).flatten(1)  # (C, K S)
 
 
-def _greedy_chunk(model, x, codes, cond, weight, rounds: int, per_round: tuple[int, float]) -> tuple[torch.Tensor, torch.Tensor]:
+def _greedy_chunk(
+    model, x, codes, cond, weight, rounds: int, per_round: tuple[int, float]
+) -> tuple[torch.Tensor, torch.Tensor]:
     changes, tolerance_rad = per_round
     dofs = weight.any(0).nonzero().flatten()  # (J,) DoFs active in any row
     x_active, weight = x[:, dofs], weight[:, dofs]  # (B, J)
@@ -136,7 +135,8 @@ def _greedy_chunk(model, x, codes, cond, weight, rounds: int, per_round: tuple[i
         codes[todo] = new_codes
         decoded = new_decoded if decoded is None else decoded.index_copy(0, todo, new_decoded)  # (B, 22)
         if tolerance_rad > 0:  # rows within the tolerance leave the search
-            mae = ((new_decoded[:, dofs] - x_active[todo]).abs() * weight[todo]).sum(-1) / weight[todo].sum(-1).clamp_min(1)
+            w = weight[todo]  # (T, J)
+            mae = ((new_decoded[:, dofs] - x_active[todo]).abs() * w).sum(-1) / w.sum(-1).clamp_min(1)  # (T,) radians
             todo = todo[mae > tolerance_rad]
             if not len(todo):
                 break
@@ -151,7 +151,8 @@ def _greedy_round(model, x, codes, cond, weight, dofs, changes: int) -> tuple[to
     table = code_effects(model)  # (C, K S)
     rows = torch.arange(b, device=x.device)  # (B,)
     j = len(dofs)
-    decoded, jac = decoded_and_jacobian(model, vq.get_output_from_indices(codes), cond, dofs)  # (B, 22), (B, J, N, C)
+    zq = vq.get_output_from_indices(codes)  # (B, N, C)
+    decoded, jac = decoded_and_jacobian(model, zq, cond, dofs)  # (B, 22), (B, J, N, C)
     x_hat = decoded[:, dofs]  # (B, J)
     start_err = (((x_hat - x) * weight) ** 2).sum(-1)  # (B,)
     # effect on x_hat of every code at every position: (B, P, S, J), P = N K positions

@@ -184,8 +184,8 @@ def test_a_checkpoint_from_before_search_method_encodes_as_it_did(tmp_path):
         # The search's discrete choices can differ between CPUs and BLAS builds (test_shipped.py); here, and
         # on such a CPU for all but a few positions, they are the recorded ones
         assert (got == want).float().mean() > 0.95, hand
-        err = lambda c: float((old.decode(c, hand) - x).abs().mean())  # noqa: E731
-        assert err(got) == pytest.approx(err(want), rel=0.02, abs=1e-6), hand
+        err_got, err_want = (float((old.decode(c, hand) - x).abs().mean()) for c in (got, want))
+        assert err_got == pytest.approx(err_want, rel=0.02, abs=1e-6), hand
     greedy = UniDexTok.from_pretrained(folder, search_method="greedy")  # the same weights, the newer search
     assert greedy.config.search_method == "greedy" and not torch.equal(greedy.encode(x, hand), got)
 
