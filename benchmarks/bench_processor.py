@@ -176,6 +176,7 @@ ENCODINGS = {  # label -> UniDexTok.with_encoding keywords ({} = the checkpoint'
     "nearest codes": {"search_rounds": 0},
     "code search as shipped before (sweeps, 2 x 2)": {"search_method": "sweeps", "search_rounds": 2, "search_sweeps": 2},
     "default (the checkpoint's encoding)": {},
+    "its first round only (search_rounds=1)": {"search_rounds": 1},
 }
 
 

@@ -92,8 +92,8 @@ def test_rows_are_searched_independently_of_their_batch(shipped, search):
 
 
 def test_greedy_changes_at_most_its_budget_per_round(shipped):
-    x, mask = _rows("shadow", 16)
-    cond = shipped.hand_embed(shipped.hand_ids("shadow", 16))
+    x, mask = _rows("shadow", 8)
+    cond = shipped.hand_embed(shipped.hand_ids("shadow", 8))
     start = shipped.encode(x, "shadow", search_rounds=0)
     for changes in (1, 3):
         found, decoded = greedy_codes(shipped, x, start, cond, mask, rounds=1, changes=changes)
