@@ -1,0 +1,1 @@
+"""lerobot-unidextok's simulator (placeholder while it is built)."""
