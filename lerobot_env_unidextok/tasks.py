@@ -208,7 +208,7 @@ class FingerPress(Task):
     TRAVEL_M = 0.012
     AREA = ((0.05, 0.13), (-0.07, 0.07))  # x, y ranges of the panel's origin (m)
     # the wrist over the panel when pressing, relative to the panel's origin: the same for every hand
-    HOVER_M = np.array([-0.11, 0.0, 0.12])
+    HOVER_M = np.array([-0.11, 0.0, 0.16])
 
     def __init__(self, hand: SimHand) -> None:
         super().__init__(hand)
@@ -239,7 +239,7 @@ class FingerPress(Task):
                           pos=[0, 0, top[2] / 2 - 0.004], rgba=[0.5, 0.5, 0.5, 1], contype=0, conaffinity=0)  # fmt: skip
             cap = post.add_body(name=f"cap_{f}", pos=[0, 0, top[2] - 0.004], gravcomp=1.0)
             cap.add_joint(name=f"button_{f}", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1],
-                          range=[-self.TRAVEL_M, 0], stiffness=40.0, damping=1.0, springref=0.0)  # fmt: skip
+                          range=[-self.TRAVEL_M, 0], stiffness=20.0, damping=0.5, springref=0.0)  # fmt: skip
             # long along the finger: its tip comes down on the cap along an arc that ends over the cap's back end
             cap.add_geom(name=f"cap_{f}", type=mujoco.mjtGeom.mjGEOM_BOX, size=[CAP_HALF_M[0], CAP_HALF_M[1], 0.004],
                          pos=[CAP_HALF_M[0] - 0.008, 0, 0], rgba=colours[f], mass=0.005, friction=[1, 0.01, 0.001])  # fmt: skip
