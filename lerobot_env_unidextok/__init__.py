@@ -1,1 +1,21 @@
-"""lerobot-unidextok's simulator (placeholder while it is built)."""
+"""lerobot-unidextok's simulator: dexterous hands on a floating wrist in MuJoCo, as a LeRobot env plugin.
+
+Importing this package registers LeRobot's `--env.type=unidextok` config and the gymnasium ids
+`lerobot_env_unidextok/GraspLift-v0` and `lerobot_env_unidextok/FingerPress-v0`, without importing MuJoCo (the env
+module loads on `gym.make`). LeRobot's CLIs import it through `lerobot_policy_unidextok` (the distribution they
+discover). Needs the `sim` extra (`pip install 'lerobot_policy_unidextok[sim]'`) to run an episode.
+
+    import gymnasium as gym, lerobot_env_unidextok
+    env = gym.make("lerobot_env_unidextok/GraspLift-v0", hand="shadow")
+    obs, info = env.reset(seed=0)     # obs["agent_pos"]: wrist pose, object and goal, the Shadow's 22 joints (rad)
+
+Layout: `columns` (vector names), `hand_model` (a hand's MJCF and how its native joints drive it, one YAML per
+embodiment in `hand_models/`), `scene` (table, wrist, hand), `tasks`, `env` (the gymnasium env), `experts`
+(scripted demonstrations), `record` (expert datasets, `unidextok-sim-record`), `configuration` (LeRobot's config).
+"""
+
+from lerobot_env_unidextok.configuration import ENV_TYPE, UniDexTokEnvConfig, register_gym_ids
+
+register_gym_ids()
+
+__all__ = ["ENV_TYPE", "UniDexTokEnvConfig", "register_gym_ids"]

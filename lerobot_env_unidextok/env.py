@@ -17,22 +17,36 @@ the episode (object, place, goal, the wrist's start) from `s` alone.
 
 from __future__ import annotations
 
+import ctypes.util
 import logging
 import os
+import sys
 from typing import Any
 
-import gymnasium as gym
-import mujoco
-import numpy as np
+
+def _choose_gl_backend() -> None:
+    """MuJoCo picks its OpenGL backend when it is imported: headless Linux gets EGL when libEGL is there (software
+    rendering works without a GPU), else rendering is off (an attempt through GLFW without a display crashed the
+    process); a MUJOCO_GL already set is kept."""
+    if "MUJOCO_GL" in os.environ or sys.platform != "linux" or os.environ.get("DISPLAY"):
+        return
+    os.environ["MUJOCO_GL"] = "egl" if ctypes.util.find_library("EGL") else "disable"
+
+
+_choose_gl_backend()
+
+import gymnasium as gym  # noqa: E402
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
 
 from lerobot_env_unidextok import hand_model
 from lerobot_env_unidextok.errors import SimInputError
+from lerobot_env_unidextok.columns import FPS, STATE_IS_NATIVE_KEY, action_names, state_names
 from lerobot_env_unidextok.scene import WRIST_NAMES, WRIST_RANGE, Scene, base_spec
 from lerobot_env_unidextok.tasks import TASKS, Task
 
 logger = logging.getLogger(__name__)
 
-FPS = 10
 SUBSTEPS = 25  # physics steps of scene.TIMESTEP_S per env step
 START_POSE = np.array([-0.10, 0.0, 0.20, 0.0, 0.0, 0.0])  # where the wrist starts (x, y, z, roll, pitch, yaw)
 START_NOISE = np.array([0.02, 0.02, 0.01, 0.0, 0.0, 0.05])
@@ -66,8 +80,8 @@ class UniDexTokEnv(gym.Env):
         self.render_mode, self.width, self.height = render_mode, width, height
         self._renderer: Any = None
         self._render_failed = False
-        self.state_names = [*WRIST_NAMES, *self.task.state_names(), *self.hand.native_names]
-        self.action_names = [*WRIST_NAMES, *self.hand.native_names]
+        self.state_names = state_names(task, self.hand.native_names)
+        self.action_names = action_names(self.hand.native_names)
         j = len(self.hand.native_names)
         raw_lo, raw_hi = np.asarray(self.hand.spec.raw_range(self.hand.side), dtype=np.float64).T
         wrist_lo = np.array([WRIST_RANGE[n][0] for n in WRIST_NAMES])
@@ -77,8 +91,9 @@ class UniDexTokEnv(gym.Env):
         self.action_space = gym.spaces.Box(self.action_low, self.action_high, shape=(6 + j,), dtype=np.float32)
         width_obs = len(self.state_names)
         self.observation_space = gym.spaces.Dict(
-            {"agent_pos": gym.spaces.Box(-np.inf, np.inf, shape=(width_obs,), dtype=np.float32)}
-        )
+            {"agent_pos": gym.spaces.Box(-np.inf, np.inf, shape=(width_obs,), dtype=np.float32),
+             STATE_IS_NATIVE_KEY: gym.spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32)}
+        )  # fmt: skip
         self.task_description = self.task.description
         self._wrist_target = START_POSE.copy()
 
@@ -125,7 +140,7 @@ class UniDexTokEnv(gym.Env):
     def _obs(self) -> dict[str, np.ndarray]:
         state = np.concatenate([self.scene.wrist_pose(self.data), self.task.observe(self.data),
                                 self.scene.native_state(self.data)])  # fmt: skip
-        return {"agent_pos": state.astype(np.float32)}
+        return {"agent_pos": state.astype(np.float32), STATE_IS_NATIVE_KEY: np.ones(1, dtype=np.float32)}
 
     # -- rendering -------------------------------------------------------------------------------
     def render(self) -> np.ndarray:

@@ -10,18 +10,17 @@ gravity-compensated, so a constant target holds the hand still.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
+from lerobot_env_unidextok.columns import WRIST_NAMES
 from lerobot_env_unidextok.hand_model import SimHand
 
 TIMESTEP_S = 0.004
 WRIST_JOINTS = ("wrist_x", "wrist_y", "wrist_z", "wrist_yaw", "wrist_pitch", "wrist_roll")
-# the wrist pose as the observation and the action give it: position (m), then roll, pitch, yaw (rad)
-WRIST_NAMES = ("wrist_x", "wrist_y", "wrist_z", "wrist_roll", "wrist_pitch", "wrist_yaw")
+__all__ = ["WRIST_NAMES", "Scene", "base_spec"]
 WRIST_RANGE = {"wrist_x": (-0.35, 0.35), "wrist_y": (-0.35, 0.35), "wrist_z": (0.0, 0.45),
                "wrist_yaw": (-1.6, 1.6), "wrist_pitch": (-1.2, 1.2), "wrist_roll": (-1.6, 1.6)}  # fmt: skip
 WRIST_KP = {"slide": 3000.0, "hinge": 60.0}
@@ -178,7 +177,3 @@ class Scene:
             out |= {f for f, gs in self.finger_geoms.items() if other in gs}
         return out
 
-
-@functools.cache
-def _unused() -> None:  # pragma: no cover
-    return None

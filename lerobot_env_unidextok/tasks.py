@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from lerobot_env_unidextok.columns import PRESS_FINGERS, TASK_COLUMNS, TASK_TEXT
 from lerobot_env_unidextok.hand_model import SimHand
 from lerobot_env_unidextok.scene import Scene
 
@@ -94,7 +95,7 @@ def geom_size(shape: Shape, size: np.ndarray) -> list[float]:
 
 class GraspLift(Task):
     name = "GraspLift-v0"
-    description = "grasp the object and lift it"
+    description = TASK_TEXT[name]
     LIFT_M = 0.06
     AREA = ((0.02, 0.12), (-0.08, 0.08))  # x, y ranges of the object's centre (m)
     YAW = 0.5  # boxes: yaw drawn in [-YAW, YAW] rad
@@ -106,8 +107,7 @@ class GraspLift(Task):
         self.rest_z = 0.0
 
     def state_names(self) -> list[str]:
-        return ["object_x", "object_y", "object_z", "object_yaw", "object_half_x", "object_half_y",
-                "object_half_z", "goal_z"]  # fmt: skip
+        return list(TASK_COLUMNS[self.name])
 
     def add_to_spec(self, spec: mujoco.MjSpec) -> None:
         colours = {"box": [0.85, 0.3, 0.2, 1], "cylinder": [0.2, 0.5, 0.85, 1], "block": [0.2, 0.7, 0.3, 1],
@@ -190,8 +190,6 @@ class GraspLift(Task):
 # ---------------------------------------------------------------------------------------------
 # press the button under the named finger
 # ---------------------------------------------------------------------------------------------
-PRESS_FINGERS = ("index", "middle", "ring", "little")
-
 
 @dataclass
 class Button:
@@ -203,7 +201,7 @@ class Button:
 
 class FingerPress(Task):
     name = "FingerPress-v0"
-    description = "press the button under the named finger"
+    description = TASK_TEXT[name]
     PRESSED_M = 0.004
     TRAVEL_M = 0.012
     AREA = ((0.05, 0.13), (-0.07, 0.07))  # x, y ranges of the panel's origin (m)
@@ -218,7 +216,7 @@ class FingerPress(Task):
         self.ended_wrong = False
 
     def state_names(self) -> list[str]:
-        return ["panel_x", "panel_y", "panel_z"] + [f"goal_{f}" for f in PRESS_FINGERS]
+        return list(TASK_COLUMNS[self.name])
 
     def button_layout(self) -> dict[str, np.ndarray]:
         """Where each finger's button sits on the panel (cap top centre, panel frame), from the hand's own

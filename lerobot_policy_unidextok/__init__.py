@@ -3,8 +3,9 @@
 LeRobot's CLIs (lerobot-train, -eval, -record, -replay, -rollout, ...) call
 `lerobot.utils.import_utils.register_third_party_plugins()` at start, which imports every installed
 distribution whose name starts with `lerobot_policy_` under that name: this package. Importing it
-registers the `<type>_udt` policy types (`act_udt`, `diffusion_udt`, `vqbet_udt`) and the `unidextok.*`
-processor steps, so no `--policy.discover_packages_path` flag is needed. As the start of a LeRobot CLI it
+registers the `<type>_udt` policy types (`act_udt`, `diffusion_udt`, `vqbet_udt`), the `unidextok.*`
+processor steps and the simulator's `--env.type=unidextok` (`lerobot_env_unidextok`, registered without
+importing MuJoCo), so no `--policy.discover_packages_path` or `--env.discover_packages_path` flag is needed. As the start of a LeRobot CLI it
 also turns LeRobot's torchcodec/FFmpeg warning (a wall of tracebacks) into a one-line note.
 
 In Python, `import lerobot_policy_unidextok` before LeRobot's factories (`make_policy`,
@@ -15,7 +16,8 @@ from lerobot_unidextok.utils.cli import quiet_torchcodec_warning
 
 quiet_torchcodec_warning()
 
+import lerobot_env_unidextok  # noqa: E402  (registration on import: --env.type=unidextok)
 from lerobot_unidextok import policies, processor  # noqa: E402  (registration on import)
 from lerobot_unidextok.policies import UDT_CONFIGS  # noqa: E402
 
-__all__ = ["UDT_CONFIGS", "policies", "processor"]
+__all__ = ["UDT_CONFIGS", "lerobot_env_unidextok", "policies", "processor"]
