@@ -17,7 +17,9 @@ the episode (object, place, goal, the wrist's start) from `s` alone.
 
 from __future__ import annotations
 
+import copy
 import ctypes.util
+import functools
 import logging
 import os
 import sys
@@ -51,20 +53,26 @@ SUBSTEPS = 25  # physics steps of scene.TIMESTEP_S per env step
 START_POSE = np.array([-0.10, 0.0, 0.20, 0.0, 0.0, 0.0])  # where the wrist starts (x, y, z, roll, pitch, yaw)
 START_NOISE = np.array([0.02, 0.02, 0.01, 0.0, 0.0, 0.05])
 MAX_WRIST_STEP = np.array([0.04, 0.04, 0.04, 0.3, 0.3, 0.3])  # per env step, from the current pose
-_SCENES: dict[tuple[str, str], tuple[Scene, Task]] = {}
 
 
 def make_scene(hand: str, task: str) -> tuple[Scene, Task]:
-    """A fresh compiled scene for (hand, task)."""
+    """A scene of its own for (hand, task): a copy of the model compiled once per process (episodes change the
+    model's object sizes and places, so envs never share one)."""
     if task not in TASKS:
         raise SimInputError(f"unknown task {task!r}; tasks: {', '.join(TASKS)}")
     sim_hand = hand_model.load(hand)
     t = TASKS[task](sim_hand)
-    spec = base_spec(sim_hand)
-    t.add_to_spec(spec)
-    scene = Scene.compile(spec, sim_hand)
+    scene = Scene.bind(copy.deepcopy(_compiled(hand, task)), sim_hand)
     t.bind(scene)
     return scene, t
+
+
+@functools.cache
+def _compiled(hand: str, task: str) -> mujoco.MjModel:
+    sim_hand = hand_model.load(hand)
+    spec = base_spec(sim_hand)
+    TASKS[task](sim_hand).add_to_spec(spec)
+    return spec.compile()
 
 
 class UniDexTokEnv(gym.Env):

@@ -120,7 +120,11 @@ class Scene:
 
     @classmethod
     def compile(cls, spec: mujoco.MjSpec, hand: SimHand) -> Scene:
-        model = spec.compile()
+        return cls.bind(spec.compile(), hand)
+
+    @classmethod
+    def bind(cls, model: mujoco.MjModel, hand: SimHand) -> Scene:
+        """The scene of a compiled `model` (its indices read by name)."""
         p = "hand/"
         finger_geoms = {}
         for finger, bodies in hand.finger_bodies.items():

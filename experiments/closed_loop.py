@@ -1,0 +1,417 @@
+"""Closed loop: success rates of policies on simulated dexterous tasks, per hand, for the policy questions.
+
+    python experiments/closed_loop.py                                    # 2 tasks x 3 hands x 8 arms x 3 seeds
+    python experiments/closed_loop.py --tasks='[FingerPress-v0]' --hands='[shadow]' --seeds='[0]'
+
+Data (`lerobot_env_unidextok`, 10 fps): per task and hand, `pool` scripted expert episodes recorded as a LeRobot v3
+dataset in the hand's native units (`record.record`, what `unidextok-sim-record` runs), converted with
+`unidextok-convert --source=lerobot` (semantic insertion, and `--mapping=append_pad` for the packed arm, no test
+split: the test is the simulator), and mixed with `unidextok-mix --keep=all` (one mix of the three hands per task
+and mapping; per left-out hand, a mix of the other two). The conversion and mix run in this process through the
+functions the CLIs call.
+Policy: `act_udt_cpu.yaml` through LeRobot's own `lerobot-train` code (`lerobot.scripts.lerobot_train.train`, in
+this process) with absolute actions (`udt_relative_actions=false`, `udt_copy_start=false`), `steps` updates at
+`batch_size`; mixed checkpoints bound to the target hand with `unidextok-deploy`'s `deploy`. Scored by LeRobot's
+`lerobot-eval` rollout (`eval_policy_all`, sync envs, no video) on `eval_episodes` episodes drawn from seeds
+`eval_seed` + i, the same episodes for every arm; success as the simulator decides it (`info["is_success"]`).
+
+Arms, per task, target hand and seed (the target's demonstrations: a seed's random subset of its pool):
+- `alone_<n>` for n in `demos`: that hand's n demonstrations alone (its UDHM state);
+- `mix`: the target's `demos[0]` demonstrations and every demonstration of the other hands, in one UDHM layout
+  (semantic insertion), the hand's identity one-hot (unidextok-mix), bound to the target;
+- `packed`: the same episodes with each hand's native joints packed at the front of the block and zero-padded;
+- `tokens_nearest`, `tokens_search`: `mix` with the hands given to the model only as the shipped tokenizer's
+  tokens (dequantized; nearest codes, or the code search with `search_rounds` rounds) instead of the UDHM state
+  (`udt_hand_input=tokens`; every other arm reads the state, `udt_hand_input=state`);
+- `zero_shot`: every demonstration of the other two hands, none of the target's, bound with `--zero_shot=true`.
+Also measured: the scripted expert on the same evaluation episodes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import shutil
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on sys.path, for `experiments.*`
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from experiments import runtime
+from experiments.common import git_commit, md_table
+
+logger = logging.getLogger(__name__)
+NAME = "closed_loop"
+TASKS = ("GraspLift-v0", "FingerPress-v0")
+HANDS = ("inspire_rh56_unitree", "shadow", "allegro")
+MIX_ARMS = ("mix", "packed", "tokens_nearest", "tokens_search", "zero_shot")
+EXPERT_NOISE_SEED = 2_000_000  # the expert's noise on evaluation episode i: this + i (never a recording's)
+RECORD_SEED = 100_000  # recording: episode draws from RECORD_SEED + k, the expert's noise from RECORD_NOISE + k
+RECORD_NOISE = 200_000
+
+
+@dataclass
+class ClosedLoopConfig:
+    tasks: list[str] = field(default_factory=lambda: list(TASKS))
+    hands: list[str] = field(default_factory=lambda: list(HANDS))
+    demos: list[int] = field(default_factory=lambda: [10, 25, 50])  # target demonstrations of the `alone` arms
+    arms: list[str] = field(default_factory=lambda: ["alone", *MIX_ARMS])
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
+    pool: int = 50  # expert episodes recorded per task and hand (the most `alone` trains on, a mix's other hands)
+    steps: int = 300  # lerobot-train updates per policy
+    batch_size: int = 32
+    search_rounds: int = 2  # the code search of `tokens_search`
+    eval_episodes: int = 50
+    eval_seed: int = 1000  # lerobot-eval's default: episode i is drawn from eval_seed + i
+    output_root: str = "outputs/experiments"
+    cache_dir: str = "outputs/experiments/_sim"  # recorded, converted and mixed datasets (reused when complete)
+
+    def __post_init__(self) -> None:
+        for name, given, allowed in (("tasks", self.tasks, TASKS), ("arms", self.arms, ("alone", *MIX_ARMS))):
+            unknown = sorted(set(given) - set(allowed))
+            if unknown:
+                raise ValueError(f"unknown {name} {unknown}; choose from {list(allowed)}")
+        if any(d > self.pool for d in self.demos) or not self.demos:
+            raise ValueError(f"demos {self.demos} must be 1..pool ({self.pool})")
+        if len(self.hands) < 2 and set(self.arms) & set(MIX_ARMS):
+            raise ValueError("the mix arms need at least two hands: --hands='[a,b]' or --arms='[alone]'")
+
+
+# ---------------------------------------------------------------------------------------------
+# data: record, convert, mix (cached)
+# ---------------------------------------------------------------------------------------------
+def _done(folder: Path) -> bool:
+    return (folder / "meta" / "info.json").is_file()
+
+
+def recorded(cfg: ClosedLoopConfig, task: str, hand: str) -> dict:
+    """The native expert dataset of (task, hand) and its conversions: {"native", "semantic", "packed": Path, ...}."""
+    from lerobot_env_unidextok.columns import HAND_PREFIX
+    from lerobot_env_unidextok.record import RecordConfig, record
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+
+    base = Path(cfg.cache_dir) / task / hand
+    native = base / f"native_{cfg.pool}"
+    info = {"native": native, "record_s": 0.0}
+    if not _done(native):
+        shutil.rmtree(native, ignore_errors=True)
+        report = record(RecordConfig(hand=hand, task=task, episodes=cfg.pool, root=str(native), seed=RECORD_SEED,
+                                     noise_seed=RECORD_NOISE, repo_id=f"sim/{hand}_{task}"))  # fmt: skip
+        (base / f"native_{cfg.pool}.json").write_text(json.dumps(
+            {"episodes": report.episodes, "attempts": report.attempts, "frames": report.frames,
+             "seconds": report.seconds}))  # fmt: skip
+    info["record"] = json.loads((base / f"native_{cfg.pool}.json").read_text())
+    for mapping, key in (("semantic", "semantic"), ("append_pad", "packed")):
+        out = base / f"{key}_{cfg.pool}"
+        if not _done(out):
+            shutil.rmtree(out, ignore_errors=True)
+            convert(ConvertOptions(source="lerobot", input=str(native), root=str(out), repo_id=f"sim/{hand}_{task}_{key}",
+                                   source_options={"hands": {"right": f"{hand}:{HAND_PREFIX}"}}, mapping=mapping,
+                                   test_fraction=0.0, progress=False))  # fmt: skip
+        info[key] = out
+    return info
+
+
+def mixed(cfg: ClosedLoopConfig, task: str, inputs: list[Path], name: str) -> Path:
+    from lerobot_unidextok.conversion.mix import MixOptions, mix
+
+    out = Path(cfg.cache_dir) / task / name
+    if not _done(out):
+        shutil.rmtree(out, ignore_errors=True)
+        mix(MixOptions(inputs=[str(p) for p in inputs], root=str(out), repo_id=f"sim/{task}_{name}", keep="all",
+                       progress=False))  # fmt: skip
+    return out
+
+
+def mix_episodes(root: Path) -> dict[str, list[int]]:
+    """{hand: [mixed episode index, ... in its source order]} of a mix (from its conversion record)."""
+    from lerobot_unidextok.data.meta import UdhmDatasetMeta
+
+    out: dict[str, list[int]] = {}
+    for ep in UdhmDatasetMeta(root).record.episodes:
+        out.setdefault(ep.hand_type.split(",")[0], []).append(ep.episode_index)
+    return out
+
+
+def subset(n: int, pool: int, seed: int) -> list[int]:
+    """The seed's `n` of `pool` demonstrations (sorted)."""
+    return sorted(np.random.default_rng(seed).permutation(pool)[:n].tolist())
+
+
+# ---------------------------------------------------------------------------------------------
+# train (LeRobot's lerobot-train code), bind, evaluate (LeRobot's lerobot-eval rollout)
+# ---------------------------------------------------------------------------------------------
+def train_policy(cfg: ClosedLoopConfig, root: Path, episodes: list[int], out: Path, seed: int, flags: list[str]) -> Path:
+    """Train act_udt_cpu.yaml on `episodes` of `root`; the `pretrained_model` folder."""
+    import draccus
+    from lerobot.configs.train import TrainPipelineConfig
+    from lerobot.scripts.lerobot_train import train
+
+    import lerobot_policy_unidextok  # noqa: F401  (the <type>_udt policies, as LeRobot's CLIs discover them)
+    from lerobot_unidextok.configs import resolve_config_path
+
+    model = out / "checkpoints" / "last" / "pretrained_model"
+    if (model / "model.safetensors").is_file():
+        return model
+    shutil.rmtree(out, ignore_errors=True)
+    args = [f"--dataset.repo_id=sim/{root.name}", f"--dataset.root={root}", f"--dataset.episodes={episodes}",
+            "--policy.udt_relative_actions=false", "--policy.udt_copy_start=false", f"--steps={cfg.steps}",
+            f"--batch_size={cfg.batch_size}", f"--save_freq={cfg.steps}", f"--log_freq={max(cfg.steps, 1)}",
+            f"--seed={seed}", f"--output_dir={out}", *flags]  # fmt: skip
+    train(draccus.parse(TrainPipelineConfig, config_path=resolve_config_path("lerobot/act_udt_cpu"), args=args))
+    return model
+
+
+def bind(checkpoint: Path, robot: Path, out: Path, zero_shot: bool = False) -> Path:
+    from lerobot_unidextok.policies.deploy import deploy
+
+    if not (out / "model.safetensors").is_file():
+        shutil.rmtree(out, ignore_errors=True)
+        deploy(checkpoint, robot, out, zero_shot=zero_shot)
+    return out
+
+
+def evaluate(cfg: ClosedLoopConfig, checkpoint: Path, task: str, hand: str) -> dict:
+    """What `lerobot-eval --policy.path=<checkpoint> --env.type=unidextok` computes, without videos."""
+    import torch
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.envs.factory import make_env, make_env_pre_post_processors
+    from lerobot.envs.utils import close_envs
+    from lerobot.policies.factory import make_policy, make_pre_post_processors
+    from lerobot.scripts.lerobot_eval import eval_policy_all
+
+    from lerobot_env_unidextok import UniDexTokEnvConfig
+
+    env_cfg = UniDexTokEnvConfig(task=task, hand=hand)
+    envs = make_env(env_cfg, n_envs=min(cfg.eval_episodes, 50), use_async_envs=False)
+    policy_cfg = PreTrainedConfig.from_pretrained(checkpoint)
+    policy_cfg.pretrained_path, policy_cfg.device = str(checkpoint), "cpu"
+    policy = make_policy(cfg=policy_cfg, env_cfg=env_cfg).eval()
+    pre, post = make_pre_post_processors(policy_cfg, pretrained_path=str(checkpoint),
+                                         preprocessor_overrides={"device_processor": {"device": "cpu"},
+                                                                 "rename_observations_processor": {"rename_map": {}}})  # fmt: skip
+    env_pre, env_post = make_env_pre_post_processors(env_cfg=env_cfg, policy_cfg=policy_cfg)
+    with torch.no_grad():
+        info = eval_policy_all(envs, policy, env_pre, env_post, pre, post, cfg.eval_episodes,
+                               max_episodes_rendered=0, start_seed=cfg.eval_seed)  # fmt: skip
+    close_envs(envs)
+    overall = info["overall"]
+    n = int(overall["n_episodes"])
+    return {"successes": round(float(overall["pc_success"]) * n / 100), "episodes": n}
+
+
+def expert_success(cfg: ClosedLoopConfig, task: str, hand: str) -> dict:
+    """The scripted expert on the evaluation episodes (its own noise)."""
+    from lerobot_env_unidextok.env import UniDexTokEnv
+    from lerobot_env_unidextok.record import expert_episode
+
+    env = UniDexTokEnv(hand, task, render_mode=None)
+    wins = sum(expert_episode(env, cfg.eval_seed + i, EXPERT_NOISE_SEED + i, 50)[2] for i in range(cfg.eval_episodes))
+    return {"successes": int(wins), "episodes": cfg.eval_episodes}
+
+
+# ---------------------------------------------------------------------------------------------
+# the runs
+# ---------------------------------------------------------------------------------------------
+def jobs(cfg: ClosedLoopConfig) -> list[dict]:
+    out = []
+    for task in cfg.tasks:
+        for hand in cfg.hands:
+            for seed in cfg.seeds:
+                if "alone" in cfg.arms:
+                    out += [{"task": task, "hand": hand, "seed": seed, "arm": f"alone_{n}", "demos": n} for n in cfg.demos]
+                out += [{"task": task, "hand": hand, "seed": seed, "arm": arm,
+                         "demos": 0 if arm == "zero_shot" else cfg.demos[0]} for arm in MIX_ARMS if arm in cfg.arms]  # fmt: skip
+    return out
+
+
+def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
+    task, hand, seed, arm = job["task"], job["hand"], job["seed"], job["arm"]
+    key = f"{task}/{hand}/{arm}/seed{seed}"
+    done = folder / "runs" / f"{key.replace('/', '__')}.json"
+    if done.is_file():
+        return json.loads(done.read_text())
+    own = data[task][hand]
+    target = subset(job["demos"], cfg.pool, seed) if job["demos"] else []
+    out = folder / "policies" / task / hand / f"{arm}_seed{seed}"
+    state = ["--policy.udt_hand_input=state"]
+    cpu0, t0 = time.process_time(), time.time()
+    if arm.startswith("alone"):
+        model = train_policy(cfg, own["semantic"], target, out, seed, state)
+        bound = model
+    elif arm == "zero_shot":
+        mix_root = data[task]["without"][hand]
+        model = train_policy(cfg, mix_root, sorted(sum(mix_episodes(mix_root).values(), [])), out, seed, state)
+        bound = bind(model, own["semantic"], out / "bound", zero_shot=True)
+    else:
+        mapping = "packed" if arm == "packed" else "semantic"
+        mix_root = data[task][f"mix_{mapping}"]
+        by_hand = mix_episodes(mix_root)
+        episodes = sorted([by_hand[hand][i] for i in target] + [e for h, eps in by_hand.items() if h != hand for e in eps])
+        # packed blocks are not UDHM: the tokenizer's range check would refuse them (its view is zero here anyway)
+        flags = {"mix": state, "packed": [*state, '--policy.udt_range_check="off"'], "tokens_nearest": ["--policy.udt_hand_input=tokens"],
+                 "tokens_search": ["--policy.udt_hand_input=tokens", f"--policy.udt_search_rounds={cfg.search_rounds}"]}[arm]  # fmt: skip
+        model = train_policy(cfg, mix_root, episodes, out, seed, flags)
+        bound = bind(model, own[mapping], out / "bound")
+    train_cpu = time.process_time() - cpu0
+    cpu1 = time.process_time()
+    scores = evaluate(cfg, bound, task, hand)
+    result = {**job, **scores, "train_cpu_s": round(train_cpu, 1), "eval_cpu_s": round(time.process_time() - cpu1, 1),
+              "wall_s": round(time.time() - t0, 1)}  # fmt: skip
+    done.parent.mkdir(parents=True, exist_ok=True)
+    done.write_text(json.dumps(result))
+    shutil.rmtree(out / "checkpoints" / "last" / "training_state", ignore_errors=True)
+    logger.info("%s: %d/%d (%.0f CPU-s)", key, result["successes"], result["episodes"], train_cpu + result["eval_cpu_s"])
+    return result
+
+
+def prepare(cfg: ClosedLoopConfig) -> tuple[dict, dict]:
+    """All datasets, and the CPU seconds spent on them."""
+    cpu0 = time.process_time()
+    data: dict = {}
+    for task in cfg.tasks:
+        data[task] = {hand: recorded(cfg, task, hand) for hand in cfg.hands}
+        if set(cfg.arms) & set(MIX_ARMS):
+            for mapping in ("semantic", "packed"):
+                data[task][f"mix_{mapping}"] = mixed(cfg, task, [data[task][h][mapping] for h in cfg.hands],
+                                                     f"mix_{mapping}_{'_'.join(cfg.hands)}")  # fmt: skip
+            data[task]["without"] = {
+                hand: mixed(cfg, task, [data[task][h]["semantic"] for h in cfg.hands if h != hand], f"mix_without_{hand}")
+                for hand in cfg.hands
+            }  # fmt: skip
+    return data, {"data_cpu_s": round(time.process_time() - cpu0, 1)}
+
+
+def run(cfg: ClosedLoopConfig) -> dict:
+    from lerobot_env_unidextok.success import wilson_interval
+
+    t0, cpu0 = time.time(), time.process_time()
+    folder = Path(cfg.output_root) / NAME
+    data, costs = prepare(cfg)
+    experts = {f"{t}/{h}": expert_success(cfg, t, h) for t in cfg.tasks for h in cfg.hands}
+    runs = [run_one(cfg, job, data, folder) for job in jobs(cfg)]
+    summary = summarise(runs, cfg)
+    result = {"experiment": NAME, "config": dataclasses.asdict(cfg), "runs": runs, "summary": summary,
+              "experts": {k: {**v, "interval": wilson_interval(v["successes"], v["episodes"])} for k, v in experts.items()},
+              "recording": {f"{t}/{h}": data[t][h]["record"] for t in cfg.tasks for h in cfg.hands},
+              "costs": {**costs, "train_cpu_s": round(sum(r["train_cpu_s"] for r in runs), 1),
+                        "eval_cpu_s": round(sum(r["eval_cpu_s"] for r in runs), 1),
+                        "process_cpu_s": round(time.process_time() - cpu0, 1)},
+              "git_commit": git_commit(), "wall_seconds": round(time.time() - t0, 1),
+              "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
+    result["goals"] = goals(result, cfg)
+    result["command"] = command_line(cfg)
+    result["provenance"] = {
+        "data": {"source": "sim", "synthetic_sample": False,
+                 "datasets": [f"{cfg.pool} expert episodes per task and hand (lerobot_env_unidextok)"],
+                 "train_rows": f"{min(cfg.demos)}-{max(cfg.demos)} target demonstrations (+ the other hands' {cfg.pool})",
+                 "test_rows": f"{cfg.eval_episodes} closed-loop episodes per policy", "hands": list(cfg.hands)},
+        "preset": "act_udt_cpu.yaml (lerobot-train), absolute actions", "seed": cfg.seeds,
+        "git_commit": result["git_commit"], "config": {"steps": cfg.steps}, "wall_seconds": result["wall_seconds"],
+        "date_utc": result["date_utc"],
+    }  # fmt: skip
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{NAME}.json").write_text(json.dumps(result, indent=2))
+    (folder / f"{NAME}.md").write_text(markdown(result) + "\n")
+    return result
+
+
+def summarise(runs: list[dict], cfg: ClosedLoopConfig) -> dict:
+    """{task: {hand: {arm: {"mean", "std" (over seeds, %), "successes", "episodes" (pooled)}}}}."""
+    from lerobot_env_unidextok.success import wilson_interval
+
+    out: dict = {}
+    for r in runs:
+        out.setdefault(r["task"], {}).setdefault(r["hand"], {}).setdefault(r["arm"], []).append(r)
+    for task, by_hand in out.items():
+        for hand, by_arm in by_hand.items():
+            for arm, rows in by_arm.items():
+                rates = [100 * r["successes"] / r["episodes"] for r in rows]
+                k, n = sum(r["successes"] for r in rows), sum(r["episodes"] for r in rows)
+                by_arm[arm] = {"mean": float(np.mean(rates)), "std": float(np.std(rates)), "seeds": len(rows),
+                               "successes": k, "episodes": n, "interval": [100 * x for x in wilson_interval(k, n)]}  # fmt: skip
+    return out
+
+
+def goals(result: dict, cfg: ClosedLoopConfig) -> list[dict]:
+    """The issue's goals, each with the figures it is judged on and whether it is met."""
+    s, out = result["summary"], []
+    small = f"alone_{cfg.demos[0]}"
+    for task, by_hand in s.items():
+        for hand, arms in by_hand.items():
+            if small in arms:
+                out.append({"goal": f"{task} {hand}: one hand on {cfg.demos[0]} demos below 90 % (headroom)",
+                            "value": arms[small]["mean"], "met": arms[small]["mean"] < 90})
+            if small in arms and "mix" in arms:
+                gain = arms["mix"]["mean"] - arms[small]["mean"]
+                out.append({"goal": f"{task} {hand}: mix beats the hand alone by >= 10 points at {cfg.demos[0]} demos",
+                            "value": gain, "met": gain >= 10})
+            if task == "FingerPress-v0" and "mix" in arms and "packed" in arms:
+                gain = arms["mix"]["mean"] - arms["packed"]["mean"]
+                out.append({"goal": f"{task} {hand}: semantic insertion beats packing by >= 10 points", "value": gain,
+                            "met": gain >= 10})
+            if task == "GraspLift-v0" and "zero_shot" in arms:
+                out.append({"goal": f"{task} {hand}: zero-shot success above 0", "value": arms["zero_shot"]["mean"],
+                            "met": arms["zero_shot"]["successes"] > 0})
+    for key, e in result["experts"].items():
+        rate = 100 * e["successes"] / e["episodes"]
+        out.append({"goal": f"{key.replace('/', ' ')}: expert at least 95 %", "value": rate, "met": rate >= 95})
+    return out
+
+
+def command_line(cfg: ClosedLoopConfig) -> str:
+    default = ClosedLoopConfig()
+    flags = [f"--{f.name}={json.dumps(getattr(cfg, f.name)).replace(' ', '')}"
+             for f in dataclasses.fields(cfg) if getattr(cfg, f.name) != getattr(default, f.name)]  # fmt: skip
+    return " ".join([f"python experiments/{NAME}.py", *flags])
+
+
+ARM_TITLES = {"mix": "mix, UDHM state", "packed": "mix, packed native", "tokens_nearest": "mix, tokens (nearest)",
+              "tokens_search": "mix, tokens (code search)", "zero_shot": "zero-shot (other hands only)"}  # fmt: skip
+
+
+def markdown(result: dict) -> str:
+    cfg, s, costs = result["config"], result["summary"], result["costs"]
+    cpu_min = (costs["process_cpu_s"]) / 60
+    lines = [
+        f"Success rate (%) in closed loop, mean +- std over seeds {cfg['seeds']} ({cfg['eval_episodes']} episodes each, "
+        f"the same episodes for every policy), and the 95 % Wilson interval of the pooled episodes. Policies: "
+        f"act_udt_cpu.yaml through LeRobot's lerobot-train code, {cfg['steps']} steps at batch {cfg['batch_size']}, "
+        f"absolute actions; mixes bound with unidextok-deploy. {cpu_min:.1f} CPU-minutes in all ({costs['data_cpu_s']:.0f} s "
+        f"data, {costs['train_cpu_s']:.0f} s training, {costs['eval_cpu_s']:.0f} s evaluation), "
+        f"{result['wall_seconds'] / 60:.1f} min wall.", ""]  # fmt: skip
+    for task, by_hand in s.items():
+        hands = list(by_hand)
+        arms = list(dict.fromkeys(a for h in hands for a in by_hand[h]))
+        rows = []
+        for arm in ["expert", *arms]:
+            cells = []
+            for hand in hands:
+                if arm == "expert":
+                    e = result["experts"].get(f"{task}/{hand}")
+                    cells.append(f"{100 * e['successes'] / e['episodes']:.0f} ({100 * e['interval'][0]:.0f}-"
+                                 f"{100 * e['interval'][1]:.0f})" if e else "-")  # fmt: skip
+                    continue
+                e = by_hand[hand].get(arm)
+                cells.append(f"{e['mean']:.1f} +- {e['std']:.1f} ({e['interval'][0]:.0f}-{e['interval'][1]:.0f})" if e else "-")
+            title = "scripted expert" if arm == "expert" else ARM_TITLES.get(arm, arm.replace("_", " ") + " demos")
+            rows.append([title, *cells])
+        lines += [f"**{task}** (target demos: {cfg['demos'][0]} for the mix arms):", "", md_table(["policy", *hands], rows), ""]
+    lines += ["Goals:", ""]
+    lines += [f"- {'met' if g['met'] else 'NOT met'}: {g['goal']} ({g['value']:+.1f})" for g in result["goals"]]
+    return "\n".join(lines).rstrip()
+
+
+def main(argv: list[str] | None = None) -> None:
+    runtime.cli(ClosedLoopConfig, run, markdown, argv)
+
+
+if __name__ == "__main__":
+    main()
