@@ -101,9 +101,11 @@ class Expert:
         above = grasp_pose + [0, 0, 0.06, 0, 0, 0]
         lifted = grasp_pose + [0, 0, 0.12, 0, 0, 0]
         pre, closed = self.posture(g["preshape"]), self.posture(g["posture"])
+        # no phase waits in place: a state-only policy cannot tell "wait" from "go on" at a state that does not
+        # change, so the lift starts slowly while the fingers are still closing
         return [Segment(above, pre, self.steps(8)), Segment(grasp_pose, pre, self.steps(4)),
-                Segment(grasp_pose, closed, self.steps(7)), Segment(grasp_pose, closed, 5),
-                Segment(lifted, closed, self.steps(6)), Segment(lifted, closed, 10)]  # fmt: skip
+                Segment(grasp_pose, closed, self.steps(8)), Segment(grasp_pose + [0, 0, 0.01, 0, 0, 0], closed, 5),
+                Segment(lifted, closed, self.steps(5)), Segment(lifted, closed, 10)]  # fmt: skip
 
     def press_segments(self, task: dict[str, float]) -> list[Segment]:
         goal = next(f for f in PRESS_FINGERS if task[f"goal_{f}"] > 0.5)

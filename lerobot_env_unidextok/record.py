@@ -6,8 +6,9 @@
 
 The dataset is what a robot would record, in the hand's native units: `observation.state` (the wrist pose, the
 task's object and goal columns, the hand's native joints, named as `columns.state_names`) and `action` (the wrist
-target and the native hand command the expert sent), 10 fps, no images, one task text. Only episodes the
-expert completed are kept (`--keep_failures=true` keeps all); episode i is drawn from seed `seed + i` and the
+target and the native hand command the expert sent), 10 fps, no images, one task text; each episode goes on
+for `AFTER_SUCCESS_STEPS` steps of the expert's plan after the task succeeded. Only episodes the expert completed
+are kept (`--keep_failures=true` keeps all); episode i is drawn from seed `seed + i` and the
 expert's noise from `noise_seed + i`, so a dataset is reproducible from its flags, and seeds are never shared
 with `lerobot-eval`'s (1000 + i) unless asked. Written into a hidden sibling folder and renamed into place.
 """
@@ -64,21 +65,28 @@ class RecordReport:
         return self.episodes / max(self.attempts, 1)
 
 
-def expert_episode(env, seed: int, noise_seed: int, max_steps: int):
-    """(states (T, D), actions (T, A), success) of one expert episode."""
+AFTER_SUCCESS_STEPS = 5  # a recording goes on this many steps after the task succeeded (the lift goes on)
+
+
+def expert_episode(env, seed: int, noise_seed: int, max_steps: int, after_success: int = 0):
+    """(states (T, D), actions (T, A), success) of one expert episode; `after_success` more steps of the expert's
+    plan are kept once the task succeeded (the env ends the episode there; a demonstration that stops at the
+    first lifted frame shows too little of the lift for a policy to learn it)."""
     from lerobot_env_unidextok.experts import Expert
 
     obs, _ = env.reset(seed=seed)
     expert = Expert(env, np.random.default_rng(noise_seed))
     expert.reset(obs)
-    states, actions, success = [], [], False
-    for _ in range(max_steps):
+    states, actions, success, left = [], [], False, max_steps
+    while left > 0:
         action = expert.act(obs)
         states.append(obs["agent_pos"])
         actions.append(action)
         obs, _, terminated, _, info = env.step(action)
-        success = bool(info["is_success"])
-        if terminated:
+        left -= 1
+        if info["is_success"] and not success:
+            success, left = True, min(left, after_success)
+        elif terminated and not success:
             break
     return np.stack(states).astype(np.float32), np.stack(actions).astype(np.float32), success
 
@@ -110,7 +118,7 @@ def record(cfg: RecordConfig) -> RecordReport:
                     f"{cfg.episodes}: raise --max_attempts_factor or pass --keep_failures=true"
                 )
             states, actions, success = expert_episode(env, cfg.seed + attempts, cfg.noise_seed + attempts,
-                                                      cfg.episode_length)  # fmt: skip
+                                                      cfg.episode_length, AFTER_SUCCESS_STEPS)  # fmt: skip
             attempts += 1
             if not (success or cfg.keep_failures):
                 continue
