@@ -20,8 +20,9 @@ re-plans every step stalls where the demonstrations pause); mixed checkpoints bo
 
 Arms, per task, target hand and seed (the target's demonstrations: a seed's random subset of its pool):
 - `alone_<n>` for n in `demos`: that hand's n demonstrations alone (its UDHM state);
-- `mix`: the target's `demos[0]` demonstrations and every demonstration of the other hands, in one UDHM layout
-  (semantic insertion), the hand's identity one-hot (unidextok-mix), bound to the target;
+- `mix`: the target's `demos[0]` demonstrations (written `target_weight` times: about half the frames) and every
+  demonstration of the other hands, in one UDHM layout (semantic insertion), the hand's identity one-hot
+  (unidextok-mix), bound to the target;
 - `packed`: the same episodes with each hand's native joints packed at the front of the block and zero-padded;
 - `tokens_nearest`, `tokens_search`: `mix` with the hands given to the model only as the shipped tokenizer's
   tokens (dequantized; nearest codes, or the code search with `search_rounds` rounds) instead of the UDHM state
@@ -68,6 +69,10 @@ class ClosedLoopConfig:
     arms: list[str] = field(default_factory=lambda: ["alone", *MIX_ARMS])
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
     pool: int = 50  # expert episodes recorded per task and hand (the most `alone` trains on, a mix's other hands)
+    # how many times a mix writes the target's demonstrations (`unidextok-mix --weights`): 10 of them x 10 against
+    # 2 x 50 of the other hands make the target about half of the training frames, as cross_embodiment.py found
+    # a small target needs
+    target_weight: float = 10.0
     steps: int = 300  # lerobot-train updates per policy
     batch_size: int = 32
     n_action_steps: int = 10  # actions of each predicted chunk (act_udt_cpu.yaml: chunk 10) run before predicting again
@@ -123,25 +128,31 @@ def recorded(cfg: ClosedLoopConfig, task: str, hand: str) -> dict:
     return info
 
 
-def mixed(cfg: ClosedLoopConfig, task: str, inputs: list[Path], name: str) -> Path:
+def mixed(cfg: ClosedLoopConfig, task: str, inputs: list[Path], name: str, weights: list[float] | None = None) -> Path:
+    """`unidextok-mix --keep=all` of `inputs` (a training-frame share per input with `weights`)."""
     from lerobot_unidextok.conversion.mix import MixOptions, mix
 
     out = Path(cfg.cache_dir) / task / name
     if not _done(out):
         shutil.rmtree(out, ignore_errors=True)
         mix(MixOptions(inputs=[str(p) for p in inputs], root=str(out), repo_id=f"sim/{task}_{name}", keep="all",
-                       progress=False))  # fmt: skip
+                       weights=weights or [], progress=False))  # fmt: skip
     return out
 
 
-def mix_episodes(root: Path) -> dict[str, list[int]]:
-    """{hand: [mixed episode index, ... in its source order]} of a mix (from its conversion record)."""
+def mix_episodes(root: Path) -> dict[str, dict[int, list[int]]]:
+    """{hand: {source episode: [its mixed episodes (the copies `--weights` wrote)]}} of a mix (from its record)."""
     from lerobot_unidextok.data.meta import UdhmDatasetMeta
 
-    out: dict[str, list[int]] = {}
+    out: dict[str, dict[int, list[int]]] = {}
     for ep in UdhmDatasetMeta(root).record.episodes:
-        out.setdefault(ep.hand_type.split(",")[0], []).append(ep.episode_index)
+        source = int(ep.origin["source_episode_index"])
+        out.setdefault(ep.hand_type.split(",")[0], {}).setdefault(source, []).append(ep.episode_index)
     return out
+
+
+def every_episode(by_source: dict[int, list[int]]) -> list[int]:
+    return sorted(e for copies in by_source.values() for e in copies)
 
 
 def subset(n: int, pool: int, seed: int) -> list[int]:
@@ -295,13 +306,15 @@ def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
         bound = model
     elif arm == "zero_shot":
         mix_root = data[task]["without"][hand]
-        model = train_policy(cfg, mix_root, sorted(sum(mix_episodes(mix_root).values(), [])), out, seed, state)
+        episodes = sorted(e for by_source in mix_episodes(mix_root).values() for e in every_episode(by_source))
+        model = train_policy(cfg, mix_root, episodes, out, seed, state)
         bound = bind(model, own["semantic"], out / "bound", zero_shot=True)
     else:
         mapping = "packed" if arm == "packed" else "semantic"
-        mix_root = data[task][f"mix_{mapping}"]
+        mix_root = data[task][f"mix_{mapping}"][hand]
         by_hand = mix_episodes(mix_root)
-        episodes = sorted([by_hand[hand][i] for i in target] + [e for h, eps in by_hand.items() if h != hand for e in eps])
+        chosen = [e for i in target for e in by_hand[hand][i]]
+        episodes = sorted(chosen + [e for h, by_source in by_hand.items() if h != hand for e in every_episode(by_source)])
         # packed blocks are not UDHM: the tokenizer's range check would refuse them (its view is zero here anyway)
         flags = {"mix": state, "packed": [*state, '--policy.udt_range_check="off"'], "tokens_nearest": ["--policy.udt_hand_input=tokens"],
                  "tokens_search": ["--policy.udt_hand_input=tokens", f"--policy.udt_search_rounds={cfg.search_rounds}"]}[arm]  # fmt: skip
@@ -326,9 +339,15 @@ def prepare(cfg: ClosedLoopConfig) -> tuple[dict, dict]:
     for task in cfg.tasks:
         data[task] = {hand: recorded(cfg, task, hand) for hand in cfg.hands}
         if set(cfg.arms) & set(MIX_ARMS):
+            # per target: its whole pool written `target_weight` times (the chosen demonstrations' copies are
+            # selected at training), so that its few demonstrations are about half of what the mix trains on
             for mapping in ("semantic", "packed"):
-                data[task][f"mix_{mapping}"] = mixed(cfg, task, [data[task][h][mapping] for h in cfg.hands],
-                                                     f"mix_{mapping}_{'_'.join(cfg.hands)}")  # fmt: skip
+                data[task][f"mix_{mapping}"] = {
+                    hand: mixed(cfg, task, [data[task][h][mapping] for h in [hand, *(h for h in cfg.hands if h != hand)]],
+                                f"mix_{mapping}_for_{hand}_w{cfg.target_weight:g}",
+                                [cfg.target_weight] + [1.0] * (len(cfg.hands) - 1))
+                    for hand in cfg.hands
+                }  # fmt: skip
             data[task]["without"] = {
                 hand: mixed(cfg, task, [data[task][h]["semantic"] for h in cfg.hands if h != hand], f"mix_without_{hand}")
                 for hand in cfg.hands

@@ -204,7 +204,7 @@ class FingerPress(Task):
     description = TASK_TEXT[name]
     PRESSED_M = 0.004
     TRAVEL_M = 0.012
-    AREA = ((0.05, 0.13), (-0.07, 0.07))  # x, y ranges of the panel's origin (m)
+    AREA = ((0.07, 0.11), (-0.025, 0.025))  # x, y ranges of the panel's origin (m)
     # the wrist over the panel when pressing, relative to the panel's origin: the same for every hand
     HOVER_M = np.array([-0.11, 0.0, 0.16])
 
@@ -302,5 +302,5 @@ def press_geometry(hand: SimHand, hover_m: np.ndarray) -> dict[str, np.ndarray]:
 
 
 PRESS_DEPTH_M = 0.008  # the press posture puts the tip this far below the cap's resting top
-CAP_HALF_M = (0.02, 0.008)  # a button cap's half length (along the fingers) and half width
+CAP_HALF_M = (0.02, 0.0065)  # a button cap's half length (along the fingers) and half width
 TASKS: dict[str, type[Task]] = {t.name: t for t in (GraspLift, FingerPress)}

@@ -83,7 +83,9 @@ def insert_udt_steps(
         _insert_relative_pair(config, steps, post)
     if config.udt_hand_input != "both":  # after the relative step (it reads the real state), before normalising
         at = max(i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep))
-        steps.insert(at, HandInputStep(mode=config.udt_hand_input, state_names=list(config.udt_state_names)))
+        identity = config.num_udt_blocks * len(config.udt_hand_vocabulary)  # a mix's one-hot identity, kept
+        steps.insert(at, HandInputStep(mode=config.udt_hand_input, state_names=list(config.udt_state_names),
+                                       identity_width=identity))  # fmt: skip
     pre.steps = steps
     if config.udt_native_action and config.udt_native_layout:
         post.steps = [

@@ -6,7 +6,8 @@ tokens are worth against the state they encode, one of the two is held at zero b
 model gets the same inputs with the other view constant:
 
 - `both` (the default): nothing changes;
-- `state`: the token view is zero; the hands reach the model as their UDHM state only;
+- `state`: the token view is zero; the hands reach the model as their UDHM state only (a mix's hand identity, the
+  view's last `identity_width` columns, stays: it is not a view of the state);
 - `tokens`: the UDHM blocks of `observation.state` are zero (the passthrough columns stay); the hands reach the
   model only through the token view. The relative-action step before it has already read the real state.
 
@@ -37,6 +38,7 @@ class HandInputStep(ObservationProcessorStep):
 
     mode: str = "both"
     state_names: list[str] = field(default_factory=list)  # observation.state's columns (they locate the blocks)
+    identity_width: int = 0  # a mix's one-hot hand identity at the end of the token view (kept): blocks x vocabulary
 
     _columns: torch.Tensor | None = field(default=None, init=False, repr=False)
 
@@ -51,7 +53,9 @@ class HandInputStep(ObservationProcessorStep):
 
     def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
         if self.mode == "state" and OBS_HAND_TOKEN_FEATURES in observation:
-            observation[OBS_HAND_TOKEN_FEATURES] = torch.zeros_like(observation[OBS_HAND_TOKEN_FEATURES])
+            view = observation[OBS_HAND_TOKEN_FEATURES].clone()
+            view[..., : view.shape[-1] - self.identity_width] = 0
+            observation[OBS_HAND_TOKEN_FEATURES] = view
         elif self.mode == "tokens":
             state = observation[OBS_STATE].clone()
             state[..., self._columns.to(state.device)] = 0
@@ -64,7 +68,7 @@ class HandInputStep(ObservationProcessorStep):
         return features
 
     def get_config(self) -> dict[str, Any]:
-        return {"mode": self.mode, "state_names": list(self.state_names)}
+        return {"mode": self.mode, "state_names": list(self.state_names), "identity_width": self.identity_width}
 
 
 __all__ = ["HAND_INPUTS", "HAND_INPUT_STEP_NAME", "HandInputStep"]

@@ -24,6 +24,15 @@ def test_state_zeroes_the_token_view_and_tokens_zero_the_udhm_block():
     assert torch.equal(both[OBS_STATE], _obs()[OBS_STATE])
 
 
+def test_a_mixs_hand_identity_stays_when_the_token_view_is_zeroed():
+    """The mixed tokenizer step appends a one-hot hand identity to the view: it is not a view of the state."""
+    obs = _obs()
+    obs[OBS_HAND_TOKEN_FEATURES] = torch.cat([torch.ones(3, 22), torch.tensor([[0.0, 1.0, 0.0]] * 3)], dim=1)
+    out = HandInputStep(mode="state", state_names=NAMES, identity_width=3).observation(obs)
+    assert out[OBS_HAND_TOKEN_FEATURES][:, :22].abs().sum() == 0
+    assert out[OBS_HAND_TOKEN_FEATURES][:, 22:].tolist() == [[0.0, 1.0, 0.0]] * 3
+
+
 def test_bad_modes_and_layouts_are_refused():
     with pytest.raises(ValueError, match="udt_hand_input must be one of"):
         HandInputStep(mode="neither")
