@@ -73,10 +73,12 @@ class ClosedLoopConfig:
     # 2 x 50 of the other hands make the target about half of the training frames, as cross_embodiment.py found
     # a small target needs
     target_weight: float = 10.0
-    steps: int = 300  # lerobot-train updates per policy
+    steps: int = 400  # lerobot-train updates per policy
     batch_size: int = 32
     n_action_steps: int = 10  # actions of each predicted chunk (act_udt_cpu.yaml: chunk 10) run before predicting again
-    search_rounds: int = 2  # the code search of `tokens_search`
+    # the code search of `tokens_search`: one round (the tokenizer runs on every training batch; a round costs ~35x
+    # the nearest codes there, and one round holds most of the search's gain: docs/tokenizer.md "Code search")
+    search_rounds: int = 1
     eval_episodes: int = 50
     eval_seed: int = 1000  # lerobot-eval's default: episode i is drawn from eval_seed + i
     output_root: str = "outputs/experiments"
@@ -108,23 +110,28 @@ def recorded(cfg: ClosedLoopConfig, task: str, hand: str) -> dict:
 
     base = Path(cfg.cache_dir) / task / hand
     native = base / f"native_{cfg.pool}"
-    info = {"native": native, "record_s": 0.0}
+    info = {"native": native}
     if not _done(native):
         shutil.rmtree(native, ignore_errors=True)
+        cpu = time.process_time()
         report = record(RecordConfig(hand=hand, task=task, episodes=cfg.pool, root=str(native), seed=RECORD_SEED,
                                      noise_seed=RECORD_NOISE, repo_id=f"sim/{hand}_{task}"))  # fmt: skip
         (base / f"native_{cfg.pool}.json").write_text(json.dumps(
             {"episodes": report.episodes, "attempts": report.attempts, "frames": report.frames,
-             "seconds": report.seconds}))  # fmt: skip
+             "cpu_s": round(time.process_time() - cpu, 1)}))  # fmt: skip
     info["record"] = json.loads((base / f"native_{cfg.pool}.json").read_text())
+    info["cpu_s"] = info["record"]["cpu_s"]
     for mapping, key in (("semantic", "semantic"), ("append_pad", "packed")):
         out = base / f"{key}_{cfg.pool}"
         if not _done(out):
             shutil.rmtree(out, ignore_errors=True)
+            cpu = time.process_time()
             convert(ConvertOptions(source="lerobot", input=str(native), root=str(out), repo_id=f"sim/{hand}_{task}_{key}",
                                    source_options={"hands": {"right": f"{hand}:{HAND_PREFIX}"}}, mapping=mapping,
                                    test_fraction=0.0, progress=False))  # fmt: skip
+            (out.parent / f"{out.name}.cpu").write_text(f"{time.process_time() - cpu:.1f}")
         info[key] = out
+        info["cpu_s"] += float((out.parent / f"{out.name}.cpu").read_text())
     return info
 
 
@@ -135,9 +142,15 @@ def mixed(cfg: ClosedLoopConfig, task: str, inputs: list[Path], name: str, weigh
     out = Path(cfg.cache_dir) / task / name
     if not _done(out):
         shutil.rmtree(out, ignore_errors=True)
+        cpu = time.process_time()
         mix(MixOptions(inputs=[str(p) for p in inputs], root=str(out), repo_id=f"sim/{task}_{name}", keep="all",
                        weights=weights or [], progress=False))  # fmt: skip
+        (out.parent / f"{out.name}.cpu").write_text(f"{time.process_time() - cpu:.1f}")
     return out
+
+
+def mix_cpu_s(root: Path) -> float:
+    return float((root.parent / f"{root.name}.cpu").read_text())
 
 
 def mix_episodes(root: Path) -> dict[str, dict[int, list[int]]]:
@@ -270,9 +283,10 @@ def expert_success(cfg: ClosedLoopConfig, task: str, hand: str) -> dict:
     from lerobot_env_unidextok.env import UniDexTokEnv
     from lerobot_env_unidextok.record import expert_episode
 
+    cpu = time.process_time()
     env = UniDexTokEnv(hand, task, render_mode=None)
     wins = sum(expert_episode(env, cfg.eval_seed + i, EXPERT_NOISE_SEED + i, 50)[2] for i in range(cfg.eval_episodes))
-    return {"successes": int(wins), "episodes": cfg.eval_episodes}
+    return {"successes": int(wins), "episodes": cfg.eval_episodes, "cpu_s": round(time.process_time() - cpu, 1)}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -333,8 +347,7 @@ def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
 
 
 def prepare(cfg: ClosedLoopConfig) -> tuple[dict, dict]:
-    """All datasets, and the CPU seconds spent on them."""
-    cpu0 = time.process_time()
+    """All datasets, and the CPU seconds spent making them (when they were made, so a rerun counts them too)."""
     data: dict = {}
     for task in cfg.tasks:
         data[task] = {hand: recorded(cfg, task, hand) for hand in cfg.hands}
@@ -352,7 +365,12 @@ def prepare(cfg: ClosedLoopConfig) -> tuple[dict, dict]:
                 hand: mixed(cfg, task, [data[task][h]["semantic"] for h in cfg.hands if h != hand], f"mix_without_{hand}")
                 for hand in cfg.hands
             }  # fmt: skip
-    return data, {"data_cpu_s": round(time.process_time() - cpu0, 1)}
+    cpu = 0.0
+    for task in cfg.tasks:
+        cpu += sum(data[task][h]["cpu_s"] for h in cfg.hands)
+        for key in ("mix_semantic", "mix_packed", "without"):
+            cpu += sum(mix_cpu_s(root) for root in data[task].get(key, {}).values())
+    return data, {"data_cpu_s": round(cpu, 1)}
 
 
 def run(cfg: ClosedLoopConfig) -> dict:
@@ -369,7 +387,8 @@ def run(cfg: ClosedLoopConfig) -> dict:
               "recording": {f"{t}/{h}": data[t][h]["record"] for t in cfg.tasks for h in cfg.hands},
               "costs": {**costs, "train_cpu_s": round(sum(r["train_cpu_s"] for r in runs), 1),
                         "eval_cpu_s": round(sum(r["eval_cpu_s"] for r in runs), 1),
-                        "process_cpu_s": round(time.process_time() - cpu0, 1)},
+                        "expert_cpu_s": round(sum(e["cpu_s"] for e in experts.values()), 1),
+                        "this_process_cpu_s": round(time.process_time() - cpu0, 1)},
               "git_commit": git_commit(), "wall_seconds": round(time.time() - t0, 1),
               "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
     result["goals"] = goals(result, cfg)
@@ -445,13 +464,14 @@ ARM_TITLES = {"mix": "mix, UDHM state", "packed": "mix, packed native", "tokens_
 
 def markdown(result: dict) -> str:
     cfg, s, costs = result["config"], result["summary"], result["costs"]
-    cpu_min = (costs["process_cpu_s"]) / 60
+    cpu_min = sum(costs[k] for k in ("data_cpu_s", "train_cpu_s", "eval_cpu_s", "expert_cpu_s")) / 60
     lines = [
         f"Success rate (%) in closed loop, mean +- std over seeds {cfg['seeds']} ({cfg['eval_episodes']} episodes each, "
         f"the same episodes for every policy), and the 95 % Wilson interval of the pooled episodes. Policies: "
         f"act_udt_cpu.yaml through LeRobot's lerobot-train code, {cfg['steps']} steps at batch {cfg['batch_size']}, "
-        f"absolute actions; mixes bound with unidextok-deploy. {cpu_min:.1f} CPU-minutes in all ({costs['data_cpu_s']:.0f} s "
-        f"data, {costs['train_cpu_s']:.0f} s training, {costs['eval_cpu_s']:.0f} s evaluation), "
+        f"absolute actions, chunks of {cfg['n_action_steps']} actions; mixes bound with unidextok-deploy. {cpu_min:.1f} "
+        f"CPU-minutes in all ({costs['data_cpu_s']:.0f} s data, {costs['train_cpu_s']:.0f} s training, "
+        f"{costs['eval_cpu_s']:.0f} s evaluation, {costs['expert_cpu_s']:.0f} s experts), "
         f"{result['wall_seconds'] / 60:.1f} min wall.", ""]  # fmt: skip
     for task, by_hand in s.items():
         hands = list(by_hand)
