@@ -258,7 +258,7 @@ def evaluate(cfg: ClosedLoopConfig, checkpoint: Path, task: str, hand: str) -> d
     from lerobot.policies.factory import make_policy, make_pre_post_processors
     from lerobot.scripts.lerobot_eval import eval_policy_all
 
-    from lerobot_env_unidextok import UniDexTokEnvConfig
+    from lerobot_env_unidextok.configuration import UniDexTokEnvConfig
 
     env_cfg = UniDexTokEnvConfig(task=task, hand=hand)
     envs = make_env(env_cfg, n_envs=min(cfg.eval_episodes, 50), use_async_envs=False)

@@ -1,9 +1,10 @@
 """lerobot-unidextok's simulator: dexterous hands on a floating wrist in MuJoCo, as a LeRobot env plugin.
 
-Importing this package registers LeRobot's `--env.type=unidextok` config and the gymnasium ids
-`lerobot_env_unidextok/GraspLift-v0` and `lerobot_env_unidextok/FingerPress-v0`, without importing MuJoCo (the env
-module loads on `gym.make`). LeRobot's CLIs import it through `lerobot_policy_unidextok` (the distribution they
-discover). Needs the `sim` extra (`pip install 'lerobot_policy_unidextok[sim]'`) to run an episode.
+Importing this package registers the gymnasium ids `lerobot_env_unidextok/GraspLift-v0` and
+`lerobot_env_unidextok/FingerPress-v0` (gymnasium only: the env module, and MuJoCo, load on `gym.make`);
+`lerobot_env_unidextok.configuration` registers LeRobot's `--env.type=unidextok` config, and LeRobot's CLIs import
+it through `lerobot_policy_unidextok` (the distribution they discover). Needs the `sim` extra
+(`pip install 'lerobot_policy_unidextok[sim]'`) to run an episode.
 
     import gymnasium as gym, lerobot_env_unidextok
     env = gym.make("lerobot_env_unidextok/GraspLift-v0", hand="shadow")
@@ -14,8 +15,8 @@ embodiment in `hand_models/`), `scene` (table, wrist, hand), `tasks`, `env` (the
 (scripted demonstrations), `record` (expert datasets, `unidextok-sim-record`), `configuration` (LeRobot's config).
 """
 
-from lerobot_env_unidextok.configuration import ENV_TYPE, UniDexTokEnvConfig, register_gym_ids
+from lerobot_env_unidextok.registration import GYM_NAMESPACE, register_gym_ids
 
 register_gym_ids()
 
-__all__ = ["ENV_TYPE", "UniDexTokEnvConfig", "register_gym_ids"]
+__all__ = ["GYM_NAMESPACE", "register_gym_ids"]

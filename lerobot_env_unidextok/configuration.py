@@ -1,4 +1,5 @@
-"""`--env.type=unidextok`: LeRobot's config of the simulator (registered on import; no MuJoCo import).
+"""`--env.type=unidextok`: LeRobot's config of the simulator (registered on import, with the gym ids; no MuJoCo
+import). `lerobot_policy_unidextok`, which LeRobot's CLIs discover, imports this module.
 
     lerobot-eval --policy.path=<checkpoint> --env.type=unidextok --env.task=GraspLift-v0 \
         --env.hand=inspire_rh56_unitree --eval.n_episodes=50 --eval.batch_size=10 --eval.use_async_envs=false
@@ -19,9 +20,9 @@ from lerobot.envs.configs import EnvConfig
 
 from lerobot_env_unidextok.columns import EPISODE_STEPS, FPS, TASKS, WRIST_NAMES, state_names
 from lerobot_env_unidextok.errors import SimInputError
+from lerobot_env_unidextok.registration import GYM_NAMESPACE, register_gym_ids
 
 ENV_TYPE = "unidextok"
-GYM_NAMESPACE = "lerobot_env_unidextok"
 POLICY_ACTIONS = ("udhm", "native")
 UDHM_DIM = 22
 
@@ -74,12 +75,4 @@ class UniDexTokEnvConfig(EnvConfig):
                 "height": self.render_height}  # fmt: skip
 
 
-def register_gym_ids() -> None:
-    """`lerobot_env_unidextok/<task>` in gymnasium's registry (the env module, and MuJoCo, load on `gym.make`)."""
-    import gymnasium as gym
-
-    for task in TASKS:
-        env_id = f"{GYM_NAMESPACE}/{task}"
-        if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point="lerobot_env_unidextok.env:UniDexTokEnv",
-                         max_episode_steps=EPISODE_STEPS, kwargs={"task": task})  # fmt: skip
+register_gym_ids()

@@ -16,8 +16,8 @@ from lerobot_unidextok.utils.cli import quiet_torchcodec_warning
 
 quiet_torchcodec_warning()
 
-import lerobot_env_unidextok  # noqa: E402  (registration on import: --env.type=unidextok)
+import lerobot_env_unidextok.configuration  # noqa: E402  (registration on import: --env.type=unidextok)
 from lerobot_unidextok import policies, processor  # noqa: E402  (registration on import)
 from lerobot_unidextok.policies import UDT_CONFIGS  # noqa: E402
 
-__all__ = ["UDT_CONFIGS", "lerobot_env_unidextok", "policies", "processor"]
+__all__ = ["UDT_CONFIGS", "policies", "processor"]
