@@ -93,7 +93,7 @@ def base_spec(hand: SimHand) -> mujoco.MjSpec:
     for attr in ("nuser_jnt", "nuser_site", "nuser_tendon", "nuser_actuator", "nuser_sensor", "nuser_geom",
                  "nuser_body", "nuser_cam"):  # fmt: skip
         setattr(spec, attr, max(getattr(spec, attr), getattr(child, attr)))
-    spec.njmax, spec.nconmax = -1, -1
+    child.njmax, child.nconmax = -1, -1  # MuJoCo sizes them; a conflict would be logged to MUJOCO_LOG.TXT in the cwd
     frame = spec.body("wrist").add_frame(pos=list(hand.mount_pos_m), quat=list(_matrix_to_quat(hand.mount_matrix)))
     root = child.body(hand.root)
     root.pos, root.quat = [0, 0, 0], [1, 0, 0, 0]  # the mount places the root's own frame
