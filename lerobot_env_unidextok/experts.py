@@ -5,7 +5,8 @@ turned into that hand's native command by its spec (`SimHand.posture` -> `spec.f
 (where the wrist goes relative to the object) are the model file's `grasp:` entries. The expert reads only what
 the observation holds (the object's pose and size, the panel's place, the goal finger), plans its key poses once
 at the episode's start, and moves between them at most 3 cm per step. Noise (its own generator, seeded per
-episode): key poses +-4 mm and +-0.04 rad, postures +-0.05 rad per slot, phase lengths +-1 step.
+episode): key poses +-4 mm (+-3 mm in height) and +-0.04 rad of yaw, postures +-0.05 rad per UDHM slot, phase
+lengths +-1 step.
 """
 
 from __future__ import annotations
