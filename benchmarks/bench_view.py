@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_unidextok.sources.lerobot import G1_INSPIRE_HANDS
+from lerobot_unidextok.converters.lerobot import G1_INSPIRE_HANDS
 from lerobot_unidextok.utils.shared_data import real_data_dir
 
 REPO = Path(__file__).resolve().parents[1]

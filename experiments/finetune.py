@@ -7,7 +7,7 @@ dataset against training from scratch at equal steps, all scored on that dataset
     python experiments/finetune.py --dataset=path/to/converted --checkpoint=path/to/checkpoint_or_repo_id
 
 For each step budget and seed:
-- scratch: the recipe (`lerobot_unidextok/configs/train/small.yaml`: small preset, lr 6e-3) as `unidextok-train` runs it;
+- scratch: the recipe (`configs/train/small.yaml`: small preset, lr 6e-3) as `unidextok-train` runs it;
 - fine-tuned: the same recipe with `init_from=<checkpoint>`, once per fine-tune lr (default: the recipe's);
 and once: the checkpoint as it is (0 steps). Every training uses the dataset's train split, minus the
 `select_fraction` of its episodes that choose the kept checkpoint; every row is scored on the test split only.

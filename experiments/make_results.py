@@ -113,7 +113,7 @@ def _provenance_line(result: dict) -> str:
 
 def reduced_size_note(result: dict) -> str | None:
     """A section's first line when its UniDexTok trained fewer steps than the shipped schedule
-    (`lerobot_unidextok/configs/train/small.yaml` = `TrainConfig().steps`), else None. Only the experiments that train UniDexTok
+    (`configs/train/small.yaml` = `TrainConfig().steps`), else None. Only the experiments that train UniDexTok
     through `ExperimentConfig.train` (their provenance config has `train`) are concerned."""
     from experiments.config import ExperimentTraining
     from lerobot_unidextok.training import TrainConfig
@@ -126,7 +126,7 @@ def reduced_size_note(result: dict) -> str | None:
         return None
     return (f"**Reduced-size run: UniDexTok trained {steps} steps here** (`--train.steps`; the experiments' default "
             f"is {ExperimentTraining().steps}, `experiments/configs/default.yaml`), not the shipped schedules "
-            f"(`lerobot_unidextok/configs/train/small.yaml`, {shipped} steps; `lerobot_unidextok/configs/train/universal.yaml`), which score far lower "
+            f"(`configs/train/small.yaml`, {shipped} steps; `configs/train/universal.yaml`), which score far lower "
             "errors: the shipped figures are in `docs/tokenizer.md`, \"Measured on data the model never trained on\" "
             "and \"The shipped universal tokenizer\".")  # fmt: skip
 

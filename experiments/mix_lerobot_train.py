@@ -152,7 +152,7 @@ def target_hands(cfg: MixTrainConfig) -> Path | None:
         return None
     from experiments.unseen_data import real_data_dir
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
-    from lerobot_unidextok.sources.lerobot import G1_INSPIRE_HANDS
+    from lerobot_unidextok.converters.lerobot import G1_INSPIRE_HANDS
 
     root = Path(cfg.cache_dir) / f"{NAME}_g1_hands"
     if not (root / "meta" / "unidextok_conversion.json").is_file():

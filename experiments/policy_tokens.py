@@ -71,7 +71,7 @@ class PolicyTokensConfig:
     only_folds: list[int] = field(default_factory=list)  # run only these folds; empty = all
     split_seed: int = 0  # shuffles the episodes before they are dealt into folds
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])  # ACT initialisation and batch order
-    # ACT sizes, batch, lr: lerobot_unidextok/configs/lerobot/act_udt_cpu.yaml's; steps cut to fit 30 CPU-minutes (--act.steps=...)
+    # ACT sizes, batch, lr: configs/lerobot/act_udt_cpu.yaml's; steps cut to fit 30 CPU-minutes (--act.steps=...)
     act: PolicyTokensACT = field(default_factory=PolicyTokensACT)
     tokenizer: TokenizerTraining = field(default_factory=TokenizerTraining)  # per-fold tokenizer training
     # A tokenizer (folder or Hub repo id) used for every fold instead of training one; empty = train per fold.

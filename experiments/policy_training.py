@@ -16,7 +16,7 @@ import numpy as np
 
 @dataclass
 class SmallACT:
-    """ACT sizes and optimisation: the values of lerobot_unidextok/configs/lerobot/act_udt_cpu.yaml."""
+    """ACT sizes and optimisation: the values of configs/lerobot/act_udt_cpu.yaml."""
 
     dim_model: int = 64
     pre_norm: bool = False

@@ -20,7 +20,7 @@ import numpy as np
 
 from experiments.config import ExperimentConfig
 from lerobot_unidextok.constants import INFO_PATH
-from lerobot_unidextok.sources.lerobot import G1_INSPIRE_HANDS as G1_HANDS
+from lerobot_unidextok.converters.lerobot import G1_INSPIRE_HANDS as G1_HANDS
 from lerobot_unidextok.training import HandStates, load_hand_states
 from lerobot_unidextok.utils.files import fingerprint
 

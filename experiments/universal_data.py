@@ -1,4 +1,4 @@
-"""The training data of the universal tokenizer (`lerobot_unidextok/configs/train/universal.yaml`): every real recording in
+"""The training data of the universal tokenizer (`configs/train/universal.yaml`): every real recording in
 ../shared/data/real that a converter reads, converted with `unidextok-convert` into `--out`.
 
     python experiments/universal_data.py                       # -> outputs/universal_data/{g1_inspire,human_clip,mediapipe}
@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_unidextok.sources.lerobot import G1_INSPIRE_HANDS as G1_HANDS
+from lerobot_unidextok.converters.lerobot import G1_INSPIRE_HANDS as G1_HANDS
 from lerobot_unidextok.utils.shared_data import real_data_dir
 
 REPO = Path(__file__).resolve().parents[1]

@@ -1,6 +1,6 @@
 """Choose the universal recipe by measurement on data the reported figures never use.
 
-Each variant changes the universal recipe (`lerobot_unidextok/configs/train/universal.yaml`) in one or two settings, trains at
+Each variant changes the universal recipe (`configs/train/universal.yaml`) in one or two settings, trains at
 a screening length, and is scored on
 - the run's selection episodes: whole training episodes held out from training (`select_fraction`), per hand;
 - every registered hand's states uniform inside its registered ranges, drawn with another seed than the
@@ -51,7 +51,7 @@ class Variant:
 
 
 VARIANTS: dict[str, Variant] = {
-    "shipped": Variant("lerobot_unidextok/configs/train/universal.yaml as it is (small preset)"),
+    "shipped": Variant("configs/train/universal.yaml as it is (small preset)"),
     "anneal": Variant("lr decays to 0 and no dead-code re-seeding in the last 30 % of steps",
                       {"min_lr_ratio": 0.0, "reseed_until": 0.7}),  # fmt: skip
     "wide": Variant("C = 128 (small preset otherwise)", model={"hidden_dim": 128}),

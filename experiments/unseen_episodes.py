@@ -51,7 +51,7 @@ class Variant:
 RECORDED_ONLY = {"robot": {"recorded": 1.0}, "human": {"recorded": 1.0}}
 # Each variant changes one thing against `shipped` (the defaults of TrainConfig + the small preset).
 VARIANTS: dict[str, Variant] = {
-    "shipped": Variant("TrainConfig defaults, small preset (lerobot_unidextok/configs/train/small.yaml)"),
+    "shipped": Variant("TrainConfig defaults, small preset (configs/train/small.yaml)"),
     "no_coverage": Variant("recorded rows only (no coverage samples)", {"coverage": RECORDED_ONLY}),
     "uniform_only": Variant("coverage samples only", {"coverage": {"robot": {"uniform": 1.0}}}),
     "uniform_0.8": Variant(

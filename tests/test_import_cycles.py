@@ -1,4 +1,4 @@
-"""No import circles inside `lerobot_unidextok` (and its `converters`): every module's imports, read with `ast`.
+"""No import circles inside `lerobot_unidextok` (with `converters/` and `configs/`): every module's imports, read with `ast`.
 
 Counted: every `import` / `from ... import` anywhere in a module, at the top or inside a function, and
 `importlib.import_module("<literal>")`. A function-level import that closes a circle still ties the two
@@ -11,11 +11,14 @@ way plugins are discovered).
 from __future__ import annotations
 
 import ast
+import tomllib
 from pathlib import Path
 
 PACKAGE = "lerobot_unidextok"
 ROOT = Path(__file__).resolve().parents[1]
-SOURCES = {PACKAGE: ROOT / PACKAGE, f"{PACKAGE}.converters": ROOT / "converters"}  # setup.py package_dir
+# the package and the checkout folders pyproject.toml's package-dir installs inside it
+PACKAGE_DIR = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-dir"]
+SOURCES = {PACKAGE: ROOT / PACKAGE, **{name: ROOT / folder for name, folder in PACKAGE_DIR.items()}}
 
 
 def _modules() -> dict[str, Path]:

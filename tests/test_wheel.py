@@ -48,7 +48,7 @@ def _run(installed, args: list[str], cwd: Path, timeout: int = 600) -> subproces
 def test_the_wheel_holds_the_library_its_data_and_licences(installed):
     _, _, wheel = installed
     names = zipfile.ZipFile(wheel).namelist()
-    assert "lerobot_unidextok/sources/lerobot.py" in names and "lerobot_unidextok/samples/formats.py" in names
+    assert "lerobot_unidextok/converters/lerobot.py" in names and "lerobot_unidextok/samples/formats.py" in names
     assert "lerobot_unidextok/hands/specs/inspire_rh56_unitree.yaml" in names
     assert "lerobot_unidextok/configs/lerobot/act_udt_cpu.yaml" in names
     assert "lerobot_unidextok/pretrained/universal-small/model.safetensors" in names
@@ -56,7 +56,9 @@ def test_the_wheel_holds_the_library_its_data_and_licences(installed):
             "lerobot_env_unidextok/assets/inspire/LICENSE.robosuite", "lerobot_env_unidextok/assets/allegro/allegro_right.xml",
             "lerobot_env_unidextok/assets/allegro/LICENSE.allegro_hand"} <= set(names)  # fmt: skip
     assert any(n.endswith("licenses/LICENSE") for n in names) and any(n.endswith("licenses/NOTICE") for n in names)
-    assert not [n for n in names if n.startswith(("tests/", "experiments/", "benchmarks/", "converters/"))]
+    # the checkout's top-level converters/ and configs/ install inside the package, nowhere else
+    assert "lerobot_unidextok/converters/README.md" in names and "lerobot_unidextok/configs/__init__.py" in names
+    assert not [n for n in names if n.startswith(("tests/", "experiments/", "benchmarks/", "converters/", "configs/"))]
 
 
 @pytest.mark.slow
@@ -67,16 +69,25 @@ def test_readme_pip_commands_run_from_the_installed_wheel(installed, tmp_path):
     lists the configs. Before: the configs were not in the wheel and the demo needed h5py."""
     site = installed[0]
     where = _run(installed, [sys.executable, "-c", "import lerobot_unidextok, lerobot_policy_unidextok; "
+                             "import lerobot_unidextok.converters as c, lerobot_unidextok.configs as g; "
                              "from lerobot_unidextok import UniDexTok; "
                              "t = UniDexTok.from_pretrained('unidextok/universal-small'); "
-                             "print(lerobot_unidextok.__file__, len(t.config.hand_names))"], tmp_path)  # fmt: skip
-    assert where.stdout.split()[0].startswith(str(site)), where.stdout
+                             "print(lerobot_unidextok.__file__, c.__file__, g.__file__, len(t.config.hand_names))"],
+                 tmp_path)  # fmt: skip
+    assert all(p.startswith(str(site)) for p in where.stdout.split()[:3]), where.stdout
     listed = _run(installed, ["unidextok-config"], tmp_path).stdout
     assert "train/small" in listed and "lerobot/act_udt_cpu" in listed
     config = _run(installed, ["unidextok-config", "lerobot/act_udt_cpu"], tmp_path).stdout.strip()
     assert config.startswith(str(site)) and Path(config).is_file()
     demo = _run(installed, ["unidextok-demo", "--quick", "--preset=tiny", "--steps=20", "--out=demo"], tmp_path)
     assert "UniDexTok shipped" in demo.stdout and (tmp_path / "demo" / "plots" / "per_joint_error.png").is_file()
+    # the demo converts a sample of every source format with the wheel's converters
+    from lerobot_unidextok.samples import available_sample_sources
+
+    sources, skipped = available_sample_sources()
+    assert len(sources) == 6 and not skipped, skipped
+    for source in sources:
+        assert (tmp_path / "demo" / "converted" / source / "meta" / "unidextok_conversion.json").is_file(), source
     g1 = tmp_path / "demo" / "converted" / "lerobot"
     _run(installed, ["lerobot-train", f"--config_path={config}", "--dataset.repo_id=demo/lerobot_udhm",
                      f"--dataset.root={g1}", "--steps=2", "--batch_size=4", "--log_freq=1", "--save_freq=2",
@@ -117,5 +128,15 @@ def test_the_sdist_is_the_library_with_its_licences(tmp_path):
     assert "lerobot_unidextok/hands/specs/unitree_dex3_1.yaml" in names
     assert "lerobot_unidextok/pretrained/universal-small/model.safetensors" in names
     assert "lerobot_env_unidextok/assets/inspire/inspire_right_hand.xml" in names
+    # the checkout's shape: converters/ and configs/ at the top, as the design card lays it out
+    assert {"converters/lerobot.py", "converters/README.md", "configs/__init__.py", "configs/train/small.yaml"} <= set(names)
     stray = [n for n in names if n.startswith(("tests/", "experiments/", "benchmarks/", "docs/", "tools/"))]
     assert stray == [], stray[:5]
+    # a wheel built from the sdist (what pip does with it) installs both inside the package
+    tarfile.open(sdist).extractall(tmp_path / "unpacked", filter="data")
+    (unpacked,) = (tmp_path / "unpacked").iterdir()
+    subprocess.run([sys.executable, "-c", f"from setuptools import build_meta; build_meta.build_wheel({str(tmp_path)!r})"],
+                   cwd=unpacked, check=True, capture_output=True, timeout=300)  # fmt: skip
+    (wheel,) = tmp_path.glob("lerobot_policy_unidextok-*.whl")
+    wheel_names = set(zipfile.ZipFile(wheel).namelist())
+    assert {"lerobot_unidextok/converters/dexycb.py", "lerobot_unidextok/configs/lerobot/act_udt_cpu.yaml"} <= wheel_names

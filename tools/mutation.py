@@ -12,8 +12,8 @@ How it works (a small harness of our own rather than mutmut, which rewrites the 
 `mutants/` tree with trampolines that the editable install, LeRobot's plugin discovery and the subprocess
 tests of this repository would not see):
 
-1. The package (with `lerobot_unidextok/sources/`, installed as `lerobot_unidextok.sources`) is copied to a temp folder
-   that goes first on `sys.path` and `PYTHONPATH`, so in-process tests and the subprocesses they start
+1. The package is copied to a temp folder in its installed shape (the checkout's `converters/` and `configs/`
+   inside it, as pyproject.toml's package-dir maps them), and that folder goes first on `sys.path` and `PYTHONPATH`, so in-process tests and the subprocesses they start
    (CLIs, `lerobot-train`, worker pools) import the mutated copy; the repository is never modified.
 2. One baseline run per module: the module's test folders under coverage with one context per test, which
    gives, for every line, the tests that execute it, and each test's duration. A failing baseline stops
@@ -58,6 +58,7 @@ import sys
 import tempfile
 import time
 import tokenize
+import tomllib
 from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -452,9 +453,14 @@ def module_files(module: str) -> list[str]:
 
 
 def make_copy() -> Path:
+    """The package as installed, in a temp folder: `lerobot_unidextok/` with the folders pyproject.toml's
+    package-dir maps into it (`converters/` as `lerobot_unidextok/converters`, `configs/` likewise)."""
     src_root = Path(tempfile.mkdtemp(prefix="unidextok-mutation-src-"))
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
     shutil.copytree(ROOT / PACKAGE, src_root / PACKAGE, ignore=ignore)
+    package_dir = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-dir"]
+    for name, folder in package_dir.items():
+        shutil.copytree(ROOT / folder, src_root.joinpath(*name.split(".")), ignore=ignore)
     return src_root
 
 

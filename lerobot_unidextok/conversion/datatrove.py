@@ -123,9 +123,9 @@ def _preload_local_workers() -> None:
     with it loaded instead of importing it again (seconds of CPU per worker: lerobot, torch)."""
     import multiprocess
 
-    from lerobot_unidextok.conversion.registry import SOURCES_PACKAGE
+    from lerobot_unidextok.conversion.registry import CONVERTERS_PACKAGE
 
-    multiprocess.get_context("forkserver").set_forkserver_preload([__name__, SOURCES_PACKAGE])
+    multiprocess.get_context("forkserver").set_forkserver_preload([__name__, CONVERTERS_PACKAGE])
 
 
 def build_executors(opts: ConvertOptions, cfg: ExecutorOptions, num_shards: int | None = None):

@@ -1,6 +1,6 @@
 """What a source reader hands to the conversion pipeline: raw episodes in native units.
 
-Readers (`lerobot_unidextok/sources/<source>.py`) only turn files into these objects; everything else
+Readers (`converters/<source>.py`) only turn files into these objects; everything else
 (UDHM mapping, validation, writing, splits, cards) is shared machinery in this package.
 
 A robot episode carries the whole robot, not only its hands (converted-dataset contract in

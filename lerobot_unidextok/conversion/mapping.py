@@ -134,9 +134,12 @@ def _map_values(
     what: str,
     src: str,
     present: np.ndarray,
+    first: int = 0,
 ) -> np.ndarray:
-    """(T, ...) native -> (T, 22) float32 rad; absent frames are zero."""
+    """(T, ...) native -> (T, 22) float32 rad; absent frames are zero. `first`: the source frame number of
+    frame 0 (leading frames without a hand are trimmed), for the messages."""
     from lerobot_unidextok.hands import check_units
+    from lerobot_unidextok.udhm.ik import KeypointFramesError
 
     num = values.shape[0]
     out = np.zeros((num, UDHM_DIM), dtype=np.float32)
@@ -145,7 +148,7 @@ def _map_values(
         bad = ~np.isfinite(sel.reshape(sel.shape[0], -1)).all(axis=1)
         raise EpisodeError(
             src,
-            f"NaN/inf in {what} of the {side} hand at frames {_frames(np.flatnonzero(present)[bad])}",
+            f"NaN/inf in {what} of the {side} hand at frames {_frames(first + np.flatnonzero(present)[bad])}",
         )
     if not present.any():
         return out
@@ -154,6 +157,9 @@ def _map_values(
         udhm = np.asarray(spec.to_udhm(sel, side=side, mapping=mapping), dtype=np.float64)
     except EpisodeError:
         raise
+    except KeypointFramesError as exc:  # its frames count the present frames only: name the episode's
+        frames = first + np.flatnonzero(present)[exc.frames.reshape(-1)]
+        raise EpisodeError(src, f"{what} of the {side} hand: {exc.problem} in frames {_frames(frames)}{exc.hint}") from exc
     except (ValueError, KeyError) as exc:
         raise EpisodeError(src, f"{what} of the {side} {spec.name} hand: {exc}") from exc
     if not np.isfinite(udhm).all():
@@ -254,11 +260,11 @@ def map_episode(raw: RawEpisode, mapping: str = "semantic", zero_hands: str = "a
     for stream, spec, valid in zip(raw.hands, specs, valids, strict=True):
         keep = valid[first:last]
         native = np.asarray(stream.state_native)[first:last]
-        states.append(_map_values(spec, native, stream.side, mapping, "state", src, keep))
+        states.append(_map_values(spec, native, stream.side, mapping, "state", src, keep, first))
         masks.append(np.where(keep[:, None], spec.mask(mapping)[None, :], False))
         if stream.action_native is not None:
             act = np.asarray(stream.action_native)[first:last]
-            actions.append(_map_values(spec, act, stream.side, mapping, "action", src, keep))
+            actions.append(_map_values(spec, act, stream.side, mapping, "action", src, keep, first))
 
     passthrough = _check_passthrough(raw, num, src, has_action=any(has_action))
     trimmed = (first, last) != (0, num)
@@ -312,7 +318,33 @@ def _check_passthrough(raw: RawEpisode, num: int, src: str, has_action: bool) ->
     missing = set(raw.copied_features) ^ set(raw.copied)
     if missing:
         raise EpisodeError(src, f"copied features and columns disagree: {sorted(missing)}")
+    for key, column in raw.copied.items():
+        bad = nonfinite_rows(column)
+        if bad is not None and len(bad):
+            raise EpisodeError(
+                src,
+                f"NaN/inf in the copied feature {key} at frames {_frames(bad)}: the dataset's statistics and every "
+                "training loss that reads it would be NaN; fix or drop those frames in the source, convert with "
+                "--keep=hands to leave the feature out, or --on_error=skip to skip the episode",
+            )
     return raw.passthrough
+
+
+def nonfinite_rows(column) -> np.ndarray | None:
+    """Frame indices of a (T,) Arrow column (numbers, or lists of them) holding NaN or inf; None when the
+    column does not hold floating-point numbers (strings, images, integers)."""
+    import pyarrow as pa  # the copied columns are Arrow arrays already: pyarrow is loaded
+    import pyarrow.compute as pc
+
+    arr = column.combine_chunks() if isinstance(column, pa.ChunkedArray) else column
+    rows = np.arange(len(arr))
+    while pa.types.is_list(arr.type) or pa.types.is_large_list(arr.type) or pa.types.is_fixed_size_list(arr.type):
+        rows = rows[pc.list_parent_indices(arr).to_numpy()]
+        arr = arr.flatten()
+    if not pa.types.is_floating(arr.type):
+        return None
+    values = arr.to_numpy(zero_copy_only=False)
+    return np.unique(rows[~np.isfinite(values)])
 
 
 def _slice_column(column, first: int, last: int, num: int, src: str, key: str):

@@ -37,6 +37,7 @@ is one `MixError` naming the fix; nothing is written then.
 from __future__ import annotations
 
 import logging
+import math
 import shutil
 import time
 from dataclasses import dataclass, field
@@ -55,17 +56,18 @@ from lerobot_unidextok.constants import (
     UDHM_MASK_KEY,
 )
 from lerobot_unidextok.conversion.card import write_card
-from lerobot_unidextok.conversion.output import check_output, move_into_place, remove_stale, temp_dir
+from lerobot_unidextok.conversion.registry import resamples
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
+from lerobot_unidextok.data.destination import MIX_SOURCE, Kind, claim, move_into_place, recover
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.data.reader import data_files, dataset_folder
 from lerobot_unidextok.data.record import ConversionRecord, EpisodeRecord, MixedSource, write_record
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.utils.cli import progress_bar
+from lerobot_unidextok.utils.files import temp_sibling
 
 logger = logging.getLogger(__name__)
 
-MIX_SOURCE = "mix"  # the `source` of a mixed dataset's record
 KEEP = ("hands", "all")
 MAX_GROWTH = 20.0  # weights that would write more than this many times the inputs' frames are refused
 
@@ -94,8 +96,10 @@ class MixOptions:
             raise MixError("no inputs: pass --inputs='[<converted dataset folder or repo id>, ...]'")
         if self.keep not in KEEP:
             raise MixError(f"keep must be one of {KEEP}, got {self.keep!r}")
-        if self.weights and (len(self.weights) != len(self.inputs) or min(self.weights) <= 0):
-            raise MixError(f"--weights needs one positive weight per input ({len(self.inputs)}), got {self.weights}")
+        if self.weights and (len(self.weights) != len(self.inputs) or not all(math.isfinite(w) and w > 0
+                                                                               for w in self.weights)):
+            raise MixError(f"--weights needs one positive, finite weight per input ({len(self.inputs)}), got "
+                           f"{self.weights}")  # fmt: skip
         if self.action_ahead < 1:
             raise MixError(f"action_ahead must be >= 1 frame, got {self.action_ahead}")
         if not self.root:
@@ -164,11 +168,24 @@ def _open_input(name: str, opts: MixOptions) -> _Input:
 
 
 def _check_compatible(inputs: list[_Input], opts: MixOptions) -> None:
+    roots: dict[Path, str] = {}
+    for i in inputs:
+        same = roots.setdefault(i.meta.root.resolve(), i.name)
+        if same != i.name:
+            raise MixError(
+                f"inputs {same} and {i.name} are the same dataset ({i.meta.root.resolve()}): give each dataset once "
+                "(--weights gives an input a larger share of the training frames)"
+            )
     fps = {i.name: i.meta.fps for i in inputs}
     if len(set(fps.values())) > 1:
+        again = [f"{i.name} ({i.record.source})" for i in inputs if _resamples(i.record.source)]
+        fixed = [f"{i.name} ({i.record.source})" for i in inputs if not _resamples(i.record.source)]
         raise MixError(
-            f"the inputs have different frame rates {fps}: convert them onto one grid first (unidextok-convert "
-            "--fps=<rate> resamples time-stamped sources), then mix"
+            f"the inputs have different frame rates {fps}, and a mix has one. "
+            + (f"Convert {', '.join(again)} again with --fps=<the others' rate> (their source resamples "
+               "time-stamped streams onto that grid). " if again else "")
+            + (f"{', '.join(fixed)} keep the rate they were recorded at (their source has fixed-rate files): mix "
+               "them only with inputs at that rate." if fixed else "")
         )
     mappings = {i.name: i.record.mapping for i in inputs}
     if len(set(mappings.values())) > 1:
@@ -181,6 +198,13 @@ def _check_compatible(inputs: list[_Input], opts: MixOptions) -> None:
         clash = sorted({n for i in inputs for n in i.state_pass + i.action_pass if n in udhm_like})
         if clash:
             raise MixError(f"--name_map maps passthrough columns onto UDHM block names {clash[:4]}; choose other names")
+
+
+def _resamples(source: str) -> bool:
+    try:
+        return resamples(source)
+    except ValueError:  # a source not registered here (another package's reader): say nothing about it
+        return False
 
 
 def _ordered_union(lists: list[list[str]]) -> list[str]:
@@ -355,9 +379,9 @@ def action_delta_stats(root: str | Path, episodes: list[int]) -> dict[str, dict[
 def mix(opts: MixOptions) -> MixReport:
     """Mix `opts.inputs` into one dataset at `opts.root` (module docstring)."""
     t0 = time.perf_counter()
-    target = Path(opts.root).expanduser().resolve()
+    target = recover(opts.root)  # before anything can fail: a dead run's half-replaced mix is put back
     inputs = [_open_input(name, opts) for name in opts.inputs]
-    check_output(target, [i.meta.root for i in inputs], opts.overwrite)
+    claim(target, Kind.MIX, inputs=[i.meta.root for i in inputs], overwrite=opts.overwrite)
     _check_compatible(inputs, opts)
     mixer = _Mixer(inputs, opts)
     train_frames = [
@@ -371,8 +395,7 @@ def mix(opts: MixOptions) -> MixReport:
             f"than {MAX_GROWTH:g}x the inputs' {sum(train_frames)}): choose weights closer to the inputs' sizes"
         )
     target.parent.mkdir(parents=True, exist_ok=True)
-    remove_stale(target)
-    tmp = temp_dir(target)
+    tmp = temp_sibling(target)
     writer = UdhmDatasetWriter(tmp, opts.repo_id, int(inputs[0].meta.fps), mixer.features)
     episodes: list[EpisodeRecord] = []
     test: list[int] = []
@@ -438,7 +461,7 @@ def mix(opts: MixOptions) -> MixReport:
         record.action_delta_stats = action_delta_stats(tmp, [e.episode_index for e in episodes if e.split == "train"])
         write_record(tmp, record)
         write_card(tmp, repo_id=opts.repo_id, record=record, num_frames=writer.num_frames, features=writer.features)
-        move_into_place(tmp, target, opts.overwrite)
+        move_into_place(tmp, target, Kind.MIX, opts.overwrite)
     except BaseException:
         bar.close()
         writer.abort()

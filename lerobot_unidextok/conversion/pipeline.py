@@ -45,9 +45,8 @@ from lerobot_unidextok.constants import (
 from lerobot_unidextok.conversion.card import write_card
 from lerobot_unidextok.conversion.features import episode_features, episode_frames, native_layouts, udhm_features
 from lerobot_unidextok.conversion.mapping import ZERO_HANDS, EpisodeError, UdhmEpisode, map_episode, to_sides
-from lerobot_unidextok.conversion.output import check_output, move_into_place, remove_stale, temp_dir
 from lerobot_unidextok.conversion.registry import (
-    SOURCES_PACKAGE,
+    CONVERTERS_PACKAGE,
     SetupError,
     get_source,
     import_sources,
@@ -55,11 +54,13 @@ from lerobot_unidextok.conversion.registry import (
 )
 from lerobot_unidextok.conversion.workers import PARENT_ENV, die_with
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
+from lerobot_unidextok.data.destination import Kind, claim, move_into_place, recover
 from lerobot_unidextok.data.record import ConversionRecord, EpisodeRecord, load_record, write_record
 from lerobot_unidextok.data.splits import split_order
 from lerobot_unidextok.errors import InvalidInputError, MissingInputError, UnavailableError
 from lerobot_unidextok.layout import NativeLayout
 from lerobot_unidextok.utils.cli import progress_bar
+from lerobot_unidextok.utils.files import temp_sibling
 
 logger = logging.getLogger(__name__)
 
@@ -255,7 +256,7 @@ def _iter_results(refs: list, opts: ConvertOptions, reader_options: dict):
                 "lerobot_unidextok.conversion.workers",
                 "lerobot_unidextok.conversion.pipeline",
                 "lerobot_unidextok.hands",
-                SOURCES_PACKAGE,
+                CONVERTERS_PACKAGE,
             ]
         )
     pool = ProcessPoolExecutor(
@@ -355,11 +356,11 @@ def source_robot_type(reader, refs: list) -> str | None:
 
 def checked_paths(opts: ConvertOptions) -> tuple[Path, Path]:
     """(output root, input path) of a conversion; refuses an existing root without --overwrite and a missing input."""
-    target = Path(opts.root).expanduser().resolve()
+    target = recover(opts.root)  # before anything can fail: a dead run's half-replaced dataset is put back
     input_path = Path(opts.input).expanduser()
     if not input_path.exists():
         raise MissingInputError(f"--input {input_path} does not exist")
-    check_output(target, [input_path], opts.overwrite)
+    claim(target, Kind.CONVERTED, inputs=[input_path], overwrite=opts.overwrite)
     return target, input_path
 
 
@@ -374,8 +375,7 @@ def convert(opts: ConvertOptions) -> ConvertReport:
     plan = plan_episodes(reader, opts, input_path)
 
     target.parent.mkdir(parents=True, exist_ok=True)
-    remove_stale(target)
-    tmp = temp_dir(target)
+    tmp = temp_sibling(target)
     state = _RunState(
         robot_type=plan.robot_type,
         synthetic=bool(getattr(reader_cls, "synthetic", False)) or input_is_synthetic(input_path),
@@ -417,7 +417,7 @@ def convert(opts: ConvertOptions) -> ConvertReport:
             features=state.writer.features,
             failures=[asdict(f) for f in state.failures],
         )
-        move_into_place(tmp, target, opts.overwrite)
+        move_into_place(tmp, target, Kind.CONVERTED, opts.overwrite)
     except BaseException:
         bar.close()
         if state.writer is not None:
@@ -448,6 +448,12 @@ def convert(opts: ConvertOptions) -> ConvertReport:
             "frame_index / %d, right only if the frames were recorded 1/fps apart: %s", len(notes), state.writer.fps,
             "; ".join(notes[:5]) + (f" and {len(notes) - 5} more" if len(notes) > 5 else ""),
         )  # fmt: skip
+    if state.source_notes:
+        notes = state.source_notes
+        logger.warning(
+            "%d episode(s) have source metadata that disagrees with their data, or a single frame; converted as their "
+            "data holds them: %s", len(notes), "; ".join(notes[:5]) + (f" and {len(notes) - 5} more" if len(notes) > 5 else ""),
+        )  # fmt: skip
     if state.failures:
         logger.warning("%d episode(s) skipped:\n%s", len(state.failures), format_failures(state.failures))
     return report
@@ -469,7 +475,8 @@ class _RunState:
     test_episodes: list[int] = field(default_factory=list)
     hands_seen: dict[str, None] = field(default_factory=dict)
     zero_hands: list[str] = field(default_factory=list)  # "<episode key>: <sides>" converted as absent (all 0)
-    timestamp_notes: list[str] = field(default_factory=list)  # "<episode key>: <what is wrong>" (sources/_lerobot_files)
+    timestamp_notes: list[str] = field(default_factory=list)  # "<episode key>: <what is wrong>" (converters/_lerobot_files.py)
+    source_notes: list[str] = field(default_factory=list)  # "<episode key>: <metadata that disagrees with the data>"
     counts: dict[str, int] = field(default_factory=lambda: {"trimmed_frames": 0, "absent_hand_frames": 0})
 
     def add(self, result: UdhmEpisode | EpisodeFailure, key: str, split: str, opts: ConvertOptions, tmp: Path) -> None:
@@ -523,6 +530,7 @@ class _RunState:
             self.zero_hands.append(f"{key} ({', '.join(result.zero_hand_sides)})")
         if result.extra.get("timestamp_note"):
             self.timestamp_notes.append(f"{key}: {result.extra['timestamp_note']}")
+        self.source_notes += [f"{key}: {note}" for note in result.extra.get("source_notes", ())]
 
     def finish(self, opts: ConvertOptions, reader_cls: type, plan: _Plan) -> ConversionRecord:
         total = self.writer.num_episodes
@@ -604,12 +612,12 @@ def merge_shards(
 
     target = Path(root).expanduser().resolve()
     shard_roots = [Path(r) for r in shard_roots]
-    check_output(target, shard_roots, overwrite)
+    claim(target, Kind.CONVERTED, inputs=shard_roots, overwrite=overwrite)
     shard_records = [load_record(r) for r in shard_roots]
     missing = [str(r) for r, rec in zip(shard_roots, shard_records, strict=True) if rec is None]
     if missing:
         raise InvalidInputError(f"not converted shards (no {CONVERSION_PATH}): {missing}")
-    tmp = temp_dir(target)
+    tmp = temp_sibling(target)
     try:
         aggregate_datasets(
             repo_ids=[f"{repo_id}_shard{k}" for k in range(len(shard_roots))],
@@ -655,7 +663,7 @@ def merge_shards(
             num_frames=int(info["total_frames"]),
             features=info["features"],
         )
-        move_into_place(tmp, target, overwrite)
+        move_into_place(tmp, target, Kind.CONVERTED, overwrite)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -1,7 +1,7 @@
 """Source registry: converters register a reader class under a source name.
 
-A source reader lives in `lerobot_unidextok/sources/<source>.py` (or in any module of yours that imports
-`register_source` and is imported before the conversion)::
+A source reader lives in the checkout's `converters/<source>.py`, imported as `lerobot_unidextok.converters.<source>`
+(or in any module of yours that imports `register_source` and is imported before the conversion)::
 
     @register_source("dexycb")
     class DexYCBSource:
@@ -31,7 +31,7 @@ from lerobot_unidextok.errors import InvalidInputError
 logger = logging.getLogger(__name__)
 
 _SOURCES: dict[str, type] = {}
-SOURCES_PACKAGE = "lerobot_unidextok.sources"
+CONVERTERS_PACKAGE = "lerobot_unidextok.converters"
 
 
 def register_source(name: str):
@@ -60,19 +60,17 @@ def unregister_source(name: str) -> None:
 
 
 def import_sources() -> None:
-    """Import `lerobot_unidextok.sources` and its submodules so their decorators run."""
-    try:
-        pkg = importlib.import_module(SOURCES_PACKAGE)
-    except ModuleNotFoundError as exc:
-        logger.debug("no converters package: %s", exc)
-        return
+    """Import `lerobot_unidextok.converters` (the checkout's `converters/` folder) and its submodules so their
+    decorators run."""
     import pkgutil
+
+    pkg = importlib.import_module(CONVERTERS_PACKAGE)
 
     for info in pkgutil.iter_modules(getattr(pkg, "__path__", [])):
         if info.name.startswith("_"):
             continue
         try:
-            importlib.import_module(f"{SOURCES_PACKAGE}.{info.name}")
+            importlib.import_module(f"{CONVERTERS_PACKAGE}.{info.name}")
         except ImportError as exc:  # an optional extra is missing: the source stays unavailable
             logger.warning("source module %s not importable: %s", info.name, exc)
 
@@ -90,7 +88,7 @@ def get_source(name: str) -> type:
     if name not in _SOURCES:
         raise ValueError(
             f"unknown source {name!r}; available sources: {sorted(_SOURCES) or 'none registered'}. "
-            f"Register one with @register_source({name!r}) in lerobot_unidextok/sources/{name}.py"
+            f"Register one with @register_source({name!r}) in converters/{name}.py"
         )
     return _SOURCES[name]
 
@@ -104,6 +102,12 @@ def source_options_help(cls: type) -> str:
     """`name=default` of every option (keyword argument) of a source reader class."""
     params = [p for p in inspect.signature(cls).parameters.values() if p.kind is not p.VAR_KEYWORD]
     return ", ".join(f"{p.name}={p.default!r}" if p.default is not p.empty else p.name for p in params) or "none"
+
+
+def resamples(name: str) -> bool:
+    """Whether source `name` resamples time-stamped streams onto a frame grid (it takes `--fps`); the others
+    keep the rate their files record."""
+    return "fps" in inspect.signature(get_source(name)).parameters
 
 
 def make_reader(name: str, options: dict | None = None):

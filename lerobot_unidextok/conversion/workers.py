@@ -17,19 +17,11 @@ import sys
 import threading
 import time
 
+from lerobot_unidextok.utils.files import process_alive
+
 PARENT_ENV = "UNIDEXTOK_CONVERT_PARENT"  # pid of the conversion, for the forkserver it starts
 POLL_S = 1.0
 _PR_SET_PDEATHSIG = 1
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def die_with(*pids: int) -> None:
@@ -42,7 +34,7 @@ def die_with(*pids: int) -> None:
     watched = [os.getppid(), *pids]
 
     def watch() -> None:
-        while all(_alive(pid) for pid in watched):
+        while all(process_alive(pid) for pid in watched):
             time.sleep(POLL_S)
         os._exit(1)
 

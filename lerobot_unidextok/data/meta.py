@@ -127,7 +127,11 @@ class UdhmDatasetMeta:
         """The distinct `hand_type` values (hand spec per block, comma-separated), sorted: from the record when
         it describes the dataset, else from the `hand_type` column of the data files."""
         if HAND_TYPE_KEY not in self.features:
-            raise InvalidInputError(f"{self.root} has no '{HAND_TYPE_KEY}' column; convert it to UDHM with unidextok-convert")
+            raise InvalidInputError(
+                f"{self.root} has no '{HAND_TYPE_KEY}' column: it is not a converted UDHM dataset. Convert it first, "
+                f"e.g. unidextok-convert --source=lerobot --input={self.root} --root=<new folder> "
+                "--source_options='{\"hands\": \"<its hands>\"}' (docs/conversion.md), and use that folder"
+            )
         record = self.record
         if not self.record_problem and record.episodes and all(e.hand_type for e in record.episodes):
             return sorted({e.hand_type for e in record.episodes})
@@ -153,7 +157,9 @@ class UdhmDatasetMeta:
             raise InvalidInputError(
                 f"{self.root} mixes hand layouts across frames ({types}), but a processor step tokenises every "
                 "frame with one fixed layout. Convert each hand into its own dataset (e.g. --max_episodes or "
-                "separate inputs), or pass hand_layout explicitly if one layout is really meant for all frames"
+                "separate inputs), mix them with unidextok-mix (a mix tokenises each row with its own hands), or "
+                "pass the layout explicitly (--policy.udt_hand_layout, or hand_layout= for the step) if one layout "
+                "is really meant for all frames"
             )
         return types[0].split(",")
 

@@ -179,7 +179,8 @@ def _split_episodes(meta: UdhmDatasetMeta, split: str | None, holdout: str) -> n
     if not len(wanted):
         raise SplitError(
             f"{meta.root} has no {split} episodes ({episode_split.origin}: {len(episode_split.test)} test of "
-            f"{episode_split.num_episodes}); use split='all'"
+            f"{episode_split.num_episodes}): score every episode instead (`--split=all` on the command line, "
+            "split='all' in Python)"
         )
     return wanted
 

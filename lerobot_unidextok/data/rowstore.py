@@ -21,9 +21,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import os
 import shutil
-import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,7 +30,7 @@ import numpy as np
 from lerobot_unidextok.constants import CONVERSION_PATH, INFO_PATH, UDHM_DIM
 from lerobot_unidextok.data.reader import data_files, iter_udhm_frames, resolve_root
 from lerobot_unidextok.errors import InvalidInputError, MissingInputError
-from lerobot_unidextok.utils.files import replace_folder
+from lerobot_unidextok.utils.files import recover_folder, replace_folder, temp_sibling
 
 logger = logging.getLogger(__name__)
 
@@ -182,7 +180,9 @@ def build_row_store(
     roots = _roots(datasets)
     folder = Path(folder).expanduser().resolve()
     folder.parent.mkdir(parents=True, exist_ok=True)
-    tmp = folder.parent / f".{folder.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    for note in recover_folder(folder):
+        logger.warning(note)
+    tmp = temp_sibling(folder)
     tmp.mkdir()
     files: dict[str, dict] = {}  # hand -> {"file": stem, "rows": n, "handles": {key: file}}
     try:

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.data.destination import claim_files, is_json_with
 from lerobot_unidextok.evaluation.metrics import reconstruction_metrics
 from lerobot_unidextok.evaluation.reconstruct import codebook_usage, reconstruct
 from lerobot_unidextok.utils.files import jsonable
@@ -110,9 +111,20 @@ def markdown_table(report: dict) -> str:
     return "\n".join(lines)
 
 
+def claim_report(stem: str | Path, inputs: list[Path] | tuple[Path, ...] = ()) -> Path:
+    """Check that `<stem>.json` and `<stem>.md` may be written (`data.destination.claim_files`): not an input,
+    not inside a dataset or a checkpoint, and an existing file only when it is an earlier report. Returns the
+    stem resolved."""
+    stem = Path(stem).expanduser().resolve()
+    is_report = is_json_with("per_hand", "overall")
+    claim_files([stem.with_suffix(".json"), stem.with_suffix(".md")], inputs=inputs, flag="--output",
+                is_ours=lambda p: is_report(p.with_suffix(".json")))  # fmt: skip
+    return stem
+
+
 def write_report(report: dict, stem: str | Path) -> str:
-    """Write `<stem>.json` and `<stem>.md`; returns the Markdown text."""
-    stem = Path(stem)
+    """Write `<stem>.json` and `<stem>.md` (where `claim_report` allows); returns the Markdown text."""
+    stem = claim_report(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
     stem.with_suffix(".json").write_text(json.dumps(jsonable(report), indent=2))
     md = markdown_table(report)

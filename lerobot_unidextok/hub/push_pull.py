@@ -77,6 +77,27 @@ def check_loadable(local_dir: Path, repo_type: str) -> None:
                 f"{path} cannot be read ({type(e).__name__}: {e}): nothing was pushed; re-create it (re-train, "
                 "re-save or re-convert) and push again"
             ) from None
+    if repo_type == "model":
+        check_model_loads(local_dir)
+
+
+def check_model_loads(local_dir: Path) -> None:
+    """Load a checkpoint as its users will: a policy (LeRobot's factory: config, weights, processors) or a
+    tokenizer (`UniDexTok.from_pretrained`: config keys and weight shapes checked). A folder that reads but
+    does not load (an unknown config key, a hidden_dim the weights do not have) is refused before the push."""
+    from lerobot_unidextok.errors import UserError
+
+    try:
+        if (local_dir / "policy_preprocessor.json").is_file():
+            from lerobot_unidextok.policies.checkpoint import check_policy_checkpoint  # LeRobot: only for a policy
+
+            check_policy_checkpoint(local_dir)
+        else:
+            from lerobot_unidextok.tokenizer import UniDexTok
+
+            UniDexTok.from_pretrained(str(local_dir))
+    except UserError as e:
+        raise InvalidInputError(f"{local_dir} does not load, so nothing was pushed: {e}") from e
 
 
 def cache_dir() -> str:

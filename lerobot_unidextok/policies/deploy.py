@@ -39,9 +39,11 @@ from lerobot.processor import PolicyProcessorPipeline
 
 from lerobot_unidextok.blocks import find_udhm_blocks, passthrough_indices
 from lerobot_unidextok.constants import ACTION, OBS_STATE
+from lerobot_unidextok.data.destination import Kind, claim, move_into_place
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.layout import NativeLayout
+from lerobot_unidextok.policies.checkpoint import POSTPROCESSOR, PREPROCESSOR, check_policy_checkpoint
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.processor import (
     HandActionScaleStep,
@@ -49,11 +51,10 @@ from lerobot_unidextok.processor import (
     UDHMToNativeCommandStep,
     UniDexTokMixedTokenizerStep,
 )
+from lerobot_unidextok.utils.files import temp_sibling
 
 logger = logging.getLogger(__name__)
 
-PREPROCESSOR = "policy_preprocessor.json"
-POSTPROCESSOR = "policy_postprocessor.json"
 KEPT_FILES = ("model.safetensors", "train_config.json", "README.md")
 
 
@@ -77,6 +78,16 @@ def bind_layouts(config: UdtConfigMixin, robot: UdhmDatasetMeta, zero_shot: bool
     vocab, mix_sides = list(config.udt_hand_vocabulary), list(config.udt_sides)
     if robot.record is not None and robot.record.hand_vocabulary:
         raise DeployError(f"{robot.root} is a mix; pass one robot's converted dataset (one of the mix's inputs)")
+    if len(robot.hand_types) > 1:
+        episodes = {}
+        for e in robot.record.episodes if robot.record is not None else []:
+            episodes.setdefault(e.hand_type, []).append(e.episode_index)
+        which = "; ".join(f"{t}: episodes {v[:6]}{' ...' if len(v) > 6 else ''}" for t, v in episodes.items())
+        raise DeployError(
+            f"{robot.root} holds episodes of different hands ({which or ', '.join(robot.hand_types)}), but a robot "
+            "has one set of hands: bind to a dataset of this robot alone (convert its own recordings into their "
+            "own dataset and pass that as --robot)"
+        )
     hands, sides = robot.block_hands(), [b.side for b in find_udhm_blocks(robot.names(OBS_STATE))]
     lacking = [s for s in sides if s not in mix_sides]
     if lacking:
@@ -143,14 +154,14 @@ def _into_mix(robot: NativeLayout, mix_names: list[str], mix_sides: list[str], w
 
 def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_shot: bool = False) -> Path:
     """Write the checkpoint at `checkpoint`, bound to the robot of the converted dataset `robot`, to `output`."""
-    checkpoint, output = Path(checkpoint), Path(output)
+    checkpoint, robot = Path(checkpoint), Path(robot)
     if not (checkpoint / "config.json").is_file() or not (checkpoint / PREPROCESSOR).is_file():
         raise DeployError(
             f"{checkpoint} is not a LeRobot policy checkpoint (config.json + {PREPROCESSOR}): pass the "
             "pretrained_model folder of a lerobot-train run, e.g. outputs/<run>/checkpoints/last/pretrained_model"
         )
-    if output.exists():
-        raise DeployError(f"{output} already exists: choose another --output")
+    output = claim(output, Kind.POLICY, inputs=[checkpoint, robot], flag="--output")
+    check_policy_checkpoint(checkpoint)
     config = PreTrainedConfig.from_pretrained(checkpoint)
     if not isinstance(config, UdtConfigMixin) or not config.udt_hand_vocabulary:
         raise DeployError(
@@ -172,10 +183,10 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
     pre.steps, post.steps = (_bound_scale(steps, binding) for steps in (pre.steps, post.steps))
     if bound.udt_native_layout:
         post.steps = [*post.steps, UDHMToNativeCommandStep.from_layout(binding.action_layout)]
-    tmp = output.parent / f".{output.name}.deploy-tmp"
-    shutil.rmtree(tmp, ignore_errors=True)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    tmp = temp_sibling(output)
     try:
-        tmp.mkdir(parents=True)
+        tmp.mkdir()
         for name in KEPT_FILES:
             if (checkpoint / name).is_file():
                 shutil.copyfile(checkpoint / name, tmp / name)
@@ -185,7 +196,8 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
         (tmp / "unidextok_deploy.json").write_text(json.dumps(
             {"checkpoint": str(checkpoint), "robot": str(robot), "robot_type": UdhmDatasetMeta(robot).robot_type,
              "fixed_hand_ids": binding.fixed_hand_ids, "zero_shot_hands": binding.extra_hands}, indent=2))  # fmt: skip
-        tmp.rename(output)
+        check_policy_checkpoint(tmp)  # what is shipped loads, before it is called bound
+        move_into_place(tmp, output, Kind.POLICY, overwrite=False)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -17,12 +17,14 @@ import numpy as np
 import torch
 
 from lerobot_unidextok import hands as hand_registry
+from lerobot_unidextok.blocks import udhm_state_names
 from lerobot_unidextok.constants import UDHM_JOINT_NAMES
 from lerobot_unidextok.udhm import JOINT_LIMITS_RAD
 
 logger = logging.getLogger(__name__)
 
 RANGE_CHECKS = ("raise", "warn", "off")
+_HAND_COLUMNS = frozenset(udhm_state_names(["right", "left"]))
 RANGE_MARGIN_RAD = 0.1  # slack beyond a hand's range before a value counts as out of range (5.7 deg)
 
 
@@ -48,6 +50,31 @@ def layout_bounds(hands: list[str], sides: list[str]) -> tuple[torch.Tensor, tor
     return lo_t, hi_t
 
 
+def check_batch(states: torch.Tensor, names: list[str], key: str) -> None:
+    """A (B, D) batch the step can tokenise: at least one row, every value finite. `names`: the D column
+    names (whole-robot states name their arm columns), [] when the state is the UDHM blocks only."""
+    if states.shape[0] == 0:
+        raise ValueError(f"{key} is an empty batch (shape {tuple(states.shape)}): feed at least one frame")
+    finite = torch.isfinite(states)
+    if bool(finite.all()):
+        return
+    b, d = (int(i) for i in (~finite).nonzero()[0])
+    rows = sorted({int(i) for i in (~finite).any(dim=1).nonzero().flatten().tolist()})[:6]
+    name = names[d] if d < len(names) else None
+    in_hand = name is None or name in _HAND_COLUMNS  # no names: the state is the blocks only
+    where = f"{key} holds NaN/inf (batch rows {rows}; first at column {d}{f' ({name})' if name else ''})"
+    if in_hand:
+        raise ValueError(
+            f"{where}, in a hand block: a hand the robot lost track of. A converted dataset records an absent hand "
+            "as zeros with a zero udhm_mask (unidextok-convert does this); fill or drop those frames before the "
+            "policy"
+        )
+    raise ValueError(
+        f"{where}: a column outside the hand blocks (an arm, a gripper), which the robot did not report. The "
+        "tokenizer does not read it, but the policy would turn it into NaN actions: fill or drop those frames"
+    )
+
+
 def range_problem(
     rows: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor, hands: list[str] | list[list[str]], key: str
 ) -> str | None:
@@ -65,6 +92,12 @@ def range_problem(
         f"[{low + RANGE_MARGIN_RAD:.3f}, {high - RANGE_MARGIN_RAD:.3f}] rad"
     )
     fraction = float(bad.float().mean())
+    if not bool(rows[b, h].any()):
+        return (
+            f"{where}: block {h} is all zeros, a pose the {hand} hand cannot take. An absent hand, or a robot that "
+            "has not reported its state yet: feed its real state (a converted dataset marks an absent hand with a "
+            "zero udhm_mask, which the policies' mixed step reads as no hand)"
+        )
     if float(rows.abs().max()) > 2 * math.pi:
         return (
             f"{where}: the values look like degrees (max |x| = {float(rows.abs().max()):.1f}). UDHM states are "
@@ -110,6 +143,7 @@ def check_registry(layout_hands: list[str]) -> None:
 
 __all__ = [
     "RANGE_CHECKS",
+    "check_batch",
     "RANGE_MARGIN_RAD",
     "check_ranges",
     "check_registry",

@@ -26,7 +26,7 @@ from lerobot_unidextok import hands
 from lerobot_unidextok.blocks import find_udhm_blocks
 from lerobot_unidextok.constants import OBS_HAND_IDS, UDHM_DIM
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
-from lerobot_unidextok.processor.guards import check_ranges, check_registry, layout_bounds
+from lerobot_unidextok.processor.guards import check_batch, check_ranges, check_registry, layout_bounds
 from lerobot_unidextok.processor.processor_unidextok import (
     STEP_NAME,
     UniDexTokStateTokenizerStep,
@@ -116,9 +116,7 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
                 f"{self.input_key} has width {width}, but this step was set up for the {len(self.state_names)} "
                 f"columns of the mixed dataset ({self.num_hands} UDHM blocks {self._sides}); feed that layout"
             )
-        if not torch.isfinite(states).all():
-            bad = (~torch.isfinite(states)).nonzero()[0].tolist()
-            raise ValueError(f"{self.input_key} contains NaN/inf (first at [batch, dim] = {bad}); drop those frames")
+        check_batch(states, self.state_names, self.input_key)
         if self._columns.device != states.device:
             self._columns = self._columns.to(states.device)
         return states.index_select(1, self._columns).float().reshape(b, self.num_hands, UDHM_DIM)

@@ -40,6 +40,7 @@ from lerobot_unidextok.layout import HandLayout
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, untrained_preset
 from lerobot_unidextok.processor.guards import (
     RANGE_CHECKS,
+    check_batch,
     check_ranges,
     check_registry,
     layout_bounds,
@@ -201,12 +202,7 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
         """(B, D) whole states -> (B, H, 22) UDHM blocks, radians; checks width, NaN and ranges."""
         b, width = states.shape
         self.layout.check_width(width, self.input_key)
-        if not torch.isfinite(states).all():
-            bad = (~torch.isfinite(states)).nonzero()[0].tolist()
-            raise ValueError(
-                f"{self.input_key} contains NaN/inf (first at [batch, dim] = {bad}); drop or fill those "
-                "frames (e.g. mask untracked hands in the converter) before tokenising"
-            )
+        check_batch(states, self.state_names, self.input_key)
         if self._columns is not None:
             if self._columns.device != states.device:
                 self._columns = self._columns.to(states.device)

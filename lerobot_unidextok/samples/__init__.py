@@ -6,7 +6,7 @@ experiments (the conversion itself never imports them).
 
 `motion.py` generates named gestures in UDHM, `bags.py` writes ROS bags with `rosbags`' own writers, and
 `formats.py` writes each source's files, taking the format's facts (frame rates, names) from its reader in
-`lerobot_unidextok.sources`. Imports go one way: samples -> sources.
+`lerobot_unidextok.converters`. Imports go one way: samples -> converters.
 """
 
 from lerobot_unidextok.samples.formats import (

@@ -1,7 +1,7 @@
 """SYNTHETIC sample datasets in each source's native file format, for converter tests and the demo.
 
 `write_samples(out_dir)` writes one folder per source (`out_dir/<source>/`), each readable by the
-reader in `lerobot_unidextok/sources/<source>.py`:
+reader in `converters/<source>.py`:
 
 | source     | native form written                                                                 |
 |------------|-------------------------------------------------------------------------------------|
@@ -16,7 +16,7 @@ reader in `lerobot_unidextok/sources/<source>.py`:
 Bags are written by `rosbags`' own writers (`samples.bags`) with jittered stamps. OakInk-v2
 stores MANO pose quaternions only: its sample (written on request, not by default) holds quaternions of
 a flat-hand kinematic chain, and converting it needs MANO or a stand-in layer. Frame rates the formats imply
-(DexYCB, EgoDex) are the readers' (`lerobot_unidextok.sources`); the other rates are this sample's. Motion: `motion`
+(DexYCB, EgoDex) are the readers' (`lerobot_unidextok.converters`); the other rates are this sample's. Motion: `motion`
 (named gestures in UDHM, joint coupling, noise); human
 keypoints come from UDHM forward kinematics with varied skeletons (per-person scale and proportions)
 and wrist poses; robot values from the hand specs' `from_udhm`. Every folder has a README,
@@ -39,10 +39,10 @@ import numpy as np
 
 from lerobot_unidextok import hands, udhm
 from lerobot_unidextok.constants import SAMPLE_LABELS_FILE, UDHM_INDEX
+from lerobot_unidextok.converters.dexycb import DEXYCB_FPS
+from lerobot_unidextok.converters.egodex import EGODEX_FPS
 from lerobot_unidextok.samples.bags import sample_at, write_let_bag, write_let_sidecar, write_linkerhand_bag
 from lerobot_unidextok.samples.motion import GestureTrack, gesture_track, wrist_track
-from lerobot_unidextok.sources.dexycb import DEXYCB_FPS
-from lerobot_unidextok.sources.egodex import EGODEX_FPS
 from lerobot_unidextok.utils.cli import progress_bar
 
 logger = logging.getLogger(__name__)

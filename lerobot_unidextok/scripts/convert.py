@@ -11,7 +11,7 @@
     # datatrove: 8 shards, 2 at a time on this machine, then one merge (pip install 'lerobot_policy_unidextok[datatrove]')
     unidextok-convert --source=egodex --input=raw/egodex --root=out/egodex_udhm \\
         --executor.type=local --executor.tasks=8 --executor.workers=2
-    # Slurm: an array job of 64 shard tasks and a merge job after it (lerobot_unidextok/configs/convert/slurm.yaml)
+    # Slurm: an array job of 64 shard tasks and a merge job after it (configs/convert/slurm.yaml)
     unidextok-convert --config_path=convert/slurm --input=/data/egodex --root=/scratch/egodex_udhm
 
 --push_to_hub=true uploads the result (HF_ENDPOINT / HF_TOKEN honoured) and tags it v3.0.

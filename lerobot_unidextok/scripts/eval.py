@@ -50,11 +50,12 @@ class EvalConfig:
 
 def run(cfg: EvalConfig) -> dict:
     from lerobot_unidextok.evaluation import evaluate_tokenizer, write_report
-    from lerobot_unidextok.evaluation.report import describe_scored
+    from lerobot_unidextok.evaluation.report import claim_report, describe_scored
     from lerobot_unidextok.pretrained import resolve
     from lerobot_unidextok.tokenizer import UniDexTok
     from lerobot_unidextok.training import load_hand_states
 
+    claim_report(cfg.output, inputs=[Path(d) for d in cfg.datasets if Path(d).expanduser().exists()])
     data = load_hand_states(cfg.datasets, split=None if cfg.split == "all" else cfg.split, holdout=cfg.holdout)
     if cfg.hands:
         data = data.only(cfg.hands)

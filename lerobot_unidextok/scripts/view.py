@@ -41,6 +41,10 @@ def view_cli(cfg: ViewConfig) -> None:
     suffix = Path(cfg.output).suffix.lower()
     if suffix not in (*VIDEO_SUFFIXES, ".rrd"):
         raise InvalidInputError(f"--output must end in .mp4, .gif or .rrd, got {cfg.output!r}")
+    from lerobot_unidextok.data.destination import claim_files
+
+    # a dataset's own videos live inside it: never written over; an earlier view (same suffix) is replaced
+    claim_files([Path(cfg.output)], is_ours=lambda p: p.suffix.lower() == suffix)
     view = load_episode(cfg.dataset, cfg.episode, cfg.tokenizer, cfg.stride, cfg.max_frames, cfg.urdf)
     path = write_rerun(view, cfg.output) if suffix == ".rrd" else write_video(view, cfg.output, cfg.camera)
     print(f"wrote {path} ({view.num_frames} frames, hands {view.hands}, sides {view.sides})")

@@ -399,6 +399,12 @@ class UniDexTok(
             raise InvalidInputError(
                 f"{weights} is damaged ({e}): load another checkpoint, or re-train / re-download this one"
             ) from e
+        except RuntimeError as e:  # torch's strict load: missing, unexpected or other-shaped tensors
+            reason = " ".join(str(e).split())[:400]
+            raise InvalidInputError(
+                f"{weights} does not fit the config.json beside it ({reason}): the folder holds files of two "
+                "checkpoints, or config.json was edited; restore the checkpoint's own config.json or re-train"
+            ) from e
         model.eval()
         return model
 

@@ -1,21 +1,19 @@
 """Training checkpoints: Hub-format model folder + optimiser state in safetensors (no pickle).
 
 Every checkpoint is written into a hidden sibling folder and renamed into place (`utils/files.replace_folder`),
-so a kill mid-save leaves the previous checkpoint whole; `training_state.json`, written last, records a hash
+so a kill mid-save leaves the previous checkpoint whole (`utils/files.recover_folder` tidies what it left); `training_state.json`, written last, records a hash
 of every file beside it, and `check_checkpoint` refuses a folder whose files disagree with it."""
 
 import hashlib
 import json
 import logging
-import os
-import shutil
 from pathlib import Path
 
 import torch
 from safetensors.torch import load_file, save_file
 
 from lerobot_unidextok.errors import InvalidInputError, MissingInputError
-from lerobot_unidextok.utils.files import replace_folder
+from lerobot_unidextok.utils.files import recover_folder, replace_folder, temp_sibling
 
 TRAINING_STATE = "training_state.json"
 OPTIMIZER_STATE = "optimizer.safetensors"
@@ -35,9 +33,9 @@ def save_checkpoint(
     an exact resume needs beyond the weights: random generator states, non-persistent statistics)."""
     target = Path(directory)
     target.parent.mkdir(parents=True, exist_ok=True)
-    recover_checkpoint(target)
-    directory = target.parent / f".{target.name}.tmp-{os.getpid()}"
-    shutil.rmtree(directory, ignore_errors=True)
+    for note in recover_folder(target):
+        logger.warning(note)
+    directory = temp_sibling(target)
     directory.mkdir()
     model.save_pretrained(directory)
     if optimizer is not None:
@@ -55,23 +53,6 @@ def save_checkpoint(
         (directory / TRAINING_STATE).write_text(json.dumps({**state, "files": files}, indent=2))
     replace_folder(directory, target)
     return target
-
-
-def recover_checkpoint(directory: Path) -> None:
-    """Tidy the hidden siblings of `directory` a killed save left: unfinished `.tmp-*` folders are removed; an
-    `.old-*` folder (a kill between the two renames of `replace_folder`) is the checkpoint itself when
-    `directory` is missing, and is put back."""
-    directory = Path(directory)
-    if not directory.parent.is_dir():
-        return
-    for tmp in directory.parent.glob(f".{directory.name}.tmp-*"):
-        shutil.rmtree(tmp, ignore_errors=True)
-    old = sorted(directory.parent.glob(f".{directory.name}.old-*"), key=lambda p: p.stat().st_mtime)
-    if old and not directory.exists():
-        logger.warning("%s: restored from %s (a save was cut short between its two renames)", directory, old[-1].name)
-        old.pop().rename(directory)
-    for folder in old:
-        shutil.rmtree(folder, ignore_errors=True)
 
 
 def check_checkpoint(directory: Path) -> dict:

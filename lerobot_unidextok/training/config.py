@@ -52,7 +52,7 @@ class TrainConfig:
     # --- optimisation -------------------------------------------------------------------------------
     steps: int = 5000  # optimiser steps (derived from `epochs` when that is > 0)
     batch_size: int = 256  # rows per step and process
-    lr: float = 6e-3  # peak learning rate (the paper preset uses 5e-4: lerobot_unidextok/configs/train/paper.yaml)
+    lr: float = 6e-3  # peak learning rate (the paper preset uses 5e-4: configs/train/paper.yaml)
     min_lr_ratio: float = 0.05  # cosine decays to lr * min_lr_ratio
     warmup_steps: int = 200  # linear warmup from 0 to lr
     weight_decay: float = 0.01  # not applied to codebooks, norms, embeddings, biases
@@ -80,6 +80,9 @@ class TrainConfig:
     eval_max_frames: int = 20000  # held-out rows used for checkpoint selection (all if fewer)
     output_dir: str = "outputs/unidextok"  # run folder: best/, last/, eval.{json,md}
     resume: bool = False  # continue from output_dir/last (model, optimiser, step)
+    # replace the run already at output_dir (its best/, last/ and reports are deleted when this one starts);
+    # without it (or --resume), an existing run is refused, never replaced
+    overwrite: bool = False
     save_last_every: int = 500  # steps between saves of output_dir/last
 
     # --- few-shot adaptation ------------------------------------------------------------------------

@@ -21,7 +21,6 @@ from lerobot_unidextok.training.checkpoint import (
     check_checkpoint,
     load_optimizer_state,
     load_resume_tensors,
-    recover_checkpoint,
     save_checkpoint,
 )
 from lerobot_unidextok.training.config import TrainConfig
@@ -35,6 +34,7 @@ from lerobot_unidextok.training.coverage import (
 from lerobot_unidextok.training.distributed import broadcast_from_main, check_replicas, leave_at_exit
 from lerobot_unidextok.training.optim import lr_at, make_optimizer
 from lerobot_unidextok.utils.cli import progress_bar
+from lerobot_unidextok.utils.files import recover_folder
 
 logger = logging.getLogger(__name__)
 
@@ -280,7 +280,8 @@ def _prepare_model(
 def _resume_state(cfg: TrainConfig, last_dir: Path, train_data: HandStates | HandRowStore) -> dict:
     """The training state `--resume` continues from, once the checkpoint is whole (`check_checkpoint`) and was
     trained with this run's preset on the same training rows; a clear error otherwise."""
-    recover_checkpoint(last_dir)
+    for note in recover_folder(last_dir):
+        logger.warning(note)
     if not (last_dir / "config.json").is_file():
         raise MissingInputError(f"--resume: no checkpoint at {last_dir}; run once without --resume first")
     state = check_checkpoint(last_dir)

@@ -11,10 +11,12 @@ k-fold over episodes when asked, write the report and the model cards.
 import dataclasses
 import json
 import logging
+import shutil
 from pathlib import Path
 
 import numpy as np
 
+from lerobot_unidextok.data.destination import Kind, claim
 from lerobot_unidextok.data.rowstore import HandRowStore
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.training.arrays import HandStates, load_hand_states, subsample_episodes
@@ -135,6 +137,32 @@ def held_out_results(test_summary: dict | None, kfold: dict | None) -> dict[str,
 # ---------------------------------------------------------------------------------------------
 # the whole run
 # ---------------------------------------------------------------------------------------------
+RUN_OUTPUTS = ("best", "last", "folds", "row_store", "eval.json", "eval.md", "kfold.json", "kfold.md")
+
+
+def claim_run_folder(cfg: TrainConfig) -> None:
+    """`cfg.output_dir` may take this run (`data.destination.claim`): not a dataset it reads or anything inside
+    one, and an existing run only with --resume (continued) or --overwrite (its outputs deleted now)."""
+    from lerobot_unidextok.data.reader import dataset_folder
+
+    roots = []
+    for name in cfg.datasets:
+        try:
+            roots.append(dataset_folder(name))
+        except (FileNotFoundError, ValueError):
+            continue  # reported with the fix where the data is loaded
+    out = claim(cfg.output_dir, Kind.TOKENIZER_RUN, inputs=roots, overwrite=cfg.overwrite, resume=cfg.resume,
+                flag="--output_dir")  # fmt: skip
+    if cfg.overwrite and not cfg.resume and out.is_dir():
+        logger.warning("--overwrite=true: replacing the run at %s", out)
+        for name in RUN_OUTPUTS:
+            path = out / name
+            if path.is_dir():
+                shutil.rmtree(path)
+            elif path.exists():
+                path.unlink()
+
+
 def train_and_evaluate(cfg: TrainConfig) -> tuple[dict, str]:
     """Load splits, train, evaluate the selected checkpoint on the test episodes (and k-fold), write
     output_dir/eval.{json,md} (kfold.{json,md}) and the cards of best/ and last/.
@@ -150,6 +178,8 @@ def train_and_evaluate(cfg: TrainConfig) -> tuple[dict, str]:
     if cfg.folds and PartialState().num_processes > 1:
         raise InvalidInputError("--folds trains its fold models one after another in one process: launch without "
                          "accelerate/torchrun, or drop --folds")  # fmt: skip
+    if PartialState().is_main_process:
+        claim_run_folder(cfg)
     fit, select, test = load_splits(cfg)
     result = train_tokenizer(cfg, fit, select)
     if not PartialState().is_main_process:

@@ -8,7 +8,7 @@ Frames and sign conventions: `frames.py`, `fk.py`. Layer 1: numpy, scipy, torch 
 
 from lerobot_unidextok.constants import KEYPOINT_NAMES
 from lerobot_unidextok.udhm.fk import forward_kinematics
-from lerobot_unidextok.udhm.ik import IKResult, inverse_kinematics
+from lerobot_unidextok.udhm.ik import IKResult, KeypointFramesError, inverse_kinematics
 from lerobot_unidextok.udhm.joints import (
     JOINT_LIMITS_RAD,
     JOINT_NAMES,
@@ -20,6 +20,7 @@ from lerobot_unidextok.udhm.joints import (
 from lerobot_unidextok.udhm.skeleton import Skeleton
 
 __all__ = [
+    "KeypointFramesError",
     "JOINT_LIMITS_RAD",
     "JOINT_NAMES",
     "KEYPOINT_NAMES",

@@ -47,6 +47,15 @@ _LIMITS_PAD = np.concatenate([JOINT_LIMITS_RAD, [[-np.inf, np.inf]]], axis=0)
 SLOT_LIMITS_RAD = _LIMITS_PAD[CHAIN_SLOTS]  # (5, 6, 2)
 
 
+class KeypointFramesError(ValueError):
+    """Frames the inverse kinematics cannot solve. `frames`: their flat indices in the input, so a caller that
+    passed a subset of its frames can name its own frame numbers; `problem` and `hint` are the message's parts."""
+
+    def __init__(self, problem: str, frames: np.ndarray, lead: tuple[int, ...] | None, hint: str = ""):
+        self.problem, self.frames, self.hint = problem, np.asarray(frames), hint
+        super().__init__(f"{problem} in frames {_frame_list(self.frames, lead)}{hint}")
+
+
 @dataclass
 class IKResult:
     """Output of `inverse_kinematics`; leading dims (...) are those of the input keypoints."""
@@ -210,18 +219,19 @@ def _solve_chunk(kp, side, fixed, iterations, limit_weight, idx, lead) -> _Fit:
         rot = palm_frame(kp, side)  # (N, 3, 3)
         bad = ~np.isfinite(rot).all(axis=(-1, -2))
         if bad.any():
-            raise ValueError(
-                f"degenerate palm (wrist and MCPs collinear or coincident) in frames {_frame_list(idx[bad], lead)}"
-            )
+            raise KeypointFramesError(
+                "degenerate palm (wrist and MCPs collinear or coincident)", idx[bad], lead,
+                "; a frame without a hand must be NaN (or masked), not filled with a constant such as -1 or 0",
+            )  # fmt: skip
         local = to_canonical(kp, rot, side)  # (N, 21, 3)
         offsets = local[:, BASE_INDICES, :]
         bones = np.linalg.norm(np.diff(local[:, 1:].reshape(-1, 5, 4, 3), axis=-2), axis=-1)  # (N, 5, 3)
         zero = (bones <= MIN_BONE_LENGTH_M).any(axis=(-1, -2))
         if zero.any():
-            raise ValueError(
-                f"zero-length bones (two consecutive keypoints coincide) in frames {_frame_list(idx[zero], lead)}; "
-                "check the keypoint order/units or mask those frames"
-            )
+            raise KeypointFramesError(
+                "zero-length bones (two consecutive keypoints coincide)", idx[zero], lead,
+                "; check the keypoint order/units or mask those frames",
+            )  # fmt: skip
     else:
         offsets, bones = fixed
         rot = _kabsch_palm(kp, offsets, side)

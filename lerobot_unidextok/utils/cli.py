@@ -117,6 +117,45 @@ def _terminate(signum, frame) -> None:
     raise Terminated()
 
 
+def _print_user_error(err: BaseException) -> None:
+    message = err.args[0] if isinstance(err, KeyError) and err.args else err
+    print(f"error: {message}", file=sys.stderr)
+    print("(set UNIDEXTOK_TRACEBACK=1 to see the traceback)", file=sys.stderr)
+
+
+def _show_tracebacks() -> bool:
+    return os.environ.get("UNIDEXTOK_TRACEBACK", "0") not in ("", "0")
+
+
+def user_errors_in_lerobot_clis() -> None:
+    """In a LeRobot CLI (lerobot-train, -eval, ...: the plugin's import), a `UserError` of this package that
+    reaches the top of the process (a `<type>_udt` config refusing a dataset that was never converted, say)
+    prints the same one `error:` line as this package's own tools and exits with status 2, after the
+    process's exit handlers, instead of a traceback with status 1. Other exceptions keep the hook they had.
+    Nothing changes in other programs (a script or notebook that imports the plugin) or with
+    UNIDEXTOK_TRACEBACK=1."""
+    import atexit
+    from pathlib import Path
+
+    from lerobot_unidextok.errors import UserError
+
+    if not Path(sys.argv[0] if sys.argv else "").name.startswith(("lerobot-", "lerobot_")):
+        return
+    previous = sys.excepthook
+
+    def hook(kind, err, tb) -> None:
+        if not issubclass(kind, UserError) or _show_tracebacks():
+            previous(kind, err, tb)
+            return
+        _print_user_error(err)
+        atexit._run_exitfuncs()  # noqa: SLF001  what a normal exit runs (logging, multiprocessing), then the status
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(EXIT_USER_ERROR)
+
+    sys.excepthook = hook
+
+
 def run_cli(fn: Callable[[], object]) -> None:
     """The one way every command-line tool ends. Runs the CLI body after `configure_output()`, with SIGTERM
     handled as Ctrl-C. A `UserError` (`lerobot_unidextok.errors`) prints one `error: <message>` line on stderr
@@ -130,11 +169,9 @@ def run_cli(fn: Callable[[], object]) -> None:
     try:
         status = fn()
     except UserError as err:
-        if os.environ.get("UNIDEXTOK_TRACEBACK", "0") not in ("", "0"):
+        if _show_tracebacks():
             raise
-        message = err.args[0] if isinstance(err, KeyError) and err.args else err
-        print(f"error: {message}", file=sys.stderr)
-        print("(set UNIDEXTOK_TRACEBACK=1 to see the traceback)", file=sys.stderr)
+        _print_user_error(err)
         raise SystemExit(EXIT_USER_ERROR) from None
     except KeyboardInterrupt as stop:
         terminated = isinstance(stop, Terminated)

@@ -18,7 +18,7 @@ Five draccus (0.11) habits this corrects:
   `ParsingError("Couldn't instantiate class ...")`; it is raised as itself, with its own message.
 
 One addition: `--config_path` takes a file or the name of a config shipped in the package (`train/small`,
-`lerobot_unidextok/configs/`), so the documented commands work from any folder.
+`configs/`), so the documented commands work from any folder.
 
     @wrap()
     def train_cli(cfg: TrainConfig) -> None: ...

@@ -122,7 +122,7 @@ def test_entry_point_config_file_flags_and_push_to_hub(raw, tmp_path, capsys):
     # re-running onto the existing dataset refuses clearly: one line, exit 2 (docs/lerobot.md §6)
     r = subprocess.run([str(BIN / "unidextok-convert"), "--source=let", f"--input={raw}", f"--root={root}"],
                        capture_output=True, text=True, timeout=300)  # fmt: skip
-    assert r.returncode == 2 and r.stderr.startswith("error: ") and "already exists" in r.stderr
+    assert r.returncode == 2 and r.stderr.startswith("error: ") and "already holds a dataset written by unidextok-convert" in r.stderr
     assert "Traceback" not in r.stderr
 
 

@@ -156,7 +156,7 @@ def test_rerun_resumes_completed_shards_and_refuses_other_settings(raw, single, 
 
 
 def test_slurm_executor_from_documented_config(raw, tmp_path):
-    """lerobot_unidextok/configs/convert/slurm.yaml (draccus, as the CLI reads it) builds both Slurm executors; no cluster."""
+    """configs/convert/slurm.yaml (draccus, as the CLI reads it) builds both Slurm executors; no cluster."""
     from lerobot_unidextok.conversion.datatrove import build_executors
 
     cfg = draccus.parse(

@@ -16,9 +16,9 @@ from robot_udhm import INSPIRE
 from lerobot_unidextok.blocks import udhm_state_names
 from lerobot_unidextok.constants import ACTION, OBS_HAND_IDS, OBS_STATE, UDHM_DIM
 from lerobot_unidextok.conversion.mix import MixError, MixOptions, mix, repeat_factors
-from lerobot_unidextok.conversion.output import OutputError
 from lerobot_unidextok.conversion.validate import validate_dataset
 from lerobot_unidextok.data import UdhmDatasetMeta, load_udhm_frames
+from lerobot_unidextok.data.destination import DestinationError
 
 BIN = Path(sys.executable).parent
 
@@ -141,17 +141,25 @@ def test_bad_inputs_are_one_clear_error_and_nothing_is_written(g1_like, l10_robo
     shutil.copytree(l10_robot, slow)
     info = json.loads((slow / "meta/info.json").read_text())
     (slow / "meta/info.json").write_text(json.dumps({**info, "fps": 15}))
-    with pytest.raises(MixError, match=r"different frame rates .*30.*15.*--fps"):
+    # both are fixed-rate LeRobot recordings: convert cannot resample them, so the fix is not --fps
+    with pytest.raises(MixError, match=r"different frame rates .*30.*15.*keep the rate they were recorded at") as err:
         mix(MixOptions(inputs=[str(g1_like["root"]), str(slow)], root=str(root)))
-    with pytest.raises(OutputError, match="is, holds or sits inside the input"):
+    assert "--fps" not in str(err.value)
+    # the same dataset twice, under another spelling of its path: each episode would be written twice
+    again = f"{l10_robot.parent}/../{l10_robot.parent.name}/{l10_robot.name}/"
+    with pytest.raises(MixError, match=r"are the same dataset .*give each dataset once"):
+        mix(MixOptions(inputs=[str(l10_robot), again], root=str(root)))
+    with pytest.raises(MixError, match="one positive, finite weight per input"):
+        MixOptions(inputs=["a", "b"], root=str(root), weights=[float("nan"), 1])
+    with pytest.raises(DestinationError, match="is, holds or sits inside the input"):
         mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(l10_robot / "mix")))
-    with pytest.raises(MixError, match="one positive weight per input"):
+    with pytest.raises(MixError, match="one positive, finite weight per input"):
         MixOptions(inputs=["a", "b"], root=str(root), weights=[1])
     assert not root.exists() and not list(tmp_path.glob(".out*"))
     other = tmp_path / "not_a_mix"
     other.mkdir()
     (other / "keep.txt").write_text("mine")
-    with pytest.raises(OutputError, match="not a dataset written by unidextok-convert or unidextok-mix"):
+    with pytest.raises(DestinationError, match="holds other files, not a mixed dataset"):
         mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(other), overwrite=True))
     assert (other / "keep.txt").read_text() == "mine"
 
@@ -164,4 +172,49 @@ def test_the_cli_mixes_and_prints_the_training_flag(g1_like, l10_robot, tmp_path
     assert "training episodes x1" in r.stdout and "--dataset.episodes='[" in r.stdout
     r = subprocess.run([str(BIN / "unidextok-mix"), f"--inputs=[{g1_like['root']}]", f"--root={out}"],
                        capture_output=True, text=True, timeout=300)  # fmt: skip
-    assert r.returncode == 2 and r.stderr.startswith("error: ") and "already exists" in r.stderr
+    assert r.returncode == 2 and r.stderr.startswith("error: ") and "already holds a mixed dataset" in r.stderr
+    r = subprocess.run([str(BIN / "unidextok-mix"), "--inputs=[a,b]", "--weights=[nan,1]", f"--root={out}"],
+                       capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert r.returncode == 2 and r.stderr.startswith("error: ") and "finite weight" in r.stderr
+
+
+def test_mix_overwrite_replaces_a_mix_and_never_a_converted_dataset(g1_like, l10_robot, tmp_path):
+    """`unidextok-mix --overwrite=true` onto a dataset written by unidextok-convert used to replace it with a
+    mix (rc 0); its help says it replaces an earlier mix and nothing else."""
+    converted = tmp_path / "converted"
+    shutil.copytree(l10_robot, converted)
+    before = sorted(p.name for p in converted.rglob("*"))
+    with pytest.raises(DestinationError, match=r"holds a dataset written by unidextok-convert, not a mixed dataset"):
+        mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(converted), overwrite=True,
+                       progress=False))  # fmt: skip
+    assert sorted(p.name for p in converted.rglob("*")) == before
+    out = tmp_path / "mix"
+    mix(MixOptions(inputs=[str(g1_like["root"])], root=str(out), progress=False))
+    mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(out), overwrite=True, progress=False))
+    assert len(UdhmDatasetMeta(out).record.sources) == 2
+
+
+def test_an_input_whose_episodes_have_different_hands_is_mixed_episode_by_episode(g1_like, tmp_path):
+    """The LinkerHand sample holds L10 episodes and L20 episodes under one dataset. The mix places each
+    episode with its own hands: the rows of an L10 episode carry the L10's id, those of an L20 episode the
+    L20's."""
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.samples import write_samples
+
+    raw = write_samples(tmp_path / "raw", sources=["linkerhand"], episodes_per_source=4, frames_per_episode=20)
+    lh = tmp_path / "lh"
+    convert(ConvertOptions(source="linkerhand", input=raw["linkerhand"], root=lh, progress=False))
+    assert len(UdhmDatasetMeta(lh).hand_types) == 2
+    root = tmp_path / "mix"
+    mix(MixOptions(inputs=[str(g1_like["root"]), str(lh)], root=str(root), progress=False))
+    record = UdhmDatasetMeta(root).record
+    table = _table(root)
+    ids = np.stack(table.column(OBS_HAND_IDS).to_pylist())
+    episodes = table.column("episode_index").to_numpy()
+    own = {e.episode_index: e for e in record.episodes}
+    for e in np.unique(episodes):
+        hands = own[e].hand_type.split(",")
+        want = [record.hand_vocabulary.index(h) for h in hands]
+        got = ids[episodes == e]
+        present = got >= 0
+        assert (got == np.array(want)[None, :])[present].all() and present.any(), (e, hands)

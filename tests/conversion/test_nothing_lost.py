@@ -128,7 +128,45 @@ def test_a_killed_conversion_leaves_no_process_and_no_folder(long_raw, tmp_path,
         assert not list(tmp_path.glob(".out.tmp-*"))
     else:
         assert list(tmp_path.glob(".out.tmp-*"))  # SIGKILL runs no clean-up ...
-        from lerobot_unidextok.conversion.output import remove_stale
+        from lerobot_unidextok.utils.files import recover_folder
 
-        remove_stale(root)  # ... the next run's removes it
+        recover_folder(root)  # ... the next run's removes it
         assert not list(tmp_path.glob(".out.tmp-*"))
+
+
+DEAD = 999999999  # no such process
+
+
+@pytest.mark.parametrize("writer", ["convert", "mix"])
+def test_a_kill_between_the_renames_of_an_overwrite_is_restored_on_the_next_run(g1_raw, tmp_path, caplog, writer):
+    """The state an overwrite killed between its two renames leaves: the root missing, the old dataset set aside
+    (`.<root>.old-<pid>-*`), the finished new one in `.<root>.tmp-<pid>-*`. The next run removed both, and when
+    it then failed nothing was left. Now it puts the old dataset back first, keeps the new one beside it, says
+    so, and a failing run leaves both."""
+    import logging
+
+    from lerobot_unidextok.conversion.mix import MixOptions, mix
+    from lerobot_unidextok.errors import UserError
+
+    source = tmp_path / "g1"
+    convert(ConvertOptions(source="lerobot", input=g1_raw, root=source, progress=False, source_options=G1_OPTIONS))
+    root = tmp_path / "out"
+    if writer == "convert":
+        convert(ConvertOptions(source="lerobot", input=g1_raw, root=root, progress=False, source_options=G1_OPTIONS))
+    else:
+        mix(MixOptions(inputs=[str(source)], root=str(root), progress=False))
+    info = (root / "meta" / "info.json").read_text()
+    shutil.copytree(root, tmp_path / f".out.tmp-{DEAD}-bbbb")  # the killed run's finished output
+    root.rename(tmp_path / f".out.old-{DEAD}-aaaa")
+
+    with caplog.at_level(logging.WARNING), pytest.raises(UserError):  # the next run fails (a bad option) ...
+        if writer == "convert":
+            convert(ConvertOptions(source="lerobot", input=g1_raw, root=root, overwrite=True, progress=False,
+                                   source_options={"hands": "no_such_hand"}))  # fmt: skip
+        else:
+            mix(MixOptions(inputs=[str(source), str(tmp_path / "nowhere")], root=str(root), overwrite=True,
+                           progress=False))  # fmt: skip
+    assert (root / "meta" / "info.json").read_text() == info  # ... and the dataset is back in place
+    assert (tmp_path / f"out.unfinished-{DEAD}" / "meta" / "info.json").is_file()
+    assert "out restored: a run (pid 999999999) was killed while replacing it" in caplog.text
+    assert not list(tmp_path.glob(".out.*"))

@@ -114,3 +114,17 @@ def test_absent_hand_rows_dropped_by_default(tmp_path):
     kept = load_udhm_frames(tmp_path / "d")
     assert len(kept) == 4 and set(kept.side) == {"right"} and kept.actions_rad is None
     assert len(load_udhm_frames(tmp_path / "d", drop_absent=False)) == 8
+
+
+def test_an_empty_split_names_the_flag_and_the_argument(tmp_path):
+    """One converted episode is a training episode: asking for the test split said "use split='all'", which is
+    no flag of unidextok-eval; the message now names both spellings."""
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.data import SplitError
+    from lerobot_unidextok.samples import write_samples
+
+    raw = write_samples(tmp_path / "raw", sources=["linkerhand"], episodes_per_source=1, frames_per_episode=20)
+    convert(ConvertOptions(source="linkerhand", input=raw["linkerhand"], root=tmp_path / "out", progress=False))
+    with pytest.raises(SplitError, match=r"has no test episodes .*`--split=all` on the command line, split='all' in"):
+        load_udhm_frames(tmp_path / "out", split="test")
+    assert len(load_udhm_frames(tmp_path / "out", split="all")) > 0

@@ -1,4 +1,4 @@
-"""The CPU recipe (lerobot_unidextok/configs/lerobot/act_udt_cpu.yaml) through the real `lerobot-train` for a few steps on a
+"""The CPU recipe (configs/lerobot/act_udt_cpu.yaml) through the real `lerobot-train` for a few steps on a
 synthetic whole-robot dataset in the converted contract, then `experiments/eval_policy.py` in a fresh process:
 the checkpoint reloaded with the stock factory, scored open loop next to copying the state."""
 

@@ -15,7 +15,7 @@ def test_reduced_size_note_names_the_steps_and_where_the_shipped_figures_are():
     assert default < TrainConfig().steps  # the experiments' default size is a reduced one
     note = reduced_size_note(_result(default))
     assert note.startswith(f"**Reduced-size run: UniDexTok trained {default} steps here**")
-    assert f"`lerobot_unidextok/configs/train/small.yaml`, {TrainConfig().steps} steps" in note
+    assert f"`configs/train/small.yaml`, {TrainConfig().steps} steps" in note
     assert '`docs/tokenizer.md`, "Measured on data the model never trained on"' in note
     assert '"The shipped universal tokenizer"' in note
     assert "trained 12 steps" in reduced_size_note(_result(12))

@@ -354,3 +354,19 @@ def test_push_refuses_a_damaged_checkpoint_before_uploading(hub, tok_dir, tmp_pa
                 HF_TOKEN=TOKEN, HF_HUB_OFFLINE="0", HF_HOME=str(tmp_path / "hf"))  # fmt: skip
     assert r.returncode == 2 and r.stderr.startswith(f"error: {weights} cannot be read"), r.stderr[-2000:]
     assert "nothing was pushed" in r.stderr and ("model", "lab/damaged") not in hub.repos
+
+
+@pytest.mark.parametrize("edit", ["unknown_key", "hidden_dim"])
+def test_push_refuses_a_checkpoint_that_reads_but_does_not_load(hub, tok_dir, tmp_path, edit):
+    """Every file reads, but the config does not build the model the weights are: a key this version does not
+    know, or a hidden_dim the weights do not have. Both used to be published with rc 0."""
+    folder = tmp_path / "ckpt"
+    shutil.copytree(tok_dir, folder)
+    config = json.loads((folder / "config.json").read_text())
+    config |= {"hiden_dim": 64} if edit == "unknown_key" else {"hidden_dim": config["hidden_dim"] * 2}
+    (folder / "config.json").write_text(json.dumps(config))
+    r = run_cli(["unidextok-push", f"--local_dir={folder}", "--repo_id=lab/edited"], HF_ENDPOINT=hub.url,
+                HF_TOKEN=TOKEN, HF_HUB_OFFLINE="0", HF_HOME=str(tmp_path / "hf"))  # fmt: skip
+    why = "keys this version does not know" if edit == "unknown_key" else "does not fit the config.json beside it"
+    assert r.returncode == 2 and r.stderr.startswith(f"error: {folder} does not load, so nothing was pushed"), r.stderr
+    assert why in r.stderr and ("model", "lab/edited") not in hub.repos

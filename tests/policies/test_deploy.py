@@ -141,3 +141,42 @@ def _dexora_robot(tmp_path: Path) -> Path:
     root = tmp_path / "dexora"
     convert(ConvertOptions(source="dexora", input=raw["dexora"], root=root, progress=False, keep="hands"))
     return root
+
+
+@pytest.mark.slow
+def test_deploy_loads_what_it_ships_and_writes_nowhere_it_must_not(mixed_policy, g1_like, tmp_path):
+    """A truncated model.safetensors was reported "bound" and copied; a malformed policy_preprocessor.json was
+    a traceback; --output inside the checkpoint wrote into it; a robot dataset whose episodes have different
+    hands got a hint naming a flag deploy does not have. Each is now one clear error, and nothing is written."""
+    import shutil
+
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.data.destination import DestinationError
+    from lerobot_unidextok.policies.checkpoint import PolicyCheckpointError
+    from lerobot_unidextok.policies.deploy import DeployError, deploy
+    from lerobot_unidextok.samples import write_samples
+
+    truncated = tmp_path / "truncated"
+    shutil.copytree(mixed_policy, truncated)
+    weights = truncated / "model.safetensors"
+    weights.write_bytes(weights.read_bytes()[: weights.stat().st_size // 2])
+    r = _deploy(truncated, g1_like["root"], tmp_path / "a")
+    assert r.returncode == 2 and r.stderr.startswith(f"error: {weights} does not load"), r.stderr[-2000:]
+    assert not (tmp_path / "a").exists() and not list(tmp_path.glob(".a.*"))
+
+    malformed = tmp_path / "malformed"
+    shutil.copytree(mixed_policy, malformed)
+    (malformed / "policy_preprocessor.json").write_text('{"name": "policy_preprocessor", "steps": [')
+    with pytest.raises(PolicyCheckpointError, match="policy_preprocessor.json does not load"):
+        deploy(malformed, g1_like["root"], tmp_path / "b")
+    before = sorted(p.name for p in mixed_policy.iterdir())
+    with pytest.raises(DestinationError, match="is, holds or sits inside the input"):
+        deploy(mixed_policy, g1_like["root"], mixed_policy / "bound")
+    assert sorted(p.name for p in mixed_policy.iterdir()) == before
+
+    raw = write_samples(tmp_path / "raw", sources=["linkerhand"], episodes_per_source=4, frames_per_episode=20)
+    lh = tmp_path / "lh"
+    convert(ConvertOptions(source="linkerhand", input=raw["linkerhand"], root=lh, progress=False))
+    with pytest.raises(DeployError, match=r"holds episodes of different hands .*episodes \[.*a robot has one set of hands"):
+        deploy(mixed_policy, lh, tmp_path / "c")
+    assert not any((tmp_path / n).exists() for n in "bc")

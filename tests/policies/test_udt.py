@@ -333,6 +333,24 @@ def test_lerobot_train_without_the_plugin_flag(tok_dir, g1_like, tmp_path):
     assert pre.index("to_batch_processor") < pre.index(STEP_NAME) < pre.index("normalizer_processor")
 
 
+@pytest.mark.slow
+def test_lerobot_train_on_a_dataset_never_converted_is_one_error_line(tok_dir, tmp_path):
+    """`lerobot-train --policy.type=act_udt` on a plain LeRobot v3.0 dataset ended in a traceback with rc 1; the
+    plugin turns this package's user errors inside LeRobot's CLIs into the one `error:` line and exit 2 of its
+    own tools, with the command that converts the dataset."""
+    from l10_robot import write_l10_robot
+
+    raw = write_l10_robot(tmp_path / "raw", episodes=2)
+    r = subprocess.run([str(BIN / "lerobot-train"), "--policy.type=act_udt", "--dataset.repo_id=test/raw",
+                        f"--dataset.root={raw}", f"--policy.udt_pretrained={tok_dir}", "--policy.device=cpu",
+                        "--policy.push_to_hub=false", "--steps=2", f"--output_dir={tmp_path / 'out'}", *TINY_ACT],
+                       env=subprocess_env(HF_HOME=str(tmp_path / "hf")), capture_output=True, text=True,
+                       timeout=600)  # fmt: skip
+    errors = [line for line in r.stderr.splitlines() if line.startswith("error: ")]
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr[-3000:]
+    assert len(errors) == 1 and "is not a converted UDHM dataset" in errors[0] and "unidextok-convert" in errors[0]
+
+
 RELOAD = """
 import sys, torch
 from lerobot.configs.parser import load_plugin

@@ -178,8 +178,25 @@ def test_bad_width_names_the_fix(step):
 def test_nan_names_the_frame(step, states):
     x = states.clone()
     x[1, 5] = float("nan")
-    with pytest.raises(ValueError, match=r"NaN/inf \(first at \[batch, dim\] = \[1, 5\]\)"):
+    with pytest.raises(ValueError, match=r"NaN/inf \(batch rows \[1\]; first at column 5\), in a hand block"):
         step.observation({OBS_STATE: x})
+
+
+def test_a_nan_arm_an_all_zero_hand_and_an_empty_batch_are_named_for_what_they_are(robot_step, states):
+    """Before: a NaN in an arm column got "mask untracked hands in the converter", an all-zero state "looks
+    normalised", and an empty batch a RuntimeError from inside torch."""
+    x = torch.cat([torch.zeros(len(states), 14), states], dim=1)
+    arm = x.clone()
+    arm[2, 3] = float("nan")
+    name = robot_step.state_names[3]
+    with pytest.raises(ValueError, match=rf"rows \[2\]; first at column 3 \({name}\)\): a column outside the hand blocks"):
+        robot_step.observation({OBS_STATE: arm})
+    zero = x.clone()
+    zero[:, 14:36] = 0.0
+    with pytest.raises(ValueError, match=r"block 0 is all zeros, a pose the .* hand cannot take. An absent hand"):
+        robot_step.observation({OBS_STATE: zero})
+    with pytest.raises(ValueError, match=r"empty batch \(shape \(0, 58\)\): feed at least one frame"):
+        robot_step.observation({OBS_STATE: x[:0]})
 
 
 def test_degrees_are_refused(step, states):

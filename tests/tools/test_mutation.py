@@ -163,3 +163,22 @@ def test_combined_report_weights_module_rates_by_mutants(mutation, tmp_path, cap
     assert "**83.3 %**" in out
     with pytest.raises(SystemExit):
         mutation.main(["--combine", str(tmp_path / "a"), str(tmp_path / "a")])
+
+
+def test_the_copy_has_the_installed_shape_and_imports_from_itself(mutation):
+    """The copy holds the checkout's top-level converters/ and configs/ where an install puts them, and a fresh
+    interpreter with the copy first on PYTHONPATH imports the readers and the configs from the copy."""
+    import shutil
+    import subprocess
+
+    src_root = mutation.make_copy()
+    try:
+        package = src_root / "lerobot_unidextok"
+        assert (package / "converters" / "dexycb.py").is_file() and (package / "configs" / "train" / "small.yaml").is_file()
+        code = ("import lerobot_unidextok.converters.dexycb as d, lerobot_unidextok.configs as c; "
+                "print(d.__file__); print(c.shipped_config('train/small'))")  # fmt: skip
+        out = subprocess.run([sys.executable, "-c", code], env={"PYTHONPATH": str(src_root), "PATH": ""},
+                             capture_output=True, text=True, check=True, cwd=src_root).stdout.split()  # fmt: skip
+        assert all(Path(p).is_relative_to(src_root) for p in out), out
+    finally:
+        shutil.rmtree(src_root)

@@ -17,7 +17,8 @@ import torch
 from lerobot_unidextok.errors import ConfigError, InvalidInputError
 from lerobot_unidextok.tokenizer import UniDexTok
 from lerobot_unidextok.training import TrainConfig, train_tokenizer
-from lerobot_unidextok.training.checkpoint import check_checkpoint, recover_checkpoint
+from lerobot_unidextok.training.checkpoint import check_checkpoint
+from lerobot_unidextok.utils.files import recover_folder
 
 
 def _cfg(tmp_path, **kw) -> TrainConfig:
@@ -64,7 +65,7 @@ def test_kill_9_during_saves_leaves_a_whole_checkpoint_that_resumes(tmp_path):
         finally:
             proc.send_signal(signal.SIGKILL)
             proc.wait(timeout=30)
-        recover_checkpoint(run / "last")  # what --resume does first
+        recover_folder(run / "last")  # what --resume does first
         state = check_checkpoint(run / "last")
         UniDexTok.from_pretrained(run / "last")
         assert state["step"] >= 3
@@ -114,11 +115,12 @@ def test_a_save_cut_between_its_two_renames_is_put_back(mixture, tmp_path, caplo
     train_tokenizer(_cfg(tmp_path), train, test)
     last = tmp_path / "run" / "last"
     last.rename(last.parent / ".last.old-99999-deadbeef")
-    (last.parent / ".last.tmp-99999").mkdir()  # the unfinished new save
+    (last.parent / ".last.tmp-99999-cafe").mkdir()  # the new save it was moving into place
     result = train_tokenizer(_cfg(tmp_path, steps=6, resume=True), train, test)
     assert [h["step"] for h in result.history] == [2, 4, 6]
-    assert "restored from .last.old-99999-deadbeef" in caplog.text
+    assert "last restored: a run (pid 99999) was killed while replacing it" in caplog.text
     assert sorted(p.name for p in last.parent.iterdir() if p.name.startswith(".")) == []
+    assert (last.parent / "last.unfinished-99999").is_dir()  # kept, and said, never deleted
 
 
 def test_a_config_with_a_wrong_type_or_unknown_key_is_refused(mixture, tmp_path):

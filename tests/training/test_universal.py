@@ -1,4 +1,4 @@
-"""The universal recipe (lerobot_unidextok/configs/train/universal.yaml): registered hands without recordings train on in-range
+"""The universal recipe (configs/train/universal.yaml): registered hands without recordings train on in-range
 states (`range_hands`), and the recipe itself rebuilds at a tiny size in seconds."""
 
 from pathlib import Path
@@ -60,7 +60,7 @@ def test_range_hands_all_is_every_registered_hand_minus_the_excluded_and_names_a
 
 
 def test_the_universal_recipe_rebuilds_at_a_tiny_size(g1_like_hands, tmp_path):
-    """lerobot_unidextok/configs/train/universal.yaml with the tiny preset, 30 steps and the synthetic G1-like dataset: a model
+    """configs/train/universal.yaml with the tiny preset, 30 steps and the synthetic G1-like dataset: a model
     whose vocabulary and trained hands are every registered hand, scored on the dataset's test episodes."""
     from lerobot_unidextok.tokenizer import UniDexTok
     from lerobot_unidextok.training.run import train_and_evaluate

@@ -121,3 +121,31 @@ def test_progress_bar_honours_tqdm_mininterval_and_writes_counter_with_postfix(t
     assert counters == sorted(counters) and counters[-1] == 150
     # every refresh after the first shows the postfix of the step it counts (loss = step index)
     assert all(postfix == f"loss={n - 1}" for n, postfix in refreshes[1:]), refreshes
+
+
+@pytest.mark.parametrize("program", ["lerobot-train", "my_script.py"])
+def test_user_errors_inside_a_lerobot_cli_end_in_one_line(tmp_path, program):
+    """The plugin's hook: in a LeRobot CLI a UserError that reaches the top is one `error:` line and exit 2
+    after the exit handlers ran; a bug keeps its traceback; any other program keeps Python's own hook."""
+    import subprocess
+    import sys
+
+    script = tmp_path / program
+    script.write_text(
+        "import atexit, sys\n"
+        "from lerobot_unidextok.utils.cli import user_errors_in_lerobot_clis\n"
+        "from lerobot_unidextok.errors import InvalidInputError\n"
+        "user_errors_in_lerobot_clis()\n"
+        "atexit.register(lambda: print('exit handler ran'))\n"
+        "if sys.argv[1] == 'bug': 1 / 0\n"
+        "raise InvalidInputError('data/x is not a converted dataset: convert it first')\n"
+    )
+    env = {k: v for k, v in __import__("os").environ.items() if k != "UNIDEXTOK_TRACEBACK"}
+    for what in ("mistake", "bug"):
+        r = subprocess.run([sys.executable, str(script), what], capture_output=True, text=True, env=env, timeout=60)
+        assert "exit handler ran" in r.stdout
+        if what == "mistake" and program.startswith("lerobot-"):
+            assert r.returncode == 2 and "Traceback" not in r.stderr
+            assert r.stderr.splitlines()[0] == "error: data/x is not a converted dataset: convert it first"
+        else:
+            assert r.returncode == 1 and "Traceback" in r.stderr

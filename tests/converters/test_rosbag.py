@@ -1,11 +1,11 @@
-"""The direct JointState decoder of `lerobot_unidextok/sources/_rosbag.py` against rosbags' own deserializer."""
+"""The direct JointState decoder of `converters/_rosbag.py` against rosbags' own deserializer."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from lerobot_unidextok.sources._rosbag import decode_joint_state, decode_joint_states
+from lerobot_unidextok.converters._rosbag import decode_joint_state, decode_joint_states
 
 
 @pytest.mark.parametrize("ros1", [True, False])

@@ -35,6 +35,7 @@ like; `check_handedness=false` skips it), and frames with NaN or no detection be
 from __future__ import annotations
 
 import json
+import logging
 import re
 from pathlib import Path
 
@@ -42,8 +43,10 @@ import numpy as np
 
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
+from lerobot_unidextok.converters import _resample
 from lerobot_unidextok.errors import SourceFormatError
-from lerobot_unidextok.sources import _resample
+
+logger = logging.getLogger(__name__)
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 PALM_M = (0.06, 0.14)  # plausible wrist -> middle MCP length (m), adult hands (MediaPipe medians ~97 mm)
@@ -154,7 +157,16 @@ class KeypointsSource:
             by_side, fps_file = self._npz(path, meta)
             fps = fps or fps_file
         else:
-            by_side = {self._side(path, meta): self._array(np.load(path, allow_pickle=False), path, "array")}
+            try:
+                values = np.load(path, allow_pickle=False)
+            except (OSError, ValueError, EOFError) as exc:  # numpy: "cannot reshape array" for a cut-short file
+                raise KeypointsFormatError(
+                    f"{path}: not a readable .npy file ({exc}): truncated (a copy cut short?) or another format; "
+                    "write it again with numpy.save"
+                ) from exc
+            by_side = {self._side(path, meta): self._array(values, path, "array")}
+        by_side = {side: _constant_frames_missing(kp, path, side) for side, kp in by_side.items()}
+        by_side = {side: kp for side, kp in by_side.items() if np.isfinite(kp).any()}
         fps = float(fps or self.fps or 0)
         if not fps > 0:
             raise KeypointsFormatError(f"{path}: no frame rate: add {{'fps': ...}} to {path.stem}.json or pass fps=")
@@ -230,6 +242,24 @@ class KeypointsSource:
         return out, fps
 
 
+def _constant_frames_missing(kp: np.ndarray, path: Path, side: str) -> np.ndarray:
+    """`kp` with frames whose 21 keypoints all coincide (a constant fill such as DexYCB's -1, or zeros, where
+    the tracker saw no hand) set to NaN, the keypoint files' mark of a missing frame; said once per file."""
+    flat = kp.reshape(len(kp), -1)
+    filled = np.isfinite(flat).all(axis=1) & (np.ptp(flat, axis=1) == 0)
+    if not filled.any():
+        return kp
+    values = sorted({float(v) for v in flat[filled, 0]})[:3]
+    logger.warning(
+        "%s: %s hand: %d of %d frames hold 21 coincident keypoints (value %s: a fill where no hand was seen, as "
+        "DexYCB's -1) and are read as missing frames; NaN marks a missing frame in keypoint files", path, side,
+        int(filled.sum()), len(kp), ", ".join(f"{v:g}" for v in values),
+    )  # fmt: skip
+    out = kp.astype(np.float64, copy=True)
+    out[filled] = np.nan
+    return out
+
+
 def resample_keypoints(kp: np.ndarray, fps: float, out_fps: int, path: Path) -> np.ndarray:
     """(T, 21, 3) keypoints sampled at `fps` -> (T', 21, 3) on a grid of `out_fps` over the same span,
     linear; NaN (undetected) frames stay NaN and make the grid frames next to them NaN."""
@@ -267,8 +297,12 @@ def _check_handedness(kp: np.ndarray, path: Path, side: str) -> None:
     sample = kp[np.linspace(0, len(kp) - 1, min(HANDEDNESS_FRAMES, len(kp))).round().astype(int)]
     other = "left" if side == "right" else "right"
     errors = {}
-    for s in (side, other):
-        errors[s] = float(np.nanmean(udhm.inverse_kinematics(sample, side=s).residual_m))
+    try:
+        for s in (side, other):
+            errors[s] = float(np.nanmean(udhm.inverse_kinematics(sample, side=s).residual_m))
+    except udhm.KeypointFramesError:
+        return  # frames no hand can take: the conversion's inverse kinematics names each by its frame number
+
     if errors[other] < 0.5 * errors[side]:
         raise KeypointsFormatError(
             f"{path}: labelled {side} but the keypoints fit a {other} hand ({errors[other] * 1000:.1f} mm vs "

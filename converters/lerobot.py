@@ -35,7 +35,7 @@ from lerobot_unidextok import hands
 from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode
 from lerobot_unidextok.conversion.registry import check_hand, register_source
-from lerobot_unidextok.sources import _lerobot_files as lr
+from lerobot_unidextok.converters import _lerobot_files as lr
 
 logger = logging.getLogger(__name__)
 
@@ -386,6 +386,7 @@ def read_mapped_episode(
             "episode_index": ref.episode_index,
             "codebase_version": info["codebase_version"],
             **({"timestamp_note": episode.timestamp_note} if episode.timestamp_note else {}),
+            **({"source_notes": episode.notes} if episode.notes else {}),
         },
         passthrough=passthrough,
         native_names=native_names,

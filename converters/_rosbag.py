@@ -21,8 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_unidextok.errors import SourceFormatError
-from lerobot_unidextok.sources._resample import (  # noqa: F401  the bag readers' resampling, re-exported
+from lerobot_unidextok.converters._resample import (  # noqa: F401  the bag readers' resampling, re-exported
     INTERPOLATIONS,
     Stream,
     grid_for,
@@ -30,6 +29,7 @@ from lerobot_unidextok.sources._resample import (  # noqa: F401  the bag readers
     resample,
     resampling_options,
 )
+from lerobot_unidextok.errors import SourceFormatError
 from lerobot_unidextok.utils.imports import require_package
 
 # kuavo_msgs (LejuRobotics kuavo-ros-opensource, `src/kuavo_msgs/msg/*.msg`); the LET bags embed these

@@ -30,8 +30,8 @@ import numpy as np
 
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode
 from lerobot_unidextok.conversion.registry import check_hand, register_source
+from lerobot_unidextok.converters import _rosbag as rb
 from lerobot_unidextok.errors import SourceFormatError
-from lerobot_unidextok.sources import _rosbag as rb
 
 logger = logging.getLogger(__name__)
 

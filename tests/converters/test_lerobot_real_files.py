@@ -113,7 +113,7 @@ def test_a_shape_that_disagrees_with_its_names_and_videos_in_another_folder(tmp_
 
 
 def test_videos_under_another_folder_than_info_json_says(tmp_path, caplog):
-    from lerobot_unidextok.sources._lerobot_files import moved_file, video_folder_note
+    from lerobot_unidextok.converters._lerobot_files import moved_file, video_folder_note
 
     root = tmp_path / "ds"
     (root / "video" / "cam" / "chunk-000").mkdir(parents=True)
@@ -209,3 +209,53 @@ def test_a_g1_dex3_export_binds_each_hand_by_name(tmp_path):
         np.testing.assert_allclose(state[:, 14 + 22 * b : 36 + 22 * b], spec.to_udhm(native.astype(float), side),
                                    atol=1e-5)  # fmt: skip
 
+
+
+def test_nan_in_a_copied_feature_is_refused_with_the_feature_and_frames(tmp_path):
+    """NaN in an extra float feature copied through (`observation.effort`) used to end in an IndexError from
+    the statistics that named no column; now the episode is refused naming the feature, the frames and fixes,
+    and with --on_error=skip the other episodes convert."""
+    import pyarrow as pa
+
+    from lerobot_unidextok.conversion.pipeline import ConversionError
+
+    raw = write_l10_robot(tmp_path / "raw", episodes=3, effort=True)
+    for path in sorted((raw / "data").rglob("*.parquet")):
+        table = pq.read_table(path)
+        episode = table.column("episode_index").to_numpy()
+        effort = np.stack(table.column("observation.effort").to_pylist()).astype(np.float32)
+        effort[np.flatnonzero(episode == 1)[[4, 9]], 2] = np.nan
+        field = table.schema.field("observation.effort")
+        column = pa.FixedSizeListArray.from_arrays(pa.array(effort.reshape(-1), pa.float32()), 3)
+        pq.write_table(table.set_column(table.schema.get_field_index(field.name), field.name,
+                                        column.cast(field.type)), path)  # fmt: skip
+    with pytest.raises(ConversionError, match=r"NaN/inf in the copied feature observation.effort at frames \[4, 9\].*"
+                                              r"--keep=hands"):  # fmt: skip
+        _convert(raw, tmp_path / "out", {"right": f"{HAND}:{PREFIX}"})
+    assert not (tmp_path / "out").exists()
+    report = _convert(raw, tmp_path / "out", {"right": f"{HAND}:{PREFIX}"}, on_error="skip")
+    assert report.num_episodes == 2 and len(report.failures) == 1
+
+
+def test_metadata_that_disagrees_with_the_data_is_said_and_the_data_converted(tmp_path, caplog):
+    """info.json announcing more episodes than exist, an episode whose recorded length is not its data's and a
+    1-frame episode were converted without a word; now each is one line, and what the data holds is converted."""
+    import pyarrow as pa
+
+    raw = write_l10_robot(tmp_path / "raw", episodes=3, frames=[40, 1, 30])
+    info = json.loads((raw / "meta/info.json").read_text())
+    (raw / "meta/info.json").write_text(json.dumps({**info, "total_episodes": 5}))
+    (episodes_file,) = sorted((raw / "meta" / "episodes").rglob("*.parquet"))
+    table = pq.read_table(episodes_file)
+    lengths = table.column("length").to_numpy().copy()
+    lengths[2] = 35
+    pq.write_table(table.set_column(table.schema.get_field_index("length"), "length",
+                                    pa.array(lengths, table.schema.field("length").type)), episodes_file)  # fmt: skip
+    with caplog.at_level(logging.WARNING):
+        report = _convert(raw, tmp_path / "out", {"right": f"{HAND}:{PREFIX}"})
+    text = caplog.text
+    assert "total_episodes is 5, the episode metadata lists 3" in text
+    assert "total_frames is 71, the episodes' lengths add up to 76" in text
+    assert "2 episode(s) have source metadata that disagrees with their data, or a single frame" in text
+    assert "it has a single frame" in text and "its episode metadata says 35 frames, its data holds 30" in text
+    assert report.num_episodes == 3 and report.num_frames == 71

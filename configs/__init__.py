@@ -1,5 +1,8 @@
 """Configs shipped with the package, usable by name from any folder (a pip install or a clone alike).
 
+This folder is the checkout's top-level `configs/`, installed as `lerobot_unidextok.configs` (pyproject.toml's
+package-dir; docs/architecture.md, "Folders and import names").
+
     unidextok-train --config_path=train/small ...               # our CLIs take a shipped name or a file
     lerobot-train --config_path=$(unidextok-config lerobot/act_udt_cpu) ...   # LeRobot's CLIs take a file: its path
     unidextok-config                                            # lists the shipped configs

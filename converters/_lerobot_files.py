@@ -14,6 +14,7 @@ image/video features (which cannot be recomputed without decoding).
 from __future__ import annotations
 
 import json
+import logging
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -24,6 +25,8 @@ from lerobot_unidextok.blocks import flatten_names
 from lerobot_unidextok.constants import EPISODES_META_GLOB, INFO_PATH
 from lerobot_unidextok.conversion.episode import VideoSegment
 from lerobot_unidextok.errors import SourceFormatError
+
+logger = logging.getLogger(__name__)
 
 SUPPORTED_VERSIONS = ("v2.0", "v2.1", "v3.0")
 DEFAULT_KEYS = ("timestamp", "frame_index", "episode_index", "index", "task_index")  # rebuilt by the writer
@@ -148,19 +151,54 @@ def _read_jsonl(path: Path) -> list[dict]:
 
 
 def list_episodes(root: str | Path) -> list[LeRobotEpisodeRef]:
-    """Every episode of one dataset folder, by episode index."""
+    """Every episode of one dataset folder, by episode index (episode metadata that disagrees with
+    `meta/info.json`'s counts is said once: the episodes that exist are converted)."""
     root = Path(root)
     info = load_info(root)
     if info["codebase_version"] == "v3.0":
         table = _episodes_table_v30(root)
         indices = sorted(int(i) for i in table["episode_index"])
+        lengths = table.get("length", [])
     else:
-        rows = _read_jsonl(root / "meta" / "episodes.jsonl")
-        for row in rows:
-            if "episode_index" not in row:
-                raise LeRobotFormatError(f"{root / 'meta' / 'episodes.jsonl'}: a row lacks 'episode_index'")
-        indices = sorted(int(r["episode_index"]) for r in rows)
+        rows = _episodes_jsonl(str(root))
+        indices = sorted(rows)
+        lengths = [r.get("length") for r in rows.values()]
+    note = count_note(info, len(indices), lengths)
+    if note:
+        logger.warning("%s: %s", root, note)
     return [LeRobotEpisodeRef(str(root), i) for i in indices]
+
+
+def count_note(info: dict, num_episodes: int, lengths: list) -> str | None:
+    """What `meta/info.json`'s `total_episodes` / `total_frames` claim that the episode metadata does not
+    hold, or None."""
+    said = []
+    if "total_episodes" in info and int(info["total_episodes"]) != num_episodes:
+        said.append(f"total_episodes is {info['total_episodes']}, the episode metadata lists {num_episodes}")
+    if "total_frames" in info and lengths and all(n is not None for n in lengths):
+        if int(info["total_frames"]) != sum(int(n) for n in lengths):
+            said.append(f"total_frames is {info['total_frames']}, the episodes' lengths add up to {sum(lengths)}")
+    if not said:
+        return None
+    return "meta/info.json disagrees with the episode metadata (" + "; ".join(said) + "): the episodes that exist are read"
+
+
+def _episodes_jsonl(root_str: str) -> dict[int, dict]:
+    """v2.1 `meta/episodes.jsonl` rows by episode index, cached per file state (workers read many episodes)."""
+    path = Path(root_str) / "meta" / "episodes.jsonl"
+    stat = path.stat() if path.is_file() else None
+    return _episodes_jsonl_cached(str(path), (stat.st_mtime_ns, stat.st_size) if stat else None)
+
+
+@lru_cache(maxsize=8)
+def _episodes_jsonl_cached(path_str: str, stamp: tuple | None) -> dict[int, dict]:
+    path = Path(path_str)
+    out = {}
+    for row in _read_jsonl(path):
+        if "episode_index" not in row:
+            raise LeRobotFormatError(f"{path}: a row lacks 'episode_index'")
+        out[int(row["episode_index"])] = row
+    return out
 
 
 def list_all_episodes(input_path: str | Path) -> list[LeRobotEpisodeRef]:
@@ -236,6 +274,7 @@ class EpisodeColumns:
     videos: dict[str, VideoSegment] = field(default_factory=dict)
     stats: dict[str, dict] = field(default_factory=dict)  # source per-episode stats of image/video features
     timestamp_note: str | None = None  # `timestamp_note` of the source timestamps (None: they step by 1/fps)
+    notes: list[str] = field(default_factory=list)  # episode metadata that disagrees with the data (`length_note`)
 
 
 def other_features(info: dict, used: set[str]) -> tuple[dict[str, dict], dict[str, dict]]:
@@ -270,6 +309,7 @@ def read_episode(
         chunk = ref.episode_index // int(info.get("chunks_size", 1000))
         path = root / info["data_path"].format(episode_chunk=chunk, episode_index=ref.episode_index)
         tasks = None
+        meta_row = {"length": _episodes_jsonl(str(root)).get(ref.episode_index, {}).get("length")}
     if not path.is_file():
         raise LeRobotFormatError(f"{path}: data file of episode {ref.episode_index} is missing")
     vector_keys = list(keys)
@@ -306,9 +346,21 @@ def read_episode(
     task = _task_text(root, info, tasks, data, rows)
     fps = float(info["fps"])
     note = timestamp_note(data["timestamp"].to_numpy()[rows], fps) if "timestamp" in data else None
+    notes = [n for n in (length_note(meta_row.get("length"), len(rows)),) if n]
     videos = {key: _video_segment(root, info, ref.episode_index, meta_row, key, len(rows) / fps) for key in video_keys}
     stats = _source_stats(root, info, ref.episode_index, meta_row, (*copy_keys, *video_keys))
-    return EpisodeColumns(str(path), fps, columns, task, info, copied, videos, stats, note)
+    return EpisodeColumns(str(path), fps, columns, task, info, copied, videos, stats, note, notes)
+
+
+def length_note(recorded, num_frames: int) -> str | None:
+    """What is odd about an episode's length: its metadata records another length than its data holds, or it
+    has a single frame (nothing moves in it); None otherwise. The data's frames are what is converted."""
+    said = []
+    if recorded is not None and int(recorded) != num_frames:
+        said.append(f"its episode metadata says {int(recorded)} frames, its data holds {num_frames}")
+    if num_frames == 1:
+        said.append("it has a single frame")
+    return "; ".join(said) or None
 
 
 def timestamp_note(timestamps_s: np.ndarray, fps: float) -> str | None:

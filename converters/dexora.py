@@ -22,9 +22,9 @@ from pathlib import Path
 from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.conversion.episode import RawEpisode
 from lerobot_unidextok.conversion.registry import check_hand, register_source
+from lerobot_unidextok.converters import _lerobot_files as lr
+from lerobot_unidextok.converters.lerobot import HandColumns, check_keep, read_mapped_episode
 from lerobot_unidextok.errors import SourceFormatError
-from lerobot_unidextok.sources import _lerobot_files as lr
-from lerobot_unidextok.sources.lerobot import HandColumns, check_keep, read_mapped_episode
 
 XHAND = "xhand1"
 XHAND_JOINTS = 12

@@ -188,3 +188,46 @@ def test_real_mediapipe_outputs(real_data_dir, tmp_path):
     (tmp_path / "mp.json").write_text(json.dumps(_mediapipe_frames({"Right": kp})))
     ep = get_source("keypoints")(fps=30).read_episode(str(tmp_path / "mp.json"))
     assert ep.hands[0].side == "right" and ep.num_frames == len(poses)
+
+
+def test_constant_fill_frames_are_missing_and_a_bad_frame_is_named_by_its_own_number(tmp_path, caplog):
+    """DexYCB's toolkit fills the frames of a hand it did not see with -1: such frames (21 coincident keypoints)
+    used to reach the inverse kinematics and fail as "degenerate palm in frames [0, 1, 16]", numbered among the
+    present frames only and with no word that NaN marks a missing frame. Now they are missing frames, said
+    once; a genuinely degenerate frame is named by its frame number in the file."""
+    import logging
+
+    kp, _ = _hand("right", n=40)
+    filled = kp.copy()
+    filled[[3, 4, 20]] = -1.0
+    (tmp_path / "fill").mkdir()
+    np.save(tmp_path / "fill" / "clip_right.npy", filled)
+    (tmp_path / "fill" / "clip_right.json").write_text(json.dumps({"fps": 30}))
+    with caplog.at_level(logging.WARNING):
+        report = convert(ConvertOptions(source="keypoints", input=tmp_path / "fill", root=tmp_path / "out",
+                                        progress=False))  # fmt: skip
+    assert report.num_frames == 40 and "3 of 40 frames hold 21 coincident keypoints (value -1" in caplog.text
+    rows = load_udhm_frames(root=tmp_path / "out")
+    present = set(rows.frame_index[(rows.side == "right") & rows.masks.any(axis=1)].tolist())
+    assert not present & {3, 4, 20} and {0, 5, 21} <= present
+
+    bad = kp.copy()
+    bad[:, :] = np.nan
+    bad[10:30] = kp[10:30]
+    bad[25, [5, 9, 13, 17]] = bad[25, 0]  # knuckles on the wrist: no palm
+    folder = tmp_path / "degenerate"
+    folder.mkdir()
+    np.save(folder / "clip_right.npy", bad)
+    (folder / "clip_right.json").write_text(json.dumps({"fps": 30}))
+    with pytest.raises(Exception, match=r"degenerate palm .* in frames \[25\].*; a frame without a hand must be NaN"):
+        convert(ConvertOptions(source="keypoints", input=folder, root=tmp_path / "out2", progress=False))
+
+
+def test_a_truncated_npy_is_named_as_such(tmp_path):
+    kp, _ = _hand("right", n=40)
+    np.save(tmp_path / "whole.npy", kp)
+    (tmp_path / "in").mkdir()
+    (tmp_path / "in" / "cut_right.npy").write_bytes((tmp_path / "whole.npy").read_bytes()[:3000])
+    (tmp_path / "in" / "cut_right.json").write_text(json.dumps({"fps": 30}))
+    with pytest.raises(Exception, match=r"cut_right.npy: not a readable .npy file .*truncated"):
+        convert(ConvertOptions(source="keypoints", input=tmp_path / "in", root=tmp_path / "out", progress=False))

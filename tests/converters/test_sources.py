@@ -521,7 +521,7 @@ def test_linkerhand_lerobot_v30_export_with_state_key_and_pos_names(name_of, tmp
 
 def test_the_known_g1_inspire_layout_is_unitrees_column_names():
     """`hands="unitree_g1_inspire"` names Unitree's own columns (written out above, not taken from the reader)."""
-    from lerobot_unidextok.sources.lerobot import KNOWN_HANDS, parse_hands
+    from lerobot_unidextok.converters.lerobot import KNOWN_HANDS, parse_hands
 
     assert KNOWN_HANDS["unitree_g1_inspire"] == G1_HANDS
     assert parse_hands("unitree_g1_inspire") == parse_hands(G1_HANDS)

@@ -30,10 +30,10 @@ import numpy as np
 from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.conversion.episode import HandStream, RawEpisode
 from lerobot_unidextok.conversion.registry import register_source
+from lerobot_unidextok.converters import _lerobot_files as lr
+from lerobot_unidextok.converters import _rosbag as rb
+from lerobot_unidextok.converters.lerobot import HandColumns, check_keep, column_plan, parse_hands, read_mapped_episode
 from lerobot_unidextok.errors import SourceFormatError
-from lerobot_unidextok.sources import _lerobot_files as lr
-from lerobot_unidextok.sources import _rosbag as rb
-from lerobot_unidextok.sources.lerobot import HandColumns, check_keep, column_plan, parse_hands, read_mapped_episode
 
 MODELS: dict[str, tuple[str, int]] = {  # SDK model (hand_joint) -> (hand spec name, joints per hand)
     "L6": ("linkerhand_l6", 6),
