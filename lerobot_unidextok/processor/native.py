@@ -34,6 +34,7 @@ from lerobot.configs.types import PipelineFeatureType, PolicyFeature
 from lerobot.processor import ObservationProcessorStep, PolicyActionProcessorStep, ProcessorStepRegistry
 
 from lerobot_unidextok.constants import OBS_STATE, OBS_STATE_IS_NATIVE
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.layout import HandLayout, NativeLayout
 from lerobot_unidextok.tokenizer import UniDexTok
 
@@ -148,8 +149,8 @@ class NativeToUDHMStateStep(ObservationProcessorStep):
         if state.ndim == 0:
             raise ValueError(f"{self.input_key} must be (D,), (B, D) or (B, T, D), got a scalar")
         if _says_native(observation.get(OBS_STATE_IS_NATIVE)):
-            if state.shape[-1] != self.layout.native_dim:
-                raise ValueError(
+            if state.shape[-1] != self.layout.native_dim:  # a user error: one `error:` line in LeRobot's CLIs
+                raise InvalidInputError(
                     f"{self.input_key} is the native state of the robot or simulator ({state.shape[-1]} values), but "
                     f"this policy takes {self.layout.describe_native()}: it was trained on another robot or hand. "
                     "Bind it to this one with unidextok-deploy --checkpoint=<policy> --robot=<this robot's converted "

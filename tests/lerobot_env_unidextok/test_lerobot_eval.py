@@ -1,6 +1,6 @@
 """The stock `lerobot-eval` finds the simulator by LeRobot's plugin convention (no flag) and scores a real
-`act_udt` checkpoint trained by the stock `lerobot-train` on expert episodes; a checkpoint of another hand is
-refused with one clear error. The Shadow's 22 native joints are as many as a UDHM block, so this also checks
+`act_udt` checkpoint trained by the stock `lerobot-train` on expert episodes; a checkpoint of another hand and
+a hand without a model are each refused with one `error:` line. The Shadow's 22 native joints are as many as a UDHM block, so this also checks
 that the env's `state_is_native` flag, not the width, decides how its state is read."""
 
 import json
@@ -56,7 +56,19 @@ def test_a_checkpoint_of_another_hand_is_refused_with_the_fix(shadow_checkpoint,
               "--env.hand=inspire_rh56_unitree", "--eval.n_episodes=1", "--eval.batch_size=1",
               "--eval.use_async_envs=false", "--policy.device=cpu", f"--output_dir={tmp_path / 'eval'}"], tmp_path,
              check=False)  # fmt: skip
-    assert r.returncode != 0
-    last = [line for line in r.stderr.strip().splitlines() if "Error" in line][-1]
-    assert "trained on another robot or hand" in last and "unidextok-deploy" in last, last
-    assert "shadow" in last
+    errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
+    assert r.returncode == 2 and len(errors) == 1, r.stderr[-2000:]
+    assert "trained on another robot or hand" in errors[0] and "unidextok-deploy" in errors[0]
+    assert "shadow" in errors[0] and "Traceback" not in r.stderr
+
+
+def test_a_hand_without_a_model_is_one_error_line_before_anything_runs(shadow_checkpoint, tmp_path):
+    """draccus raises the env config's refusal as the cause of its own ParsingError; the plugin's hook prints it."""
+    r = _run([str(BIN / "lerobot-eval"), f"--policy.path={shadow_checkpoint}", "--env.type=unidextok",
+              "--env.hand=leap", f"--output_dir={tmp_path / 'eval'}"], tmp_path, check=False)  # fmt: skip
+    errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
+    assert r.returncode == 2 and errors == [
+        "error: hand 'leap' (embodiment leap) has no simulation model; the simulator runs: allegro, inspire_rh56, "
+        "inspire_rh56_unitree, shadow (a model is one YAML in lerobot_env_unidextok/hand_models/)"
+    ], r.stderr[-2000:]
+    assert not (tmp_path / "eval").exists()
