@@ -258,6 +258,7 @@ def evaluate(cfg: ClosedLoopConfig, checkpoint: Path, task: str, hand: str) -> d
     from lerobot.policies.factory import make_policy, make_pre_post_processors
     from lerobot.scripts.lerobot_eval import eval_policy_all
 
+    import lerobot_policy_unidextok  # noqa: F401  (the <type>_udt policies and steps, as lerobot-eval discovers them)
     from lerobot_env_unidextok.configuration import UniDexTokEnvConfig
 
     env_cfg = UniDexTokEnvConfig(task=task, hand=hand)
