@@ -1,18 +1,21 @@
 """Success rates with their 95 % interval, from `lerobot-eval`'s `eval_info.json` (`unidextok-sim-success`).
 
     lerobot-eval --policy.path=<checkpoint> --env.type=unidextok ... --output_dir=outputs/eval/grasp
-    unidextok-sim-success outputs/eval/grasp          # success 31/50 = 62.0 % (95 % Wilson interval 48.2-74.1 %)
+    unidextok-sim-success --eval=outputs/eval/grasp   # success 31/50 = 62.0 % (95 % Wilson interval 48.2-74.1 %)
 
 `lerobot-eval` writes `overall.pc_success` and `overall.n_episodes`; the interval is Wilson's score interval
 for a binomial proportion (it stays inside [0, 1] and is not degenerate at 0 or n successes).
 """
 
+# no `from __future__ import annotations`: the CLI wrapper reads the config class from success_cli's annotation
 import json
 import math
-import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 from lerobot_env_unidextok.errors import SimInputError
+from lerobot_unidextok.utils.cli import run_cli
+from lerobot_unidextok.utils.draccus_cli import wrap
 
 Z95 = 1.959963984540054
 
@@ -43,18 +46,20 @@ def describe(successes: int, n: int) -> str:
     return f"success {successes}/{n} = {100 * successes / max(n, 1):.1f} % (95 % Wilson interval {100 * lo:.1f}-{100 * hi:.1f} %)"
 
 
-def main(argv: list[str] | None = None) -> None:
-    from lerobot_unidextok.utils.cli import run_cli
+@dataclass
+class SuccessConfig:
+    eval: str = ""  # lerobot-eval's --output_dir (or its eval_info.json)
 
-    args = sys.argv[1:] if argv is None else argv
 
-    def report() -> None:
-        if not args:
-            raise SimInputError("usage: unidextok-sim-success <lerobot-eval output folder or eval_info.json> ...")
-        for path in args:
-            print(f"{path}: {describe(*from_eval_info(path))}")
+@wrap()
+def success_cli(cfg: SuccessConfig) -> None:
+    if not cfg.eval:
+        raise SimInputError("pass --eval=<lerobot-eval's --output_dir> (the folder holding eval_info.json)")
+    print(f"{cfg.eval}: {describe(*from_eval_info(cfg.eval))}")
 
-    run_cli(report)
+
+def main() -> None:
+    run_cli(success_cli)
 
 
 if __name__ == "__main__":

@@ -47,7 +47,7 @@ def test_lerobot_eval_scores_a_checkpoint_on_the_simulator(shadow_checkpoint, tm
           "--eval.use_async_envs=false", "--policy.device=cpu", f"--output_dir={tmp_path / 'eval'}"], tmp_path)  # fmt: skip
     overall = json.loads((tmp_path / "eval" / "eval_info.json").read_text())["overall"]
     assert overall["n_episodes"] == 2 and 0 <= overall["pc_success"] <= 100
-    line = _run([str(BIN / "unidextok-sim-success"), str(tmp_path / "eval")], tmp_path).stdout
+    line = _run([str(BIN / "unidextok-sim-success"), f"--eval={tmp_path / 'eval'}"], tmp_path).stdout
     assert "/2 = " in line and "95 % Wilson interval" in line
 
 
