@@ -103,7 +103,6 @@ class UniDexTokEnv(gym.Env):
              STATE_IS_NATIVE_KEY: gym.spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32)}
         )  # fmt: skip
         self.task_description = self.task.description
-        self._wrist_target = START_POSE.copy()
 
     # -- episode ---------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -113,14 +112,8 @@ class UniDexTokEnv(gym.Env):
         start = START_POSE + rng.uniform(-1, 1, 6) * START_NOISE
         self.data.qpos[self.scene.wrist_qpos] = Scene.wrist_pose_to_joints(start)
         open_raw = self.hand.posture("open")
-        rad = self.hand.spec.to_radians(open_raw, self.hand.side, "clip")
-        index = {n: i for i, n in enumerate(self.hand.native_names)}
-        for drive in self.hand.drives:
-            joint = self.model.joint("hand/" + drive.joint).id
-            lo, hi = self.model.jnt_range[joint]
-            self.data.qpos[self.model.jnt_qposadr[joint]] = np.clip(drive.to_joint(rad[index[drive.native]]), lo, hi)
+        self.scene.place_hand(self.data, open_raw)
         self.task.reset(self.data, rng)
-        self._wrist_target = start.copy()
         self.scene.set_controls(self.data, start, open_raw)
         mujoco.mj_forward(self.model, self.data)
         return self._obs(), {"is_success": False}

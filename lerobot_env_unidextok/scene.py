@@ -161,6 +161,16 @@ class Scene:
     def native_state(self, data: mujoco.MjData) -> np.ndarray:
         return self.hand.native_state({j: data.qpos[a] for j, a in self.measure_qpos.items()})
 
+    def place_hand(self, data: mujoco.MjData, native_raw: np.ndarray) -> None:
+        """Put the hand's joints where `native_raw` drives them (clipped to the joints' ranges): a start pose."""
+        hand, model = self.hand, self.model
+        rad = hand.spec.to_radians(np.asarray(native_raw, dtype=np.float64), hand.side, "clip")
+        index = {n: i for i, n in enumerate(hand.native_names)}
+        for drive in hand.drives:
+            joint = model.joint("hand/" + drive.joint).id
+            lo, hi = model.jnt_range[joint]
+            data.qpos[model.jnt_qposadr[joint]] = np.clip(drive.to_joint(rad[index[drive.native]]), lo, hi)
+
     def set_controls(self, data: mujoco.MjData, wrist_pose: np.ndarray, native_command: np.ndarray) -> None:
         data.ctrl[self.wrist_act] = self.wrist_pose_to_joints(wrist_pose)
         for name, target in self.hand.command(native_command).items():

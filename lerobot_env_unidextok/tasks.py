@@ -289,12 +289,7 @@ def press_geometry(hand: SimHand, hover_m: np.ndarray) -> dict[str, np.ndarray]:
     for f in (f for f in PRESS_FINGERS if f in hand.fingers):
         d.qpos[:] = m.qpos0
         d.qpos[scene.wrist_qpos] = Scene.wrist_pose_to_joints(np.array([*hover_m, 0, 0, 0]))
-        rad = hand.spec.to_radians(hand.posture(f"press_{f}"), hand.side, "clip")
-        index = {n: i for i, n in enumerate(hand.native_names)}
-        for drive in hand.drives:
-            joint = m.joint("hand/" + drive.joint)
-            lo, hi = m.jnt_range[joint.id]
-            d.qpos[m.jnt_qposadr[joint.id]] = np.clip(drive.to_joint(rad[index[drive.native]]), lo, hi)
+        scene.place_hand(d, hand.posture(f"press_{f}"))
         mujoco.mj_kinematics(m, d)
         tip = scene.fingertip(d, f)
         out[f] = tip + np.array([0, 0, PRESS_DEPTH_M])
