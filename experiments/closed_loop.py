@@ -389,6 +389,7 @@ def run(cfg: ClosedLoopConfig) -> dict:
               "costs": {**costs, "train_cpu_s": round(sum(r["train_cpu_s"] for r in runs), 1),
                         "eval_cpu_s": round(sum(r["eval_cpu_s"] for r in runs), 1),
                         "expert_cpu_s": round(sum(e["cpu_s"] for e in experts.values()), 1),
+                        "runs_wall_s": round(sum(r["wall_s"] for r in runs), 1),
                         "this_process_cpu_s": round(time.process_time() - cpu0, 1)},
               "git_commit": git_commit(), "wall_seconds": round(time.time() - t0, 1),
               "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
@@ -472,8 +473,9 @@ def markdown(result: dict) -> str:
         f"act_udt_cpu.yaml through LeRobot's lerobot-train code, {cfg['steps']} steps at batch {cfg['batch_size']}, "
         f"absolute actions, chunks of {cfg['n_action_steps']} actions; mixes bound with unidextok-deploy. {cpu_min:.1f} "
         f"CPU-minutes in all ({costs['data_cpu_s']:.0f} s data, {costs['train_cpu_s']:.0f} s training, "
-        f"{costs['eval_cpu_s']:.0f} s evaluation, {costs['expert_cpu_s']:.0f} s experts), "
-        f"{result['wall_seconds'] / 60:.1f} min wall.", ""]  # fmt: skip
+        f"{costs['eval_cpu_s']:.0f} s evaluation, {costs['expert_cpu_s']:.0f} s experts); the policies took "
+        f"{costs['runs_wall_s'] / 60:.0f} min of wall time summed over them (on shared cores; runs already done are "
+        "reused, so one command may be split over processes by task).", ""]  # fmt: skip
     for task, by_hand in s.items():
         hands = list(by_hand)
         arms = list(dict.fromkeys(a for h in hands for a in by_hand[h]))
