@@ -36,7 +36,7 @@ SCENE_XML = """
   </visual>
   <asset>
     <texture name="grid" type="2d" builtin="checker" rgb1="0.55 0.5 0.45" rgb2="0.5 0.45 0.4" width="256" height="256"/>
-    <material name="table" texture="grid" texrepeat="8 8" reflectance="0"/>
+    <material name="table" texture="grid" texrepeat="24 24" reflectance="0"/>
     <material name="hand" rgba="0.25 0.3 0.35 1"/>
   </asset>
   <default>
@@ -46,8 +46,8 @@ SCENE_XML = """
   </default>
   <worldbody>
     <light pos="0 0 1.5" dir="0 0 -1" diffuse="0.7 0.7 0.7"/>
-    <geom name="table" type="plane" size="0.6 0.6 0.02" material="table" friction="1 0.01 0.001"/>
-    <camera name="front" pos="0.55 -0.55 0.5" xyaxes="0.707 0.707 0 -0.35 0.35 0.87"/>
+    <geom name="table" type="plane" size="2 2 0.02" material="table" friction="1 0.01 0.001"/>
+    <camera name="front" pos="0.45 -0.35 0.38" mode="targetbody" target="wrist"/>
     <body name="wrist" gravcomp="1">
       <inertial pos="0 0 0" mass="0.2" diaginertia="2e-4 2e-4 2e-4"/>
       {joints}
