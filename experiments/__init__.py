@@ -13,6 +13,7 @@ EXPERIMENTS: tuple[str, ...] = (
     "rate_distortion",
     "cross_embodiment",
     "mix_lerobot_train",
+    "closed_loop",
 )
 
 __all__ = ["EXPERIMENTS", "PRESETS", "ExperimentConfig", "parse_config"]

@@ -21,6 +21,7 @@ from experiments import (
     EXPERIMENTS,
     ablation_human,
     ablation_mapping,
+    closed_loop,
     cross_embodiment,
     main_table,
     mix_lerobot_train,
@@ -35,7 +36,7 @@ MARKDOWN = {"main_table": main_table.markdown, "ablation_human": ablation_human.
             "ablation_mapping": ablation_mapping.markdown, "transfer": transfer.markdown, "probe": probe.markdown,
             "policy_tokens": policy_tokens.markdown, "rate_distortion": rate_distortion.markdown,
             "cross_embodiment": cross_embodiment.markdown,
-            "mix_lerobot_train": mix_lerobot_train.markdown}  # fmt: skip
+            "mix_lerobot_train": mix_lerobot_train.markdown, "closed_loop": closed_loop.markdown}  # fmt: skip
 COMMANDS = {name: f"python experiments/{name}.py" for name in EXPERIMENTS}
 MAX_PNG_BYTES = 300_000
 
@@ -85,6 +86,7 @@ DATA_LABELS = {
     "real": "REAL recordings (../shared/data/real)",
     "sample": "SYNTHETIC sample data",
     "datasets": "user datasets",
+    "sim": "SIMULATED expert demonstrations (lerobot_env_unidextok)",
 }
 
 

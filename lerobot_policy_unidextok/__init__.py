@@ -3,8 +3,9 @@
 LeRobot's CLIs (lerobot-train, -eval, -record, -replay, -rollout, ...) call
 `lerobot.utils.import_utils.register_third_party_plugins()` at start, which imports every installed
 distribution whose name starts with `lerobot_policy_` under that name: this package. Importing it
-registers the `<type>_udt` policy types (`act_udt`, `diffusion_udt`, `vqbet_udt`) and the `unidextok.*`
-processor steps, so no `--policy.discover_packages_path` flag is needed. As the start of a LeRobot CLI it
+registers the `<type>_udt` policy types (`act_udt`, `diffusion_udt`, `vqbet_udt`), the `unidextok.*`
+processor steps and the simulator's `--env.type=unidextok` (`lerobot_env_unidextok`, registered without
+importing MuJoCo), so no `--policy.discover_packages_path` or `--env.discover_packages_path` flag is needed. As the start of a LeRobot CLI it
 also turns LeRobot's torchcodec/FFmpeg warning (a wall of tracebacks) into a one-line note, and a mistake this
 package reports (a `UserError`, e.g. a `<type>_udt` policy on a dataset that was never converted) into one
 `error:` line and exit status 2, as this package's own tools end (`utils/cli.py`).
@@ -18,6 +19,7 @@ from lerobot_unidextok.utils.cli import quiet_torchcodec_warning, user_errors_in
 quiet_torchcodec_warning()
 user_errors_in_lerobot_clis()
 
+import lerobot_env_unidextok.configuration  # noqa: E402  (registration on import: --env.type=unidextok)
 from lerobot_unidextok import policies, processor  # noqa: E402  (registration on import)
 from lerobot_unidextok.policies import UDT_CONFIGS  # noqa: E402
 

@@ -72,6 +72,9 @@ OBS_HAND_TOKEN_FEATURES = "observation.environment_state"  # float view of the t
 # int64 (H,) per frame of a mixed dataset (unidextok-mix): each block's hand as an index into the record's
 # `hand_vocabulary`, -1 where the block holds no hand; the tokenizer step reads it and the policy never does
 OBS_HAND_IDS = "observation.hand_ids"
+# A robot or simulator may say its observation.state is its native layout (1.0): the native step then never takes
+# it for the converted layout, even when both are as wide (a Shadow hand's 22 joints), and refuses any other width.
+OBS_STATE_IS_NATIVE = "observation.state_is_native"
 PASSTHROUGH_MASK_KEY = "passthrough_mask"  # bool feature of a mix with --keep=all: which common columns are real
 
 SIDES: tuple[str, ...] = ("right", "left")

@@ -16,7 +16,7 @@ def test_the_listed_packages_are_the_folders_with_an_init():
     mapped = {name: REPO / folder for name, folder in cfg["package-dir"].items()}
     assert mapped == {"lerobot_unidextok.converters": REPO / "converters", "lerobot_unidextok.configs": REPO / "configs"}
     on_disk = set()
-    for top in ("lerobot_unidextok", "lerobot_policy_unidextok"):
+    for top in ("lerobot_unidextok", "lerobot_policy_unidextok", "lerobot_env_unidextok"):
         on_disk |= {".".join(p.parent.relative_to(REPO).parts) for p in (REPO / top).rglob("__init__.py")}
     for name, folder in mapped.items():
         on_disk |= {".".join([name, *p.parent.relative_to(folder).parts]) for p in folder.rglob("__init__.py")}

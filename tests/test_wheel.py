@@ -52,6 +52,9 @@ def test_the_wheel_holds_the_library_its_data_and_licences(installed):
     assert "lerobot_unidextok/hands/specs/inspire_rh56_unitree.yaml" in names
     assert "lerobot_unidextok/configs/lerobot/act_udt_cpu.yaml" in names
     assert "lerobot_unidextok/pretrained/universal-small/model.safetensors" in names
+    assert {"lerobot_env_unidextok/hand_models/shadow.yaml", "lerobot_env_unidextok/assets/inspire/inspire_right_hand.xml",
+            "lerobot_env_unidextok/assets/inspire/LICENSE.robosuite", "lerobot_env_unidextok/assets/allegro/allegro_right.xml",
+            "lerobot_env_unidextok/assets/allegro/LICENSE.allegro_hand"} <= set(names)  # fmt: skip
     assert any(n.endswith("licenses/LICENSE") for n in names) and any(n.endswith("licenses/NOTICE") for n in names)
     # the checkout's top-level converters/ and configs/ install inside the package, nowhere else
     assert "lerobot_unidextok/converters/README.md" in names and "lerobot_unidextok/configs/__init__.py" in names
@@ -93,6 +96,22 @@ def test_readme_pip_commands_run_from_the_installed_wheel(installed, tmp_path):
     assert (tmp_path / "policy" / "checkpoints" / "last" / "pretrained_model" / "config.json").is_file()
 
 
+@pytest.mark.slow
+def test_lerobot_finds_the_simulator_in_the_installed_wheel(installed, tmp_path):
+    """What lerobot-eval does before parsing `--env.type=unidextok` (register_third_party_plugins), from the wheel:
+    the env config is registered, its gym id made and reset, all from the wheel's files."""
+    site = installed[0]
+    code = ("from lerobot.utils.import_utils import register_third_party_plugins\n"
+            "register_third_party_plugins()\n"
+            "from lerobot.envs.configs import EnvConfig\n"
+            "cfg = EnvConfig.get_choice_class('unidextok')(hand='allegro', task='FingerPress-v0')\n"
+            "import gymnasium as gym, lerobot_env_unidextok\n"
+            "obs, _ = gym.make(cfg.gym_id, **cfg.gym_kwargs).reset(seed=0)\n"
+            "print(lerobot_env_unidextok.__file__, obs['agent_pos'].shape, cfg.features['action'].shape)\n")  # fmt: skip
+    out = _run(installed, [sys.executable, "-c", code], tmp_path).stdout.split()
+    assert out[0].startswith(str(site)) and out[1:] == ["(29,)", "(28,)"], out
+
+
 def test_the_sdist_is_the_library_with_its_licences(tmp_path):
     """The sdist carried tests/test_*.py without the conftest and fixtures they need (MANIFEST.in prunes the
     checkout's other folders); it holds the package data the wheel needs and the licences."""
@@ -108,6 +127,7 @@ def test_the_sdist_is_the_library_with_its_licences(tmp_path):
     assert {"LICENSE", "NOTICE", "README.md", "pyproject.toml"} <= set(names)
     assert "lerobot_unidextok/hands/specs/unitree_dex3_1.yaml" in names
     assert "lerobot_unidextok/pretrained/universal-small/model.safetensors" in names
+    assert "lerobot_env_unidextok/assets/inspire/inspire_right_hand.xml" in names
     # the checkout's shape: converters/ and configs/ at the top, as the design card lays it out
     assert {"converters/lerobot.py", "converters/README.md", "configs/__init__.py", "configs/train/small.yaml"} <= set(names)
     stray = [n for n in names if n.startswith(("tests/", "experiments/", "benchmarks/", "docs/", "tools/"))]

@@ -238,7 +238,8 @@ def _read_input(inp: _Input):
 
 def _matrix(column, width: int, dtype) -> np.ndarray:
     col = column.combine_chunks()
-    return col.values.to_numpy(zero_copy_only=False).reshape(len(col), width).astype(dtype, copy=False)
+    flat = col.values if hasattr(col, "values") else col  # a (1,)-shaped feature is stored as a plain column
+    return flat.to_numpy(zero_copy_only=False).reshape(len(col), width).astype(dtype, copy=False)
 
 
 class _Mixer:

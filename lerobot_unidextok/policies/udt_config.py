@@ -46,6 +46,7 @@ from lerobot_unidextok.constants import (
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, untrained_preset
 from lerobot_unidextok.processor import (
+    HAND_INPUTS,
     RANGE_CHECKS,
     REPRESENTATIONS,
     HandLayout,
@@ -127,6 +128,10 @@ class UdtConfigMixin:
     # Per block side and hand, the mean and std of action - state (the mix's action_delta_stats); filled from
     # the dataset.
     udt_action_delta_stats: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
+    # Which view of the hands the model reads: both (the UDHM state in observation.state and the token view in
+    # observation.environment_state), state (the token view held at zero) or tokens (the state's UDHM blocks held
+    # at zero); step unidextok.hand_input, before the normaliser.
+    udt_hand_input: str = "both"
     # Accepted and ignored, so --policy.discover_packages_path=lerobot_unidextok also works with
     # --policy.path=<checkpoint> (LeRobot passes every --policy.* flag to the loaded config).
     discover_packages_path: str | None = None
@@ -136,6 +141,8 @@ class UdtConfigMixin:
         if self.udt_representation not in REPRESENTATIONS:
             raise ValueError(f"udt_representation must be one of {REPRESENTATIONS}, got {self.udt_representation!r}")
         check_encoding(self.udt_search_rounds, flag="udt_search_rounds")
+        if self.udt_hand_input not in HAND_INPUTS:
+            raise ValueError(f"udt_hand_input must be one of {HAND_INPUTS}, got {self.udt_hand_input!r}")
         if self.udt_range_check not in RANGE_CHECKS:
             raise ValueError(f"udt_range_check must be one of {RANGE_CHECKS}, got {self.udt_range_check!r}")
         if self.udt_relative_actions:  # offsets around the state: the absolute action stats do not describe them

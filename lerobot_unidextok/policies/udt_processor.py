@@ -1,7 +1,7 @@
 """The processors of every `<type>_udt` type: the stock pipelines with the UniDexTok step inserted after batching.
 
     rename -> to_batch [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer -> device
-        [-> relative [-> unidextok.hand_action_scale]] -> normalizer                                           (pre)
+        [-> relative [-> unidextok.hand_action_scale]] [-> unidextok.hand_input] -> normalizer                 (pre)
     unnormalizer [-> [unidextok.hand_action_scale ->] absolute] -> to cpu [-> unidextok.udhm_to_native]        (post)
 
 The steps sit after `to_batch_processor`, so their outputs have the batch dimensions of the batched state
@@ -36,6 +36,7 @@ from lerobot_unidextok.constants import UDHM_DIM
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.processor import (
     HandActionScaleStep,
+    HandInputStep,
     NativeLayout,
     NativeToUDHMStateStep,
     UDHMToNativeCommandStep,
@@ -80,6 +81,11 @@ def insert_udt_steps(
         steps.insert(at, NativeToUDHMStateStep.from_layout(NativeLayout.from_dict(config.udt_native_state_layout)))
     if config.udt_relative_actions:
         _insert_relative_pair(config, steps, post)
+    if config.udt_hand_input != "both":  # after the relative step (it reads the real state), before normalising
+        at = max(i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep))
+        identity = config.num_udt_blocks * len(config.udt_hand_vocabulary)  # a mix's one-hot identity, kept
+        steps.insert(at, HandInputStep(mode=config.udt_hand_input, state_names=list(config.udt_state_names),
+                                       identity_width=identity))  # fmt: skip
     pre.steps = steps
     if config.udt_native_action and config.udt_native_layout:
         post.steps = [

@@ -133,7 +133,9 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
                 )
             ids = torch.tensor(self.fixed_hand_ids, device=device).expand(*lead, self.num_hands)
         ids = torch.as_tensor(ids, device=device).long()
-        if ids.ndim == len(lead):  # one frame of hand ids beside a batched state (LeRobot batches only its keys)
+        if ids.ndim == len(lead) and self.num_hands == 1 and tuple(ids.shape) == tuple(lead):
+            ids = ids.unsqueeze(-1)  # one block: LeRobot's dataset returns a (1,) feature as a scalar per row
+        elif ids.ndim == len(lead):  # one frame of hand ids beside a batched state (LeRobot batches only its keys)
             ids = ids.unsqueeze(0).expand(*lead, self.num_hands)
         if tuple(ids.shape) != (*lead, self.num_hands):
             raise ValueError(f"{self.hand_ids_key} has shape {tuple(ids.shape)}, expected {(*lead, self.num_hands)}")

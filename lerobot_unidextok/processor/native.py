@@ -18,7 +18,8 @@ width is mapped, the converted width (what `lerobot-train` feeds from the conver
 any other width is refused naming both layouts. When both widths coincide (every hand has 22 native joints,
 e.g. Shadow), auto treats the input as converted (training data) and logs it once; set
 `input_layout="native"` for the robot then (`preprocessor_overrides={"unidextok.native_to_udhm":
-{"input_layout": "native"}}`).
+{"input_layout": "native"}}`), or send `observation.state_is_native` = 1 beside the state, as the simulator does
+(`lerobot_env_unidextok`): a state so marked is always taken as native and must have the native width.
 """
 
 from __future__ import annotations
@@ -32,7 +33,8 @@ import torch
 from lerobot.configs.types import PipelineFeatureType, PolicyFeature
 from lerobot.processor import ObservationProcessorStep, PolicyActionProcessorStep, ProcessorStepRegistry
 
-from lerobot_unidextok.constants import OBS_STATE
+from lerobot_unidextok.constants import OBS_STATE, OBS_STATE_IS_NATIVE
+from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.layout import HandLayout, NativeLayout
 from lerobot_unidextok.tokenizer import UniDexTok
 
@@ -92,7 +94,8 @@ class NativeToUDHMStateStep(ObservationProcessorStep):
         if self.input_layout == "auto" and self.ambiguous:
             logger.warning(
                 "%s: the native and converted %s are both %d wide, so every input is taken as converted (the "
-                "training data); on the robot set input_layout='native'",
+                "training data) unless observation.state_is_native says otherwise (the simulator does); on a robot "
+                "set input_layout='native'",
                 NATIVE_TO_UDHM_STEP_NAME, self.input_key, self._layout.native_dim,
             )  # fmt: skip
 
@@ -145,7 +148,16 @@ class NativeToUDHMStateStep(ObservationProcessorStep):
         state = torch.as_tensor(observation[self.input_key])
         if state.ndim == 0:
             raise ValueError(f"{self.input_key} must be (D,), (B, D) or (B, T, D), got a scalar")
-        if self._from_robot is not None and state.shape[-1] == len(self.robot_names) != self.layout.converted_dim:
+        if _says_native(observation.get(OBS_STATE_IS_NATIVE)):
+            if state.shape[-1] != self.layout.native_dim:  # a user error: one `error:` line in LeRobot's CLIs
+                raise InvalidInputError(
+                    f"{self.input_key} is the native state of the robot or simulator ({state.shape[-1]} values), but "
+                    f"this policy takes {self.layout.describe_native()}: it was trained on another robot or hand. "
+                    "Bind it to this one with unidextok-deploy --checkpoint=<policy> --robot=<this robot's converted "
+                    "dataset> (--zero_shot=true when its hand was not in the policy's training data)"
+                )
+            observation[self.input_key] = self.layout.to_converted(state, self.on_out_of_range)
+        elif self._from_robot is not None and state.shape[-1] == len(self.robot_names) != self.layout.converted_dim:
             dst, src = self._from_robot
             out = state.new_zeros((*state.shape[:-1], self.layout.converted_dim))
             out[..., dst] = state[..., src]
@@ -188,6 +200,14 @@ class NativeToUDHMStateStep(ObservationProcessorStep):
             **({"dropped": list(self.dropped)} if self.dropped else {}),
             **({"robot_names": list(self.robot_names)} if self.robot_names else {}),
         }
+
+
+def _says_native(flag: Any) -> bool:
+    """Whether an `observation.state_is_native` value (absent, a number or a (B, 1) tensor) says native."""
+    if flag is None:
+        return False
+    flag = torch.as_tensor(flag)
+    return bool(flag.numel()) and bool((flag.reshape(-1) > 0.5).all())
 
 
 # ---------------------------------------------------------------------------------------------

@@ -127,6 +127,18 @@ def _show_tracebacks() -> bool:
     return os.environ.get("UNIDEXTOK_TRACEBACK", "0") not in ("", "0")
 
 
+def _user_error_in(err: BaseException | None, kind: type) -> BaseException | None:
+    """`err` if it is a `kind`, else the first `kind` it was raised from: draccus raises a config's refusal of a
+    flag (`--env.hand=leap`, raised in its `__post_init__`) as the cause of its own `ParsingError`."""
+    seen: set[int] = set()
+    while err is not None and id(err) not in seen:  # explicit causes only: a bug raised while handling a
+        if isinstance(err, kind):  # user error (its __context__) is still a bug
+            return err
+        seen.add(id(err))
+        err = err.__cause__
+    return None
+
+
 def user_errors_in_lerobot_clis() -> None:
     """In a LeRobot CLI (lerobot-train, -eval, ...: the plugin's import), a `UserError` of this package that
     reaches the top of the process (a `<type>_udt` config refusing a dataset that was never converted, say)
@@ -144,10 +156,11 @@ def user_errors_in_lerobot_clis() -> None:
     previous = sys.excepthook
 
     def hook(kind, err, tb) -> None:
-        if not issubclass(kind, UserError) or _show_tracebacks():
+        user = _user_error_in(err, UserError)
+        if user is None or _show_tracebacks():
             previous(kind, err, tb)
             return
-        _print_user_error(err)
+        _print_user_error(user)
         atexit._run_exitfuncs()  # noqa: SLF001  what a normal exit runs (logging, multiprocessing), then the status
         sys.stdout.flush()
         sys.stderr.flush()

@@ -40,8 +40,8 @@ def _check(text: str) -> list[str]:
 
 def test_every_command_is_checked():
     assert COMMANDS == ["unidextok-config", "unidextok-convert", "unidextok-demo", "unidextok-deploy", "unidextok-eval",
-                        "unidextok-mix", "unidextok-pull", "unidextok-push", "unidextok-train",
-                        "unidextok-view"]  # fmt: skip
+                        "unidextok-mix", "unidextok-pull", "unidextok-push", "unidextok-sim-record",
+                        "unidextok-sim-success", "unidextok-train", "unidextok-view"]  # fmt: skip
 
 
 @pytest.mark.parametrize("name", COMMANDS)

@@ -138,13 +138,23 @@ def test_user_errors_inside_a_lerobot_cli_end_in_one_line(tmp_path, program):
         "user_errors_in_lerobot_clis()\n"
         "atexit.register(lambda: print('exit handler ran'))\n"
         "if sys.argv[1] == 'bug': 1 / 0\n"
+        "if sys.argv[1] == 'wrapped':  # draccus: a config's refusal as the cause of its ParsingError\n"
+        "    try:\n"
+        "        raise InvalidInputError('data/x is not a converted dataset: convert it first')\n"
+        "    except InvalidInputError as err:\n"
+        "        raise RuntimeError('Could not instantiate the config') from err\n"
+        "if sys.argv[1] == 'bug_while_handling':\n"
+        "    try:\n"
+        "        raise InvalidInputError('data/x is not a converted dataset: convert it first')\n"
+        "    except InvalidInputError:\n"
+        "        1 / 0\n"
         "raise InvalidInputError('data/x is not a converted dataset: convert it first')\n"
     )
     env = {k: v for k, v in __import__("os").environ.items() if k != "UNIDEXTOK_TRACEBACK"}
-    for what in ("mistake", "bug"):
+    for what in ("mistake", "wrapped", "bug", "bug_while_handling"):
         r = subprocess.run([sys.executable, str(script), what], capture_output=True, text=True, env=env, timeout=60)
         assert "exit handler ran" in r.stdout
-        if what == "mistake" and program.startswith("lerobot-"):
+        if what in ("mistake", "wrapped") and program.startswith("lerobot-"):
             assert r.returncode == 2 and "Traceback" not in r.stderr
             assert r.stderr.splitlines()[0] == "error: data/x is not a converted dataset: convert it first"
         else:

@@ -1,0 +1,65 @@
+"""The simulator's speed and its scripted experts' success, per hand and task.
+
+For each hand and task: env steps per CPU-second (one step = 0.1 s of simulated time, 25 MuJoCo steps of 4 ms
+with the hand's contacts; the expert's actions, so the steps include grasps and presses), the MuJoCo step's CPU
+cost beside the real-time factor, and the expert's success over `--episodes` seeded episodes (episode i drawn
+from seed `--seed` + i, the expert's noise from 2,000,000 + i, as experiments/closed_loop.py measures it on its
+evaluation episodes) with its 95 % Wilson interval. CPU seconds are this process's (`time.process_time`), so
+the figures hold on shared cores.
+
+    .venv/bin/python benchmarks/bench_sim.py                          # 100 episodes per hand and task
+    .venv/bin/python benchmarks/bench_sim.py --episodes 20 --hands shadow
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+HANDS = ("inspire_rh56_unitree", "shadow", "allegro")
+TASKS = ("GraspLift-v0", "FingerPress-v0")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--episodes", type=int, default=100)
+    ap.add_argument("--seed", type=int, default=1000)
+    ap.add_argument("--hands", nargs="+", default=list(HANDS))
+    ap.add_argument("--tasks", nargs="+", default=list(TASKS))
+    args = ap.parse_args()
+
+    from lerobot_env_unidextok.env import SUBSTEPS, UniDexTokEnv
+    from lerobot_env_unidextok.experts import Expert
+    from lerobot_env_unidextok.scene import TIMESTEP_S
+    from lerobot_env_unidextok.success import wilson_interval
+
+    print("| hand | task | expert success | 95 % interval | env steps / CPU-s | CPU ms / MuJoCo step | x real time |")
+    print("|---|---|---|---|---|---|---|")
+    for hand in args.hands:
+        for task in args.tasks:
+            env = UniDexTokEnv(hand, task, render_mode=None)
+            wins, steps, cpu = 0, 0, 0.0
+            for i in range(args.episodes):
+                obs, _ = env.reset(seed=args.seed + i)
+                expert = Expert(env, np.random.default_rng(2_000_000 + i))
+                expert.reset(obs)
+                for _ in range(50):
+                    action = expert.act(obs)
+                    t0 = time.process_time()
+                    obs, _, terminated, _, info = env.step(action)
+                    cpu += time.process_time() - t0
+                    steps += 1
+                    if terminated:
+                        break
+                wins += bool(info["is_success"])
+            lo, hi = wilson_interval(wins, args.episodes)
+            per_step = cpu / steps
+            print(f"| {hand} | {task} | {wins}/{args.episodes} = {100 * wins / args.episodes:.0f} % | "
+                  f"{100 * lo:.0f}-{100 * hi:.0f} % | {1 / per_step:.0f} | {1000 * per_step / SUBSTEPS:.3f} | "
+                  f"{SUBSTEPS * TIMESTEP_S / per_step:.0f} |")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()

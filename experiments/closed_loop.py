@@ -1,0 +1,563 @@
+"""Closed loop: success rates of policies on simulated dexterous tasks, per hand, for the policy questions.
+
+    python experiments/closed_loop.py                                    # 2 tasks x 3 hands x 8 arms x 3 seeds
+    python experiments/closed_loop.py --tasks='[FingerPress-v0]' --hands='[shadow]' --seeds='[0]'
+
+Data (`lerobot_env_unidextok`, 10 fps): per task and hand, `pool` scripted expert episodes recorded as a LeRobot v3
+dataset in the hand's native units (`record.record`, what `unidextok-sim-record` runs), converted with
+`unidextok-convert --source=lerobot` (semantic insertion, and `--mapping=append_pad` for the packed arm, no test
+split: the test is the simulator), and mixed with `unidextok-mix --keep=all` (one mix of the three hands per task
+and mapping; per left-out hand, a mix of the other two). The conversion and mix run in this process through the
+functions the CLIs call.
+Policy: `act_udt_cpu.yaml` through LeRobot's own `lerobot-train` code (`lerobot.scripts.lerobot_train.train`, in
+this process; its dataset items read once per process and then served from memory, `_MemoryFrames`) with
+absolute actions (`udt_relative_actions=false`, `udt_copy_start=false`), `steps` updates at `batch_size`, and each
+predicted chunk of 10 actions run before the next prediction (`n_action_steps=10`: a state-only policy that
+re-plans every step stalls where the demonstrations pause); mixed checkpoints bound to the target hand with
+`unidextok-deploy`'s `deploy`. Scored by LeRobot's
+`lerobot-eval` rollout (`eval_policy_all`, sync envs, no video) on `eval_episodes` episodes drawn from seeds
+`eval_seed` + i, the same episodes for every arm; success as the simulator decides it (`info["is_success"]`).
+
+Arms, per task, target hand and seed (the target's demonstrations: a seed's random subset of its pool):
+- `alone_<n>` for n in `demos`: that hand's n demonstrations alone (its UDHM state);
+- `mix`: the target's `demos[0]` demonstrations (written `target_weight` times: about half the frames) and every
+  demonstration of the other hands, in one UDHM layout (semantic insertion), the hand's identity one-hot
+  (unidextok-mix), bound to the target;
+- `packed`: the same episodes with each hand's native joints packed at the front of the block and zero-padded;
+- `tokens_nearest`, `tokens_search`: `mix` with the hands given to the model only as the shipped tokenizer's
+  tokens (dequantized; nearest codes, or the code search with `search_rounds` rounds) instead of the UDHM state
+  (`udt_hand_input=tokens`; every other arm reads the state, `udt_hand_input=state`);
+- `zero_shot`: every demonstration of the other two hands, none of the target's, bound with `--zero_shot=true`.
+Also measured: the scripted expert on the same evaluation episodes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import shutil
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on sys.path, for `experiments.*`
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from experiments import runtime
+from experiments.common import git_commit, md_table
+
+logger = logging.getLogger(__name__)
+NAME = "closed_loop"
+TASKS = ("GraspLift-v0", "FingerPress-v0")
+HANDS = ("inspire_rh56_unitree", "shadow", "allegro")
+MIX_ARMS = ("mix", "packed", "tokens_nearest", "tokens_search", "zero_shot")
+EXPERT_NOISE_SEED = 2_000_000  # the expert's noise on evaluation episode i: this + i (never a recording's)
+RECORD_SEED = 100_000  # recording: episode draws from RECORD_SEED + k, the expert's noise from RECORD_NOISE + k
+RECORD_NOISE = 200_000
+
+
+@dataclass
+class ClosedLoopConfig:
+    tasks: list[str] = field(default_factory=lambda: list(TASKS))
+    hands: list[str] = field(default_factory=lambda: list(HANDS))
+    demos: list[int] = field(default_factory=lambda: [10, 25, 50])  # target demonstrations of the `alone` arms
+    arms: list[str] = field(default_factory=lambda: ["alone", *MIX_ARMS])
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
+    pool: int = 50  # expert episodes recorded per task and hand (the most `alone` trains on, a mix's other hands)
+    # how many times a mix writes the target's demonstrations (`unidextok-mix --weights`): 10 of them x 10 against
+    # 2 x 50 of the other hands make the target about half of the training frames, as cross_embodiment.py found
+    # a small target needs
+    target_weight: float = 10.0
+    steps: int = 400  # lerobot-train updates per policy
+    batch_size: int = 32
+    n_action_steps: int = 10  # actions of each predicted chunk (act_udt_cpu.yaml: chunk 10) run before predicting again
+    # the code search of `tokens_search`: one round (the tokenizer runs on every training batch; a round costs ~35x
+    # the nearest codes there, and one round holds most of the search's gain: docs/tokenizer.md "Code search")
+    search_rounds: int = 1
+    eval_episodes: int = 50
+    eval_seed: int = 1000  # lerobot-eval's default: episode i is drawn from eval_seed + i
+    output_root: str = "outputs/experiments"
+    cache_dir: str = "outputs/experiments/_sim"  # recorded, converted and mixed datasets (reused when complete)
+
+    def __post_init__(self) -> None:
+        for name, given, allowed in (("tasks", self.tasks, TASKS), ("arms", self.arms, ("alone", *MIX_ARMS))):
+            unknown = sorted(set(given) - set(allowed))
+            if unknown:
+                raise ValueError(f"unknown {name} {unknown}; choose from {list(allowed)}")
+        if any(d > self.pool for d in self.demos) or not self.demos:
+            raise ValueError(f"demos {self.demos} must be 1..pool ({self.pool})")
+        if len(self.hands) < 2 and set(self.arms) & set(MIX_ARMS):
+            raise ValueError("the mix arms need at least two hands: --hands='[a,b]' or --arms='[alone]'")
+
+
+# ---------------------------------------------------------------------------------------------
+# data: record, convert, mix (cached)
+# ---------------------------------------------------------------------------------------------
+def _done(folder: Path) -> bool:
+    return (folder / "meta" / "info.json").is_file()
+
+
+def recorded(cfg: ClosedLoopConfig, task: str, hand: str) -> dict:
+    """The native expert dataset of (task, hand) and its conversions: {"native", "semantic", "packed": Path, ...}."""
+    from lerobot_env_unidextok.columns import HAND_PREFIX
+    from lerobot_env_unidextok.record import RecordConfig, record
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+
+    base = Path(cfg.cache_dir) / task / hand
+    native = base / f"native_{cfg.pool}"
+    info = {"native": native}
+    if not _done(native):
+        shutil.rmtree(native, ignore_errors=True)
+        cpu = time.process_time()
+        report = record(RecordConfig(hand=hand, task=task, episodes=cfg.pool, root=str(native), seed=RECORD_SEED,
+                                     noise_seed=RECORD_NOISE, repo_id=f"sim/{hand}_{task}"))  # fmt: skip
+        (base / f"native_{cfg.pool}.json").write_text(json.dumps(
+            {"episodes": report.episodes, "attempts": report.attempts, "frames": report.frames,
+             "cpu_s": round(time.process_time() - cpu, 1)}))  # fmt: skip
+    info["record"] = json.loads((base / f"native_{cfg.pool}.json").read_text())
+    info["cpu_s"] = info["record"]["cpu_s"]
+    for mapping, key in (("semantic", "semantic"), ("append_pad", "packed")):
+        out = base / f"{key}_{cfg.pool}"
+        if not _done(out):
+            shutil.rmtree(out, ignore_errors=True)
+            cpu = time.process_time()
+            convert(ConvertOptions(source="lerobot", input=str(native), root=str(out), repo_id=f"sim/{hand}_{task}_{key}",
+                                   source_options={"hands": {"right": f"{hand}:{HAND_PREFIX}"}}, mapping=mapping,
+                                   test_fraction=0.0, progress=False))  # fmt: skip
+            (out.parent / f"{out.name}.cpu").write_text(f"{time.process_time() - cpu:.1f}")
+        info[key] = out
+        info["cpu_s"] += float((out.parent / f"{out.name}.cpu").read_text())
+    return info
+
+
+def mixed(cfg: ClosedLoopConfig, task: str, inputs: list[Path], name: str, weights: list[float] | None = None) -> Path:
+    """`unidextok-mix --keep=all` of `inputs` (a training-frame share per input with `weights`)."""
+    from lerobot_unidextok.conversion.mix import MixOptions, mix
+
+    out = Path(cfg.cache_dir) / task / name
+    if not _done(out):
+        shutil.rmtree(out, ignore_errors=True)
+        cpu = time.process_time()
+        mix(MixOptions(inputs=[str(p) for p in inputs], root=str(out), repo_id=f"sim/{task}_{name}", keep="all",
+                       weights=weights or [], progress=False))  # fmt: skip
+        (out.parent / f"{out.name}.cpu").write_text(f"{time.process_time() - cpu:.1f}")
+    return out
+
+
+def mix_cpu_s(root: Path) -> float:
+    return float((root.parent / f"{root.name}.cpu").read_text())
+
+
+def mix_episodes(root: Path) -> dict[str, dict[int, list[int]]]:
+    """{hand: {source episode: [its mixed episodes (the copies `--weights` wrote)]}} of a mix (from its record)."""
+    from lerobot_unidextok.data.meta import UdhmDatasetMeta
+
+    out: dict[str, dict[int, list[int]]] = {}
+    for ep in UdhmDatasetMeta(root).record.episodes:
+        source = int(ep.origin["source_episode_index"])
+        out.setdefault(ep.hand_type.split(",")[0], {}).setdefault(source, []).append(ep.episode_index)
+    return out
+
+
+def every_episode(by_source: dict[int, list[int]]) -> list[int]:
+    return sorted(e for copies in by_source.values() for e in copies)
+
+
+def subset(n: int, pool: int, seed: int) -> list[int]:
+    """The seed's `n` of `pool` demonstrations (sorted)."""
+    return sorted(np.random.default_rng(seed).permutation(pool)[:n].tolist())
+
+
+# ---------------------------------------------------------------------------------------------
+# train (LeRobot's lerobot-train code), bind, evaluate (LeRobot's lerobot-eval rollout)
+# ---------------------------------------------------------------------------------------------
+def train_policy(cfg: ClosedLoopConfig, root: Path, episodes: list[int], out: Path, seed: int, flags: list[str]) -> Path:
+    """Train act_udt_cpu.yaml on `episodes` of `root`; the `pretrained_model` folder."""
+    import draccus
+    from lerobot.configs.train import TrainPipelineConfig
+    from lerobot.scripts.lerobot_train import train
+
+    import lerobot_policy_unidextok  # noqa: F401  (the <type>_udt policies, as LeRobot's CLIs discover them)
+    from lerobot_unidextok.configs import resolve_config_path
+
+    model = out / "checkpoints" / "last" / "pretrained_model"
+    if (model / "model.safetensors").is_file():
+        return model
+    shutil.rmtree(out, ignore_errors=True)
+    _serve_frames_from_memory()
+    args = [f"--dataset.repo_id=sim/{root.name}", f"--dataset.root={root}", f"--dataset.episodes={episodes}",
+            "--policy.udt_relative_actions=false", "--policy.udt_copy_start=false", f"--steps={cfg.steps}",
+            f"--batch_size={cfg.batch_size}", f"--policy.n_action_steps={cfg.n_action_steps}", f"--save_freq={cfg.steps}", f"--log_freq={max(cfg.steps, 1)}",
+            f"--seed={seed}", f"--output_dir={out}", *flags]  # fmt: skip
+    train(draccus.parse(TrainPipelineConfig, config_path=resolve_config_path("lerobot/act_udt_cpu"), args=args))
+    return model
+
+
+_FRAMES: dict[tuple, dict] = {}  # (dataset root, frame index, delta timestamps) -> LeRobot's item
+
+
+class _MemoryFrames:
+    """A LeRobotDataset whose items (its own `__getitem__`: the frame and its action chunk, padded at the episode's
+    end) are read once per process, then served from memory. lerobot-train's loader reads a frame's chunk anew
+    for every batch (75 % of an update's CPU here); the sampler, batches and everything after are unchanged."""
+
+    def __init__(self, dataset) -> None:
+        self._dataset = dataset
+        rel = dataset.absolute_to_relative_idx
+        self._absolute = {r: a for a, r in rel.items()} if rel is not None else None
+        self._key = (str(dataset.root), json.dumps(dataset.delta_timestamps, sort_keys=True, default=str))
+
+    def __getattr__(self, name: str):
+        return getattr(self._dataset, name)
+
+    def __len__(self) -> int:
+        return len(self._dataset)
+
+    def __getitem__(self, idx: int) -> dict:
+        key = (*self._key, self._absolute[idx] if self._absolute is not None else idx)
+        if key not in _FRAMES:
+            _FRAMES[key] = self._dataset[idx]
+        return _FRAMES[key]
+
+
+def _serve_frames_from_memory() -> None:
+    import lerobot.scripts.lerobot_train as lerobot_train
+
+    make = lerobot_train.make_train_eval_datasets
+    if getattr(make, "_memory_frames", False):
+        return
+
+    def make_train_eval_datasets(cfg):
+        train, evaluation = make(cfg)
+        return _MemoryFrames(train), evaluation
+
+    make_train_eval_datasets._memory_frames = True
+    lerobot_train.make_train_eval_datasets = make_train_eval_datasets
+
+
+def bind(checkpoint: Path, robot: Path, out: Path, zero_shot: bool = False) -> Path:
+    from lerobot_unidextok.policies.deploy import deploy
+
+    if not (out / "model.safetensors").is_file():
+        shutil.rmtree(out, ignore_errors=True)
+        deploy(checkpoint, robot, out, zero_shot=zero_shot)
+    return out
+
+
+def evaluate(cfg: ClosedLoopConfig, checkpoint: Path, task: str, hand: str) -> dict:
+    """What `lerobot-eval --policy.path=<checkpoint> --env.type=unidextok` computes, without videos."""
+    import torch
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.envs.factory import make_env, make_env_pre_post_processors
+    from lerobot.envs.utils import close_envs
+    from lerobot.policies.factory import make_policy, make_pre_post_processors
+    from lerobot.scripts.lerobot_eval import eval_policy_all
+
+    import lerobot_policy_unidextok  # noqa: F401  (the <type>_udt policies and steps, as lerobot-eval discovers them)
+    from lerobot_env_unidextok.configuration import UniDexTokEnvConfig
+
+    env_cfg = UniDexTokEnvConfig(task=task, hand=hand)
+    envs = make_env(env_cfg, n_envs=min(cfg.eval_episodes, 50), use_async_envs=False)
+    policy_cfg = PreTrainedConfig.from_pretrained(checkpoint)
+    policy_cfg.pretrained_path, policy_cfg.device = str(checkpoint), "cpu"
+    policy = make_policy(cfg=policy_cfg, env_cfg=env_cfg).eval()
+    pre, post = make_pre_post_processors(policy_cfg, pretrained_path=str(checkpoint),
+                                         preprocessor_overrides={"device_processor": {"device": "cpu"},
+                                                                 "rename_observations_processor": {"rename_map": {}}})  # fmt: skip
+    env_pre, env_post = make_env_pre_post_processors(env_cfg=env_cfg, policy_cfg=policy_cfg)
+    with torch.no_grad():
+        info = eval_policy_all(envs, policy, env_pre, env_post, pre, post, cfg.eval_episodes,
+                               max_episodes_rendered=0, start_seed=cfg.eval_seed)  # fmt: skip
+    close_envs(envs)
+    overall = info["overall"]
+    n = int(overall["n_episodes"])
+    return {"successes": round(float(overall["pc_success"]) * n / 100), "episodes": n}
+
+
+def expert_success(cfg: ClosedLoopConfig, task: str, hand: str) -> dict:
+    """The scripted expert on the evaluation episodes (its own noise)."""
+    from lerobot_env_unidextok.env import UniDexTokEnv
+    from lerobot_env_unidextok.record import expert_episode
+
+    cpu = time.process_time()
+    env = UniDexTokEnv(hand, task, render_mode=None)
+    wins = sum(expert_episode(env, cfg.eval_seed + i, EXPERT_NOISE_SEED + i, 50)[2] for i in range(cfg.eval_episodes))
+    return {"successes": int(wins), "episodes": cfg.eval_episodes, "cpu_s": round(time.process_time() - cpu, 1)}
+
+
+# ---------------------------------------------------------------------------------------------
+# the runs
+# ---------------------------------------------------------------------------------------------
+def jobs(cfg: ClosedLoopConfig) -> list[dict]:
+    out = []
+    for task in cfg.tasks:
+        for hand in cfg.hands:
+            for seed in cfg.seeds:
+                if "alone" in cfg.arms:
+                    out += [{"task": task, "hand": hand, "seed": seed, "arm": f"alone_{n}", "demos": n} for n in cfg.demos]
+                out += [{"task": task, "hand": hand, "seed": seed, "arm": arm,
+                         "demos": 0 if arm == "zero_shot" else cfg.demos[0]} for arm in MIX_ARMS if arm in cfg.arms]  # fmt: skip
+    return out
+
+
+def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
+    task, hand, seed, arm = job["task"], job["hand"], job["seed"], job["arm"]
+    key = f"{task}/{hand}/{arm}/seed{seed}"
+    done = folder / "runs" / f"{key.replace('/', '__')}.json"
+    if done.is_file():
+        return json.loads(done.read_text())
+    own = data[task][hand]
+    target = subset(job["demos"], cfg.pool, seed) if job["demos"] else []
+    out = folder / "policies" / task / hand / f"{arm}_seed{seed}"
+    state = ["--policy.udt_hand_input=state"]
+    cpu0, t0 = time.process_time(), time.time()
+    if arm.startswith("alone"):
+        model = train_policy(cfg, own["semantic"], target, out, seed, state)
+        bound = model
+    elif arm == "zero_shot":
+        mix_root = data[task]["without"][hand]
+        episodes = sorted(e for by_source in mix_episodes(mix_root).values() for e in every_episode(by_source))
+        model = train_policy(cfg, mix_root, episodes, out, seed, state)
+        bound = bind(model, own["semantic"], out / "bound", zero_shot=True)
+    else:
+        mapping = "packed" if arm == "packed" else "semantic"
+        mix_root = data[task][f"mix_{mapping}"][hand]
+        by_hand = mix_episodes(mix_root)
+        chosen = [e for i in target for e in by_hand[hand][i]]
+        episodes = sorted(chosen + [e for h, by_source in by_hand.items() if h != hand for e in every_episode(by_source)])
+        # packed blocks are not UDHM: the tokenizer's range check would refuse them (its view is zero here anyway)
+        flags = {"mix": state, "packed": [*state, '--policy.udt_range_check="off"'], "tokens_nearest": ["--policy.udt_hand_input=tokens"],
+                 "tokens_search": ["--policy.udt_hand_input=tokens", f"--policy.udt_search_rounds={cfg.search_rounds}"]}[arm]  # fmt: skip
+        model = train_policy(cfg, mix_root, episodes, out, seed, flags)
+        bound = bind(model, own[mapping], out / "bound")
+    train_cpu = time.process_time() - cpu0
+    cpu1 = time.process_time()
+    scores = evaluate(cfg, bound, task, hand)
+    result = {**job, **scores, "train_cpu_s": round(train_cpu, 1), "eval_cpu_s": round(time.process_time() - cpu1, 1),
+              "wall_s": round(time.time() - t0, 1)}  # fmt: skip
+    done.parent.mkdir(parents=True, exist_ok=True)
+    done.write_text(json.dumps(result))
+    shutil.rmtree(out / "checkpoints" / "last" / "training_state", ignore_errors=True)
+    logger.info("%s: %d/%d (%.0f CPU-s)", key, result["successes"], result["episodes"], train_cpu + result["eval_cpu_s"])
+    return result
+
+
+def prepare(cfg: ClosedLoopConfig) -> tuple[dict, dict]:
+    """All datasets, and the CPU seconds spent making them (when they were made, so a rerun counts them too)."""
+    data: dict = {}
+    for task in cfg.tasks:
+        data[task] = {hand: recorded(cfg, task, hand) for hand in cfg.hands}
+        if set(cfg.arms) & set(MIX_ARMS):
+            # per target: its whole pool written `target_weight` times (the chosen demonstrations' copies are
+            # selected at training), so that its few demonstrations are about half of what the mix trains on
+            for mapping in ("semantic", "packed"):
+                data[task][f"mix_{mapping}"] = {
+                    hand: mixed(cfg, task, [data[task][h][mapping] for h in [hand, *(h for h in cfg.hands if h != hand)]],
+                                f"mix_{mapping}_for_{hand}_w{cfg.target_weight:g}",
+                                [cfg.target_weight] + [1.0] * (len(cfg.hands) - 1))
+                    for hand in cfg.hands
+                }  # fmt: skip
+            data[task]["without"] = {
+                hand: mixed(cfg, task, [data[task][h]["semantic"] for h in cfg.hands if h != hand], f"mix_without_{hand}")
+                for hand in cfg.hands
+            }  # fmt: skip
+    cpu = 0.0
+    for task in cfg.tasks:
+        cpu += sum(data[task][h]["cpu_s"] for h in cfg.hands)
+        for key in ("mix_semantic", "mix_packed", "without"):
+            cpu += sum(mix_cpu_s(root) for root in data[task].get(key, {}).values())
+    return data, {"data_cpu_s": round(cpu, 1)}
+
+
+def run(cfg: ClosedLoopConfig) -> dict:
+    from lerobot_env_unidextok.success import wilson_interval
+
+    t0, cpu0 = time.time(), time.process_time()
+    folder = Path(cfg.output_root) / NAME
+    data, costs = prepare(cfg)
+    experts = {f"{t}/{h}": expert_success(cfg, t, h) for t in cfg.tasks for h in cfg.hands}
+    runs = [run_one(cfg, job, data, folder) for job in jobs(cfg)]
+    summary = summarise(runs, cfg)
+    result = {"experiment": NAME, "config": dataclasses.asdict(cfg), "runs": runs, "summary": summary,
+              "experts": {k: {**v, "interval": wilson_interval(v["successes"], v["episodes"])} for k, v in experts.items()},
+              "recording": {f"{t}/{h}": data[t][h]["record"] for t in cfg.tasks for h in cfg.hands},
+              "costs": {**costs, "train_cpu_s": round(sum(r["train_cpu_s"] for r in runs), 1),
+                        "eval_cpu_s": round(sum(r["eval_cpu_s"] for r in runs), 1),
+                        "expert_cpu_s": round(sum(e["cpu_s"] for e in experts.values()), 1),
+                        "runs_wall_s": round(sum(r["wall_s"] for r in runs), 1),
+                        "this_process_cpu_s": round(time.process_time() - cpu0, 1)},
+              "git_commit": git_commit(), "wall_seconds": round(time.time() - t0, 1),
+              "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
+    # a command split over processes by task reuses finished runs: its wall time is at least theirs, summed
+    result["wall_seconds"] = round(max(result["wall_seconds"], result["costs"]["runs_wall_s"]), 1)
+    result["slot_scales"] = slot_scales(cfg, data)
+    result["goals"] = goals(result, cfg)
+    result["command"] = command_line(cfg)
+    result["provenance"] = {
+        "data": {"source": "sim", "synthetic_sample": False,
+                 "datasets": [f"{cfg.pool} expert episodes per task and hand (lerobot_env_unidextok)"],
+                 "train_rows": f"{min(cfg.demos)}-{max(cfg.demos)} target demonstrations (+ the other hands' {cfg.pool})",
+                 "test_rows": f"{cfg.eval_episodes} closed-loop episodes per policy", "hands": list(cfg.hands)},
+        "preset": "act_udt_cpu.yaml (lerobot-train), absolute actions", "seed": cfg.seeds,
+        "git_commit": result["git_commit"], "config": {"steps": cfg.steps}, "wall_seconds": result["wall_seconds"],
+        "date_utc": result["date_utc"],
+    }  # fmt: skip
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{NAME}.json").write_text(json.dumps(result, indent=2))
+    (folder / f"{NAME}.md").write_text(markdown(result) + "\n")
+    return result
+
+
+def slot_scales(cfg: ClosedLoopConfig, data: dict) -> dict:
+    """Per task and target: the mean action std (rad) of the UDHM slots the target hand lacks and another hand has,
+    in the mix the target trains in and in the mix of the others alone. LeRobot z-scores each action column by
+    its dataset std; a target whose empty slots fill most rows of a mix shrinks that std, which weighs the other
+    hands' values in those slots up in the loss."""
+    from lerobot_unidextok import hands
+    from lerobot_unidextok.data.meta import UdhmDatasetMeta
+
+    out: dict = {}
+    for task in cfg.tasks:
+        if "mix_semantic" not in data[task]:
+            continue
+        for hand in cfg.hands:
+            lacks = ~hands.get(hand).active_mask & np.any([hands.get(h).active_mask for h in cfg.hands if h != hand], 0)
+            if not lacks.any():
+                continue
+            cols = [f"right_{j}" for j, lacked in zip(_udhm_names(), lacks, strict=True) if lacked]
+            scale = {}
+            for key, root in (("mix", data[task]["mix_semantic"][hand]), ("others_only", data[task]["without"][hand])):
+                meta = UdhmDatasetMeta(root)
+                names = meta.names("action")
+                std = np.asarray(json.loads((Path(root) / "meta" / "stats.json").read_text())["action"]["std"])
+                scale[key] = float(np.mean([std[names.index(c)] for c in cols]))
+            out.setdefault(task, {})[hand] = {"slots": int(lacks.sum()), **scale}
+    return out
+
+
+def _udhm_names() -> tuple[str, ...]:
+    from lerobot_unidextok.constants import UDHM_JOINT_NAMES
+
+    return UDHM_JOINT_NAMES
+
+
+def summarise(runs: list[dict], cfg: ClosedLoopConfig) -> dict:
+    """{task: {hand: {arm: {"mean", "std" (over seeds, %), "successes", "episodes" (pooled)}}}}."""
+    from lerobot_env_unidextok.success import wilson_interval
+
+    out: dict = {}
+    for r in runs:
+        out.setdefault(r["task"], {}).setdefault(r["hand"], {}).setdefault(r["arm"], []).append(r)
+    for task, by_hand in out.items():
+        for hand, by_arm in by_hand.items():
+            for arm, rows in by_arm.items():
+                rates = [100 * r["successes"] / r["episodes"] for r in rows]
+                k, n = sum(r["successes"] for r in rows), sum(r["episodes"] for r in rows)
+                by_arm[arm] = {"mean": float(np.mean(rates)), "std": float(np.std(rates)), "seeds": len(rows),
+                               "successes": k, "episodes": n, "interval": [100 * x for x in wilson_interval(k, n)]}  # fmt: skip
+    return out
+
+
+def goals(result: dict, cfg: ClosedLoopConfig) -> list[dict]:
+    """The issue's goals, each with the figure it is judged on, whether it is met and, when not, the figures that
+    say why."""
+    s, out = result["summary"], []
+    small = f"alone_{cfg.demos[0]}"
+    scales = result.get("slot_scales", {})
+
+    def rate(arms: dict, arm: str) -> str:
+        return f"{arms[arm]['mean']:.0f} +- {arms[arm]['std']:.0f} %" if arm in arms else "-"
+
+    for task, by_hand in s.items():
+        for hand, arms in by_hand.items():
+            if small in arms:
+                out.append({"goal": f"{task} {hand}: one hand on {cfg.demos[0]} demos below 90 % (headroom)",
+                            "value": arms[small]["mean"], "met": arms[small]["mean"] < 90, "why": ""})
+            if small in arms and "mix" in arms:
+                gain = arms["mix"]["mean"] - arms[small]["mean"]
+                scale = scales.get(task, {}).get(hand)
+                why = (f"mix {rate(arms, 'mix')} against alone {rate(arms, small)}; the other hands alone, zero-shot: "
+                       f"{rate(arms, 'zero_shot')}"
+                       + (f"; the {scale['slots']} slots it lacks scaled {scale['mix']:.3f} rad in its mix, "
+                          f"{scale['others_only']:.3f} without it" if scale else ""))  # fmt: skip
+                out.append({"goal": f"{task} {hand}: mix beats the hand alone by >= 10 points at {cfg.demos[0]} demos",
+                            "value": gain, "met": gain >= 10, "why": why})
+            if task == "FingerPress-v0" and "mix" in arms and "packed" in arms:
+                gain = arms["mix"]["mean"] - arms["packed"]["mean"]
+                out.append({"goal": f"{task} {hand}: semantic insertion beats packing by >= 10 points", "value": gain,
+                            "met": gain >= 10, "why": f"semantic {rate(arms, 'mix')}, packed {rate(arms, 'packed')}"})
+            if task == "GraspLift-v0" and "zero_shot" in arms:
+                z = arms["zero_shot"]
+                out.append({"goal": f"{task} {hand}: zero-shot success above 0", "value": z["mean"],
+                            "met": z["successes"] > 0, "why": f"{z['successes']}/{z['episodes']} episodes"})
+    for key, e in result["experts"].items():
+        value = 100 * e["successes"] / e["episodes"]
+        out.append({"goal": f"{key.replace('/', ' ')}: expert at least 95 %", "value": value, "met": value >= 95,
+                    "why": f"{e['successes']}/{e['episodes']}"})
+    return out
+
+
+def command_line(cfg: ClosedLoopConfig) -> str:
+    default = ClosedLoopConfig()
+    flags = [f"--{f.name}={json.dumps(getattr(cfg, f.name)).replace(' ', '')}"
+             for f in dataclasses.fields(cfg) if getattr(cfg, f.name) != getattr(default, f.name)]  # fmt: skip
+    return " ".join([f"python experiments/{NAME}.py", *flags])
+
+
+ARM_TITLES = {"mix": "mix, UDHM state", "packed": "mix, packed native", "tokens_nearest": "mix, tokens (nearest)",
+              "tokens_search": "mix, tokens (code search)", "zero_shot": "zero-shot (other hands only)"}  # fmt: skip
+
+
+def markdown(result: dict) -> str:
+    cfg, s, costs = result["config"], result["summary"], result["costs"]
+    cpu_min = sum(costs[k] for k in ("data_cpu_s", "train_cpu_s", "eval_cpu_s", "expert_cpu_s")) / 60
+    lines = [
+        f"Success rate (%) in closed loop, mean +- std over seeds {cfg['seeds']} ({cfg['eval_episodes']} episodes each, "
+        f"the same episodes for every policy), and the 95 % Wilson interval of the pooled episodes. Policies: "
+        f"act_udt_cpu.yaml through LeRobot's lerobot-train code, {cfg['steps']} steps at batch {cfg['batch_size']}, "
+        f"absolute actions, chunks of {cfg['n_action_steps']} actions; mixes bound with unidextok-deploy. {cpu_min:.1f} "
+        f"CPU-minutes in all ({costs['data_cpu_s']:.0f} s data, {costs['train_cpu_s']:.0f} s training, "
+        f"{costs['eval_cpu_s']:.0f} s evaluation, {costs['expert_cpu_s']:.0f} s experts); the policies took "
+        f"{costs['runs_wall_s'] / 60:.0f} min of wall time summed over them (on shared cores; runs already done are "
+        "reused, so one command may be split over processes by task).", ""]  # fmt: skip
+    for task, by_hand in s.items():
+        hands = list(by_hand)
+        arms = list(dict.fromkeys(a for h in hands for a in by_hand[h]))
+        rows = []
+        for arm in ["expert", *arms]:
+            cells = []
+            for hand in hands:
+                if arm == "expert":
+                    e = result["experts"].get(f"{task}/{hand}")
+                    cells.append(f"{100 * e['successes'] / e['episodes']:.0f} ({100 * e['interval'][0]:.0f}-"
+                                 f"{100 * e['interval'][1]:.0f})" if e else "-")  # fmt: skip
+                    continue
+                e = by_hand[hand].get(arm)
+                cells.append(f"{e['mean']:.1f} +- {e['std']:.1f} ({e['interval'][0]:.0f}-{e['interval'][1]:.0f})" if e else "-")
+            title = "scripted expert" if arm == "expert" else ARM_TITLES.get(arm, arm.replace("_", " ") + " demos")
+            rows.append([title, *cells])
+        lines += [f"**{task}** (target demos: {cfg['demos'][0]} for the mix arms):", "", md_table(["policy", *hands], rows), ""]
+    scales = result.get("slot_scales", {})
+    if scales:
+        lines += ["Action scale of the UDHM slots a target lacks (mean std, rad, of those action columns; LeRobot z-scores "
+                  "each column by it): in the mix it trains in / in the other hands' mix:", ""]
+        lines += [f"- {task} {hand} ({e['slots']} slots): {e['mix']:.3f} / {e['others_only']:.3f}"
+                  for task, by_hand in scales.items() for hand, e in by_hand.items()]
+        lines += [""]
+    lines += ["Goals:", ""]
+    lines += [f"- {'met' if g['met'] else 'NOT met'}: {g['goal']} ({g['value']:+.1f}; {g['why']})" if g.get("why")
+              else f"- {'met' if g['met'] else 'NOT met'}: {g['goal']} ({g['value']:+.1f})" for g in result["goals"]]
+    return "\n".join(lines).rstrip()
+
+
+def main(argv: list[str] | None = None) -> None:
+    runtime.cli(ClosedLoopConfig, run, markdown, argv)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,22 @@
+"""lerobot-unidextok's simulator: dexterous hands on a floating wrist in MuJoCo, as a LeRobot env plugin.
+
+Importing this package registers the gymnasium ids `lerobot_env_unidextok/GraspLift-v0` and
+`lerobot_env_unidextok/FingerPress-v0` (gymnasium only: the env module, and MuJoCo, load on `gym.make`);
+`lerobot_env_unidextok.configuration` registers LeRobot's `--env.type=unidextok` config, and LeRobot's CLIs import
+it through `lerobot_policy_unidextok` (the distribution they discover). Needs the `sim` extra
+(`pip install 'lerobot_policy_unidextok[sim]'`) to run an episode.
+
+    import gymnasium as gym, lerobot_env_unidextok
+    env = gym.make("lerobot_env_unidextok/GraspLift-v0", hand="shadow")
+    obs, info = env.reset(seed=0)     # obs["agent_pos"]: wrist pose, object and goal, the Shadow's 22 joints (rad)
+
+Layout: `columns` (vector names), `hand_model` (a hand's MJCF and how its native joints drive it, one YAML per
+embodiment in `hand_models/`), `scene` (table, wrist, hand), `tasks`, `env` (the gymnasium env), `experts`
+(scripted demonstrations), `record` (expert datasets, `unidextok-sim-record`), `configuration` (LeRobot's config).
+"""
+
+from lerobot_env_unidextok.registration import GYM_NAMESPACE, register_gym_ids
+
+register_gym_ids()
+
+__all__ = ["GYM_NAMESPACE", "register_gym_ids"]

@@ -1,0 +1,40 @@
+"""The simulator's vectors by name, without MuJoCo: what LeRobot's config needs to size features and register ids.
+
+observation.state (`agent_pos`) = WRIST_NAMES + TASK_COLUMNS[task] + the hand's native joints, each named
+`right_<native joint>` (`right_little`, `right_FFJ4`, `right_joint_0.0`); action = WRIST_NAMES + the same hand
+columns. The task columns are the same for every hand, so datasets of different hands mix by name
+(`unidextok-mix --keep=all`); the hand's columns are found by their prefix (`unidextok-convert --source=lerobot
+--source_options='{"hands": {"right": "<hand>:right_"}}'`).
+"""
+
+from __future__ import annotations
+
+FPS = 10  # env steps per second
+EPISODE_STEPS = 50  # default episode length (steps)
+# the wrist pose as the observation and the action give it: position (m), then roll, pitch, yaw (rad)
+WRIST_NAMES = ("wrist_x", "wrist_y", "wrist_z", "wrist_roll", "wrist_pitch", "wrist_yaw")
+PRESS_FINGERS = ("index", "middle", "ring", "little")
+TASK_COLUMNS: dict[str, tuple[str, ...]] = {
+    "GraspLift-v0": ("object_x", "object_y", "object_z", "object_yaw", "object_half_x", "object_half_y",
+                     "object_half_z", "goal_z"),
+    "FingerPress-v0": ("panel_x", "panel_y", "panel_z", *(f"goal_{f}" for f in PRESS_FINGERS)),
+}  # fmt: skip
+TASK_TEXT = {"GraspLift-v0": "grasp the object and lift it", "FingerPress-v0": "press the button under the named finger"}
+TASKS = tuple(TASK_COLUMNS)
+# what `observation.state_is_native` carries: 1.0, the state is the hand's native layout (processor/native.py)
+STATE_IS_NATIVE_KEY = "state_is_native"
+
+
+HAND_PREFIX = "right_"  # every simulated hand is a right hand
+
+
+def hand_columns(native_names: tuple[str, ...] | list[str]) -> list[str]:
+    return [f"{HAND_PREFIX}{n}" for n in native_names]
+
+
+def state_names(task: str, native_names: tuple[str, ...] | list[str]) -> list[str]:
+    return [*WRIST_NAMES, *TASK_COLUMNS[task], *hand_columns(native_names)]
+
+
+def action_names(native_names: tuple[str, ...] | list[str]) -> list[str]:
+    return [*WRIST_NAMES, *hand_columns(native_names)]

@@ -1,0 +1,78 @@
+"""`--env.type=unidextok`: LeRobot's config of the simulator (registered on import, with the gym ids; no MuJoCo
+import). `lerobot_policy_unidextok`, which LeRobot's CLIs discover, imports this module.
+
+    lerobot-eval --policy.path=<checkpoint> --env.type=unidextok --env.task=GraspLift-v0 \
+        --env.hand=inspire_rh56_unitree --eval.n_episodes=50 --eval.batch_size=10 --eval.use_async_envs=false
+
+LeRobot sizes the loaded policy's action head by `features["action"]` (`make_policy(env_cfg=...)` replaces the
+checkpoint's output features with the env's), so the config says what the *model* predicts: `policy_action="udhm"`
+(the default) for `<type>_udt` checkpoints, whose model predicts the wrist pose and one 22-wide UDHM block (28
+values) and whose post-processor hands the env the hand's native command; `"native"` for a policy trained on the
+simulator's native dataset without UDHM (6 + the hand's native joints).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from lerobot.configs.types import FeatureType, PolicyFeature
+from lerobot.envs.configs import EnvConfig
+
+from lerobot_env_unidextok.columns import EPISODE_STEPS, FPS, TASKS, WRIST_NAMES, state_names
+from lerobot_env_unidextok.errors import SimInputError
+from lerobot_env_unidextok.registration import GYM_NAMESPACE, register_gym_ids
+
+ENV_TYPE = "unidextok"
+POLICY_ACTIONS = ("udhm", "native")
+UDHM_DIM = 22
+
+
+@EnvConfig.register_subclass(ENV_TYPE)
+@dataclass
+class UniDexTokEnvConfig(EnvConfig):
+    # the task: GraspLift-v0 (grasp and lift objects of varied shape, size and place) or FingerPress-v0 (press the
+    # button under the finger the goal names)
+    task: str | None = "GraspLift-v0"
+    fps: int = FPS
+    # the hand: a registered hand spec whose embodiment has a simulation model (inspire_rh56_unitree,
+    # inspire_rh56, shadow, allegro); the observation and the action are in that spec's native units
+    hand: str = "inspire_rh56_unitree"
+    episode_length: int = EPISODE_STEPS  # steps (at fps) before an episode is cut
+    # what the policy's model predicts: "udhm" (<type>_udt: wrist + one UDHM block) or "native"
+    policy_action: str = "udhm"
+    render_width: int = 320
+    render_height: int = 240
+    features: dict[str, PolicyFeature] = field(default_factory=dict)
+    features_map: dict[str, str] = field(default_factory=lambda: {"agent_pos": "observation.state", "action": "action"})
+
+    def __post_init__(self) -> None:
+        from lerobot_env_unidextok import hand_model  # hand specs and models: YAML, no MuJoCo
+
+        if self.task not in TASKS:
+            raise SimInputError(f"unknown task {self.task!r}; --env.task takes one of {', '.join(TASKS)}")
+        if self.policy_action not in POLICY_ACTIONS:
+            raise SimInputError(f"--env.policy_action must be one of {POLICY_ACTIONS}, got {self.policy_action!r}")
+        if self.episode_length < 1:
+            raise SimInputError(f"--env.episode_length must be >= 1 step, got {self.episode_length}")
+        native = hand_model.load(self.hand).native_names
+        hand_width = UDHM_DIM if self.policy_action == "udhm" else len(native)
+        self.features = {
+            "agent_pos": PolicyFeature(type=FeatureType.STATE, shape=(len(state_names(self.task, native)),)),
+            "action": PolicyFeature(type=FeatureType.ACTION, shape=(len(WRIST_NAMES) + hand_width,)),
+        }
+
+    @property
+    def package_name(self) -> str:
+        return GYM_NAMESPACE
+
+    @property
+    def gym_id(self) -> str:
+        return f"{GYM_NAMESPACE}/{self.task}"
+
+    @property
+    def gym_kwargs(self) -> dict:
+        return {"hand": self.hand, "max_episode_steps": self.episode_length, "width": self.render_width,
+                "height": self.render_height}  # fmt: skip
+
+
+register_gym_ids()

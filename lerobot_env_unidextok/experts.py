@@ -1,0 +1,122 @@
+"""Scripted experts: a wrist trajectory through key poses and the hand's postures, per hand and task, with noise.
+
+The postures are UDHM slot angles in each hand's model file (`hand_models/<embodiment>.yaml`, `postures:`),
+turned into that hand's native command by its spec (`SimHand.posture` -> `spec.from_udhm`); the grasp offsets
+(where the wrist goes relative to the object) are the model file's `grasp:` entries. The expert reads only what
+the observation holds (the object's pose and size, the panel's place, the goal finger), plans its key poses once
+at the episode's start, and moves between them at most 3 cm per step. Noise (its own generator, seeded per
+episode): key poses +-4 mm (+-3 mm in height) and +-0.04 rad of yaw, postures +-0.05 rad per UDHM slot, phase
+lengths +-1 step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lerobot_env_unidextok.env import UniDexTokEnv
+from lerobot_env_unidextok.tasks import PRESS_FINGERS, FingerPress, GraspLift
+
+WRIST_SPEED_M = 0.03  # per step
+POSE_NOISE = np.array([0.004, 0.004, 0.003, 0.0, 0.0, 0.04])
+POSTURE_NOISE_RAD = 0.05
+
+
+@dataclass
+class Segment:
+    """Move the wrist to `pose` and the hand to `hand` (linearly from the previous segment) over `steps`."""
+
+    pose: np.ndarray  # (6,) x, y, z, roll, pitch, yaw
+    hand: np.ndarray  # (J,) native
+    steps: int
+
+
+class Expert:
+    """Scripted policy for one episode of `env` (plan at `reset`, then `act` once per step)."""
+
+    def __init__(self, env: UniDexTokEnv, rng: np.random.Generator, noise: bool = True) -> None:
+        self.env, self.rng, self.noise = env, rng, noise
+        self.hand = env.hand
+        self.plan: list[tuple[np.ndarray, np.ndarray]] = []
+        self.t = 0
+
+    # -- postures and noise -----------------------------------------------------------------------
+    def posture(self, name: str) -> np.ndarray:
+        """A named posture in native units, each UDHM slot of it jittered (noise)."""
+        hand = self.hand
+        if not self.noise:
+            return hand.posture(name)
+        base = np.asarray(hand.spec.to_udhm(hand.posture(name), hand.side), dtype=np.float64)
+        mask = hand.spec.active_mask
+        base[mask] += self.rng.uniform(-POSTURE_NOISE_RAD, POSTURE_NOISE_RAD, int(mask.sum()))
+        raw = np.asarray(hand.spec.from_udhm(base, hand.side), dtype=np.float64)
+        dropped = ~np.isin(np.arange(len(raw)), hand.spec.active_joint_indices)
+        raw[dropped] = hand.posture(name)[dropped]
+        return raw
+
+    def jitter(self, pose: np.ndarray) -> np.ndarray:
+        return pose + (self.rng.uniform(-1, 1, 6) * POSE_NOISE if self.noise else 0)
+
+    def steps(self, n: int) -> int:
+        return max(1, n + (int(self.rng.integers(-1, 2)) if self.noise else 0))
+
+    # -- plan -------------------------------------------------------------------------------------
+    def reset(self, obs: dict[str, np.ndarray]) -> None:
+        state = obs["agent_pos"].astype(np.float64)
+        wrist, task_cols = state[:6], state[6 : 6 + len(self.env.task.state_names())]
+        segments = self.segments(dict(zip(self.env.task.state_names(), task_cols, strict=True)), wrist)
+        pose, hand = wrist.copy(), self.hand.posture("open")
+        self.plan = []
+        for seg in segments:
+            n = max(seg.steps, int(np.ceil(np.abs(seg.pose[:3] - pose[:3]).max() / WRIST_SPEED_M)))
+            for k in range(1, n + 1):
+                a = k / n
+                self.plan.append(((1 - a) * pose + a * seg.pose, (1 - a) * hand + a * seg.hand))
+            pose, hand = seg.pose, seg.hand
+        self.t = 0
+
+    def act(self, obs: dict[str, np.ndarray] | None = None) -> np.ndarray:
+        pose, hand = self.plan[min(self.t, len(self.plan) - 1)]
+        self.t += 1
+        return np.concatenate([pose, hand]).astype(np.float32)
+
+    def segments(self, task: dict[str, float], wrist: np.ndarray) -> list[Segment]:
+        if isinstance(self.env.task, GraspLift):
+            return self.grasp_segments(task)
+        if isinstance(self.env.task, FingerPress):
+            return self.press_segments(task)
+        raise TypeError(f"no expert for {type(self.env.task).__name__}")
+
+    def grasp_segments(self, task: dict[str, float]) -> list[Segment]:
+        half = np.array([task["object_half_x"], task["object_half_y"], task["object_half_z"]])
+        width = 2 * min(half[0], half[1])
+        kind = "power" if width >= GRASP_WIDTH_M else "pinch"
+        g = self.hand.grasp[kind]
+        yaw = task["object_yaw"]
+        c, s = np.cos(yaw), np.sin(yaw)
+        dx, dy, dz = g["offset_m"]
+        centre = np.array([task["object_x"], task["object_y"], task["object_z"]])
+        at = centre + [c * dx - s * dy, s * dx + c * dy, half[2] + dz if kind == "power" else dz]
+        grasp_pose = self.jitter(np.array([*at, 0.0, float(g.get("pitch", 0.0)), yaw]))
+        above = grasp_pose + [0, 0, 0.06, 0, 0, 0]
+        lifted = grasp_pose + [0, 0, 0.12, 0, 0, 0]
+        pre, closed = self.posture(g["preshape"]), self.posture(g["posture"])
+        # no phase waits in place: a state-only policy cannot tell "wait" from "go on" at a state that does not
+        # change, so the lift starts slowly while the fingers are still closing
+        return [Segment(above, pre, self.steps(8)), Segment(grasp_pose, pre, self.steps(4)),
+                Segment(grasp_pose, closed, self.steps(8)), Segment(grasp_pose + [0, 0, 0.01, 0, 0, 0], closed, 5),
+                Segment(lifted, closed, self.steps(5)), Segment(lifted, closed, 10)]  # fmt: skip
+
+    def press_segments(self, task: dict[str, float]) -> list[Segment]:
+        goal = next(f for f in PRESS_FINGERS if task[f"goal_{f}"] > 0.5)
+        panel = np.array([task["panel_x"], task["panel_y"], task["panel_z"]])
+        hover = self.jitter(np.array([*(panel + FingerPress.HOVER_M), 0.0, 0.0, 0.0]))
+        above = hover + [0, 0, 0.04, 0, 0, 0]
+        open_ = self.posture("open")
+        press = self.posture(f"press_{goal}")
+        return [Segment(above, open_, self.steps(8)), Segment(hover, open_, self.steps(3)),
+                Segment(hover, press, self.steps(5)), Segment(hover, press, 15)]  # fmt: skip
+
+
+GRASP_WIDTH_M = 0.04  # objects at least this wide get a power grasp, narrower ones a pinch

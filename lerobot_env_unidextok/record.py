@@ -1,0 +1,151 @@
+"""`unidextok-sim-record`: scripted expert episodes of one hand and task, written as a LeRobot v3 dataset.
+
+    unidextok-sim-record --hand=shadow --task=GraspLift-v0 --episodes=50 --root=data/sim_shadow_grasp
+    unidextok-convert --source=lerobot --input=data/sim_shadow_grasp --root=data/sim_shadow_grasp_udhm \
+        --source_options='{"hands": {"right": "shadow:right_"}}'
+
+The dataset is what a robot would record, in the hand's native units: `observation.state` (the wrist pose, the
+task's object and goal columns, the hand's native joints, named as `columns.state_names`) and `action` (the wrist
+target and the native hand command the expert sent), 10 fps, no images, one task text; each episode goes on
+for `AFTER_SUCCESS_STEPS` steps of the expert's plan after the task succeeded. Only episodes the expert completed
+are kept (`--keep_failures=true` keeps all); episode i is drawn from seed `seed + i` and the
+expert's noise from `noise_seed + i`, so a dataset is reproducible from its flags, and seeds are never shared
+with `lerobot-eval`'s (1000 + i) unless asked. Written into a hidden sibling folder and renamed into place.
+"""
+
+
+# no `from __future__ import annotations`: the CLI wrapper reads the config class from record_cli's annotation
+import logging
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from lerobot_env_unidextok.columns import TASK_TEXT
+from lerobot_env_unidextok.errors import SimInputError
+from lerobot_unidextok.utils.cli import run_cli
+from lerobot_unidextok.utils.draccus_cli import wrap
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass
+class RecordConfig:
+    hand: str = "inspire_rh56_unitree"  # a hand spec with a simulation model
+    task: str = "GraspLift-v0"  # GraspLift-v0 | FingerPress-v0
+    episodes: int = 50  # episodes to write (successful ones, unless keep_failures)
+    root: str = ""  # output folder (must not exist)
+    repo_id: str = ""  # dataset id (default local/sim_<hand>_<task>)
+    seed: int = 100_000  # episode i is drawn from seed + i (lerobot-eval uses 1000 + i)
+    noise_seed: int = 200_000  # the expert's noise for episode i: noise_seed + i
+    keep_failures: bool = False
+    max_attempts_factor: float = 1.5  # give up after this many attempts per episode asked
+    episode_length: int = 50
+
+    def __post_init__(self) -> None:
+        if not self.root:
+            raise SimInputError("pass --root=<output folder> for the dataset")
+        if self.episodes < 1:
+            raise SimInputError(f"--episodes must be >= 1, got {self.episodes}")
+        self.repo_id = self.repo_id or f"local/sim_{self.hand}_{self.task.split('-')[0].lower()}"
+
+
+@dataclass
+class RecordReport:
+    root: Path
+    episodes: int
+    attempts: int
+    frames: int
+    seconds: float
+
+    @property
+    def expert_success(self) -> float:
+        return self.episodes / max(self.attempts, 1)
+
+
+AFTER_SUCCESS_STEPS = 5  # a recording goes on this many steps after the task succeeded (the lift goes on)
+
+
+def expert_episode(env, seed: int, noise_seed: int, max_steps: int, after_success: int = 0):
+    """(states (T, D), actions (T, A), success) of one expert episode; `after_success` more steps of the expert's
+    plan are kept once the task succeeded (the env ends the episode there; a demonstration that stops at the
+    first lifted frame shows too little of the lift for a policy to learn it)."""
+    from lerobot_env_unidextok.experts import Expert
+
+    obs, _ = env.reset(seed=seed)
+    expert = Expert(env, np.random.default_rng(noise_seed))
+    expert.reset(obs)
+    states, actions, success, left = [], [], False, max_steps
+    while left > 0:
+        action = expert.act(obs)
+        states.append(obs["agent_pos"])
+        actions.append(action)
+        obs, _, terminated, _, info = env.step(action)
+        left -= 1
+        if info["is_success"] and not success:
+            success, left = True, min(left, after_success)
+        elif terminated and not success:
+            break
+    return np.stack(states).astype(np.float32), np.stack(actions).astype(np.float32), success
+
+
+def record(cfg: RecordConfig) -> RecordReport:
+    from lerobot.datasets import LeRobotDataset
+
+    from lerobot_env_unidextok.env import UniDexTokEnv
+
+    root = Path(cfg.root)
+    if root.exists():
+        raise SimInputError(f"{root} already exists: choose another --root (nothing was written)")
+    env = UniDexTokEnv(cfg.hand, cfg.task, render_mode=None)
+    features = {
+        "observation.state": {"dtype": "float32", "shape": (len(env.state_names),), "names": env.state_names},
+        "action": {"dtype": "float32", "shape": (len(env.action_names),), "names": env.action_names},
+    }
+    tmp = root.parent / f".{root.name}.record-tmp"
+    shutil.rmtree(tmp, ignore_errors=True)
+    start, kept, attempts, frames = time.time(), 0, 0, 0
+    try:
+        ds = LeRobotDataset.create(repo_id=cfg.repo_id, fps=env.metadata["render_fps"], features=features, root=tmp,
+                                   robot_type=f"unidextok_sim_{cfg.hand}", use_videos=False)  # fmt: skip
+        limit = int(np.ceil(cfg.episodes * cfg.max_attempts_factor))
+        while kept < cfg.episodes:
+            if attempts >= limit:
+                raise SimInputError(
+                    f"the expert completed {kept} of {attempts} episodes of {cfg.hand} on {cfg.task}; asked for "
+                    f"{cfg.episodes}: raise --max_attempts_factor or pass --keep_failures=true"
+                )
+            states, actions, success = expert_episode(env, cfg.seed + attempts, cfg.noise_seed + attempts,
+                                                      cfg.episode_length, AFTER_SUCCESS_STEPS)  # fmt: skip
+            attempts += 1
+            if not (success or cfg.keep_failures):
+                continue
+            for s, a in zip(states, actions, strict=True):
+                ds.add_frame({"observation.state": s, "action": a, "task": TASK_TEXT[cfg.task]})
+            ds.save_episode()
+            kept, frames = kept + 1, frames + len(states)
+        ds.finalize()
+        tmp.rename(root)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return RecordReport(root, kept, attempts, frames, time.time() - start)
+
+
+@wrap()
+def record_cli(cfg: RecordConfig) -> None:
+    report = record(cfg)
+    print(f"wrote {report.root}: {report.episodes} episodes, {report.frames} frames ({cfg.hand}, {cfg.task}); "
+          f"the expert completed {report.episodes} of {report.attempts} attempts "
+          f"({100 * report.expert_success:.1f} %) in {report.seconds:.1f} s")  # fmt: skip
+
+
+def main() -> None:
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", force=True)
+    run_cli(record_cli)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,74 @@
+"""The stock `lerobot-eval` finds the simulator by LeRobot's plugin convention (no flag) and scores a real
+`act_udt` checkpoint trained by the stock `lerobot-train` on expert episodes; a checkpoint of another hand and
+a hand without a model are each refused with one `error:` line. The Shadow's 22 native joints are as many as a UDHM block, so this also checks
+that the env's `state_is_native` flag, not the width, decides how its state is read."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from linkerhand_udhm import subprocess_env
+
+BIN = Path(sys.executable).parent
+pytestmark = pytest.mark.slow
+
+
+def _run(args: list[str], cwd: Path, check: bool = True) -> subprocess.CompletedProcess:
+    r = subprocess.run(args, cwd=cwd, env=subprocess_env(OMP_NUM_THREADS="1", MUJOCO_GL="disable"), text=True,
+                       capture_output=True, timeout=600)  # fmt: skip
+    if check:
+        assert r.returncode == 0, f"{args}\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
+    return r
+
+
+@pytest.fixture(scope="module")
+def shadow_checkpoint(tmp_path_factory) -> Path:
+    from lerobot_env_unidextok.record import RecordConfig, record
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+
+    work = tmp_path_factory.mktemp("sim_eval")
+    record(RecordConfig(hand="shadow", task="GraspLift-v0", episodes=2, root=str(work / "native")))
+    convert(ConvertOptions(source="lerobot", input=str(work / "native"), root=str(work / "udhm"),
+                           source_options={"hands": {"right": "shadow:right_"}}, test_fraction=0.0, progress=False))  # fmt: skip
+    from lerobot_unidextok.configs import resolve_config_path
+
+    _run([str(BIN / "lerobot-train"), f"--config_path={resolve_config_path('lerobot/act_udt_cpu')}",
+          "--dataset.repo_id=sim/shadow", f"--dataset.root={work / 'udhm'}", "--policy.udt_relative_actions=false",
+          "--policy.udt_copy_start=false", "--steps=2", "--batch_size=4", "--save_freq=2", "--log_freq=1",
+          f"--output_dir={work / 'policy'}"], work)  # fmt: skip
+    return work / "policy" / "checkpoints" / "last" / "pretrained_model"
+
+
+def test_lerobot_eval_scores_a_checkpoint_on_the_simulator(shadow_checkpoint, tmp_path):
+    _run([str(BIN / "lerobot-eval"), f"--policy.path={shadow_checkpoint}", "--env.type=unidextok",
+          "--env.task=GraspLift-v0", "--env.hand=shadow", "--eval.n_episodes=2", "--eval.batch_size=2",
+          "--eval.use_async_envs=false", "--policy.device=cpu", f"--output_dir={tmp_path / 'eval'}"], tmp_path)  # fmt: skip
+    overall = json.loads((tmp_path / "eval" / "eval_info.json").read_text())["overall"]
+    assert overall["n_episodes"] == 2 and 0 <= overall["pc_success"] <= 100
+    line = _run([str(BIN / "unidextok-sim-success"), f"--eval={tmp_path / 'eval'}"], tmp_path).stdout
+    assert "/2 = " in line and "95 % Wilson interval" in line
+
+
+def test_a_checkpoint_of_another_hand_is_refused_with_the_fix(shadow_checkpoint, tmp_path):
+    r = _run([str(BIN / "lerobot-eval"), f"--policy.path={shadow_checkpoint}", "--env.type=unidextok",
+              "--env.hand=inspire_rh56_unitree", "--eval.n_episodes=1", "--eval.batch_size=1",
+              "--eval.use_async_envs=false", "--policy.device=cpu", f"--output_dir={tmp_path / 'eval'}"], tmp_path,
+             check=False)  # fmt: skip
+    errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
+    assert r.returncode == 2 and len(errors) == 1, r.stderr[-2000:]
+    assert "trained on another robot or hand" in errors[0] and "unidextok-deploy" in errors[0]
+    assert "shadow" in errors[0] and "Traceback" not in r.stderr
+
+
+def test_a_hand_without_a_model_is_one_error_line_before_anything_runs(shadow_checkpoint, tmp_path):
+    """draccus raises the env config's refusal as the cause of its own ParsingError; the plugin's hook prints it."""
+    r = _run([str(BIN / "lerobot-eval"), f"--policy.path={shadow_checkpoint}", "--env.type=unidextok",
+              "--env.hand=leap", f"--output_dir={tmp_path / 'eval'}"], tmp_path, check=False)  # fmt: skip
+    errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
+    assert r.returncode == 2 and errors == [
+        "error: hand 'leap' (embodiment leap) has no simulation model; the simulator runs: allegro, inspire_rh56, "
+        "inspire_rh56_unitree, shadow (a model is one YAML in lerobot_env_unidextok/hand_models/)"
+    ], r.stderr[-2000:]
+    assert not (tmp_path / "eval").exists()
