@@ -25,8 +25,8 @@ Arms, per task, target hand and seed (the target's demonstrations: a seed's rand
   (unidextok-mix), bound to the target;
 - `packed`: the same episodes with each hand's native joints packed at the front of the block and zero-padded;
 - `tokens_nearest`, `tokens_search`: `mix` with the hands given to the model only as the shipped tokenizer's
-  tokens (dequantized; nearest codes, or the code search with `search_rounds` rounds) instead of the UDHM state
-  (`udt_hand_input=tokens`; every other arm reads the state, `udt_hand_input=state`);
+  tokens (dequantized; the nearest codes, or the tokenizer's own encoding, its code search, unless `search_rounds`
+  is set) instead of the UDHM state (`udt_hand_input=tokens`; every other arm reads the state, `udt_hand_input=state`);
 - `zero_shot`: every demonstration of the other two hands, none of the target's, bound with `--zero_shot=true`.
 Also measured: the scripted expert on the same evaluation episodes.
 """
@@ -76,9 +76,9 @@ class ClosedLoopConfig:
     steps: int = 400  # lerobot-train updates per policy
     batch_size: int = 32
     n_action_steps: int = 10  # actions of each predicted chunk (act_udt_cpu.yaml: chunk 10) run before predicting again
-    # the code search of `tokens_search`: one round (the tokenizer runs on every training batch; a round costs ~35x
-    # the nearest codes there, and one round holds most of the search's gain: docs/tokenizer.md "Code search")
-    search_rounds: int = 1
+    # the code search of `tokens_search`: None = the shipped tokenizer's own encoding, the package's default (greedy,
+    # docs/tokenizer.md "Code search"); a number overrides its rounds. `tokens_nearest` always uses 0.
+    search_rounds: int | None = None
     eval_episodes: int = 50
     eval_seed: int = 1000  # lerobot-eval's default: episode i is drawn from eval_seed + i
     output_root: str = "outputs/experiments"
@@ -314,7 +314,8 @@ def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
     own = data[task][hand]
     target = subset(job["demos"], cfg.pool, seed) if job["demos"] else []
     out = folder / "policies" / task / hand / f"{arm}_seed{seed}"
-    state = ["--policy.udt_hand_input=state"]
+    # the token view is zeroed for these: its encoding cannot matter, and the nearest codes are the cheapest
+    state = ["--policy.udt_hand_input=state", "--policy.udt_search_rounds=0"]
     cpu0, t0 = time.process_time(), time.time()
     if arm.startswith("alone"):
         model = train_policy(cfg, own["semantic"], target, out, seed, state)
@@ -331,8 +332,10 @@ def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
         chosen = [e for i in target for e in by_hand[hand][i]]
         episodes = sorted(chosen + [e for h, by_source in by_hand.items() if h != hand for e in every_episode(by_source)])
         # packed blocks are not UDHM: the tokenizer's range check would refuse them (its view is zero here anyway)
-        flags = {"mix": state, "packed": [*state, '--policy.udt_range_check="off"'], "tokens_nearest": ["--policy.udt_hand_input=tokens"],
-                 "tokens_search": ["--policy.udt_hand_input=tokens", f"--policy.udt_search_rounds={cfg.search_rounds}"]}[arm]  # fmt: skip
+        search = [] if cfg.search_rounds is None else [f"--policy.udt_search_rounds={cfg.search_rounds}"]
+        flags = {"mix": state, "packed": [*state, '--policy.udt_range_check="off"'],
+                 "tokens_nearest": ["--policy.udt_hand_input=tokens", "--policy.udt_search_rounds=0"],
+                 "tokens_search": ["--policy.udt_hand_input=tokens", *search]}[arm]  # fmt: skip
         model = train_policy(cfg, mix_root, episodes, out, seed, flags)
         bound = bind(model, own[mapping], out / "bound")
     train_cpu = time.process_time() - cpu0
@@ -453,8 +456,8 @@ def summarise(runs: list[dict], cfg: ClosedLoopConfig) -> dict:
     out: dict = {}
     for r in runs:
         out.setdefault(r["task"], {}).setdefault(r["hand"], {}).setdefault(r["arm"], []).append(r)
-    for task, by_hand in out.items():
-        for hand, by_arm in by_hand.items():
+    for by_hand in out.values():
+        for by_arm in by_hand.values():
             for arm, rows in by_arm.items():
                 rates = [100 * r["successes"] / r["episodes"] for r in rows]
                 k, n = sum(r["successes"] for r in rows), sum(r["episodes"] for r in rows)

@@ -41,11 +41,11 @@ import gymnasium as gym  # noqa: E402
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from lerobot_env_unidextok import hand_model
-from lerobot_env_unidextok.errors import SimInputError
-from lerobot_env_unidextok.columns import FPS, STATE_IS_NATIVE_KEY, action_names, state_names
-from lerobot_env_unidextok.scene import WRIST_NAMES, WRIST_RANGE, Scene, base_spec
-from lerobot_env_unidextok.tasks import TASKS, Task
+from lerobot_env_unidextok import hand_model  # noqa: E402
+from lerobot_env_unidextok.columns import FPS, STATE_IS_NATIVE_KEY, action_names, state_names  # noqa: E402
+from lerobot_env_unidextok.errors import SimInputError  # noqa: E402
+from lerobot_env_unidextok.scene import WRIST_NAMES, WRIST_RANGE, Scene, base_spec  # noqa: E402
+from lerobot_env_unidextok.tasks import TASKS, Task  # noqa: E402
 
 logger = logging.getLogger(__name__)
 

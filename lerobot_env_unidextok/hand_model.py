@@ -15,16 +15,16 @@ from __future__ import annotations
 
 import functools
 import importlib.metadata
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
 
+from lerobot_env_unidextok.errors import SimInputError
 from lerobot_unidextok import hands
 from lerobot_unidextok.constants import UDHM_JOINT_NAMES
-from lerobot_env_unidextok.errors import SimInputError
 
 MODELS_DIR = Path(__file__).parent / "hand_models"
 FINGERS = ("thumb", "index", "middle", "ring", "little")

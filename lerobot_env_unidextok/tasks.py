@@ -14,7 +14,7 @@ joints; they are the same for every hand, so datasets of different hands mix by 
 from __future__ import annotations
 
 import abc
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np

@@ -19,7 +19,7 @@ from lerobot_unidextok.utils.cli import quiet_torchcodec_warning, user_errors_in
 quiet_torchcodec_warning()
 user_errors_in_lerobot_clis()
 
-import lerobot_env_unidextok.configuration  # noqa: E402  (registration on import: --env.type=unidextok)
+import lerobot_env_unidextok.configuration  # noqa: E402, F401  (registration on import: --env.type=unidextok)
 from lerobot_unidextok import policies, processor  # noqa: E402  (registration on import)
 from lerobot_unidextok.policies import UDT_CONFIGS  # noqa: E402
 

@@ -23,7 +23,7 @@ def test_every_arm_is_trained_bound_and_scored_in_closed_loop(tmp_path):
     folder = tmp_path / "out" / cl.NAME
     bound = json.loads((folder / "policies/GraspLift-v0/shadow/mix_seed0/bound/config.json").read_text())
     assert bound["udt_hand_vocabulary"] == ["allegro", "shadow"] and bound["udt_fixed_hand_ids"] == [1]
-    assert bound["n_action_steps"] == 10 and bound["udt_hand_input"] == "state"
+    assert bound["n_action_steps"] == 10 and bound["udt_hand_input"] == "state" and bound["udt_search_rounds"] == 0
     zero = json.loads((folder / "policies/GraspLift-v0/shadow/zero_shot_seed0/bound/config.json").read_text())
     assert zero["udt_hand_vocabulary"] == ["allegro"] and zero["udt_extra_hands"] == ["shadow"]
     tokens = json.loads((folder / "policies/GraspLift-v0/allegro/tokens_nearest_seed0/bound/config.json").read_text())

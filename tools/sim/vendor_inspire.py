@@ -15,7 +15,6 @@ Duplicate visual geoms, the robosuite sites and sensors are dropped. Output:
 from __future__ import annotations
 
 import argparse
-import io
 import re
 import zipfile
 from pathlib import Path
