@@ -25,7 +25,7 @@ Arms, per task, target hand and seed (the target's demonstrations: a seed's rand
   (unidextok-mix), bound to the target;
 - `packed`: the same episodes with each hand's native joints packed at the front of the block and zero-padded;
 - `tokens_nearest`, `tokens_search`: `mix` with the hands given to the model only as the shipped tokenizer's
-  tokens (dequantized; the nearest codes, or the tokenizer's own encoding, its code search, unless `search_rounds`
+  (`--tokenizer`) tokens (dequantized; the nearest codes, or the tokenizer's own encoding, its code search, unless `search_rounds`
   is set) instead of the UDHM state (`udt_hand_input=tokens`; every other arm reads the state, `udt_hand_input=state`);
 - `zero_shot`: every demonstration of the other two hands, none of the target's, bound with `--zero_shot=true`.
 Also measured: the scripted expert on the same evaluation episodes.
@@ -50,6 +50,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 
 from experiments import runtime
 from experiments.common import git_commit, md_table
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 
 logger = logging.getLogger(__name__)
 NAME = "closed_loop"
@@ -79,6 +80,7 @@ class ClosedLoopConfig:
     # the code search of `tokens_search`: None = the shipped tokenizer's own encoding, the package's default (greedy,
     # docs/tokenizer.md "Code search"); a number overrides its rounds. `tokens_nearest` always uses 0.
     search_rounds: int | None = None
+    tokenizer: str = DEFAULT_TOKENIZER  # the tokens arms' tokenizer (shipped id, folder or Hub repo id)
     eval_episodes: int = 50
     eval_seed: int = 1000  # lerobot-eval's default: episode i is drawn from eval_seed + i
     output_root: str = "outputs/experiments"
@@ -314,8 +316,10 @@ def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
     own = data[task][hand]
     target = subset(job["demos"], cfg.pool, seed) if job["demos"] else []
     out = folder / "policies" / task / hand / f"{arm}_seed{seed}"
-    # the token view is zeroed for these: its encoding cannot matter, and the nearest codes are the cheapest
-    state = ["--policy.udt_hand_input=state", "--policy.udt_search_rounds=0"]
+    # the token view is zeroed for these arms, so the tokenizer behind it cannot matter: an untrained one (what
+    # act_udt_cpu.yaml gave until 2026-12-04, when these arms were run) through its nearest codes, the cheapest
+    state = ["--policy.udt_hand_input=state", "--policy.udt_pretrained=null", "--policy.udt_search_rounds=0"]
+    tokens = ["--policy.udt_hand_input=tokens", f"--policy.udt_pretrained={cfg.tokenizer}"]
     cpu0, t0 = time.process_time(), time.time()
     if arm.startswith("alone"):
         model = train_policy(cfg, own["semantic"], target, out, seed, state)
@@ -334,8 +338,7 @@ def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
         # packed blocks are not UDHM: the tokenizer's range check would refuse them (its view is zero here anyway)
         search = [] if cfg.search_rounds is None else [f"--policy.udt_search_rounds={cfg.search_rounds}"]
         flags = {"mix": state, "packed": [*state, '--policy.udt_range_check="off"'],
-                 "tokens_nearest": ["--policy.udt_hand_input=tokens", "--policy.udt_search_rounds=0"],
-                 "tokens_search": ["--policy.udt_hand_input=tokens", *search]}[arm]  # fmt: skip
+                 "tokens_nearest": [*tokens, "--policy.udt_search_rounds=0"], "tokens_search": [*tokens, *search]}[arm]  # fmt: skip
         model = train_policy(cfg, mix_root, episodes, out, seed, flags)
         bound = bind(model, own[mapping], out / "bound")
     train_cpu = time.process_time() - cpu0

@@ -28,6 +28,7 @@ def test_every_arm_is_trained_bound_and_scored_in_closed_loop(tmp_path):
     assert zero["udt_hand_vocabulary"] == ["allegro"] and zero["udt_extra_hands"] == ["shadow"]
     tokens = json.loads((folder / "policies/GraspLift-v0/allegro/tokens_nearest_seed0/bound/config.json").read_text())
     assert tokens["udt_hand_input"] == "tokens" and tokens["udt_search_rounds"] == 0
+    assert tokens["udt_pretrained"] == "unidextok/universal-small" and bound["udt_pretrained"] is None
     # the mix for a target writes its pool target_weight times; the packed mix is append_pad
     mix = UdhmDatasetMeta(tmp_path / "sim/GraspLift-v0/mix_semantic_for_shadow_w10").record
     assert mix.sources[0].repeats == 10 and mix.sources[1].repeats == 1
