@@ -1,7 +1,7 @@
 """Vendor robosuite 1.5's Inspire right hand into lerobot_env_unidextok (run once; the output is committed).
 
-    pip download --no-deps robosuite==1.5.2 -d /tmp/rs && \
-        python tools/sim/vendor_inspire.py --robosuite /tmp/rs/robosuite-1.5.2-py3-none-any.whl
+    pip download --no-deps robosuite==1.5.2 -d downloads && \
+        python tools/sim/vendor_inspire.py --robosuite downloads/robosuite-1.5.2-py3-none-any.whl
 
 robosuite's wheel is 156 MB with many dependencies and `import robosuite` loads all its environments, for one
 17 kB MJCF file and 5.4 MB of STL meshes. MuJoCo collides a mesh through its convex hull, so this script keeps
