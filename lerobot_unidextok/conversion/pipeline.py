@@ -75,6 +75,7 @@ __all__ = [
 ]
 
 OnError = Literal["raise", "skip"]
+STOP_GRACE_S = 10.0  # an interrupted conversion waits this long for the episodes in flight before killing workers
 KEEP = ("all", "hands")
 SPLIT_METHOD = "sha1 of episode key (ref relative to --input); the round(f*N) smallest are test; source order kept"
 
@@ -279,9 +280,22 @@ def _iter_results(refs: list, opts: ConvertOptions, reader_options: dict):
         if finished:
             pool.shutdown(wait=True)
         else:  # an error, Ctrl-C or SIGTERM: stop the workers now instead of letting them finish their queue
-            pool.shutdown(wait=False, cancel_futures=True)
-            for process in list(multiprocessing.active_children()):
-                process.kill()
+            _stop_workers(pool)
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Cancel the queued episodes, let the few in flight end (the pool then stops its workers), and kill the
+    workers still busy after `STOP_GRACE_S`. Killing them at once could land while one writes its result: the
+    pool's result thread then waits for the rest of that message forever, and the interpreter joins that
+    thread at exit, so a SIGTERM-ed conversion hung (about one run in seven)."""
+    import multiprocessing
+
+    pool.shutdown(wait=False, cancel_futures=True)
+    deadline = time.monotonic() + STOP_GRACE_S
+    for process in list(multiprocessing.active_children()):
+        process.join(max(0.0, deadline - time.monotonic()))
+        if process.is_alive():
+            process.kill()
 
 
 def _int_fps(fps: float, src: str) -> int:
