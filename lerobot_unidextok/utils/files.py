@@ -6,17 +6,27 @@ import hashlib
 import json
 import math
 import os
+import re
 import shutil
+import time
 import uuid
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 
 def temp_sibling(target: Path) -> Path:
-    """A fresh hidden folder name beside `target` to write into, carrying this process's id (so a later run
-    can tell a dead writer's leftovers from a live one's)."""
-    return target.parent / f".{target.name}{_TMP}{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    """A fresh hidden folder name beside `target` to write into, named per run: this process's id (so a later run
+    can tell a dead writer's leftovers from a live one's) and a random part (so two runs, or two writers of one
+    run, never share one)."""
+    return target.parent / f".{target.name}{_TMP}{_run_tag()}"
+
+
+def temp_file_sibling(path: Path) -> Path:
+    """`temp_sibling` for a file: `.<stem>.tmp-<pid>-<random><suffix>` beside `path` (the suffix kept, for writers
+    that pick a format by it)."""
+    return path.parent / f".{path.stem}{_TMP}{_run_tag()}{path.suffix}"
 
 
 def replace_folder(tmp: Path, target: Path) -> None:
@@ -24,8 +34,10 @@ def replace_folder(tmp: Path, target: Path) -> None:
     after, so `target` is always either the old folder or the new one, never half of each. A kill between the
     two renames leaves `target` missing, the old folder aside and the new one finished: `recover_folder`
     puts the old one back."""
-    if target.exists():  # the pid lets a later run tell whether this one is gone
-        old = target.parent / f".{target.name}{_OLD}{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    if target.exists():  # the tag (pid and random part) of `tmp`: a later run pairs the two if this one dies
+        prefix = f".{target.name}{_TMP}"
+        tag = tmp.name[len(prefix):] if tmp.name.startswith(prefix) else _run_tag()
+        old = target.parent / f".{target.name}{_OLD}{tag}"
         target.rename(old)
         tmp.rename(target)
         shutil.rmtree(old, ignore_errors=True)
@@ -33,57 +45,172 @@ def replace_folder(tmp: Path, target: Path) -> None:
         tmp.rename(target)
 
 
-def recover_folder(target: Path) -> list[str]:
-    """Tidy what dead writers of `target` left beside it, and say what was done (one line per action).
+@dataclass(frozen=True)
+class Leftover:
+    """A hidden folder a writer of `target` left beside it: `.<target>.tmp-<pid>-<random>` (what it was writing)
+    or `.<target>.old-<pid>-<random>` (the old `target`, set aside while it replaced it)."""
 
-    - An old folder set aside by a dead writer while `target` is missing: that writer was killed between the
-      two renames of `replace_folder`, so this is `target` as it was: renamed back, never deleted. The new
-      folder it had finished (its hidden temp folder) is kept beside it as `<target>.unfinished-<pid>`, for
-      the user to keep or delete.
-    - An old folder set aside by a dead writer while `target` exists: the replacement happened and only the
-      deletion it asked for was cut short: deleted.
-    - A dead writer's temp folder otherwise: a write cut short, half done: deleted.
-    Folders of live processes are left alone (a run writing there now)."""
+    path: Path
+    pid: int
+    set_aside: bool  # an `.old-` folder (else a `.tmp-` one)
+    tag: str  # `<pid>-<random>`: a replacement's `.old-` folder carries the tag of the `.tmp-` folder it replaced with
+
+    @property
+    def running(self) -> bool:
+        """Whether its writer still runs (`writer_running`)."""
+        return writer_running(self.pid, self.path)
+
+
+def leftovers(target: Path) -> list[Leftover]:
+    """The temp and set-aside folders of writers of exactly `target`: names that start with `.<target name>.tmp-`
+    or `.old-` followed by nothing but `<pid>` or `<pid>-<hex>`. Keyed by the exact name, never a glob: a root
+    named `ds[1]` finds `.ds[1].old-*` and never `.ds1.old-*`; `ds` never takes `ds.v2`'s or `ds.old-3`'s."""
     target = Path(target)
     if not target.parent.is_dir():
         return []
+    found = []
+    for marker, set_aside in ((_TMP, False), (_OLD, True)):
+        prefix = f".{target.name}{marker}"
+        for path in target.parent.iterdir():
+            match = _RUN_TAG.fullmatch(path.name[len(prefix):]) if path.name.startswith(prefix) else None
+            if match is not None and path.is_dir():
+                found.append(Leftover(path, int(match[1]), set_aside, match[0]))
+    return sorted(found, key=lambda x: x.path.name)
+
+
+def live_writers(target: Path) -> list[Leftover]:
+    """Leftovers of `target` whose writer is another process that still runs: `target` is being written now."""
+    return [x for x in leftovers(target) if x.pid != os.getpid() and x.running]
+
+
+def recover_folder(target: Path) -> list[str]:
+    """Tidy what dead writers of `target` left beside it (`leftovers`), and say what was done, one line each.
+
+    - An old folder set aside by a dead writer while `target` is missing or an empty folder (a script's
+      `mkdir -p` after the kill): that writer was killed between the two renames of `replace_folder`, so this is
+      `target` as it was: renamed back, never deleted. The new folder that writer had finished (its temp
+      folder, same pid) is kept beside it as `<target>.unfinished-<pid>` (a free name: `-2`, `-3`... when taken),
+      for the user to keep or delete.
+    - An old folder set aside by a dead writer while `target` holds something and the temp folder it replaced
+      `target` with (same tag: pid and random part) is gone: the replacement happened and only the deletion it
+      asked for was cut short: deleted.
+    - An old folder of a dead writer whose temp folder (same tag) is still there while `target` holds something
+      else: the replacement never happened and something else took the name; nothing is deleted: both are made
+      visible (`<target>.set-aside-<pid>`, `<target>.unfinished-<pid>`) and named.
+    - A dead writer's temp folder otherwise: a write cut short, half done: deleted.
+    - An old folder whose writer still runs (`writer_running`): a replacement under way, or a writer that hangs
+      between its renames: left alone and named, with what to do.
+    A rename or deletion that fails (a read-only folder) is named, never raised."""
+    target = Path(target)
     notes: list[str] = []
-    leftovers = [(p, _writer_pid(p, _OLD)) for p in target.parent.glob(f".{target.name}{_OLD}*")]
-    olds = sorted((p for p, pid in leftovers if _dead(pid)), key=lambda p: p.stat().st_mtime)
-    tmps = [(p, _writer_pid(p, _TMP)) for p in target.parent.glob(f".{target.name}{_TMP}*")]
-    if olds and not target.exists():
+    found = leftovers(target)
+    dead = [x for x in found if x.pid == os.getpid() or not x.running]
+    olds = sorted((x for x in dead if x.set_aside), key=lambda x: x.path.stat().st_mtime)
+    tmps = [x for x in dead if not x.set_aside]
+    kept: set[Path] = set()
+
+    def keep_visible(tmp: Leftover, label: str) -> None:
+        visible = _free_name(target.parent, f"{target.name}.{label}-{tmp.pid}")
+        if _try(notes, tmp.path.rename, visible):
+            kept.add(tmp.path)
+            notes.append(f"{visible}: what that run had written to replace {target.name} (kept; delete it if you do "
+                         "not need it)")  # fmt: skip
+
+    if olds and _missing_or_empty(target):
         old = olds.pop()
-        pid = _writer_pid(old, _OLD)
-        old.rename(target)
-        notes.append(f"{target} restored: a run (pid {pid}) was killed while replacing it, and had set it aside")
-        for tmp in [p for p, p_pid in tmps if p_pid == pid]:
-            kept = target.parent / f"{target.name}.unfinished-{pid}"
-            tmp.rename(kept)
-            notes.append(f"{kept}: what that run had written to replace it (kept; delete it if you do not need it)")
+        if target.is_dir():
+            _try(notes, target.rmdir)
+        if _try(notes, old.path.rename, target):
+            notes.append(f"{target} restored: a run (pid {old.pid}) was killed while replacing it, and had set it "
+                         "aside")  # fmt: skip
+            for tmp in (t for t in tmps if t.pid == old.pid):
+                keep_visible(tmp, "unfinished")
     for old in olds:
-        shutil.rmtree(old, ignore_errors=True)
-        notes.append(f"removed {old.name}: the folder an earlier run replaced {target.name} with is in place, only "
-                     "the deletion of the old one had been cut short")  # fmt: skip
-    for tmp, pid in tmps:
-        if tmp.exists() and _dead(pid):
-            shutil.rmtree(tmp, ignore_errors=True)
-            notes.append(f"removed {tmp.name}: the unfinished output of a run that was killed (pid {pid})")
+        mine = [t for t in tmps if t.tag == old.tag and t.path not in kept]
+        if not mine:
+            if _try(notes, shutil.rmtree, old.path):
+                notes.append(f"removed {old.path.name}: the folder an earlier run replaced {target.name} with is in "
+                             "place, only the deletion of the old one had been cut short")  # fmt: skip
+            continue
+        visible = _free_name(target.parent, f"{target.name}.set-aside-{old.pid}")
+        if _try(notes, old.path.rename, visible):
+            notes.append(f"{visible}: {target.name} as it was before a run (pid {old.pid}) was killed while replacing "
+                         f"it; {target} now holds something else, so both are kept: keep what you need, delete the "
+                         "rest")  # fmt: skip
+        for tmp in mine:
+            keep_visible(tmp, "unfinished")
+    for tmp in tmps:
+        if tmp.path not in kept and tmp.path.exists() and _try(notes, shutil.rmtree, tmp.path):
+            notes.append(f"removed {tmp.path.name}: the unfinished output of a run that was killed (pid {tmp.pid})")
+    for old in (x for x in found if x.set_aside and x not in dead):
+        notes.append(f"{old.path} is {target.name} set aside by pid {old.pid}, which still runs (it started before "
+                     f"the folder was set aside): left alone; if pid {old.pid} is not a command of this package "
+                     f"replacing {target.name}, stop it and run again to restore the folder")  # fmt: skip
     return notes
 
 
 _TMP, _OLD = ".tmp-", ".old-"
+_RUN_TAG = re.compile(r"(\d+)(?:-[0-9a-f]+)?")  # what follows `.tmp-` / `.old-`: <pid>[-<random hex>]
+START_SLACK_S = 1.0  # a process that started this much after a leftover's last change cannot be its writer
 
 
-def _dead(pid: int | None) -> bool:
-    """A leftover's writer is gone: no such process, or this one (its own leftovers are from an earlier, failed
-    attempt of this same run)."""
-    return pid is not None and (pid == os.getpid() or not process_alive(pid))
+def _run_tag() -> str:
+    return f"{os.getpid()}-{uuid.uuid4().hex[:8]}"
 
 
-def _writer_pid(path: Path, marker: str) -> int | None:
+def _missing_or_empty(target: Path) -> bool:
+    return not target.exists() or (target.is_dir() and not target.is_symlink() and not any(target.iterdir()))
+
+
+def _free_name(parent: Path, name: str) -> Path:
+    """`parent/name`, or `name-2`, `name-3`... the first that does not exist."""
+    path, n = parent / name, 1
+    while path.exists() or path.is_symlink():
+        n += 1
+        path = parent / f"{name}-{n}"
+    return path
+
+
+def _try(notes: list[str], action, *args) -> bool:
+    """Run one rename or deletion of the recovery; a failure becomes a note (the recovery never raises)."""
     try:
-        return int(path.name.rsplit(marker, 1)[1].split("-")[0])
-    except (IndexError, ValueError):
+        action(*args)
+    except OSError as exc:
+        notes.append(f"could not tidy {args[0]}: {exc.strerror or exc}; left as it is")
+        return False
+    return True
+
+
+def writer_running(pid: int, leftover: Path) -> bool:
+    """Whether the process that left `leftover` (named with `pid`) still runs.
+
+    A pid is reused once its process has ended, so "a process `pid` runs" is not enough. The writer ran when it
+    last changed `leftover` (its status-change time, ctime, which a rename or a new entry sets), and two processes
+    never hold one pid at the same time: so a process `pid` that started before that time IS the writer, and one
+    that started after it (by more than `START_SLACK_S`, the clocks' granularity) is a later process that reused
+    the pid, and the writer is gone. When the start time cannot be read (no /proc), a live pid counts as the
+    writer: left alone and reported, never deleted."""
+    if not process_alive(pid):
+        return False
+    started = process_start_s(pid)
+    if started is None:
+        return True
+    try:
+        changed = leftover.lstat().st_ctime
+    except OSError:
+        return True
+    return started <= changed + START_SLACK_S
+
+
+def process_start_s(pid: int) -> float | None:
+    """When process `pid` started, in seconds since the epoch (Linux /proc; None elsewhere or when it is gone).
+    /proc/<pid>/stat gives it in clock ticks since boot (CLOCK_BOOTTIME); the boot time is now minus that clock."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+        ticks = int(stat.rsplit(")", 1)[1].split()[19])  # field 22, counted after the name in parentheses
+        boot_s = time.time() - time.clock_gettime(time.CLOCK_BOOTTIME)
+        return boot_s + ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError, AttributeError):
         return None
 
 
@@ -95,6 +222,8 @@ def process_alive(pid: int) -> bool:
         return False
     except PermissionError:
         return True
+    except (OverflowError, OSError):
+        return False
     return True
 
 
