@@ -18,6 +18,12 @@ logs, stats and completion markers (`convert/`, `merge/`), the shard datasets (`
 a successful merge unless `keep_shards`) and `run_settings.json`. Re-running the same command resumes
 (datatrove skips completed tasks); a re-run with other settings on the same `logging_dir` is refused.
 `overwrite=True` starts from scratch and replaces an existing target only when the merge is done.
+
+`logging_dir` is a destination like `--root` (`data.destination.claim`, kind `LOGGING`), claimed with the target
+before anything is read or deleted: it may be missing, an empty folder, or a logging folder an earlier run left
+(recognised by its `run_settings.json`, `destination.LOGGING_MARKER`); an input, the target, a dataset, a
+checkpoint, a run folder or a folder of other files is refused with one line. Only a recognised logging folder is
+ever deleted (`overwrite=True`), and only after every check passed.
 """
 
 from __future__ import annotations
@@ -37,6 +43,7 @@ from lerobot_unidextok.conversion.pipeline import (
     plan_episodes,
 )
 from lerobot_unidextok.conversion.registry import import_sources, make_reader
+from lerobot_unidextok.data.destination import LOGGING_MARKER, Kind, claim, kind_of
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.utils.imports import missing_package_message
 
@@ -44,7 +51,7 @@ logger = logging.getLogger(__name__)
 
 __all__ = ["EXECUTORS", "ExecutorOptions", "SlurmOptions", "convert_with_executor", "logging_dir_of"]
 
-RUN_SETTINGS = "run_settings.json"  # the settings of the run that owns a logging_dir (resume guard)
+RUN_SETTINGS = LOGGING_MARKER  # the settings of the run that owns a logging_dir (resume guard, and its marker)
 DATATROVE_MISSING = missing_package_message(
     "datatrove", "datatrove", purpose="--executor.type=local|slurm", hint=" (or pip install 'datatrove>=0.10,<0.11')"
 )
@@ -64,9 +71,17 @@ def _run_settings(opts: ConvertOptions, cfg: ExecutorOptions, num_shards: int) -
     return json.loads(json.dumps(settings, default=str))
 
 
-def _claim_logging_dir(logs: Path, settings: dict, overwrite: bool) -> None:
+def _check_logging_dir(logs: Path, inputs: list[Path] | tuple[Path, ...] = (), overwrite: bool = False) -> Path:
+    """`logs` may hold this run's logs (`data.destination.claim`, module docstring); nothing is changed."""
+    return claim(logs, Kind.LOGGING, inputs=inputs, overwrite=overwrite, resume=True, flag="--executor.logging_dir")
+
+
+def _claim_logging_dir(logs: Path, settings: dict, overwrite: bool, inputs: list[Path] | tuple[Path, ...] = ()) -> None:
+    """Check `logs` (`_check_logging_dir`), then start it afresh (`overwrite`: an earlier logging folder of this
+    writer, and nothing else, is deleted) or resume it (same settings), and record `settings`."""
+    logs = _check_logging_dir(logs, inputs, overwrite)
     path = logs / RUN_SETTINGS
-    if overwrite and logs.exists():
+    if overwrite and kind_of(logs) is Kind.LOGGING:
         shutil.rmtree(logs)
     if path.is_file():
         before = json.loads(path.read_text())
@@ -95,14 +110,16 @@ def convert_with_executor(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
     except ImportError as exc:
         raise SetupError(f"{DATATROVE_MISSING}; {exc}") from exc
     target, input_path = checked_paths(opts)
+    logs = logging_dir_of(opts, cfg)
+    claimed_with = [input_path, target]  # the logs are neither, hold neither and sit inside neither
+    _check_logging_dir(logs, claimed_with, opts.overwrite)  # before the input is read or anything deleted
     import_sources()
     plan = plan_episodes(make_reader(opts.source, opts.reader_options()), opts, input_path)
     num_shards = min(cfg.tasks, len(plan.items))
     if num_shards < cfg.tasks:
         logger.warning("%d tasks for %d episodes: running %d tasks", cfg.tasks, len(plan.items), num_shards)
 
-    logs = logging_dir_of(opts, cfg)
-    _claim_logging_dir(logs, _run_settings(opts, cfg, num_shards), opts.overwrite)
+    _claim_logging_dir(logs, _run_settings(opts, cfg, num_shards), opts.overwrite, claimed_with)
     convert_exec, merge_exec = dt.build_executors(opts, cfg, num_shards)
     merge_exec.run()  # runs (local) or submits (Slurm) its dependency, the shard conversions, first
     if cfg.type == "slurm":

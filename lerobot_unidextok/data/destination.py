@@ -1,17 +1,24 @@
 """Where a command writes: one owner for every writer's destination.
 
-Every writer (`unidextok-convert` and its shard merge, `unidextok-mix`, `unidextok-train`'s run folder,
-`unidextok-eval`'s report, `unidextok-deploy`, `unidextok-view`) calls `claim` (a folder) or `claim_files`
-(files) before it writes anything:
+Every writer (`unidextok-convert` and its shard merge and `--executor.logging_dir`, `unidextok-mix`,
+`unidextok-train`'s run folder, `unidextok-eval`'s report, `unidextok-deploy`, `unidextok-view`,
+`unidextok-sim-record`) calls `claim` (a folder) or `claim_files` (files) before it writes or deletes anything,
+and after it has checked its other inputs and flags:
 
 - what dead writers left beside the destination is tidied first (`utils.files.recover_folder`: a folder set
   aside by a run killed between the two renames of a replacement is restored, never deleted), and said;
 - a destination that is, holds or sits inside one of the command's inputs is refused;
 - a destination inside a dataset or a checkpoint is refused: their files are one unit that other tools read
   whole (a report written as `<dataset>/meta/stats.json` replaces the dataset's statistics);
+- a destination that cannot be made is refused up front, before the work: a file where a parent folder should
+  be, a parent folder this process may not write (read-only, no permission);
+- a destination another run is writing now (a live writer's temp or set-aside folder beside it,
+  `utils.files.live_writers`) is refused, naming that run's pid;
 - an existing destination is refused, unless it holds what this writer writes and the user asked to replace
   it (`--overwrite=true`; `unidextok-train --resume=true` continues its own run). A converted dataset is not a
-  mix, a mix is not a converted dataset, a folder of other files is neither.
+  mix, a mix is not a converted dataset, a folder of other files is neither. A writer recognises its own by
+  what it leaves: a dataset's `meta/info.json` and conversion record, a checkpoint's `config.json` and weights,
+  a run folder's `best/`/`last/`, a conversion logging folder's `run_settings.json` (`LOGGING_MARKER`).
 
 Folder writers then write into `utils.files.temp_sibling(target)` and move it into place with
 `utils.files.replace_folder`, so the destination is always whole: the old one or the new one.
@@ -21,6 +28,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import shutil
 from enum import StrEnum
 from pathlib import Path
@@ -28,7 +36,7 @@ from pathlib import Path
 from lerobot_unidextok.constants import CONVERSION_PATH, INFO_PATH
 from lerobot_unidextok.data.record import RecordError, load_record
 from lerobot_unidextok.errors import ExistingOutputError
-from lerobot_unidextok.utils.files import recover_folder, replace_folder
+from lerobot_unidextok.utils.files import live_writers, recover_folder, replace_folder
 
 logger = logging.getLogger(__name__)
 
@@ -48,11 +56,14 @@ class Kind(StrEnum):
     TOKENIZER = "a tokenizer checkpoint"
     TOKENIZER_RUN = "a unidextok-train run folder"
     POLICY = "a policy checkpoint"
+    LOGGING = "a unidextok-convert logging folder (--executor.logging_dir)"
 
 
 # folders whose files are one unit: nothing is written inside them
 UNITS = (Kind.CONVERTED, Kind.MIX, Kind.DATASET, Kind.TOKENIZER, Kind.POLICY)
 RUN_FILES = ("best", "last", "eval.json", "row_store", "folds")  # what a unidextok-train run folder holds
+# the file a sharded conversion leaves in its logging folder: its settings (the resume guard), with these keys
+LOGGING_MARKER, LOGGING_MARKER_KEYS = "run_settings.json", ("executor", "num_shards", "root")
 
 
 def kind_of(folder: Path) -> Kind | None:
@@ -70,9 +81,19 @@ def kind_of(folder: Path) -> Kind | None:
         return Kind.MIX if record is not None and record.source == MIX_SOURCE else Kind.CONVERTED
     if (folder / "config.json").is_file() and (folder / "model.safetensors").is_file():
         return Kind.POLICY if (folder / "policy_preprocessor.json").is_file() else Kind.TOKENIZER
+    if _is_logging_folder(folder):
+        return Kind.LOGGING
     if any((folder / name).exists() for name in RUN_FILES):
         return Kind.TOKENIZER_RUN
     return None
+
+
+def _is_logging_folder(folder: Path) -> bool:
+    try:
+        settings = json.loads((folder / LOGGING_MARKER).read_text())
+    except (OSError, UnicodeDecodeError, ValueError):
+        return False
+    return isinstance(settings, dict) and all(key in settings for key in LOGGING_MARKER_KEYS)
 
 
 def recover(target: str | Path) -> Path:
@@ -104,6 +125,8 @@ def claim(target: str | Path, writes: Kind, *, inputs: list[Path] | tuple[Path, 
     target = recover(target)
     _refuse_inputs(target, inputs, flag)
     _refuse_inside_a_unit(target, f"{flag} {target}", flag)
+    _refuse_unwritable(target, flag, inside=resume)
+    _refuse_live_writers(target, flag)
     if not target.exists():
         return target
     if not target.is_dir():
@@ -145,6 +168,7 @@ def claim_files(paths: list[Path], *, inputs: list[Path] | tuple[Path, ...] = ()
         path = Path(path).expanduser().resolve()
         _refuse_inputs(path, inputs, flag)
         _refuse_inside_a_unit(path, f"{flag} would write {path}, which", flag)
+        _refuse_unwritable(path, flag)
         if path.is_dir():
             raise DestinationError(f"{flag} would write {path}, which is a folder: choose another {flag}")
         if path.exists() and not (is_ours is not None and is_ours(path)):
@@ -177,6 +201,35 @@ def _refuse_inside_a_unit(path: Path, what: str, flag: str) -> None:
         )
 
 
+def _refuse_unwritable(target: Path, flag: str, inside: bool = False) -> None:
+    """Refuse, before the work, a `target` whose parent folder cannot be made or written: the nearest existing
+    folder above it is a file, or this process may not create entries in it (`os.access`: a read-only file
+    system, no permission). `inside`: the writer also writes inside an existing `target` (a resumed run)."""
+    parent = target.parent
+    while not parent.exists() and not parent.is_symlink() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise DestinationError(
+            f"{flag} {target} cannot be made: {parent} is a file, not a folder; choose another {flag}"
+        )
+    for folder in [parent] + ([target] if inside and target.is_dir() else []):
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise DestinationError(
+                f"{flag} {target} cannot be written: {folder} is read-only or not writable by this user; choose "
+                f"another {flag}, or make {folder} writable"
+            )
+
+
+def _refuse_live_writers(target: Path, flag: str) -> None:
+    busy = live_writers(target)
+    if busy:
+        what = ", ".join(f"pid {x.pid} ({x.path.name})" for x in busy)
+        raise DestinationError(
+            f"{flag} {target} is being written by another run now: {what}; wait for it to end, or choose another "
+            f"{flag}"
+        )
+
+
 def _refuse_inputs(target: Path, inputs, flag: str) -> None:
     for source in inputs:
         source = Path(source).expanduser().resolve()
@@ -187,5 +240,5 @@ def _refuse_inputs(target: Path, inputs, flag: str) -> None:
             )
 
 
-__all__ = ["MIX_SOURCE", "UNITS", "DestinationError", "Kind", "claim", "claim_files", "enclosing_unit",
-           "is_json_with", "kind_of", "move_into_place", "recover"]  # fmt: skip
+__all__ = ["LOGGING_MARKER", "MIX_SOURCE", "UNITS", "DestinationError", "Kind", "claim", "claim_files",
+           "enclosing_unit", "is_json_with", "kind_of", "move_into_place", "recover"]  # fmt: skip
