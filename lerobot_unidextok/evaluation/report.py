@@ -114,22 +114,30 @@ def markdown_table(report: dict) -> str:
     return "\n".join(lines)
 
 
+def report_paths(stem: str | Path) -> tuple[Path, Path]:
+    """`<stem>.json` and `<stem>.md`, the suffixes added to the whole name (a stem `run.v2` gives `run.v2.json`,
+    where `with_suffix` gave `run.json`)."""
+    stem = Path(stem)
+    return stem.with_name(f"{stem.name}.json"), stem.with_name(f"{stem.name}.md")
+
+
 def claim_report(stem: str | Path, inputs: list[Path] | tuple[Path, ...] = ()) -> Path:
     """Check that `<stem>.json` and `<stem>.md` may be written (`data.destination.claim_files`): not an input,
     not inside a dataset or a checkpoint, and an existing file only when it is an earlier report. Returns the
     stem resolved."""
     stem = Path(stem).expanduser().resolve()
     is_report = is_json_with("per_hand", "overall")
-    claim_files([stem.with_suffix(".json"), stem.with_suffix(".md")], inputs=inputs, flag="--output",
-                is_ours=lambda p: is_report(p.with_suffix(".json")))  # fmt: skip
+    json_path, md_path = report_paths(stem)
+    claim_files([json_path, md_path], inputs=inputs, flag="--output",
+                is_ours=lambda p: is_report(json_path))  # fmt: skip
     return stem
 
 
 def write_report(report: dict, stem: str | Path) -> str:
     """Write `<stem>.json` and `<stem>.md` (where `claim_report` allows); returns the Markdown text."""
-    stem = claim_report(stem)
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    stem.with_suffix(".json").write_text(json.dumps(jsonable(report), indent=2))
+    json_path, md_path = report_paths(claim_report(stem))
+    json_path.parent.mkdir(parents=True, exist_ok=True)
+    json_path.write_text(json.dumps(jsonable(report), indent=2))
     md = markdown_table(report)
-    stem.with_suffix(".md").write_text(md + "\n")
+    md_path.write_text(md + "\n")
     return md

@@ -6,14 +6,19 @@
     unidextok-eval --checkpoint=unidextok/universal-small --datasets='[data/g1]' --search_rounds=0   # nearest codes
 
 Hands the checkpoint never saw are evaluated zero-shot (unknown-hand embedding) and flagged.
-Writes <output>.json and <output>.md and prints them: first what was scored (the checkpoint folder, and per
-dataset the episodes of the split and their hand-rows: one row per hand per frame, so a two-hand frame gives
-two rows), then the per-hand table.
+Writes the report as two files and prints it: first what was scored (the checkpoint folder, and per dataset the
+episodes of the split and their hand-rows: one row per hand per frame, so a two-hand frame gives two rows), then
+the per-hand table, then the two paths written. Where (`report_stem`):
+
+    --output=results/run1        ->  results/run1.json, results/run1.md
+    --output=results/run1.json   ->  results/run1.json, results/run1.md   (.json or .md: the same two files)
+    --output=results/  (a trailing slash, or an existing folder)  ->  results/eval.json, results/eval.md
 """
 
 # Package modules used by only some functions are imported inside them, so importing this module stays
 # light for the commands' start-up (tests/test_light_imports.py, benchmarks/bench_startup.py).
 import logging
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -36,7 +41,9 @@ class EvalConfig:
     # Rounds of decoder-aware code search when encoding (docs/tokenizer.md "Code search"): None = the
     # checkpoint config's `search_rounds`; 0 = each group's nearest code (the paper's encoding).
     search_rounds: int | None = None
-    output: str = "outputs/unidextok_eval/eval"  # path stem of the .json / .md report
+    # where the report goes: a path stem (<output>.json + <output>.md), or a folder (a trailing "/", or an
+    # existing folder) that gets eval.json + eval.md inside
+    output: str = "outputs/unidextok_eval/eval"
     device: str = "cpu"
 
     def __post_init__(self) -> None:
@@ -48,14 +55,28 @@ class EvalConfig:
         check_encoding(self.search_rounds, flag="--search_rounds")
 
 
+REPORT_NAME = "eval"  # the report's stem inside a folder given as --output
+
+
+def report_stem(output: str) -> Path:
+    """The path stem of the report `--output` names (module docstring): a folder (written with a trailing slash,
+    or existing) gets `eval.json`/`eval.md` inside it; a `.json`/`.md` ending is the stem's; anything else is the
+    stem itself (`run.v2` -> `run.v2.json`)."""
+    path = Path(output).expanduser()
+    if output.endswith(("/", os.sep)) or path.is_dir():
+        return path / REPORT_NAME
+    return path.with_suffix("") if path.suffix.lower() in (".json", ".md") else path
+
+
 def run(cfg: EvalConfig) -> dict:
     from lerobot_unidextok.evaluation import evaluate_tokenizer, write_report
-    from lerobot_unidextok.evaluation.report import claim_report, describe_scored
+    from lerobot_unidextok.evaluation.report import claim_report, describe_scored, report_paths
     from lerobot_unidextok.pretrained import resolve
     from lerobot_unidextok.tokenizer import UniDexTok
     from lerobot_unidextok.training import load_hand_states
 
-    claim_report(cfg.output, inputs=[Path(d) for d in cfg.datasets if Path(d).expanduser().exists()])
+    stem = report_stem(cfg.output)
+    claim_report(stem, inputs=[Path(d) for d in cfg.datasets if Path(d).expanduser().exists()])
     data = load_hand_states(cfg.datasets, split=None if cfg.split == "all" else cfg.split, holdout=cfg.holdout)
     if cfg.hands:
         data = data.only(cfg.hands)
@@ -67,8 +88,10 @@ def run(cfg: EvalConfig) -> dict:
     report = evaluate_tokenizer(model, data)
     report["checkpoint"], report["datasets"], report["split"] = checkpoint, cfg.datasets, cfg.split
     report["scored"] = describe_scored(data, cfg.datasets, cfg.split, checkpoint)
-    md = write_report(report, cfg.output)
+    md = write_report(report, stem)
     print(md)
+    json_path, md_path = report_paths(stem)
+    print(f"wrote {json_path} and {md_path}")
     return report
 
 

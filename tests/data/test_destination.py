@@ -1,6 +1,7 @@
 """data.destination: what a folder holds, and which writer may write where (the rules every writer shares)."""
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -80,3 +81,28 @@ def test_files_are_replaced_only_when_this_writer_wrote_them(tmp_path):
     assert claim_files([ours], is_ours=is_report)
     with pytest.raises(DestinationError, match="a file this command did not write"):
         claim_files([theirs], is_ours=is_report)
+
+
+def test_a_file_where_a_parent_folder_should_be_is_refused_before_the_work(tmp_path):
+    """Issue 45 Q1: every writer ended in a FileExistsError / NotADirectoryError traceback after its work. Now
+    `claim` and `claim_files` refuse it first, naming the file."""
+    (tmp_path / "notes").write_text("a file")
+    for where in (tmp_path / "notes" / "ds", tmp_path / "notes" / "a" / "b" / "ds"):
+        with pytest.raises(DestinationError, match=f"cannot be made: {tmp_path / 'notes'} is a file, not a folder"):
+            claim(where, Kind.MIX)
+        with pytest.raises(DestinationError, match="is a file, not a folder"):
+            claim_files([where / "eval.json"])
+    assert (tmp_path / "notes").read_text() == "a file"
+
+
+def test_a_destination_a_live_run_is_writing_is_refused_naming_its_pid(tmp_path):
+    """Issue 45 Q1: a convert and a train started 3 s apart into one new root: the second wrote into what the
+    first was writing. A live writer's temp folder beside the root (here one of this test's parent, a process
+    that started before the folder was made) now refuses the second writer, naming the first's pid."""
+    live = os.getppid()
+    busy = tmp_path / f".ds.tmp-{live}-abcd1234"
+    busy.mkdir()
+    with pytest.raises(DestinationError, match=f"being written by another run now: pid {live} .*wait for it"):
+        claim(tmp_path / "ds", Kind.CONVERTED)
+    assert busy.is_dir() and not (tmp_path / "ds").exists()
+    assert claim(tmp_path / "ds2", Kind.CONVERTED)  # another root is free
