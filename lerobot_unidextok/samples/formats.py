@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import shutil
 import zlib
 from collections.abc import Callable
@@ -44,6 +43,7 @@ from lerobot_unidextok.converters.egodex import EGODEX_FPS
 from lerobot_unidextok.samples.bags import sample_at, write_let_bag, write_let_sidecar, write_linkerhand_bag
 from lerobot_unidextok.samples.motion import GestureTrack, gesture_track, wrist_track
 from lerobot_unidextok.utils.cli import progress_bar
+from lerobot_unidextok.utils.files import replace_folder, temp_sibling
 
 logger = logging.getLogger(__name__)
 
@@ -131,18 +131,15 @@ def write_samples(
     written: dict[str, Path] = {}
     for name in names:
         folder = out / name
-        if folder.exists():
-            if not overwrite:
-                raise FileExistsError(f"{folder} exists; pass overwrite=True or choose another out_dir")
-            shutil.rmtree(folder)
-        tmp = out / f".{name}.partial-{os.getpid()}"  # a crash never leaves a half-written sample at `folder`
-        shutil.rmtree(tmp, ignore_errors=True)
+        if folder.exists() and not overwrite:
+            raise FileExistsError(f"{folder} exists; pass overwrite=True or choose another out_dir")
+        tmp = temp_sibling(folder)  # named per run: a crash never leaves a half-written sample at `folder`
         tmp.mkdir(parents=True)
         try:
             labels = _WRITERS[name](tmp, spec)
             _write_labels(tmp, name, labels)
             _write_readme(tmp, name, spec)
-            tmp.rename(folder)
+            replace_folder(tmp, folder)  # an existing sample is replaced only once the new one is whole
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
         written[name] = folder

@@ -22,6 +22,7 @@ import numpy as np
 from lerobot_unidextok import hands as hand_registry
 from lerobot_unidextok.constants import INFO_PATH, OBS_STATE, UDHM_DIM
 from lerobot_unidextok.errors import InvalidInputError, MissingInputError
+from lerobot_unidextok.utils.files import temp_file_sibling
 from lerobot_unidextok.utils.imports import require_package
 from lerobot_unidextok.viz.pose import find_urdf, spec_keypoints_m, urdf_keypoints_m
 from lerobot_unidextok.viz.render import BONES, VIEWS, EpisodeRenderer
@@ -189,7 +190,7 @@ def write_video(view: EpisodeView, path: str | Path, camera: str = "oblique", pr
     renderer = EpisodeRenderer(view, camera)
     frames = (renderer.render(t) for t in range(view.num_frames))
     frames = progress_bar(frames, total=view.num_frames, desc=f"render {path.name}", unit="frame", disable=not progress)
-    partial = path.with_name(f".{path.stem}.partial{path.suffix}")
+    partial = temp_file_sibling(path)  # named per run: two renders of one path never share it
     try:
         if path.suffix.lower() == ".gif":
             _write_gif(frames, partial, view.fps, [renderer.render(t) for t in _palette_frames(view.num_frames)])
