@@ -169,6 +169,7 @@ def claim_files(paths: list[Path], *, inputs: list[Path] | tuple[Path, ...] = ()
         _refuse_inputs(path, inputs, flag)
         _refuse_inside_a_unit(path, f"{flag} would write {path}, which", flag)
         _refuse_unwritable(path, flag)
+        _refuse_live_writers(path, flag)
         if path.is_dir():
             raise DestinationError(f"{flag} would write {path}, which is a folder: choose another {flag}")
         if path.exists() and not (is_ours is not None and is_ours(path)):

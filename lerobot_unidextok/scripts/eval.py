@@ -68,6 +68,25 @@ def report_stem(output: str) -> Path:
     return path.with_suffix("") if path.suffix.lower() in (".json", ".md") else path
 
 
+def refuse_a_training_report(stem: Path) -> None:
+    """`<stem>.json` may be an earlier `unidextok-eval` report (rewritten), never the report `unidextok-train` wrote
+    for its run (`--output=<run folder>` would replace the run's test scores of its best checkpoint)."""
+    import json
+
+    from lerobot_unidextok.data.destination import DestinationError
+    from lerobot_unidextok.evaluation.report import report_paths
+
+    json_path = report_paths(stem)[0]
+    try:
+        report = json.loads(json_path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError):
+        return
+    if isinstance(report, dict) and "training" in report:
+        raise DestinationError(
+            f"--output would replace {json_path}, the report unidextok-train wrote for its run: choose another --output"
+        )
+
+
 def run(cfg: EvalConfig) -> dict:
     from lerobot_unidextok.evaluation import evaluate_tokenizer, write_report
     from lerobot_unidextok.evaluation.report import claim_report, describe_scored, report_paths
@@ -76,6 +95,7 @@ def run(cfg: EvalConfig) -> dict:
     from lerobot_unidextok.training import load_hand_states
 
     stem = report_stem(cfg.output)
+    refuse_a_training_report(stem)
     claim_report(stem, inputs=[Path(d) for d in cfg.datasets if Path(d).expanduser().exists()])
     data = load_hand_states(cfg.datasets, split=None if cfg.split == "all" else cfg.split, holdout=cfg.holdout)
     if cfg.hands:

@@ -1,0 +1,339 @@
+"""The destinations of every writer, as one table (issue 45): each writer crossed with each kind of destination and
+each leftover state. A cell is either one clear refusal (a `DestinationError`, which every CLI prints as one
+`error:` line and exit status 2) with nothing changed, or a correct result. Adding a writer is adding a row.
+
+How the cells run, to keep the table fast (114 cells and the commands: 39 s on a loaded 2-core machine):
+- Every cell calls `data.destination.claim` / `claim_files` exactly as that writer does before it writes (its kind,
+  flag, inputs, `overwrite` / `resume`; `WRITERS` below, each with the module it mirrors). The destinations are
+  folders with the files `kind_of` recognises (a dataset's `meta/info.json` and conversion record, a checkpoint's
+  `config.json` + weights...), which is all `claim` reads.
+- A representative subset runs the real CLIs' `main()` (`test_the_real_commands`): convert, mix, eval and the
+  sharded conversion's `--executor.logging_dir`, on the smallest sample input the conversion tests use.
+- `unidextok-sim-record` (owned by another change right now) is the row `sim-record`: `claim(root, Kind.DATASET,
+  flag="--root")` without overwrite, the call its record module is being routed through.
+- A read-only parent: we run as root, which `chmod` does not stop, so the cell runs in a child process in its own
+  mount namespace where the parent is bind-mounted read-only (`unshare -m`, a real read-only file system); as
+  another user, `chmod 0555` does it in this process. Where neither works the cell is skipped, saying why.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import json
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from lerobot_unidextok.data.destination import DestinationError, Kind, claim, claim_files
+
+DEAD = 999999999  # no such process
+COLUMNS = ("input", "dataset", "converted", "checkpoint", "run", "logging", "user", "empty", "own", "read-only parent",
+           "file as parent", "dead run's leftovers", "dead run's leftovers, root made empty",
+           "live run's leftovers")  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------------------
+# the sandbox: one of each kind of folder
+# ---------------------------------------------------------------------------------------------
+def _dataset(root: Path, source: str | None) -> Path:
+    (root / "meta").mkdir(parents=True)
+    (root / "meta" / "info.json").write_text("{}")
+    if source is not None:
+        (root / "meta" / "unidextok_conversion.json").write_text(json.dumps({"source": source}))
+    (root / "data").mkdir()
+    (root / "data" / "episode_0.parquet").write_bytes(b"rows")
+    return root
+
+
+def _checkpoint(root: Path, policy: bool) -> Path:
+    root.mkdir(parents=True)
+    for name in ("config.json", "model.safetensors", *(["policy_preprocessor.json"] if policy else [])):
+        (root / name).write_text("{}")
+    return root
+
+
+def build_sandbox(base: Path) -> None:
+    """Everything a cell may point at, under `base`."""
+    (base / "raw" / "data").mkdir(parents=True)
+    (base / "raw" / "data" / "episode_0.h5").write_bytes(b"source")
+    _dataset(base / "converted", "lerobot")  # the input of the writers that read a converted dataset
+    _dataset(base / "converted2", "lerobot")  # another one, not an input
+    _dataset(base / "plain", None)  # a LeRobot dataset without a conversion record (a recording)
+    _checkpoint(base / "policy_in", policy=True)  # deploy's input
+    _checkpoint(base / "policy", policy=True)
+    _checkpoint(base / "run" / "best", policy=False)
+    (base / "run" / "eval.json").write_text(json.dumps({"per_hand": {}, "overall": {}, "training": {}}))
+    (base / "logs" / "convert").mkdir(parents=True)
+    (base / "logs" / "run_settings.json").write_text(json.dumps({"executor": "local", "num_shards": 2, "root": "x"}))
+    (base / "user").mkdir()
+    (base / "user" / "notes.txt").write_text("mine")
+    (base / "empty").mkdir()
+    (base / "ro").mkdir()
+    (base / "afile").write_text("a file")
+
+
+def tree_hash(base: Path) -> dict[str, str]:
+    """Every path under `base` (hidden ones too) -> sha1 of its bytes ("dir" for a folder)."""
+    return {str(p.relative_to(base)): "dir" if p.is_dir() else hashlib.sha1(p.read_bytes()).hexdigest()
+            for p in sorted(base.rglob("*"))}  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------------------
+# the writers: how each claims its destination
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Writer:
+    mirrors: str  # where the writer claims
+    claim: Callable[[Path, Path], object]  # (destination, sandbox) -> claims as the writer does
+    input: str | None  # the sandbox folder it reads (its "input" column), if any
+    own: Callable[[Path], Path]  # makes what this writer wrote before, returns the destination naming it
+    # one letter per column: E = refused, nothing changed; o = a correct result; R = the dead run's folder
+    # restored (nothing lost), then refused as an existing output (a writer without --overwrite); - = no such cell
+    expected: str
+    folder: bool = True  # writes a folder (`claim`: recovers leftovers), else files (`claim_files`)
+
+
+def _eval_claim(dest: Path, base: Path):
+    from lerobot_unidextok.evaluation.report import claim_report
+    from lerobot_unidextok.scripts.eval import refuse_a_training_report, report_stem
+
+    stem = report_stem(str(dest))
+    refuse_a_training_report(stem)
+    return claim_report(stem, inputs=[base / "converted"])
+
+
+def _own_report(base: Path) -> Path:
+    (base / "reports").mkdir()
+    (base / "reports" / "eval.json").write_text(json.dumps({"per_hand": {}, "overall": {}}))
+    (base / "reports" / "eval.md").write_text("| hand |")
+    return base / "reports"
+
+
+def _own_video(base: Path) -> Path:
+    (base / "clip.mp4").write_bytes(b"an earlier render")
+    return base / "clip.mp4"
+
+
+WRITERS: dict[str, Writer] = {
+    # columns: input dataset converted checkpoint run logging user empty own ro-parent file-parent dead dead+empty live
+    "convert": Writer(
+        "conversion/pipeline.py checked_paths (--overwrite=true)",
+        lambda d, b: claim(d, Kind.CONVERTED, inputs=[b / "raw"], overwrite=True),
+        "raw", lambda b: b / "converted2", "EEoEEEEooEEooE"),
+    "mix": Writer(
+        "conversion/mix.py mix (--overwrite=true)",
+        lambda d, b: claim(d, Kind.MIX, inputs=[b / "converted"], overwrite=True),
+        "converted", lambda b: _dataset(b / "mixed", "mix"), "EEEEEEEooEEooE"),
+    "train run folder": Writer(
+        "training/run.py claim_run_folder (--overwrite=true)",
+        lambda d, b: claim(d, Kind.TOKENIZER_RUN, inputs=[b / "converted"], overwrite=True, flag="--output_dir"),
+        "converted", lambda b: b / "run", "EEEEoEEooEEooE"),
+    "logging dir": Writer(
+        "conversion/sharded.py _check_logging_dir (--overwrite=true)",
+        lambda d, b: _logging_claim(d, b),
+        "raw", lambda b: b / "logs", "EEEEEoEooEEooE"),
+    "eval output": Writer(
+        "scripts/eval.py run: report_stem, refuse_a_training_report, claim_report",
+        _eval_claim, "converted", _own_report, "EEEEEooooEEooo", folder=False),
+    "deploy": Writer(
+        "policies/deploy.py (no --overwrite)",
+        lambda d, b: claim(d, Kind.POLICY, inputs=[b / "policy_in", b / "converted"], flag="--output"),
+        "policy_in", lambda b: b / "policy", "EEEEEEEoEEERRE"),
+    "view": Writer(
+        "scripts/view.py view_cli (.mp4)",
+        lambda d, b: claim_files([d], is_ours=lambda p: p.suffix.lower() == ".mp4"),
+        "converted", _own_video, "EEEEEEEEoEEoEE", folder=False),
+    "sim-record": Writer(
+        "lerobot_env_unidextok/record.py (routed through claim, no --overwrite)",
+        lambda d, b: claim(d, Kind.DATASET, flag="--root"),
+        None, lambda b: b / "plain", "-EEEEEEoEEERRE"),
+}
+
+
+def _logging_claim(dest: Path, base: Path):
+    from lerobot_unidextok.conversion.sharded import _check_logging_dir
+
+    return _check_logging_dir(dest, [base / "raw", base / "out"], overwrite=True)
+
+
+def destination(writer: Writer, column: str, base: Path) -> Path:
+    """The path a cell gives the writer, after making the state the column names."""
+    if column == "input":
+        return base / writer.input
+    if column == "own":
+        return writer.own(base)
+    named = {"dataset": "plain", "converted": "converted2", "checkpoint": "policy", "run": "run", "logging": "logs",
+             "user": "user", "empty": "empty"}  # fmt: skip
+    if column in named:
+        return base / named[column]
+    if column == "read-only parent":
+        return base / "ro" / "new"
+    if column == "file as parent":
+        return base / "afile" / "new"
+    if column.startswith("dead run's leftovers"):  # this writer killed between the two renames of its replacing `new`
+        own = writer.own(base) if writer.folder else base / "converted2"
+        shutil.copytree(own, base / f".new.old-{DEAD}-abcd1234")
+        shutil.copytree(own, base / f".new.tmp-{DEAD}-abcd1234")
+        (base / f".new.tmp-{DEAD}-abcd1234" / "written_by_the_new_run").write_bytes(b"the new one")
+        if column.endswith("root made empty"):  # then a script's `mkdir -p new`
+            (base / "new").mkdir()
+        return base / "new"
+    if column == "live run's leftovers":  # a run writing `new` now: this test's parent started before it
+        (base / f".new.tmp-{os.getppid()}-abcd1234").mkdir()
+        return base / "new"
+    raise AssertionError(column)
+
+
+CELLS = [(name, column) for name in WRITERS for column in COLUMNS]
+
+
+def test_the_table_has_one_letter_per_column():
+    assert all(len(w.expected) == len(COLUMNS) and set(w.expected) <= set("EoR-") for w in WRITERS.values())
+
+
+def run_cell(name: str, column: str, base: Path, dest: Path) -> str:
+    """"ok" or "error: <message>" for one cell, calling the writer's claim."""
+    try:
+        WRITERS[name].claim(dest, base)
+    except DestinationError as exc:
+        return f"error: {exc}"
+    return "ok"
+
+
+@pytest.mark.parametrize("name, column", CELLS, ids=[f"{n}|{c}" for n, c in CELLS])
+def test_cell(name, column, tmp_path):
+    writer = WRITERS[name]
+    expected = writer.expected[COLUMNS.index(column)]
+    if expected == "-":
+        pytest.skip(f"{name} has no {column}")
+    base = tmp_path / "sandbox"
+    base.mkdir()
+    build_sandbox(base)
+    dest = destination(writer, column, base)
+    before = tree_hash(base)
+    if column == "read-only parent":
+        outcome = _run_read_only(name, column, base, dest)
+    else:
+        outcome = run_cell(name, column, base, dest)
+    after = tree_hash(base)
+    if expected in "ER":
+        assert outcome.startswith("error: ") and "\n" not in outcome, outcome
+        flags = {"eval output": "--output", "view": "--output", "deploy": "--output",
+                 "train run folder": "--output_dir", "logging dir": "--executor.logging_dir"}  # fmt: skip
+        flag = flags.get(name, "--root")
+        assert outcome.startswith(f"error: {flag} "), outcome  # names the flag the user gave
+    else:
+        assert outcome == "ok", outcome
+    if column.startswith("dead run's leftovers") and writer.folder:
+        # the set-aside folder is back in place, the finished new one kept beside it, nothing deleted
+        assert (base / "new").is_dir() and not (base / "new" / "written_by_the_new_run").exists()
+        assert (base / f"new.unfinished-{DEAD}" / "written_by_the_new_run").read_bytes() == b"the new one"
+        if column.endswith("root made empty"):
+            del before["new"]  # the empty folder made after the kill gave way to the restored one
+        assert sorted(after.values()) == sorted(before.values())
+        assert not [p for p in base.iterdir() if p.name.startswith(".new.")]
+    else:
+        assert after == before  # refused: nothing changed; passed: a claim changes nothing (replaced at the end)
+
+
+# ---------------------------------------------------------------------------------------------
+# a read-only parent
+# ---------------------------------------------------------------------------------------------
+def _run_read_only(name: str, column: str, base: Path, dest: Path) -> str:
+    ro = base / "ro"
+    if os.geteuid() != 0:
+        ro.chmod(0o555)
+        try:
+            return run_cell(name, column, base, dest)
+        finally:
+            ro.chmod(0o755)
+    if shutil.which("unshare") is None:
+        pytest.skip("running as root without unshare: no way to make a read-only folder here")
+    script = (f"mount --bind '{ro}' '{ro}' && mount -o remount,bind,ro '{ro}' && "
+              f"exec '{sys.executable}' '{__file__}' '{name}' '{column}' '{base}' '{dest}'")  # fmt: skip
+    proc = subprocess.run(["unshare", "-m", "sh", "-c", script], capture_output=True, text=True, timeout=120)
+    if "mount" in proc.stderr and proc.returncode != 0 and "error:" not in proc.stdout:
+        pytest.skip(f"cannot mount a read-only folder here: {proc.stderr.strip()[:200]}")
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout.strip().splitlines()[-1]
+
+
+# ---------------------------------------------------------------------------------------------
+# the real commands, a representative subset
+# ---------------------------------------------------------------------------------------------
+def _main(module: str, argv: list[str], monkeypatch, capsys) -> tuple[int, list[str]]:
+    main = importlib.import_module(f"lerobot_unidextok.scripts.{module}").main
+    monkeypatch.setattr(sys, "argv", [f"unidextok-{module}", *argv])
+    try:
+        main()
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    return code, [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
+
+
+@pytest.fixture(scope="module")
+def raw(tmp_path_factory) -> Path:
+    from lerobot_unidextok.samples import write_samples
+
+    return write_samples(tmp_path_factory.mktemp("raw"), sources=["lerobot"], episodes_per_source=2,
+                         frames_per_episode=20)["lerobot"]  # fmt: skip
+
+
+def test_the_real_commands(raw, tmp_path, monkeypatch, capsys):
+    """The CLIs end in one `error:` line and exit 2 with nothing changed, or in the right result."""
+    from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS
+
+    base = tmp_path / "sandbox"
+    base.mkdir()
+    build_sandbox(base)
+    shutil.rmtree(base / "raw")
+    shutil.copytree(raw, base / "raw")
+    opts = json.dumps(SAMPLE_SOURCE_OPTIONS["lerobot"])
+    convert = ["--source=lerobot", f"--input={base / 'raw'}", f"--source_options={opts}", "--repo_id=t/g1"]
+    shutil.rmtree(base / "converted")  # a real conversion (mix reads its input before it claims)
+    assert _main("convert", [*convert, f"--root={base / 'converted'}"], monkeypatch, capsys) == (0, [])
+    (base / f".new.tmp-{os.getppid()}-abcd1234").mkdir()  # a live run writing `new`
+    refused = [
+        ("convert", [*convert, f"--root={base / 'raw'}", "--overwrite=true"], "is, holds or sits inside the input"),
+        ("convert", [*convert, f"--root={base / 'afile' / 'new'}"], "is a file, not a folder"),
+        ("convert", [*convert, f"--root={base / 'new'}"], f"being written by another run now: pid {os.getppid()}"),
+        ("convert", [*convert, f"--root={base / 'out'}", "--overwrite=true", "--executor.type=local",
+                     f"--executor.logging_dir={base / 'converted'}"], "holds a dataset written by unidextok-convert"),
+        ("mix", [f"--inputs=[{base / 'converted'}]", f"--root={base / 'user'}", "--overwrite=true"],
+         "holds other files"),
+        ("eval", [f"--checkpoint={base / 'run'}", f"--datasets=[{base / 'converted'}]", f"--output={base / 'run'}/"],
+         "the report unidextok-train wrote"),
+    ]  # fmt: skip
+    if importlib.util.find_spec("datatrove") is None:  # an optional extra: the sharded row needs it
+        refused = [r for r in refused if "--executor.type=local" not in r[1]]
+    for module, argv, message in refused:
+        before = tree_hash(base)
+        code, errors = _main(module, argv, monkeypatch, capsys)
+        assert code == 2 and len(errors) == 1 and message in errors[0], (module, argv, errors)
+        assert tree_hash(base) == before, (module, argv)
+    shutil.rmtree(base / f".new.tmp-{os.getppid()}-abcd1234")
+
+    # a dead run's leftovers: the next convert restores the set-aside dataset, keeps the finished new one, and
+    # (no --overwrite) refuses to replace it, in one line
+    (base / "converted").rename(base / f".new.old-{DEAD}-abcd1234")
+    shutil.copytree(base / "converted2", base / f".new.tmp-{DEAD}-abcd1234")
+    code, errors = _main("convert", [*convert, f"--root={base / 'new'}"], monkeypatch, capsys)
+    assert code == 2 and len(errors) == 1 and "already holds a dataset written by unidextok-convert" in errors[0]
+    assert (base / "new" / "meta" / "info.json").is_file() and (base / f"new.unfinished-{DEAD}" / "meta").is_dir()
+    assert not [p.name for p in base.iterdir() if p.name.startswith(".new.")]
+    # and an empty folder made beforehand takes a conversion
+    assert _main("convert", [*convert, f"--root={base / 'empty'}"], monkeypatch, capsys) == (0, [])
+    assert (base / "empty" / "meta" / "unidextok_conversion.json").is_file()
+
+
+if __name__ == "__main__":  # one cell in a child process (the read-only parent): prints its outcome
+    print(run_cell(sys.argv[1], sys.argv[2], Path(sys.argv[3]), Path(sys.argv[4])))
