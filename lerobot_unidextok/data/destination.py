@@ -227,7 +227,8 @@ def _refuse_live_writers(target: Path, flag: str) -> None:
         what = ", ".join(f"pid {x.pid} ({x.path.name})" for x in busy)
         raise DestinationError(
             f"{flag} {target} is being written by another run now: {what}; wait for it to end, or choose another "
-            f"{flag}"
+            f"{flag} (if that pid is not writing here, as when the folder came from another machine or container, "
+            "move it out of the way)"
         )
 
 

@@ -34,7 +34,7 @@ def replace_folder(tmp: Path, target: Path) -> None:
     after, so `target` is always either the old folder or the new one, never half of each. A kill between the
     two renames leaves `target` missing, the old folder aside and the new one finished: `recover_folder`
     puts the old one back."""
-    if target.exists():  # the tag (pid and random part) of `tmp`: a later run pairs the two if this one dies
+    if target.exists():  # named with the tag (pid and random part) of `tmp`: the two folders of one replacement
         prefix = f".{target.name}{_TMP}"
         tag = tmp.name[len(prefix):] if tmp.name.startswith(prefix) else _run_tag()
         old = target.parent / f".{target.name}{_OLD}{tag}"
@@ -53,7 +53,6 @@ class Leftover:
     path: Path
     pid: int
     set_aside: bool  # an `.old-` folder (else a `.tmp-` one)
-    tag: str  # `<pid>-<random>`: a replacement's `.old-` folder carries the tag of the `.tmp-` folder it replaced with
 
     @property
     def running(self) -> bool:
@@ -74,7 +73,7 @@ def leftovers(target: Path) -> list[Leftover]:
         for path in target.parent.iterdir():
             match = _RUN_TAG.fullmatch(path.name[len(prefix):]) if path.name.startswith(prefix) else None
             if match is not None and path.is_dir():
-                found.append(Leftover(path, int(match[1]), set_aside, match[0]))
+                found.append(Leftover(path, int(match[1]), set_aside))
     return sorted(found, key=lambda x: x.path.name)
 
 
@@ -91,12 +90,11 @@ def recover_folder(target: Path) -> list[str]:
       `target` as it was: renamed back, never deleted. The new folder that writer had finished (its temp
       folder, same pid) is kept beside it as `<target>.unfinished-<pid>` (a free name: `-2`, `-3`... when taken),
       for the user to keep or delete.
-    - An old folder set aside by a dead writer while `target` holds something and the temp folder it replaced
-      `target` with (same tag: pid and random part) is gone: the replacement happened and only the deletion it
-      asked for was cut short: deleted.
-    - An old folder of a dead writer whose temp folder (same tag) is still there while `target` holds something
-      else: the replacement never happened and something else took the name; nothing is deleted: both are made
-      visible (`<target>.set-aside-<pid>`, `<target>.unfinished-<pid>`) and named.
+    - An old folder set aside by a dead writer while `target` holds something and no temp folder of that writer
+      (same pid) is left: the replacement happened and only the deletion it asked for was cut short: deleted.
+    - An old folder of a dead writer whose temp folder is still there while `target` holds something else: the
+      replacement never happened and something else took the name; nothing is deleted: both are made visible
+      (`<target>.set-aside-<pid>`, `<target>.unfinished-<pid>`) and named.
     - A dead writer's temp folder otherwise: a write cut short, half done: deleted.
     - An old folder whose writer still runs (`writer_running`): a replacement under way, or a writer that hangs
       between its renames: left alone and named, with what to do.
@@ -126,7 +124,7 @@ def recover_folder(target: Path) -> list[str]:
             for tmp in (t for t in tmps if t.pid == old.pid):
                 keep_visible(tmp, "unfinished")
     for old in olds:
-        mine = [t for t in tmps if t.tag == old.tag and t.path not in kept]
+        mine = [t for t in tmps if t.pid == old.pid and t.path not in kept]
         if not mine:
             if _try(notes, shutil.rmtree, old.path):
                 notes.append(f"removed {old.path.name}: the folder an earlier run replaced {target.name} with is in "
@@ -144,8 +142,9 @@ def recover_folder(target: Path) -> list[str]:
             notes.append(f"removed {tmp.path.name}: the unfinished output of a run that was killed (pid {tmp.pid})")
     for old in (x for x in found if x.set_aside and x not in dead):
         notes.append(f"{old.path} is {target.name} set aside by pid {old.pid}, which still runs (it started before "
-                     f"the folder was set aside): left alone; if pid {old.pid} is not a command of this package "
-                     f"replacing {target.name}, stop it and run again to restore the folder")  # fmt: skip
+                     f"the folder was set aside): left alone; if pid {old.pid} is not replacing {target.name} (the "
+                     f"folder came from another machine or container), put it back: "
+                     f"mv '{old.path}' '{target}'")  # fmt: skip
     return notes
 
 

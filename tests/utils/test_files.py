@@ -62,7 +62,8 @@ def test_dead_leftovers_are_tidied_and_a_live_run_is_left_alone(tmp_path):
     liveness probe is signal 0, which delivers nothing (SIGHUP would end the live process)."""
     live = os.getppid()
     _folder(tmp_path / "ds", "current")
-    for name in (f".ds.tmp-{DEAD}-cccc", f".ds.old-{DEAD}-dddd", f".ds.tmp-{live}-eeee", f".other.tmp-{DEAD}-ffff"):
+    for name in (f".ds.tmp-{DEAD}-cccc", f".ds.old-{DEAD - 1}-dddd", f".ds.tmp-{live}-eeee",
+                 f".other.tmp-{DEAD}-ffff"):
         _folder(tmp_path / name, name)
     notes = recover_folder(tmp_path / "ds")
     assert sorted(p.name for p in tmp_path.iterdir()) == [f".ds.tmp-{live}-eeee", f".other.tmp-{DEAD}-ffff", "ds"]
@@ -102,8 +103,8 @@ def test_an_empty_root_is_not_the_replacement_in_place(tmp_path):
 def test_a_root_that_holds_something_else_keeps_both_the_old_and_the_new(tmp_path):
     """Killed between the renames (old aside, new finished), then something else took the name: the replacement
     never happened, so nothing is deleted; both folders become visible and are named."""
-    _folder(tmp_path / f".ds.old-{DEAD}-aaaa", "old dataset")  # replace_folder gives both one tag
-    _folder(tmp_path / f".ds.tmp-{DEAD}-aaaa", "new dataset")
+    _folder(tmp_path / f".ds.old-{DEAD}-aaaa", "old dataset")
+    _folder(tmp_path / f".ds.tmp-{DEAD}-bbbb", "new dataset")
     _folder(tmp_path / "ds", "someone else's")
     notes = recover_folder(tmp_path / "ds")
     assert {p.name: (p / "data.txt").read_text() for p in tmp_path.iterdir()} == {
@@ -183,7 +184,7 @@ def test_temp_names_carry_the_pid_and_a_random_part(tmp_path):
 
 
 def test_a_replacement_names_the_old_folder_with_the_tag_of_the_new_one(tmp_path, monkeypatch):
-    """What pairs the two folders of a replacement cut short: `.old-<tag>` set aside for `.tmp-<tag>`."""
+    """The two folders of one replacement carry one tag: `.old-<tag>` set aside for `.tmp-<tag>`."""
     tmp = temp_sibling(tmp_path / "ds")
     _folder(tmp_path / "ds", "old")
     _folder(tmp, "new")
