@@ -168,7 +168,7 @@ def claim_files(paths: list[Path], *, inputs: list[Path] | tuple[Path, ...] = ()
         path = Path(path).expanduser().resolve()
         _refuse_inputs(path, inputs, flag)
         _refuse_inside_a_unit(path, f"{flag} would write {path}, which", flag)
-        _refuse_unwritable(path, flag)
+        _refuse_unwritable(path, flag, inside=True)  # an earlier report is rewritten in place
         _refuse_live_writers(path, flag)
         if path.is_dir():
             raise DestinationError(f"{flag} would write {path}, which is a folder: choose another {flag}")
@@ -205,7 +205,8 @@ def _refuse_inside_a_unit(path: Path, what: str, flag: str) -> None:
 def _refuse_unwritable(target: Path, flag: str, inside: bool = False) -> None:
     """Refuse, before the work, a `target` whose parent folder cannot be made or written: the nearest existing
     folder above it is a file, or this process may not create entries in it (`os.access`: a read-only file
-    system, no permission). `inside`: the writer also writes inside an existing `target` (a resumed run)."""
+    system, no permission). `inside`: the writer also writes an existing `target` itself (a resumed run's folder,
+    a report rewritten in place)."""
     parent = target.parent
     while not parent.exists() and not parent.is_symlink() and parent != parent.parent:
         parent = parent.parent
@@ -213,11 +214,11 @@ def _refuse_unwritable(target: Path, flag: str, inside: bool = False) -> None:
         raise DestinationError(
             f"{flag} {target} cannot be made: {parent} is a file, not a folder; choose another {flag}"
         )
-    for folder in [parent] + ([target] if inside and target.is_dir() else []):
-        if not os.access(folder, os.W_OK | os.X_OK):
+    for path in [parent] + ([target] if inside and target.exists() else []):
+        if not os.access(path, os.W_OK | (os.X_OK if path.is_dir() else 0)):
             raise DestinationError(
-                f"{flag} {target} cannot be written: {folder} is read-only or not writable by this user; choose "
-                f"another {flag}, or make {folder} writable"
+                f"{flag} {target} cannot be written: {path} is read-only or not writable by this user; choose "
+                f"another {flag}, or make {path} writable"
             )
 
 
