@@ -214,7 +214,10 @@ def process_start_s(pid: int) -> float | None:
 
 
 def process_alive(pid: int) -> bool:
-    """Whether process `pid` runs (signal 0: probed, nothing delivered)."""
+    """Whether process `pid` runs (signal 0: probed, nothing delivered; 0 and below name process groups, not a
+    process)."""
+    if pid <= 0:
+        return False
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
