@@ -13,15 +13,15 @@ simulator's native dataset without UDHM (6 + the hand's native joints).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
 
+from lerobot.configs import parser
 from lerobot.configs.types import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
 
-from lerobot_env_unidextok.columns import EPISODE_STEPS, FPS, TASK_COLUMNS, TASKS, WRIST_NAMES, state_names
+from lerobot_env_unidextok.columns import EPISODE_STEPS, FPS, TASKS, WRIST_NAMES, state_names
 from lerobot_env_unidextok.errors import SimInputError
+from lerobot_env_unidextok.policy_fit import check_policy_fits
 from lerobot_env_unidextok.registration import GYM_NAMESPACE, register_gym_ids
 
 ENV_TYPE = "unidextok"
@@ -56,8 +56,9 @@ class UniDexTokEnvConfig(EnvConfig):
             raise SimInputError(f"--env.policy_action must be one of {POLICY_ACTIONS}, got {self.policy_action!r}")
         if self.episode_length < 1:
             raise SimInputError(f"--env.episode_length must be >= 1 step, got {self.episode_length}")
-        _refuse_a_policy_of_another_task(self.task)
         native = hand_model.load(self.hand).native_names
+        # the checkpoint lerobot-eval was given, read from the command line as LeRobot's EvalPipelineConfig does
+        check_policy_fits(parser.get_path_arg("policy"), self.task, self.hand)
         hand_width = UDHM_DIM if self.policy_action == "udhm" else len(native)
         self.features = {
             "agent_pos": PolicyFeature(type=FeatureType.STATE, shape=(len(state_names(self.task, native)),)),
@@ -76,31 +77,6 @@ class UniDexTokEnvConfig(EnvConfig):
     def gym_kwargs(self) -> dict:
         return {"hand": self.hand, "max_episode_steps": self.episode_length, "width": self.render_width,
                 "height": self.render_height}  # fmt: skip
-
-
-def _refuse_a_policy_of_another_task(task: str) -> None:
-    """The checkpoint `--policy.path` names (read from the command line, as LeRobot's own EvalPipelineConfig
-    does) was trained on another task of this simulator when its state holds that task's columns: refused
-    here, before anything runs, instead of at the first step as "another robot or hand". Only a local
-    `<type>_udt` checkpoint is read (its config.json `udt_state_names`); anything else is left to run."""
-    from lerobot.configs import parser
-
-    path = parser.get_path_arg("policy")
-    config = Path(path) / "config.json" if path else None
-    if config is None or not config.is_file():
-        return
-    try:
-        names = json.loads(config.read_text()).get("udt_state_names") or []
-    except (OSError, UnicodeDecodeError, ValueError, AttributeError):
-        return  # not a config LeRobot can load either: it says so itself
-    trained = [t for t, columns in TASK_COLUMNS.items() if set(columns) <= set(names)]
-    if trained and task not in trained:
-        raise SimInputError(
-            f"the policy {path} was trained on the simulator's {trained[0]} task (its state holds that task's "
-            f"columns {', '.join(TASK_COLUMNS[trained[0]])}), but --env.task={task}: pass --env.task={trained[0]}, "
-            f"or a policy trained on {task} (unidextok-sim-record --task={task}, then unidextok-convert and "
-            "lerobot-train; docs/lerobot.md, 'Closed-loop evaluation')"
-        )
 
 
 register_gym_ids()
