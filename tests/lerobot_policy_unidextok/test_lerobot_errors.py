@@ -86,3 +86,27 @@ def test_the_policy_type_is_read_from_the_flag_a_checkpoint_or_a_config_file(tmp
 ])  # fmt: skip
 def test_no_envs_names_the_flag(argv, said):
     assert str(user_error_for(N_ENVS, ["lerobot-eval", *argv])).startswith(said)
+
+
+def test_a_translator_that_fails_leaves_the_error_as_it_was(tmp_path):
+    """The hook asks the translator only about exceptions that are not ours; one it cannot read, or a bug of its
+    own, keeps LeRobot's traceback and status."""
+    script = tmp_path / "lerobot-x"
+    script.write_text(
+        "import sys\n"
+        "from lerobot_unidextok.errors import InvalidInputError\n"
+        "from lerobot_unidextok.utils.cli import user_errors_in_lerobot_clis\n"
+        "def translate(err, argv):\n"
+        "    if argv[1] == 'broken': raise RuntimeError('translator bug')\n"
+        "    return InvalidInputError('translated: ' + str(err)) if argv[1] == 'known' else None\n"
+        "user_errors_in_lerobot_clis(translate)\n"
+        "raise ValueError('from lerobot')\n"
+    )
+    for what, status in (("known", 2), ("unknown", 1), ("broken", 1)):
+        r = subprocess.run([sys.executable, str(script), what], capture_output=True, text=True, timeout=60,
+                           env={k: v for k, v in subprocess_env().items() if k != "UNIDEXTOK_TRACEBACK"})  # fmt: skip
+        assert r.returncode == status, r.stderr
+        if status == 2:
+            assert r.stderr.splitlines()[0] == "error: translated: from lerobot" and "Traceback" not in r.stderr
+        else:
+            assert "ValueError: from lerobot" in r.stderr and "translator bug" not in r.stderr
