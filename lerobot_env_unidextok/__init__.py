@@ -12,8 +12,7 @@ it through `lerobot_policy_unidextok` (the distribution they discover). Needs th
 
 Layout: `columns` (vector names), `hand_model` (a hand's MJCF and how its native joints drive it, one YAML per
 embodiment in `hand_models/`), `scene` (table, wrist, hand), `tasks`, `env` (the gymnasium env), `experts`
-(scripted demonstrations), `record` (expert datasets, `unidextok-sim-record`), `configuration` (LeRobot's config),
-`policy_fit` (whether a checkpoint fits the task and hand it is run on), `success` (`unidextok-sim-success`).
+(scripted demonstrations), `record` (expert datasets, `unidextok-sim-record`), `configuration` (LeRobot's config).
 """
 
 from lerobot_env_unidextok.registration import GYM_NAMESPACE, register_gym_ids
