@@ -367,6 +367,9 @@ def timestamp_note(timestamps_s: np.ndarray, fps: float) -> str | None:
     """What is wrong with an episode's source timestamps (the writer rebuilds them as frame_index / fps, which
     is right only when the frames were recorded 1/fps apart), or None when they step by 1/fps."""
     t = np.asarray(timestamps_s, dtype=np.float64)
+    bad = int((~np.isfinite(t)).sum())  # NaN compares false with everything: no step would look wrong
+    if bad:
+        return f"timestamps are not numbers (NaN or infinite) at {bad} of {len(t)} frames"
     if len(t) < 2:
         return None
     if not t.any():

@@ -15,11 +15,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from lerobot.configs import parser
 from lerobot.configs.types import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
 
 from lerobot_env_unidextok.columns import EPISODE_STEPS, FPS, TASKS, WRIST_NAMES, state_names
 from lerobot_env_unidextok.errors import SimInputError
+from lerobot_env_unidextok.policy_fit import check_policy_fits
 from lerobot_env_unidextok.registration import GYM_NAMESPACE, register_gym_ids
 
 ENV_TYPE = "unidextok"
@@ -55,6 +57,8 @@ class UniDexTokEnvConfig(EnvConfig):
         if self.episode_length < 1:
             raise SimInputError(f"--env.episode_length must be >= 1 step, got {self.episode_length}")
         native = hand_model.load(self.hand).native_names
+        # the checkpoint lerobot-eval was given, read from the command line as LeRobot's EvalPipelineConfig does
+        check_policy_fits(parser.get_path_arg("policy"), self.task, self.hand)
         hand_width = UDHM_DIM if self.policy_action == "udhm" else len(native)
         self.features = {
             "agent_pos": PolicyFeature(type=FeatureType.STATE, shape=(len(state_names(self.task, native)),)),

@@ -10,7 +10,12 @@ target and the native hand command the expert sent), 10 fps, no images, one task
 for `AFTER_SUCCESS_STEPS` steps of the expert's plan after the task succeeded. Only episodes the expert completed
 are kept (`--keep_failures=true` keeps all); episode i is drawn from seed `seed + i` and the
 expert's noise from `noise_seed + i`, so a dataset is reproducible from its flags, and seeds are never shared
-with `lerobot-eval`'s (1000 + i) unless asked. Written into a hidden sibling folder and renamed into place.
+with `lerobot-eval`'s (1000 + i) unless asked.
+
+`--root` follows every writer's destination rule (`lerobot_unidextok.data.destination`): it is checked before any
+episode is simulated (never inside a dataset or a checkpoint; an existing LeRobot dataset only with
+`--overwrite=true`); the dataset is written into a hidden sibling folder of this run's own (pid and a random
+part, so two runs never touch each other's) and moved into place when finished.
 """
 
 
@@ -25,8 +30,10 @@ import numpy as np
 
 from lerobot_env_unidextok.columns import TASK_TEXT
 from lerobot_env_unidextok.errors import SimInputError
+from lerobot_unidextok.data.destination import Kind, claim, move_into_place
 from lerobot_unidextok.utils.cli import run_cli
 from lerobot_unidextok.utils.draccus_cli import wrap
+from lerobot_unidextok.utils.files import temp_sibling
 
 logger = logging.getLogger(__name__)
 
@@ -36,19 +43,26 @@ class RecordConfig:
     hand: str = "inspire_rh56_unitree"  # a hand spec with a simulation model
     task: str = "GraspLift-v0"  # GraspLift-v0 | FingerPress-v0
     episodes: int = 50  # episodes to write (successful ones, unless keep_failures)
-    root: str = ""  # output folder (must not exist)
+    root: str = ""  # output folder (new or empty; an existing LeRobot dataset only with --overwrite=true)
+    overwrite: bool = False  # replace the LeRobot dataset already at --root (once this one is finished)
     repo_id: str = ""  # dataset id (default local/sim_<hand>_<task>)
     seed: int = 100_000  # episode i is drawn from seed + i (lerobot-eval uses 1000 + i)
     noise_seed: int = 200_000  # the expert's noise for episode i: noise_seed + i
     keep_failures: bool = False
     max_attempts_factor: float = 1.5  # give up after this many attempts per episode asked
-    episode_length: int = 50
+    episode_length: int = 50  # steps before an episode is cut (at 10 fps)
 
     def __post_init__(self) -> None:
         if not self.root:
             raise SimInputError("pass --root=<output folder> for the dataset")
         if self.episodes < 1:
             raise SimInputError(f"--episodes must be >= 1, got {self.episodes}")
+        if self.episode_length < 1:
+            raise SimInputError(f"--episode_length must be >= 1 step (10 steps a second), got {self.episode_length}")
+        if not self.max_attempts_factor >= 1:
+            raise SimInputError(
+                f"--max_attempts_factor must be >= 1 (attempts per episode asked), got {self.max_attempts_factor}"
+            )
         self.repo_id = self.repo_id or f"local/sim_{self.hand}_{self.task.split('-')[0].lower()}"
 
 
@@ -96,16 +110,14 @@ def record(cfg: RecordConfig) -> RecordReport:
 
     from lerobot_env_unidextok.env import UniDexTokEnv
 
-    root = Path(cfg.root)
-    if root.exists():
-        raise SimInputError(f"{root} already exists: choose another --root (nothing was written)")
+    # a plain LeRobot dataset (no conversion record): what a robot records
+    root = claim(cfg.root, Kind.DATASET, overwrite=cfg.overwrite, flag="--root")
     env = UniDexTokEnv(cfg.hand, cfg.task, render_mode=None)
     features = {
         "observation.state": {"dtype": "float32", "shape": (len(env.state_names),), "names": env.state_names},
         "action": {"dtype": "float32", "shape": (len(env.action_names),), "names": env.action_names},
     }
-    tmp = root.parent / f".{root.name}.record-tmp"
-    shutil.rmtree(tmp, ignore_errors=True)
+    tmp = temp_sibling(root)  # this run's own: another run's is never touched
     start, kept, attempts, frames = time.time(), 0, 0, 0
     try:
         ds = LeRobotDataset.create(repo_id=cfg.repo_id, fps=env.metadata["render_fps"], features=features, root=tmp,
@@ -127,7 +139,7 @@ def record(cfg: RecordConfig) -> RecordReport:
             ds.save_episode()
             kept, frames = kept + 1, frames + len(states)
         ds.finalize()
-        tmp.rename(root)
+        move_into_place(tmp, root, Kind.DATASET, cfg.overwrite)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

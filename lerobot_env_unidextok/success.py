@@ -31,19 +31,52 @@ def wilson_interval(successes: int, n: int, z: float = Z95) -> tuple[float, floa
 
 
 def from_eval_info(path: str | Path) -> tuple[int, int]:
-    """(successes, episodes) of a `lerobot-eval` output folder or its `eval_info.json`."""
+    """(successes, episodes) of a `lerobot-eval` output folder or its `eval_info.json`; a file that is not
+    JSON, has no `overall` numbers, a rate outside 0-100 %, no episodes, or a rate that is no whole number of
+    its episodes is refused, naming the file."""
     path = Path(path)
     path = path / "eval_info.json" if path.is_dir() else path
     if not path.is_file():
         raise SimInputError(f"{path} is not there: pass lerobot-eval's --output_dir (it holds eval_info.json)")
-    overall = json.loads(path.read_text())["overall"]
-    n = int(overall["n_episodes"])
-    return round(float(overall["pc_success"]) * n / 100), n
+    try:
+        info = json.loads(path.read_text())
+    except (UnicodeDecodeError, ValueError) as err:
+        raise SimInputError(f"{path} is not JSON ({err}): pass the eval_info.json lerobot-eval wrote") from None
+    overall = info.get("overall") if isinstance(info, dict) else None
+    if not isinstance(overall, dict):
+        raise SimInputError(f"{path} has no 'overall' section: is it the eval_info.json lerobot-eval wrote?")
+    n = _number(path, overall, "n_episodes")
+    if n != int(n) or n < 0:
+        raise SimInputError(f"{path}: 'overall.n_episodes' is {overall['n_episodes']}, not a whole number >= 0")
+    n = int(n)
+    if n == 0:  # lerobot-eval writes a NaN rate then
+        raise SimInputError(
+            f"{path}: no episodes: 'overall.n_episodes' is 0, so there is no success rate (run lerobot-eval with "
+            "--eval.n_episodes >= 1)"
+        )
+    pc = _number(path, overall, "pc_success")
+    if not 0 <= pc <= 100:
+        raise SimInputError(f"{path}: 'overall.pc_success' is {overall['pc_success']}, outside 0-100 %")
+    successes = pc * n / 100
+    if abs(successes - round(successes)) > 1e-6 * n:
+        raise SimInputError(f"{path}: 'overall.pc_success' {pc} % of {n} episodes is not a whole number of episodes")
+    return round(successes), n
+
+
+def _number(path: Path, overall: dict, key: str) -> float:
+    if key not in overall:
+        raise SimInputError(f"{path}: 'overall' has no '{key}': is it the eval_info.json lerobot-eval wrote?")
+    value = overall[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise SimInputError(f"{path}: 'overall.{key}' is {value!r}, not a number")
+    return float(value)
 
 
 def describe(successes: int, n: int) -> str:
+    if n < 1:
+        raise SimInputError("no episodes: a success rate needs at least one episode")
     lo, hi = wilson_interval(successes, n)
-    return f"success {successes}/{n} = {100 * successes / max(n, 1):.1f} % (95 % Wilson interval {100 * lo:.1f}-{100 * hi:.1f} %)"
+    return f"success {successes}/{n} = {100 * successes / n:.1f} % (95 % Wilson interval {100 * lo:.1f}-{100 * hi:.1f} %)"
 
 
 @dataclass

@@ -44,6 +44,8 @@ from lerobot_unidextok.constants import (
     UDHM_DIM,
 )
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
+from lerobot_unidextok.errors import InvalidInputError
+from lerobot_unidextok.policies.relative_layout import relative_layout_problem
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, untrained_preset
 from lerobot_unidextok.processor import (
     HAND_INPUTS,
@@ -272,16 +274,11 @@ class UdtConfigMixin:
 
     def _check_relative_layout(self, state_width: int) -> None:
         """Relative actions subtract state column i from action column i: refuse an action layout that is not
-        the state's first columns (by name when both are named, else by width)."""
+        the state's first columns (by name when both are named, else by width), saying which column differs
+        (`relative_layout.py`)."""
         action = self.output_features.get(ACTION)
         width = action.shape[0] if action is not None else len(self.udt_action_names)
-        names, state_names = list(self.udt_action_names), list(self.udt_state_names)
-        misaligned = width > state_width or (names and state_names and names != state_names[:width])
-        if misaligned:
-            where = (f"action columns {names[:4]}... vs state columns {state_names[:4]}..." if names and state_names
-                     else f"action width {width} vs state width {state_width}")  # fmt: skip
-            raise ValueError(
-                f"udt_relative_actions needs the action columns to be the first columns of {OBS_STATE} (it learns "
-                f"action - state per column), but {where}; reorder the dataset's action to the state's column order "
-                "or set --policy.udt_relative_actions=false"
-            )
+        trained = getattr(self, "_runtime_dataset_meta", None) is not None  # else: a checkpoint loaded to run
+        problem = relative_layout_problem(self.udt_action_names, self.udt_state_names, width, state_width, trained)
+        if problem:
+            raise InvalidInputError(problem)

@@ -139,11 +139,15 @@ def _user_error_in(err: BaseException | None, kind: type) -> BaseException | Non
     return None
 
 
-def user_errors_in_lerobot_clis() -> None:
+def user_errors_in_lerobot_clis(
+    translate: Callable[[BaseException, list[str]], BaseException | None] | None = None,
+) -> None:
     """In a LeRobot CLI (lerobot-train, -eval, ...: the plugin's import), a `UserError` of this package that
     reaches the top of the process (a `<type>_udt` config refusing a dataset that was never converted, say)
     prints the same one `error:` line as this package's own tools and exits with status 2, after the
-    process's exit handlers, instead of a traceback with status 1. Other exceptions keep the hook they had.
+    process's exit handlers, instead of a traceback with status 1. `translate(err, sys.argv)` may give a
+    `UserError` for an exception LeRobot raised itself (the plugin's `lerobot_errors.user_error_for`); a
+    translator that fails leaves the exception as it was. Other exceptions keep the hook they had.
     Nothing changes in other programs (a script or notebook that imports the plugin) or with
     UNIDEXTOK_TRACEBACK=1."""
     import atexit
@@ -156,7 +160,7 @@ def user_errors_in_lerobot_clis() -> None:
     previous = sys.excepthook
 
     def hook(kind, err, tb) -> None:
-        user = _user_error_in(err, UserError)
+        user = _user_error_in(err, UserError) or _translated(err)
         if user is None or _show_tracebacks():
             previous(kind, err, tb)
             return
@@ -165,6 +169,15 @@ def user_errors_in_lerobot_clis() -> None:
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(EXIT_USER_ERROR)
+
+    def _translated(err: BaseException) -> BaseException | None:
+        if translate is None:
+            return None
+        try:
+            user = translate(err, list(sys.argv))
+        except Exception:  # noqa: BLE001  a translator's own bug must not hide the error it was reading
+            return None
+        return user if isinstance(user, UserError) else None
 
     sys.excepthook = hook
 

@@ -158,6 +158,31 @@ def test_timestamps_all_zero_or_repeated_are_named_when_rebuilt(tmp_path, caplog
     assert "timestamps all 0" in text and "repeat or go back at 3 of 40 frames" in text
 
 
+
+def test_nan_or_infinite_timestamps_are_named_when_rebuilt(tmp_path, caplog):
+    """A NaN source timestamp (episode 0) or an infinite one (episode 1) was rebuilt from the frame index without
+    the warning repeated timestamps get (NaN compares false with everything, so no step looked wrong)."""
+    import pyarrow as pa
+
+    raw = write_l10_robot(tmp_path / "raw", episodes=3)
+    for path in sorted((raw / "data").rglob("*.parquet")):
+        table = pq.read_table(path)
+        episode = table.column("episode_index").to_numpy()
+        t = table.column("timestamp").to_numpy().copy()
+        t[np.flatnonzero(episode == 0)[7]] = np.nan
+        t[np.flatnonzero(episode == 1)[[0, 9]]] = np.inf
+        pq.write_table(table.set_column(table.schema.get_field_index("timestamp"), "timestamp",
+                                        pa.array(t, table.schema.field("timestamp").type)), path)  # fmt: skip
+    with caplog.at_level(logging.WARNING):
+        report = _convert(raw, tmp_path / "out", {"right": f"{HAND}:{PREFIX}"})
+    assert report.num_episodes == 3
+    text = caplog.text
+    assert "2 episode(s) have source timestamps that do not step by 1/fps" in text and "frame_index / 30" in text
+    assert "timestamps are not numbers (NaN or infinite) at 1 of 40 frames" in text
+    assert "timestamps are not numbers (NaN or infinite) at 2 of 40 frames" in text
+    t = pq.read_table(sorted((tmp_path / "out" / "data").rglob("*.parquet"))).column("timestamp").to_numpy()
+    assert np.isfinite(t).all()
+
 def test_the_test_split_does_not_depend_on_where_input_points(tmp_path):
     """A dataset converted from its own folder or from a folder above it holds out the same episodes (before:
     the keys kept the part of the path below --input, so `--input=$HF_LEROBOT_HOME/lab` gave other test

@@ -49,11 +49,3 @@ def test_record_writes_a_native_dataset_the_converter_reads(tmp_path):
     layout = meta.native_layout("observation.state")
     assert layout.native_names == names and layout.hands[0]["hand"] == "inspire_rh56_unitree"
 
-
-def test_record_refuses_an_existing_folder(tmp_path):
-    from lerobot_env_unidextok.errors import SimInputError
-
-    (tmp_path / "there").mkdir()
-    with pytest.raises(SimInputError, match="already exists"):
-        record(RecordConfig(hand="shadow", episodes=1, root=str(tmp_path / "there")))
-    assert [p.name for p in tmp_path.iterdir()] == ["there"]

@@ -72,3 +72,16 @@ def test_a_hand_without_a_model_is_one_error_line_before_anything_runs(shadow_ch
         "inspire_rh56_unitree, shadow (a model is one YAML in lerobot_env_unidextok/hand_models/)"
     ], r.stderr[-2000:]
     assert not (tmp_path / "eval").exists()
+
+
+def test_a_checkpoint_of_another_task_is_refused_as_such_before_anything_runs(shadow_checkpoint, tmp_path):
+    """A GraspLift-v0 policy on FingerPress-v0 was told it "was trained on another robot or hand" at its first
+    step; the hand is right, the task is not."""
+    r = _run([str(BIN / "lerobot-eval"), f"--policy.path={shadow_checkpoint}", "--env.type=unidextok",
+              "--env.task=FingerPress-v0", "--env.hand=shadow", "--eval.n_episodes=1", "--eval.batch_size=1",
+              "--eval.use_async_envs=false", "--policy.device=cpu", f"--output_dir={tmp_path / 'eval'}"], tmp_path,
+             check=False)  # fmt: skip
+    errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
+    assert r.returncode == 2 and len(errors) == 1 and "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert "was trained on the simulator's GraspLift-v0 task" in errors[0] and "--env.task=GraspLift-v0" in errors[0]
+    assert "another robot or hand" not in errors[0] and not (tmp_path / "eval").exists()

@@ -258,11 +258,11 @@ def test_relative_actions_refuse_an_action_layout_that_is_not_the_states_first_c
     meta.features = {**meta.features, ACTION: shuffled}
     cfg = _config(ACTUdtConfig, tok_dir, width=len(STATE_NAMES), udt_relative_actions=True)
     cfg._runtime_dataset_meta = meta
-    with pytest.raises(ValueError, match="udt_relative_actions needs the action columns to be the first columns"):
+    with pytest.raises(ValueError, match="must be the first columns of observation.state, but action column 0 .* the action holds the same columns in another order: reorder"):
         cfg.validate_features()
     wide = _config(ACTUdtConfig, tok_dir, udt_hand_layout=[INSPIRE], udt_relative_actions=True)
     wide.output_features[ACTION] = PolicyFeature(FeatureType.ACTION, (46,))
-    with pytest.raises(ValueError, match="action width 46 vs state width 44"):
+    with pytest.raises(ValueError, match="the action is 46 wide and the state 44"):
         wide.validate_features()
     absolute = _config(ACTUdtConfig, tok_dir, width=len(STATE_NAMES))  # absolute actions: any action layout
     absolute._runtime_dataset_meta = meta
