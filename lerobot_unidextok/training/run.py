@@ -306,22 +306,24 @@ def _train_and_report(cfg: TrainConfig, run_cfg: TrainConfig) -> tuple[dict, str
     kfold = run_kfold(run_cfg) if cfg.folds else None
     if kfold:
         report["kfold"] = kfold
-    md = write_report(report, work / "eval") if len(test) else "no test episodes in these datasets"
-    if kfold:
-        md += "\n\n" + kfold_markdown(kfold)
-        (work / "kfold.json").write_text(json.dumps(kfold, indent=2))
-        (work / "kfold.md").write_text(kfold_markdown(kfold) + "\n")
-    if work != out:
-        _replace_run(work, out)
     training = {"datasets": list(cfg.datasets), "excluded_hands": list(cfg.exclude_hands), "fraction": cfg.fraction}
-    write_run_cards(out, held_out_results(_summary(report) if len(test) else None, kfold), training,
-                    report["scored"] if len(test) else None)  # fmt: skip
+    with signals_deferred():  # the reports, the replacement and the cards: a few small files, never cut half-way
+        md = write_report(report, work / "eval") if len(test) else "no test episodes in these datasets"
+        if kfold:
+            md += "\n\n" + kfold_markdown(kfold)
+            (work / "kfold.json").write_text(json.dumps(kfold, indent=2))
+            (work / "kfold.md").write_text(kfold_markdown(kfold) + "\n")
+        if work != out:
+            _replace_run(work, out)
+        write_run_cards(out, held_out_results(_summary(report) if len(test) else None, kfold), training,
+                        report["scored"] if len(test) else None)  # fmt: skip
     return report, md
 
 
 def _replace_run(work: Path, out: Path) -> None:
     """Move the finished run `work` into place of the run at `out`, keeping the files the user added to that run
-    (anything but `RUN_OUTPUTS`: copied, so the old run stays whole until the new one has replaced it)."""
+    (anything but `RUN_OUTPUTS`: copied, so the old run stays whole until the new one has replaced it). Called
+    with Ctrl-C and SIGTERM held back (`signals_deferred`), so never cut between the two renames."""
     kept = []
     for path in sorted(out.iterdir()):
         if path.name in RUN_OUTPUTS or path.name.startswith(".") or (work / path.name).exists():
@@ -331,7 +333,6 @@ def _replace_run(work: Path, out: Path) -> None:
         else:
             shutil.copy2(path, work / path.name, follow_symlinks=False)
         kept.append(path.name)
-    with signals_deferred():  # the two renames: never cut between them by Ctrl-C or SIGTERM
-        move_into_place(work, out.resolve(), Kind.TOKENIZER_RUN, overwrite=True)
+    move_into_place(work, out.resolve(), Kind.TOKENIZER_RUN, overwrite=True)
     logger.info("--overwrite=true: the new run replaced the one at %s%s", out,
                 f" (kept from it: {', '.join(kept)})" if kept else "")  # fmt: skip

@@ -3,8 +3,10 @@ asked, and never a dataset; `unidextok-eval` writes its report next to, never in
 
 import json
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -184,3 +186,31 @@ def test_a_row_store_dir_that_holds_other_files_an_input_or_a_dataset_is_refused
     train_and_evaluate(_cfg(data, tmp_path / "run", streaming=True, row_store_dir=str(stores)))
     train_and_evaluate(_cfg(data, tmp_path / "run2", streaming=True, row_store_dir=str(stores)))
     assert sorted(p.name for p in stores.iterdir()) == ["test", "train"]
+
+
+@pytest.mark.slow
+def test_the_command_refuses_a_typo_and_a_sigterm_leaves_the_old_run(g1_like, tmp_path):
+    """The probe's case through the command: `unidextok-train --overwrite=true --output_dir=<finished run>` with a
+    typo in --preset is one `error:` line (exit 2); SIGTERM while the new run trains ends with exit 143 and the
+    old run as it was, nothing beside it."""
+    run = tmp_path / "run"
+    train_and_evaluate(_cfg(g1_like["root"], run))
+    before = _files(run)
+    cli = [str(BIN / "unidextok-train"), f"--datasets=[{g1_like['root']}]", f"--output_dir={run}", "--overwrite=true",
+           "--batch_size=16", "--warmup_steps=1", "--progress=false"]  # fmt: skip
+    r = subprocess.run([*cli, "--preset=tinny"], capture_output=True, text=True, timeout=300)
+    errors = [line for line in r.stderr.splitlines() if line.startswith("error: ")]
+    assert r.returncode == 2 and errors == ["error: unknown UniDexTok preset 'tinny'; choose one of ['paper', 'small', "
+                                            "'tiny']"], r.stderr[-2000:]  # fmt: skip
+    proc = subprocess.Popen([*cli, "--preset=tiny", "--steps=1000000", "--save_last_every=1"], stderr=subprocess.PIPE,
+                            text=True)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 120
+        while not any((p / "last").is_dir() for p in tmp_path.glob(".run.tmp-*")):
+            assert proc.poll() is None and time.monotonic() < deadline, "the new run did not start training"
+            time.sleep(0.05)
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        stderr = proc.communicate(timeout=60)[1]
+    assert proc.returncode == 143 and stderr.strip().endswith("nothing half-written was left behind"), stderr[-2000:]
+    assert _files(run) == before and sorted(p.name for p in tmp_path.iterdir()) == ["run"]
