@@ -7,7 +7,8 @@
     UniDexTokConfig.from_pretrained(...)                          # the same names, config.json only
 
 `resolve(name)`: an existing checkpoint folder as given, a run folder's `best/`, a shipped id's package folder,
-else the name unchanged (a Hub repo id). `hub_errors(name)` turns the Hub's failures (offline and not cached,
+else the name unchanged (a Hub repo id); a checkpoint that a killed `unidextok-train` save left set aside
+(`.best.old-<pid>-*`) is named with the fix. `hub_errors(name)` turns the Hub's failures (offline and not cached,
 not a repo id, no such repo) into one `CheckpointNotFoundError` that says how to fix it. `DEFAULT_TOKENIZER`
 is the tokenizer of the `<type>_udt` policies and of `UniDexTokStateTokenizerStep` unless they are given
 another one or an untrained preset explicitly. Each shipped folder is a Hub-format checkpoint (config.json,
@@ -48,14 +49,34 @@ def resolve(name: str | Path, checkpoint: bool = False) -> str:
         if (path / RUN_BEST / CONFIG_FILE).is_file():
             logger.info("%s is a unidextok-train run folder: using its %s/ checkpoint", path, RUN_BEST)
             return str(path / RUN_BEST)
+        refuse_set_aside(path / RUN_BEST)
         if not checkpoint:
             return str(name)
         raise CheckpointNotFoundError(
             f"{path} holds no tokenizer: expected {CONFIG_FILE} + model.safetensors, or a unidextok-train run "
             f"folder with {RUN_BEST}/ (pass that folder or its {RUN_BEST}/)"
         )
+    refuse_set_aside(path)
     folder = shipped_folder(str(name))
     return str(folder) if folder is not None else str(name)
+
+
+def refuse_set_aside(folder: Path) -> None:
+    """A CheckpointNotFoundError when the checkpoint `folder` is missing because a `unidextok-train` save was killed
+    between its two renames (`utils.files.replace_folder`): the old one is beside it as `.<name>.old-<pid>-*`."""
+    if folder.exists() or not folder.parent.is_dir():
+        return
+    marker = f".{folder.name}.old-"  # the exact name, never a glob pattern (a name may hold [ or *)
+    olds = [p for p in folder.parent.iterdir() if p.name.startswith(marker) and (p / CONFIG_FILE).is_file()]
+    if not olds:
+        return
+    old = max(olds, key=lambda p: p.stat().st_mtime)
+    pid = old.name[len(marker) :].split("-")[0]
+    raise CheckpointNotFoundError(
+        f"{folder} is missing: a unidextok-train run (pid {pid}) was killed while replacing it, and set it aside as "
+        f"{old}; any unidextok-train into {folder.parent} puts it back (e.g. --resume=true with the run's flags), "
+        f"or rename {old.name} to {folder.name}"
+    )
 
 
 @contextlib.contextmanager
@@ -107,4 +128,5 @@ def config_path(name: str | Path, revision: str | None = None) -> Path:
         return Path(hf_hub_download(repo_id=resolved, filename=CONFIG_FILE, revision=revision))
 
 
-__all__ = ["DEFAULT_TOKENIZER", "SHIPPED", "config_path", "hub_errors", "resolve", "shipped_folder", "untrained_preset"]
+__all__ = ["DEFAULT_TOKENIZER", "SHIPPED", "config_path", "hub_errors", "refuse_set_aside", "resolve", "shipped_folder",
+           "untrained_preset"]

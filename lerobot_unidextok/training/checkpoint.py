@@ -1,17 +1,26 @@
 """Training checkpoints: Hub-format model folder + optimiser state in safetensors (no pickle).
 
 Every checkpoint is written into a hidden sibling folder and renamed into place (`utils/files.replace_folder`),
-so a kill mid-save leaves the previous checkpoint whole (`utils/files.recover_folder` tidies what it left); `training_state.json`, written last, records a hash
-of every file beside it, and `check_checkpoint` refuses a folder whose files disagree with it."""
+so a kill mid-save leaves the previous checkpoint whole (`utils/files.recover_folder` tidies what it left);
+`training_state.json`, written last, records a hash of every file beside it, and `check_checkpoint` refuses a
+folder whose files disagree with it. Ctrl-C or SIGTERM during a save (raised as an exception by the command
+line, `utils/cli.run_cli`) removes the unfinished folder, and is held back while the finished one is renamed
+into place, so an interrupted run leaves no temp folder and never a checkpoint set aside."""
 
+import contextlib
 import hashlib
 import json
 import logging
+import shutil
+import signal
+import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 import torch
 from safetensors.torch import load_file, save_file
 
+from lerobot_unidextok.data.destination import DestinationError, enclosing_unit
 from lerobot_unidextok.errors import InvalidInputError, MissingInputError
 from lerobot_unidextok.utils.files import recover_folder, replace_folder, temp_sibling
 
@@ -32,11 +41,54 @@ def save_checkpoint(
     """Write config.json + model.safetensors (+ optimiser tensors, a JSON training state and the tensors
     an exact resume needs beyond the weights: random generator states, non-persistent statistics)."""
     target = Path(directory)
+    unit = enclosing_unit(target)
+    if unit is not None:  # another command (a conversion, a mix) finished into the run folder while this run trained
+        raise DestinationError(
+            f"{unit[0]} is now {unit[1].value} (another command wrote there while this run trained): {target.name}/ is "
+            "not written inside it; train again into another --output_dir"
+        )
     target.parent.mkdir(parents=True, exist_ok=True)
     for note in recover_folder(target):
         logger.warning(note)
     directory = temp_sibling(target)
-    directory.mkdir()
+    try:
+        directory.mkdir()
+        _write(directory, model, optimizer, state, resume_tensors)
+        with signals_deferred():  # the two renames of a replacement: never cut between them by Ctrl-C or SIGTERM
+            replace_folder(directory, target)
+    except BaseException:  # also KeyboardInterrupt and utils.cli.Terminated (SIGTERM): nothing half-written stays
+        with signals_deferred():
+            shutil.rmtree(directory, ignore_errors=True)
+        raise
+    return target
+
+
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Ctrl-C and SIGTERM held back while the block runs, and raised again when it ends, so the block is never cut
+    by their handlers (KeyboardInterrupt, `utils.cli.Terminated`). Python runs signal handlers in the main thread
+    only, whichever thread the signal reached (masking it with pthread_sigmask in the main thread is not enough:
+    a signal sent to the process then reaches another of its threads); elsewhere there is nothing to hold back."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    previous = {sig: signal.signal(sig, lambda signum, _frame: caught.append(signum)) for sig in _HELD}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)  # None: set outside Python
+        if caught:
+            signal.raise_signal(caught[0])  # now its own handler runs
+
+
+_HELD = (signal.SIGINT, signal.SIGTERM)
+
+
+def _write(directory: Path, model, optimizer: torch.optim.Optimizer | None, state: dict | None,
+           resume_tensors: dict[str, torch.Tensor] | None) -> None:  # fmt: skip
+    """The files of one checkpoint, into the (new, empty) folder `directory`."""
     model.save_pretrained(directory)
     if optimizer is not None:
         tensors: dict[str, torch.Tensor] = {}
@@ -51,8 +103,6 @@ def save_checkpoint(
     if state is not None:
         files = {p.name: _sha1(p) for p in sorted(directory.iterdir()) if p.suffix == ".safetensors"}
         (directory / TRAINING_STATE).write_text(json.dumps({**state, "files": files}, indent=2))
-    replace_folder(directory, target)
-    return target
 
 
 def check_checkpoint(directory: Path) -> dict:

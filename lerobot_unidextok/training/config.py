@@ -36,7 +36,9 @@ class TrainConfig:
     # of loading every frame; same mixing and coverage. Checkpoint selection: up to `eval_max_frames` rows of
     # the held-out (select_fraction) training episodes; the test figures: up to `eval_max_frames` test rows.
     streaming: bool = False
-    row_store_dir: str = ""  # where the stores go; default <output_dir>/row_store
+    # where the stores go (a folder of row stores only: their train/ and test/ are rebuilt when out of date);
+    # default <output_dir>/row_store
+    row_store_dir: str = ""
 
     # --- model ------------------------------------------------------------------------------------
     preset: str = "small"  # UniDexTokConfig preset: paper | small | tiny
@@ -80,7 +82,8 @@ class TrainConfig:
     eval_max_frames: int = 20000  # held-out rows used for checkpoint selection (all if fewer)
     output_dir: str = "outputs/unidextok"  # run folder: best/, last/, eval.{json,md}
     resume: bool = False  # continue from output_dir/last (model, optimiser, step)
-    # replace the run already at output_dir (its best/, last/ and reports are deleted when this one starts);
+    # replace the run already at output_dir: the new run trains in a hidden folder beside it and takes its place
+    # only when it has finished (a failing run leaves the old one as it was; files the user added are kept);
     # without it (or --resume), an existing run is refused, never replaced
     overwrite: bool = False
     save_last_every: int = 500  # steps between saves of output_dir/last

@@ -16,13 +16,25 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_unidextok.data.destination import Kind, claim
+from lerobot_unidextok.constants import INFO_PATH
+from lerobot_unidextok.data.destination import (
+    DestinationError,
+    Kind,
+    claim,
+    enclosing_unit,
+    kind_of,
+    move_into_place,
+    recover,
+)
+from lerobot_unidextok.data.rowstore import INDEX as ROW_STORE_INDEX
 from lerobot_unidextok.data.rowstore import HandRowStore
-from lerobot_unidextok.errors import InvalidInputError
+from lerobot_unidextok.errors import ConfigError, InvalidInputError
 from lerobot_unidextok.training.arrays import HandStates, load_hand_states, subsample_episodes
+from lerobot_unidextok.training.checkpoint import signals_deferred
 from lerobot_unidextok.training.config import TrainConfig
 from lerobot_unidextok.training.loop import train_tokenizer
 from lerobot_unidextok.training.splits import kfold_by_episode, split_by_episode, split_store_by_episode
+from lerobot_unidextok.utils.files import temp_sibling
 
 logger = logging.getLogger(__name__)
 SUMMARY_KEYS = ("rows", "mpjae_deg", "mpjpe_mm", "fingertip_mm")
@@ -138,55 +150,150 @@ def held_out_results(test_summary: dict | None, kfold: dict | None) -> dict[str,
 # the whole run
 # ---------------------------------------------------------------------------------------------
 RUN_OUTPUTS = ("best", "last", "folds", "row_store", "eval.json", "eval.md", "kfold.json", "kfold.md")
+ROW_STORE_SPLITS = ("train", "test")  # the stores `load_splits` keeps in a row-store folder
 
 
-def claim_run_folder(cfg: TrainConfig) -> None:
-    """`cfg.output_dir` may take this run (`data.destination.claim`): not a dataset it reads or anything inside
-    one, and an existing run only with --resume (continued) or --overwrite (its outputs deleted now)."""
-    from lerobot_unidextok.data.reader import dataset_folder
+def check_inputs(cfg: TrainConfig) -> list[Path]:
+    """Every input, flag and preset the run needs, checked before anything is written, moved or deleted: the
+    datasets are converted UDHM datasets, the preset is known, `init_from` is a tokenizer, --resume and
+    --overwrite are not both asked. Returns the datasets' folders."""
+    from lerobot_unidextok.data.reader import dataset_folder, udhm_blocks
+    from lerobot_unidextok.tokenizer import UniDexTokConfig
 
+    if cfg.resume and cfg.overwrite:
+        raise ConfigError("--resume=true continues the run, --overwrite=true replaces it: pass one")
+    if not cfg.datasets:
+        raise ConfigError("--datasets is empty: pass the converted datasets to train on, e.g. "
+                          "--datasets='[data/g1_udhm]'")  # fmt: skip
     roots = []
     for name in cfg.datasets:
+        root = dataset_folder(name)  # a missing folder or meta/info.json: named with the fix
         try:
-            roots.append(dataset_folder(name))
-        except (FileNotFoundError, ValueError):
-            continue  # reported with the fix where the data is loaded
+            udhm_blocks(json.loads((root / INFO_PATH).read_text()))
+        except (OSError, ValueError) as e:  # ValueError: also a damaged info.json
+            raise InvalidInputError(f"--datasets: {root} is not a readable UDHM dataset: {e}") from e
+        roots.append(root)
+    UniDexTokConfig.from_preset(cfg.preset)  # an unknown preset: named with the choices
+    if cfg.init_from:
+        UniDexTokConfig.from_pretrained(cfg.init_from)  # not a tokenizer: named with the fix
+    return roots
+
+
+def claim_run_folder(cfg: TrainConfig, roots: list[Path]) -> Path:
+    """`cfg.output_dir` may take this run (`data.destination.claim`): not a dataset it reads or anything inside
+    one, and an existing run only with --resume or --overwrite. A checkpoint a killed save had set aside is put
+    back first. Returns the folder to train into: `output_dir` itself (a new run, or --resume), or, to replace an
+    existing run (--overwrite), a temp folder beside it that `train_and_evaluate` moves into place once the new
+    run has finished, so a failing run leaves the old one as it was."""
     out = claim(cfg.output_dir, Kind.TOKENIZER_RUN, inputs=roots, overwrite=cfg.overwrite, resume=cfg.resume,
                 flag="--output_dir")  # fmt: skip
-    if cfg.overwrite and not cfg.resume and out.is_dir():
-        logger.warning("--overwrite=true: replacing the run at %s", out)
-        for name in RUN_OUTPUTS:
-            path = out / name
-            if path.is_dir():
-                shutil.rmtree(path)
-            elif path.exists():
-                path.unlink()
+    for name in ("best", "last"):
+        recover(out / name)
+    if cfg.streaming and cfg.row_store_dir:
+        claim_row_store_dir(Path(cfg.row_store_dir), roots)
+    if cfg.overwrite and kind_of(out) is Kind.TOKENIZER_RUN:
+        work = temp_sibling(out)
+        work.mkdir()
+        logger.warning("--overwrite=true: training into %s; it replaces the run at %s when it has finished (until "
+                       "then, and if it fails, that run stays as it is)", work.name, out)  # fmt: skip
+        return work
+    return Path(cfg.output_dir)
+
+
+def claim_row_store_dir(folder: Path, roots: list[Path]) -> Path:
+    """`--row_store_dir` may hold this run's row stores (rebuilt there when out of date): not an input, not
+    inside a dataset or a checkpoint, and, when it exists, holding only row stores (`ROW_STORE_SPLITS`)."""
+    folder = recover(folder)
+    for name in ROW_STORE_SPLITS:
+        recover(folder / name)
+    for source in roots:
+        source = source.resolve()
+        if folder == source or source.is_relative_to(folder) or folder.is_relative_to(source):
+            raise DestinationError(f"--row_store_dir {folder} is, holds or sits inside the input {source}: "
+                                   "choose another --row_store_dir")  # fmt: skip
+    unit = enclosing_unit(folder)
+    if unit is not None:
+        raise DestinationError(f"--row_store_dir {folder} sits inside {unit[1].value} ({unit[0]}), whose files other "
+                               "tools read as one unit: choose a --row_store_dir outside it")  # fmt: skip
+    if folder.exists() and not folder.is_dir():
+        raise DestinationError(f"--row_store_dir {folder} is a file, not a folder: choose another --row_store_dir")
+    if folder.is_dir():
+        other = sorted(p.name for p in folder.iterdir()
+                       if not (p.name in ROW_STORE_SPLITS and (p / ROW_STORE_INDEX).is_file()))  # fmt: skip
+        if other:
+            raise DestinationError(
+                f"--row_store_dir {folder} holds {', '.join(other[:5])}{' ...' if len(other) > 5 else ''}, not only "
+                "row stores of unidextok-train (its train/ and test/ are replaced when out of date): choose another "
+                "--row_store_dir, or leave it unset (<output_dir>/row_store)"
+            )
+    return folder
 
 
 def train_and_evaluate(cfg: TrainConfig) -> tuple[dict, str]:
-    """Load splits, train, evaluate the selected checkpoint on the test episodes (and k-fold), write
-    output_dir/eval.{json,md} (kfold.{json,md}) and the cards of best/ and last/.
+    """Check the inputs, load splits, train, evaluate the selected checkpoint on the test episodes (and k-fold),
+    write output_dir/eval.{json,md} (kfold.{json,md}) and the cards of best/ and last/. A run replacing another
+    (--overwrite) trains beside it and takes its place at the end (`claim_run_folder`).
 
     Returns (report, markdown summary) in the main process; ({}, "") in the others of a multi-process run,
     which only train."""
+    from accelerate import PartialState
+
+    if cfg.folds and PartialState().num_processes > 1:
+        raise InvalidInputError("--folds trains its fold models one after another in one process: launch without "
+                         "accelerate/torchrun, or drop --folds")  # fmt: skip
+    roots = check_inputs(cfg)  # in every process: all stop together
+    work = _shared(lambda: claim_run_folder(cfg, roots))
+    try:
+        report, md = _train_and_report(cfg, dataclasses.replace(cfg, output_dir=str(work)))
+    except BaseException:  # also Ctrl-C / SIGTERM: an unfinished replacement is removed, the old run kept
+        if work != Path(cfg.output_dir) and PartialState().is_main_process:
+            with signals_deferred():
+                shutil.rmtree(work, ignore_errors=True)
+        raise
+    return report, md
+
+
+def _shared(claim_in_main) -> Path:
+    """`claim_in_main()` run by the main process; its folder given to every process (a refusal: raised in the
+    main process, and named as such in the others instead of leaving them waiting)."""
+    from accelerate import PartialState
+
+    state = PartialState()
+    if state.num_processes == 1:
+        return claim_in_main()
+    from accelerate.utils import broadcast_object_list
+
+    folder, error = None, None
+    if state.is_main_process:
+        try:
+            folder = str(claim_in_main())
+        except BaseException as e:
+            error = e
+    shared = broadcast_object_list([folder])[0]
+    if error is not None:
+        raise error
+    if shared is None:
+        raise DestinationError("the main process refused --output_dir (its error line says why)")
+    return Path(shared)
+
+
+def _train_and_report(cfg: TrainConfig, run_cfg: TrainConfig) -> tuple[dict, str]:
+    """`train_and_evaluate` once the run folder is claimed: `run_cfg` trains into the folder chosen (a temp folder
+    replacing `cfg.output_dir` at the end, or `cfg.output_dir` itself)."""
     from accelerate import PartialState
 
     from lerobot_unidextok.evaluation.report import describe_scored, evaluate_tokenizer, write_report
     from lerobot_unidextok.hub.card import write_run_cards
     from lerobot_unidextok.tokenizer import UniDexTok
 
-    if cfg.folds and PartialState().num_processes > 1:
-        raise InvalidInputError("--folds trains its fold models one after another in one process: launch without "
-                         "accelerate/torchrun, or drop --folds")  # fmt: skip
-    if PartialState().is_main_process:
-        claim_run_folder(cfg)
-    fit, select, test = load_splits(cfg)
-    result = train_tokenizer(cfg, fit, select)
+    fit, select, test = load_splits(run_cfg)
+    result = train_tokenizer(run_cfg, fit, select)
     if not PartialState().is_main_process:
         return {}, ""
+    out, work = Path(cfg.output_dir), Path(run_cfg.output_dir)
     model = UniDexTok.from_pretrained(result.best_dir)
     report = evaluate_tokenizer(model, test) if len(test) else {"per_hand": {}, "overall": {}}
-    report["scored"] = describe_scored(test, cfg.datasets, "test", result.best_dir)
+    report["scored"] = describe_scored(test, cfg.datasets, "test", out / "best")  # where it is once the run is done
     if cfg.streaming:  # the test rows are a sample
         report["scored"]["rows"] += f"; at most {cfg.eval_max_frames} rows sampled from these episodes"
     report["training"] = {
@@ -196,16 +303,36 @@ def train_and_evaluate(cfg: TrainConfig) -> tuple[dict, str]:
         "hands_trained": fit.hand_names(), "vocabulary": list(model.config.hand_names), "streaming": cfg.streaming,
         "processes": PartialState().num_processes,
     }  # fmt: skip
-    kfold = run_kfold(cfg) if cfg.folds else None
+    kfold = run_kfold(run_cfg) if cfg.folds else None
     if kfold:
         report["kfold"] = kfold
-    out = Path(cfg.output_dir)
-    md = write_report(report, out / "eval") if len(test) else "no test episodes in these datasets"
-    if kfold:
-        md += "\n\n" + kfold_markdown(kfold)
-        (out / "kfold.json").write_text(json.dumps(kfold, indent=2))
-        (out / "kfold.md").write_text(kfold_markdown(kfold) + "\n")
     training = {"datasets": list(cfg.datasets), "excluded_hands": list(cfg.exclude_hands), "fraction": cfg.fraction}
-    write_run_cards(out, held_out_results(_summary(report) if len(test) else None, kfold), training,
-                    report["scored"] if len(test) else None)  # fmt: skip
+    with signals_deferred():  # the reports, the replacement and the cards: a few small files, never cut half-way
+        md = write_report(report, work / "eval") if len(test) else "no test episodes in these datasets"
+        if kfold:
+            md += "\n\n" + kfold_markdown(kfold)
+            (work / "kfold.json").write_text(json.dumps(kfold, indent=2))
+            (work / "kfold.md").write_text(kfold_markdown(kfold) + "\n")
+        if work != out:
+            _replace_run(work, out)
+        write_run_cards(out, held_out_results(_summary(report) if len(test) else None, kfold), training,
+                        report["scored"] if len(test) else None)  # fmt: skip
     return report, md
+
+
+def _replace_run(work: Path, out: Path) -> None:
+    """Move the finished run `work` into place of the run at `out`, keeping the files the user added to that run
+    (anything but `RUN_OUTPUTS`: copied, so the old run stays whole until the new one has replaced it). Called
+    with Ctrl-C and SIGTERM held back (`signals_deferred`), so never cut between the two renames."""
+    kept = []
+    for path in sorted(out.iterdir()):
+        if path.name in RUN_OUTPUTS or path.name.startswith(".") or (work / path.name).exists():
+            continue
+        if path.is_dir():
+            shutil.copytree(path, work / path.name, symlinks=True)
+        else:
+            shutil.copy2(path, work / path.name, follow_symlinks=False)
+        kept.append(path.name)
+    move_into_place(work, out.resolve(), Kind.TOKENIZER_RUN, overwrite=True)
+    logger.info("--overwrite=true: the new run replaced the one at %s%s", out,
+                f" (kept from it: {', '.join(kept)})" if kept else "")  # fmt: skip

@@ -85,3 +85,12 @@ def test_two_cpu_processes_train_one_model_and_resume(converted, tmp_path):
     resumed = json.loads((out / "last" / "training_state.json").read_text())
     assert resumed["step"] == 30 and resumed["history"][:2] == state["history"]
     assert [h["step"] for h in resumed["history"]] == [10, 20, 30]
+
+    # overwrite: both processes train into the one temp folder the main process chose (the row store in it too),
+    # which replaces the run only at the end
+    r0, r1, log = _launch(tmp_path / "probe3", *flags, "--steps=10", "--overwrite=true")
+    assert r0["final_state"] == r1["final_state"]
+    replaced = json.loads((out / "last" / "training_state.json").read_text())
+    assert replaced["step"] == 10 and [h["step"] for h in replaced["history"]] == [10]
+    assert (out / "row_store" / "train" / "index.json").is_file()
+    assert sorted(p.name for p in out.parent.iterdir() if p.name.startswith(".")) == []
