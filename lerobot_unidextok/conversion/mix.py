@@ -392,8 +392,8 @@ def mix(opts: MixOptions) -> MixReport:
     target = recover(opts.root)  # before anything can fail: a dead run's half-replaced mix is put back
     inputs = [_open_input(name, opts) for name in opts.inputs]
     claim(target, Kind.MIX, inputs=[i.meta.root for i in inputs], overwrite=opts.overwrite)
-    _refuse_repeats(inputs, opts)
     _check_compatible(inputs, opts)
+    _refuse_repeats(inputs, opts)  # after the metadata checks: it reads every input's states
     mixer = _Mixer(inputs, opts)
     train_frames = [
         sum(length for e, length in (i.meta.episode_lengths or {}).items() if e not in i.test) for i in inputs
