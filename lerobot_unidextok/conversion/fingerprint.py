@@ -13,7 +13,9 @@ Why not the conversion record's source: the record keeps the source's name, opti
 relative to `--input`, but not which input (two recordings of one robot have the same keys), so it cannot
 tell a second conversion of one recording from a conversion of another. Why not a hash of the parquet
 files: their bytes change with the columns kept and the chunking. Two real recordings never hold an episode
-with the same float32 values in every frame; a hand-made dataset could only by copying one.
+with the same float32 values in every frame; a hand-made dataset could only by copying one. An episode whose
+hands never move (one pose held, or no hand at all) says nothing about where it came from: it gets no
+fingerprint, so two datasets that both hold a hand at rest are not called copies.
 
 The cost is one read of two columns (`observation.state`, `episode_index`) per input, file by file (memory
 bounded by one data file), and hashing the hands' bytes: about what the mix then spends reading the input.
@@ -37,7 +39,8 @@ DIGEST_BYTES = 16
 
 def episode_fingerprints(root: str | Path) -> dict[bytes, int]:
     """The fingerprint of each episode of the converted dataset at `root` -> its episode index (module
-    docstring). Episodes with the same hands in every frame (a dataset that repeats one) keep the first."""
+    docstring). Episodes with the same hands in every frame (a dataset that repeats one) keep the first; an
+    episode whose hands never move has none."""
     import pyarrow.parquet as pq  # only when mixing
 
     root = Path(root)
@@ -45,6 +48,8 @@ def episode_fingerprints(root: str | Path) -> dict[bytes, int]:
     blocks = sorted(find_udhm_blocks(names), key=lambda b: b.side)
     columns = np.concatenate([np.arange(b.start, b.stop) for b in blocks]) if blocks else np.arange(0)
     hashers: dict[int, hashlib.blake2b] = {}
+    first_frame: dict[int, np.ndarray] = {}
+    moving: set[int] = set()
     for path in data_files(root):
         table = pq.read_table(path, columns=[OBS_STATE, "episode_index"])
         state = table.column(OBS_STATE).combine_chunks()
@@ -54,11 +59,14 @@ def episode_fingerprints(root: str | Path) -> dict[bytes, int]:
         cuts = [0, *(np.flatnonzero(np.diff(episodes)) + 1).tolist(), len(episodes)]
         for start, stop in zip(cuts[:-1], cuts[1:], strict=True):  # runs of one episode, in frame order
             if stop > start:
-                episode = int(episodes[start])
-                hashers.setdefault(episode, hashlib.blake2b(digest_size=DIGEST_BYTES)).update(hands[start:stop])
+                episode, frames = int(episodes[start]), hands[start:stop]
+                hashers.setdefault(episode, hashlib.blake2b(digest_size=DIGEST_BYTES)).update(frames)
+                if (frames != first_frame.setdefault(episode, frames[0].copy())).any():
+                    moving.add(episode)
     out: dict[bytes, int] = {}
     for episode, hasher in sorted(hashers.items()):
-        out.setdefault(hasher.digest(), episode)
+        if episode in moving:
+            out.setdefault(hasher.digest(), episode)
     return out
 
 
