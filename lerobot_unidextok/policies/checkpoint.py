@@ -20,6 +20,7 @@ from __future__ import annotations
 import importlib
 import json
 import logging
+import re
 from pathlib import Path
 
 from lerobot_unidextok.errors import InvalidInputError
@@ -84,16 +85,16 @@ def _load_config(path: Path):
         raise _error(path, e) from e
     known = sorted(PreTrainedConfig.get_known_choices())
     if found not in known:
+        what = f"names the policy type {found!r}, which is not registered here" if found else "names no policy type"
         raise PolicyCheckpointError(
-            f"{path} names the policy type {found!r}, which is not registered here (known: {', '.join(known)}): "
-            "install the package that registers it (a plugin policy: its lerobot_policy_* package), or use the "
-            "config.json lerobot-train wrote beside these weights"
+            f"{path} {what} (known: {', '.join(known)}): install the package that registers it (a plugin policy: "
+            "its lerobot_policy_* package), or use the config.json lerobot-train wrote beside these weights"
         )
     try:
         return PreTrainedConfig.from_pretrained(path.parent)
     except DecodingError as e:
         raise PolicyCheckpointError(
-            f"{path} says type {found!r} but does not decode as one ({_reason(e, 240)}): its type was changed, "
+            f"{path} says type {found!r} but does not decode as one ({_decoding_reason(e)}): its type was changed, "
             f"or it is another policy's config (known types: {', '.join(known)}); use the config.json "
             "lerobot-train wrote beside these weights"
         ) from e
@@ -167,8 +168,17 @@ def _unknown_step(path: Path) -> str | None:
     return None
 
 
-def _few(names) -> str:
-    names = sorted(names)
+def _decoding_reason(e: Exception) -> str:
+    """draccus' reason, with a long list of fields of another policy shortened to a few."""
+    fields = re.findall(r"`([^`]+)`", str(e))
+    invalid = re.search(r"not valid for (\w+)", str(e))
+    if fields and invalid:
+        return f"the fields {_few(fields, sort=False)} are not valid for {invalid.group(1)}"
+    return _reason(e, 240)
+
+
+def _few(names, sort: bool = True) -> str:
+    names = sorted(names) if sort else list(names)
     more = f" and {len(names) - NAMED} more" if len(names) > NAMED else ""
     return ", ".join(names[:NAMED]) + more
 

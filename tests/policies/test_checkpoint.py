@@ -23,10 +23,12 @@ EXPECTED = {
     "missing_tensor": r"model.safetensors does not hold the tensors of the act policy its config.json builds "
     r"\(missing model.action_head.bias\): LeRobot would load it anyway, with the missing ones left random",
     "extra_tensor": r"\(extra model.spare.weight\): LeRobot would load it anyway, with the extra ones ignored",
-    "other_type": r"config.json says type 'diffusion' but does not decode as one \(DecodingError: The fields "
-    r"`chunk_size`.*known types: act, .*diffusion",
+    "other_type": r"config.json says type 'diffusion' but does not decode as one \(the fields chunk_size, "
+    r"replace_final_stride_with_dilation, pre_norm, dim_model and \d+ more are not valid for DiffusionConfig\): "
+    r".*known types: act, .*diffusion",
     "unknown_type": r"config.json names the policy type 'act_plus', which is not registered here \(known: act, "
     r".*act_udt.*\): install the package that registers it",
+    "no_type": r"config.json names no policy type \(known: act, ",
     "unknown_step": r"policy_preprocessor.json has the processor step 1 'unidextok.no_such_step', which is not "
     r"known here: steps come from LeRobot's registry",
     "unknown_class": r"policy_preprocessor.json has the processor step 1 'no_such_package.steps.Step'",
