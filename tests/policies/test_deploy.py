@@ -129,6 +129,13 @@ def test_deploy_refuses_what_it_cannot_bind(mixed_policy, g1_like, tmp_path):
     r = _deploy(mixed_policy, dexora, tmp_path / "x", "--zero_shot=true")
     assert r.returncode == 0, r.stderr[-2000:]
     assert json.loads((tmp_path / "x" / "config.json").read_text())["udt_extra_hands"] == ["xhand1"]
+    # binding again into it: refused with the flag that exists; with it, the bound checkpoint is replaced
+    r = _deploy(mixed_policy, g1_like["root"], tmp_path / "x")
+    assert r.returncode == 2 and "pass --overwrite=true to replace it" in r.stderr, r.stderr[-2000:]
+    r = _deploy(mixed_policy, g1_like["root"], tmp_path / "x", "--overwrite=true")
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert json.loads((tmp_path / "x" / "config.json").read_text())["udt_extra_hands"] == []
+    assert json.loads((tmp_path / "x" / "unidextok_deploy.json").read_text())["robot"] == str(g1_like["root"])
     r = _deploy(tmp_path / "nowhere", g1_like["root"], tmp_path / "y")
     assert r.returncode == 2 and "is not a LeRobot policy checkpoint" in r.stderr
 
