@@ -26,6 +26,8 @@ conversion's own writer (`conversion.writer`, LeRobot's file format and statisti
 - `action_delta_stats` in the record: per block side and hand, the mean and std of `action - state` over the
   training episodes, with which a relative-action policy scales each hand's offsets
   (`processor/hand_action_scale.py`).
+- Inputs that hold the same episodes are refused (`conversion/fingerprint.py`: one folder given twice, a copy,
+  two conversions of one source, found by the content of their episodes); `--allow_repeats=true` mixes them.
 - `--weights` (training-frame share per input): `lerobot-train` samples every frame of the chosen episodes
   equally (its `EpisodeAwareSampler` takes each episode once, whatever `--dataset.episodes` repeats), so weights
   are honoured by writing an input's training episodes several times (`repeats`; test episodes once).
@@ -56,6 +58,7 @@ from lerobot_unidextok.constants import (
     UDHM_MASK_KEY,
 )
 from lerobot_unidextok.conversion.card import write_card
+from lerobot_unidextok.conversion.fingerprint import find_repeat
 from lerobot_unidextok.conversion.registry import resamples
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 from lerobot_unidextok.data.destination import MIX_SOURCE, Kind, claim, move_into_place, recover
@@ -86,6 +89,9 @@ class MixOptions:
     keep: str = "hands"  # "hands": the UDHM blocks only | "all": also the passthrough columns, aligned by name
     name_map: dict[str, str] = field(default_factory=dict)  # --keep=all: source column -> common column name
     weights: list[float] = field(default_factory=list)  # training-frame share per input; [] = each episode once
+    # inputs that hold the same episodes (one folder twice, a copy, two conversions of one source; found by
+    # content, conversion/fingerprint.py) are refused; true: mix them anyway, each as often as it is given
+    allow_repeats: bool = False
     action_ahead: int = 1  # inputs without actions: action[t] = state[t + action_ahead] (human hands)
     overwrite: bool = False  # replace an earlier mix at root (never anything else)
     progress: bool = True
@@ -167,15 +173,19 @@ def _open_input(name: str, opts: MixOptions) -> _Input:
                   set(meta.split("recorded").test))  # fmt: skip
 
 
+def _refuse_repeats(inputs: list[_Input], opts: MixOptions) -> None:
+    """Inputs that hold the same episodes (conversion/fingerprint.py) are one error, unless `allow_repeats`."""
+    if opts.allow_repeats:
+        return
+    repeat = find_repeat([(i.name, i.meta.root) for i in inputs])
+    if repeat is not None:
+        raise MixError(
+            f"{repeat.describe()}: the mix would hold them twice. Pass each dataset once (--weights gives an input "
+            "a larger share of the training frames), or --allow_repeats=true to mix them anyway"
+        )
+
+
 def _check_compatible(inputs: list[_Input], opts: MixOptions) -> None:
-    roots: dict[Path, str] = {}
-    for i in inputs:
-        same = roots.setdefault(i.meta.root.resolve(), i.name)
-        if same != i.name:
-            raise MixError(
-                f"inputs {same} and {i.name} are the same dataset ({i.meta.root.resolve()}): give each dataset once "
-                "(--weights gives an input a larger share of the training frames)"
-            )
     fps = {i.name: i.meta.fps for i in inputs}
     if len(set(fps.values())) > 1:
         again = [f"{i.name} ({i.record.source})" for i in inputs if _resamples(i.record.source)]
@@ -383,6 +393,7 @@ def mix(opts: MixOptions) -> MixReport:
     inputs = [_open_input(name, opts) for name in opts.inputs]
     claim(target, Kind.MIX, inputs=[i.meta.root for i in inputs], overwrite=opts.overwrite)
     _check_compatible(inputs, opts)
+    _refuse_repeats(inputs, opts)  # after the metadata checks: it reads every input's states
     mixer = _Mixer(inputs, opts)
     train_frames = [
         sum(length for e, length in (i.meta.episode_lengths or {}).items() if e not in i.test) for i in inputs

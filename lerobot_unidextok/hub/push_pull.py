@@ -66,7 +66,10 @@ def check_loadable(local_dir: Path, repo_type: str) -> None:
 
         checks = [(path, pq.read_metadata) for path in sorted(local_dir.glob("**/*.parquet"))]
     else:
-        checks = [(path, load_file) for path in sorted(local_dir.glob("*.safetensors"))]
+        # a policy's weights are read once, by the strict load below (policies.checkpoint), not here as well
+        policy = (local_dir / "policy_preprocessor.json").is_file()
+        checks = [(path, load_file) for path in sorted(local_dir.glob("*.safetensors"))
+                  if not (policy and path.name == "model.safetensors")]  # fmt: skip
     for path in [*sorted(local_dir.glob("*.json")), *sorted(local_dir.glob("meta/*.json"))]:
         checks.append((path, lambda p: json.loads(p.read_text())))
     for path, read in checks:
@@ -98,6 +101,22 @@ def check_model_loads(local_dir: Path) -> None:
             UniDexTok.from_pretrained(str(local_dir))
     except UserError as e:
         raise InvalidInputError(f"{local_dir} does not load, so nothing was pushed: {e}") from e
+
+
+def check_dataset_valid(local_dir: Path, shown: int = 3) -> None:
+    """Validate a dataset as `unidextok-convert --validate=true` does (`conversion.validate`); refuse an INVALID
+    one, naming its first `shown` failed checks, before anything reaches the Hub."""
+    from lerobot_unidextok.conversion.validate import validate_dataset
+
+    failed = validate_dataset(local_dir).failed()
+    if failed:
+        first = "; ".join(f"{c.name}: {' '.join(c.detail.split())[:160]}" for c in failed[:shown])
+        more = f" (and {len(failed) - shown} more)" if len(failed) > shown else ""
+        raise InvalidInputError(
+            f"{local_dir} fails validation ({first}{more}), so nothing was pushed: `unidextok-convert "
+            f"--validate=true --root={local_dir}` shows every check; convert it again (unidextok-convert, or "
+            "unidextok-mix for a mix) and push the new folder"
+        )
 
 
 def cache_dir() -> str:
@@ -133,7 +152,8 @@ def push(
     huggingface_hub's generic one; a card written by this package (e.g. by unidextok-train) is kept, with
     `repo_id` as its title and in its usage code and `training_data` filled in; a hand-written card is kept
     as it is. A training run folder uploads its
-    checkpoint. Datasets must be LeRobot v3.0 and get the `v3.0` tag LeRobot resolves.
+    checkpoint. Datasets must be LeRobot v3.0 and pass `unidextok-convert --validate=true`'s checks, and get
+    the `v3.0` tag LeRobot resolves. A policy checkpoint must load strictly (`policies.checkpoint`).
     """
     from huggingface_hub import HfApi
     from huggingface_hub.errors import RevisionNotFoundError
@@ -148,17 +168,18 @@ def push(
         raise UnavailableError("HF_HUB_OFFLINE is set: unset it (or set HF_HUB_OFFLINE=0) to push")
 
     check_loadable(local_dir, repo_type)
+    if repo_type == "dataset":
+        info = json.loads((local_dir / INFO_PATH).read_text())
+        if info.get("codebase_version") != DATASET_CODEBASE_TAG:
+            raise InvalidInputError(
+                f"{local_dir} is LeRobot dataset {info.get('codebase_version')!r}; only "
+                f"{DATASET_CODEBASE_TAG} is supported: re-convert it with unidextok-convert"
+            )
+        check_dataset_valid(local_dir)
     api = HfApi(endpoint=_endpoint(endpoint), token=token or os.environ.get("HF_TOKEN"))
     with tempfile.TemporaryDirectory(prefix="unidextok-push-") as staging:
         upload_dir = local_dir
-        if repo_type == "dataset":
-            info = json.loads((local_dir / INFO_PATH).read_text())
-            if info.get("codebase_version") != DATASET_CODEBASE_TAG:
-                raise InvalidInputError(
-                    f"{local_dir} is LeRobot dataset {info.get('codebase_version')!r}; only "
-                    f"{DATASET_CODEBASE_TAG} is supported: re-convert it with unidextok-convert"
-                )
-        else:
+        if repo_type == "model":
             readme = local_dir / "README.md"
             status = card_status(readme)
             card = None

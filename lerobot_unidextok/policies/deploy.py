@@ -152,15 +152,17 @@ def _into_mix(robot: NativeLayout, mix_names: list[str], mix_sides: list[str], w
                         absent_sides=[s for s in mix_sides if s not in robot_sides])  # fmt: skip
 
 
-def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_shot: bool = False) -> Path:
-    """Write the checkpoint at `checkpoint`, bound to the robot of the converted dataset `robot`, to `output`."""
+def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_shot: bool = False,
+           overwrite: bool = False) -> Path:
+    """Write the checkpoint at `checkpoint`, bound to the robot of the converted dataset `robot`, to `output`
+    (`overwrite`: replace a policy checkpoint there, once the new one is whole; `data.destination.claim`)."""
     checkpoint, robot = Path(checkpoint), Path(robot)
     if not (checkpoint / "config.json").is_file() or not (checkpoint / PREPROCESSOR).is_file():
         raise DeployError(
             f"{checkpoint} is not a LeRobot policy checkpoint (config.json + {PREPROCESSOR}): pass the "
             "pretrained_model folder of a lerobot-train run, e.g. outputs/<run>/checkpoints/last/pretrained_model"
         )
-    output = claim(output, Kind.POLICY, inputs=[checkpoint, robot], flag="--output")
+    output = claim(output, Kind.POLICY, inputs=[checkpoint, robot], overwrite=overwrite, flag="--output")
     check_policy_checkpoint(checkpoint)
     config = PreTrainedConfig.from_pretrained(checkpoint)
     if not isinstance(config, UdtConfigMixin) or not config.udt_hand_vocabulary:
@@ -197,7 +199,7 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
             {"checkpoint": str(checkpoint), "robot": str(robot), "robot_type": UdhmDatasetMeta(robot).robot_type,
              "fixed_hand_ids": binding.fixed_hand_ids, "zero_shot_hands": binding.extra_hands}, indent=2))  # fmt: skip
         check_policy_checkpoint(tmp)  # what is shipped loads, before it is called bound
-        move_into_place(tmp, output, Kind.POLICY, overwrite=False)
+        move_into_place(tmp, output, Kind.POLICY, overwrite=overwrite)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

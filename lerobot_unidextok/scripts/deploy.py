@@ -23,9 +23,11 @@ class DeployConfig:
     checkpoint: str = ""
     # the robot: its converted dataset (a folder, or a repo id in the local caches), one of the mix's inputs
     robot: str = ""
-    output: str = ""  # the bound checkpoint folder (must not exist)
+    output: str = ""  # the bound checkpoint folder (must not exist unless --overwrite)
     # a robot whose hands were never in the mix: bind it anyway (its hands get no identity the policy knows)
     zero_shot: bool = False
+    # replace the policy checkpoint at --output (never anything else), once the bound one is written whole
+    overwrite: bool = False
 
 
 @wrap()
@@ -37,7 +39,8 @@ def deploy_cli(cfg: DeployConfig) -> None:
     for flag in ("checkpoint", "robot", "output"):
         if not getattr(cfg, flag):
             raise DeployError(f"--{flag} is required (unidextok-deploy --help)")
-    out = deploy(cfg.checkpoint, dataset_folder(cfg.robot), cfg.output, zero_shot=cfg.zero_shot)
+    out = deploy(cfg.checkpoint, dataset_folder(cfg.robot), cfg.output, zero_shot=cfg.zero_shot,
+                 overwrite=cfg.overwrite)
     print(f"wrote {out}: {cfg.checkpoint} bound to the robot of {cfg.robot}")
 
 

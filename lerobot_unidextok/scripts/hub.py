@@ -20,9 +20,10 @@ from lerobot_unidextok.utils.draccus_cli import wrap
 
 @dataclass
 class PushConfig:
-    # tokenizer or policy checkpoint (config.json + model.safetensors), a training run folder (its best/ or
-    # checkpoints/last/pretrained_model/ is pushed), a LeRobotDataset v3.0 folder, or a tokenizer shipped in the
-    # package by its id (unidextok/universal-small)
+    # tokenizer or policy checkpoint (config.json + model.safetensors; it must load whole), a training run folder
+    # (its best/ or checkpoints/last/pretrained_model/ is pushed), a converted or mixed dataset (LeRobot v3.0,
+    # valid as unidextok-convert --validate=true checks it), or a tokenizer shipped in the package by its id
+    # (unidextok/universal-small)
     local_dir: str = ""
     repo_id: str = ""  # namespace/name on the Hub
     repo_type: str | None = None  # "model" | "dataset"; detected from the folder when omitted

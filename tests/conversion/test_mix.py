@@ -147,7 +147,7 @@ def test_bad_inputs_are_one_clear_error_and_nothing_is_written(g1_like, l10_robo
     assert "--fps" not in str(err.value)
     # the same dataset twice, under another spelling of its path: each episode would be written twice
     again = f"{l10_robot.parent}/../{l10_robot.parent.name}/{l10_robot.name}/"
-    with pytest.raises(MixError, match=r"are the same dataset .*give each dataset once"):
+    with pytest.raises(MixError, match=r"are the same dataset \(one folder\).*Pass each dataset once"):
         mix(MixOptions(inputs=[str(l10_robot), again], root=str(root)))
     with pytest.raises(MixError, match="one positive, finite weight per input"):
         MixOptions(inputs=["a", "b"], root=str(root), weights=[float("nan"), 1])
@@ -218,3 +218,46 @@ def test_an_input_whose_episodes_have_different_hands_is_mixed_episode_by_episod
         got = ids[episodes == e]
         present = got >= 0
         assert (got == np.array(want)[None, :])[present].all() and present.any(), (e, hands)
+
+
+def test_the_same_episodes_given_twice_are_refused_by_content(g1_like, l10_robot, tmp_path, monkeypatch, capsys):
+    """The mix wrote data it was given twice: the literal repeat `--inputs='[a, a]'`, a `cp -r` copy, and two
+    conversions of one source (here with other settings: the arms kept, another test split). Each is refused,
+    naming both inputs and the three ways out; nothing is written. `--allow_repeats=true` repeats on purpose."""
+    from l10_robot import HAND, PREFIX, convert_l10_robot
+
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.scripts.mix import main
+
+    root = tmp_path / "out"
+    copy = tmp_path / "copy_of_l10"
+    shutil.copytree(l10_robot, copy)
+    again = convert_l10_robot(l10_robot.parent / "raw", tmp_path / "l10_again")
+    other = tmp_path / "l10_other_settings"  # hands only, another test split, another repo id
+    convert(ConvertOptions(source="lerobot", input=l10_robot.parent / "raw", root=other, repo_id="me/l10",
+                           source_options={"hands": {"right": f"{HAND}:{PREFIX}"}}, keep="hands", test_fraction=0.5,
+                           progress=False))  # fmt: skip
+    part = tmp_path / "l10_first_two"  # some of the episodes are the same: those would be written twice
+    convert(ConvertOptions(source="lerobot", input=l10_robot.parent / "raw", root=part, max_episodes=2,
+                           source_options={"hands": {"right": f"{HAND}:{PREFIX}"}}, progress=False))  # fmt: skip
+    fix = r"Pass each dataset once \(--weights gives an input a larger share .*\), or --allow_repeats=true"
+    cases = [
+        ([l10_robot, l10_robot], rf"inputs {l10_robot} and {l10_robot} are the same dataset \(one folder\)"),
+        ([g1_like["root"], l10_robot, copy], rf"inputs {l10_robot} and {copy} hold the same episodes \(5 of 5"),
+        ([l10_robot, g1_like["root"], again], rf"inputs {l10_robot} and {again} hold the same episodes \(5 of 5"),
+        ([other, g1_like["root"], l10_robot], rf"inputs {other} and {l10_robot} hold the same episodes \(5 of 5"),
+        ([l10_robot, part], rf"inputs {l10_robot} and {part} hold the same episodes \(2 of 5 by content, e.g. "
+                            rf"{l10_robot}#0 = {part}#0, {l10_robot}#1 = {part}#1"),
+    ]
+    for inputs, why in cases:
+        with pytest.raises(MixError, match=f"{why}.*{fix}"):
+            mix(MixOptions(inputs=[str(i) for i in inputs], root=str(root), progress=False))
+        assert not root.exists() and not list(tmp_path.glob(".out*"))
+    monkeypatch.setattr(sys, "argv", ["unidextok-mix", f"--inputs=[{l10_robot}, {l10_robot}]", f"--root={root}"])
+    with pytest.raises(SystemExit) as exit_info:
+        main()
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2 and err.startswith(f"error: inputs {l10_robot} and {l10_robot}"), err
+    # on purpose: both written, each episode twice
+    report = mix(MixOptions(inputs=[str(l10_robot), str(copy)], root=str(root), allow_repeats=True, progress=False))
+    assert report.num_episodes == 2 * UdhmDatasetMeta(l10_robot).total_episodes

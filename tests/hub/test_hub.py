@@ -370,3 +370,61 @@ def test_push_refuses_a_checkpoint_that_reads_but_does_not_load(hub, tok_dir, tm
     why = "keys this version does not know" if edit == "unknown_key" else "does not fit the config.json beside it"
     assert r.returncode == 2 and r.stderr.startswith(f"error: {folder} does not load, so nothing was pushed"), r.stderr
     assert why in r.stderr and ("model", "lab/edited") not in hub.repos
+
+
+def test_a_whole_policy_checkpoint_is_pushed(hub, tmp_path):
+    """The strict load lets a checkpoint as LeRobot saved it through (the defects below are refused)."""
+    from tiny_policy import write_tiny_act
+
+    folder = write_tiny_act(tmp_path / "pretrained_model")
+    r = run_cli(["unidextok-push", f"--local_dir={folder}", "--repo_id=lab/tiny-act"], HF_ENDPOINT=hub.url,
+                HF_TOKEN=TOKEN, HF_HUB_OFFLINE="0", HF_HOME=str(tmp_path / "hf"))  # fmt: skip
+    assert r.returncode == 0 and ("model", "lab/tiny-act") in hub.repos, r.stderr[-2000:]
+    assert "Missing key" not in r.stderr and "Unexpected key" not in r.stderr
+
+
+def _push_in_process(hub, monkeypatch, capsys, folder: Path, repo_id: str) -> tuple[int, str]:
+    """`unidextok-push --local_dir=folder --repo_id=repo_id` to the loopback Hub, in this process: (status,
+    stderr). Only for refusals: huggingface_hub read HF_HUB_OFFLINE=1 (tests/conftest.py) when it was imported."""
+    from lerobot_unidextok.scripts.hub import push_main
+
+    for name, value in (("HF_ENDPOINT", hub.url), ("HF_TOKEN", TOKEN), ("HF_HUB_OFFLINE", "0")):
+        monkeypatch.setenv(name, value)
+    monkeypatch.setattr(sys, "argv", ["unidextok-push", f"--local_dir={folder}", f"--repo_id={repo_id}"])
+    try:
+        push_main()
+        code = 0
+    except SystemExit as e:
+        code = e.code
+    return code, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("edit", ["missing_tensor", "extra_tensor", "other_type", "unknown_step"])
+def test_push_refuses_a_policy_that_does_not_load_strictly(hub, tmp_path, monkeypatch, capsys, edit):
+    """A policy missing a tensor was pushed with a "Missing key(s)" warning (an extra one silently); a config of
+    another policy type and an unknown processor step were tracebacks. Each is one line; nothing is pushed."""
+    from tiny_policy import edited_copy, write_tiny_act
+
+    bad = edited_copy(write_tiny_act(tmp_path / "ok"), tmp_path / "bad", edit)
+    code, err = _push_in_process(hub, monkeypatch, capsys, bad, f"lab/{edit.replace('_', '-')}")
+    what = {"missing_tensor": "(missing model.action_head.bias)", "extra_tensor": "(extra model.spare.weight)",
+            "other_type": "config.json says type 'diffusion'", "unknown_step": "'unidextok.no_such_step'"}[edit]  # fmt: skip
+    assert code == 2 and err.startswith(f"error: {bad} does not load, so nothing was pushed:"), err
+    assert what in err.splitlines()[0] and "Traceback" not in err
+    assert ("model", f"lab/{edit.replace('_', '-')}") not in hub.repos
+
+
+def test_push_refuses_a_dataset_that_fails_validation(hub, g1_like_hands, tmp_path, monkeypatch, capsys):
+    """A dataset `unidextok-convert --validate=true` calls INVALID was pushed with rc 0 and no note."""
+    bad = tmp_path / "ds"
+    shutil.copytree(g1_like_hands["root"], bad)
+    info = json.loads((bad / "meta" / "info.json").read_text())
+    info["total_frames"] += 7  # every file still reads; the counts no longer agree
+    (bad / "meta" / "info.json").write_text(json.dumps(info, indent=4))
+    code, err = _push_in_process(hub, monkeypatch, capsys, bad, "lab/invalid")
+    frames = info["total_frames"] - 7
+    assert code == 2 and err.startswith(
+        f"error: {bad} fails validation (total_frames: {frames} rows, info says {frames + 7}), so nothing was pushed: "
+        f"`unidextok-convert --validate=true --root={bad}` shows every check"
+    ), err
+    assert ("dataset", "lab/invalid") not in hub.repos

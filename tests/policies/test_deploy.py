@@ -129,6 +129,13 @@ def test_deploy_refuses_what_it_cannot_bind(mixed_policy, g1_like, tmp_path):
     r = _deploy(mixed_policy, dexora, tmp_path / "x", "--zero_shot=true")
     assert r.returncode == 0, r.stderr[-2000:]
     assert json.loads((tmp_path / "x" / "config.json").read_text())["udt_extra_hands"] == ["xhand1"]
+    # binding again into it: refused with the flag that exists; with it, the bound checkpoint is replaced
+    r = _deploy(mixed_policy, g1_like["root"], tmp_path / "x")
+    assert r.returncode == 2 and "pass --overwrite=true to replace it" in r.stderr, r.stderr[-2000:]
+    r = _deploy(mixed_policy, g1_like["root"], tmp_path / "x", "--overwrite=true")
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert json.loads((tmp_path / "x" / "config.json").read_text())["udt_extra_hands"] == []
+    assert json.loads((tmp_path / "x" / "unidextok_deploy.json").read_text())["robot"] == str(g1_like["root"])
     r = _deploy(tmp_path / "nowhere", g1_like["root"], tmp_path / "y")
     assert r.returncode == 2 and "is not a LeRobot policy checkpoint" in r.stderr
 
@@ -180,3 +187,52 @@ def test_deploy_loads_what_it_ships_and_writes_nowhere_it_must_not(mixed_policy,
     with pytest.raises(DeployError, match=r"holds episodes of different hands .*episodes \[.*a robot has one set of hands"):
         deploy(mixed_policy, lh, tmp_path / "c")
     assert not any((tmp_path / n).exists() for n in "bc")
+
+
+def _deploy_in_process(monkeypatch, capsys, *args: str) -> tuple[int, str]:
+    """`unidextok-deploy args` in this process: (exit status, stderr)."""
+    from lerobot_unidextok.scripts.deploy import main
+
+    monkeypatch.setattr(sys, "argv", ["unidextok-deploy", *args])
+    try:
+        main()
+        code = 0
+    except SystemExit as e:
+        code = e.code
+    return code, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("edit", ["missing_tensor", "extra_tensor", "other_type", "unknown_step"])
+def test_deploy_refuses_a_checkpoint_that_does_not_load_strictly(edit, g1_like, tmp_path, monkeypatch, capsys):
+    """A checkpoint missing a tensor was bound with a "Missing key(s)" warning (an extra one silently); a config
+    of another policy type and an unknown processor step ended in tracebacks. Each is one line, nothing written."""
+    from tiny_policy import edited_copy, write_tiny_act
+
+    bad = edited_copy(write_tiny_act(tmp_path / "ok"), tmp_path / "bad", edit)
+    code, err = _deploy_in_process(monkeypatch, capsys, f"--checkpoint={bad}", f"--robot={g1_like['root']}",
+                                   f"--output={tmp_path / 'bound'}")  # fmt: skip
+    lines = [line for line in err.splitlines() if line.startswith("error:")]
+    assert code == 2 and len(lines) == 1 and err.startswith(f"error: {bad}"), err
+    what = {"missing_tensor": "missing model.action_head.bias", "extra_tensor": "extra model.spare.weight",
+            "other_type": "says type 'diffusion'", "unknown_step": "'unidextok.no_such_step'"}[edit]  # fmt: skip
+    assert what in lines[0] and "Traceback" not in err
+    assert not (tmp_path / "bound").exists() and not list(tmp_path.glob(".bound*"))
+
+
+def test_deploy_has_the_overwrite_flag_its_refusals_name(g1_like, tmp_path, monkeypatch, capsys):
+    """Deploy's refusal of an existing --output said "pass --overwrite=true", a flag deploy did not have. It has
+    it now, with the destination rule's meaning: it replaces a policy checkpoint only, after every check."""
+    from tiny_policy import write_tiny_act
+
+    checkpoint = write_tiny_act(tmp_path / "act")  # a stock single-robot policy: nothing to bind
+    out = write_tiny_act(tmp_path / "earlier_bound", seed=1)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    args = [f"--checkpoint={checkpoint}", f"--robot={g1_like['root']}", f"--output={out}"]
+    code, err = _deploy_in_process(monkeypatch, capsys, *args)
+    assert code == 2 and "already holds a policy checkpoint: pass --overwrite=true to replace it" in err, err
+    code, err = _deploy_in_process(monkeypatch, capsys, *args, "--overwrite=true")
+    assert code == 2 and "not on a mix (unidextok-mix)" in err, err  # past the destination, refused by the checks
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # nothing replaced by a refused deploy
+    code, err = _deploy_in_process(monkeypatch, capsys, f"--checkpoint={checkpoint}", f"--robot={g1_like['root']}",
+                                   f"--output={g1_like['root'].parent}", "--overwrite=true")  # fmt: skip
+    assert code == 2 and "is, holds or sits inside the input" in err, err
