@@ -1,0 +1,261 @@
+"""A simulated hand from a hand spec and its URDF alone: the built MJCF (`urdf_model`) and everything the scene and
+the experts need, read from the kinematic chain, with no number tuned per hand.
+
+- Drives: each native joint drives its URDF joint (`urdf_joint`, else its own name) through the spec's radians,
+  or linearly over the URDF limits where the spec says the URDF's angles are not its radians
+  (`raw_at_urdf_limits`); mimic followers move through the model's constraints. A URDF joint no native joint
+  drives is held at 0 (clipped into its range); a native joint with no URDF joint reads back its open value.
+- Open pose: the URDF's zero pose (every joint at 0, clipped into its limits). Postures: `hand_model.POSTURES`,
+  UDHM slot angles over the open pose, the same for every hand.
+- Mount (where the hand sits on the wrist): forward kinematics at the open pose of the spec's keypoints, the
+  wrist keypoint at the wrist, the fingers (wrist to the MCPs' centre) along the wrist's x, the index side
+  (the thumb side of a right hand) along its y (`urdf_model.hand_axes`).
+- Fingertips: each finger's tip keypoint (link and offset); a finger counts when a joint moves its tip (the
+  LEAP's and Allegro's stand-in little fingers, keypoints on the palm, do not).
+- Grasp offsets, by forward kinematics at the closed posture, in the wrist frame: a pinch puts the point
+  halfway between the thumb's and the index's tips on the object's centre; a power grasp puts the tips' centre
+  (thumb and fingers) over the object's centre and the palm's underside on the object's top.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from lerobot_env_unidextok.hand_model import POSTURES, Drive, SimHand
+from lerobot_env_unidextok.urdf_model import FINGER_KEYPOINTS, hand_axes, model_xml
+from lerobot_unidextok import hands
+from lerobot_unidextok.constants import UDHM_JOINT_NAMES
+
+SIDE = "right"
+
+
+def sim_hand(spec: hands.HandSpec) -> SimHand:
+    """The simulated hand of `spec` (right side), built from its URDF."""
+    xml = model_xml(spec, SIDE)
+    model = mujoco.MjModel.from_xml_string(xml)
+    root = model.body(1).name
+    drives, held = _drives(spec, model)
+    keypoints = spec.urdf.keypoints[SIDE]
+    fingertips, finger_bodies = {}, {}
+    for finger, ids in FINGER_KEYPOINTS.items():
+        tip = keypoints[ids[-1]]
+        body = model.body(tip.link).id
+        if model.body_weldid[body] == model.body_weldid[1]:
+            continue  # rigid with the palm: a stand-in finger
+        fingertips[finger] = (tip.link, tuple(float(x) for x in tip.offset_m))
+    tip_bodies = {f: model.body(b).id for f, (b, _) in fingertips.items()}
+    for finger, body in tip_bodies.items():
+        others = [b for f, b in tip_bodies.items() if f != finger]
+        base = body  # the finger: the highest ancestor of its tip that carries no other finger
+        while model.body_parentid[base] > 1 and not any(_descends(model, o, int(model.body_parentid[base])) for o in others):
+            base = int(model.body_parentid[base])
+        finger_bodies[finger] = tuple(model.body(b).name for b in range(model.nbody) if _descends(model, b, base))
+    open_raw = _open_raw(spec, model, drives)
+    hand = SimHand(spec=spec, side=SIDE, model_xml=xml, root=root, mount_pos_m=(0.0, 0.0, 0.0),
+                   mount_matrix=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)), drives=drives, held=held,
+                   fingertips=fingertips, finger_bodies=finger_bodies, open_raw=open_raw, postures=dict(POSTURES),
+                   grasp={}, source=f"built from {spec.urdf.source} by lerobot_env_unidextok/urdf_model.py")  # fmt: skip
+    fk = HandFK(hand, model)
+    axes = hand_axes(fk.keypoints(open_raw))
+    mount_pos = -axes @ fk.keypoints(open_raw)[0]
+    hand = _replace(hand, mount_pos_m=tuple(float(x) for x in mount_pos),
+                    mount_matrix=tuple(tuple(float(x) for x in row) for row in axes))  # fmt: skip
+    fk = HandFK(hand, model)
+    hand = _replace(hand, postures=fit_postures(hand, fk))
+    return _replace(hand, grasp=grasp_offsets(hand, fk))
+
+
+def _replace(hand: SimHand, **changes) -> SimHand:
+    from dataclasses import replace
+
+    return replace(hand, **changes)
+
+
+def _descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
+    while body > 0:
+        if body == ancestor:
+            return True
+        body = int(model.body_parentid[body])
+    return False
+
+
+def _drives(spec: hands.HandSpec, model: mujoco.MjModel) -> tuple[tuple[Drive, ...], dict[str, float]]:
+    actuated = {model.actuator(a).name.removesuffix("_drive") for a in range(model.nu)}
+    drives = []
+    for joint in spec.joints:
+        side = joint.sides[SIDE]
+        urdf = side.urdf_joint or joint.name
+        if urdf not in actuated or side.scale == 0:
+            continue
+        lo, hi = (float(x) for x in model.jnt_range[model.joint(urdf).id])
+        if side.raw_at_urdf_limits is not None:
+            a, b = (side.offset + side.scale * r for r in side.raw_at_urdf_limits)
+            native_rad, joint_rad = (a, b), (lo, hi)
+        else:
+            native_rad = joint_rad = tuple(float(x) for x in side.limits_rad)
+        drives.append(Drive(joint=urdf, native=joint.name, native_rad=native_rad, joint_rad=joint_rad,
+                            actuator=f"{urdf}_drive", measures=True))  # fmt: skip
+    driven = {d.joint for d in drives}
+    held = {f"{j}_drive": float(np.clip(0.0, *model.jnt_range[model.joint(j).id])) for j in sorted(actuated - driven)}
+    return tuple(drives), held
+
+
+def _open_raw(spec: hands.HandSpec, model: mujoco.MjModel, drives: tuple[Drive, ...]) -> np.ndarray:
+    """Native values of the URDF's zero pose (undriven native joints: their default)."""
+    rad = np.asarray(spec.to_radians(np.array([j.sides[SIDE].default_raw for j in spec.joints]), SIDE, "clip"))
+    for d in drives:
+        q0 = float(np.clip(0.0, *model.jnt_range[model.joint(d.joint).id]))
+        rad[spec.joint_names.index(d.native)] = d.to_native(np.float64(q0))
+    lo, hi = spec.limits_rad(SIDE).T
+    return np.asarray(spec.from_radians(np.clip(rad, lo, hi), SIDE, "clip"), dtype=np.float64)
+
+
+class HandFK:
+    """Forward kinematics of a simulated hand's own model (no scene): native command -> points in the wrist
+    frame. Joints are set as the drives map the command, mimic followers from their constraints."""
+
+    def __init__(self, hand: SimHand, model: mujoco.MjModel | None = None) -> None:
+        self.hand = hand
+        self.model = model if model is not None else mujoco.MjModel.from_xml_string(hand.model_xml)
+        self.data = mujoco.MjData(self.model)
+        self.rot = np.asarray(hand.mount_matrix, dtype=np.float64)
+        self.pos = np.asarray(hand.mount_pos_m, dtype=np.float64)
+
+    def pose(self, native_raw: np.ndarray) -> None:
+        m, d, hand = self.model, self.data, self.hand
+        d.qpos[:] = m.qpos0
+        for name, target in hand.command(native_raw).items():
+            a = m.actuator(name).id
+            d.qpos[m.jnt_qposadr[m.actuator_trnid[a, 0]]] = target
+        set_mimic_followers(m, d)
+        mujoco.mj_kinematics(m, d)
+
+    def point(self, body: str, offset_m) -> np.ndarray:
+        b = self.model.body(body).id
+        p = self.data.xpos[b] + self.data.xmat[b].reshape(3, 3) @ np.asarray(offset_m, dtype=np.float64)
+        return self.rot @ p + self.pos
+
+    def keypoints(self, native_raw: np.ndarray) -> np.ndarray:
+        """(21, 3) the spec's keypoints at `native_raw` (wrist frame; the model's frame before the mount is set)."""
+        self.pose(native_raw)
+        return np.stack([self.point(k.link, k.offset_m) for k in self.hand.spec.urdf.keypoints[SIDE]])
+
+    def tips(self, native_raw: np.ndarray) -> dict[str, np.ndarray]:
+        self.pose(native_raw)
+        return {f: self.point(b, p) for f, (b, p) in self.hand.fingertips.items()}
+
+    def palm_bottom_z(self) -> float:
+        """The lowest point (wrist frame z) of the palm body's geoms at the open pose."""
+        self.pose(self.hand.open_raw)
+        m, d = self.model, self.data
+        lows = []
+        for g in np.flatnonzero(m.geom_bodyid == 1):
+            centre = self.rot @ d.geom_xpos[g] + self.pos
+            half = np.abs(self.rot @ d.geom_xmat[g].reshape(3, 3)) @ _half_extents(m, g)
+            lows.append(centre[2] - half[2])
+        return float(min(lows)) if lows else 0.0
+
+
+def _half_extents(model: mujoco.MjModel, g: int) -> np.ndarray:
+    size, kind = model.geom_size[g], int(model.geom_type[g])
+    if kind == int(mujoco.mjtGeom.mjGEOM_BOX):
+        return size.copy()
+    if kind == int(mujoco.mjtGeom.mjGEOM_SPHERE):
+        return np.full(3, size[0])
+    return np.array([size[0], size[0], size[1] + (size[0] if kind == int(mujoco.mjtGeom.mjGEOM_CAPSULE) else 0)])
+
+
+def set_mimic_followers(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """Each joint equality's follower from its leader (q1 = c0 + c1 q2, MuJoCo's polynomial to first order)."""
+    for e in range(model.neq):
+        if int(model.eq_type[e]) != int(mujoco.mjtEq.mjEQ_JOINT):
+            continue
+        q1 = model.jnt_qposadr[model.eq_obj1id[e]]
+        q2 = model.jnt_qposadr[model.eq_obj2id[e]]
+        c = model.eq_data[e]
+        data.qpos[q1] = c[0] + c[1] * data.qpos[q2]
+
+
+THUMB_SLOTS = ("thumb_cmc_flex", "thumb_cmc_spread", "thumb_mcp_flex", "thumb_mcp_abd", "thumb_ip_flex")
+CLEAR_M = 0.045  # before closing, each closing tip this far (horizontally) from the grasp point: the widest object's
+# half width (GraspLift's 28 mm) plus a fingertip
+
+
+def fit_postures(hand: SimHand, fk: HandFK) -> dict[str, dict[str, float]]:
+    """The grasp postures, from the written ones by forward kinematics: the thumb's slots of `pinch` and `power`
+    moved (within the hand's UDHM range) to bring the thumb's tip onto the index's tip (pinch) or the centre of the
+    index's and middle's tips (power); `pinch_pre` and `preshape` part of the way from the open pose to them, as
+    far as keeps the closing tips `CLEAR_M` from the grasp point."""
+    from scipy.optimize import minimize
+
+    spec, side = hand.spec, hand.side
+    lo, hi = spec.udhm_limits_rad(side)
+    slots = [s for s in THUMB_SLOTS if spec.active_mask[UDHM_JOINT_NAMES.index(s)]]
+    idx = [UDHM_JOINT_NAMES.index(s) for s in slots]
+    postures = {k: dict(v) for k, v in hand.postures.items()}
+
+    def tips_at(udhm_overrides: dict[str, float]) -> dict[str, np.ndarray]:
+        return fk.tips(_with(hand, udhm_overrides))
+
+    for name, target in (("pinch", ("index",)), ("power", ("index", "middle"))):
+        base = postures[name]
+        start = np.array([base.get(s, float(_open_udhm(hand)[i])) for s, i in zip(slots, idx, strict=True)])
+
+        def gap(x, base=base, target=target) -> float:
+            tips = tips_at({**base, **dict(zip(slots, x, strict=True))})
+            return float(np.sum((tips["thumb"] - np.mean([tips[f] for f in target], axis=0)) ** 2))
+
+        best = minimize(gap, start, method="Powell", bounds=list(zip(lo[idx], hi[idx], strict=True)),
+                        options={"xtol": 1e-3, "ftol": 1e-8, "maxfev": 2000})  # fmt: skip
+        postures[name] = {**base, **{s: float(v) for s, v in zip(slots, best.x, strict=True)}}
+    open_udhm = _open_udhm(hand)
+    for pre, name, movers in (("pinch_pre", "pinch", ("thumb", "index")), ("preshape", "power", ("thumb",))):
+        closed = {k: v for k, v in postures[name].items() if pre == "pinch_pre" or k in slots}
+        point = _grasp_point(name, tips_at(postures[name]))
+        chosen = {}
+        for share in np.linspace(1.0, 0.0, 21):
+            chosen = {k: float(open_udhm[UDHM_JOINT_NAMES.index(k)] + share * (v - open_udhm[UDHM_JOINT_NAMES.index(k)]))
+                      for k, v in closed.items()}  # fmt: skip
+            tips = tips_at(chosen)
+            if all(np.linalg.norm((tips[f] - point)[:2]) >= CLEAR_M for f in movers):
+                break
+        postures[pre] = chosen
+    return postures
+
+
+def _open_udhm(hand: SimHand) -> np.ndarray:
+    return np.asarray(hand.spec.to_udhm(hand.open_raw, hand.side), dtype=np.float64)
+
+
+def _with(hand: SimHand, overrides: dict[str, float]) -> np.ndarray:
+    """Native command of the open pose with UDHM slots set (as `SimHand.posture`)."""
+    udhm = _open_udhm(hand)
+    for slot, value in overrides.items():
+        udhm[UDHM_JOINT_NAMES.index(slot)] = value
+    raw = np.asarray(hand.spec.from_udhm(udhm, hand.side), dtype=np.float64)
+    dropped = ~np.isin(np.arange(len(raw)), hand.spec.active_joint_indices)
+    raw[dropped] = hand.open_raw[dropped]
+    return raw
+
+
+def _grasp_point(kind: str, tips: dict[str, np.ndarray]) -> np.ndarray:
+    """Pinch: halfway between the thumb's and the index's tips; power: the centre of the thumb's and fingers' tips."""
+    if kind == "pinch":
+        return (tips["thumb"] + tips["index"]) / 2
+    return np.mean(list(tips.values()), axis=0)
+
+
+def grasp_offsets(hand: SimHand, fk: HandFK) -> dict[str, dict]:
+    """The experts' grasp entries: where the wrist goes relative to the object (module docstring)."""
+    at = _grasp_point("pinch", fk.tips(hand.posture("pinch")))
+    centre = _grasp_point("power", fk.tips(hand.posture("power")))
+    below = fk.palm_bottom_z()
+    return {
+        "power": {"preshape": "preshape", "posture": "power",
+                  "offset_m": [float(-centre[0]), float(-centre[1]), float(-below)]},
+        "pinch": {"preshape": "pinch_pre", "posture": "pinch", "offset_m": [float(-x) for x in at]},
+    }  # fmt: skip
+
+
+__all__ = ["HandFK", "grasp_offsets", "set_mimic_followers", "sim_hand"]
