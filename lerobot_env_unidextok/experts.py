@@ -97,7 +97,11 @@ class Expert:
         c, s = np.cos(yaw), np.sin(yaw)
         dx, dy, dz = g["offset_m"]
         centre = np.array([task["object_x"], task["object_y"], task["object_z"]])
-        at = centre + [c * dx - s * dy, s * dx + c * dy, half[2] + dz if kind == "power" else dz]
+        if kind == "power" and g.get("from") == "centre":  # the hand closes around the object's centre, the palm
+            dz = max(dz, half[2] + g["palm_over_top_m"])  # no lower than on its top
+        elif kind == "power":
+            dz = half[2] + dz  # the wrist's height over the object's top
+        at = centre + [c * dx - s * dy, s * dx + c * dy, dz]
         grasp_pose = self.jitter(np.array([*at, 0.0, float(g.get("pitch", 0.0)), yaw]))
         above = grasp_pose + [0, 0, 0.06, 0, 0, 0]
         lifted = grasp_pose + [0, 0, 0.12, 0, 0, 0]

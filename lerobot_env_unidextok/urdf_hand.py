@@ -12,9 +12,11 @@ the experts need, read from the kinematic chain, with no number tuned per hand.
   (the thumb side of a right hand) along its y (`urdf_model.hand_axes`).
 - Fingertips: each finger's tip keypoint (link and offset); a finger counts when a joint moves its tip (the
   LEAP's and Allegro's stand-in little fingers, keypoints on the palm, do not).
-- Grasp offsets, by forward kinematics at the closed posture, in the wrist frame: a pinch puts the point
-  halfway between the thumb's and the index's tips on the object's centre; a power grasp puts the tips' centre
-  (thumb and fingers) over the object's centre and the palm's underside on the object's top.
+- Grasp postures and offsets, by forward kinematics (`fit_postures`, `grasp_offsets`), in the wrist frame: the
+  thumb's slots of the closed postures moved to bring its tip onto the index's tip (pinch) or the index's and
+  middle's (power); a pinch puts the point halfway between the thumb's and the index's tips on the object's
+  centre, a power grasp the centre of the closed fingers' and thumb's keypoints past their bases (the hand closes
+  around it), the palm's underside no lower than the object's top.
 """
 
 from __future__ import annotations
@@ -249,11 +251,12 @@ def _grasp_point(kind: str, tips: dict[str, np.ndarray]) -> np.ndarray:
 def grasp_offsets(hand: SimHand, fk: HandFK) -> dict[str, dict]:
     """The experts' grasp entries: where the wrist goes relative to the object (module docstring)."""
     at = _grasp_point("pinch", fk.tips(hand.posture("pinch")))
-    centre = _grasp_point("power", fk.tips(hand.posture("power")))
+    keypoints = fk.keypoints(hand.posture("power"))
+    centre = keypoints[[i for f in hand.fingers for i in FINGER_KEYPOINTS[f][1:]]].mean(0)
     below = fk.palm_bottom_z()
     return {
-        "power": {"preshape": "preshape", "posture": "power",
-                  "offset_m": [float(-centre[0]), float(-centre[1]), float(-below)]},
+        "power": {"preshape": "preshape", "posture": "power", "offset_m": [float(-x) for x in centre],
+                  "from": "centre", "palm_over_top_m": float(-below)},
         "pinch": {"preshape": "pinch_pre", "posture": "pinch", "offset_m": [float(-x) for x in at]},
     }  # fmt: skip
 

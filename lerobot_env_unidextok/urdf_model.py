@@ -8,8 +8,8 @@ mimic joints become MuJoCo's joint equality constraints, `follower = offset + mu
   kept; a link with a mesh collision gets capsules from its origin (its joint) to each child's origin, and a
   fingertip link a capsule from its origin to the spec's tip keypoint; a capsule ending at a tip keypoint ends
   there with its rounded end, radius included;
-- the capsule radius comes from the chain: a tenth of the median finger's length (MCP-PIP-DIP-tip keypoints),
-  within 6-12 mm;
+- the capsule radius comes from the chain: a tenth of the median finger's length (MCP-PIP-DIP-tip keypoints), at
+  most 35 % of the closest two fingers' MCP spacing (neighbours do not touch), within 6-12 mm;
 - a palm link (the URDF's root) without primitives gets a box over the finger bases' span: from the wrist keypoint to the MCPs
   along the fingers, across the MCPs (plus the radius), one radius each side of them;
 - one `position` actuator per independent joint over its range (mimic followers move through their constraint),
@@ -43,8 +43,9 @@ from lerobot_unidextok.utils.shared_data import URDF_DIR_ENV, urdf_dir
 BUILDER_VERSION = 1  # bump when the built MJCF changes for the same inputs
 CACHE_ENV = "UNIDEXTOK_SIM_CACHE"
 PRIMITIVES = ("box", "cylinder", "sphere")
-RADIUS_SHARE = 0.1  # capsule radius: this share of the median finger's length (MCP to tip along the chain)
-RADIUS_RANGE_M = (0.006, 0.012)
+RADIUS_SHARE = 0.1  # capsule radius: this share of the median finger's length (MCP to tip along the chain),
+SPACING_SHARE = 0.35  # at most this share of the closest two fingers' MCP spacing (fingers 70 % as wide as
+RADIUS_RANGE_M = (0.006, 0.012)  # their spacing, so neighbours do not touch), within this range
 KP_NM_PER_RAD = 3.0  # position actuators: stiffness, damping, torque limit, joint armature (every hand)
 KV_NMS_PER_RAD = 0.3
 TORQUE_NM = 1.0
@@ -121,10 +122,12 @@ def _keypoints(model: mujoco.MjModel, data: mujoco.MjData, spec: hands.HandSpec,
 
 
 def capsule_radius_m(keypoints_m: np.ndarray) -> float:
-    """A tenth of the median finger's length (index to little, MCP-PIP-DIP-tip keypoints), within 6-12 mm."""
+    """A tenth of the median finger's length (index to little, MCP-PIP-DIP-tip keypoints), at most 35 % of the
+    closest two MCPs' spacing, within 6-12 mm."""
     lengths = [sum(np.linalg.norm(keypoints_m[a + 1] - keypoints_m[a]) for a in FINGER_KEYPOINTS[f][:3])
                for f in ("index", "middle", "ring", "little")]  # fmt: skip
-    return float(np.clip(RADIUS_SHARE * np.median(lengths), *RADIUS_RANGE_M))
+    spacing = np.linalg.norm(np.diff(keypoints_m[[5, 9, 13, 17]], axis=0), axis=1).min()
+    return float(np.clip(min(RADIUS_SHARE * np.median(lengths), SPACING_SHARE * spacing), *RADIUS_RANGE_M))
 
 
 def hand_axes(keypoints_m: np.ndarray) -> np.ndarray:
