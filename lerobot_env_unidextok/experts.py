@@ -98,7 +98,8 @@ class Expert:
         dx, dy, dz = g["offset_m"]
         centre = np.array([task["object_x"], task["object_y"], task["object_z"]])
         if kind == "power" and g.get("from") == "centre":  # the hand closes around the object's centre, the palm
-            dz = max(dz, half[2] + g["palm_over_top_m"])  # no lower than on its top
+            # no lower than on its top, the closed tips not into the table
+            dz = max(dz, half[2] + g["palm_over_top_m"], g["over_table_m"] - task["object_z"])
         elif kind == "power":
             dz = half[2] + dz  # the wrist's height over the object's top
         at = centre + [c * dx - s * dy, s * dx + c * dy, dz]
@@ -116,6 +117,10 @@ class Expert:
         goal = next(f for f in PRESS_FINGERS if task[f"goal_{f}"] > 0.5)
         panel = np.array([task["panel_x"], task["panel_y"], task["panel_z"]])
         hover = self.jitter(np.array([*(panel + FingerPress.HOVER_M), 0.0, 0.0, 0.0]))
+        # the yaw noise turns the hand about its fingertips over the buttons, not about the wrist: a hand's tips
+        # then miss their buttons by the position noise alone, whatever the hand's length
+        reach = self.env.task.buttons_x_m - FingerPress.HOVER_M[0]
+        hover[:2] += reach * np.array([1 - np.cos(hover[5]), -np.sin(hover[5])])
         above = hover + [0, 0, 0.04, 0, 0, 0]
         open_ = self.posture("open")
         press = self.posture(f"press_{goal}")

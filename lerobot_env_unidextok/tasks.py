@@ -249,6 +249,8 @@ class FingerPress(Task):
         m = scene.model
         self.scene = scene
         self.panel = m.body("panel").id
+        # where the buttons are along the fingers, relative to the panel's origin (their posts' places)
+        self.buttons_x_m = float(np.mean([m.body_pos[m.body(f"button_{f}").id][0] for f in self.fingers]))
         for f in self.fingers:
             self.buttons[f] = Button(f, m.body(f"cap_{f}").id, m.geom(f"cap_{f}").id,
                                      int(m.jnt_qposadr[m.joint(f"button_{f}").id]))  # fmt: skip

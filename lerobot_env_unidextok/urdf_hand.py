@@ -16,7 +16,8 @@ the experts need, read from the kinematic chain, with no number tuned per hand.
   thumb's slots of the closed postures moved to bring its tip onto the index's tip (pinch) or the index's and
   middle's (power); a pinch puts the point halfway between the thumb's and the index's tips on the object's
   centre, a power grasp the centre of the closed fingers' and thumb's keypoints past their bases (the hand closes
-  around it), the palm's underside no lower than the object's top.
+  around it), the palm's underside no lower than the object's top, the closed tips no lower than 15 mm over the
+  table.
 """
 
 from __future__ import annotations
@@ -180,16 +181,17 @@ def set_mimic_followers(model: mujoco.MjModel, data: mujoco.MjData) -> None:
 
 
 THUMB_SLOTS = ("thumb_cmc_flex", "thumb_cmc_spread", "thumb_mcp_flex", "thumb_mcp_abd", "thumb_ip_flex")
-CLEAR_M = 0.045  # before closing, each closing tip this far (horizontally) from the grasp point: the widest object's
-# half width (GraspLift's 28 mm) plus a fingertip
+TIP_CLEAR_M = 0.015  # before closing, each closing tip this far (horizontally) beyond the widest object of its grasp
 
 
 def fit_postures(hand: SimHand, fk: HandFK) -> dict[str, dict[str, float]]:
     """The grasp postures, from the written ones by forward kinematics: the thumb's slots of `pinch` and `power`
     moved (within the hand's UDHM range) to bring the thumb's tip onto the index's tip (pinch) or the centre of the
     index's and middle's tips (power); `pinch_pre` and `preshape` part of the way from the open pose to them, as
-    far as keeps the closing tips `CLEAR_M` from the grasp point."""
+    far as keeps the closing tips clear of the widest object of their grasp (`TIP_CLEAR_M` past its half width)."""
     from scipy.optimize import minimize
+
+    from lerobot_env_unidextok.tasks import SHAPES
 
     spec, side = hand.spec, hand.side
     lo, hi = spec.udhm_limits_rad(side)
@@ -215,12 +217,13 @@ def fit_postures(hand: SimHand, fk: HandFK) -> dict[str, dict[str, float]]:
     for pre, name, movers in (("pinch_pre", "pinch", ("thumb", "index")), ("preshape", "power", ("thumb",))):
         closed = {k: v for k, v in postures[name].items() if pre == "pinch_pre" or k in slots}
         point = _grasp_point(name, tips_at(postures[name]))
+        clear = max(hi for shape in SHAPES if shape.grasp == name for _, hi in shape.half_m[:1]) + TIP_CLEAR_M
         chosen = {}
         for share in np.linspace(1.0, 0.0, 21):
             chosen = {k: float(open_udhm[UDHM_JOINT_NAMES.index(k)] + share * (v - open_udhm[UDHM_JOINT_NAMES.index(k)]))
                       for k, v in closed.items()}  # fmt: skip
             tips = tips_at(chosen)
-            if all(np.linalg.norm((tips[f] - point)[:2]) >= CLEAR_M for f in movers):
+            if all(np.linalg.norm((tips[f] - point)[:2]) >= clear for f in movers):
                 break
         postures[pre] = chosen
     return postures
@@ -253,10 +256,11 @@ def grasp_offsets(hand: SimHand, fk: HandFK) -> dict[str, dict]:
     at = _grasp_point("pinch", fk.tips(hand.posture("pinch")))
     keypoints = fk.keypoints(hand.posture("power"))
     centre = keypoints[[i for f in hand.fingers for i in FINGER_KEYPOINTS[f][1:]]].mean(0)
+    lowest = min(p[2] for p in fk.tips(hand.posture("power")).values())
     below = fk.palm_bottom_z()
     return {
         "power": {"preshape": "preshape", "posture": "power", "offset_m": [float(-x) for x in centre],
-                  "from": "centre", "palm_over_top_m": float(-below)},
+                  "from": "centre", "palm_over_top_m": float(-below), "over_table_m": float(TIP_CLEAR_M - lowest)},
         "pinch": {"preshape": "pinch_pre", "posture": "pinch", "offset_m": [float(-x) for x in at]},
     }  # fmt: skip
 
