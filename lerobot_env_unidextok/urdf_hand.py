@@ -202,13 +202,13 @@ def fit_postures(hand: SimHand, fk: HandFK) -> dict[str, dict[str, float]]:
     def tips_at(udhm_overrides: dict[str, float]) -> dict[str, np.ndarray]:
         return fk.tips(_with(hand, udhm_overrides))
 
-    for name, target in (("pinch", ("index",)), ("power", ("index", "middle"))):
+    for name, target in (("pinch", [8]), ("power", [8, 12])):  # MANO-21: index tip; index and middle tips
         base = postures[name]
         start = np.array([base.get(s, float(_open_udhm(hand)[i])) for s, i in zip(slots, idx, strict=True)])
 
         def gap(x, base=base, target=target) -> float:
-            tips = tips_at({**base, **dict(zip(slots, x, strict=True))})
-            return float(np.sum((tips["thumb"] - np.mean([tips[f] for f in target], axis=0)) ** 2))
+            kp = fk.keypoints(_with(hand, {**base, **dict(zip(slots, x, strict=True))}))
+            return float(np.sum((kp[4] - kp[target].mean(0)) ** 2))
 
         best = minimize(gap, start, method="Powell", bounds=list(zip(lo[idx], hi[idx], strict=True)),
                         options={"xtol": 1e-3, "ftol": 1e-8, "maxfev": 2000})  # fmt: skip
@@ -216,7 +216,7 @@ def fit_postures(hand: SimHand, fk: HandFK) -> dict[str, dict[str, float]]:
     open_udhm = _open_udhm(hand)
     for pre, name, movers in (("pinch_pre", "pinch", ("thumb", "index")), ("preshape", "power", ("thumb",))):
         closed = {k: v for k, v in postures[name].items() if pre == "pinch_pre" or k in slots}
-        point = _grasp_point(name, tips_at(postures[name]))
+        point = grasp_point(name, fk, _with(hand, postures[name]))
         clear = max(hi for shape in SHAPES if shape.grasp == name for _, hi in shape.half_m[:1]) + TIP_CLEAR_M
         chosen = {}
         for share in np.linspace(1.0, 0.0, 21):
@@ -244,18 +244,20 @@ def _with(hand: SimHand, overrides: dict[str, float]) -> np.ndarray:
     return raw
 
 
-def _grasp_point(kind: str, tips: dict[str, np.ndarray]) -> np.ndarray:
-    """Pinch: halfway between the thumb's and the index's tips; power: the centre of the thumb's and fingers' tips."""
+def grasp_point(kind: str, fk: HandFK, native_raw: np.ndarray) -> np.ndarray:
+    """Where the object's centre goes (wrist frame) when the hand holds `native_raw`: a pinch, halfway between the
+    thumb's and the index's tips; a power grasp, the centre of the fingers' and thumb's keypoints past their
+    bases (the space they close around)."""
+    kp = fk.keypoints(native_raw)
     if kind == "pinch":
-        return (tips["thumb"] + tips["index"]) / 2
-    return np.mean(list(tips.values()), axis=0)
+        return (kp[FINGER_KEYPOINTS["thumb"][-1]] + kp[FINGER_KEYPOINTS["index"][-1]]) / 2
+    return kp[[i for f in fk.hand.fingers for i in FINGER_KEYPOINTS[f][1:]]].mean(0)
 
 
 def grasp_offsets(hand: SimHand, fk: HandFK) -> dict[str, dict]:
     """The experts' grasp entries: where the wrist goes relative to the object (module docstring)."""
-    at = _grasp_point("pinch", fk.tips(hand.posture("pinch")))
-    keypoints = fk.keypoints(hand.posture("power"))
-    centre = keypoints[[i for f in hand.fingers for i in FINGER_KEYPOINTS[f][1:]]].mean(0)
+    at = grasp_point("pinch", fk, hand.posture("pinch"))
+    centre = grasp_point("power", fk, hand.posture("power"))
     lowest = min(p[2] for p in fk.tips(hand.posture("power")).values())
     below = fk.palm_bottom_z()
     return {
