@@ -130,14 +130,15 @@ def model_names() -> tuple[str, ...]:
 
 
 def _has_urdf(spec: hands.HandSpec) -> bool:
-    from lerobot_env_unidextok.urdf_model import urdf_path  # MuJoCo loads with it; only its file look-up here
+    from lerobot_env_unidextok.urdf_model import buildable  # MuJoCo loads with it; only its file look-ups here
 
-    return urdf_path(spec, "right") is not None
+    return buildable(spec, "right")
 
 
 def sim_hand_names() -> tuple[str, ...]:
     """Hand specs the simulator runs: every registered spec whose embodiment has a model file, or whose URDF is
-    found (`$UNIDEXTOK_URDF_DIR`, else ../shared/data/urdf; the model is built from it)."""
+    found (`$UNIDEXTOK_URDF_DIR`, else ../shared/data/urdf; the model is built from it), or whose built model
+    ships with the package."""
     models = set(model_names())
     return tuple(n for n in hands.names() if hands.get(n).embodiment in models or _has_urdf(hands.get(n)))
 

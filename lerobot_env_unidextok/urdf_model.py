@@ -20,7 +20,8 @@ mimic joints become MuJoCo's joint equality constraints, `follower = offset + mu
   at the open pose (the URDF's zero pose, joints clipped into their limits): geometry that overlaps there is
   the approximation's, not a contact.
 
-Built models are cached outside the repository: `$UNIDEXTOK_SIM_CACHE`, else `$XDG_CACHE_HOME/unidextok/sim`
+A model can also ship with the package, built by `tools/sim/build_hand.py` (the Allegro's, so that it runs without
+the URDF; a test rebuilds it bit for bit). Built models are cached outside the repository: `$UNIDEXTOK_SIM_CACHE`, else `$XDG_CACHE_HOME/unidextok/sim`
 (`~/.cache/unidextok/sim`), one file per hand keyed by a fingerprint of the URDF's bytes, the spec's keypoints, the
 builder's version and MuJoCo's; a changed input is a new file, never a stale one.
 """
@@ -41,6 +42,7 @@ from lerobot_unidextok.utils.files import fingerprint
 from lerobot_unidextok.utils.shared_data import URDF_DIR_ENV, urdf_dir
 
 BUILDER_VERSION = 1  # bump when the built MJCF changes for the same inputs
+SHIPPED_DIR = Path(__file__).parent / "assets"
 CACHE_ENV = "UNIDEXTOK_SIM_CACHE"
 PRIMITIVES = ("box", "cylinder", "sphere")
 RADIUS_SHARE = 0.1  # capsule radius: this share of the median finger's length (MCP to tip along the chain),
@@ -69,13 +71,16 @@ def urdf_path(spec: hands.HandSpec, side: str = "right") -> Path | None:
     return path if path.is_file() else None
 
 
-def require_urdf(spec: hands.HandSpec, side: str = "right") -> Path:
-    path = urdf_path(spec, side)
-    if path is None:
-        where = (f"{urdf_dir() / spec.urdf.files[side]} is not there (set {URDF_DIR_ENV} to your URDF folder)"
-                 if spec.urdf is not None else "its spec maps no URDF (add a `urdf:` block, docs/hands.md)")  # fmt: skip
-        raise SimHandError(f"hand {spec.name!r} cannot be built for the simulator: {where}")
-    return path
+def shipped_path(spec: hands.HandSpec, side: str = "right") -> Path | None:
+    """A built model that ships with the package (`assets/<embodiment>/<embodiment>_<side>.xml`, the Allegro's:
+    the simulator runs it without the URDF), or None. `tools/sim/build_hand.py` writes it; a test rebuilds it."""
+    path = SHIPPED_DIR / spec.embodiment / f"{spec.embodiment}_{side}.xml"
+    return path if spec.kind == "joints" and spec.urdf is not None and path.is_file() else None
+
+
+def buildable(spec: hands.HandSpec, side: str = "right") -> bool:
+    """Whether the simulator can build (or ship) this spec's model: its URDF is found, or its model ships."""
+    return urdf_path(spec, side) is not None or shipped_path(spec, side) is not None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -253,8 +258,16 @@ def model_key(spec: hands.HandSpec, urdf_bytes: bytes, side: str = "right") -> s
 
 
 def model_xml(spec: hands.HandSpec, side: str = "right") -> str:
-    """The spec's built MJCF: from the cache when built before with the same inputs, else built and cached."""
-    urdf = require_urdf(spec, side).read_bytes()
+    """The spec's built MJCF from its URDF: from the cache when built before with the same inputs, else built and
+    cached; without the URDF, the model that ships with the package (the Allegro's)."""
+    found = urdf_path(spec, side)
+    if found is None:
+        shipped = shipped_path(spec, side)
+        if shipped is None:
+            raise SimHandError(f"hand {spec.name!r}: no URDF found under {urdf_dir()} (set {URDF_DIR_ENV}) and no "
+                               "built model ships for it")  # fmt: skip
+        return shipped.read_text()
+    urdf = found.read_bytes()
     path = cache_dir() / f"{spec.embodiment}_{side}_{model_key(spec, urdf, side)}.xml"
     if path.is_file():
         return path.read_text()
@@ -269,5 +282,5 @@ def model_xml(spec: hands.HandSpec, side: str = "right") -> str:
     return xml
 
 
-__all__ = ["BUILDER_VERSION", "CACHE_ENV", "SimHandError", "build_mjcf", "cache_dir", "model_xml", "require_urdf",
+__all__ = ["BUILDER_VERSION", "CACHE_ENV", "build_mjcf", "buildable", "cache_dir", "model_xml", "shipped_path",
            "urdf_path"]  # fmt: skip
