@@ -188,7 +188,8 @@ def fit_postures(hand: SimHand, fk: HandFK) -> dict[str, dict[str, float]]:
     """The grasp postures, from the written ones by forward kinematics: the thumb's slots of `pinch` and `power`
     moved (within the hand's UDHM range) to bring the thumb's tip onto the index's tip (pinch) or the centre of the
     index's and middle's tips (power); `pinch_pre` and `preshape` part of the way from the open pose to them, as
-    far as keeps the closing tips clear of the widest object of their grasp (`TIP_CLEAR_M` past its half width)."""
+    far as keeps the closing tips clear of the widest object of their grasp (`TIP_CLEAR_M` past its half width),
+    the thumb and the fingers each on their own (they then reach the object about together)."""
     from scipy.optimize import minimize
 
     from lerobot_env_unidextok.tasks import SHAPES
@@ -214,17 +215,23 @@ def fit_postures(hand: SimHand, fk: HandFK) -> dict[str, dict[str, float]]:
                         options={"xtol": 1e-3, "ftol": 1e-8, "maxfev": 2000})  # fmt: skip
         postures[name] = {**base, **{s: float(v) for s, v in zip(slots, best.x, strict=True)}}
     open_udhm = _open_udhm(hand)
-    for pre, name, movers in (("pinch_pre", "pinch", ("thumb", "index")), ("preshape", "power", ("thumb",))):
-        closed = {k: v for k, v in postures[name].items() if pre == "pinch_pre" or k in slots}
-        point = grasp_point(name, fk, _with(hand, postures[name]))
+    fingers = [f for f in hand.fingers if f != "thumb"]
+    for pre, name in (("pinch_pre", "pinch"), ("preshape", "power")):
+        closed = postures[name]
+        point = grasp_point(name, fk, _with(hand, closed))
         clear = max(hi for shape in SHAPES if shape.grasp == name for _, hi in shape.half_m[:1]) + TIP_CLEAR_M
         chosen = {}
-        for share in np.linspace(1.0, 0.0, 21):
-            chosen = {k: float(open_udhm[UDHM_JOINT_NAMES.index(k)] + share * (v - open_udhm[UDHM_JOINT_NAMES.index(k)]))
-                      for k, v in closed.items()}  # fmt: skip
-            tips = tips_at(chosen)
-            if all(np.linalg.norm((tips[f] - point)[:2]) >= clear for f in movers):
-                break
+        # the thumb and the fingers each opened just enough: closing, they reach the object about together
+        groups = ((slots, ["thumb"]), ([k for k in closed if k not in slots], ["index"] if name == "pinch" else fingers))
+        for group, movers in groups:
+            part = {}
+            for share in np.linspace(1.0, 0.0, 21):
+                part = {k: float(open_udhm[UDHM_JOINT_NAMES.index(k)] + share * (closed[k] - open_udhm[UDHM_JOINT_NAMES.index(k)]))
+                        for k in group if k in closed}  # fmt: skip
+                tips = tips_at({**closed, **part})
+                if all(np.linalg.norm((tips[f] - point)[:2]) >= clear for f in movers):
+                    break
+            chosen.update(part)
         postures[pre] = chosen
     return postures
 
