@@ -16,8 +16,8 @@ the experts need, read from the kinematic chain, with no number tuned per hand.
   thumb's slots of the closed postures moved to bring its tip onto the index's tip (pinch) or the index's and
   middle's (power); a pinch puts the point halfway between the thumb's and the index's tips on the object's
   centre, a power grasp the centre of the closed fingers' and thumb's keypoints past their bases (the hand closes
-  around it), the palm's underside no lower than the object's top, the closed tips no lower than 15 mm over the
-  table.
+  around it), the palm's underside no lower than the object's top, the tips (pre-shaped and closed) no lower
+  than 15 mm over the table.
 """
 
 from __future__ import annotations
@@ -265,7 +265,7 @@ def grasp_offsets(hand: SimHand, fk: HandFK) -> dict[str, dict]:
     """The experts' grasp entries: where the wrist goes relative to the object (module docstring)."""
     at = grasp_point("pinch", fk, hand.posture("pinch"))
     centre = grasp_point("power", fk, hand.posture("power"))
-    lowest = min(p[2] for p in fk.tips(hand.posture("power")).values())
+    lowest = min(p[2] for k in ("preshape", "power") for p in fk.tips(hand.posture(k)).values())
     below = fk.palm_bottom_z()
     return {
         "power": {"preshape": "preshape", "posture": "power", "offset_m": [float(-x) for x in centre],
