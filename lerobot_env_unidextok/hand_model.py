@@ -204,12 +204,14 @@ def _flex(mcp: float, pip: float, dip: float, fingers=("index", "middle", "ring"
 
 # The postures, as UDHM slot angles (rad) set over the hand's open pose and turned into each hand's native command
 # by its spec (`SimHand.posture`): written once for every hand; a hand fills the slots it has. A model file may
-# override one, saying why. thumb_cmc_flex swings the thumb in front of the palm (opposition).
+# override one, saying why. thumb_cmc_flex swings the thumb in front of the palm (opposition). A hand built from its
+# URDF then fits its thumb's slots of `pinch` and `power` and its pre-shapes by forward kinematics
+# (`urdf_hand.fit_postures`): a pinch is a tripod, the thumb onto the index's and middle's tips.
 POSTURES: dict[str, dict[str, float]] = {
     "preshape": {"thumb_cmc_flex": 1.2},  # the thumb opposed, fingers open: before a power grasp
     "power": {**_flex(1.3, 1.1, 0.7), "thumb_cmc_flex": 1.2, "thumb_mcp_flex": 0.6, "thumb_ip_flex": 0.6},
-    "pinch_pre": {**_flex(0.4, 0.3, 0.2, ("index",)), "thumb_cmc_flex": 1.0},
-    "pinch": {**_flex(1.0, 0.8, 0.5, ("index",)), "thumb_cmc_flex": 1.2, "thumb_mcp_flex": 0.5,
+    "pinch_pre": {**_flex(0.4, 0.3, 0.2, ("index", "middle")), "thumb_cmc_flex": 1.0},
+    "pinch": {**_flex(1.0, 0.8, 0.5, ("index", "middle")), "thumb_cmc_flex": 1.2, "thumb_mcp_flex": 0.5,
               "thumb_ip_flex": 0.5},
     **{f"press_{f}": _press(u) for f, u in (("index", "index"), ("middle", "middle"), ("ring", "ring"),
                                              ("little", "pinky"))},

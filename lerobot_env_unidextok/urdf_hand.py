@@ -13,9 +13,9 @@ the experts need, read from the kinematic chain, with no number tuned per hand.
 - Fingertips: each finger's tip keypoint (link and offset); a finger counts when a joint moves its tip (the
   LEAP's and Allegro's stand-in little fingers, keypoints on the palm, do not).
 - Grasp postures and offsets, by forward kinematics (`fit_postures`, `grasp_offsets`), in the wrist frame: the
-  thumb's slots of the closed postures moved to bring its tip onto the index's tip (pinch) or the index's and
-  middle's (power); a pinch puts the point halfway between the thumb's and the index's tips on the object's
-  centre, a power grasp the centre of the closed fingers' and thumb's keypoints past their bases (the hand closes
+  thumb's slots of the closed postures moved to bring its tip onto the centre of the index's and the middle's
+  tips (a pinch is a tripod of the three); a pinch puts the point halfway between the thumb's tip and that centre
+  on the object's centre, a power grasp the centre of the closed fingers' and thumb's keypoints past their bases (the hand closes
   around it), the palm's underside no lower than the object's top, the tips (pre-shaped and closed) no lower
   than 15 mm over the table.
 """
@@ -186,8 +186,7 @@ TIP_CLEAR_M = 0.015  # before closing, each closing tip this far (horizontally) 
 
 def fit_postures(hand: SimHand, fk: HandFK) -> dict[str, dict[str, float]]:
     """The grasp postures, from the written ones by forward kinematics: the thumb's slots of `pinch` and `power`
-    moved (within the hand's UDHM range) to bring the thumb's tip onto the index's tip (pinch) or the centre of the
-    index's and middle's tips (power); `pinch_pre` and `preshape` part of the way from the open pose to them, as
+    moved (within the hand's UDHM range) to bring the thumb's tip onto the centre of the index's and middle's tips; `pinch_pre` and `preshape` part of the way from the open pose to them, as
     far as keeps the closing tips clear of the widest object of their grasp (`TIP_CLEAR_M` past its half width),
     the thumb and the fingers each on their own (they then reach the object about together)."""
     from scipy.optimize import minimize
@@ -203,7 +202,7 @@ def fit_postures(hand: SimHand, fk: HandFK) -> dict[str, dict[str, float]]:
     def tips_at(udhm_overrides: dict[str, float]) -> dict[str, np.ndarray]:
         return fk.tips(_with(hand, udhm_overrides))
 
-    for name, target in (("pinch", [8]), ("power", [8, 12])):  # MANO-21: index tip; index and middle tips
+    for name, target in (("pinch", [8, 12]), ("power", [8, 12])):  # MANO-21: the index's and middle's tips
         base = postures[name]
         start = np.array([base.get(s, float(_open_udhm(hand)[i])) for s, i in zip(slots, idx, strict=True)])
 
@@ -222,7 +221,7 @@ def fit_postures(hand: SimHand, fk: HandFK) -> dict[str, dict[str, float]]:
         clear = max(hi for shape in SHAPES if shape.grasp == name for _, hi in shape.half_m[:1]) + TIP_CLEAR_M
         chosen = {}
         # the thumb and the fingers each opened just enough: closing, they reach the object about together
-        groups = ((slots, ["thumb"]), ([k for k in closed if k not in slots], ["index"] if name == "pinch" else fingers))
+        groups = ((slots, ["thumb"]), ([k for k in closed if k not in slots], ["index", "middle"] if name == "pinch" else fingers))
         for group, movers in groups:
             part = {}
             for share in np.linspace(1.0, 0.0, 21):
@@ -253,11 +252,11 @@ def _with(hand: SimHand, overrides: dict[str, float]) -> np.ndarray:
 
 def grasp_point(kind: str, fk: HandFK, native_raw: np.ndarray) -> np.ndarray:
     """Where the object's centre goes (wrist frame) when the hand holds `native_raw`: a pinch, halfway between the
-    thumb's and the index's tips; a power grasp, the centre of the fingers' and thumb's keypoints past their
+    thumb's tip and the centre of the index's and middle's; a power grasp, the centre of the fingers' and thumb's keypoints past their
     bases (the space they close around)."""
     kp = fk.keypoints(native_raw)
     if kind == "pinch":
-        return (kp[FINGER_KEYPOINTS["thumb"][-1]] + kp[FINGER_KEYPOINTS["index"][-1]]) / 2
+        return (kp[4] + (kp[8] + kp[12]) / 2) / 2  # MANO-21 tips: thumb 4, index 8, middle 12
     return kp[[i for f in fk.hand.fingers for i in FINGER_KEYPOINTS[f][1:]]].mean(0)
 
 
