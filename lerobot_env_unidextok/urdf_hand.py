@@ -26,7 +26,7 @@ import mujoco
 import numpy as np
 
 from lerobot_env_unidextok.hand_model import POSTURES, Drive, SimHand
-from lerobot_env_unidextok.urdf_model import FINGER_KEYPOINTS, hand_axes, model_xml
+from lerobot_env_unidextok.urdf_model import FINGER_KEYPOINTS, capsule_radius_m, hand_axes, model_xml
 from lerobot_unidextok import hands
 from lerobot_unidextok.constants import UDHM_JOINT_NAMES
 
@@ -65,8 +65,9 @@ def sim_hand(spec: hands.HandSpec) -> SimHand:
     hand = _replace(hand, mount_pos_m=tuple(float(x) for x in mount_pos),
                     mount_matrix=tuple(tuple(float(x) for x in row) for row in axes))  # fmt: skip
     fk = HandFK(hand, model)
-    hand = _replace(hand, postures=fit_postures(hand, fk))
-    return _replace(hand, grasp=grasp_offsets(hand, fk))
+    postures, pinch_fingers = fit_postures(hand, fk)
+    hand = _replace(hand, postures=postures)
+    return _replace(hand, grasp=grasp_offsets(hand, fk, pinch_fingers))
 
 
 def _replace(hand: SimHand, **changes) -> SimHand:
@@ -184,11 +185,13 @@ THUMB_SLOTS = ("thumb_cmc_flex", "thumb_cmc_spread", "thumb_mcp_flex", "thumb_mc
 TIP_CLEAR_M = 0.015  # before closing, each closing tip this far (horizontally) beyond the widest object of its grasp
 
 
-def fit_postures(hand: SimHand, fk: HandFK) -> dict[str, dict[str, float]]:
-    """The grasp postures, from the written ones by forward kinematics: the thumb's slots of `pinch` and `power`
-    moved (within the hand's UDHM range) to bring the thumb's tip onto the centre of the index's and middle's tips; `pinch_pre` and `preshape` part of the way from the open pose to them, as
-    far as keeps the closing tips clear of the widest object of their grasp (`TIP_CLEAR_M` past its half width),
-    the thumb and the fingers each on their own (they then reach the object about together)."""
+def fit_postures(hand: SimHand, fk: HandFK) -> tuple[dict[str, dict[str, float]], tuple[str, ...]]:
+    """The grasp postures, from the written ones by forward kinematics, and the pinch's fingers: the thumb's slots
+    of `pinch` and `power` moved (within the hand's UDHM range) to bring the thumb's tip onto the centre of the
+    index's and middle's tips; a pinch with the index alone where those two tips, closed, leave a gap the smallest
+    pinch object passes through (the Dex3's two fingers); `pinch_pre` and `preshape` part of the way from the open
+    pose to them, as far as keeps the closing tips clear of the widest object of their grasp (`TIP_CLEAR_M` past
+    its half width), the thumb and the fingers each on their own (they then reach the object about together)."""
     from scipy.optimize import minimize
 
     from lerobot_env_unidextok.tasks import SHAPES
@@ -202,26 +205,38 @@ def fit_postures(hand: SimHand, fk: HandFK) -> dict[str, dict[str, float]]:
     def tips_at(udhm_overrides: dict[str, float]) -> dict[str, np.ndarray]:
         return fk.tips(_with(hand, udhm_overrides))
 
-    for name, target in (("pinch", [8, 12]), ("power", [8, 12])):  # MANO-21: the index's and middle's tips
-        base = postures[name]
+    def fit_thumb(base: dict[str, float], target: list[int]) -> dict[str, float]:
         start = np.array([base.get(s, float(_open_udhm(hand)[i])) for s, i in zip(slots, idx, strict=True)])
 
-        def gap(x, base=base, target=target) -> float:
+        def gap(x) -> float:
             kp = fk.keypoints(_with(hand, {**base, **dict(zip(slots, x, strict=True))}))
             return float(np.sum((kp[4] - kp[target].mean(0)) ** 2))
 
         best = minimize(gap, start, method="Powell", bounds=list(zip(lo[idx], hi[idx], strict=True)),
                         options={"xtol": 1e-3, "ftol": 1e-8, "maxfev": 2000})  # fmt: skip
-        postures[name] = {**base, **{s: float(v) for s, v in zip(slots, best.x, strict=True)}}
+        return {**base, **{s: float(v) for s, v in zip(slots, best.x, strict=True)}}
+
+    tips = [FINGER_KEYPOINTS[f][-1] for f in ("index", "middle")]  # MANO-21 8, 12
+    postures["power"] = fit_thumb(postures["power"], tips)
+    postures["pinch"] = fit_thumb(postures["pinch"], tips)
+    kp = fk.keypoints(_with(hand, postures["pinch"]))
+    radius = capsule_radius_m(fk.keypoints(hand.open_raw))
+    smallest = 2 * min(lo_m for shape in SHAPES if shape.grasp == "pinch" for lo_m, _ in shape.half_m[:1])
+    pinch_fingers: tuple[str, ...] = ("index", "middle")
+    if np.linalg.norm(kp[tips[0]] - kp[tips[1]]) - 2 * radius >= smallest:  # the object would pass between them
+        pinch_fingers = ("index",)
+        for pre in ("pinch", "pinch_pre"):
+            postures[pre] = {k: v for k, v in postures[pre].items() if not k.startswith("middle_")}
+        postures["pinch"] = fit_thumb(postures["pinch"], tips[:1])
     open_udhm = _open_udhm(hand)
     fingers = [f for f in hand.fingers if f != "thumb"]
     for pre, name in (("pinch_pre", "pinch"), ("preshape", "power")):
         closed = postures[name]
-        point = grasp_point(name, fk, _with(hand, closed))
+        point = grasp_point(name, fk, _with(hand, closed), pinch_fingers)
         clear = max(hi for shape in SHAPES if shape.grasp == name for _, hi in shape.half_m[:1]) + TIP_CLEAR_M
         chosen = {}
         # the thumb and the fingers each opened just enough: closing, they reach the object about together
-        groups = ((slots, ["thumb"]), ([k for k in closed if k not in slots], ["index", "middle"] if name == "pinch" else fingers))
+        groups = ((slots, ["thumb"]), ([k for k in closed if k not in slots], list(pinch_fingers) if name == "pinch" else fingers))
         for group, movers in groups:
             part = {}
             for share in np.linspace(1.0, 0.0, 21):
@@ -232,7 +247,7 @@ def fit_postures(hand: SimHand, fk: HandFK) -> dict[str, dict[str, float]]:
                     break
             chosen.update(part)
         postures[pre] = chosen
-    return postures
+    return postures, pinch_fingers
 
 
 def _open_udhm(hand: SimHand) -> np.ndarray:
@@ -250,26 +265,28 @@ def _with(hand: SimHand, overrides: dict[str, float]) -> np.ndarray:
     return raw
 
 
-def grasp_point(kind: str, fk: HandFK, native_raw: np.ndarray) -> np.ndarray:
+def grasp_point(kind: str, fk: HandFK, native_raw: np.ndarray, pinch_fingers=("index", "middle")) -> np.ndarray:
     """Where the object's centre goes (wrist frame) when the hand holds `native_raw`: a pinch, halfway between the
-    thumb's tip and the centre of the index's and middle's; a power grasp, the centre of the fingers' and thumb's keypoints past their
-    bases (the space they close around)."""
+    thumb's tip and the centre of the pinching fingers' tips; a power grasp, the centre of the fingers' and
+    thumb's keypoints past their bases (the space they close around)."""
     kp = fk.keypoints(native_raw)
     if kind == "pinch":
-        return (kp[4] + (kp[8] + kp[12]) / 2) / 2  # MANO-21 tips: thumb 4, index 8, middle 12
+        fingers = kp[[FINGER_KEYPOINTS[f][-1] for f in pinch_fingers]].mean(0)
+        return (kp[FINGER_KEYPOINTS["thumb"][-1]] + fingers) / 2
     return kp[[i for f in fk.hand.fingers for i in FINGER_KEYPOINTS[f][1:]]].mean(0)
 
 
-def grasp_offsets(hand: SimHand, fk: HandFK) -> dict[str, dict]:
+def grasp_offsets(hand: SimHand, fk: HandFK, pinch_fingers=("index", "middle")) -> dict[str, dict]:
     """The experts' grasp entries: where the wrist goes relative to the object (module docstring)."""
-    at = grasp_point("pinch", fk, hand.posture("pinch"))
+    at = grasp_point("pinch", fk, hand.posture("pinch"), pinch_fingers)
     centre = grasp_point("power", fk, hand.posture("power"))
     lowest = min(p[2] for k in ("preshape", "power") for p in fk.tips(hand.posture(k)).values())
     below = fk.palm_bottom_z()
     return {
         "power": {"preshape": "preshape", "posture": "power", "offset_m": [float(-x) for x in centre],
                   "from": "centre", "palm_over_top_m": float(-below), "over_table_m": float(TIP_CLEAR_M - lowest)},
-        "pinch": {"preshape": "pinch_pre", "posture": "pinch", "offset_m": [float(-x) for x in at]},
+        "pinch": {"preshape": "pinch_pre", "posture": "pinch", "offset_m": [float(-x) for x in at],
+                  "fingers": list(pinch_fingers)},
     }  # fmt: skip
 
 
