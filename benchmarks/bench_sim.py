@@ -68,7 +68,8 @@ def main() -> None:
             per_step = cpu / steps
             failed = ", ".join(f"{k} {v}" for k, v in sorted(failures.items())) or "-"
             print(f"| {hand} | {task} | {wins}/{args.episodes} = {100 * wins / args.episodes:.0f} % | "
-                  f"{100 * lo:.0f}-{100 * hi:.0f} % | {failed} | {1 / per_step:.0f} | {1000 * per_step / SUBSTEPS:.3f} | "
+                  f"{100 * lo:.0f}-{100 * hi:.0f} % | {failed} | {1 / per_step:.0f} | "
+                  f"{1000 * per_step / SUBSTEPS:.3f} | "
                   f"{SUBSTEPS * TIMESTEP_S / per_step:.0f} |")  # fmt: skip
 
 

@@ -172,8 +172,8 @@ class Scene:
             data.qpos[model.jnt_qposadr[joint]] = np.clip(drive.to_joint(rad[index[drive.native]]), lo, hi)
         for e in range(model.neq):  # mimic followers (a URDF's, built as joint equalities) where their leaders put them
             if int(model.eq_type[e]) == int(mujoco.mjtEq.mjEQ_JOINT):
-                c = model.eq_data[e]
-                data.qpos[model.jnt_qposadr[model.eq_obj1id[e]]] = c[0] + c[1] * data.qpos[model.jnt_qposadr[model.eq_obj2id[e]]]
+                c, leader = model.eq_data[e], data.qpos[model.jnt_qposadr[model.eq_obj2id[e]]]
+                data.qpos[model.jnt_qposadr[model.eq_obj1id[e]]] = c[0] + c[1] * leader
 
     def set_controls(self, data: mujoco.MjData, wrist_pose: np.ndarray, native_command: np.ndarray) -> None:
         data.ctrl[self.wrist_act] = self.wrist_pose_to_joints(wrist_pose)

@@ -15,9 +15,9 @@ the experts need, read from the kinematic chain, with no number tuned per hand.
 - Grasp postures and offsets, by forward kinematics (`fit_postures`, `grasp_offsets`), in the wrist frame: the
   thumb's slots of the closed postures moved to bring its tip onto the centre of the index's and the middle's
   tips (a pinch is a tripod of the three); a pinch puts the point halfway between the thumb's tip and that centre
-  on the object's centre, a power grasp the centre of the closed fingers' and thumb's keypoints past their bases (the hand closes
-  around it), the palm's underside no lower than the object's top, the tips (pre-shaped and closed) no lower
-  than 15 mm over the table.
+  on the object's centre, a power grasp the centre of the closed fingers' and thumb's keypoints past their bases
+  (the hand closes around it), the palm's underside no lower than the object's top, the tips (pre-shaped and
+  closed) no lower than 15 mm over the table.
 """
 
 from __future__ import annotations
@@ -51,8 +51,11 @@ def sim_hand(spec: hands.HandSpec) -> SimHand:
     for finger, body in tip_bodies.items():
         others = [b for f, b in tip_bodies.items() if f != finger]
         base = body  # the finger: the highest ancestor of its tip that carries no other finger
-        while model.body_parentid[base] > 1 and not any(_descends(model, o, int(model.body_parentid[base])) for o in others):
-            base = int(model.body_parentid[base])
+        while model.body_parentid[base] > 1:
+            parent = int(model.body_parentid[base])
+            if any(_descends(model, o, parent) for o in others):
+                break
+            base = parent
         finger_bodies[finger] = tuple(model.body(b).name for b in range(model.nbody) if _descends(model, b, base))
     open_raw = _open_raw(spec, model, drives)
     hand = SimHand(spec=spec, side=SIDE, model_xml=xml, root=root, mount_pos_m=(0.0, 0.0, 0.0),
@@ -229,6 +232,10 @@ def fit_postures(hand: SimHand, fk: HandFK) -> tuple[dict[str, dict[str, float]]
             postures[pre] = {k: v for k, v in postures[pre].items() if not k.startswith("middle_")}
         postures["pinch"] = fit_thumb(postures["pinch"], tips[:1])
     open_udhm = _open_udhm(hand)
+
+    def _open(slot: str) -> float:
+        return float(open_udhm[UDHM_JOINT_NAMES.index(slot)])
+
     fingers = [f for f in hand.fingers if f != "thumb"]
     for pre, name in (("pinch_pre", "pinch"), ("preshape", "power")):
         closed = postures[name]
@@ -236,12 +243,12 @@ def fit_postures(hand: SimHand, fk: HandFK) -> tuple[dict[str, dict[str, float]]
         clear = max(hi for shape in SHAPES if shape.grasp == name for _, hi in shape.half_m[:1]) + TIP_CLEAR_M
         chosen = {}
         # the thumb and the fingers each opened just enough: closing, they reach the object about together
-        groups = ((slots, ["thumb"]), ([k for k in closed if k not in slots], list(pinch_fingers) if name == "pinch" else fingers))
+        movers = list(pinch_fingers) if name == "pinch" else fingers
+        groups = ((slots, ["thumb"]), ([k for k in closed if k not in slots], movers))
         for group, movers in groups:
             part = {}
             for share in np.linspace(1.0, 0.0, 21):
-                part = {k: float(open_udhm[UDHM_JOINT_NAMES.index(k)] + share * (closed[k] - open_udhm[UDHM_JOINT_NAMES.index(k)]))
-                        for k in group if k in closed}  # fmt: skip
+                part = {k: float(_open(k) + share * (closed[k] - _open(k))) for k in group if k in closed}
                 tips = tips_at({**closed, **part})
                 if all(np.linalg.norm((tips[f] - point)[:2]) >= clear for f in movers):
                     break

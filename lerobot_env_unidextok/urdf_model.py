@@ -10,8 +10,8 @@ mimic joints become MuJoCo's joint equality constraints, `follower = offset + mu
   there with its rounded end, radius included;
 - the capsule radius comes from the chain: a tenth of the median finger's length (MCP-PIP-DIP-tip keypoints), at
   most 35 % of the closest two fingers' MCP spacing (neighbours do not touch), within 6-12 mm;
-- a palm link (the URDF's root) without primitives gets a box over the finger bases' span: from the wrist keypoint to the MCPs
-  along the fingers, across the MCPs (plus the radius), one radius each side of them;
+- a palm link (the URDF's root) without primitives gets a box over the finger bases' span: from the wrist
+  keypoint to the MCPs along the fingers, across the MCPs (plus the radius), one radius each side of them;
 - one `position` actuator per independent joint over its range (mimic followers move through their constraint),
   the same gains and torque limit for every hand, and the same joint dynamics: a small armature (URDF links of a
   few grams would need a smaller time step than the simulator's 4 ms), no URDF damping or friction (the
@@ -21,9 +21,10 @@ mimic joints become MuJoCo's joint equality constraints, `follower = offset + mu
   the approximation's, not a contact.
 
 A model can also ship with the package, built by `tools/sim/build_hand.py` (the Allegro's, so that it runs without
-the URDF; a test rebuilds it bit for bit). Built models are cached outside the repository: `$UNIDEXTOK_SIM_CACHE`, else `$XDG_CACHE_HOME/unidextok/sim`
-(`~/.cache/unidextok/sim`), one file per hand keyed by a fingerprint of the URDF's bytes, the spec's keypoints, the
-builder's version and MuJoCo's; a changed input is a new file, never a stale one.
+the URDF; a test rebuilds it bit for bit). Built models are cached outside the repository: `$UNIDEXTOK_SIM_CACHE`,
+else `$XDG_CACHE_HOME/unidextok/sim` (`~/.cache/unidextok/sim`), one file per hand keyed by a fingerprint of the
+URDF's bytes, the spec's keypoints, the builder's version and MuJoCo's; a changed input is a new file, never a
+stale one.
 """
 
 from __future__ import annotations
@@ -191,7 +192,8 @@ def build_mjcf(urdf_text: str, spec: hands.HandSpec, side: str = "right") -> str
                  if int(model.eq_type[e]) == int(mujoco.mjtEq.mjEQ_JOINT)}  # fmt: skip
     for j in range(model.njnt):
         name = model.joint(j).name
-        if name in followers or int(model.jnt_type[j]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+        movable = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+        if name in followers or int(model.jnt_type[j]) not in movable:
             continue
         lo, hi = model.jnt_range[j]
         mj.add_actuator(name=f"{name}_drive", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT,

@@ -83,7 +83,7 @@ def test_the_simulator_reads_back_what_the_hand_was_commanded():
 def test_bad_input_is_one_clear_error():
     with pytest.raises(SimInputError, match="unknown hand 'mystery'.*runs: .*allegro"):
         UniDexTokEnv("mystery", "GraspLift-v0")
-    with pytest.raises(SimInputError, match="hand 'linkerhand_l6' cannot be simulated: its spec maps no URDF.*runs: .*shadow"):
+    with pytest.raises(SimInputError, match="'linkerhand_l6' cannot be simulated: its spec maps no URDF.*runs: .*shadow"):
         UniDexTokEnv("linkerhand_l6", "GraspLift-v0")
     with pytest.raises(SimInputError, match="unknown task 'Fly-v0'"):
         UniDexTokEnv("shadow", "Fly-v0")

@@ -53,7 +53,8 @@ def _geoms(model: mujoco.MjModel, body: str, kind: mujoco.mjtGeom) -> int:
 def test_primitives_are_kept_and_every_joint_has_its_limits_and_one_actuator():
     spec, model = _built("leap")
     assert model.njnt == 16 and model.nu == 16 and model.neq == 0
-    assert _geoms(model, "base", mujoco.mjtGeom.mjGEOM_BOX) > 0 and _geoms(model, "base", mujoco.mjtGeom.mjGEOM_CAPSULE) == 0
+    assert _geoms(model, "base", mujoco.mjtGeom.mjGEOM_BOX) > 0
+    assert _geoms(model, "base", mujoco.mjtGeom.mjGEOM_CAPSULE) == 0
     assert _geoms(model, "fingertip", mujoco.mjtGeom.mjGEOM_CAPSULE) == 1  # its soft tip is a mesh: a capsule
     j = model.joint("1").id
     np.testing.assert_allclose(model.jnt_range[j], [-0.314, 2.23])
