@@ -185,7 +185,11 @@ def set_mimic_followers(model: mujoco.MjModel, data: mujoco.MjData) -> None:
 
 
 THUMB_SLOTS = ("thumb_cmc_flex", "thumb_cmc_spread", "thumb_mcp_flex", "thumb_mcp_abd", "thumb_ip_flex")
-TIP_CLEAR_M = 0.015  # before closing, each closing tip this far (horizontally) beyond the widest object of its grasp
+# Before closing, each closing tip this far (horizontally) beyond the widest object of its grasp: one number for
+# every hand, the best of 8, 15 and 22 mm on 100 seeded grasps of the Allegro, XHand, LEAP and L10 (22 mm: 95, 95,
+# 100, 96 %; 15 mm: 94, 94, 100, 97 %; 8 mm: the LEAP's pre-curled fingers landed on boxes, 53 %)
+PRESHAPE_CLEAR_M = 0.022
+TABLE_CLEAR_M = 0.015  # the tips (pre-shaped and closed) of a power grasp at least this far over the table
 
 
 def fit_postures(hand: SimHand, fk: HandFK) -> tuple[dict[str, dict[str, float]], tuple[str, ...]]:
@@ -193,8 +197,9 @@ def fit_postures(hand: SimHand, fk: HandFK) -> tuple[dict[str, dict[str, float]]
     of `pinch` and `power` moved (within the hand's UDHM range) to bring the thumb's tip onto the centre of the
     index's and middle's tips; a pinch with the index alone where those two tips, closed, leave a gap the smallest
     pinch object passes through (the Dex3's two fingers); `pinch_pre` and `preshape` part of the way from the open
-    pose to them, as far as keeps the closing tips clear of the widest object of their grasp (`TIP_CLEAR_M` past
-    its half width), the thumb and the fingers each on their own (they then reach the object about together)."""
+    pose to them, as far as keeps the closing tips clear of the widest object of their grasp (`PRESHAPE_CLEAR_M`
+    past its half width), the thumb and the fingers each on their own (they then reach the object about
+    together)."""
     from scipy.optimize import minimize
 
     from lerobot_env_unidextok.tasks import SHAPES
@@ -240,7 +245,7 @@ def fit_postures(hand: SimHand, fk: HandFK) -> tuple[dict[str, dict[str, float]]
     for pre, name in (("pinch_pre", "pinch"), ("preshape", "power")):
         closed = postures[name]
         point = grasp_point(name, fk, _with(hand, closed), pinch_fingers)
-        clear = max(hi for shape in SHAPES if shape.grasp == name for _, hi in shape.half_m[:1]) + TIP_CLEAR_M
+        clear = max(hi for shape in SHAPES if shape.grasp == name for _, hi in shape.half_m[:1]) + PRESHAPE_CLEAR_M
         chosen = {}
         # the thumb and the fingers each opened just enough: closing, they reach the object about together
         movers = list(pinch_fingers) if name == "pinch" else fingers
@@ -291,7 +296,7 @@ def grasp_offsets(hand: SimHand, fk: HandFK, pinch_fingers=("index", "middle")) 
     below = fk.palm_bottom_z()
     return {
         "power": {"preshape": "preshape", "posture": "power", "offset_m": [float(-x) for x in centre],
-                  "from": "centre", "palm_over_top_m": float(-below), "over_table_m": float(TIP_CLEAR_M - lowest)},
+                  "from": "centre", "palm_over_top_m": float(-below), "over_table_m": float(TABLE_CLEAR_M - lowest)},
         "pinch": {"preshape": "pinch_pre", "posture": "pinch", "offset_m": [float(-x) for x in at],
                   "fingers": list(pinch_fingers)},
     }  # fmt: skip
