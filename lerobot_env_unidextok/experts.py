@@ -1,12 +1,13 @@
 """Scripted experts: a wrist trajectory through key poses and the hand's postures, per hand and task, with noise.
 
-The postures are UDHM slot angles in each hand's model file (`hand_models/<embodiment>.yaml`, `postures:`),
-turned into that hand's native command by its spec (`SimHand.posture` -> `spec.from_udhm`); the grasp offsets
-(where the wrist goes relative to the object) are the model file's `grasp:` entries. The expert reads only what
-the observation holds (the object's pose and size, the panel's place, the goal finger), plans its key poses once
-at the episode's start, and moves between them at most 3 cm per step. Noise (its own generator, seeded per
-episode): key poses +-4 mm (+-3 mm in height) and +-0.04 rad of yaw, postures +-0.05 rad per UDHM slot, phase
-lengths +-1 step.
+The postures are UDHM slot angles (`SimHand.postures`: the shared `hand_model.POSTURES`, fitted by forward
+kinematics for a hand built from its URDF, or a model file's own), turned into that hand's native command by its
+spec (`SimHand.posture` -> `spec.from_udhm`); the grasp offsets (where the wrist goes relative to the object) are
+`SimHand.grasp` (computed for a built hand, `urdf_hand.grasp_offsets`; a model file's `grasp:` entries). The
+expert reads only what the observation holds (the object's pose and size, the panel's place, the goal finger),
+plans its key poses once at the episode's start, and moves between them at most 3 cm per step. Noise (its own
+generator, seeded per episode): key poses +-4 mm (+-3 mm in height) and +-0.04 rad of yaw (a press turns the hand
+about its fingertips over the buttons), postures +-0.05 rad per UDHM slot, phase lengths +-1 step.
 """
 
 from __future__ import annotations

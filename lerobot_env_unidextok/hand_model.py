@@ -1,14 +1,18 @@
 """A hand in the simulator: its MuJoCo model, where it sits on the wrist, and how its native joints drive it.
 
-One YAML per embodiment in `hand_models/<embodiment>.yaml` (data, like the hand specs): every hand spec of that
-embodiment runs on the model (`inspire_rh56_unitree` and `inspire_rh56` share the Inspire's). A native joint
+Two sources. A spec whose URDF is found (or whose built model ships, the Allegro's) needs no file here: its model
+is built from the URDF and everything else read from the kinematic chain (`urdf_model.py`, `urdf_hand.py`). A
+model from elsewhere is one YAML per embodiment in `hand_models/<embodiment>.yaml` (the Inspire's robosuite model,
+the Shadow's gymnasium-robotics model): every hand spec of that embodiment runs on it (`inspire_rh56_unitree` and
+`inspire_rh56` share the Inspire's), and its file wins over the URDF. A native joint
 (the spec's, in the spec's radians) drives one or more MJCF joints, each through a linear map written as two
 points (`native_rad: [a, b]` -> `joint_rad: [qa, qb]`); one of them, `measures: true`, is read back as the
 native state. That is how coupled joints are written: the Inspire's 6 native DoF drive its 12 MJCF joints, the
 Shadow's distal joints follow their middle joints through the model's own tendons (no actuator: the native
 command of a distal joint is not used, as on the real hand).
 
-Nothing here imports MuJoCo: the scene (`scene.py`) builds the model, this module is the data and the maps.
+Nothing here imports MuJoCo at import time: the scene (`scene.py`) builds the model, this module is the data and
+the maps (a built hand's derivation, `urdf_hand.py`, loads on its first use).
 """
 
 from __future__ import annotations
