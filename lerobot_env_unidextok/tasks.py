@@ -242,7 +242,10 @@ class FingerPress(Task):
             # long along the finger: its tip comes down on the cap along an arc that ends over the cap's back end;
             # the cap reaches as far forward as the arc comes down to it (`press_geometry`), at least CAP_HALF_M
             half = max(CAP_HALF_M[0], (geometry[f][1] + CAP_BACK_M) / 2)
-            cap.add_geom(name=f"cap_{f}", type=mujoco.mjtGeom.mjGEOM_BOX, size=[half, CAP_HALF_M[1], 0.004],
+            # as wide as CAP_HALF_M, narrower where the buttons sit closer: CAP_GAP_M between neighbours' caps
+            spacing = min([abs(top[1] - layout[g][1]) for g in self.fingers if g != f], default=1.0)
+            width = min(CAP_HALF_M[1], (spacing - CAP_GAP_M) / 2)
+            cap.add_geom(name=f"cap_{f}", type=mujoco.mjtGeom.mjGEOM_BOX, size=[half, width, 0.004],
                          pos=[half - CAP_BACK_M, 0, 0], rgba=colours[f], mass=0.005, friction=[1, 0.01, 0.001])  # fmt: skip
 
     def bind(self, scene: Scene) -> None:
@@ -315,5 +318,6 @@ def press_geometry(hand: SimHand, hover_m: np.ndarray) -> dict[str, tuple[np.nda
 PRESS_DEPTH_M = 0.008  # the press posture puts the tip this far below the cap's resting top
 CAP_HALF_M = (0.02, 0.0065)  # a button cap's half length (along the fingers, at least) and half width
 CAP_BACK_M = 0.008  # the cap reaches this far behind the press posture's tip
+CAP_GAP_M = 0.0065  # at least this far between two buttons' caps (fingertips that meet when pressing, the BrainCo's)
 CAP_CLEAR_M = 0.01  # the cap reaches this far past where the tip comes down to this height over it
 TASKS: dict[str, type[Task]] = {t.name: t for t in (GraspLift, FingerPress)}
