@@ -9,6 +9,12 @@ the figures hold on shared cores.
 
     .venv/bin/python benchmarks/bench_sim.py                          # 100 episodes per hand and task
     .venv/bin/python benchmarks/bench_sim.py --episodes 20 --hands shadow
+
+Hands: by default every hand spec the simulator runs (`hand_model.sim_hand_names()`: the model files', the Allegro's
+shipped model, and every spec whose URDF is found under `$UNIDEXTOK_URDF_DIR`, else ../shared/data/urdf). The
+failures column says how the failed episodes failed: a grasp's by the kind of grasp its object needed (power or
+pinch), a press's as "wrong" (another button pressed: the episode ends) or "timeout" (the goal button not
+pressed in 50 steps).
 """
 
 from __future__ import annotations
@@ -18,7 +24,6 @@ import time
 
 import numpy as np
 
-HANDS = ("inspire_rh56_unitree", "shadow", "allegro")
 TASKS = ("GraspLift-v0", "FingerPress-v0")
 
 
@@ -26,21 +31,23 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--episodes", type=int, default=100)
     ap.add_argument("--seed", type=int, default=1000)
-    ap.add_argument("--hands", nargs="+", default=list(HANDS))
+    ap.add_argument("--hands", nargs="+", default=None, help="hand specs (default: every one the simulator runs)")
     ap.add_argument("--tasks", nargs="+", default=list(TASKS))
     args = ap.parse_args()
 
+    from lerobot_env_unidextok import hand_model
     from lerobot_env_unidextok.env import SUBSTEPS, UniDexTokEnv
     from lerobot_env_unidextok.experts import Expert
     from lerobot_env_unidextok.scene import TIMESTEP_S
     from lerobot_env_unidextok.success import wilson_interval
 
-    print("| hand | task | expert success | 95 % interval | env steps / CPU-s | CPU ms / MuJoCo step | x real time |")
-    print("|---|---|---|---|---|---|---|")
-    for hand in args.hands:
+    print("| hand | task | expert success | 95 % interval | failures | env steps / CPU-s | CPU ms / MuJoCo step | "
+          "x real time |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|")
+    for hand in args.hands or hand_model.sim_hand_names():
         for task in args.tasks:
             env = UniDexTokEnv(hand, task, render_mode=None)
-            wins, steps, cpu = 0, 0, 0.0
+            wins, steps, cpu, failures = 0, 0, 0.0, {}
             for i in range(args.episodes):
                 obs, _ = env.reset(seed=args.seed + i)
                 expert = Expert(env, np.random.default_rng(2_000_000 + i))
@@ -54,10 +61,15 @@ def main() -> None:
                     if terminated:
                         break
                 wins += bool(info["is_success"])
+                if not info["is_success"]:
+                    kind = env.task.shape.grasp if task == "GraspLift-v0" else "wrong" if terminated else "timeout"
+                    failures[kind] = failures.get(kind, 0) + 1
             lo, hi = wilson_interval(wins, args.episodes)
             per_step = cpu / steps
+            failed = ", ".join(f"{k} {v}" for k, v in sorted(failures.items())) or "-"
             print(f"| {hand} | {task} | {wins}/{args.episodes} = {100 * wins / args.episodes:.0f} % | "
-                  f"{100 * lo:.0f}-{100 * hi:.0f} % | {1 / per_step:.0f} | {1000 * per_step / SUBSTEPS:.3f} | "
+                  f"{100 * lo:.0f}-{100 * hi:.0f} % | {failed} | {1 / per_step:.0f} | "
+                  f"{1000 * per_step / SUBSTEPS:.3f} | "
                   f"{SUBSTEPS * TIMESTEP_S / per_step:.0f} |")  # fmt: skip
 
 

@@ -10,8 +10,9 @@ it through `lerobot_policy_unidextok` (the distribution they discover). Needs th
     env = gym.make("lerobot_env_unidextok/GraspLift-v0", hand="shadow")
     obs, info = env.reset(seed=0)     # obs["agent_pos"]: wrist pose, object and goal, the Shadow's 22 joints (rad)
 
-Layout: `columns` (vector names), `hand_model` (a hand's MJCF and how its native joints drive it, one YAML per
-embodiment in `hand_models/`), `scene` (table, wrist, hand), `tasks`, `env` (the gymnasium env), `experts`
+Layout: `columns` (vector names), `hand_model` (a hand's MJCF and how its native joints drive it: a YAML per
+embodiment in `hand_models/`, else built from the spec's URDF by `urdf_model`, the rest read from its kinematic
+chain by `urdf_hand`), `scene` (table, wrist, hand), `tasks`, `env` (the gymnasium env), `experts`
 (scripted demonstrations), `record` (expert datasets, `unidextok-sim-record`), `configuration` (LeRobot's config).
 """
 

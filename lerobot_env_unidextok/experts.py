@@ -1,12 +1,13 @@
 """Scripted experts: a wrist trajectory through key poses and the hand's postures, per hand and task, with noise.
 
-The postures are UDHM slot angles in each hand's model file (`hand_models/<embodiment>.yaml`, `postures:`),
-turned into that hand's native command by its spec (`SimHand.posture` -> `spec.from_udhm`); the grasp offsets
-(where the wrist goes relative to the object) are the model file's `grasp:` entries. The expert reads only what
-the observation holds (the object's pose and size, the panel's place, the goal finger), plans its key poses once
-at the episode's start, and moves between them at most 3 cm per step. Noise (its own generator, seeded per
-episode): key poses +-4 mm (+-3 mm in height) and +-0.04 rad of yaw, postures +-0.05 rad per UDHM slot, phase
-lengths +-1 step.
+The postures are UDHM slot angles (`SimHand.postures`: the shared `hand_model.POSTURES`, fitted by forward
+kinematics for a hand built from its URDF, or a model file's own), turned into that hand's native command by its
+spec (`SimHand.posture` -> `spec.from_udhm`); the grasp offsets (where the wrist goes relative to the object) are
+`SimHand.grasp` (computed for a built hand, `urdf_hand.grasp_offsets`; a model file's `grasp:` entries). The
+expert reads only what the observation holds (the object's pose and size, the panel's place, the goal finger),
+plans its key poses once at the episode's start, and moves between them at most 3 cm per step. Noise (its own
+generator, seeded per episode): key poses +-4 mm (+-3 mm in height) and +-0.04 rad of yaw (a press turns the hand
+about its fingertips over the buttons), postures +-0.05 rad per UDHM slot, phase lengths +-1 step.
 """
 
 from __future__ import annotations
@@ -97,7 +98,12 @@ class Expert:
         c, s = np.cos(yaw), np.sin(yaw)
         dx, dy, dz = g["offset_m"]
         centre = np.array([task["object_x"], task["object_y"], task["object_z"]])
-        at = centre + [c * dx - s * dy, s * dx + c * dy, half[2] + dz if kind == "power" else dz]
+        if kind == "power" and g.get("from") == "centre":  # the hand closes around the object's centre, the palm
+            # no lower than on its top, the closed tips not into the table
+            dz = max(dz, half[2] + g["palm_over_top_m"], g["over_table_m"] - task["object_z"])
+        elif kind == "power":
+            dz = half[2] + dz  # the wrist's height over the object's top
+        at = centre + [c * dx - s * dy, s * dx + c * dy, dz]
         grasp_pose = self.jitter(np.array([*at, 0.0, float(g.get("pitch", 0.0)), yaw]))
         above = grasp_pose + [0, 0, 0.06, 0, 0, 0]
         lifted = grasp_pose + [0, 0, 0.12, 0, 0, 0]
@@ -112,6 +118,10 @@ class Expert:
         goal = next(f for f in PRESS_FINGERS if task[f"goal_{f}"] > 0.5)
         panel = np.array([task["panel_x"], task["panel_y"], task["panel_z"]])
         hover = self.jitter(np.array([*(panel + FingerPress.HOVER_M), 0.0, 0.0, 0.0]))
+        # the yaw noise turns the hand about its fingertips over the buttons, not about the wrist: a hand's tips
+        # then miss their buttons by the position noise alone, whatever the hand's length
+        reach = self.env.task.buttons_x_m - FingerPress.HOVER_M[0]
+        hover[:2] += reach * np.array([1 - np.cos(hover[5]), -np.sin(hover[5])])
         above = hover + [0, 0, 0.04, 0, 0, 0]
         open_ = self.posture("open")
         press = self.posture(f"press_{goal}")

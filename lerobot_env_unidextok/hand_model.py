@@ -1,14 +1,18 @@
 """A hand in the simulator: its MuJoCo model, where it sits on the wrist, and how its native joints drive it.
 
-One YAML per embodiment in `hand_models/<embodiment>.yaml` (data, like the hand specs): every hand spec of that
-embodiment runs on the model (`inspire_rh56_unitree` and `inspire_rh56` share the Inspire's). A native joint
+Two sources. A spec whose URDF is found (or whose built model ships, the Allegro's) needs no file here: its model
+is built from the URDF and everything else read from the kinematic chain (`urdf_model.py`, `urdf_hand.py`). A
+model from elsewhere is one YAML per embodiment in `hand_models/<embodiment>.yaml` (the Inspire's robosuite model,
+the Shadow's gymnasium-robotics model): every hand spec of that embodiment runs on it (`inspire_rh56_unitree` and
+`inspire_rh56` share the Inspire's), and its file wins over the URDF. A native joint
 (the spec's, in the spec's radians) drives one or more MJCF joints, each through a linear map written as two
 points (`native_rad: [a, b]` -> `joint_rad: [qa, qb]`); one of them, `measures: true`, is read back as the
 native state. That is how coupled joints are written: the Inspire's 6 native DoF drive its 12 MJCF joints, the
 Shadow's distal joints follow their middle joints through the model's own tendons (no actuator: the native
 command of a distal joint is not used, as on the real hand).
 
-Nothing here imports MuJoCo: the scene (`scene.py`) builds the model, this module is the data and the maps.
+Nothing here imports MuJoCo at import time: the scene (`scene.py`) builds the model, this module is the data and
+the maps (a built hand's derivation, `urdf_hand.py`, loads on its first use).
 """
 
 from __future__ import annotations
@@ -86,10 +90,11 @@ class SimHand:
         return tuple(f for f in FINGERS if f in self.fingertips)
 
     @functools.cached_property
-    def measuring(self) -> tuple[Drive, ...]:
-        """The drive each native joint is read from, in native order."""
+    def measuring(self) -> tuple[Drive | None, ...]:
+        """The drive each native joint is read from, in native order (None: a native joint the model lacks, e.g.
+        a reserved channel; it reads back its open value)."""
         by_native = {d.native: d for d in self.drives if d.measures}
-        return tuple(by_native[n] for n in self.native_names)
+        return tuple(by_native.get(n) for n in self.native_names)
 
     def command(self, native_raw: np.ndarray) -> dict[str, float]:
         """Native command (J,) -> target angle (rad) per actuator."""
@@ -100,7 +105,10 @@ class SimHand:
 
     def native_state(self, joint_rad: dict[str, float]) -> np.ndarray:
         """Measured joint angles (rad, by MJCF joint name) -> native state (J,), clipped to the native range."""
-        rad = np.array([d.to_native(joint_rad[d.joint]) for d in self.measuring])
+        rad = np.asarray(self.spec.to_radians(self.open_raw, self.side, "clip"), dtype=np.float64).copy()
+        for i, d in enumerate(self.measuring):
+            if d is not None:
+                rad[i] = d.to_native(joint_rad[d.joint])
         lo, hi = self.spec.limits_rad(self.side).T
         return np.asarray(self.spec.from_radians(np.clip(rad, lo, hi), self.side, "clip"), dtype=np.float64)
 
@@ -121,26 +129,38 @@ class SimHand:
 # loading
 # ---------------------------------------------------------------------------------------------
 def model_names() -> tuple[str, ...]:
-    """Embodiments with a simulation model."""
+    """Embodiments with a model file here (a model from another source than the builder)."""
     return tuple(sorted(p.stem for p in MODELS_DIR.glob("*.yaml")))
 
 
+def _has_urdf(spec: hands.HandSpec) -> bool:
+    from lerobot_env_unidextok.urdf_model import buildable  # MuJoCo loads with it; only its file look-ups here
+
+    return buildable(spec, "right")
+
+
 def sim_hand_names() -> tuple[str, ...]:
-    """Hand specs the simulator runs: every registered spec whose embodiment has a model."""
+    """Hand specs the simulator runs: every registered spec whose embodiment has a model file, or whose URDF is
+    found (`$UNIDEXTOK_URDF_DIR`, else ../shared/data/urdf; the model is built from it), or whose built model
+    ships with the package."""
     models = set(model_names())
-    return tuple(n for n in hands.names() if hands.get(n).embodiment in models)
+    return tuple(n for n in hands.names() if hands.get(n).embodiment in models or _has_urdf(hands.get(n)))
 
 
 def load(hand: str) -> SimHand:
-    """The simulator's model of the registered hand spec `hand` (its native units), right side."""
+    """The simulator's model of the registered hand spec `hand` (its native units), right side: its embodiment's
+    model file when there is one, else built from its URDF."""
     if hand not in hands.names():
         raise SimHandError(f"unknown hand {hand!r}; the simulator runs: {', '.join(sim_hand_names())}")
     spec = hands.get(hand)
-    if spec.embodiment not in model_names():
-        raise SimHandError(
-            f"hand {hand!r} (embodiment {spec.embodiment}) has no simulation model; the simulator runs: "
-            f"{', '.join(sim_hand_names())} (a model is one YAML in lerobot_env_unidextok/hand_models/)"
-        )
+    if spec.embodiment not in model_names() and not _has_urdf(spec):
+        from lerobot_env_unidextok.urdf_model import urdf_dir
+
+        why = (f"its URDF {spec.urdf.files['right']} is not under {urdf_dir()} (set UNIDEXTOK_URDF_DIR to the "
+               "folder holding it)" if spec.kind == "joints" and spec.urdf is not None and "right" in spec.urdf.files
+               else "its spec maps no URDF (a `urdf:` block, docs/hands.md)")  # fmt: skip
+        raise SimHandError(f"hand {hand!r} cannot be simulated: {why}; the simulator runs: "
+                           f"{', '.join(sim_hand_names())}")  # fmt: skip
     return _load(hand)
 
 
@@ -148,6 +168,10 @@ def load(hand: str) -> SimHand:
 def _load(hand: str) -> SimHand:
     spec = hands.get(hand)
     path = MODELS_DIR / f"{spec.embodiment}.yaml"
+    if not path.is_file():
+        from lerobot_env_unidextok.urdf_hand import sim_hand
+
+        return sim_hand(spec)
     data = yaml.safe_load(path.read_text())
     side = data["side"]
     model = data["model"]
@@ -168,19 +192,34 @@ def _load(hand: str) -> SimHand:
         fingertips={f: (b, tuple(p)) for f, (b, p) in data["fingertips"].items()},
         finger_bodies={f: tuple(b) for f, b in data["finger_bodies"].items()},
         open_raw=open_raw,
-        postures={**default_postures(), **{k: dict(v) for k, v in data.get("postures", {}).items()}},
+        postures={**POSTURES, **{k: dict(v) for k, v in data.get("postures", {}).items()}},
         grasp={k: dict(v) for k, v in data["grasp"].items()},
         source=data["source"],
     )
 
 
-def default_postures() -> dict[str, dict[str, float]]:
-    """Postures every hand shares, as UDHM slot angles: `press_<finger>` bends that finger alone (its MCP, PIP
-    and DIP flexion, each hand filling the slots it has)."""
-    out = {}
-    for finger, udhm in (("index", "index"), ("middle", "middle"), ("ring", "ring"), ("little", "pinky")):
-        out[f"press_{finger}"] = {f"{udhm}_mcp_flex": 0.9, f"{udhm}_pip_flex": 0.6, f"{udhm}_dip_flex": 0.4}
-    return out
+def _press(udhm_finger: str) -> dict[str, float]:
+    return {f"{udhm_finger}_mcp_flex": 0.9, f"{udhm_finger}_pip_flex": 0.6, f"{udhm_finger}_dip_flex": 0.4}
+
+
+def _flex(mcp: float, pip: float, dip: float, fingers=("index", "middle", "ring", "pinky")) -> dict[str, float]:
+    return {f"{f}_{j}_flex": v for f in fingers for j, v in (("mcp", mcp), ("pip", pip), ("dip", dip))}
+
+
+# The postures, as UDHM slot angles (rad) set over the hand's open pose and turned into each hand's native command
+# by its spec (`SimHand.posture`): written once for every hand; a hand fills the slots it has. A model file may
+# override one, saying why. thumb_cmc_flex swings the thumb in front of the palm (opposition). A hand built from its
+# URDF then fits its thumb's slots of `pinch` and `power` and its pre-shapes by forward kinematics
+# (`urdf_hand.fit_postures`): a pinch is a tripod, the thumb onto the index's and middle's tips.
+POSTURES: dict[str, dict[str, float]] = {
+    "preshape": {"thumb_cmc_flex": 1.2},  # the thumb opposed, fingers open: before a power grasp
+    "power": {**_flex(1.3, 1.1, 0.7), "thumb_cmc_flex": 1.2, "thumb_mcp_flex": 0.6, "thumb_ip_flex": 0.6},
+    "pinch_pre": {**_flex(0.4, 0.3, 0.2, ("index", "middle")), "thumb_cmc_flex": 1.0},
+    "pinch": {**_flex(1.0, 0.8, 0.5, ("index", "middle")), "thumb_cmc_flex": 1.2, "thumb_mcp_flex": 0.5,
+              "thumb_ip_flex": 0.5},
+    **{f"press_{f}": _press(u) for f, u in (("index", "index"), ("middle", "middle"), ("ring", "ring"),
+                                             ("little", "pinky"))},
+}  # fmt: skip
 
 
 def _drive(d: dict[str, Any], spec: hands.HandSpec, side: str) -> Drive:
@@ -204,4 +243,4 @@ def _model_xml(model: dict[str, Any]) -> str:
     return model["template"].format(folder=base, meshdir=meshes)
 
 
-__all__ = ["Drive", "FINGERS", "SimHand", "SimHandError", "load", "model_names", "sim_hand_names"]
+__all__ = ["Drive", "FINGERS", "POSTURES", "SimHand", "SimHandError", "load", "model_names", "sim_hand_names"]

@@ -137,7 +137,7 @@ class Scene:
             wrist_qpos=np.array([model.jnt_qposadr[model.joint(j).id] for j in WRIST_JOINTS]),
             wrist_act=np.array([model.actuator(j).id for j in WRIST_JOINTS]),
             hand_act={a: model.actuator(p + a).id for a in names},
-            measure_qpos={d.joint: int(model.jnt_qposadr[model.joint(p + d.joint).id]) for d in hand.measuring},
+            measure_qpos={d.joint: int(model.jnt_qposadr[model.joint(p + d.joint).id]) for d in hand.measuring if d},
             tip_body={f: model.body(p + b).id for f, (b, _) in hand.fingertips.items()},
             tip_point={f: np.asarray(pt, dtype=np.float64) for f, (_, pt) in hand.fingertips.items()},
             finger_geoms=finger_geoms,
@@ -170,6 +170,10 @@ class Scene:
             joint = model.joint("hand/" + drive.joint).id
             lo, hi = model.jnt_range[joint]
             data.qpos[model.jnt_qposadr[joint]] = np.clip(drive.to_joint(rad[index[drive.native]]), lo, hi)
+        for e in range(model.neq):  # mimic followers (a URDF's, built as joint equalities) where their leaders put them
+            if int(model.eq_type[e]) == int(mujoco.mjtEq.mjEQ_JOINT):
+                c, leader = model.eq_data[e], data.qpos[model.jnt_qposadr[model.eq_obj2id[e]]]
+                data.qpos[model.jnt_qposadr[model.eq_obj1id[e]]] = c[0] + c[1] * leader
 
     def set_controls(self, data: mujoco.MjData, wrist_pose: np.ndarray, native_command: np.ndarray) -> None:
         data.ctrl[self.wrist_act] = self.wrist_pose_to_joints(wrist_pose)

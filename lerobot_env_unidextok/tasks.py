@@ -221,10 +221,11 @@ class FingerPress(Task):
     def button_layout(self) -> dict[str, np.ndarray]:
         """Where each finger's button sits on the panel (cap top centre, panel frame), from the hand's own
         kinematics: where its tip is at its press posture with the wrist at HOVER_M (see `press_geometry`)."""
-        return press_geometry(self.hand, self.HOVER_M)
+        return {f: top for f, (top, _) in press_geometry(self.hand, self.HOVER_M).items()}
 
     def add_to_spec(self, spec: mujoco.MjSpec) -> None:
-        layout = self.button_layout()
+        geometry = press_geometry(self.hand, self.HOVER_M)
+        layout = {f: top for f, (top, _) in geometry.items()}
         panel = spec.worldbody.add_body(name="panel", pos=[0.1, 0, 0])
         panel.add_geom(name="panel", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.02, 0.1, 0.005], pos=[0.0, 0, 0.005],
                        rgba=[0.3, 0.3, 0.3, 1], contype=0, conaffinity=0)  # fmt: skip
@@ -238,14 +239,21 @@ class FingerPress(Task):
             cap = post.add_body(name=f"cap_{f}", pos=[0, 0, top[2] - 0.004], gravcomp=1.0)
             cap.add_joint(name=f"button_{f}", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1],
                           range=[-self.TRAVEL_M, 0], stiffness=20.0, damping=0.5, springref=0.0)  # fmt: skip
-            # long along the finger: its tip comes down on the cap along an arc that ends over the cap's back end
-            cap.add_geom(name=f"cap_{f}", type=mujoco.mjtGeom.mjGEOM_BOX, size=[CAP_HALF_M[0], CAP_HALF_M[1], 0.004],
-                         pos=[CAP_HALF_M[0] - 0.008, 0, 0], rgba=colours[f], mass=0.005, friction=[1, 0.01, 0.001])  # fmt: skip
+            # long along the finger: its tip comes down on the cap along an arc that ends over the cap's back end;
+            # the cap reaches as far forward as the arc comes down to it (`press_geometry`), at least CAP_HALF_M
+            half = max(CAP_HALF_M[0], (geometry[f][1] + CAP_BACK_M) / 2)
+            # as wide as CAP_HALF_M, narrower where the buttons sit closer: CAP_GAP_M between neighbours' caps
+            spacing = min([abs(top[1] - layout[g][1]) for g in self.fingers if g != f], default=1.0)
+            width = min(CAP_HALF_M[1], (spacing - CAP_GAP_M) / 2)
+            cap.add_geom(name=f"cap_{f}", type=mujoco.mjtGeom.mjGEOM_BOX, size=[half, width, 0.004],
+                         pos=[half - CAP_BACK_M, 0, 0], rgba=colours[f], mass=0.005, friction=[1, 0.01, 0.001])  # fmt: skip
 
     def bind(self, scene: Scene) -> None:
         m = scene.model
         self.scene = scene
         self.panel = m.body("panel").id
+        # where the buttons are along the fingers, relative to the panel's origin (their posts' places)
+        self.buttons_x_m = float(np.mean([m.body_pos[m.body(f"button_{f}").id][0] for f in self.fingers]))
         for f in self.fingers:
             self.buttons[f] = Button(f, m.body(f"cap_{f}").id, m.geom(f"cap_{f}").id,
                                      int(m.jnt_qposadr[m.joint(f"button_{f}").id]))  # fmt: skip
@@ -278,24 +286,38 @@ class FingerPress(Task):
         return success, failed
 
 
-def press_geometry(hand: SimHand, hover_m: np.ndarray) -> dict[str, np.ndarray]:
-    """Cap-top centre of each finger's button, relative to the panel origin, with the wrist at `hover_m` (level,
-    fingers along +x): the finger's tip at its press posture, the cap top `PRESS_DEPTH_M` above it."""
+def press_geometry(hand: SimHand, hover_m: np.ndarray) -> dict[str, tuple[np.ndarray, float]]:
+    """Per finger, with the wrist at `hover_m` (level, fingers along +x): the cap-top centre of its button
+    relative to the panel origin (the finger's tip at its press posture, the cap top `PRESS_DEPTH_M` above it),
+    and how far forward of that (m, along x) the tip comes down to the cap's height on its way from the open pose
+    to the press posture (the commands in between, as the expert sends them)."""
     from lerobot_env_unidextok.scene import Scene, base_spec
 
     scene = Scene.compile(base_spec(hand), hand)
     m, d = scene.model, mujoco.MjData(scene.model)
-    out = {}
-    for f in (f for f in PRESS_FINGERS if f in hand.fingers):
+
+    def tip_at(finger: str, native: np.ndarray) -> np.ndarray:
         d.qpos[:] = m.qpos0
         d.qpos[scene.wrist_qpos] = Scene.wrist_pose_to_joints(np.array([*hover_m, 0, 0, 0]))
-        scene.place_hand(d, hand.posture(f"press_{f}"))
+        scene.place_hand(d, native)
         mujoco.mj_kinematics(m, d)
-        tip = scene.fingertip(d, f)
-        out[f] = tip + np.array([0, 0, PRESS_DEPTH_M])
+        return scene.fingertip(d, finger)
+
+    out = {}
+    open_ = hand.posture("open")
+    for f in (f for f in PRESS_FINGERS if f in hand.fingers):
+        press = hand.posture(f"press_{f}")
+        tip = tip_at(f, press)
+        top = tip + np.array([0, 0, PRESS_DEPTH_M])
+        path = [tip_at(f, (1 - a) * open_ + a * press) for a in np.linspace(0, 1, 41)]
+        reach = max([p[0] - tip[0] for p in path if p[2] <= top[2] + CAP_CLEAR_M], default=0.0)
+        out[f] = (top, float(reach) + CAP_CLEAR_M)
     return out
 
 
 PRESS_DEPTH_M = 0.008  # the press posture puts the tip this far below the cap's resting top
-CAP_HALF_M = (0.02, 0.0065)  # a button cap's half length (along the fingers) and half width
+CAP_HALF_M = (0.02, 0.0065)  # a button cap's half length (along the fingers, at least) and half width
+CAP_BACK_M = 0.008  # the cap reaches this far behind the press posture's tip
+CAP_GAP_M = 0.0065  # at least this far between two buttons' caps (fingertips that meet when pressing, the BrainCo's)
+CAP_CLEAR_M = 0.01  # the cap reaches this far past where the tip comes down to this height over it
 TASKS: dict[str, type[Task]] = {t.name: t for t in (GraspLift, FingerPress)}

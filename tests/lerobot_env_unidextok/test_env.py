@@ -83,8 +83,8 @@ def test_the_simulator_reads_back_what_the_hand_was_commanded():
 def test_bad_input_is_one_clear_error():
     with pytest.raises(SimInputError, match="unknown hand 'mystery'.*runs: .*allegro"):
         UniDexTokEnv("mystery", "GraspLift-v0")
-    with pytest.raises(SimInputError, match="hand 'leap' .*has no simulation model.*runs: .*shadow"):
-        UniDexTokEnv("leap", "GraspLift-v0")
+    with pytest.raises(SimInputError, match="'linkerhand_l6' cannot be simulated: its spec maps no URDF.*runs: .*shadow"):
+        UniDexTokEnv("linkerhand_l6", "GraspLift-v0")
     with pytest.raises(SimInputError, match="unknown task 'Fly-v0'"):
         UniDexTokEnv("shadow", "Fly-v0")
     env = UniDexTokEnv("allegro", "GraspLift-v0", render_mode=None)
@@ -98,5 +98,36 @@ def test_every_shipped_model_loads_for_every_hand_spec_of_its_embodiment():
     assert {"inspire_rh56_unitree", "inspire_rh56", "shadow", "allegro"} <= set(runs)
     for name in runs:
         sim = hand_model.load(name)
-        assert [d.native for d in sim.measuring] == list(sim.native_names)
+        read = [n for n, d in zip(sim.native_names, sim.measuring, strict=True) if d is not None]
+        assert [d.native for d in sim.measuring if d is not None] == read
+        if sim.spec.embodiment in hand_model.model_names():  # a model file measures every native joint
+            assert read == list(sim.native_names)
+        else:  # a built model: every native joint but reserved channels (no radians: the L20's 11-14)
+            assert {n for n in sim.native_names if n not in read} == {
+                j.name for j in sim.spec.joints if j.sides["right"].scale == 0}
         assert sim.posture("open").shape == (sim.spec.num_native,)
+
+
+# hands whose models the simulator builds from their URDFs (../shared/data/urdf or $UNIDEXTOK_URDF_DIR)
+BUILT_HANDS = ("leap", "xhand1", "linkerhand_l10", "linkerhand_l20", "linkerhand_l21", "linkerhand_l25",
+               "linkerhand_o7", "brainco_revo1", "unitree_dex3_1")  # fmt: skip
+
+
+def _need(hand: str) -> None:
+    if hand not in hand_model.sim_hand_names():
+        pytest.skip(f"{hand}'s URDF is not found (set UNIDEXTOK_URDF_DIR to a copy of shared/data/urdf)")
+
+
+@pytest.mark.parametrize("hand", BUILT_HANDS)
+def test_a_built_hand_passes_the_env_checker_and_reproduces_its_episodes(hand):
+    from gymnasium.utils.env_checker import check_env
+
+    _need(hand)
+    check_env(UniDexTokEnv(hand, "FingerPress-v0", render_mode=None), skip_render_check=True)
+    a = _rollout(UniDexTokEnv(hand, "GraspLift-v0", render_mode=None), seed=7, steps=4, rng_seed=0)
+    b = _rollout(UniDexTokEnv(hand, "GraspLift-v0", render_mode=None), seed=7, steps=4, rng_seed=0)
+    np.testing.assert_array_equal(a, b)
+    spec = hands.get(hand)
+    assert a.shape[1] == 6 + len(TASK_COLUMNS["GraspLift-v0"]) + spec.num_native
+    lo, hi = np.asarray(spec.raw_range("right"), dtype=np.float32).T
+    assert np.all((a[:, -spec.num_native :] >= lo - 1e-4) & (a[:, -spec.num_native :] <= hi + 1e-4))

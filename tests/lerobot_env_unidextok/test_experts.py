@@ -26,6 +26,21 @@ def test_the_expert_succeeds_on_seeded_episodes(hand, task):
         assert kinds == {"power", "pinch"}
 
 
+@pytest.mark.parametrize("hand", ["leap", "xhand1", "linkerhand_l10", "linkerhand_l20", "linkerhand_l21",
+                                  "linkerhand_l25", "linkerhand_o7", "brainco_revo1", "unitree_dex3_1"])  # fmt: skip
+def test_the_expert_of_a_hand_built_from_its_urdf_succeeds(hand):
+    """Four seeded episodes per task of every hand the simulator builds from its URDF, with no number tuned for
+    it (the rates over 100 episodes: docs/lerobot.md, bench_sim.py)."""
+    from lerobot_env_unidextok import hand_model
+
+    if hand not in hand_model.sim_hand_names():
+        pytest.skip(f"{hand}'s URDF is not found (set UNIDEXTOK_URDF_DIR to a copy of shared/data/urdf)")
+    for task in ("GraspLift-v0", "FingerPress-v0"):
+        env = UniDexTokEnv(hand, task, render_mode=None)
+        wins = sum(expert_episode(env, 3000 + i, 4000 + i, 50)[2] for i in range(3, 7))
+        assert wins >= 3, f"{hand} {task}: {wins}/4"
+
+
 def test_record_writes_a_native_dataset_the_converter_reads(tmp_path):
     from lerobot.datasets import LeRobotDataset
 

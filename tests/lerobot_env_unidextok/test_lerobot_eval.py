@@ -65,12 +65,13 @@ def test_a_checkpoint_of_another_hand_is_refused_with_the_fix(shadow_checkpoint,
 def test_a_hand_without_a_model_is_one_error_line_before_anything_runs(shadow_checkpoint, tmp_path):
     """draccus raises the env config's refusal as the cause of its own ParsingError; the plugin's hook prints it."""
     r = _run([str(BIN / "lerobot-eval"), f"--policy.path={shadow_checkpoint}", "--env.type=unidextok",
-              "--env.hand=leap", f"--output_dir={tmp_path / 'eval'}"], tmp_path, check=False)  # fmt: skip
+              "--env.hand=linkerhand_l6", f"--output_dir={tmp_path / 'eval'}"], tmp_path, check=False)  # fmt: skip
     errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
-    assert r.returncode == 2 and errors == [
-        "error: hand 'leap' (embodiment leap) has no simulation model; the simulator runs: allegro, inspire_rh56, "
-        "inspire_rh56_unitree, shadow (a model is one YAML in lerobot_env_unidextok/hand_models/)"
-    ], r.stderr[-2000:]
+    assert r.returncode == 2 and len(errors) == 1, r.stderr[-2000:]
+    assert errors[0].startswith(
+        "error: hand 'linkerhand_l6' cannot be simulated: its spec maps no URDF (a `urdf:` block, docs/hands.md); "
+        "the simulator runs: allegro, "
+    ), errors[0]  # then the others: the model files' hands and every spec whose URDF is found
     assert not (tmp_path / "eval").exists()
 
 
