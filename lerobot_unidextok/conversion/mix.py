@@ -56,6 +56,7 @@ from lerobot_unidextok.constants import (
     UDHM_MASK_KEY,
 )
 from lerobot_unidextok.conversion.card import write_card
+from lerobot_unidextok.conversion.hand_stats import hand_stats
 from lerobot_unidextok.conversion.registry import resamples
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 from lerobot_unidextok.data.destination import MIX_SOURCE, Kind, claim, move_into_place, recover
@@ -458,7 +459,9 @@ def mix(opts: MixOptions) -> MixReport:
             ),
         )
         write_record(tmp, record)  # (the statistics below read the record's vocabulary)
-        record.action_delta_stats = action_delta_stats(tmp, [e.episode_index for e in episodes if e.split == "train"])
+        train = [e.episode_index for e in episodes if e.split == "train"]
+        record.action_delta_stats = action_delta_stats(tmp, train)
+        record.hand_stats = hand_stats(tmp, train)  # per-hand normalisation (conversion/hand_stats.py)
         write_record(tmp, record)
         write_card(tmp, repo_id=opts.repo_id, record=record, num_frames=writer.num_frames, features=writer.features)
         move_into_place(tmp, target, Kind.MIX, opts.overwrite)

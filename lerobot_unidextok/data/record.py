@@ -123,6 +123,9 @@ class ConversionRecord:
     name_map: dict[str, str] = field(default_factory=dict)  # --keep=all: input column -> common column name
     # per block side and hand: {"mean", "std", "frames"} of action - state over the training episodes (22 each)
     action_delta_stats: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
+    # per key (observation.state, action, action_delta), block side and hand: that hand's statistics over the
+    # training episodes (mean, std, min, max, q01, q10, q90, q99, frames; conversion/hand_stats.py)
+    hand_stats: dict[str, dict[str, dict[str, dict[str, Any]]]] = field(default_factory=dict)
     record_version: int = RECORD_VERSION
 
     def __post_init__(self) -> None:

@@ -47,7 +47,9 @@ from lerobot_unidextok.policies.checkpoint import POSTPROCESSOR, PREPROCESSOR, c
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.processor import (
     HandActionScaleStep,
+    HandNormalizerStep,
     NativeToUDHMStateStep,
+    SlotMaskStep,
     UDHMToNativeCommandStep,
     UniDexTokMixedTokenizerStep,
 )
@@ -226,12 +228,23 @@ def _bound_pre_steps(steps: list, config: UdtConfigMixin, binding: Binding) -> l
 
 
 def _bound_scale(steps: list, binding: Binding) -> list:
-    """The per-hand action scale steps (if any) with the robot's hands per block."""
-    return [
-        HandActionScaleStep(**{**s.get_config(), "fixed_hand_ids": binding.fixed_hand_ids})
-        if isinstance(s, HandActionScaleStep) else s
-        for s in steps
-    ]  # fmt: skip
+    """The per-hand steps (action scale, normaliser, slot mask; if any) with the robot's hands per block (a
+    zero-shot hand: the normaliser's pooled statistics, `processor/hand_normalizer.py`)."""
+    out = []
+    for s in steps:
+        if isinstance(s, HandActionScaleStep):
+            s = HandActionScaleStep(**{**s.get_config(), "fixed_hand_ids": binding.fixed_hand_ids})
+        elif isinstance(s, HandNormalizerStep):
+            bound = HandNormalizerStep(**{**s.get_config(), "fixed_hand_ids": binding.fixed_hand_ids,
+                                          "extra_hands": binding.extra_hands})  # fmt: skip
+            bound.load_state_dict(s.state_dict())
+            s = bound
+        elif isinstance(s, SlotMaskStep):
+            known = [h for h in s.hand_vocabulary if h not in binding.extra_hands]
+            s = SlotMaskStep(**{**s.get_config(), "fixed_hand_ids": binding.fixed_hand_ids,
+                                "hand_vocabulary": [*known, *binding.extra_hands]})  # fmt: skip
+        out.append(s)
+    return out
 
 
 __all__ = ["Binding", "DeployError", "bind_layouts", "deploy"]

@@ -23,6 +23,9 @@ passes it through `insert_udt_steps`.
 
 from __future__ import annotations
 
+from typing import Any
+
+import numpy as np
 from lerobot.processor import (
     AbsoluteActionsProcessorStep,
     AddBatchDimensionProcessorStep,
@@ -32,13 +35,16 @@ from lerobot.processor import (
     UnnormalizerProcessorStep,
 )
 
-from lerobot_unidextok.constants import UDHM_DIM
+from lerobot_unidextok.blocks import find_udhm_blocks
+from lerobot_unidextok.constants import ACTION, OBS_STATE, UDHM_DIM
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.processor import (
     HandActionScaleStep,
     HandInputStep,
+    HandNormalizerStep,
     NativeLayout,
     NativeToUDHMStateStep,
+    SlotMaskStep,
     UDHMToNativeCommandStep,
     UniDexTokMixedTokenizerStep,
     UniDexTokStateTokenizerStep,
@@ -46,9 +52,13 @@ from lerobot_unidextok.processor import (
 
 
 def insert_udt_steps(
-    config: UdtConfigMixin, pre: PolicyProcessorPipeline, post: PolicyProcessorPipeline
+    config: UdtConfigMixin,
+    pre: PolicyProcessorPipeline,
+    post: PolicyProcessorPipeline,
+    dataset_stats: dict[str, dict[str, Any]] | None = None,
 ) -> tuple[PolicyProcessorPipeline, PolicyProcessorPipeline]:
-    """The stock `pre`, `post` of `config`'s policy with the UniDexTok step (and the native-action decoder)."""
+    """The stock `pre`, `post` of `config`'s policy with the UniDexTok step (and the native-action decoder, the
+    per-hand normaliser and the slot mask); `dataset_stats` (LeRobot's) give the passthrough columns' statistics."""
     common = dict(
         state_names=config.udt_state_names,
         pretrained=config.udt_pretrained,
@@ -81,6 +91,8 @@ def insert_udt_steps(
         steps.insert(at, NativeToUDHMStateStep.from_layout(NativeLayout.from_dict(config.udt_native_state_layout)))
     if config.udt_relative_actions:
         _insert_relative_pair(config, steps, post)
+    if config.udt_hand_stats or (config.udt_mask_slots and config.udt_action_names):
+        _insert_hand_steps(config, steps, post, dataset_stats or {})
     if config.udt_hand_input != "both":  # after the relative step (it reads the real state), before normalising
         at = max(i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep))
         identity = config.num_udt_blocks * len(config.udt_hand_vocabulary)  # a mix's one-hot identity, kept
@@ -109,11 +121,61 @@ def _insert_relative_pair(config: UdtConfigMixin, pre_steps: list, post: PolicyP
     pre_steps.insert(normalizer[0], relative)
     post_steps = list(post.steps)
     post_steps.insert(unnormalizer[0] + 1, AbsoluteActionsProcessorStep(enabled=True, relative_step=relative))
-    if config.udt_hand_vocabulary and config.udt_hand_action_scale and config.udt_action_delta_stats:
+    legacy = not config.udt_hand_stats  # checkpoints saved before per-hand normalisation, or udt_hand_norm=off
+    if legacy and config.udt_hand_vocabulary and config.udt_hand_action_scale and config.udt_action_delta_stats:
         scale = hand_action_scale_step(config, "normalize")
         pre_steps.insert(normalizer[0] + 1, scale)  # after the relative step, before the normaliser
         post_steps.insert(unnormalizer[0] + 1, hand_action_scale_step(config, "unnormalize", pair=scale))
     post.steps = post_steps
+
+
+def row_hands(config: UdtConfigMixin) -> tuple[list[str], list[int]]:
+    """The hands the normaliser and the slot mask index, and the fixed hand per block ([] = per row): a mix's
+    vocabulary (its zero-shot hands after it) and bound hands; one robot's distinct hands and its layout."""
+    if config.udt_hand_vocabulary:
+        return [*config.udt_hand_vocabulary, *config.udt_extra_hands], list(config.udt_fixed_hand_ids)
+    vocabulary = sorted(set(config.udt_hand_layout))
+    return vocabulary, [vocabulary.index(h) for h in config.udt_hand_layout]
+
+
+def _insert_hand_steps(config: UdtConfigMixin, pre_steps: list, post: PolicyProcessorPipeline,
+                       dataset_stats: dict[str, dict[str, Any]]) -> None:  # fmt: skip
+    """The per-hand normaliser (pre: before the normaliser, after the relative step; post: after the unnormaliser,
+    before the absolute step) and the slot mask (pre), when the config has their statistics / asks for it."""
+    vocabulary, fixed = row_hands(config)
+    state_names, action_names = list(config.udt_state_names), list(config.udt_action_names)
+    if not state_names or not find_udhm_blocks(state_names) or (action_names and not find_udhm_blocks(action_names)):
+        return  # a layout given without the dataset's column names: nothing to locate the blocks by
+    at = max(i for i, s in enumerate(pre_steps) if isinstance(s, NormalizerProcessorStep))
+    if config.udt_mask_slots and action_names:
+        pre_steps.insert(at, SlotMaskStep(state_names=state_names, action_names=action_names,
+                                          hand_vocabulary=vocabulary, fixed_hand_ids=fixed))  # fmt: skip
+    stats = config.udt_hand_stats
+    if not stats or not stats.get("modes"):
+        return
+    known = [h for h in vocabulary if h not in config.udt_extra_hands]
+    common = dict(modes=dict(stats["modes"]), state_names=state_names, action_names=action_names,
+                  hand_vocabulary=known, extra_hands=list(config.udt_extra_hands), fixed_hand_ids=fixed,
+                  relative_actions=config.udt_relative_actions)  # fmt: skip
+    pre_step = HandNormalizerStep(mode="normalize", stats={k: v for k, v in stats.items() if k != "modes"},
+                                  dataset_stats=_as_lists(dataset_stats), **common)  # fmt: skip
+    pre_steps.insert(at, pre_step)
+    post_step = HandNormalizerStep(mode="unnormalize", pair=pre_step, **common)
+    post_step.load_state_dict(pre_step.state_dict())
+    post_steps = list(post.steps)
+    unnormalizer = max(i for i, s in enumerate(post_steps) if isinstance(s, UnnormalizerProcessorStep))
+    post_steps.insert(unnormalizer + 1, post_step)
+    post.steps = post_steps
+
+
+def _as_lists(dataset_stats: dict[str, dict[str, Any]]) -> dict[str, dict[str, list[float]]]:
+    """LeRobot's dataset statistics (tensors or arrays) of the state and action as plain lists."""
+    out = {}
+    for key in (OBS_STATE, ACTION):
+        if key in dataset_stats:
+            out[key] = {k: np.asarray(v, dtype=np.float64).reshape(-1).tolist() for k, v in dataset_stats[key].items()
+                        if np.asarray(v).dtype.kind in "fiu"}  # fmt: skip
+    return out
 
 
 def hand_action_scale_step(
