@@ -68,6 +68,8 @@ class MixedSource:
     test_episodes: list[int]  # its test episodes, in its own numbering
     weight: float = 1.0  # the training-frame share asked for (`--weights`)
     repeats: int = 1  # how many times each of its training episodes was written (test episodes: once)
+    # its share of the sampled training frames (the normalised --weights, data/share_sampler.py); 0 = none asked
+    share: float = 0.0
     has_action: bool = True  # False: actions made by the mix's rule (`action_rule`)
     # its native layouts per key, as its own record has them (relative to its own converted columns)
     native_layouts: dict[str, NativeLayout] = field(default_factory=dict)

@@ -140,6 +140,12 @@ class UdtConfigMixin:
     # No loss on the action slots a row's hand lacks (step unidextok.slot_mask; ACT and Diffusion): the policy is not
     # taught to predict zeros for joints the hand does not have.
     udt_mask_slots: bool = True
+    # On a mix whose --weights asked each input a share of the training frames (unidextok-mix, the default
+    # --weights_by=sampling): weight each row's loss by its input's share over its frame fraction (step
+    # unidextok.share_weights; lerobot-train takes no sampler from a plugin). ACT and Diffusion.
+    udt_share_weights: bool = True
+    # The loss weight of each episode (by index); filled from the mix's record.
+    udt_episode_weights: list[float] = field(default_factory=list)
     # Checkpoints saved before udt_hand_norm (and udt_hand_norm=off): on a mix with relative actions, z-score each
     # block's offsets by its hand (step unidextok.hand_action_scale).
     udt_hand_action_scale: bool = True
@@ -226,6 +232,11 @@ class UdtConfigMixin:
                 "written by unidextok-mix (or its meta/unidextok_conversion.json was dropped); mix it again"
             )
         self.udt_hand_vocabulary = list(meta.record.hand_vocabulary)
+        if self.udt_share_weights:
+            from lerobot_unidextok.data.share_sampler import episode_loss_weights
+
+            weights = episode_loss_weights(meta.record)
+            self.udt_episode_weights = [weights.get(e, 1.0) for e in range(max(weights, default=-1) + 1)]
         self.udt_name_map = dict(meta.record.name_map)
         self.udt_sides = [b.side for b in find_udhm_blocks(names)]
         self.udt_state_names = names

@@ -44,6 +44,7 @@ from lerobot_unidextok.processor import (
     HandNormalizerStep,
     NativeLayout,
     NativeToUDHMStateStep,
+    ShareWeightStep,
     SlotMaskStep,
     UDHMToNativeCommandStep,
     UniDexTokMixedTokenizerStep,
@@ -93,6 +94,9 @@ def insert_udt_steps(
         _insert_relative_pair(config, steps, post)
     if config.udt_hand_stats or (config.udt_mask_slots and config.udt_action_names):
         _insert_hand_steps(config, steps, post, dataset_stats or {})
+    if config.udt_share_weights and config.udt_episode_weights:  # before the normaliser, like the others
+        at = max(i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep))
+        steps.insert(at, ShareWeightStep(episode_weights=list(config.udt_episode_weights)))
     if config.udt_hand_input != "both":  # after the relative step (it reads the real state), before normalising
         at = max(i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep))
         identity = config.num_udt_blocks * len(config.udt_hand_vocabulary)  # a mix's one-hot identity, kept

@@ -2,7 +2,7 @@
 (`processor_unidextok.py`), its per-row variant for mixed datasets (`mixed.py`) and the two native steps, one per
 direction (`native.py`); per-hand normalisation of the state and actions (`hand_normalizer.py`; the relative-action
 scale of checkpoints saved before it, `hand_action_scale.py`); the action slots a row's hand lacks, left out of the
-loss (`slot_mask.py`); and which view of the hands the model reads, state or tokens (`hand_input.py`)."""
+loss (`slot_mask.py`); each input's share of a mix as a loss weight per row (`share_weights.py`); and which view of the hands the model reads, state or tokens (`hand_input.py`)."""
 
 from lerobot_unidextok.layout import HandLayout, NativeLayout
 from lerobot_unidextok.processor.guards import RANGE_CHECKS, hand_bounds_rad
@@ -19,6 +19,7 @@ from lerobot_unidextok.processor.native import (
     udhm_to_native,
 )
 from lerobot_unidextok.processor.preview import token_preview
+from lerobot_unidextok.processor.share_weights import SAMPLE_WEIGHT_KEY, SHARE_WEIGHTS_STEP_NAME, ShareWeightStep
 from lerobot_unidextok.processor.slot_mask import ACTION_SLOT_PAD_KEY, SLOT_MASK_STEP_NAME, SlotMaskStep
 from lerobot_unidextok.processor.processor_unidextok import (
     REPRESENTATIONS,
@@ -37,6 +38,8 @@ __all__ = [
     "NATIVE_TO_UDHM_STEP_NAME",
     "RANGE_CHECKS",
     "REPRESENTATIONS",
+    "SAMPLE_WEIGHT_KEY",
+    "SHARE_WEIGHTS_STEP_NAME",
     "SLOT_MASK_STEP_NAME",
     "STATS_OF_MODE",
     "STEP_NAME",
@@ -47,6 +50,7 @@ __all__ = [
     "HandLayout",
     "NativeLayout",
     "NativeToUDHMStateStep",
+    "ShareWeightStep",
     "SlotMaskStep",
     "UDHMToNativeCommandStep",
     "UniDexTokMixedTokenizerStep",

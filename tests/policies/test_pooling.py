@@ -219,3 +219,44 @@ def test_a_checkpoint_saved_before_pooling_loads_and_acts_as_before(tok_dir, g1_
     pre2, post2 = make_pre_post_processors(cfg2, pretrained_path=str(tmp_path))
     assert [type(s).__name__ for s in pre2.steps] == [type(s).__name__ for s in pre.steps]
     assert torch.equal(act(policy2, pre2, post2), before)
+
+
+@pytest.fixture(scope="module")
+def weighted_mix(g1_like, l10_robot, tmp_path_factory):
+    from lerobot_unidextok.conversion.mix import MixOptions, mix
+
+    root = tmp_path_factory.mktemp("weighted") / "mix"
+    mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(root), repo_id="test/weighted",
+                   weights=[3, 1], progress=False))  # fmt: skip
+    return root
+
+
+def test_a_mixs_shares_weight_each_rows_loss_under_lerobot_train(tok_dir, weighted_mix):
+    """lerobot-train samples every frame equally; the shares the mix recorded reach the loss as row weights
+    (unidextok.share_weights from the batch's episode_index): ACT's loss is the weighted sum of its rows'."""
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    from lerobot_unidextok.data.share_sampler import episode_loss_weights
+    from lerobot_unidextok.processor import SAMPLE_WEIGHT_KEY
+
+    cfg, meta = _config("act_udt", tok_dir, weighted_mix)
+    record = UdhmDatasetMeta(weighted_mix).record
+    weights = episode_loss_weights(record)
+    assert cfg.udt_episode_weights == [weights.get(e, 1.0) for e in range(len(cfg.udt_episode_weights))]
+    pre, _ = make_pre_post_processors(cfg, dataset_stats=meta.stats)
+    g1, l10 = _mix_episodes(weighted_mix)
+    batch = pre(dict(_batch(weighted_mix, meta, CHUNK, g1 + l10)))
+    torch.testing.assert_close(batch[SAMPLE_WEIGHT_KEY], torch.tensor([weights[e] for e in g1 + l10]))
+    assert batch[SAMPLE_WEIGHT_KEY][0] == pytest.approx(3 * batch[SAMPLE_WEIGHT_KEY][-1] * 2)  # 3:1 over 80:160 frames
+    torch.manual_seed(0)
+    policy = get_policy_class("act_udt")(cfg).eval()
+
+    def loss(w: torch.Tensor) -> torch.Tensor:
+        return policy.forward({**batch, SAMPLE_WEIGHT_KEY: w})[0]
+
+    rows = len(g1 + l10)
+    one_hot = [loss(torch.eye(rows)[b]) for b in range(rows)]
+    w = batch[SAMPLE_WEIGHT_KEY]
+    torch.testing.assert_close(loss(w), sum(w[b] * one_hot[b] for b in range(rows)), rtol=1e-5, atol=1e-7)
+    plain = {k: v for k, v in batch.items() if k != SAMPLE_WEIGHT_KEY}
+    torch.testing.assert_close(loss(torch.ones(rows)), policy.forward(plain)[0])

@@ -6,18 +6,21 @@ nothing else, and no flag or batch key lets it mask action dimensions, so the ze
 would be trained as real targets. When the batch carries `action_slot_is_pad` ((B, A) bool, written by the
 pre-processor's `unidextok.slot_mask` step), `forward` computes ACT's own loss with those entries multiplied by
 zero: the same sum over the valid steps and the same divisor (valid steps x action width) as the stock loss,
-so every real slot gets exactly the stock gradient and a lacking slot none. Without that key (checkpoints and
-pre-processors saved before it, `udt_mask_slots=false`) it is the stock `forward`. Inference is unchanged.
+so every real slot gets exactly the stock gradient and a lacking slot none. When the batch carries
+`unidextok_sample_weight` ((B,), `unidextok.share_weights`: a mix's `--weights` as loss weights, since
+`lerobot-train` takes no sampler) each row's terms are multiplied by it. Without either key (checkpoints and
+pre-processors saved before them, `udt_mask_slots=false`) it is the stock `forward`. Inference is unchanged.
 """
 
 import torch
 import torch.nn.functional as F  # noqa: N812
 from lerobot.policies.act.modeling_act import ACTPolicy
-
 from lerobot.utils.constants import OBS_IMAGES
 
 from lerobot_unidextok.constants import ACTION
 from lerobot_unidextok.policies.act_udt.configuration_act_udt import ACTUdtConfig
+from lerobot_unidextok.policies.udt_loss import row_weights
+from lerobot_unidextok.processor.share_weights import SAMPLE_WEIGHT_KEY
 from lerobot_unidextok.processor.slot_mask import ACTION_SLOT_PAD_KEY
 
 
@@ -35,8 +38,8 @@ class ACTUdtPolicy(ACTPolicy):
 
     def forward(self, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict]:
         """ACT's loss without the action slots `batch["action_slot_is_pad"]` marks (module docstring)."""
-        slot_pad = batch.get(ACTION_SLOT_PAD_KEY)
-        if slot_pad is None:
+        slot_pad, weight = batch.get(ACTION_SLOT_PAD_KEY), batch.get(SAMPLE_WEIGHT_KEY)
+        if slot_pad is None and weight is None:
             return super().forward(batch)
         if self.config.image_features:
             batch = dict(batch)
@@ -44,9 +47,9 @@ class ACTUdtPolicy(ACTPolicy):
         actions_hat, (mu_hat, log_sigma_x2_hat) = self.model(batch)
         abs_err = F.l1_loss(batch[ACTION], actions_hat, reduction="none")  # (B, chunk, A)
         valid_steps = ~batch["action_is_pad"].unsqueeze(-1)  # (B, chunk, 1)
-        real_slots = ~slot_pad.reshape(abs_err.shape[0], 1, abs_err.shape[-1])  # (B, 1, A)
+        keep = valid_steps * row_weights(abs_err, slot_pad, weight)  # (B, chunk, A)
         num_valid = valid_steps.sum() * abs_err.shape[-1]  # the stock divisor
-        l1_loss = (abs_err * valid_steps * real_slots).sum() / num_valid.clamp_min(1)
+        l1_loss = (abs_err * keep).sum() / num_valid.clamp_min(1)
         loss_dict = {"l1_loss": l1_loss.item()}
         if self.config.use_vae and log_sigma_x2_hat is not None:
             mean_kld = (-0.5 * (1 + log_sigma_x2_hat - mu_hat.pow(2) - log_sigma_x2_hat.exp())).sum(-1).mean()
