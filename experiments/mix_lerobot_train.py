@@ -250,7 +250,7 @@ def run(cfg: MixTrainConfig) -> dict:
         root = folder / f"mix_{n}"
         if not (root / "meta" / "unidextok_conversion.json").is_file():
             mix(MixOptions(inputs=[str(target), *map(str, others)], root=str(root), repo_id=f"local/mix_{n}",
-                           weights=[repeats * g1_train, *other_frames], progress=False))  # fmt: skip
+                           weights=[repeats * g1_train, *other_frames], weights_by="copies", progress=False))  # fmt: skip
         record = UdhmDatasetMeta(root).record
         mixed_eps = [e.episode_index for e in record.episodes if e.split == "train"
                      and (e.origin["mix_source"] != 0 or e.origin["source_episode_index"] in chosen)]  # fmt: skip
