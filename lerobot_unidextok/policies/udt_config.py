@@ -23,7 +23,10 @@ What the mixin adds to the stock config, in `validate_features` (run when the po
   to the converted layout; `config.input_features` stays what the model reads, the converted state);
 - with `udt_relative_actions`, the action column names, checked to be the first columns of the state (the
   policy learns `action - state` per column), and IDENTITY action normalisation (the dataset's action
-  statistics are of absolute actions, not of the offsets the policy predicts).
+  statistics are of absolute actions, not of the offsets the policy predicts);
+- unless `udt_hand_norm=off`, the per-hand statistics of the state and action blocks (`udt_hand_stats`: a mix's
+  record, or one robot's training episodes, `conversion/hand_stats.py`) and IDENTITY for STATE and ACTION in
+  LeRobot's normaliser, whose work `unidextok.hand_normalizer` does then (docs/lerobot.md "Pooling hands").
 """
 
 from __future__ import annotations

@@ -1,8 +1,15 @@
 """The processors of every `<type>_udt` type: the stock pipelines with the UniDexTok step inserted after batching.
 
-    rename -> to_batch [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer -> device
-        [-> relative [-> unidextok.hand_action_scale]] [-> unidextok.hand_input] -> normalizer                 (pre)
-    unnormalizer [-> [unidextok.hand_action_scale ->] absolute] -> to cpu [-> unidextok.udhm_to_native]        (post)
+    rename -> to_batch [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer -> device [-> relative]
+        [-> unidextok.hand_normalizer] [-> unidextok.slot_mask] [-> unidextok.share_weights]
+        [-> unidextok.hand_input] -> normalizer                                                                 (pre)
+    unnormalizer [-> unidextok.hand_normalizer] [-> absolute] -> to cpu [-> unidextok.udhm_to_native]           (post)
+
+Per-hand normalisation (`udt_hand_stats`, filled unless `udt_hand_norm=off`): `unidextok.hand_normalizer`
+normalises the state and action per hand before LeRobot's normaliser (IDENTITY for them then) and restores the
+action after its unnormaliser; `unidextok.slot_mask` marks the action slots each row's hand lacks for the loss
+(`udt_mask_slots`), `unidextok.share_weights` each row's share weight on a mix with `--weights`. Checkpoints saved
+before these (and `udt_hand_norm=off`) keep `unidextok.hand_action_scale` between the relative pair on a mix.
 
 The steps sit after `to_batch_processor`, so their outputs have the batch dimensions of the batched state
 (LeRobot's batching step adds them only to its own keys: with the tokenizer step before it,
@@ -133,33 +140,36 @@ def _insert_relative_pair(config: UdtConfigMixin, pre_steps: list, post: PolicyP
     post.steps = post_steps
 
 
-def row_hands(config: UdtConfigMixin) -> tuple[list[str], list[int]]:
-    """The hands the normaliser and the slot mask index, and the fixed hand per block ([] = per row): a mix's
-    vocabulary (its zero-shot hands after it) and bound hands; one robot's distinct hands and its layout."""
+def row_hands(config: UdtConfigMixin) -> tuple[list[str], list[str], list[int]]:
+    """The hands with statistics, the zero-shot hands after them, and the fixed hand per block ([] = per row) that
+    the normaliser and the slot mask index: a mix's vocabulary, its zero-shot hands and bound hands; for one robot,
+    the hands its statistics have (the hands it trained on), the layout's others (a checkpoint bound zero-shot to
+    another robot's hands, `unidextok-deploy --zero_shot=true`) and its layout."""
     if config.udt_hand_vocabulary:
-        return [*config.udt_hand_vocabulary, *config.udt_extra_hands], list(config.udt_fixed_hand_ids)
-    vocabulary = sorted(set(config.udt_hand_layout))
-    return vocabulary, [vocabulary.index(h) for h in config.udt_hand_layout]
+        return list(config.udt_hand_vocabulary), list(config.udt_extra_hands), list(config.udt_fixed_hand_ids)
+    trained = {h for per in config.udt_hand_stats.get(OBS_STATE, {}).values() for h in per}
+    known = sorted(trained) if trained else sorted(set(config.udt_hand_layout))
+    extra = sorted(set(config.udt_hand_layout) - set(known))
+    return known, extra, [[*known, *extra].index(h) for h in config.udt_hand_layout]
 
 
 def _insert_hand_steps(config: UdtConfigMixin, pre_steps: list, post: PolicyProcessorPipeline,
                        dataset_stats: dict[str, dict[str, Any]]) -> None:  # fmt: skip
     """The per-hand normaliser (pre: before the normaliser, after the relative step; post: after the unnormaliser,
     before the absolute step) and the slot mask (pre), when the config has their statistics / asks for it."""
-    vocabulary, fixed = row_hands(config)
+    known, extra, fixed = row_hands(config)
     state_names, action_names = list(config.udt_state_names), list(config.udt_action_names)
     if not state_names or not find_udhm_blocks(state_names) or (action_names and not find_udhm_blocks(action_names)):
         return  # a layout given without the dataset's column names: nothing to locate the blocks by
     at = max(i for i, s in enumerate(pre_steps) if isinstance(s, NormalizerProcessorStep))
     if config.udt_mask_slots and action_names:
         pre_steps.insert(at, SlotMaskStep(state_names=state_names, action_names=action_names,
-                                          hand_vocabulary=vocabulary, fixed_hand_ids=fixed))  # fmt: skip
+                                          hand_vocabulary=[*known, *extra], fixed_hand_ids=fixed))  # fmt: skip
     stats = config.udt_hand_stats
     if not stats or not stats.get("modes"):
         return
-    known = [h for h in vocabulary if h not in config.udt_extra_hands]
     common = dict(modes=dict(stats["modes"]), state_names=state_names, action_names=action_names,
-                  hand_vocabulary=known, extra_hands=list(config.udt_extra_hands), fixed_hand_ids=fixed,
+                  hand_vocabulary=known, extra_hands=extra, fixed_hand_ids=fixed,
                   relative_actions=config.udt_relative_actions)  # fmt: skip
     pre_step = HandNormalizerStep(mode="normalize", stats={k: v for k, v in stats.items() if k != "modes"},
                                   dataset_stats=_as_lists(dataset_stats), **common)  # fmt: skip

@@ -260,3 +260,69 @@ def test_a_mixs_shares_weight_each_rows_loss_under_lerobot_train(tok_dir, weight
     torch.testing.assert_close(loss(w), sum(w[b] * one_hot[b] for b in range(rows)), rtol=1e-5, atol=1e-7)
     plain = {k: v for k, v in batch.items() if k != SAMPLE_WEIGHT_KEY}
     torch.testing.assert_close(loss(torch.ones(rows)), policy.forward(plain)[0])
+
+
+def _save_checkpoint(cfg, meta, out):
+    """What lerobot-train's last checkpoint holds: config, weights and both processors."""
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    pre, post = make_pre_post_processors(cfg, dataset_stats=meta.stats)
+    torch.manual_seed(0)
+    get_policy_class(cfg.type)(cfg).save_pretrained(out)
+    pre.save_pretrained(out, config_filename="policy_preprocessor.json")
+    post.save_pretrained(out, config_filename="policy_postprocessor.json")
+    return out
+
+
+def test_a_single_robot_checkpoint_binds_zero_shot_to_another_robots_hands(tok_dir, g1_like_hands, tmp_path):
+    """A policy trained on one robot (two Inspire hands) was refused by unidextok-deploy ("nothing to bind"); with
+    --zero_shot=true it is bound to a robot with two XHand1 hands: the bound checkpoint reloads through LeRobot's
+    factory and one select_action on that robot's native state gives its native action, the XHand1 blocks
+    normalised with the Inspire's statistics on the slots the Inspire has."""
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    import lerobot_policy_unidextok  # noqa: F401
+    from lerobot_unidextok.policies.deploy import DeployError, deploy
+
+    cfg, meta = _config("act_udt", tok_dir, g1_like_hands["root"])
+    checkpoint = _save_checkpoint(cfg, meta, tmp_path / "inspire_act")
+    robot = _dexora_robot(tmp_path)
+    with pytest.raises(DeployError, match="pass --zero_shot=true"):
+        deploy(checkpoint, robot, tmp_path / "refused")
+    assert not (tmp_path / "refused").exists()
+    bound = deploy(checkpoint, robot, tmp_path / "on_xhand", zero_shot=True)
+    cfg2 = PreTrainedConfig.from_pretrained(bound)
+    assert cfg2.udt_hand_layout == ["xhand1", "xhand1"] and cfg2.udt_allow_unknown
+    policy = get_policy_class(cfg2.type).from_pretrained(bound).eval()
+    pre, post = make_pre_post_processors(cfg2, pretrained_path=str(bound))
+    normaliser = next(s for s in pre.steps if isinstance(s, HandNormalizerStep))
+    assert normaliser.hand_vocabulary == [INSPIRE] and normaliser.extra_hands == ["xhand1"]
+    assert normaliser.fixed_hand_ids == [1, 1]
+    from lerobot.datasets import LeRobotDataset
+
+    robot_meta = UdhmDatasetMeta(robot)
+    state = LeRobotDataset("test/dexora", root=robot)[5][OBS_STATE]  # the robot's converted state, as recorded
+    action = post(policy.select_action(pre({OBS_STATE: state})))
+    assert action.shape == (1, len(robot_meta.native_layout(ACTION).native_names)) and torch.isfinite(action).all()
+    # the XHand1's slots the Inspire has are z-scored with the Inspire's statistics; the others pass unscaled
+    from lerobot.lerobot_types import TransitionKey
+
+    x = torch.rand(2, len(cfg2.udt_state_names))
+    z = normaliser({TransitionKey.OBSERVATION: {OBS_STATE: x}})[TransitionKey.OBSERVATION][OBS_STATE]
+    has = torch.from_numpy(hands.get(INSPIRE).active_mask)
+    for block in find_udhm_blocks(cfg2.udt_state_names):
+        s = cfg.udt_hand_stats[OBS_STATE][block.side][INSPIRE]
+        mean, std = torch.tensor(s["mean"]), torch.tensor(s["std"])
+        want = torch.where(has, (x[:, block.slice] - mean) / torch.where(std > 1e-6, std, 1.0), x[:, block.slice])
+        torch.testing.assert_close(z[:, block.slice], want, rtol=1e-5, atol=1e-5)
+
+
+def _dexora_robot(tmp_path):
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.samples import write_samples
+
+    raw = write_samples(tmp_path / "raw", sources=["dexora"], episodes_per_source=2, frames_per_episode=20)
+    root = tmp_path / "dexora"
+    convert(ConvertOptions(source="dexora", input=raw["dexora"], root=root, progress=False, keep="hands"))
+    return root
