@@ -97,6 +97,7 @@ class HandNormalizerStep(ProcessorStep):
 
     _last_ids: torch.Tensor | None = field(default=None, init=False, repr=False)
     _tensors: dict[str, torch.Tensor] = field(default_factory=dict, init=False, repr=False)
+    _cache: dict[tuple[str, str], tuple] = field(default_factory=dict, init=False, repr=False)  # (key, device)
 
     def __post_init__(self) -> None:
         name = HAND_NORMALIZER_STEP_NAME
@@ -236,7 +237,10 @@ class HandNormalizerStep(ProcessorStep):
         hand = ids[:, block_of_state]  # (R, blocks of this key)
         none = len(self.hand_names)  # the identity row
         index = torch.where(hand < 0, none, hand)
-        center_t, scale_t = (t.to(x.device) for t in self._block_tables(key))  # (blocks, V + E + 1, 22)
+        cached = self._cache.get((key, str(x.device)))
+        if cached is None:  # the tables change only with the statistics (load_state_dict clears this)
+            cached = self._cache[(key, str(x.device))] = tuple(t.to(x.device) for t in self._block_tables(key))
+        center_t, scale_t = cached  # (blocks, V + E + 1, 22)
         at = torch.arange(len(blocks), device=x.device)
         center_b, scale_b = center_t[at, index], scale_t[at, index]  # (R, blocks, 22)
         lo_name, hi_name = STATS_OF_MODE[self.modes[key]]
@@ -312,6 +316,7 @@ class HandNormalizerStep(ProcessorStep):
                 raise ValueError(f"{HAND_NORMALIZER_STEP_NAME}: saved {k} has shape {tuple(state[k].shape)}, "
                                  f"this step's layout {tuple(v.shape)}")  # fmt: skip
             self._tensors[k] = state[k].clone().float()
+        self._cache.clear()
 
 
 __all__ = ["HAND_NORMALIZER_STEP_NAME", "STATS_OF_MODE", "HandNormalizerStep"]
