@@ -172,6 +172,8 @@ class UdtConfigMixin:
             raise ValueError(f"udt_hand_input must be one of {HAND_INPUTS}, got {self.udt_hand_input!r}")
         if self.udt_range_check not in RANGE_CHECKS:
             raise ValueError(f"udt_range_check must be one of {RANGE_CHECKS}, got {self.udt_range_check!r}")
+        if str(self.udt_hand_norm).lower() == "false":  # YAML reads a bare `off` as false (draccus config files)
+            self.udt_hand_norm = "off"
         if self.udt_hand_norm not in HAND_NORMS:
             raise ValueError(f"udt_hand_norm must be one of {tuple(HAND_NORMS)}, got {self.udt_hand_norm!r}")
         self._stock_normalization = dict(self.normalization_mapping)  # before the relative override

@@ -125,6 +125,10 @@ def test_a_single_robot_policy_normalises_its_hands_from_its_own_training_episod
     assert cfg.udt_hand_stats[OBS_STATE]["left"][INSPIRE]["mean"] == want[OBS_STATE]["left"][INSPIRE]["mean"]
     off, _ = _config("act_udt", tok_dir, g1_like["root"], udt_hand_norm="off")
     assert off.udt_hand_stats == {} and off.normalization_mapping["STATE"].value == "MEAN_STD"
+    # `--policy.udt_hand_norm=off` beside a config file: YAML reads the bare word as false
+    assert _config("act_udt", tok_dir, g1_like["root"], udt_hand_norm=False)[0].udt_hand_norm == "off"
+    with pytest.raises(ValueError, match="udt_hand_norm must be one of"):
+        _config("act_udt", tok_dir, g1_like["root"], udt_hand_norm="z_score")
 
 
 def _masked_gradient(kind: str, tok_dir, root) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
