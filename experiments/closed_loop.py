@@ -60,6 +60,7 @@ MIX_ARMS = ("mix", "packed", "tokens_nearest", "tokens_search", "zero_shot")
 EXPERT_NOISE_SEED = 2_000_000  # the expert's noise on evaluation episode i: this + i (never a recording's)
 RECORD_SEED = 100_000  # recording: episode draws from RECORD_SEED + k, the expert's noise from RECORD_NOISE + k
 RECORD_NOISE = 200_000
+RECIPES = {"pooled": ["--policy.udt_hand_norm=off", "--policy.udt_mask_slots=false"], "per_hand": []}
 
 
 @dataclass
@@ -83,6 +84,10 @@ class ClosedLoopConfig:
     tokenizer: str = DEFAULT_TOKENIZER  # the tokens arms' tokenizer (shipped id, folder or Hub repo id)
     eval_episodes: int = 50
     eval_seed: int = 1000  # lerobot-eval's default: episode i is drawn from eval_seed + i
+    # pooled: the recipe of the table in docs/lerobot.md (LeRobot's one set of statistics, every UDHM slot trained:
+    # --policy.udt_hand_norm=off --policy.udt_mask_slots=false); per_hand: the <type>_udt defaults since 2026-12-05
+    # (per-hand normalisation, no loss on the slots a hand lacks), its policies under policies_per_hand/
+    recipe: str = "pooled"
     output_root: str = "outputs/experiments"
     cache_dir: str = "outputs/experiments/_sim"  # recorded, converted and mixed datasets (reused when complete)
 
@@ -93,6 +98,8 @@ class ClosedLoopConfig:
                 raise ValueError(f"unknown {name} {unknown}; choose from {list(allowed)}")
         if any(d > self.pool for d in self.demos) or not self.demos:
             raise ValueError(f"demos {self.demos} must be 1..pool ({self.pool})")
+        if self.recipe not in RECIPES:
+            raise ValueError(f"recipe must be one of {list(RECIPES)}, got {self.recipe!r}")
         if len(self.hands) < 2 and set(self.arms) & set(MIX_ARMS):
             raise ValueError("the mix arms need at least two hands: --hands='[a,b]' or --arms='[alone]'")
 
@@ -146,7 +153,7 @@ def mixed(cfg: ClosedLoopConfig, task: str, inputs: list[Path], name: str, weigh
         shutil.rmtree(out, ignore_errors=True)
         cpu = time.process_time()
         mix(MixOptions(inputs=[str(p) for p in inputs], root=str(out), repo_id=f"sim/{task}_{name}", keep="all",
-                       weights=weights or [], progress=False))  # fmt: skip
+                       weights=weights or [], weights_by="copies", progress=False))  # fmt: skip
         (out.parent / f"{out.name}.cpu").write_text(f"{time.process_time() - cpu:.1f}")
     return out
 
@@ -195,7 +202,7 @@ def train_policy(cfg: ClosedLoopConfig, root: Path, episodes: list[int], out: Pa
     args = [f"--dataset.repo_id=sim/{root.name}", f"--dataset.root={root}", f"--dataset.episodes={episodes}",
             "--policy.udt_relative_actions=false", "--policy.udt_copy_start=false", f"--steps={cfg.steps}",
             f"--batch_size={cfg.batch_size}", f"--policy.n_action_steps={cfg.n_action_steps}", f"--save_freq={cfg.steps}", f"--log_freq={max(cfg.steps, 1)}",
-            f"--seed={seed}", f"--output_dir={out}", *flags]  # fmt: skip
+            f"--seed={seed}", f"--output_dir={out}", *RECIPES[cfg.recipe], *flags]  # fmt: skip
     train(draccus.parse(TrainPipelineConfig, config_path=resolve_config_path("lerobot/act_udt_cpu"), args=args))
     return model
 
@@ -310,12 +317,13 @@ def jobs(cfg: ClosedLoopConfig) -> list[dict]:
 def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
     task, hand, seed, arm = job["task"], job["hand"], job["seed"], job["arm"]
     key = f"{task}/{hand}/{arm}/seed{seed}"
-    done = folder / "runs" / f"{key.replace('/', '__')}.json"
+    done = folder / ("runs" if cfg.recipe == "pooled" else f"runs_{cfg.recipe}") / f"{key.replace('/', '__')}.json"
     if done.is_file():
         return json.loads(done.read_text())
     own = data[task][hand]
     target = subset(job["demos"], cfg.pool, seed) if job["demos"] else []
-    out = folder / "policies" / task / hand / f"{arm}_seed{seed}"
+    policies = "policies" if cfg.recipe == "pooled" else f"policies_{cfg.recipe}"
+    out = folder / policies / task / hand / f"{arm}_seed{seed}"
     # the token view is zeroed for these arms, so the tokenizer behind it cannot matter: an untrained one (what
     # act_udt_cpu.yaml gave until 2026-12-04, when these arms were run) through its nearest codes, the cheapest
     state = ["--policy.udt_hand_input=state", "--policy.udt_pretrained=null", "--policy.udt_search_rounds=0"]

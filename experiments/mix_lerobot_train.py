@@ -15,7 +15,9 @@ Arms (same recipe, steps and seeds): `target_only` (`lerobot-train` on the G1 da
 whole robot: arms and hands); `target_hands_only` (the same episodes converted with `--keep=hands`, the layout the
 mix has; the real G1 only);
 `mix_hand_scaled` (the mix, relative actions z-scored per hand: `unidextok.hand_action_scale`, the default);
-`mix_unscaled` (`--policy.udt_hand_action_scale=false`: relative actions as LeRobot leaves them, IDENTITY);
+`mix_unscaled` (`--policy.udt_hand_action_scale=false`: relative actions as LeRobot leaves them, IDENTITY). Every
+arm runs the recipe the figures were measured with (`MEASURED_WITH`: `--policy.udt_hand_norm=off
+--policy.udt_mask_slots=false`, the defaults before 2026-12-05);
 `l10_only` (the L10 robot's training episodes alone); and the same with `udt_copy_start` (act_udt_cpu.yaml's
 default since it was measured here: the action head starts at zero, so the untrained policy copies the state):
 `target_hands_copy_start`, `mix_copy_start` (hand-scaled), `l10_copy_start`; the other arms set it false.
@@ -51,6 +53,9 @@ from experiments.common import git_commit, md_table
 logger = logging.getLogger(__name__)
 NAME = "mix_lerobot_train"
 NO_COPY = "--policy.udt_copy_start=false"
+# the recipe these figures were measured with, before per-hand normalisation and masked slots became the <type>_udt
+# defaults (2026-12-05): LeRobot's statistics, hand_action_scale on the mix's relative actions, every slot trained
+MEASURED_WITH = ("--policy.udt_hand_norm=off", "--policy.udt_mask_slots=false")
 # arm -> (training data: the target whole / its hands only / the mix / the L10 robot alone, lerobot-train flags)
 ARM_RECIPES = {
     "target_only": ("target", (NO_COPY,)),
@@ -245,7 +250,7 @@ def run(cfg: MixTrainConfig) -> dict:
         root = folder / f"mix_{n}"
         if not (root / "meta" / "unidextok_conversion.json").is_file():
             mix(MixOptions(inputs=[str(target), *map(str, others)], root=str(root), repo_id=f"local/mix_{n}",
-                           weights=[repeats * g1_train, *other_frames], progress=False))  # fmt: skip
+                           weights=[repeats * g1_train, *other_frames], weights_by="copies", progress=False))  # fmt: skip
         record = UdhmDatasetMeta(root).record
         mixed_eps = [e.episode_index for e in record.episodes if e.split == "train"
                      and (e.origin["mix_source"] != 0 or e.origin["source_episode_index"] in chosen)]  # fmt: skip
@@ -274,7 +279,7 @@ def run(cfg: MixTrainConfig) -> dict:
         out = folder / f"{arm}_{n}_s{seed}"
         logger.info("%s (%d target episodes), seed %d: lerobot-train (%d steps)", arm, n, seed, cfg.steps)
         c0 = time.time()
-        checkpoint = train(job["data"], job["repo"], job["eps"], out, seed, cfg.steps, *job["flags"])
+        checkpoint = train(job["data"], job["repo"], job["eps"], out, seed, cfg.steps, *MEASURED_WITH, *job["flags"])
         wall = time.time() - c0
         robots = (
             {"g1": target, "l10": l10}

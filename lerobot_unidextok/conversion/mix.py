@@ -28,9 +28,10 @@ conversion's own writer (`conversion.writer`, LeRobot's file format and statisti
   (`processor/hand_action_scale.py`).
 - Inputs that hold the same episodes are refused (`conversion/fingerprint.py`: one folder given twice, a copy,
   two conversions of one source, found by the content of their episodes); `--allow_repeats=true` mixes them.
-- `--weights` (training-frame share per input): `lerobot-train` samples every frame of the chosen episodes
-  equally (its `EpisodeAwareSampler` takes each episode once, whatever `--dataset.episodes` repeats), so weights
-  are honoured by writing an input's training episodes several times (`repeats`; test episodes once).
+- `--weights` (training-frame share per input): recorded as each input's `share` of the sampled training frames
+  (`--weights_by=sampling`, the default): `data/share_sampler.py` samples by it, and the `<type>_udt` policies
+  weight each row's loss by it under `lerobot-train`, whose sampler takes every frame equally. `--weights_by=copies`
+  writes an input's training episodes several times instead (`repeats`; test episodes once), for other policies.
 
 Bad input (a dataset that was not converted, datasets at different fps, layouts that cannot share one vector)
 is one `MixError` naming the fix; nothing is written then.
@@ -59,6 +60,7 @@ from lerobot_unidextok.constants import (
 )
 from lerobot_unidextok.conversion.card import write_card
 from lerobot_unidextok.conversion.fingerprint import find_repeat
+from lerobot_unidextok.conversion.hand_stats import hand_stats
 from lerobot_unidextok.conversion.registry import resamples
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 from lerobot_unidextok.data.destination import MIX_SOURCE, Kind, claim, move_into_place, recover
@@ -72,6 +74,7 @@ from lerobot_unidextok.utils.files import temp_sibling
 logger = logging.getLogger(__name__)
 
 KEEP = ("hands", "all")
+WEIGHTS_BY = ("sampling", "copies")
 MAX_GROWTH = 20.0  # weights that would write more than this many times the inputs' frames are refused
 
 
@@ -92,6 +95,8 @@ class MixOptions:
     # inputs that hold the same episodes (one folder twice, a copy, two conversions of one source; found by
     # content, conversion/fingerprint.py) are refused; true: mix them anyway, each as often as it is given
     allow_repeats: bool = False
+    # how --weights are honoured: sampling (recorded shares; <type>_udt policies) | copies (repeated episodes)
+    weights_by: str = "sampling"
     action_ahead: int = 1  # inputs without actions: action[t] = state[t + action_ahead] (human hands)
     overwrite: bool = False  # replace an earlier mix at root (never anything else)
     progress: bool = True
@@ -102,6 +107,8 @@ class MixOptions:
             raise MixError("no inputs: pass --inputs='[<converted dataset folder or repo id>, ...]'")
         if self.keep not in KEEP:
             raise MixError(f"keep must be one of {KEEP}, got {self.keep!r}")
+        if self.weights_by not in WEIGHTS_BY:
+            raise MixError(f"weights_by must be one of {WEIGHTS_BY}, got {self.weights_by!r}")
         if self.weights and (len(self.weights) != len(self.inputs) or not all(math.isfinite(w) and w > 0
                                                                                for w in self.weights)):
             raise MixError(f"--weights needs one positive, finite weight per input ({len(self.inputs)}), got "
@@ -136,7 +143,7 @@ class MixReport:
     num_frames: int
     test_episodes: list[int]
     sources: list[MixedSource]
-    train_shares: list[float]  # the training-frame share each input got
+    train_shares: list[float]  # the training-frame share each input gets (sampled, or written)
     seconds: float
 
 
@@ -398,7 +405,8 @@ def mix(opts: MixOptions) -> MixReport:
     train_frames = [
         sum(length for e, length in (i.meta.episode_lengths or {}).items() if e not in i.test) for i in inputs
     ]
-    repeats = repeat_factors(train_frames, opts.weights)
+    repeats = repeat_factors(train_frames, opts.weights if opts.weights_by == "copies" else [])
+    asked = [w / sum(opts.weights) for w in opts.weights] if opts.weights_by == "sampling" else []
     written = sum(r * f for r, f in zip(repeats, train_frames, strict=True))
     if written > MAX_GROWTH * max(sum(train_frames), 1):
         raise MixError(
@@ -438,6 +446,7 @@ def mix(opts: MixOptions) -> MixReport:
                 dataset=i.name, robot_type=i.meta.robot_type, source=i.record.source, sides=i.sides,
                 hands=list(i.record.hands), num_episodes=i.meta.total_episodes, test_episodes=sorted(i.test),
                 weight=opts.weights[k] if opts.weights else 1.0, repeats=repeats[k], has_action=i.has_action,
+                share=round(asked[k], 8) if asked else 0.0,
                 native_layouts=i.record.native_layouts,
             )
             for k, i in enumerate(inputs)
@@ -469,7 +478,9 @@ def mix(opts: MixOptions) -> MixReport:
             ),
         )
         write_record(tmp, record)  # (the statistics below read the record's vocabulary)
-        record.action_delta_stats = action_delta_stats(tmp, [e.episode_index for e in episodes if e.split == "train"])
+        train = [e.episode_index for e in episodes if e.split == "train"]
+        record.action_delta_stats = action_delta_stats(tmp, train)
+        record.hand_stats = hand_stats(tmp, train)  # per-hand normalisation (conversion/hand_stats.py)
         write_record(tmp, record)
         write_card(tmp, repo_id=opts.repo_id, record=record, num_frames=writer.num_frames, features=writer.features)
         move_into_place(tmp, target, Kind.MIX, opts.overwrite)
@@ -480,7 +491,7 @@ def mix(opts: MixOptions) -> MixReport:
         raise
     shares = [r * f for r, f in zip(repeats, train_frames, strict=True)]
     return MixReport(target, writer.num_episodes, writer.num_frames, test, sources,
-                     [s / max(sum(shares), 1) for s in shares], time.perf_counter() - t0)  # fmt: skip
+                     asked or [s / max(sum(shares), 1) for s in shares], time.perf_counter() - t0)  # fmt: skip
 
 
 def format_report(report: MixReport) -> str:
@@ -493,7 +504,9 @@ def format_report(report: MixReport) -> str:
         lines.append(
             f"  {s.dataset}: {s.robot_type or s.source}, hands {', '.join(s.hands)} ({', '.join(s.sides)}), "
             f"{s.num_episodes} episodes ({len(s.test_episodes)} test), training episodes x{s.repeats}: "
-            f"{share:.0%} of the training frames" + ("" if s.has_action else "; actions by the action rule")
+            + (f"{share:.0%} of the sampled training frames (share recorded)" if s.share else
+               f"{share:.0%} of the training frames")
+            + ("" if s.has_action else "; actions by the action rule")
         )
     return "\n".join(lines)
 

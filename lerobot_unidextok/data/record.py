@@ -68,6 +68,8 @@ class MixedSource:
     test_episodes: list[int]  # its test episodes, in its own numbering
     weight: float = 1.0  # the training-frame share asked for (`--weights`)
     repeats: int = 1  # how many times each of its training episodes was written (test episodes: once)
+    # its share of the sampled training frames (the normalised --weights, data/share_sampler.py); 0 = none asked
+    share: float = 0.0
     has_action: bool = True  # False: actions made by the mix's rule (`action_rule`)
     # its native layouts per key, as its own record has them (relative to its own converted columns)
     native_layouts: dict[str, NativeLayout] = field(default_factory=dict)
@@ -123,6 +125,9 @@ class ConversionRecord:
     name_map: dict[str, str] = field(default_factory=dict)  # --keep=all: input column -> common column name
     # per block side and hand: {"mean", "std", "frames"} of action - state over the training episodes (22 each)
     action_delta_stats: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
+    # per key (observation.state, action, action_delta), block side and hand: that hand's statistics over the
+    # training episodes (mean, std, min, max, q01, q10, q90, q99, frames; conversion/hand_stats.py)
+    hand_stats: dict[str, dict[str, dict[str, dict[str, Any]]]] = field(default_factory=dict)
     record_version: int = RECORD_VERSION
 
     def __post_init__(self) -> None:

@@ -23,7 +23,9 @@ and its normaliser statistics unchanged:
 The bound config says the same (`udt_fixed_hand_ids`, `udt_native_layout`, `udt_native_state_layout`), so
 LeRobot's stock factory, `lerobot-rollout` and `--policy.path` fine-tuning rebuild the same processors. A robot
 whose hands were never in the mix is refused unless `zero_shot`: its hands are then tokenised (by the
-tokenizer's own embedding, or its unknown-hand one) with an all-zero identity the policy never saw.
+tokenizer's own embedding, or its unknown-hand one) with an all-zero identity the policy never saw, and normalised
+with the pooled statistics of the mix's hands. A checkpoint trained on one robot's dataset binds zero-shot to
+another robot's hands too (`deploy_single.py`).
 """
 
 from __future__ import annotations
@@ -44,10 +46,13 @@ from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.layout import NativeLayout
 from lerobot_unidextok.policies.checkpoint import POSTPROCESSOR, PREPROCESSOR, check_policy_checkpoint
+from lerobot_unidextok.policies.deploy_single import bind_single_robot, bound_single_steps
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.processor import (
     HandActionScaleStep,
+    HandNormalizerStep,
     NativeToUDHMStateStep,
+    SlotMaskStep,
     UDHMToNativeCommandStep,
     UniDexTokMixedTokenizerStep,
 )
@@ -165,25 +170,34 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
     output = claim(output, Kind.POLICY, inputs=[checkpoint, robot], overwrite=overwrite, flag="--output")
     check_policy_checkpoint(checkpoint)
     config = PreTrainedConfig.from_pretrained(checkpoint)
-    if not isinstance(config, UdtConfigMixin) or not config.udt_hand_vocabulary:
+    if not isinstance(config, UdtConfigMixin):
+        raise DeployError(f"{checkpoint} is a {config.type} policy, not a <type>_udt one: there is nothing to bind")
+    single = not config.udt_hand_vocabulary  # trained on one robot's dataset: zero-shot only (deploy_single.py)
+    if single and not zero_shot:
         raise DeployError(
             f"{checkpoint} is a {config.type} policy trained on one robot's dataset, not on a mix (unidextok-mix): "
-            "it already takes that robot's own state; there is nothing to bind"
+            "it already takes that robot's own state. To try it on another robot's hands, pass --zero_shot=true"
         )
-    binding = bind_layouts(config, UdhmDatasetMeta(Path(robot)), zero_shot)
-    bound = dataclasses.replace(
-        config,
-        udt_fixed_hand_ids=binding.fixed_hand_ids,
-        udt_extra_hands=binding.extra_hands,
-        udt_allow_unknown=config.udt_allow_unknown or bool(binding.extra_hands),
-        udt_native_state_layout=binding.state_layout.to_dict() if config.udt_native_state else {},
-        udt_native_layout=binding.action_layout.to_dict() if config.udt_native_action else {},
-    )
+    if single:
+        bound, binding = bind_single_robot(config, UdhmDatasetMeta(Path(robot)), _into_mix)
+    else:
+        binding = bind_layouts(config, UdhmDatasetMeta(Path(robot)), zero_shot)
+        bound = dataclasses.replace(
+            config,
+            udt_fixed_hand_ids=binding.fixed_hand_ids,
+            udt_extra_hands=binding.extra_hands,
+            udt_allow_unknown=config.udt_allow_unknown or bool(binding.extra_hands),
+            udt_native_state_layout=binding.state_layout.to_dict() if config.udt_native_state else {},
+            udt_native_layout=binding.action_layout.to_dict() if config.udt_native_action else {},
+        )
     pre = PolicyProcessorPipeline.from_pretrained(checkpoint, config_filename=PREPROCESSOR)
     post = PolicyProcessorPipeline.from_pretrained(checkpoint, config_filename=POSTPROCESSOR)
-    pre.steps = _bound_pre_steps(pre.steps, bound, binding)
+    if single:
+        pre.steps, post.steps = bound_single_steps(pre.steps, post.steps, bound, binding)
+    else:
+        pre.steps = _bound_pre_steps(pre.steps, bound, binding)
     pre.steps, post.steps = (_bound_scale(steps, binding) for steps in (pre.steps, post.steps))
-    if bound.udt_native_layout:
+    if bound.udt_native_layout and not single:
         post.steps = [*post.steps, UDHMToNativeCommandStep.from_layout(binding.action_layout)]
     output.parent.mkdir(parents=True, exist_ok=True)
     tmp = temp_sibling(output)
@@ -228,12 +242,23 @@ def _bound_pre_steps(steps: list, config: UdtConfigMixin, binding: Binding) -> l
 
 
 def _bound_scale(steps: list, binding: Binding) -> list:
-    """The per-hand action scale steps (if any) with the robot's hands per block."""
-    return [
-        HandActionScaleStep(**{**s.get_config(), "fixed_hand_ids": binding.fixed_hand_ids})
-        if isinstance(s, HandActionScaleStep) else s
-        for s in steps
-    ]  # fmt: skip
+    """The per-hand steps (action scale, normaliser, slot mask; if any) with the robot's hands per block (a
+    zero-shot hand: the normaliser's pooled statistics, `processor/hand_normalizer.py`)."""
+    out = []
+    for s in steps:
+        if isinstance(s, HandActionScaleStep):
+            s = HandActionScaleStep(**{**s.get_config(), "fixed_hand_ids": binding.fixed_hand_ids})
+        elif isinstance(s, HandNormalizerStep):
+            bound = HandNormalizerStep(**{**s.get_config(), "fixed_hand_ids": binding.fixed_hand_ids,
+                                          "extra_hands": binding.extra_hands})  # fmt: skip
+            bound.load_state_dict(s.state_dict())
+            s = bound
+        elif isinstance(s, SlotMaskStep):
+            known = [h for h in s.hand_vocabulary if h not in binding.extra_hands]
+            s = SlotMaskStep(**{**s.get_config(), "fixed_hand_ids": binding.fixed_hand_ids,
+                                "hand_vocabulary": [*known, *binding.extra_hands]})  # fmt: skip
+        out.append(s)
+    return out
 
 
 __all__ = ["Binding", "DeployError", "bind_layouts", "deploy"]

@@ -23,7 +23,10 @@ What the mixin adds to the stock config, in `validate_features` (run when the po
   to the converted layout; `config.input_features` stays what the model reads, the converted state);
 - with `udt_relative_actions`, the action column names, checked to be the first columns of the state (the
   policy learns `action - state` per column), and IDENTITY action normalisation (the dataset's action
-  statistics are of absolute actions, not of the offsets the policy predicts).
+  statistics are of absolute actions, not of the offsets the policy predicts);
+- unless `udt_hand_norm=off`, the per-hand statistics of the state and action blocks (`udt_hand_stats`: a mix's
+  record, or one robot's training episodes, `conversion/hand_stats.py`) and IDENTITY for STATE and ACTION in
+  LeRobot's normaliser, whose work `unidextok.hand_normalizer` does then (docs/lerobot.md "Pooling hands").
 """
 
 from __future__ import annotations
@@ -49,6 +52,7 @@ from lerobot_unidextok.policies.relative_layout import relative_layout_problem
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, untrained_preset
 from lerobot_unidextok.processor import (
     HAND_INPUTS,
+    STATS_OF_MODE,
     RANGE_CHECKS,
     REPRESENTATIONS,
     HandLayout,
@@ -59,6 +63,13 @@ from lerobot_unidextok.tokenizer import UniDexTokConfig, check_encoding
 logger = logging.getLogger(__name__)
 
 UDT_SUFFIX = "_udt"
+# udt_hand_norm -> LeRobot's normalisation mode of the per-hand statistics (None: the stock policy's; off: none)
+HAND_NORMS = {"auto": None, "mean_std": "MEAN_STD", "min_max": "MIN_MAX", "quantiles": "QUANTILES",
+              "quantile10": "QUANTILE10", "off": None}  # fmt: skip
+
+
+def _mode_name(mode) -> str:
+    return mode.value if isinstance(mode, NormalizationMode) else str(mode)
 
 
 @dataclass
@@ -123,12 +134,28 @@ class UdtConfigMixin:
     udt_extra_hands: list[str] = field(default_factory=list)
     # The mix's column renames (unidextok-mix --keep=all --name_map); filled from the dataset.
     udt_name_map: dict[str, str] = field(default_factory=dict)
-    # On a mix with relative actions: z-score each UDHM block's action offsets with the statistics of the hand it
-    # holds in that row (step unidextok.hand_action_scale), so that hands moving more than the target do not set
-    # the scale. false: LeRobot's ACTION normalisation (IDENTITY with relative actions).
+    # Normalise each UDHM block of observation.state and action with the statistics of the hand it holds in that
+    # row (step unidextok.hand_normalizer; relative actions: their offsets), the passthrough columns with their own:
+    # auto (the stock policy's modes: ACT mean/std, Diffusion min/max) | mean_std | min_max | quantiles (q01/q99) |
+    # quantile10 (q10/q90) | off (LeRobot's one set of statistics per column, as before 2026-12-05).
+    udt_hand_norm: str = "auto"
+    # The per-hand statistics and their modes {"modes": {key: mode}, key: {side: {hand: {lo, hi, "frames"}}}}; filled
+    # from the dataset (a mix's record, or one robot's training episodes) and saved with the checkpoint.
+    udt_hand_stats: dict[str, Any] = field(default_factory=dict)
+    # No loss on the action slots a row's hand lacks (step unidextok.slot_mask; ACT and Diffusion): the policy is not
+    # taught to predict zeros for joints the hand does not have.
+    udt_mask_slots: bool = True
+    # On a mix whose --weights asked each input a share of the training frames (unidextok-mix, the default
+    # --weights_by=sampling): weight each row's loss by its input's share over its frame fraction (step
+    # unidextok.share_weights; lerobot-train takes no sampler from a plugin). ACT and Diffusion.
+    udt_share_weights: bool = True
+    # The loss weight of each episode (by index); filled from the mix's record.
+    udt_episode_weights: list[float] = field(default_factory=list)
+    # Checkpoints saved before udt_hand_norm (and udt_hand_norm=off): on a mix with relative actions, z-score each
+    # block's offsets by its hand (step unidextok.hand_action_scale).
     udt_hand_action_scale: bool = True
-    # Per block side and hand, the mean and std of action - state (the mix's action_delta_stats); filled from
-    # the dataset.
+    # Per block side and hand, the mean and std of action - state (the mix's action_delta_stats), for
+    # udt_hand_action_scale; filled from the dataset when udt_hand_norm=off.
     udt_action_delta_stats: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
     # Which view of the hands the model reads: both (the UDHM state in observation.state and the token view in
     # observation.environment_state), state (the token view held at zero) or tokens (the state's UDHM blocks held
@@ -147,6 +174,11 @@ class UdtConfigMixin:
             raise ValueError(f"udt_hand_input must be one of {HAND_INPUTS}, got {self.udt_hand_input!r}")
         if self.udt_range_check not in RANGE_CHECKS:
             raise ValueError(f"udt_range_check must be one of {RANGE_CHECKS}, got {self.udt_range_check!r}")
+        if str(self.udt_hand_norm).lower() == "false":  # YAML reads a bare `off` as false (draccus config files)
+            self.udt_hand_norm = "off"
+        if self.udt_hand_norm not in HAND_NORMS:
+            raise ValueError(f"udt_hand_norm must be one of {tuple(HAND_NORMS)}, got {self.udt_hand_norm!r}")
+        self._stock_normalization = dict(self.normalization_mapping)  # before the relative override
         if self.udt_relative_actions:  # offsets around the state: the absolute action stats do not describe them
             self.normalization_mapping = {**self.normalization_mapping, "ACTION": NormalizationMode.IDENTITY}
 
@@ -167,6 +199,11 @@ class UdtConfigMixin:
         if lerobot_meta is None or self.udt_state_names:
             return
         meta = UdhmDatasetMeta.from_lerobot(lerobot_meta)
+        self._fill_layout(meta)
+        if self.udt_hand_norm != "off":
+            self._fill_hand_stats(meta)
+
+    def _fill_layout(self, meta: UdhmDatasetMeta) -> None:
         if OBS_HAND_TOKEN_FEATURES in meta.features:
             raise ValueError(
                 f"the dataset already has '{OBS_HAND_TOKEN_FEATURES}', which the UniDexTok step writes; drop or "
@@ -202,11 +239,16 @@ class UdtConfigMixin:
                 "written by unidextok-mix (or its meta/unidextok_conversion.json was dropped); mix it again"
             )
         self.udt_hand_vocabulary = list(meta.record.hand_vocabulary)
+        if self.udt_share_weights:
+            from lerobot_unidextok.data.share_sampler import episode_loss_weights
+
+            weights = episode_loss_weights(meta.record)
+            self.udt_episode_weights = [weights.get(e, 1.0) for e in range(max(weights, default=-1) + 1)]
         self.udt_name_map = dict(meta.record.name_map)
         self.udt_sides = [b.side for b in find_udhm_blocks(names)]
         self.udt_state_names = names
         self.udt_native_layout, self.udt_native_state_layout = {}, {}
-        if self.udt_relative_actions and self.udt_hand_action_scale:
+        if self.udt_relative_actions and self.udt_hand_action_scale and self.udt_hand_norm == "off":
             if not meta.record.action_delta_stats:
                 raise ValueError(
                     f"{meta.root} records no action_delta_stats (mixed by an older unidextok-mix): mix it again, or "
@@ -217,6 +259,30 @@ class UdtConfigMixin:
             "%s: a mix of hands %s (blocks %s, hands per row from %s), from %s",
             self.type, self.udt_hand_vocabulary, self.udt_sides, OBS_HAND_IDS, meta.root,
         )  # fmt: skip
+
+    def _fill_hand_stats(self, meta: UdhmDatasetMeta) -> None:
+        """Per-hand statistics of the state and action blocks in the modes `udt_hand_norm` asks (a mix's record,
+        else computed from the dataset's training episodes), and LeRobot's normaliser set to IDENTITY for them."""
+        from lerobot_unidextok.conversion.hand_stats import ACTION_DELTA, hand_stats, training_episodes
+
+        record = meta.record
+        stats = record.hand_stats if record is not None and record.hand_stats else None
+        if stats is None:
+            stats = hand_stats(meta.root, training_episodes(meta))
+            logger.info("%s: per-hand statistics computed from %s's training episodes", self.type, meta.root)
+        stock = getattr(self, "_stock_normalization", self.normalization_mapping)
+        chosen: dict[str, Any] = {"modes": {}}
+        for key, kind, source in ((OBS_STATE, "STATE", OBS_STATE),
+                                  (ACTION, "ACTION", ACTION_DELTA if self.udt_relative_actions else ACTION)):  # fmt: skip
+            mode = HAND_NORMS[self.udt_hand_norm] or _mode_name(stock.get(kind, NormalizationMode.IDENTITY))
+            if mode not in STATS_OF_MODE or source not in stats:
+                continue
+            lo, hi = STATS_OF_MODE[mode]
+            chosen["modes"][key] = mode
+            chosen[key] = {side: {hand: {lo: s[lo], hi: s[hi], "frames": s["frames"]} for hand, s in per.items()}
+                           for side, per in stats[source].items()}  # fmt: skip
+            self.normalization_mapping = {**self.normalization_mapping, kind: NormalizationMode.IDENTITY}
+        self.udt_hand_stats = chosen if chosen["modes"] else {}
 
     @property
     def num_udt_blocks(self) -> int:

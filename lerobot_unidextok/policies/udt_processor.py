@@ -1,8 +1,15 @@
 """The processors of every `<type>_udt` type: the stock pipelines with the UniDexTok step inserted after batching.
 
-    rename -> to_batch [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer -> device
-        [-> relative [-> unidextok.hand_action_scale]] [-> unidextok.hand_input] -> normalizer                 (pre)
-    unnormalizer [-> [unidextok.hand_action_scale ->] absolute] -> to cpu [-> unidextok.udhm_to_native]        (post)
+    rename -> to_batch [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer -> device [-> relative]
+        [-> unidextok.hand_normalizer] [-> unidextok.slot_mask] [-> unidextok.share_weights]
+        [-> unidextok.hand_input] -> normalizer                                                                 (pre)
+    unnormalizer [-> unidextok.hand_normalizer] [-> absolute] -> to cpu [-> unidextok.udhm_to_native]           (post)
+
+Per-hand normalisation (`udt_hand_stats`, filled unless `udt_hand_norm=off`): `unidextok.hand_normalizer`
+normalises the state and action per hand before LeRobot's normaliser (IDENTITY for them then) and restores the
+action after its unnormaliser; `unidextok.slot_mask` marks the action slots each row's hand lacks for the loss
+(`udt_mask_slots`), `unidextok.share_weights` each row's share weight on a mix with `--weights`. Checkpoints saved
+before these (and `udt_hand_norm=off`) keep `unidextok.hand_action_scale` between the relative pair on a mix.
 
 The steps sit after `to_batch_processor`, so their outputs have the batch dimensions of the batched state
 (LeRobot's batching step adds them only to its own keys: with the tokenizer step before it,
@@ -23,6 +30,9 @@ passes it through `insert_udt_steps`.
 
 from __future__ import annotations
 
+from typing import Any
+
+import numpy as np
 from lerobot.processor import (
     AbsoluteActionsProcessorStep,
     AddBatchDimensionProcessorStep,
@@ -32,13 +42,17 @@ from lerobot.processor import (
     UnnormalizerProcessorStep,
 )
 
-from lerobot_unidextok.constants import UDHM_DIM
+from lerobot_unidextok.blocks import find_udhm_blocks
+from lerobot_unidextok.constants import ACTION, OBS_STATE, UDHM_DIM
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.processor import (
     HandActionScaleStep,
     HandInputStep,
+    HandNormalizerStep,
     NativeLayout,
     NativeToUDHMStateStep,
+    ShareWeightStep,
+    SlotMaskStep,
     UDHMToNativeCommandStep,
     UniDexTokMixedTokenizerStep,
     UniDexTokStateTokenizerStep,
@@ -46,9 +60,13 @@ from lerobot_unidextok.processor import (
 
 
 def insert_udt_steps(
-    config: UdtConfigMixin, pre: PolicyProcessorPipeline, post: PolicyProcessorPipeline
+    config: UdtConfigMixin,
+    pre: PolicyProcessorPipeline,
+    post: PolicyProcessorPipeline,
+    dataset_stats: dict[str, dict[str, Any]] | None = None,
 ) -> tuple[PolicyProcessorPipeline, PolicyProcessorPipeline]:
-    """The stock `pre`, `post` of `config`'s policy with the UniDexTok step (and the native-action decoder)."""
+    """The stock `pre`, `post` of `config`'s policy with the UniDexTok step (and the native-action decoder, the
+    per-hand normaliser and the slot mask); `dataset_stats` (LeRobot's) give the passthrough columns' statistics."""
     common = dict(
         state_names=config.udt_state_names,
         pretrained=config.udt_pretrained,
@@ -81,6 +99,11 @@ def insert_udt_steps(
         steps.insert(at, NativeToUDHMStateStep.from_layout(NativeLayout.from_dict(config.udt_native_state_layout)))
     if config.udt_relative_actions:
         _insert_relative_pair(config, steps, post)
+    if config.udt_hand_stats or (config.udt_mask_slots and config.udt_action_names):
+        _insert_hand_steps(config, steps, post, dataset_stats or {})
+    if config.udt_share_weights and config.udt_episode_weights:  # before the normaliser, like the others
+        at = max(i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep))
+        steps.insert(at, ShareWeightStep(episode_weights=list(config.udt_episode_weights)))
     if config.udt_hand_input != "both":  # after the relative step (it reads the real state), before normalising
         at = max(i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep))
         identity = config.num_udt_blocks * len(config.udt_hand_vocabulary)  # a mix's one-hot identity, kept
@@ -109,11 +132,64 @@ def _insert_relative_pair(config: UdtConfigMixin, pre_steps: list, post: PolicyP
     pre_steps.insert(normalizer[0], relative)
     post_steps = list(post.steps)
     post_steps.insert(unnormalizer[0] + 1, AbsoluteActionsProcessorStep(enabled=True, relative_step=relative))
-    if config.udt_hand_vocabulary and config.udt_hand_action_scale and config.udt_action_delta_stats:
+    legacy = not config.udt_hand_stats  # checkpoints saved before per-hand normalisation, or udt_hand_norm=off
+    if legacy and config.udt_hand_vocabulary and config.udt_hand_action_scale and config.udt_action_delta_stats:
         scale = hand_action_scale_step(config, "normalize")
         pre_steps.insert(normalizer[0] + 1, scale)  # after the relative step, before the normaliser
         post_steps.insert(unnormalizer[0] + 1, hand_action_scale_step(config, "unnormalize", pair=scale))
     post.steps = post_steps
+
+
+def row_hands(config: UdtConfigMixin) -> tuple[list[str], list[str], list[int]]:
+    """The hands with statistics, the zero-shot hands after them, and the fixed hand per block ([] = per row) that
+    the normaliser and the slot mask index: a mix's vocabulary, its zero-shot hands and bound hands; for one robot,
+    the hands its statistics have (the hands it trained on), the layout's others (a checkpoint bound zero-shot to
+    another robot's hands, `unidextok-deploy --zero_shot=true`) and its layout."""
+    if config.udt_hand_vocabulary:
+        return list(config.udt_hand_vocabulary), list(config.udt_extra_hands), list(config.udt_fixed_hand_ids)
+    trained = {h for per in config.udt_hand_stats.get(OBS_STATE, {}).values() for h in per}
+    known = sorted(trained) if trained else sorted(set(config.udt_hand_layout))
+    extra = sorted(set(config.udt_hand_layout) - set(known))
+    return known, extra, [[*known, *extra].index(h) for h in config.udt_hand_layout]
+
+
+def _insert_hand_steps(config: UdtConfigMixin, pre_steps: list, post: PolicyProcessorPipeline,
+                       dataset_stats: dict[str, dict[str, Any]]) -> None:  # fmt: skip
+    """The per-hand normaliser (pre: before the normaliser, after the relative step; post: after the unnormaliser,
+    before the absolute step) and the slot mask (pre), when the config has their statistics / asks for it."""
+    known, extra, fixed = row_hands(config)
+    state_names, action_names = list(config.udt_state_names), list(config.udt_action_names)
+    if not state_names or not find_udhm_blocks(state_names) or (action_names and not find_udhm_blocks(action_names)):
+        return  # a layout given without the dataset's column names: nothing to locate the blocks by
+    at = max(i for i, s in enumerate(pre_steps) if isinstance(s, NormalizerProcessorStep))
+    if config.udt_mask_slots and action_names:
+        pre_steps.insert(at, SlotMaskStep(state_names=state_names, action_names=action_names,
+                                          hand_vocabulary=[*known, *extra], fixed_hand_ids=fixed))  # fmt: skip
+    stats = config.udt_hand_stats
+    if not stats or not stats.get("modes"):
+        return
+    common = dict(modes=dict(stats["modes"]), state_names=state_names, action_names=action_names,
+                  hand_vocabulary=known, extra_hands=extra, fixed_hand_ids=fixed,
+                  relative_actions=config.udt_relative_actions)  # fmt: skip
+    pre_step = HandNormalizerStep(mode="normalize", stats={k: v for k, v in stats.items() if k != "modes"},
+                                  dataset_stats=_as_lists(dataset_stats), **common)  # fmt: skip
+    pre_steps.insert(at, pre_step)
+    post_step = HandNormalizerStep(mode="unnormalize", pair=pre_step, **common)
+    post_step.load_state_dict(pre_step.state_dict())
+    post_steps = list(post.steps)
+    unnormalizer = max(i for i, s in enumerate(post_steps) if isinstance(s, UnnormalizerProcessorStep))
+    post_steps.insert(unnormalizer + 1, post_step)
+    post.steps = post_steps
+
+
+def _as_lists(dataset_stats: dict[str, dict[str, Any]]) -> dict[str, dict[str, list[float]]]:
+    """LeRobot's dataset statistics (tensors or arrays) of the state and action as plain lists."""
+    out = {}
+    for key in (OBS_STATE, ACTION):
+        if key in dataset_stats:
+            out[key] = {k: np.asarray(v, dtype=np.float64).reshape(-1).tolist() for k, v in dataset_stats[key].items()
+                        if np.asarray(v).dtype.kind in "fiu"}  # fmt: skip
+    return out
 
 
 def hand_action_scale_step(

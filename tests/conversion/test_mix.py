@@ -96,7 +96,7 @@ def test_weights_repeat_the_small_inputs_training_episodes_not_its_test_episodes
     assert repeat_factors([400, 100], [1, 1]) == [1, 4] and repeat_factors([400, 100], []) == [1, 1]
     root = tmp_path / "weighted"
     report = mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(root), weights=[1, 1],
-                            progress=False))  # fmt: skip
+                            weights_by="copies", progress=False))  # fmt: skip
     record = UdhmDatasetMeta(root).record
     l10 = [e for e in record.episodes if e.origin["mix_source"] == 1]
     train_frames = [80, 160]  # g1_like: 2 train episodes of 40 frames; the L10 robot: 4 of 40
@@ -106,6 +106,26 @@ def test_weights_repeat_the_small_inputs_training_episodes_not_its_test_episodes
     assert len(g1) == 2 * 2 + 1 and len(l10) == 5  # the test episode once
     assert sum(1 for e in g1 if e.split == "test") == 1
     assert UdhmDatasetMeta(root).total_episodes == len(record.episodes)
+    assert [s.share for s in record.sources] == [0.0, 0.0]  # honoured by copies: no share to sample by
+
+
+def test_weights_by_sampling_write_each_episode_once_and_record_the_shares(g1_like, l10_robot, tmp_path):
+    from lerobot_unidextok.conversion.mix import format_report
+    from lerobot_unidextok.data.share_sampler import episode_loss_weights
+
+    root = tmp_path / "sampled"
+    report = mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(root), weights=[3, 1],
+                            progress=False))  # fmt: skip
+    record = UdhmDatasetMeta(root).record
+    assert [s.repeats for s in record.sources] == [1, 1] and [s.share for s in record.sources] == [0.75, 0.25]
+    assert len(record.episodes) == 3 + 5  # every episode once
+    assert report.train_shares == pytest.approx([0.75, 0.25])
+    assert "75% of the sampled training frames (share recorded)" in format_report(report)
+    weights = episode_loss_weights(record)  # g1_like: 2 train episodes of 40 frames; the L10 robot: 4 of 40
+    assert {round(w, 6) for e, w in weights.items() if record.episode(e).origin["mix_source"] == 0} == {2.25}
+    assert {round(w, 6) for e, w in weights.items() if record.episode(e).origin["mix_source"] == 1} == {0.375}
+    with pytest.raises(MixError, match="weights_by must be one of"):
+        MixOptions(inputs=["a"], root="b", weights_by="repeat")
 
 
 def test_an_input_without_actions_gets_the_hand_k_frames_ahead(l10_robot, tmp_path):

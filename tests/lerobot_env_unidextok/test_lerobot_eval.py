@@ -86,3 +86,22 @@ def test_a_checkpoint_of_another_task_is_refused_as_such_before_anything_runs(sh
     assert r.returncode == 2 and len(errors) == 1 and "Traceback" not in r.stderr, r.stderr[-2000:]
     assert "was trained on the simulator's GraspLift-v0 task" in errors[0] and "--env.task=GraspLift-v0" in errors[0]
     assert "another robot or hand" not in errors[0] and not (tmp_path / "eval").exists()
+
+
+def test_a_one_hand_checkpoint_bound_zero_shot_to_another_hand_runs_in_lerobot_eval(shadow_checkpoint, tmp_path):
+    """A policy trained on the Shadow alone, bound to the Allegro by `unidextok-deploy --zero_shot=true` (refused
+    before: "nothing to bind"), is scored by the stock lerobot-eval on the Allegro (issue 47)."""
+    from lerobot_env_unidextok.record import RecordConfig, record
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+
+    record(RecordConfig(hand="allegro", task="GraspLift-v0", episodes=1, root=str(tmp_path / "native")))
+    convert(ConvertOptions(source="lerobot", input=str(tmp_path / "native"), root=str(tmp_path / "udhm"),
+                           source_options={"hands": {"right": "allegro:right_"}}, test_fraction=0.0, progress=False))  # fmt: skip
+    _run([str(BIN / "unidextok-deploy"), f"--checkpoint={shadow_checkpoint}", f"--robot={tmp_path / 'udhm'}",
+          "--zero_shot=true", f"--output={tmp_path / 'bound'}"], tmp_path)  # fmt: skip
+    assert json.loads((tmp_path / "bound" / "config.json").read_text())["udt_hand_layout"] == ["allegro"]
+    _run([str(BIN / "lerobot-eval"), f"--policy.path={tmp_path / 'bound'}", "--env.type=unidextok",
+          "--env.task=GraspLift-v0", "--env.hand=allegro", "--eval.n_episodes=1", "--eval.batch_size=1",
+          "--eval.use_async_envs=false", "--policy.device=cpu", f"--output_dir={tmp_path / 'eval'}"], tmp_path)  # fmt: skip
+    overall = json.loads((tmp_path / "eval" / "eval_info.json").read_text())["overall"]
+    assert overall["n_episodes"] == 1 and 0 <= overall["pc_success"] <= 100

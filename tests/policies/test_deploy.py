@@ -76,11 +76,13 @@ def test_a_mixed_policy_bound_to_each_robot_takes_its_native_state_and_returns_i
     config = json.loads((mixed_policy / "config.json").read_text())
     assert config["udt_hand_vocabulary"] == sorted([INSPIRE, L10]) and config["udt_native_layout"] == {}
     # relative actions on a mix: each hand's offsets scaled by its own statistics, between the relative pair
-    assert config["udt_action_delta_stats"] == UdhmDatasetMeta(g1_l10_mix).record.action_delta_stats
+    delta = UdhmDatasetMeta(g1_l10_mix).record.hand_stats["action_delta"]
+    assert config["udt_hand_stats"]["modes"] == {"observation.state": "MEAN_STD", "action": "MEAN_STD"}
+    assert config["udt_hand_stats"]["action"]["right"][L10]["std"] == delta["right"][L10]["std"]
     pre_steps = [s["registry_name"] for s in json.loads((mixed_policy / "policy_preprocessor.json").read_text())["steps"]]
     post_steps = [s["registry_name"] for s in json.loads((mixed_policy / "policy_postprocessor.json").read_text())["steps"]]
-    assert pre_steps.index("unidextok.hand_action_scale") == pre_steps.index("relative_actions_processor") + 1
-    assert post_steps.index("unidextok.hand_action_scale") == post_steps.index("absolute_actions_processor") - 1
+    assert pre_steps.index("unidextok.hand_normalizer") == pre_steps.index("relative_actions_processor") + 1
+    assert post_steps.index("unidextok.hand_normalizer") == post_steps.index("absolute_actions_processor") - 1
     # the G1-like robot: 26 native columns (14 arm angles, 2 x 6 Inspire values); the mix is hands-only
     r = _deploy(mixed_policy, g1_like["root"], tmp_path / "g1")
     assert r.returncode == 0, r.stderr[-2000:]
@@ -92,9 +94,9 @@ def test_a_mixed_policy_bound_to_each_robot_takes_its_native_state_and_returns_i
     assert bound["udt_native_layout"]["native_names"] == g1_action.native_names[14:]
     assert bound["udt_native_layout"]["source_names"] == g1_action.native_names
     assert bound["udt_fixed_hand_ids"] == [0, 0]
-    assert "HandActionScaleStep" in g1["post"]
+    assert "HandNormalizerStep" in g1["post"]
     scale = [s for s in json.loads((tmp_path / "g1" / "policy_postprocessor.json").read_text())["steps"]
-             if s["registry_name"] == "unidextok.hand_action_scale"]  # fmt: skip
+             if s["registry_name"] == "unidextok.hand_normalizer"]  # fmt: skip
     assert [s["config"]["fixed_hand_ids"] for s in scale] == [[0, 0]]
     # the right-only L10 robot: 10 native SDK values in, 10 out; its lacking left block is zero
     r = _deploy(mixed_policy, l10_robot, tmp_path / "l10")
@@ -129,6 +131,10 @@ def test_deploy_refuses_what_it_cannot_bind(mixed_policy, g1_like, tmp_path):
     r = _deploy(mixed_policy, dexora, tmp_path / "x", "--zero_shot=true")
     assert r.returncode == 0, r.stderr[-2000:]
     assert json.loads((tmp_path / "x" / "config.json").read_text())["udt_extra_hands"] == ["xhand1"]
+    # its hands are normalised with the pooled statistics of the mix's hands (processor/hand_normalizer.py)
+    normaliser = [s for s in json.loads((tmp_path / "x" / "policy_preprocessor.json").read_text())["steps"]
+                  if s["registry_name"] == "unidextok.hand_normalizer"]  # fmt: skip
+    assert [s["config"]["extra_hands"] for s in normaliser] == [["xhand1"]]
     # binding again into it: refused with the flag that exists; with it, the bound checkpoint is replaced
     r = _deploy(mixed_policy, g1_like["root"], tmp_path / "x")
     assert r.returncode == 2 and "pass --overwrite=true to replace it" in r.stderr, r.stderr[-2000:]

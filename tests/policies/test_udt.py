@@ -153,7 +153,9 @@ def test_whole_robot_layout_comes_from_the_dataset(tok_dir, g1_like):
     assert stacked[OBS_HAND_TOKEN_FEATURES].shape == (3, 2, 44) and stacked[OBS_HAND_TOKENS].shape == (3, 2, tokens)
     assert torch.equal(stacked[OBS_HAND_TOKENS][0, 0], out[OBS_HAND_TOKENS][0])
     actions = torch.from_numpy(to_converted(g1_like["native_action"][:2])).float()  # (2, 58) converted
-    native = post(actions)
+    normalised = pre({OBS_STATE: state[:2], ACTION: actions})[ACTION]  # per hand (unidextok.hand_normalizer)
+    assert (normalised - actions).abs().max() > 0.1
+    native = post(normalised)
     assert native.shape == (2, 26)
     torch.testing.assert_close(native, torch.from_numpy(g1_like["native_action"][:2]).float(), atol=1e-5, rtol=0)
     assert post.steps[-1]._registry_name == UDHM_TO_NATIVE_STEP_NAME
@@ -199,15 +201,32 @@ def test_relative_actions_round_trip_through_the_saved_and_reloaded_processors(t
     from lerobot.policies.factory import make_pre_post_processors
     from lerobot.processor import TransitionKey
 
-    cfg = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"], udt_relative_actions=True)
+    for hand_norm in ("off", "auto"):
+        _relative_round_trip(tok_dir, g1_like, tmp_path / hand_norm, hand_norm)
+
+
+def _relative_round_trip(tok_dir, g1_like, tmp_path, hand_norm: str) -> None:
+    from lerobot.configs.types import NormalizationMode
+    from lerobot.policies.factory import make_pre_post_processors
+    from lerobot.processor import TransitionKey
+
+    from lerobot_unidextok.blocks import find_udhm_blocks
+
+    cfg = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"], udt_relative_actions=True, udt_hand_norm=hand_norm)
     assert cfg.udt_action_names == STATE_NAMES and cfg.normalization_mapping["ACTION"] == NormalizationMode.IDENTITY
     pre, post = make_act_udt_pre_post_processors(cfg, dataset_stats=_Meta(g1_like["root"])._meta.stats)
     names = [type(s).__name__ for s in pre.steps]
     assert names.index("UniDexTokStateTokenizerStep") < names.index("RelativeActionsProcessorStep")
-    assert names.index("RelativeActionsProcessorStep") == names.index("NormalizerProcessorStep") - 1
+    scaled = hand_norm != "off"  # the offsets of each block scaled by its hand's (unidextok.hand_normalizer)
+    if scaled:
+        assert names.index("RelativeActionsProcessorStep") == names.index("HandNormalizerStep") - 1
+    else:
+        assert "HandNormalizerStep" not in names
+    assert names.index("RelativeActionsProcessorStep") < names.index("NormalizerProcessorStep")
     post_names = [type(s).__name__ for s in post.steps]
-    assert post_names.index("AbsoluteActionsProcessorStep") == post_names.index("UnnormalizerProcessorStep") + 1
+    assert post_names.index("AbsoluteActionsProcessorStep") == post_names.index("UnnormalizerProcessorStep") + 1 + scaled
     assert post_names.index("AbsoluteActionsProcessorStep") < post_names.index("UDHMToNativeCommandStep")
+    tmp_path.mkdir()
     pre.save_pretrained(tmp_path)
     post.save_pretrained(tmp_path)
     cfg.save_pretrained(tmp_path)
@@ -217,9 +236,14 @@ def test_relative_actions_round_trip_through_the_saved_and_reloaded_processors(t
     state = torch.from_numpy(to_converted(g1_like["native_state"][:8])).float()  # (8, 58)
     action = torch.stack([torch.from_numpy(to_converted(g1_like["native_action"][i : i + 4])).float()
                           for i in range(8)])  # (8, 4, 58): a chunk of 4 absolute actions per frame  # fmt: skip
+    scale = torch.ones(58)
+    for block in find_udhm_blocks(STATE_NAMES) if scaled else []:
+        s = cfg.udt_hand_stats[ACTION][block.side][INSPIRE]
+        rms = (torch.tensor(s["mean"]) ** 2 + torch.tensor(s["std"]) ** 2).sqrt()
+        scale[block.slice] = torch.where(rms > 1e-6, rms, 1.0)
     for obs in (state, native_state):
         relative = pre({OBS_STATE: obs, ACTION: action})[ACTION]
-        torch.testing.assert_close(relative, action - state[:, None], atol=1e-5, rtol=0)
+        torch.testing.assert_close(relative * scale, action - state[:, None], atol=1e-5, rtol=1e-5)
         steps = list(post.step_through(relative))
         torch.testing.assert_close(steps[-2][TransitionKey.ACTION], action, atol=1e-5, rtol=0)
         native = torch.from_numpy(np.stack([g1_like["native_action"][i : i + 4] for i in range(8)])).float()

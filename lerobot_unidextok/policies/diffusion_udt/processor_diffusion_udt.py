@@ -16,4 +16,5 @@ def make_diffusion_udt_pre_post_processors(
 ) -> tuple[PolicyProcessorPipeline, PolicyProcessorPipeline]:
     """Diffusion Policy's pre-/post-processors with the UniDexTok step after batching (plus the native-state
     mapper and the native-action decoder)."""
-    return insert_udt_steps(config, *make_diffusion_pre_post_processors(config, dataset_stats=dataset_stats))
+    return insert_udt_steps(config, *make_diffusion_pre_post_processors(config, dataset_stats=dataset_stats),
+                            dataset_stats)

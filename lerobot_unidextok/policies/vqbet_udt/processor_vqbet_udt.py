@@ -16,4 +16,5 @@ def make_vqbet_udt_pre_post_processors(
 ) -> tuple[PolicyProcessorPipeline, PolicyProcessorPipeline]:
     """VQ-BeT's pre-/post-processors with the UniDexTok step after batching (plus the native-state
     mapper and the native-action decoder)."""
-    return insert_udt_steps(config, *make_vqbet_pre_post_processors(config, dataset_stats=dataset_stats))
+    return insert_udt_steps(config, *make_vqbet_pre_post_processors(config, dataset_stats=dataset_stats),
+                            dataset_stats)

@@ -1,0 +1,105 @@
+"""Statistics of each hand's UDHM block, from the frames where the block holds that hand (per-hand normalisation).
+
+A UDHM block of a mix holds a different hand in different rows (an Inspire's 6 joints in one row, a Shadow's 22
+in the next), and a single robot's block one hand throughout. LeRobot keeps one set of statistics per feature,
+so in a mix the slots a hand lacks (zero in its rows) halve those columns' std and one hand's range sets
+another's scale. Here every block side and hand gets its own, over the frames where that block holds that hand
+(its `udhm_mask` block not all false; a lacking side or an untracked frame is no frame of any hand):
+
+    {"observation.state": {side: {hand: {"mean", "std", "min", "max", "q01", "q10", "q90", "q99": [22],
+                                          "frames": n}}},
+     "action": {...},          # absolute actions (the action's UDHM blocks)
+     "action_delta": {...}}    # action - state per block (relative actions)
+
+Quantiles are computed from the frames of each hand, never merged from per-episode quantiles (LeRobot #4156:
+merged quantiles are frame-weighted averages of the episodes' quantiles). `unidextok-mix` records them over the
+mix's training episodes (`ConversionRecord.hand_stats`); a `<type>_udt` policy trained on one robot's dataset
+computes them from that dataset's training episodes when `lerobot-train` builds it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lerobot_unidextok.blocks import find_udhm_blocks
+from lerobot_unidextok.constants import ACTION, HAND_TYPE_KEY, OBS_STATE, UDHM_DIM, UDHM_MASK_KEY
+from lerobot_unidextok.data.meta import UdhmDatasetMeta
+from lerobot_unidextok.data.reader import data_files
+
+ACTION_DELTA = "action_delta"  # the statistics of action - state (relative actions)
+QUANTILES = {"q01": 0.01, "q10": 0.10, "q90": 0.90, "q99": 0.99}
+DIGITS = 8  # decimals kept in the JSON record
+
+
+def _summary(values: np.ndarray) -> dict[str, Any]:
+    """(n, 22) -> mean, std, min, max and quantiles per slot (rounded lists), and n."""
+    out = {
+        "mean": values.mean(0),
+        "std": values.std(0),
+        "min": values.min(0),
+        "max": values.max(0),
+        **{name: np.quantile(values, q, axis=0) for name, q in QUANTILES.items()},
+    }
+    summary: dict[str, Any] = {k: [round(float(x), DIGITS) for x in v] for k, v in out.items()}
+    summary["frames"] = int(len(values))
+    return summary
+
+
+def _matrix(column, width: int, dtype) -> np.ndarray:
+    col = column.combine_chunks()
+    flat = col.values if hasattr(col, "values") else col  # a (1,)-shaped feature is stored as a plain column
+    return flat.to_numpy(zero_copy_only=False).reshape(len(col), width).astype(dtype, copy=False)
+
+
+def hand_stats(root: str | Path, episodes: list[int] | None = None) -> dict[str, dict[str, dict[str, dict]]]:
+    """Per key (`observation.state`, `action`, `action_delta`), block side and hand, the statistics of that hand's
+    frames in `episodes` (None: every episode) of the converted or mixed dataset at `root` (module docstring).
+    `action` and `action_delta` are there when the action has the state's UDHM blocks."""
+    import pyarrow as pa  # ~0.2 s; only when statistics are computed
+    import pyarrow.parquet as pq
+
+    meta = UdhmDatasetMeta(Path(root))
+    state_names, action_names = meta.names(OBS_STATE), meta.names(ACTION)
+    state_blocks = find_udhm_blocks(state_names)
+    action_blocks = {b.side: b for b in find_udhm_blocks(action_names)} if action_names else {}
+    with_action = bool(state_blocks) and all(b.side in action_blocks for b in state_blocks)
+    columns = [OBS_STATE, HAND_TYPE_KEY, UDHM_MASK_KEY, "episode_index"] + ([ACTION] if with_action else [])
+    table = pa.concat_tables(pq.read_table(f, columns=columns) for f in data_files(meta.root))
+    rows = np.ones(table.num_rows, bool)
+    if episodes is not None:
+        rows = np.isin(table.column("episode_index").to_numpy(), list(episodes))
+    state = _matrix(table.column(OBS_STATE), len(state_names), np.float64)[rows]
+    mask = _matrix(table.column(UDHM_MASK_KEY), UDHM_DIM * len(state_blocks), bool)[rows]
+    hand_type = np.asarray(table.column(HAND_TYPE_KEY).to_pylist(), dtype=object)[rows]
+    action = _matrix(table.column(ACTION), len(action_names), np.float64)[rows] if with_action else None
+    out: dict[str, dict[str, dict[str, dict]]] = {OBS_STATE: {}}
+    if with_action:
+        out[ACTION], out[ACTION_DELTA] = {}, {}
+    per_row_hands = np.array([t.split(",") for t in hand_type], dtype=object).reshape(len(hand_type), -1)
+    for k, block in enumerate(state_blocks):
+        present = mask[:, UDHM_DIM * k : UDHM_DIM * (k + 1)].any(axis=1)
+        hands = per_row_hands[:, k] if per_row_hands.shape[1] > k else per_row_hands[:, 0]
+        for hand in sorted(set(hands[present])):
+            pick = present & (hands == hand)
+            s = state[pick][:, block.slice]
+            out[OBS_STATE].setdefault(block.side, {})[hand] = _summary(s)
+            if with_action:
+                a = action[pick][:, action_blocks[block.side].slice]
+                out[ACTION].setdefault(block.side, {})[hand] = _summary(a)
+                out[ACTION_DELTA].setdefault(block.side, {})[hand] = _summary(a - s)
+    return out
+
+
+def training_episodes(meta: UdhmDatasetMeta) -> list[int] | None:
+    """The dataset's training episodes: all but its recorded test episodes (None: every episode)."""
+    record = meta.record
+    if record is None or not record.test_episodes:
+        return None
+    test = set(record.test_episodes)
+    return [e for e in range(meta.total_episodes) if e not in test]
+
+
+__all__ = ["ACTION_DELTA", "QUANTILES", "hand_stats", "training_episodes"]

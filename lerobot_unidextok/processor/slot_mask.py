@@ -1,0 +1,104 @@
+"""Which action slots a row's hand lacks, for a loss that does not train them (`unidextok.slot_mask`).
+
+A UDHM block has 22 slots; an Inspire has 6 of them, a LinkerHand L10 10. The slots a hand lacks hold zero in its
+rows (the dataset's `udhm_mask` is false there), and a stock loss trains the policy to predict those zeros, for
+joints the hand does not have. This pre-processor step writes, for each training batch, a (B, A) bool
+`action_slot_is_pad` into the batch (LeRobot's complementary data, beside `action_is_pad`): true on every action
+slot the row's hand lacks and on every slot of a block without a hand (id -1); false on the hands' own slots and on
+the passthrough columns. The `<type>_udt` policies (ACT, Diffusion) leave those entries out of their loss.
+
+A row's hands come from `observation.hand_ids` (a mix) or `fixed_hand_ids` (one robot); which slots a hand has
+from its spec (`hands.get(name).active_mask`), the mask the converters write as `udhm_mask` for a present hand
+(LeRobot's batch conversion keeps only `observation.*`, `action*`, `*_is_pad` and a few named keys, so the
+dataset's own `udhm_mask` column never reaches a processor step or the policy). Without an action (inference)
+the step does nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+from lerobot.configs.types import PipelineFeatureType, PolicyFeature
+from lerobot.lerobot_types import EnvTransition, TransitionKey
+from lerobot.processor import ProcessorStep, ProcessorStepRegistry
+
+from lerobot_unidextok import hands
+from lerobot_unidextok.blocks import find_udhm_blocks
+from lerobot_unidextok.constants import OBS_HAND_IDS, UDHM_DIM
+
+SLOT_MASK_STEP_NAME = "unidextok.slot_mask"
+ACTION_SLOT_PAD_KEY = "action_slot_is_pad"  # (B, A) bool in the batch: true = no loss on that action slot
+
+
+@ProcessorStepRegistry.register(SLOT_MASK_STEP_NAME)
+@dataclass
+class SlotMaskStep(ProcessorStep):
+    """Write `action_slot_is_pad` (B, A): the action slots each row's hand lacks (module docstring)."""
+
+    state_names: list[str] = field(default_factory=list)  # the blocks the hand ids describe
+    action_names: list[str] = field(default_factory=list)
+    hand_vocabulary: list[str] = field(default_factory=list)
+    fixed_hand_ids: list[int] = field(default_factory=list)  # one robot's hand per block ([] = per row)
+    hand_ids_key: str = OBS_HAND_IDS
+
+    def __post_init__(self) -> None:
+        self._sides = [b.side for b in find_udhm_blocks(self.state_names)]
+        self._blocks = find_udhm_blocks(self.action_names)
+        if not self._sides or not self._blocks or not self.hand_vocabulary:
+            raise ValueError(f"{SLOT_MASK_STEP_NAME} needs state and action names with UDHM blocks and the hands")
+        self.fixed_hand_ids = [int(i) for i in self.fixed_hand_ids]
+        if self.fixed_hand_ids and len(self.fixed_hand_ids) != len(self._sides):
+            raise ValueError(f"{SLOT_MASK_STEP_NAME}: fixed_hand_ids {self.fixed_hand_ids} must give one hand per "
+                             f"block {self._sides}")  # fmt: skip
+        active = np.stack([hands.get(h).active_mask for h in self.hand_vocabulary] + [np.zeros(UDHM_DIM, bool)])
+        self._lacks = ~torch.as_tensor(active)  # (V + 1, 22): row V = no hand, every slot lacking
+
+    def pad_mask(self, ids: torch.Tensor, batch: int) -> torch.Tensor:
+        """(batch, A) bool from (R, H) hand ids (R = batch, or 1 for a robot's fixed hands)."""
+        ids = ids.reshape(-1, len(self._sides))
+        if ids.shape[0] not in (1, batch):  # (B * n_obs) rows of a multi-step observation: the last step's hands
+            ids = ids.reshape(batch, -1, len(self._sides))[:, -1]
+        ids = ids.expand(batch, -1)
+        index = torch.where(ids < 0, len(self.hand_vocabulary), ids)
+        mask = torch.zeros(batch, len(self.action_names), dtype=torch.bool)
+        for b in self._blocks:
+            mask[:, b.slice] = self._lacks[index[:, self._sides.index(b.side)].cpu()]
+        return mask
+
+    def __call__(self, transition: EnvTransition) -> EnvTransition:
+        action = transition.get(TransitionKey.ACTION)
+        if action is None:
+            return transition
+        observation = transition.get(TransitionKey.OBSERVATION) or {}
+        ids = observation.get(self.hand_ids_key)
+        if ids is None:
+            if not self.fixed_hand_ids:
+                raise KeyError(f"{SLOT_MASK_STEP_NAME} needs '{self.hand_ids_key}' in a training batch of a mix")
+            ids = torch.tensor(self.fixed_hand_ids)
+        action = torch.as_tensor(action)
+        batch = action.shape[0] if action.ndim > 1 else 1
+        mask = self.pad_mask(torch.as_tensor(ids).long(), batch).to(action.device)
+        new = transition.copy()
+        new[TransitionKey.COMPLEMENTARY_DATA] = {**(transition.get(TransitionKey.COMPLEMENTARY_DATA) or {}),
+                                                 ACTION_SLOT_PAD_KEY: mask if action.ndim > 1 else mask[0]}  # fmt: skip
+        return new
+
+    def transform_features(
+        self, features: dict[PipelineFeatureType, dict[str, PolicyFeature]]
+    ) -> dict[PipelineFeatureType, dict[str, PolicyFeature]]:
+        return features
+
+    def get_config(self) -> dict[str, Any]:
+        return {
+            "state_names": list(self.state_names),
+            "action_names": list(self.action_names),
+            "hand_vocabulary": list(self.hand_vocabulary),
+            "fixed_hand_ids": list(self.fixed_hand_ids),
+            "hand_ids_key": self.hand_ids_key,
+        }
+
+
+__all__ = ["ACTION_SLOT_PAD_KEY", "SLOT_MASK_STEP_NAME", "SlotMaskStep"]

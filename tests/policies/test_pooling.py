@@ -1,0 +1,332 @@
+"""Pooling hands in a `<type>_udt` policy: per-hand normalisation (`unidextok.hand_normalizer`) and no loss on the
+slots a row's hand lacks (`unidextok.slot_mask` + the ACT / Diffusion loss), on a real mix of two robots
+(unidextok-mix: a G1-like robot with two Inspire hands and a right-only LinkerHand L10 robot)."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+from l10_robot import HAND as L10
+from robot_udhm import INSPIRE
+
+from lerobot_unidextok import hands
+from lerobot_unidextok.blocks import find_udhm_blocks
+from lerobot_unidextok.constants import ACTION, OBS_HAND_IDS, OBS_STATE, UDHM_DIM
+from lerobot_unidextok.data import UdhmDatasetMeta
+from lerobot_unidextok.policies import ACTUdtConfig, DiffusionUdtConfig
+from lerobot_unidextok.processor import ACTION_SLOT_PAD_KEY, HandNormalizerStep, SlotMaskStep
+from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
+
+CHUNK = 4
+TINY = {
+    "act_udt": dict(chunk_size=CHUNK, n_action_steps=CHUNK, dim_model=32, n_heads=2, dim_feedforward=64,
+                    n_encoder_layers=1, n_decoder_layers=1, use_vae=False),
+    "diffusion_udt": dict(down_dims=(16, 32), horizon=8, n_action_steps=4, num_inference_steps=2,
+                          diffusion_step_embed_dim=16),
+}  # fmt: skip
+CLASSES = {"act_udt": ACTUdtConfig, "diffusion_udt": DiffusionUdtConfig}
+
+
+@pytest.fixture(scope="module")
+def tok_dir(tmp_path_factory):
+    torch.manual_seed(2)
+    path = tmp_path_factory.mktemp("tok") / "unidextok-tiny"
+    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["human", L10, INSPIRE])).save_pretrained(path)
+    return path
+
+
+def _config(kind: str, tok_dir, root, **kw):
+    from lerobot.configs.types import FeatureType, PolicyFeature
+    from lerobot.datasets import LeRobotDatasetMetadata
+
+    meta = LeRobotDatasetMetadata("test/mix", root=root)
+    width = meta.features[OBS_STATE]["shape"][0]
+    cfg = CLASSES[kind](
+        input_features={OBS_STATE: PolicyFeature(FeatureType.STATE, (width,))},
+        output_features={ACTION: PolicyFeature(FeatureType.ACTION, (meta.features[ACTION]["shape"][0],))},
+        udt_pretrained=str(tok_dir), device="cpu", **TINY[kind], **kw,
+    )  # fmt: skip
+    cfg._runtime_dataset_meta = meta
+    cfg.validate_features()
+    return cfg, meta
+
+
+def _batch(root, meta, horizon: int, episodes: list[int], frame: int = 3, obs_steps: int = 0) -> dict:
+    """One frame of each episode with its action chunk (and `obs_steps` observation steps, for Diffusion),
+    collated as LeRobot's dataloader does."""
+    from lerobot.datasets import LeRobotDataset
+
+    deltas = {ACTION: [i / meta.fps for i in range(horizon)]}
+    if obs_steps:
+        deltas.update({k: [i / meta.fps for i in range(1 - obs_steps, 1)] for k in (OBS_STATE, OBS_HAND_IDS)})
+    ds = LeRobotDataset("test/mix", root=root, delta_timestamps=deltas)
+    starts = {int(e): int(s) for e, s in zip(ds.meta.episodes["episode_index"], ds.meta.episodes["dataset_from_index"],
+                                             strict=True)}  # fmt: skip
+    items = [ds[starts[e] + frame] for e in episodes]
+    return torch.utils.data.default_collate([{k: v for k, v in it.items() if isinstance(v, torch.Tensor)}
+                                             for it in items])  # fmt: skip
+
+
+def _mix_episodes(root) -> tuple[list[int], list[int]]:
+    record = UdhmDatasetMeta(root).record
+    by = {0: [], 1: []}
+    for e in record.episodes:
+        if e.split == "train":
+            by[e.origin["mix_source"]].append(e.episode_index)
+    return by[0][:2], by[1][:2]
+
+
+def test_a_mix_policy_normalises_each_hand_by_its_own_statistics(tok_dir, g1_l10_mix):
+    from lerobot_unidextok.policies.act_udt import make_act_udt_pre_post_processors
+
+    cfg, meta = _config("act_udt", tok_dir, g1_l10_mix)
+    record = UdhmDatasetMeta(g1_l10_mix).record
+    # the mix recorded each hand's statistics; the policy took them, and LeRobot's normaliser leaves state and
+    # action to the per-hand step
+    assert set(record.hand_stats) == {OBS_STATE, ACTION, "action_delta"}
+    assert cfg.udt_hand_stats["modes"] == {OBS_STATE: "MEAN_STD", ACTION: "MEAN_STD"}
+    assert cfg.udt_hand_stats[OBS_STATE]["right"][L10]["std"] == record.hand_stats[OBS_STATE]["right"][L10]["std"]
+    assert cfg.normalization_mapping["STATE"].value == "IDENTITY" and cfg.normalization_mapping["ACTION"].value == "IDENTITY"
+    pre, post = make_act_udt_pre_post_processors(cfg, dataset_stats=meta.stats)
+    names = [type(s).__name__ for s in pre.steps]
+    assert names.index("HandNormalizerStep") < names.index("SlotMaskStep") < names.index("NormalizerProcessorStep")
+    post_names = [type(s).__name__ for s in post.steps]
+    assert post_names.index("HandNormalizerStep") == post_names.index("UnnormalizerProcessorStep") + 1
+    # a batch with both robots' rows: each right block z-scored by its own hand's statistics
+    g1, l10 = _mix_episodes(g1_l10_mix)
+    batch = _batch(g1_l10_mix, meta, CHUNK, g1 + l10)
+    out = pre(dict(batch))
+    ids = batch[OBS_HAND_IDS]
+    right = find_udhm_blocks(cfg.udt_state_names)[[b.side for b in find_udhm_blocks(cfg.udt_state_names)].index("right")]
+    for row in range(len(ids)):
+        hand = cfg.udt_hand_vocabulary[int(ids[row, -1])]
+        s = record.hand_stats[OBS_STATE]["right"][hand]
+        std = np.where(np.asarray(s["std"]) > 1e-6, s["std"], 1.0)
+        want = (batch[OBS_STATE][row, right.slice].numpy() - np.asarray(s["mean"])) / std
+        np.testing.assert_allclose(out[OBS_STATE][row, right.slice].numpy(), want, rtol=1e-4, atol=1e-4)
+    # the action chunk restored by the post step (its pair saw the batch's hands), the slots a hand lacks zero
+    restored = post(out[ACTION])
+    active = torch.stack([torch.from_numpy(np.concatenate([hands.get(cfg.udt_hand_vocabulary[i]).active_mask
+                                                           if i >= 0 else np.zeros(UDHM_DIM, bool) for i in r]))
+                          for r in ids.tolist()])  # fmt: skip
+    want = batch[ACTION] * active[:, None]
+    torch.testing.assert_close(restored, want, rtol=1e-5, atol=1e-5)
+    assert torch.equal(out[ACTION_SLOT_PAD_KEY], ~active)
+
+
+def test_a_single_robot_policy_normalises_its_hands_from_its_own_training_episodes(tok_dir, g1_like):
+    from lerobot_unidextok.conversion.hand_stats import hand_stats, training_episodes
+
+    cfg, meta = _config("act_udt", tok_dir, g1_like["root"])
+    udhm = UdhmDatasetMeta(g1_like["root"])
+    want = hand_stats(g1_like["root"], training_episodes(udhm))
+    assert training_episodes(udhm) is not None and len(training_episodes(udhm)) < udhm.total_episodes
+    assert cfg.udt_hand_stats[OBS_STATE]["left"][INSPIRE]["mean"] == want[OBS_STATE]["left"][INSPIRE]["mean"]
+    off, _ = _config("act_udt", tok_dir, g1_like["root"], udt_hand_norm="off")
+    assert off.udt_hand_stats == {} and off.normalization_mapping["STATE"].value == "MEAN_STD"
+    # `--policy.udt_hand_norm=off` beside a config file: YAML reads the bare word as false
+    assert _config("act_udt", tok_dir, g1_like["root"], udt_hand_norm=False)[0].udt_hand_norm == "off"
+    with pytest.raises(ValueError, match="udt_hand_norm must be one of"):
+        _config("act_udt", tok_dir, g1_like["root"], udt_hand_norm="z_score")
+
+
+def _masked_gradient(kind: str, tok_dir, root) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(gradient of the loss wrt the model's action output, the batch's slot mask, the output's gradient with the
+    stock loss on the same batch), the real policy on a real batch of both robots."""
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    cfg, meta = _config(kind, tok_dir, root)
+    horizon, obs_steps = (cfg.chunk_size, 0) if kind == "act_udt" else (cfg.horizon, cfg.n_obs_steps)
+    pre, _ = make_pre_post_processors(cfg, dataset_stats=meta.stats)
+    torch.manual_seed(0)
+    policy = get_policy_class(kind)(cfg).train()
+    module = policy.model.action_head if kind == "act_udt" else policy.diffusion.unet
+    grads = []
+
+    def keep(_module, _inputs, output):
+        output.retain_grad()
+        grads.append(output)
+
+    module.register_forward_hook(keep)
+    g1, l10 = _mix_episodes(root)
+    batch = pre(dict(_batch(root, meta, horizon, g1 + l10, obs_steps=obs_steps)))
+    for masked in (True, False):
+        b = dict(batch) if masked else {k: v for k, v in batch.items() if k != ACTION_SLOT_PAD_KEY}
+        torch.manual_seed(1)  # the same noise and timesteps for Diffusion
+        policy.zero_grad()
+        loss, _ = policy.forward(b)
+        loss.backward()
+    masked_grad, stock_grad = grads[0].grad, grads[1].grad
+    return masked_grad, batch[ACTION_SLOT_PAD_KEY], stock_grad, policy
+
+
+@pytest.mark.parametrize("kind", ["act_udt", "diffusion_udt"])
+def test_a_masked_slot_gets_exactly_zero_gradient(kind, tok_dir, g1_l10_mix):
+    grad, pad, stock, _ = _masked_gradient(kind, tok_dir, g1_l10_mix)
+    pad = pad[:, None, :].expand_as(grad)  # (B, horizon, A)
+    assert pad.any() and (~pad).any()
+    assert torch.count_nonzero(grad[pad]) == 0  # no gradient on a slot the row's hand lacks
+    assert torch.count_nonzero(grad[~pad]) > 0.9 * (~pad).sum()
+    assert torch.count_nonzero(stock[pad]) > 0.9 * pad.sum()  # the stock loss trains those zeros
+    torch.testing.assert_close(grad[~pad], stock[~pad])  # and the real slots get exactly the stock gradient
+
+
+def test_slot_mask_of_each_hand_is_the_datasets_udhm_mask(g1_l10_mix):
+    """The mask the step derives from the hand ids equals the `udhm_mask` the mix wrote, row by row."""
+    import pyarrow.parquet as pq
+
+    from lerobot_unidextok.data.reader import data_files
+
+    meta = UdhmDatasetMeta(g1_l10_mix)
+    table = pq.read_table(data_files(meta.root)[0], columns=[OBS_HAND_IDS, "udhm_mask"])
+    ids = torch.tensor(np.stack(table.column(OBS_HAND_IDS).to_numpy(zero_copy_only=False)))
+    udhm_mask = torch.tensor(np.stack(table.column("udhm_mask").to_numpy(zero_copy_only=False)))
+    names = meta.names(OBS_STATE)
+    step = SlotMaskStep(state_names=names, action_names=meta.names(ACTION), hand_vocabulary=meta.record.hand_vocabulary)
+    assert torch.equal(step.pad_mask(ids, len(ids)), ~udhm_mask)
+
+
+def test_a_checkpoint_saved_before_pooling_loads_and_acts_as_before(tok_dir, g1_l10_mix, tmp_path):
+    """A checkpoint of the code before per-hand normalisation: no hand statistics, no slot mask, and a config.json
+    without the new fields. It reloads through LeRobot's factory with the processors it was saved with and gives
+    the same actions."""
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    import lerobot_policy_unidextok  # noqa: F401
+
+    cfg, meta = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_norm="off", udt_mask_slots=False)
+    pre, post = make_pre_post_processors(cfg, dataset_stats=meta.stats)
+    assert not any(isinstance(s, HandNormalizerStep | SlotMaskStep) for s in [*pre.steps, *post.steps])
+    torch.manual_seed(0)
+    policy = get_policy_class("act_udt")(cfg).eval()
+    policy.save_pretrained(tmp_path)
+    pre.save_pretrained(tmp_path, config_filename="policy_preprocessor.json")
+    post.save_pretrained(tmp_path, config_filename="policy_postprocessor.json")
+    saved = json.loads((tmp_path / "config.json").read_text())
+    for new in ("udt_hand_norm", "udt_hand_stats", "udt_mask_slots"):
+        saved.pop(new)
+    (tmp_path / "config.json").write_text(json.dumps(saved))
+    g1, l10 = _mix_episodes(g1_l10_mix)
+    batch = _batch(g1_l10_mix, meta, CHUNK, g1 + l10)
+    obs = {k: v for k, v in batch.items() if k.startswith("observation.")}
+
+    def act(pol, p, q):
+        pol.reset()
+        return q(pol.select_action(p(dict(obs))))
+
+    before = act(policy, pre, post)
+    cfg2 = PreTrainedConfig.from_pretrained(tmp_path)
+    assert cfg2.udt_hand_stats == {}
+    policy2 = get_policy_class("act_udt").from_pretrained(tmp_path).eval()
+    pre2, post2 = make_pre_post_processors(cfg2, pretrained_path=str(tmp_path))
+    assert [type(s).__name__ for s in pre2.steps] == [type(s).__name__ for s in pre.steps]
+    assert torch.equal(act(policy2, pre2, post2), before)
+
+
+@pytest.fixture(scope="module")
+def weighted_mix(g1_like, l10_robot, tmp_path_factory):
+    from lerobot_unidextok.conversion.mix import MixOptions, mix
+
+    root = tmp_path_factory.mktemp("weighted") / "mix"
+    mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(root), repo_id="test/weighted",
+                   weights=[3, 1], progress=False))  # fmt: skip
+    return root
+
+
+def test_a_mixs_shares_weight_each_rows_loss_under_lerobot_train(tok_dir, weighted_mix):
+    """lerobot-train samples every frame equally; the shares the mix recorded reach the loss as row weights
+    (unidextok.share_weights from the batch's episode_index): ACT's loss is the weighted sum of its rows'."""
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    from lerobot_unidextok.data.share_sampler import episode_loss_weights
+    from lerobot_unidextok.processor import SAMPLE_WEIGHT_KEY
+
+    cfg, meta = _config("act_udt", tok_dir, weighted_mix)
+    record = UdhmDatasetMeta(weighted_mix).record
+    weights = episode_loss_weights(record)
+    assert cfg.udt_episode_weights == [weights.get(e, 1.0) for e in range(len(cfg.udt_episode_weights))]
+    pre, _ = make_pre_post_processors(cfg, dataset_stats=meta.stats)
+    g1, l10 = _mix_episodes(weighted_mix)
+    batch = pre(dict(_batch(weighted_mix, meta, CHUNK, g1 + l10)))
+    torch.testing.assert_close(batch[SAMPLE_WEIGHT_KEY], torch.tensor([weights[e] for e in g1 + l10]))
+    assert batch[SAMPLE_WEIGHT_KEY][0] == pytest.approx(3 * batch[SAMPLE_WEIGHT_KEY][-1] * 2)  # 3:1 over 80:160 frames
+    torch.manual_seed(0)
+    policy = get_policy_class("act_udt")(cfg).eval()
+
+    def loss(w: torch.Tensor) -> torch.Tensor:
+        return policy.forward({**batch, SAMPLE_WEIGHT_KEY: w})[0]
+
+    rows = len(g1 + l10)
+    one_hot = [loss(torch.eye(rows)[b]) for b in range(rows)]
+    w = batch[SAMPLE_WEIGHT_KEY]
+    torch.testing.assert_close(loss(w), sum(w[b] * one_hot[b] for b in range(rows)), rtol=1e-5, atol=1e-7)
+    plain = {k: v for k, v in batch.items() if k != SAMPLE_WEIGHT_KEY}
+    torch.testing.assert_close(loss(torch.ones(rows)), policy.forward(plain)[0])
+
+
+def _save_checkpoint(cfg, meta, out):
+    """What lerobot-train's last checkpoint holds: config, weights and both processors."""
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    pre, post = make_pre_post_processors(cfg, dataset_stats=meta.stats)
+    torch.manual_seed(0)
+    get_policy_class(cfg.type)(cfg).save_pretrained(out)
+    pre.save_pretrained(out, config_filename="policy_preprocessor.json")
+    post.save_pretrained(out, config_filename="policy_postprocessor.json")
+    return out
+
+
+def test_a_single_robot_checkpoint_binds_zero_shot_to_another_robots_hands(tok_dir, g1_like_hands, tmp_path):
+    """A policy trained on one robot (two Inspire hands) was refused by unidextok-deploy ("nothing to bind"); with
+    --zero_shot=true it is bound to a robot with two XHand1 hands: the bound checkpoint reloads through LeRobot's
+    factory and one select_action on that robot's native state gives its native action, the XHand1 blocks
+    normalised with the Inspire's statistics on the slots the Inspire has."""
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    import lerobot_policy_unidextok  # noqa: F401
+    from lerobot_unidextok.policies.deploy import DeployError, deploy
+
+    cfg, meta = _config("act_udt", tok_dir, g1_like_hands["root"])
+    checkpoint = _save_checkpoint(cfg, meta, tmp_path / "inspire_act")
+    robot = _dexora_robot(tmp_path)
+    with pytest.raises(DeployError, match="pass --zero_shot=true"):
+        deploy(checkpoint, robot, tmp_path / "refused")
+    assert not (tmp_path / "refused").exists()
+    bound = deploy(checkpoint, robot, tmp_path / "on_xhand", zero_shot=True)
+    cfg2 = PreTrainedConfig.from_pretrained(bound)
+    assert cfg2.udt_hand_layout == ["xhand1", "xhand1"] and cfg2.udt_allow_unknown
+    policy = get_policy_class(cfg2.type).from_pretrained(bound).eval()
+    pre, post = make_pre_post_processors(cfg2, pretrained_path=str(bound))
+    normaliser = next(s for s in pre.steps if isinstance(s, HandNormalizerStep))
+    assert normaliser.hand_vocabulary == [INSPIRE] and normaliser.extra_hands == ["xhand1"]
+    assert normaliser.fixed_hand_ids == [1, 1]
+    from lerobot.datasets import LeRobotDataset
+
+    robot_meta = UdhmDatasetMeta(robot)
+    state = LeRobotDataset("test/dexora", root=robot)[5][OBS_STATE]  # the robot's converted state, as recorded
+    action = post(policy.select_action(pre({OBS_STATE: state})))
+    assert action.shape == (1, len(robot_meta.native_layout(ACTION).native_names)) and torch.isfinite(action).all()
+    # the XHand1's slots the Inspire has are z-scored with the Inspire's statistics; the others pass unscaled
+    from lerobot.lerobot_types import TransitionKey
+
+    x = torch.rand(2, len(cfg2.udt_state_names))
+    z = normaliser({TransitionKey.OBSERVATION: {OBS_STATE: x}})[TransitionKey.OBSERVATION][OBS_STATE]
+    has = torch.from_numpy(hands.get(INSPIRE).active_mask)
+    for block in find_udhm_blocks(cfg2.udt_state_names):
+        s = cfg.udt_hand_stats[OBS_STATE][block.side][INSPIRE]
+        mean, std = torch.tensor(s["mean"]), torch.tensor(s["std"])
+        want = torch.where(has, (x[:, block.slice] - mean) / torch.where(std > 1e-6, std, 1.0), x[:, block.slice])
+        torch.testing.assert_close(z[:, block.slice], want, rtol=1e-5, atol=1e-5)
+
+
+def _dexora_robot(tmp_path):
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.samples import write_samples
+
+    raw = write_samples(tmp_path / "raw", sources=["dexora"], episodes_per_source=2, frames_per_episode=20)
+    root = tmp_path / "dexora"
+    convert(ConvertOptions(source="dexora", input=raw["dexora"], root=root, progress=False, keep="hands"))
+    return root
