@@ -171,7 +171,10 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
     check_policy_checkpoint(checkpoint)
     config = PreTrainedConfig.from_pretrained(checkpoint)
     if not isinstance(config, UdtConfigMixin):
-        raise DeployError(f"{checkpoint} is a {config.type} policy, not a <type>_udt one: there is nothing to bind")
+        raise DeployError(
+            f"{checkpoint} is a stock `{config.type}` policy, not a <type>_udt one: there is nothing to bind "
+            "(train a <type>_udt policy, e.g. --policy.type=act_udt)"
+        )
     single = not config.udt_hand_vocabulary  # trained on one robot's dataset: zero-shot only (deploy_single.py)
     if single and not zero_shot:
         raise DeployError(

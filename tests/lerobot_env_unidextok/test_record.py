@@ -97,9 +97,10 @@ def test_bad_lengths_are_one_line_before_anything_runs(tmp_path, flag, said):
 
 def test_two_runs_into_one_new_root_never_delete_each_others_temp(tmp_path):
     """Before: both runs wrote `.<root>.record-tmp`, and the second deleted the first's as it started; the first
-    died with a FileNotFoundError traceback, its recording lost. Now each has its own temp: the run that ends
-    first writes the root, the other is refused with one line when it finds the root there, and neither's
-    recording is broken. The first run is paused (SIGSTOP) while the second runs, so they overlap for sure."""
+    died with a FileNotFoundError traceback, its recording lost. Now each run has its own temp, and the second
+    is refused as it starts, with one line naming the run writing there (`destination.claim` sees the first's
+    live temp folder); the first is left to finish its recording whole. The first run is paused (SIGSTOP) while
+    the second starts, so they overlap for sure."""
     long = _record("--episodes=20", "--keep_failures=true", "--root=sim", cwd=tmp_path)
     deadline = time.time() + 120
     while not any(p.name.startswith(".sim") for p in tmp_path.iterdir()):
@@ -112,10 +113,10 @@ def test_two_runs_into_one_new_root_never_delete_each_others_temp(tmp_path):
     finally:
         os.kill(long.pid, signal.SIGCONT)
     _, long_err = long.communicate(timeout=600)
-    assert short.returncode == 0, short_err[-2000:]
-    assert "Traceback" not in long_err and "FileNotFoundError" not in long_err, long_err[-2000:]
-    errors = [line for line in long_err.splitlines() if line.startswith("error:")]
-    assert long.returncode == 2 and len(errors) == 1 and "appeared while writing" in errors[0], long_err[-2000:]
+    errors = [line for line in short_err.splitlines() if line.startswith("error:")]
+    assert short.returncode == 2 and len(errors) == 1 and "Traceback" not in short_err, short_err[-2000:]
+    assert f"is being written by another run now: pid {long.pid}" in errors[0], errors[0]
+    assert long.returncode == 0 and "Traceback" not in long_err, long_err[-2000:]
     info = json.loads((tmp_path / "sim" / "meta" / "info.json").read_text())
-    assert info["total_episodes"] == 1 and info["total_frames"] == 3  # the short run's dataset, whole
+    assert info["total_episodes"] == 20  # the first run's dataset, whole
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sim"]  # neither run left a temp folder
