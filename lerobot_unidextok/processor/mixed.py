@@ -61,7 +61,7 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
     _vocab_active: torch.Tensor | None = field(default=None, init=False, repr=False)  # (V, 22) bool
     _vocab_bounds: tuple[torch.Tensor, torch.Tensor] | None = field(default=None, init=False, repr=False)  # (H,V,22)
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, search_rounds: int | None = None) -> None:  # search_rounds: legacy (the base step's)
         self._check_settings()
         self.hand_vocabulary, self.state_names = list(self.hand_vocabulary), list(self.state_names)
         self.fixed_hand_ids, self.hand_layout = [int(i) for i in self.fixed_hand_ids], []
@@ -85,6 +85,7 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
             )
         self._columns = torch.as_tensor(np.concatenate([np.arange(b.start, b.stop) for b in blocks]))
         self._load_tokenizer()
+        self._upgrade_legacy_rounds(search_rounds)
         self._vocab_tokenizer_ids = torch.tensor(self._tokenizer_hand_ids(names))
         self._vocab_active = torch.as_tensor(np.stack([hands.get(h).active_mask for h in names]))
         per_side = [layout_bounds(names, [side] * len(names)) for side in self._sides]
@@ -175,8 +176,7 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
         active = self._vocab_active[v]  # (P, 22)
         if len(v):
             ids = self._vocab_tokenizer_ids[v]  # (P,)
-            rounds = cfg.search_rounds if self.search_rounds is None else self.search_rounds
-            found, decoded = tok.encode_decode(picked, ids, mask=active if rounds else None, search_rounds=rounds)
+            found, decoded = tok.encode_decode(picked, ids, mask=active if self.searches else None, encoding=self.encoding)
             codes[present] = found  # (P, N, K)
         if self.representation == "dequantized":
             view = torch.zeros(b, h, UDHM_DIM, device=device)

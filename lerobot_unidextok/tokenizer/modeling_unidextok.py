@@ -23,7 +23,7 @@ from torch import nn
 from lerobot_unidextok.constants import ANGLE_SCALE_RAD
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.pretrained import hub_errors, resolve
-from lerobot_unidextok.tokenizer.configuration_unidextok import UniDexTokConfig
+from lerobot_unidextok.tokenizer.configuration_unidextok import EncodingConfig, UniDexTokConfig
 from lerobot_unidextok.tokenizer.layers import AdaLNBlock, AdaLNFinalNorm, HandEmbedder
 from lerobot_unidextok.tokenizer.quantizer import FactorizedCosineVQ
 from lerobot_unidextok.tokenizer.search import greedy_codes, search_codes
@@ -234,15 +234,15 @@ class UniDexTok(
         hand: HandArg,
         allow_unknown: bool = False,
         mask: torch.Tensor | None = None,
-        search_rounds: int | None = None,
+        encoding: EncodingConfig | None = None,
     ) -> torch.Tensor:
-        """(B, 22) radians -> (B, N, K) int64 codes.
+        """(B, 22) radians -> (B, N, K) int64 codes, picked as `encoding` says (None = the config's own,
+        `config.encoding`; `EncodingConfig(rounds=0)` = `NEAREST_CODES`).
 
-        With `search_rounds` 0 each group vector takes its nearest code (the paper's encoding); with R > 0 those
-        codes are refined by R rounds of the config's decoder-aware search (`search_method`, `tokenizer.search`)
-        over the active DoFs: `mask` (B, 22) bool, or each registered hand's spec when None. `search_rounds=None`
-        = the config's."""
-        return self._encode(states_rad, hand, allow_unknown, mask, search_rounds)[0]
+        With `rounds` 0 each group vector takes its nearest code (the paper's encoding); with R > 0 those codes are
+        refined by R rounds of the decoder-aware search (`tokenizer.search`) over the active DoFs: `mask` (B, 22)
+        bool, or each registered hand's spec when None."""
+        return self._encode(states_rad, hand, allow_unknown, mask, encoding)[0]
 
     @torch.no_grad()
     def encode_decode(
@@ -251,34 +251,34 @@ class UniDexTok(
         hand: HandArg,
         allow_unknown: bool = False,
         mask: torch.Tensor | None = None,
-        search_rounds: int | None = None,
+        encoding: EncodingConfig | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """`encode` and `decode` of its codes: ((B, N, K) codes, (B, 22) radians). The greedy search decodes its
         codes as it checks them, so this saves the decoder pass a separate `decode` would repeat."""
-        codes, decoded, ids = self._encode(states_rad, hand, allow_unknown, mask, search_rounds)
+        codes, decoded, ids = self._encode(states_rad, hand, allow_unknown, mask, encoding)
         if decoded is None:
             zq = self.quantizer.get_output_from_indices(codes)  # (B, N, C)
             decoded = self._decode_latent(zq, self.hand_embed(ids))  # (B, 22) radians
         return codes, decoded
 
-    def _encode(self, states_rad, hand, allow_unknown, mask, search_rounds):
+    def _encode(self, states_rad, hand, allow_unknown, mask, encoding: EncodingConfig | None):
         """((B, N, K) codes, (B, 22) their decoded states when the search computed them else None, (B,) hand ids)."""
         x_rad = self._check_states(states_rad)  # (B, 22)
         ids = self.hand_ids(hand, x_rad.shape[0], allow_unknown)  # (B,)
         c = self.hand_embed(ids)  # (B, C)
         z = self._encode_latent(x_rad, c)  # (B, N, C)
         codes = self.quantizer.nearest_indices(z)  # (B, N, K) int64
-        rounds = self.config.search_rounds if search_rounds is None else search_rounds
-        if not rounds:
+        enc = self.config.encoding if encoding is None else encoding
+        if not isinstance(enc, EncodingConfig):
+            raise TypeError(f"encoding must be an EncodingConfig or None (the config's own), got {enc!r}")
+        if not enc.rounds:
             return codes, None, ids
         active = self.active_dofs(ids) if mask is None else torch.as_tensor(mask, device=x_rad.device)
         if active.shape != x_rad.shape:
             raise ValueError(f"mask must have the states' shape {tuple(x_rad.shape)}, got {tuple(active.shape)}")
-        cfg = self.config
-        if cfg.search_method == "sweeps":
-            return search_codes(self, x_rad, codes, c, active, rounds, cfg.search_sweeps), None, ids
-        found = greedy_codes(self, x_rad, codes, c, active, rounds, cfg.search_changes,
-                             math.radians(cfg.search_tolerance_deg))  # fmt: skip
+        if enc.method == "sweeps":
+            return search_codes(self, x_rad, codes, c, active, enc.rounds, enc.sweeps), None, ids
+        found = greedy_codes(self, x_rad, codes, c, active, enc.rounds, enc.changes, math.radians(enc.tolerance_deg))
         return *found, ids
 
     def active_dofs(self, ids: torch.Tensor) -> torch.Tensor:
@@ -355,11 +355,7 @@ class UniDexTok(
         cls,
         pretrained_model_name_or_path,
         *args,
-        search_rounds: int | None = None,
-        search_sweeps: int | None = None,
-        search_method: str | None = None,
-        search_changes: int | None = None,
-        search_tolerance_deg: float | None = None,
+        encoding: EncodingConfig | None = None,
         **kwargs,
     ) -> "UniDexTok":
         """The one door to a trained tokenizer: a checkpoint folder, a `unidextok-train` run folder (its
@@ -367,27 +363,20 @@ class UniDexTok(
         no HF cache), or a Hub repo id (the HF cache serves it offline; an explicit `revision` always means the
         Hub). A name found nowhere is a `CheckpointNotFoundError` saying how to fix it (`pretrained.resolve`).
 
-        `search_rounds` / `search_method` / `search_sweeps` / `search_changes` / `search_tolerance_deg`: the encoding
-        to use instead of the checkpoint's (None keeps it; `search_rounds=0` = the nearest codes), checked by `UniDexTokConfig` like every
-        config field."""
+        `encoding`: how the loaded model encodes instead of the checkpoint's own (None keeps it; `NEAREST_CODES` =
+        the nearest codes); it replaces the checkpoint's whole `EncodingConfig`."""
         name = str(pretrained_model_name_or_path)
         if kwargs.get("revision") is None:
             name = resolve(name, checkpoint=True)
         with hub_errors(str(pretrained_model_name_or_path)):
             model = super().from_pretrained(name, *args, **kwargs)
-        return model.with_encoding(search_rounds=search_rounds, search_sweeps=search_sweeps,
-                                   search_method=search_method, search_changes=search_changes,
-                                   search_tolerance_deg=search_tolerance_deg)  # fmt: skip
+        return model.with_encoding(encoding)
 
-    def with_encoding(self, search_rounds: int | None = None, search_sweeps: int | None = None,
-                      search_method: str | None = None, search_changes: int | None = None,
-                      search_tolerance_deg: float | None = None) -> "UniDexTok":  # fmt: skip
-        """Set how `encode` picks codes (None keeps a setting; checked by `UniDexTokConfig`); returns self."""
-        given = {"search_rounds": search_rounds, "search_sweeps": search_sweeps, "search_method": search_method,
-                 "search_changes": search_changes, "search_tolerance_deg": search_tolerance_deg}  # fmt: skip
-        changes = {k: v for k, v in given.items() if v is not None}
-        if changes:
-            self.config = dataclasses.replace(self.config, **changes)
+    def with_encoding(self, encoding: EncodingConfig | None) -> "UniDexTok":
+        """Make `encoding` this model's own (`config.encoding`, saved with it); None keeps the current one.
+        Returns self."""
+        if encoding is not None:
+            self.config = dataclasses.replace(self.config, encoding=EncodingConfig.from_dict(encoding))
         return self
 
     @classmethod
