@@ -172,7 +172,8 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
             check_ranges(picked[:, None], lo[block, v][:, None], hi[block, v][:, None], names, self.input_key,
                          self.range_check)  # fmt: skip
         cfg = tok.config
-        codes = torch.full((b, h, cfg.num_tokens, cfg.num_groups), ABSENT, dtype=torch.long, device=device)
+        codes = torch.full((b, h, cfg.num_tokens, cfg.num_groups * cfg.num_stages), ABSENT, dtype=torch.long,
+                           device=device)  # fmt: skip
         active = self._vocab_active[v]  # (P, 22)
         if len(v):
             ids = self._vocab_tokenizer_ids[v]  # (P,)
@@ -183,9 +184,9 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
             if len(v):
                 view[present] = decoded * active  # (P, 22), slots a hand lacks set to zero
         else:
-            view = torch.zeros(b, h, cfg.num_tokens * cfg.codebook_dim, device=device)
+            view = torch.zeros(b, h, cfg.num_tokens * cfg.codebook_dim * cfg.num_stages, device=device)
             if len(v):
-                view[present] = tok.quantizer.indices_to_codes(found).flatten(1)  # (P, N*d)
+                view[present] = tok.code_vectors(found).flatten(1)  # (P, N*K*S*d)
         identity = torch.zeros(b, h, len(self.hand_names), device=device)
         identity[present] = torch.nn.functional.one_hot(v, len(self.hand_names)).float()  # (P, V + E)
         identity = identity[..., : len(self.hand_vocabulary)]  # zero-shot hands: no identity the policy knows

@@ -6,10 +6,11 @@ lerobot 0.6).
 
 The state may be a whole robot: only the UDHM blocks (found by name) are tokenised.
 Keys written by `UniDexTokStateTokenizerStep`:
-- `observation.hand_tokens`: int64 `(H * N * K,)` codes, ordered (hand, token, group).
+- `observation.hand_tokens`: int64 `(H * N * K * S,)` codes, ordered (hand, token, stage-group); S = the
+  tokenizer's quantiser stages (1 unless it has residual stages).
 - `observation.environment_state`: float32 view for policies, `representation=`
   "dequantized" -> the decoded UDHM state, radians `(H * 22,)`;
-  "embedding"   -> the unit-norm code vectors `(H * N * codebook_dim,)`.
+  "embedding"   -> the unit-norm code vectors `(H * N * codebook_dim * S,)`.
 Both keep the input's leading shape ((), (B,), (B, T)) and device.
 """
 
@@ -65,8 +66,8 @@ def tokenizer_output_dims(
     appends a one-hot identity over its `vocabulary_size` hands per block."""
     if representation not in REPRESENTATIONS:
         raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {representation!r}")
-    tokens = num_hands * config.num_tokens * config.num_groups
-    width = UDHM_DIM if representation == "dequantized" else config.num_tokens * config.codebook_dim
+    tokens = num_hands * config.symbols_per_hand()
+    width = UDHM_DIM if representation == "dequantized" else config.num_tokens * config.codebook_dim * config.num_stages
     return tokens, num_hands * (width + vocabulary_size)
 
 
@@ -252,7 +253,7 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             view = decoded.reshape(b, h, UDHM_DIM) * self._active  # (B, H, 22), slots a hand lacks set to zero
         else:
             codes = tok.encode(rows.reshape(b * h, UDHM_DIM), ids, mask=mask, encoding=self.encoding)
-            view = tok.quantizer.indices_to_codes(codes).flatten(1)  # (B*H, N*K*d)
+            view = tok.code_vectors(codes).flatten(1)  # (B*H, N*K*S*d)
         return codes.reshape(b, -1), view.reshape(b, -1).float()
 
     @property

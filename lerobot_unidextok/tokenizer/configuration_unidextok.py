@@ -189,6 +189,16 @@ class UniDexTokConfig:
     dead_code_threshold: float = 0.03
     usage_decay: float = 0.99  # EMA decay of per-code usage counts
 
+    # --- residual stages (departure, an option; 0 = the paper's single factorised VQ) ----------------------------
+    # Each residual stage is a second factorised cosine VQ (same K groups x codebook_size codes) on what the stages
+    # before it left out: the decoder input the unsnapped group vectors would give minus what the codes give. The
+    # decoder reads the sum. Codes: (B, N, K) per stage, concatenated along the last axis (stage 1 first), so the
+    # first stage stays the paper's token sequence (`UniDexTok.encode(..., stages=1)`).
+    residual_stages: int = 0
+    # In training, this share of rows is decoded from the first stage alone (the later stages dropped, as
+    # SoundStream's quantizer dropout), so the first stage's codes also decode on their own.
+    residual_drop_prob: float = 0.25
+
     # --- encoding ----------------------------------------------------------------------------------
     # How `encode` picks codes (EncodingConfig: the nearest codes by default, the paper's; or the code search)
     encoding: EncodingConfig = field(default_factory=EncodingConfig)
@@ -233,6 +243,15 @@ class UniDexTokConfig:
         if self.codebook_update not in ("gradient", "ema"):
             raise ConfigError(f"codebook_update must be 'gradient' or 'ema', got {self.codebook_update!r}")
         self.encoding = EncodingConfig.from_dict(self.encoding)  # a dict from JSON or a keyword
+        if self.residual_stages < 0:
+            raise ConfigError(f"residual_stages must be >= 0 (0 = the paper's single VQ), got {self.residual_stages}")
+        if not 0.0 <= self.residual_drop_prob < 1.0:
+            raise ConfigError(f"residual_drop_prob must be in [0, 1), got {self.residual_drop_prob}")
+        if self.residual_stages and self.encoding.rounds:
+            raise ConfigError(
+                f"the code search picks one stage's codes: with residual_stages={self.residual_stages} the encoding "
+                "must be the nearest codes (encoding.rounds=0)"
+            )
         if min(self.mse_weight, self.smooth_l1_weight, self.l1_weight) < 0:
             raise ConfigError("mse_weight, smooth_l1_weight and l1_weight must be >= 0")
         if len(set(self.hand_names)) != len(self.hand_names):
@@ -275,6 +294,15 @@ class UniDexTokConfig:
     def group_dim(self) -> int:
         return self.codebook_dim // self.num_groups
 
+    @property
+    def num_stages(self) -> int:
+        """Quantiser stages: 1 (the paper's) + the residual stages."""
+        return 1 + self.residual_stages
+
+    def symbols_per_hand(self, stages: int | None = None) -> int:
+        """Codes one hand state becomes: N tokens x K groups per stage (None = every stage)."""
+        return self.num_tokens * self.num_groups * (self.num_stages if stages is None else stages)
+
     @classmethod
     def from_preset(cls, name: str, **overrides) -> "UniDexTokConfig":
         """A preset by name (see PRESETS), with optional field overrides."""
@@ -306,7 +334,7 @@ def _type_name(hint) -> str:
     return getattr(hint, "__name__", None) if typing.get_origin(hint) is None else str(hint).replace("typing.", "")
 
 
-# Named presets; keys double as the CLI choices. VQ is the paper's (256 -> 8 x 32-entry) in all.
+# Named presets; keys double as the CLI choices. VQ is the paper's (256 -> 8 x 32-entry) in all (first stage).
 PRESETS: dict[str, UniDexTokConfig] = {
     # Paper sizes (N=8, C=512); depth/heads are our documented choice (not published).
     "paper": UniDexTokConfig(num_tokens=8, hidden_dim=512, encoder_depth=4, decoder_depth=4, num_heads=8),
@@ -329,3 +357,5 @@ PRESETS: dict[str, UniDexTokConfig] = {
     ),
     "tiny": UniDexTokConfig(num_tokens=4, hidden_dim=64, encoder_depth=1, decoder_depth=1, num_heads=4),
 }
+# small_residual: small + one residual stage (departure, #48): 2 x 64 codes a hand, the first 64 the paper's sequence
+PRESETS["small_residual"] = replace(PRESETS["small"], residual_stages=1)

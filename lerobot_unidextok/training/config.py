@@ -6,7 +6,7 @@ the first field of each section has one of the first two, so the section divider
 
 from dataclasses import dataclass, field
 
-from lerobot_unidextok.tokenizer.configuration_unidextok import EncodingConfig
+from lerobot_unidextok.tokenizer.configuration_unidextok import EncodingConfig, UniDexTokConfig
 from lerobot_unidextok.training.coverage import CoverageConfig
 
 
@@ -39,7 +39,7 @@ class TrainConfig:
     row_store_dir: str = ""  # where the stores go; default <output_dir>/row_store
 
     # --- model ------------------------------------------------------------------------------------
-    preset: str = "small"  # UniDexTokConfig preset: paper | small | tiny
+    preset: str = "small"  # UniDexTokConfig preset: paper | small | small_residual | tiny
     # Hands to give an embedding row besides the training hands, which always get one (listed first, then the
     # training hands). Other hands, e.g. those left out with exclude_hands, go through the unknown-hand row.
     hand_names: list[str] = field(default_factory=list)
@@ -103,6 +103,8 @@ class TrainConfig:
     progress: bool = True  # tqdm bar
 
     def __post_init__(self) -> None:
+        if self.encoding is not None and self.init_from is None:  # checked with the preset, before any data loads
+            UniDexTokConfig.from_preset(self.preset, encoding=self.encoding)  # e.g. residual stages take rounds=0
         if not 0.0 < self.fraction <= 1.0:
             raise ValueError(f"fraction must be in (0, 1], got {self.fraction}")
         if self.steps < 1 and self.epochs <= 0:

@@ -388,10 +388,12 @@ def _sync_codebooks(cfg: TrainConfig, model: UniDexTok, step: int, n_steps: int,
     process on process 0's codes."""
     reseeding = cfg.adapt == "all" and cfg.reseed_every > 0 and step < cfg.reseed_until * n_steps
     if reseeding and (step + 1) % cfg.reseed_every == 0:
-        model.quantizer.reseed_dead_codes()
-        broadcast_from_main(model.quantizer)  # re-seeded from each process's own batch: keep process 0's
+        model.reseed_dead_codes()  # every quantiser stage
+        for vq in model.quantizers:
+            broadcast_from_main(vq)  # re-seeded from each process's own batch: keep process 0's
     elif model.config.codebook_update == "ema" and num_processes > 1:
-        broadcast_from_main(model.quantizer)  # EMA codes move with each process's batch: keep process 0's
+        for vq in model.quantizers:
+            broadcast_from_main(vq)  # EMA codes move with each process's batch: keep process 0's
 
 
 def _show_progress(bar, out, x: torch.Tensor, m: torch.Tensor, model: UniDexTok, lr: float) -> None:
