@@ -23,7 +23,9 @@ tokenizer step on the converted state.
 the nearest codes, the code search as shipped before (sweeps, 2 rounds x 2), and the checkpoint's own encoding
 (the default of `encode` and of the step), each an `EncodingConfig` override of the step: the step's CPU ms per two-hand frame at batch 1 and per hand-row at
 batch 256 (ratios to the nearest codes), and MPJAE (deg) of each on `--error_rows` states uniform inside each of
-`--error_hands`' registered ranges (seed `--error_seed`; the card's in-range figures use seed 0).
+`--error_hands`' registered ranges (seed `--error_seed`; the card's in-range figures use seed 0). `--candidates`
+adds other tokenizers (folders, ids), each with its own encoding (e.g. a residual model's nearest codes of both
+stages), to the same table and the same ratios.
 
 `--select_action` runs a robot's loop: every tick the pre-processor, `select_action` and the post-processor of a
 LeRobot ACT (`--act_config`'s sizes, re-predicting every tick) on one G1-like frame (14 arm joints + two Inspire
@@ -87,6 +89,7 @@ def main() -> None:
     parser.add_argument("--encodings", action="store_true", help="compare a trained tokenizer's encodings")
     parser.add_argument("--select_action", action="store_true", help="a robot's loop around select_action")
     parser.add_argument("--pretrained", default=DEFAULT_TOKENIZER, help="tokenizer of --encodings / --select_action")
+    parser.add_argument("--candidates", nargs="*", default=[], help="--encodings: more tokenizers, own encoding")
     parser.add_argument("--error_hands", nargs="+", default=["inspire_rh56_unitree", "human"])
     parser.add_argument("--error_rows", type=int, default=1000, help="in-range states per hand for the MPJAE")
     parser.add_argument("--error_seed", type=int, default=1, help="their seed (not 0, the card's)")
@@ -204,6 +207,7 @@ def compare_encodings(args) -> None:
 
     frames, names = g1_frames(256)
     steps = {label: encoding_step(args.pretrained, names, enc) for label, enc in ENCODINGS.items()}
+    steps |= {f"candidate {path}": encoding_step(path, names, None) for path in args.candidates}
     sets = {hand: range_states(hand, args.error_rows, args.error_seed) for hand in args.error_hands}
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, load average {os.getloadavg()[0]:.1f} on "
           f"{os.cpu_count()} cores; tokenizer {args.pretrained}; the step on G1-like frames (two Inspire hands); "
@@ -224,11 +228,12 @@ def compare_encodings(args) -> None:
                 back = tok.decode(tok.encode(x, hand, mask=m, encoding=st.encoding), hand)
                 err[label][hand] = mpjae_deg(back.numpy(), data.states_rad, data.masks)
     head = " | ".join(f"MPJAE {h} (deg)" for h in args.error_hands)
-    print(f"\n| encoding | {head} | CPU ms per frame, batch 1 | x nearest | CPU ms per hand-row, batch 256 | x nearest |")
-    print("|" + "---|" * (5 + len(args.error_hands)))
+    print(f"\n| encoding | {head} | symbols per hand | CPU ms per frame, batch 1 | x nearest | CPU ms per hand-row, "
+          "batch 256 | x nearest |")  # fmt: skip
+    print("|" + "---|" * (6 + len(args.error_hands)))
     for i, (label, st) in enumerate(steps.items()):
         errs = " | ".join(f"{err[label][h]:.3f}" for h in args.error_hands)
-        print(f"| {label}: {describe(st)} | {errs} | {cost[1][i]:.2f} | {cost[1][i] / cost[1][0]:.1f} | "
+        print(f"| {label}: {describe(st)} | {errs} | {st.tokenizer.config.symbols_per_hand()} | {cost[1][i]:.2f} | {cost[1][i] / cost[1][0]:.1f} | "
               f"{cost[256][i]:.3f} | {cost[256][i] / cost[256][0]:.1f} |")  # fmt: skip
 
 
