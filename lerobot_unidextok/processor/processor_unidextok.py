@@ -159,6 +159,10 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             self.pretrained = None  # the weights are this preset's, not the default checkpoint's
             self._tokenizer = UniDexTok(UniDexTokConfig.from_preset(preset)).eval()
         self.tokenizer_config = asdict(self._tokenizer.config)
+        stages = self._tokenizer.config.num_stages
+        if self.encoding is not None and self.encoding.rounds and stages > 1:
+            raise ValueError(f"the code search picks one stage's codes and this tokenizer has {stages}: give the step "
+                             "the nearest codes (encoding=NEAREST_CODES, --policy.udt_encoding.rounds=0) or none")  # fmt: skip
 
     def _upgrade_legacy_rounds(self, search_rounds: int | None) -> None:
         """A step saved before EncodingConfig (`search_rounds`=R): the tokenizer's own encoding with R rounds, as it

@@ -149,3 +149,6 @@ def test_the_processor_step_emits_every_stage(tmp_path, representation):
     assert view.shape == (5, width)
     want = step.tokenizer.encode(x, hand)  # (10, N, 2K)
     assert torch.equal(tokens.reshape(10, cfg.num_tokens, 2 * cfg.num_groups), want)
+    with pytest.raises(ValueError, match="the code search picks one stage's codes and this tokenizer has 2"):
+        UniDexTokStateTokenizerStep(hand_layout=[hand], pretrained=str(tmp_path / "tok"),
+                                    encoding=EncodingConfig(rounds=1))  # fmt: skip
