@@ -17,13 +17,15 @@ tokenizer step on the converted state.
     .venv/bin/python benchmarks/bench_processor.py --threads 1 --num_hands 1 --presets small --batches 1
     .venv/bin/python benchmarks/bench_processor.py --threads 1 --layout robot --presets small --batches 1
     .venv/bin/python benchmarks/bench_processor.py --threads 1 --layout robot --presets small --native
-    .venv/bin/python benchmarks/bench_processor.py --threads 1 --presets small --search_rounds 2   # code search
+    .venv/bin/python benchmarks/bench_processor.py --threads 1 --presets small --encoding_rounds 2   # code search
 
 `--encodings` compares the encodings of a trained tokenizer (`--pretrained`, default the shipped one) in one run:
 the nearest codes, the code search as shipped before (sweeps, 2 rounds x 2), and the checkpoint's own encoding
-(the default of `encode` and of the step): the step's CPU ms per two-hand frame at batch 1 and per hand-row at
+(the default of `encode` and of the step), each an `EncodingConfig` override of the step: the step's CPU ms per two-hand frame at batch 1 and per hand-row at
 batch 256 (ratios to the nearest codes), and MPJAE (deg) of each on `--error_rows` states uniform inside each of
-`--error_hands`' registered ranges (seed `--error_seed`; the card's in-range figures use seed 0).
+`--error_hands`' registered ranges (seed `--error_seed`; the card's in-range figures use seed 0). `--candidates`
+adds other tokenizers (folders, ids), each with its own encoding (e.g. a residual model's nearest codes of both
+stages), to the same table and the same ratios.
 
 `--select_action` runs a robot's loop: every tick the pre-processor, `select_action` and the post-processor of a
 LeRobot ACT (`--act_config`'s sizes, re-predicting every tick) on one G1-like frame (14 arm joints + two Inspire
@@ -50,6 +52,7 @@ from lerobot.processor import PolicyProcessorPipeline
 from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_STATE
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 from lerobot_unidextok.processor import NativeLayout, NativeToUDHMStateStep, UniDexTokStateTokenizerStep
+from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fixtures"))
 from robot_udhm import ARM_NAMES, INSPIRE, STATE_NAMES, native_motion, to_converted
@@ -81,10 +84,12 @@ def main() -> None:
     parser.add_argument("--layout", choices=("hands", "robot"), default="hands", help="robot: 14 arm joints first")
     parser.add_argument("--threads", type=int, default=0, help="torch threads (0 = torch default)")
     parser.add_argument("--native", action="store_true", help="also time unidextok.native_to_udhm (native input)")
-    parser.add_argument("--search_rounds", type=int, default=0, help="code search rounds of the step (0 = nearest)")
+    parser.add_argument("--encoding_rounds", type=int, default=0,
+                        help="the step's encoding: EncodingConfig(rounds=this) (0 = nearest codes)")  # fmt: skip
     parser.add_argument("--encodings", action="store_true", help="compare a trained tokenizer's encodings")
     parser.add_argument("--select_action", action="store_true", help="a robot's loop around select_action")
     parser.add_argument("--pretrained", default=DEFAULT_TOKENIZER, help="tokenizer of --encodings / --select_action")
+    parser.add_argument("--candidates", nargs="*", default=[], help="--encodings: more tokenizers, own encoding")
     parser.add_argument("--error_hands", nargs="+", default=["inspire_rh56_unitree", "human"])
     parser.add_argument("--error_rows", type=int, default=1000, help="in-range states per hand for the MPJAE")
     parser.add_argument("--error_seed", type=int, default=1, help="their seed (not 0, the card's)")
@@ -113,7 +118,7 @@ def main() -> None:
         f"torch {torch.__version__}, {torch.get_num_threads()} threads, CPU, load average "
         f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; median of {args.repeats} (batch 1) / "
         f"{args.repeats_large} (larger) calls; state layout {args.layout} ({len(names)} columns); code search "
-        f"rounds {args.search_rounds}"
+        f"rounds {args.encoding_rounds}"
     )
     print(
         f"{'preset':<7} {'batch':>5} {'states':>6} | {'step CPU ms':>11} {'CPU ms/state':>12} {'wall ms':>9} | "
@@ -121,8 +126,8 @@ def main() -> None:
     )
     native_rows = []
     for preset in args.presets:
-        step = UniDexTokStateTokenizerStep(hand_layout=hands, state_names=names, preset=preset,
-                                           search_rounds=args.search_rounds)
+        encoding = EncodingConfig(rounds=args.encoding_rounds)
+        step = UniDexTokStateTokenizerStep(hand_layout=hands, state_names=names, preset=preset, encoding=encoding)
         pipe = PolicyProcessorPipeline(steps=[step], name="policy_preprocessor")
         to_udhm = NativeToUDHMStateStep.from_layout(native_layout)
         native_pipe = PolicyProcessorPipeline(steps=[to_udhm], name="policy_preprocessor")
@@ -139,8 +144,8 @@ def main() -> None:
             def run_step(x=x, pipe=pipe):
                 pipe({OBS_STATE: x})
 
-            def run_bare(rows=rows, row_hands=row_hands, tok=tok):
-                tok.decode(tok.encode(rows, row_hands, search_rounds=args.search_rounds), row_hands)
+            def run_bare(rows=rows, row_hands=row_hands, tok=tok, encoding=encoding):
+                tok.decode(tok.encode(rows, row_hands, encoding=encoding), row_hands)
 
             def run_native(xn=xn, native_pipe=native_pipe):
                 native_pipe({OBS_STATE: xn})
@@ -172,11 +177,11 @@ def main() -> None:
 # ---------------------------------------------------------------------------------------------
 # a trained tokenizer's encodings, and the step inside a robot's loop
 # ---------------------------------------------------------------------------------------------
-ENCODINGS = {  # label -> UniDexTok.with_encoding keywords ({} = the checkpoint's own encoding)
-    "nearest codes": {"search_rounds": 0},
-    "code search as shipped before (sweeps, 2 x 2)": {"search_method": "sweeps", "search_rounds": 2, "search_sweeps": 2},
-    "default (the checkpoint's encoding)": {},
-    "its first round only (search_rounds=1)": {"search_rounds": 1},
+ENCODINGS: dict[str, EncodingConfig | None] = {  # label -> the step's override (None = the checkpoint's own)
+    "nearest codes": NEAREST_CODES,
+    "code search as shipped before (sweeps, 2 x 2)": EncodingConfig(rounds=2, method="sweeps", sweeps=2),
+    "default (the checkpoint's encoding)": None,
+    "one round of the greedy search": EncodingConfig(rounds=1),
 }
 
 
@@ -186,17 +191,14 @@ def g1_frames(frames: int) -> tuple[torch.Tensor, list[str]]:
     return torch.from_numpy(converted).float(), list(ARM_NAMES + STATE_NAMES[14:])
 
 
-def encoding_step(pretrained: str, names: list[str], encoding: dict) -> UniDexTokStateTokenizerStep:
-    """The tokenizer step on two Inspire blocks with `pretrained` set to `encoding` (the step follows it)."""
-    step = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE], state_names=names, pretrained=pretrained)
-    step.tokenizer.with_encoding(**encoding)
-    return step
+def encoding_step(pretrained: str, names: list[str], encoding: EncodingConfig | None) -> UniDexTokStateTokenizerStep:
+    """The tokenizer step on two Inspire blocks of `pretrained`, encoding with `encoding` (None: the tokenizer's)."""
+    return UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE], state_names=names, pretrained=pretrained,
+                                       encoding=encoding)  # fmt: skip
 
 
-def describe(config) -> str:
-    from lerobot_unidextok.evaluation.report import encoding
-
-    return encoding(config)
+def describe(step: UniDexTokStateTokenizerStep) -> str:
+    return (step.encoding or step.tokenizer.config.encoding).describe()
 
 
 def compare_encodings(args) -> None:
@@ -205,6 +207,7 @@ def compare_encodings(args) -> None:
 
     frames, names = g1_frames(256)
     steps = {label: encoding_step(args.pretrained, names, enc) for label, enc in ENCODINGS.items()}
+    steps |= {f"candidate {path}": encoding_step(path, names, None) for path in args.candidates}
     sets = {hand: range_states(hand, args.error_rows, args.error_seed) for hand in args.error_hands}
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, load average {os.getloadavg()[0]:.1f} on "
           f"{os.cpu_count()} cores; tokenizer {args.pretrained}; the step on G1-like frames (two Inspire hands); "
@@ -222,18 +225,20 @@ def compare_encodings(args) -> None:
             tok = st.tokenizer
             for hand, data in sets.items():
                 x, m = torch.tensor(data.states_rad), torch.tensor(data.masks)
-                back = tok.decode(tok.encode(x, hand, mask=m), hand)
+                back = tok.decode(tok.encode(x, hand, mask=m, encoding=st.encoding), hand)
                 err[label][hand] = mpjae_deg(back.numpy(), data.states_rad, data.masks)
     head = " | ".join(f"MPJAE {h} (deg)" for h in args.error_hands)
-    print(f"\n| encoding | {head} | CPU ms per frame, batch 1 | x nearest | CPU ms per hand-row, batch 256 | x nearest |")
-    print("|" + "---|" * (5 + len(args.error_hands)))
+    print(f"\n| encoding | {head} | symbols per hand | CPU ms per frame, batch 1 | x nearest | CPU ms per hand-row, "
+          "batch 256 | x nearest |")  # fmt: skip
+    print("|" + "---|" * (6 + len(args.error_hands)))
     for i, (label, st) in enumerate(steps.items()):
         errs = " | ".join(f"{err[label][h]:.3f}" for h in args.error_hands)
-        print(f"| {label}: {describe(st.tokenizer.config)} | {errs} | {cost[1][i]:.2f} | {cost[1][i] / cost[1][0]:.1f} | "
+        print(f"| {label}: {describe(st)} | {errs} | {st.tokenizer.config.symbols_per_hand()} | {cost[1][i]:.2f} | {cost[1][i] / cost[1][0]:.1f} | "
               f"{cost[256][i]:.3f} | {cost[256][i] / cost[256][0]:.1f} |")  # fmt: skip
 
 
-def act_policy(names: list[str], frames: torch.Tensor, act_config: str, pretrained: str | None, encoding: dict):
+def act_policy(names: list[str], frames: torch.Tensor, act_config: str, pretrained: str | None,
+               encoding: EncodingConfig | None):  # fmt: skip
     """(policy, pre, post, step): LeRobot's ACT with `act_config`'s sizes on the G1-like state, re-predicting every
     tick; `pretrained` None = the stock ACT on the state alone (step None), else `act_udt` with that tokenizer."""
     import yaml
@@ -258,19 +263,18 @@ def act_policy(names: list[str], frames: torch.Tensor, act_config: str, pretrain
         cfg = ACTConfig(device="cpu", **features, **sizes)
         return ACTPolicy(cfg).eval(), *make_act_pre_post_processors(cfg, dataset_stats=stats), None
     cfg = ACTUdtConfig(device="cpu", **features, **sizes, udt_pretrained=pretrained, udt_hand_layout=[INSPIRE, INSPIRE],
-                       udt_state_names=names, udt_native_action=False, udt_native_state=False)  # fmt: skip
+                       udt_state_names=names, udt_native_action=False, udt_native_state=False, udt_encoding=encoding)  # fmt: skip
     cfg.validate_features()
     from lerobot_unidextok.policies.act_udt import ACTUdtPolicy
 
     pre, post = make_act_udt_pre_post_processors(cfg, dataset_stats=stats)
     step = next(s for s in pre.steps if isinstance(s, UniDexTokStateTokenizerStep))
-    step.tokenizer.with_encoding(**encoding)
     return ACTUdtPolicy(cfg).eval(), pre, post, step
 
 
 def select_action_loop(args) -> None:
     frames, names = g1_frames(args.ticks + 50)
-    loops = {"bare ACT (state only)": act_policy(names, frames, args.act_config, None, {})}
+    loops = {"bare ACT (state only)": act_policy(names, frames, args.act_config, None, None)}
     for label, enc in ENCODINGS.items():
         loops[f"act_udt, {label}"] = act_policy(names, frames, args.act_config, args.pretrained, enc)
     tick: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in loops}

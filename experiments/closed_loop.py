@@ -25,7 +25,7 @@ Arms, per task, target hand and seed (the target's demonstrations: a seed's rand
   (unidextok-mix), bound to the target;
 - `packed`: the same episodes with each hand's native joints packed at the front of the block and zero-padded;
 - `tokens_nearest`, `tokens_search`: `mix` with the hands given to the model only as the shipped tokenizer's
-  (`--tokenizer`) tokens (dequantized; the nearest codes, or the tokenizer's own encoding, its code search, unless `search_rounds`
+  (`--tokenizer`) tokens (dequantized; the nearest codes, or the tokenizer's own encoding, its code search, unless `encoding`
   is set) instead of the UDHM state (`udt_hand_input=tokens`; every other arm reads the state, `udt_hand_input=state`);
 - `zero_shot`: every demonstration of the other two hands, none of the target's, bound with `--zero_shot=true`.
 Also measured: the scripted expert on the same evaluation episodes.
@@ -51,6 +51,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 from experiments import runtime
 from experiments.common import git_commit, md_table
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 
 logger = logging.getLogger(__name__)
 NAME = "closed_loop"
@@ -78,9 +79,10 @@ class ClosedLoopConfig:
     steps: int = 400  # lerobot-train updates per policy
     batch_size: int = 32
     n_action_steps: int = 10  # actions of each predicted chunk (act_udt_cpu.yaml: chunk 10) run before predicting again
-    # the code search of `tokens_search`: None = the shipped tokenizer's own encoding, the package's default (greedy,
-    # docs/tokenizer.md "Code search"); a number overrides its rounds. `tokens_nearest` always uses 0.
-    search_rounds: int | None = None
+    # the encoding of `tokens_search`: None = the shipped tokenizer's own, the package's default (greedy code search,
+    # docs/tokenizer.md "Code search"); an EncodingConfig (--encoding.rounds=1 ...) replaces it. `tokens_nearest`
+    # always uses the nearest codes.
+    encoding: EncodingConfig | None = None
     tokenizer: str = DEFAULT_TOKENIZER  # the tokens arms' tokenizer (shipped id, folder or Hub repo id)
     eval_episodes: int = 50
     eval_seed: int = 1000  # lerobot-eval's default: episode i is drawn from eval_seed + i
@@ -314,6 +316,11 @@ def jobs(cfg: ClosedLoopConfig) -> list[dict]:
     return out
 
 
+def encoding_flags(encoding: EncodingConfig | None) -> list[str]:
+    """The lerobot-train flags giving a `<type>_udt` policy this encoding override (None: none, the tokenizer's)."""
+    return [] if encoding is None else [f"--policy.udt_encoding.{k}={v}" for k, v in dataclasses.asdict(encoding).items()]
+
+
 def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
     task, hand, seed, arm = job["task"], job["hand"], job["seed"], job["arm"]
     key = f"{task}/{hand}/{arm}/seed{seed}"
@@ -326,7 +333,7 @@ def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
     out = folder / policies / task / hand / f"{arm}_seed{seed}"
     # the token view is zeroed for these arms, so the tokenizer behind it cannot matter: an untrained one (what
     # act_udt_cpu.yaml gave until 2026-12-04, when these arms were run) through its nearest codes, the cheapest
-    state = ["--policy.udt_hand_input=state", "--policy.udt_pretrained=null", "--policy.udt_search_rounds=0"]
+    state = ["--policy.udt_hand_input=state", "--policy.udt_pretrained=null", *encoding_flags(NEAREST_CODES)]
     tokens = ["--policy.udt_hand_input=tokens", f"--policy.udt_pretrained={cfg.tokenizer}"]
     cpu0, t0 = time.process_time(), time.time()
     if arm.startswith("alone"):
@@ -344,9 +351,9 @@ def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
         chosen = [e for i in target for e in by_hand[hand][i]]
         episodes = sorted(chosen + [e for h, by_source in by_hand.items() if h != hand for e in every_episode(by_source)])
         # packed blocks are not UDHM: the tokenizer's range check would refuse them (its view is zero here anyway)
-        search = [] if cfg.search_rounds is None else [f"--policy.udt_search_rounds={cfg.search_rounds}"]
+        search = encoding_flags(cfg.encoding)
         flags = {"mix": state, "packed": [*state, '--policy.udt_range_check="off"'],
-                 "tokens_nearest": [*tokens, "--policy.udt_search_rounds=0"], "tokens_search": [*tokens, *search]}[arm]  # fmt: skip
+                 "tokens_nearest": [*tokens, *encoding_flags(NEAREST_CODES)], "tokens_search": [*tokens, *search]}[arm]  # fmt: skip
         model = train_policy(cfg, mix_root, episodes, out, seed, flags)
         bound = bind(model, own[mapping], out / "bound")
     train_cpu = time.process_time() - cpu0

@@ -5,8 +5,8 @@ gives), and with the quantiser's snapping left out (the decoder fed the unit-nor
 searched for, `quantizer.unit_groups`). The second error is what the same networks would reach with infinitely
 fine codes; the difference is the cost of snapping to 32 codes per group. The mean cosine between each group
 vector and its code says how close the encoder already puts its vectors to the codes. A third path keeps the
-codes but picks them with the decoder-aware code search (`tokenizer/search.py`, `--search_rounds` rounds of
-`search_sweeps` in the model's config): how much of the snapping cost better-chosen codes win back. Last, how
+codes but picks them with the decoder-aware code search (`tokenizer/search.py`; the checkpoint's own encoding,
+or `--encoding.*`): how much of the snapping cost better-chosen codes win back. Last, how
 stable each encoding is: the share of code positions that change when every active joint moves by NUDGE_DEG.
 
     python experiments/error_split.py                         # the shipped unidextok/universal-small
@@ -30,6 +30,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 from experiments import runtime
 from experiments.common import git_commit, md_table
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 
 NAME = "error_split"
 NUDGE_DEG = 0.5  # joint motion for the codes' sensitivity: about the tokenizer's own error
@@ -44,11 +45,12 @@ class ErrorSplitConfig:
     )
     range_rows: int = 2000  # states per registered hand uniform inside its registered ranges (0 = none)
     range_seed: int = 1  # not 0: the card's in-range figures use seed 0
-    search_rounds: int = 2  # rounds of the code search of the third path (the shipped setting)
+    # the encoding of the third path: None = the checkpoint's own (the shipped one's: 2 rounds of the greedy search)
+    encoding: EncodingConfig | None = None
     output_root: str = "outputs/experiments"
 
 
-def split_errors(model, data, search_rounds: int = 2) -> dict:
+def split_errors(model, data, encoding: EncodingConfig | None = None) -> dict:
     """{rows, coded_deg, unsnapped_deg, searched_deg, cosine, changed_nearest, changed_searched} of one set of
     hand states (`HandStates`)."""
     import torch
@@ -66,25 +68,25 @@ def split_errors(model, data, search_rounds: int = 2) -> dict:
         unsnapped = model._decode_latent(vq.project_out(u.flatten(-2)), c)  # (B, 22)
         cosine = (u * vq.indices_to_codes(codes)).sum(-1).mean()
         found = model.encode(x, list(data.hands), allow_unknown=True, mask=torch.tensor(data.masks),
-                             search_rounds=search_rounds)  # (B, N, K)
+                             encoding=encoding)  # (B, N, K)
         searched = model._decode_latent(vq.get_output_from_indices(found), c)  # (B, 22)
     return {"rows": len(x), "coded_deg": mpjae_deg(coded.numpy(), data.states_rad, data.masks),
             "unsnapped_deg": mpjae_deg(unsnapped.numpy(), data.states_rad, data.masks),
             "searched_deg": mpjae_deg(searched.numpy(), data.states_rad, data.masks), "cosine": float(cosine),
-            "changed_nearest": changed_share(model, x, data, codes, 0),
-            "changed_searched": changed_share(model, x, data, found, search_rounds)}  # fmt: skip
+            "changed_nearest": changed_share(model, x, data, codes, NEAREST_CODES),
+            "changed_searched": changed_share(model, x, data, found, encoding)}  # fmt: skip
 
 
-def changed_share(model, x, data, codes, search_rounds: int) -> float:
+def changed_share(model, x, data, codes, encoding: EncodingConfig | None) -> float:
     """Mean share of the N x K code positions that change when every active joint of every row moves by
-    NUDGE_DEG (random sign, seed 0), the codes picked as in `codes` (the nearest codes for 0 rounds)."""
+    NUDGE_DEG (random sign, seed 0), the codes picked as `codes` were (`encoding`, None = the model's own)."""
     import numpy as np
     import torch
 
     signs = np.random.default_rng(0).choice([-1.0, 1.0], size=data.states_rad.shape)  # (B, 22)
     moved = x + torch.as_tensor(np.radians(NUDGE_DEG) * signs * data.masks, dtype=torch.float32)  # (B, 22)
     again = model.encode(moved, list(data.hands), allow_unknown=True, mask=torch.tensor(data.masks),
-                         search_rounds=search_rounds)  # (B, N, K)
+                         encoding=encoding)  # (B, N, K)
     return float((again != codes).float().mean())
 
 
@@ -100,7 +102,8 @@ def run(cfg: ErrorSplitConfig) -> dict:
         raise FileNotFoundError(f"none of {cfg.datasets} exists and range_rows=0: nothing to score")
     result = {"experiment": NAME, "checkpoint": cfg.checkpoint, "config": dataclasses.asdict(cfg),
               "skipped_datasets": skipped,
-              "sets": {name: split_errors(model, data, cfg.search_rounds) for name, data in sets.items()},
+              "encoding": (cfg.encoding or model.config.encoding).describe(),
+              "sets": {name: split_errors(model, data, cfg.encoding) for name, data in sets.items()},
               "git_commit": git_commit(), "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
     folder = Path(cfg.output_root) / NAME
     folder.mkdir(parents=True, exist_ok=True)
@@ -119,7 +122,7 @@ def markdown(result: dict) -> str:
         f"# {NAME}", "",
         f"Checkpoint `{result['checkpoint']}`. MPJAE (deg) through the codes, and with the decoder fed the "
         "unsnapped group vectors (no code snapping); cosine = mean cosine between a group vector and its code; "
-        f"searched = through codes picked by the code search ({result['config']['search_rounds']} round(s)); "
+        f"searched = through codes picked by the code search ({result.get('encoding', 'its own encoding')}); "
         f"codes changed = mean share of the 64 code positions that change when every active joint moves by "
         f"{NUDGE_DEG} deg, nearest / searched." + note, "",
         md_table(["set", "rows", "through codes (deg)", "unsnapped (deg)", "snapping costs (deg)", "cosine",

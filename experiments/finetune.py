@@ -40,6 +40,7 @@ from experiments import runtime
 from experiments.common import git_commit, md_table
 from lerobot_unidextok.configs import resolve_config_path
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 from lerobot_unidextok.tokenizer.configuration_unidextok import ENCODING_FIELDS
 from lerobot_unidextok.utils.files import fingerprint
 
@@ -60,9 +61,10 @@ class FinetuneConfig:
     # Train only these conditions ("scratch", "fine-tuned"; empty = both), e.g. the scratch rows while the
     # checkpoint is still being trained. A later run without it reuses them from the cache.
     only: list[str] = field(default_factory=list)
-    # Every kept model is also scored with this many rounds of the code search (docs/tokenizer.md "Code search";
-    # the shipped setting); the main columns use the nearest codes, as each model was trained. 0 = no second score.
-    search_rounds: int = 2
+    # Every kept model is also scored with this encoding (docs/tokenizer.md "Code search"; default the shipped
+    # model's: 2 rounds of the greedy search, rows within 0.1 deg stop); the main columns use the nearest codes, as
+    # each model was trained. null = no second score.
+    searched: EncodingConfig | None = field(default_factory=lambda: EncodingConfig(rounds=2, tolerance_deg=0.1))
     output_root: str = "outputs/experiments"
 
     def __post_init__(self) -> None:
@@ -164,12 +166,12 @@ def load_dataset(cfg: FinetuneConfig, holdout: str):
     return train, test
 
 
-def scores(model, test, search_rounds: int = 0) -> dict:
-    """Overall and per-hand MPJAE (deg), MPJPE (mm), fingertip error (mm) on the test rows, encoded with
-    `search_rounds` rounds of code search (0 = the nearest codes, whatever the model's config says)."""
+def scores(model, test, encoding: EncodingConfig = NEAREST_CODES) -> dict:
+    """Overall and per-hand MPJAE (deg), MPJPE (mm), fingertip error (mm) on the test rows, encoded with `encoding`
+    (default the nearest codes, whatever the model's config says)."""
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer
 
-    model.with_encoding(search_rounds=search_rounds)
+    model.with_encoding(encoding)
     report = evaluate_tokenizer(model, test)
     per_hand = {h: {**{k: float(e[k]) for k in METRICS}, "rows": int(e["rows"])} for h, e in report["per_hand"].items()}
     return {"overall": {k: float(report["overall"][k]) for k in METRICS}, "per_hand": per_hand}
@@ -239,10 +241,10 @@ def run(cfg: FinetuneConfig) -> dict:
             with cache.open("a") as f:
                 f.write(json.dumps(r) + "\n")
         runs.append(r)
-    if cfg.search_rounds:  # not cached: seconds per model, and no training
+    if cfg.searched is not None:  # not cached: seconds per model, and no training
         for r in runs:
             model = pretrained if r["condition"] == CHECKPOINT else UniDexTok.from_pretrained(r["model_dir"])
-            r["searched"] = scores(model, test, cfg.search_rounds)["overall"]
+            r["searched"] = scores(model, test, cfg.searched)["overall"]
     result = {"experiment": NAME, "dataset": cfg.dataset, "checkpoint": cfg.checkpoint,
               "checkpoint_fingerprint": checkpoint_id, "data_fingerprint": data_id,
               "test_episodes": _episodes(test), "train_episodes": _episodes(train), "test_rows": len(test),
@@ -285,7 +287,7 @@ def markdown(result: dict) -> str:
              _cell(s, "searched_mpjae_deg") if "searched_mpjae_deg" in s else "-",
              ", ".join("-" if b is None else str(b) for b in s["best_steps"]), f"{s['train_cpu_s']:.0f}"]
             for s in result["summary"]]  # fmt: skip
-    rounds = result["config"].get("search_rounds", 0)
+    searched = result["config"].get("searched")
     return "\n".join([
         f"# {NAME}", "",
         f"Dataset {result['dataset']}: trained on its train-split episodes {result['train_episodes']} (the recipe's "
@@ -294,8 +296,8 @@ def markdown(result: dict) -> str:
         f"(weights {result['checkpoint_fingerprint']}); recipe {result['config']['recipe']} with the steps, lr and "
         "seed of each row. Mean (+- std over seeds); CPU s = training CPU time (time.process_time, one torch "
         "thread). MPJAE, MPJPE and fingertip through the nearest codes; "
-        + (f"'code search' = MPJAE with codes picked by {rounds} round(s) of the code search." if rounds
-           else "no code search score."), "",
+        + (f"'code search' = MPJAE with codes picked by the {EncodingConfig.from_dict(searched).describe()}."
+           if searched else "no code search score."), "",
         md_table(["model", "steps", "lr", "seeds", "MPJAE (deg)", "MPJPE (mm)", "fingertip (mm)",
                   "MPJAE, code search (deg)", "best step", "CPU s"], rows),
     ])  # fmt: skip

@@ -36,6 +36,7 @@ from experiments import runtime
 from experiments.common import git_commit, md_table
 from experiments.policy_data import HAND_INPUTS, TOKEN_INPUTS, RobotFrames
 from experiments.policy_training import SmallACT
+from lerobot_unidextok.tokenizer import EncodingConfig
 from lerobot_unidextok.training.config import TrainConfig
 
 logger = logging.getLogger(__name__)
@@ -55,7 +56,7 @@ class TokenizerTraining(TrainConfig):
     eval_every: int = 250
     # written into the fold's checkpoint: the token inputs use the package's default encoding (the greedy code
     # search, one round), as the shipped tokenizer and the processor step do
-    search_rounds: int | None = 1
+    encoding: EncodingConfig | None = field(default_factory=lambda: EncodingConfig(rounds=1))
 
 
 @dataclass

@@ -58,7 +58,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 from experiments import runtime
 from experiments.common import git_commit, md_table
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
-from lerobot_unidextok.tokenizer.configuration_unidextok import check_encoding
+from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 from lerobot_unidextok.training import HandStates
 
 NAME = "rate_distortion"
@@ -78,9 +78,9 @@ class RateDistortionConfig:
     range_seed: int = 1  # not 0: the card's in-range figures use seed 0
     fit_rows: int = 2000  # in-range states per hand (seed range_seed + 1) the entropy coders' priors are fitted on
     max_bits: int = 12  # binning at b = 1..max_bits bits per active joint
-    # Code search rounds when encoding (docs/tokenizer.md "Code search"): None = the checkpoint config's,
-    # 0 = the nearest codes (the paper's encoding).
-    search_rounds: int | None = None
+    # How codes are picked (docs/tokenizer.md "Code search"): None = the checkpoint's own encoding,
+    # --encoding.rounds=0 = the nearest codes (the paper's encoding).
+    encoding: EncodingConfig | None = None
     output_root: str = "outputs/experiments"
 
     def __post_init__(self) -> None:
@@ -90,7 +90,6 @@ class RateDistortionConfig:
             raise ValueError(f"range_rows must be >= 0, got {self.range_rows}")
         if self.fit_rows < 1:
             raise ValueError(f"fit_rows must be >= 1 (the entropy coders' priors are fitted on them), got {self.fit_rows}")
-        check_encoding(self.search_rounds)
         if self.range_seed == 0:
             raise ValueError("range_seed 0 draws the card's own in-range states; pick another seed, e.g. 1")
         if not self.datasets and self.range_rows == 0:
@@ -146,14 +145,13 @@ def slb_bits(data: HandStates, mpjae_deg: float) -> float:
     return entropy - int(mask.sum()) * math.log2(2 * math.e * math.radians(mpjae_deg))
 
 
-def unidextok_point(model, data: HandStates, fit: HandStates | None = None, search_rounds: int | None = None) -> dict:
+def unidextok_point(model, data: HandStates, fit: HandStates | None = None, encoding: EncodingConfig | None = None) -> dict:
     """Nominal bits, measured rate (bits), entropy-coded bits (priors fitted on `fit`'s codes, when given) and MPJAE
-    (deg) of `model` on `data` (one hand); `search_rounds` None = the model's encoding, 0 = the nearest codes."""
+    (deg) of `model` on `data` (one hand); `encoding` None = the model's own."""
     from lerobot_unidextok.evaluation import mpjae_deg, reconstruct
 
     cfg = model.config
-    rec = reconstruct(model, data.states_rad, data.hands, allow_unknown=True, masks=data.masks,
-                      search_rounds=search_rounds)  # fmt: skip
+    rec = reconstruct(model, data.states_rad, data.hands, allow_unknown=True, masks=data.masks, encoding=encoding)
     codes = rec.codes.reshape(len(data), -1)
     point = {
         "nominal_bits": cfg.num_tokens * cfg.num_groups * math.log2(cfg.codebook_size),
@@ -163,7 +161,7 @@ def unidextok_point(model, data: HandStates, fit: HandStates | None = None, sear
     }
     if fit is not None:
         fitted = reconstruct(model, fit.states_rad, fit.hands, allow_unknown=True, masks=fit.masks,
-                             search_rounds=search_rounds).codes.reshape(len(fit), -1)  # fmt: skip
+                             encoding=encoding).codes.reshape(len(fit), -1)  # fmt: skip
         point["coded_bits"] = coded_bits(fitted, codes, cfg.codebook_size)
     return point
 
@@ -310,7 +308,7 @@ def run(cfg: RateDistortionConfig) -> dict:
     from lerobot_unidextok.tokenizer import UniDexTok
 
     t0 = time.time()
-    model = UniDexTok.from_pretrained(cfg.checkpoint, search_rounds=cfg.search_rounds)
+    model = UniDexTok.from_pretrained(cfg.checkpoint, encoding=cfg.encoding)
     rows = []
     sets = evaluation_sets(cfg)
     fits = fit_sets(cfg, sets)
@@ -321,8 +319,8 @@ def run(cfg: RateDistortionConfig) -> dict:
         row = {"set": label, "hand": hand, "rows": len(data), "fit_rows": len(fit), "dofs": int(data.masks.any(0).sum()),
                "known_hand": model.knows_hand(hand), "unidextok": udt, "binning": curve,
                "equal_bits": equal_bits(udt, curve), "pca": pca_curve(data, fit, cfg.max_bits)}  # fmt: skip
-        if model.config.search_rounds:
-            row["unidextok_nearest"] = unidextok_point(model, data, fit, search_rounds=0)
+        if model.config.encoding.rounds:
+            row["unidextok_nearest"] = unidextok_point(model, data, fit, encoding=NEAREST_CODES)
         if "test episodes" not in label:
             row["slb"] = {"bits_at_8bit_binning": slb_bits(data, _binning_at(row, 8)["mpjae_deg"])
                           if _binning_at(row, 8) else None}  # fmt: skip

@@ -36,6 +36,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 from experiments import runtime
 from experiments.common import git_commit, md_table
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.tokenizer import NEAREST_CODES
 
 NAME = "search_distill"
 SCREEN_SEED = 7  # as universal_screen.py: not the card's seed 0
@@ -48,7 +49,7 @@ ENCODER = ("input_proj", "enc_pos", "encoder.", "enc_norm", "quantizer.project_i
 
 @dataclass
 class SearchDistillConfig:
-    checkpoint: str = DEFAULT_TOKENIZER  # a tokenizer whose config.json searches (search_rounds > 0)
+    checkpoint: str = DEFAULT_TOKENIZER  # a tokenizer whose config.json searches (encoding.rounds > 0)
     recipe: str = "train/universal"  # the unidextok-train config whose data and sampler the pool comes from
     variants: list[str] = field(default_factory=lambda: list(VARIANTS))
     steps: int = 2000  # optimiser steps per variant
@@ -104,7 +105,7 @@ def score(model, sets: dict, searched: dict) -> dict:
     out, agree = {}, []
     for label, data in sets.items():
         x, hand = torch.tensor(data.states_rad), data.hand_names()[0]
-        nearest = model.encode(x, hand, search_rounds=0)
+        nearest = model.encode(x, hand, encoding=NEAREST_CODES)
         out[label] = mpjae_deg(model.decode(nearest, hand).numpy(), data.states_rad, data.masks)
         if label in searched:
             agree.append(float((nearest == searched[label]).float().mean()))
@@ -174,7 +175,7 @@ def run(cfg: SearchDistillConfig) -> dict:
     from lerobot_unidextok.tokenizer import UniDexTok
 
     base = UniDexTok.from_pretrained(cfg.checkpoint)
-    if not base.config.search_rounds:
+    if not base.config.encoding.rounds:
         raise ValueError(f"{cfg.checkpoint} encodes with the nearest codes: give a checkpoint whose config searches")
     import torch
 

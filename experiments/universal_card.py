@@ -1,12 +1,12 @@
 """Score the universal run on data it never trained on and write the shipped package folder + card.
 
     python experiments/universal_card.py --run=outputs/unidextok_universal --data=outputs/universal_data \
-        --cpu_s=<training CPU seconds> --commit=<commit the run trained at> --search_method=greedy \
-        --search_rounds=2 --search_changes=16 --search_tolerance_deg=0.1
+        --cpu_s=<training CPU seconds> --commit=<commit the run trained at> --encoding.method=greedy \
+        --encoding.rounds=2 --encoding.changes=16 --encoding.tolerance_deg=0.1
 
 Writes lerobot_unidextok/pretrained/universal-small/ (config.json, model.safetensors, training_state.json,
 eval.json, README.md) from <run>/best; `experiments.universal` holds the figures. The package's
-config.json gets the code search settings (its default encoding); the figures are measured with them (eval.json
+config.json gets the `--encoding.*` settings (its own encoding, `EncodingConfig`); the figures are measured with them (eval.json
 `results`, the card's evaluation table) and with the nearest codes, the paper's encoding (`nearest_codes`). The
 in-range figures cover the hands the checkpoint trained on (hands registered later: experiments/universal_zeroshot.py).
 """
@@ -27,7 +27,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 from experiments.universal import figures, write_package
 from lerobot_unidextok.evaluation.report import encoding
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, SHIPPED
-from lerobot_unidextok.tokenizer import UniDexTok
+from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig, UniDexTok
 from lerobot_unidextok.tokenizer.configuration_unidextok import SEARCH_METHODS
 
 REPO = Path(__file__).resolve().parents[1]
@@ -56,25 +56,26 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--data", type=Path, default=Path("outputs/universal_data"))
     p.add_argument("--cpu_s", type=float, required=True, help="training CPU time (user + sys), seconds")
     p.add_argument("--commit", default="", help="commit of the code the run trained with (default: HEAD)")
-    p.add_argument("--search_method", default="greedy", choices=SEARCH_METHODS, help="code search of the package")
-    p.add_argument("--search_rounds", type=int, default=1, help="code search rounds of the package (0 = nearest)")
-    p.add_argument("--search_changes", type=int, default=16, help="greedy: code changes per round, at most")
-    p.add_argument("--search_sweeps", type=int, default=2, help="sweeps: passes over the positions per round")
-    p.add_argument("--search_tolerance_deg", type=float, default=0.0, help="greedy: rows within it stop searching")
+    # the package's own encoding (EncodingConfig), written into its config.json
+    p.add_argument("--encoding.method", dest="method", default="greedy", choices=SEARCH_METHODS, help="code search")
+    p.add_argument("--encoding.rounds", dest="rounds", type=int, default=1, help="code search rounds (0 = nearest)")
+    p.add_argument("--encoding.changes", dest="changes", type=int, default=16, help="greedy: changes per round")
+    p.add_argument("--encoding.sweeps", dest="sweeps", type=int, default=2, help="sweeps: passes per round")
+    p.add_argument("--encoding.tolerance_deg", dest="tolerance_deg", type=float, default=0.0,
+                   help="greedy: rows within it stop searching")  # fmt: skip
     args = p.parse_args(argv)
     commit = subprocess.check_output(["git", "-C", str(REPO), "rev-parse", args.commit or "HEAD"], text=True).strip()
     model = UniDexTok.from_pretrained(str(args.run / "best"))
     datasets = {label: str(args.data / name) for label, name in DATA.items()}
-    search = {"search_method": args.search_method, "search_rounds": args.search_rounds,
-              "search_changes": args.search_changes, "search_sweeps": args.search_sweeps,
-              "search_tolerance_deg": args.search_tolerance_deg}  # fmt: skip
+    own = EncodingConfig(rounds=args.rounds, method=args.method, sweeps=args.sweeps, changes=args.changes,
+                         tolerance_deg=args.tolerance_deg)  # fmt: skip
     hands = model.config.trained_hands or None
-    model.with_encoding(**{**search, "search_rounds": 0})
+    model.with_encoding(NEAREST_CODES)
     nearest = figures(model, datasets, hands)
-    model.with_encoding(**search)
+    model.with_encoding(own)
     results = figures(model, datasets, hands)
-    per_round = (f"--search_changes={args.search_changes} --search_tolerance_deg={args.search_tolerance_deg:g}"
-                 if args.search_method == "greedy" else f"--search_sweeps={args.search_sweeps}")  # fmt: skip
+    per_round = (f"--encoding.changes={own.changes} --encoding.tolerance_deg={own.tolerance_deg:g}"
+                 if own.method == "greedy" else f"--encoding.sweeps={own.sweeps}")  # fmt: skip
     state = json.loads((args.run / "best" / "training_state.json").read_text())
     data_cmd = "python experiments/universal_data.py --out=outputs/universal_data"
     train_cmd = "nice -n 10 unidextok-train --config_path=train/universal"
@@ -82,8 +83,8 @@ def main(argv: list[str] | None = None) -> None:
         "data": data_cmd,
         "train": train_cmd,
         "figures": "python experiments/universal_card.py --run=outputs/unidextok_universal "
-        f"--cpu_s={args.cpu_s:.0f} --commit={commit[:12]} --search_method={args.search_method} "
-        f"--search_rounds={args.search_rounds} {per_round}",
+        f"--cpu_s={args.cpu_s:.0f} --commit={commit[:12]} --encoding.method={own.method} "
+        f"--encoding.rounds={own.rounds} {per_round}",
         "G1 test episodes, same figure": f"unidextok-eval --checkpoint={DEFAULT_TOKENIZER} "
         "--datasets='[outputs/universal_data/g1_inspire]'",
     }
@@ -101,13 +102,13 @@ def main(argv: list[str] | None = None) -> None:
     sections = [
         "## Encoding",
         "",
-        f"This package's config.json sets `search_method={args.search_method}`, `search_rounds={args.search_rounds}` "
-        f"({per_round.replace('--', '')}): `encode`, and so the processor step and every `<type>_udt` policy by "
-        "default, refines each group's nearest code with the decoder-aware code search (docs/tokenizer.md \"Code "
-        "search\", its cost per frame and per row; same tokens, same decoder), and the evaluation table above is "
-        "measured that way. `encode(..., search_rounds=0)` (`unidextok-eval --search_rounds=0`, the step's "
-        "`search_rounds=0`) gives the nearest codes, the paper's encoding; on the same rows they measure "
-        "(`eval.json` `nearest_codes`):",
+        f"This package's config.json sets its encoding (`encoding`: method {own.method}, rounds {own.rounds}, "
+        f"{per_round.replace('--encoding.', '').replace(' ', ', ')}): `encode`, and so the processor step and every "
+        "`<type>_udt` policy by default, refines each group's nearest code with the decoder-aware code search "
+        "(docs/tokenizer.md \"Code search\", its cost per frame and per row; same tokens, same decoder), and the "
+        "evaluation table above is measured that way. `encode(..., encoding=NEAREST_CODES)` (`unidextok-eval "
+        "--encoding.rounds=0`, `--policy.udt_encoding.rounds=0`) gives the nearest codes, the paper's encoding; on "
+        "the same rows they measure (`eval.json` `nearest_codes`):",
         "",
         "| | rows | mpjae_deg | mpjpe_mm | fingertip_mm |",
         "|---|---|---|---|---|",
@@ -128,8 +129,8 @@ def main(argv: list[str] | None = None) -> None:
         "",
         "The schedule, and then the code search settings, were chosen among full-length runs and settings on "
         "their selection episodes and on in-range states of another seed than the table's (`python "
-        "experiments/universal_screen.py --runs=... [--search_methods='[sweeps,greedy]' --search_rounds='[0,1,2]' "
-        "--search_sweeps='[...]' --search_changes='[...]']`, docs/tokenizer.md \"How the recipe was chosen\"), "
+        "experiments/universal_screen.py --runs=... [--methods='[sweeps,greedy]' --rounds='[0,1,2]' "
+        "--sweeps='[...]' --changes='[...]']`, docs/tokenizer.md \"How the recipe was chosen\"), "
         "never on the figures above.",
         "",
         "The evaluation table above is `eval.json` (`results`): test episodes / held-out recordings of each "

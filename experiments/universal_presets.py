@@ -2,7 +2,7 @@
 never trained on): `linkerhand-ros2-sdk/<model>_positions.yaml`, both sides, for the models the registry has.
 Hands added by a YAML spec only (zero-shot, the unknown-hand embedding): experiments/universal_zeroshot.py.
 
-    python experiments/universal_presets.py [--real=../shared/data/real] [--search_rounds=0]   # 0: nearest codes
+    python experiments/universal_presets.py [--real=../shared/data/real] [--nearest]   # --nearest: the nearest codes
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import yaml
 from lerobot_unidextok import hands
 from lerobot_unidextok.evaluation.report import evaluate_tokenizer
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
-from lerobot_unidextok.tokenizer import UniDexTok
+from lerobot_unidextok.tokenizer import NEAREST_CODES, UniDexTok
 from lerobot_unidextok.training import HandStates
 from lerobot_unidextok.utils.shared_data import real_data_dir
 
@@ -41,9 +41,9 @@ def preset_states(real: Path) -> HandStates:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--real", type=Path, default=real_data_dir(REPO))
-    p.add_argument("--search_rounds", type=int, default=None, help="code search rounds (default: the package's)")
+    p.add_argument("--nearest", action="store_true", help="the nearest codes (default: the package's encoding)")
     args = p.parse_args()
-    model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER, search_rounds=args.search_rounds)
+    model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER, encoding=NEAREST_CODES if args.nearest else None)
     report = evaluate_tokenizer(model, preset_states(args.real))
     print(f"encoding: {report['model']['encoding']}")
     print("| hand | presets (both sides) | MPJAE (deg) | MPJPE (mm) | fingertip (mm) |\n|---|---|---|---|---|")

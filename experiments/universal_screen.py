@@ -10,9 +10,9 @@ The test episodes and held-out recordings, which the card reports, are not loade
     python experiments/universal_screen.py --variants='[shipped,wide]' --steps=3000
     python experiments/universal_screen.py --runs='[outputs/run_a,outputs/run_b]'   # finished full-length runs
     python experiments/universal_screen.py --runs='[outputs/unidextok_universal]' \
-        --search_rounds='[0,1,2]' --search_sweeps='[1,2,3,4]'                      # the code search's settings
-    python experiments/universal_screen.py --runs='[outputs/unidextok_universal]' --search_methods='[greedy]' \
-        --search_rounds='[0,1,2]' --search_changes='[4,8,16,32]' --search_tolerances='[0,0.1]'   # the greedy search's
+        --rounds='[0,1,2]' --sweeps='[1,2,3,4]'                      # the code search's settings
+    python experiments/universal_screen.py --runs='[outputs/unidextok_universal]' --methods='[greedy]' \
+        --rounds='[0,1,2]' --changes='[4,8,16,32]' --tolerances_deg='[0,0.1]'   # the greedy search's
 
 Each variant's result is cached in <output_root>/universal_screen/runs.jsonl (keyed by its resolved settings).
 """
@@ -37,6 +37,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 from experiments import runtime
 from experiments.common import git_commit, md_table
 from lerobot_unidextok.configs import resolve_config_path
+from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 
 logger = logging.getLogger(__name__)
 NAME = "universal_screen"
@@ -71,14 +72,14 @@ class ScreenConfig:
     # Finished `unidextok-train` run folders of the recipe (e.g. full-length candidates) to score the same way
     # (their best/ checkpoint) instead of training variants.
     runs: list[str] = field(default_factory=list)
-    # Code search settings the runs are scored with (rounds 0 = the nearest codes, once; then per method in
-    # `search_methods` every rounds x sweeps pair ("sweeps") or rounds x changes pair ("greedy")): how the shipped
-    # config's encoding was chosen.
-    search_rounds: list[int] = field(default_factory=lambda: [0])
-    search_methods: list[str] = field(default_factory=lambda: ["sweeps"])
-    search_sweeps: list[int] = field(default_factory=lambda: [3])
-    search_changes: list[int] = field(default_factory=lambda: [16])
-    search_tolerances: list[float] = field(default_factory=lambda: [0.0])  # greedy: search_tolerance_deg values
+    # The grid of encodings (EncodingConfig) the runs are scored with (rounds 0 = the nearest codes, once; then per
+    # method in `methods` every rounds x sweeps pair ("sweeps") or rounds x changes pair ("greedy")): how the
+    # shipped config's encoding was chosen.
+    rounds: list[int] = field(default_factory=lambda: [0])
+    methods: list[str] = field(default_factory=lambda: ["sweeps"])
+    sweeps: list[int] = field(default_factory=lambda: [3])
+    changes: list[int] = field(default_factory=lambda: [16])
+    tolerances_deg: list[float] = field(default_factory=lambda: [0.0])  # greedy: its tolerance_deg values
     output_root: str = "outputs/experiments"
 
 
@@ -139,32 +140,31 @@ def run_variant(cfg: ScreenConfig, name: str, folder: Path) -> dict:
     res = train_tokenizer(tcfg, fit, select, model=model)
     cpu = time.process_time() - cpu0
     best = UniDexTok.from_pretrained(res.best_dir)
-    best.with_encoding(search_rounds=0)  # variants are compared through the nearest codes, as they trained
+    best.with_encoding(NEAREST_CODES)  # variants are compared through the nearest codes, as they trained
     return {"variant": name, "steps": res.steps, "best_step": res.best_step, "train_cpu_s": round(cpu, 1),
             **score(best, select, cfg.range_rows),
             "git_commit": git_commit(), "resolved": resolved(cfg, name)}  # fmt: skip
 
 
-def search_settings(cfg: ScreenConfig) -> list[dict]:
-    """The encodings the runs are scored with (`UniDexTok.with_encoding` keywords): the nearest codes once, then
-    every searched setting of each method."""
-    out = [{"search_rounds": 0}] if 0 in cfg.search_rounds else []
-    for method in cfg.search_methods:
-        key, values = ("search_sweeps", cfg.search_sweeps) if method == "sweeps" else ("search_changes", cfg.search_changes)
-        tolerances = sorted(set(cfg.search_tolerances)) if method == "greedy" else [None]
-        out += [{"search_method": method, "search_rounds": r, key: v,
-                 **({"search_tolerance_deg": t} if t is not None else {})}
-                for r in sorted(set(cfg.search_rounds) - {0}) for v in sorted(set(values))
+def search_settings(cfg: ScreenConfig) -> list[EncodingConfig]:
+    """The encodings the runs are scored with: the nearest codes once, then every searched setting of each
+    method."""
+    out = [NEAREST_CODES] if 0 in cfg.rounds else []
+    for method in cfg.methods:
+        key, values = ("sweeps", cfg.sweeps) if method == "sweeps" else ("changes", cfg.changes)
+        tolerances = sorted(set(cfg.tolerances_deg)) if method == "greedy" else [0.0]
+        out += [EncodingConfig(method=method, rounds=r, tolerance_deg=t, **{key: v})
+                for r in sorted(set(cfg.rounds) - {0}) for v in sorted(set(values))
                 for t in (tolerances if r > 1 else tolerances[:1])]  # fmt: skip
     return out
 
 
-def search_label(setting: dict) -> str:
-    if not setting["search_rounds"]:
+def search_label(setting: EncodingConfig) -> str:
+    if not setting.rounds:
         return "nearest codes"
-    per = setting.get("search_sweeps") or setting.get("search_changes")
-    tolerance = setting.get("search_tolerance_deg")
-    return f"{setting['search_method']} {setting['search_rounds']} x {per}" + (f", stop at {tolerance:g} deg" if tolerance else "")
+    per = setting.sweeps if setting.method == "sweeps" else setting.changes
+    tolerance = setting.tolerance_deg if setting.method == "greedy" else 0
+    return f"{setting.method} {setting.rounds} x {per}" + (f", stop at {tolerance:g} deg" if tolerance else "")
 
 
 def score_runs(cfg: ScreenConfig) -> list[dict]:
@@ -183,7 +183,7 @@ def score_runs(cfg: ScreenConfig) -> list[dict]:
         state = json.loads((folder / "best" / "training_state.json").read_text())
         model = UniDexTok.from_pretrained(folder / "best")
         for setting in search_settings(cfg):
-            model.with_encoding(**setting)
+            model.with_encoding(setting)
             cpu0 = time.process_time()
             scored = score(model, select, cfg.range_rows)
             out.append({"variant": str(folder), "search": search_label(setting),
@@ -195,8 +195,8 @@ def score_runs(cfg: ScreenConfig) -> list[dict]:
 def run(cfg: ScreenConfig) -> dict:
     from lerobot_unidextok.tokenizer.configuration_unidextok import SEARCH_METHODS
 
-    if sorted(set(cfg.search_methods) - set(SEARCH_METHODS)):
-        raise ValueError(f"search_methods must be among {SEARCH_METHODS}, got {cfg.search_methods}")
+    if sorted(set(cfg.methods) - set(SEARCH_METHODS)):
+        raise ValueError(f"methods must be among {SEARCH_METHODS}, got {cfg.methods}")
     unknown = sorted(set(cfg.variants) - set(VARIANTS))
     if unknown:
         raise ValueError(f"unknown variants {unknown}; choose from {sorted(VARIANTS)}")

@@ -37,6 +37,7 @@ from experiments.common import git_commit, write_result
 from experiments.config import PROJECT_ROOT, default_real_data_dir
 from experiments.universal import IN_RANGE_ROWS, IN_RANGE_SEED
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.tokenizer import EncodingConfig
 
 logger = logging.getLogger(__name__)
 NAME = "universal_zeroshot"
@@ -58,7 +59,8 @@ class ZeroShotConfig:
     real_data_dir: str = ""  # the real data folder (empty = ../shared/data/real or UNIDEXTOK_REAL_DATA)
     rows: int = IN_RANGE_ROWS  # in-range states per hand (the card's count)
     seed: int = IN_RANGE_SEED  # of the in-range states (the card's seed)
-    search_rounds: int | None = None  # code search rounds (None = the checkpoint config's; 0 = nearest codes)
+    # how codes are picked: None = the checkpoint's own encoding; --encoding.rounds=0 = the nearest codes
+    encoding: EncodingConfig | None = None
     output_root: str = "outputs/experiments"
 
 
@@ -141,8 +143,7 @@ def run(cfg: ZeroShotConfig) -> dict:
     known = [s.name for s in specs if s.name in model.config.hand_names]
     if known:
         raise ValueError(f"specs {known} are in the tokenizer's vocabulary; zero-shot needs hands outside it")
-    if cfg.search_rounds is not None:
-        model.config.search_rounds = cfg.search_rounds
+    model.with_encoding(cfg.encoding)
     real_dir = Path(cfg.real_data_dir or default_real_data_dir())
     rows, presets = [], {}
     in_range = f"in-range ({cfg.rows}, seed {cfg.seed})"

@@ -30,6 +30,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 
 from experiments import runtime
 from experiments.common import git_commit, md_table
+from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 from lerobot_unidextok.training import HandStates, TrainConfig, train_tokenizer
 from lerobot_unidextok.training.coverage import CoverageConfig, MixtureSampler
 from lerobot_unidextok.training.splits import kfold_by_episode, split_by_episode
@@ -89,9 +90,9 @@ class UnseenConfig:
     steps: int = 0  # 0 = the TrainConfig default
     seed: int = 0
     range_rows: int = 5000  # uniform in-range states scored per hand
-    # Each model is scored through the nearest codes (as it trained) and with this many rounds of the code search
-    # (docs/tokenizer.md "Code search"; 0 = no second score). A cached run without the second score retrains.
-    search_rounds: int = 2
+    # Each model is scored through the nearest codes (as it trained) and with this encoding (docs/tokenizer.md "Code
+    # search"; default 2 rounds of the greedy search; null = no second score). A cached run scored otherwise retrains.
+    searched: EncodingConfig | None = field(default_factory=lambda: EncodingConfig(rounds=2))
     output_root: str = "outputs/experiments"
     cache_dir: str = "outputs/experiments/_data"
     tiny: bool = False  # tests: tiny preset, a few steps
@@ -145,20 +146,19 @@ def run_fold(cfg: UnseenConfig, name: str, k: int, train: HandStates, test: Hand
     best = UniDexTok.from_pretrained(res.best_dir)
     unif = range_rows(fit, cfg.range_rows, seed=1000 + k)
 
-    def scored(data: HandStates, search_rounds: int) -> dict:
-        rec = reconstruct(best, data.states_rad, data.hands, allow_unknown=True, masks=data.masks,
-                          search_rounds=search_rounds)  # fmt: skip
+    def scored(data: HandStates, encoding: EncodingConfig) -> dict:
+        rec = reconstruct(best, data.states_rad, data.hands, allow_unknown=True, masks=data.masks, encoding=encoding)
         return _score(rec.states_rad, data)
 
     searched = {}
-    if cfg.search_rounds:
-        searched = {"search_rounds": cfg.search_rounds, "heldout_searched_deg": scored(test, cfg.search_rounds),
-                    "range_searched_deg": scored(unif, cfg.search_rounds)}  # fmt: skip
+    if cfg.searched is not None:
+        searched = {"searched_encoding": dataclasses.asdict(cfg.searched),
+                    "heldout_searched_deg": scored(test, cfg.searched), "range_searched_deg": scored(unif, cfg.searched)}  # fmt: skip
     return {
         "variant": name, "fold": k, "steps": res.steps, "best_step": res.best_step, "train_cpu_s": round(cpu, 1),
         "train_wall_s": round(res.seconds, 1), "fit_rows": len(fit), "select_rows": len(select),
         "test_rows": len(test), "test_episodes": int(len(np.unique(test.episode_keys()))),
-        "heldout_deg": scored(test, 0), "range_deg": scored(unif, 0), **searched,
+        "heldout_deg": scored(test, NEAREST_CODES), "range_deg": scored(unif, NEAREST_CODES), **searched,
         "git_commit": git_commit(), "resolved": resolved_settings(cfg, name),
     }  # fmt: skip
 
@@ -186,6 +186,10 @@ def resolved_settings(cfg: UnseenConfig, name: str) -> dict:
         model.pop(filled_by_training)
     drop = lambda d: {k: v for k, v in d.items() if k not in ENCODING_FIELDS}  # noqa: E731
     return {"train": drop(train), "model": drop(model)}
+
+
+def _searched(encoding: dict | None) -> str:
+    return EncodingConfig.from_dict(encoding).describe() if encoding else "nearest codes only (no search)"
 
 
 def _key(r: dict) -> tuple:
@@ -220,7 +224,7 @@ def run(cfg: UnseenConfig) -> dict:
             else:
                 probe = {"variant": name, "fold": k, "resolved": resolved_settings(cfg, name)}
                 r = done.get(_key(probe))
-                if r is not None and cfg.search_rounds and r.get("search_rounds") != cfg.search_rounds:
+                if r is not None and cfg.searched and r.get("searched_encoding") != dataclasses.asdict(cfg.searched):
                     r = None  # cached before the code search was scored (or with other rounds): train again
                 if r is None:
                     logger.info("training %s on fold %d (%d rows)", name, k, len(train))
@@ -271,7 +275,7 @@ def markdown(result: dict) -> str:
         f"Datasets: {', '.join(result['datasets'])}; k-fold over episodes ({result['folds']} folds, folds run: "
         f"{result['fold_ids']}). MPJAE (deg) on each fold's held-out episodes: mean +- std over folds [min, max]; "
         "range = MPJAE on states uniform inside each hand's registered joint ranges; through the nearest codes, "
-        f"and with {result['config'].get('search_rounds', 0)} round(s) of the code search ('searched'); CPU s = "
+        f"and with the {_searched(result['config'].get('searched'))} ('searched'); CPU s = "
         "training CPU time per fold (one thread).", "",
         md_table(["variant", "folds", "held-out MPJAE (deg)", "[min, max]", "range MPJAE (deg)",
                   "held-out, searched (deg)", "range, searched (deg)", "CPU s", "what"], rows),

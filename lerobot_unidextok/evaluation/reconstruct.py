@@ -20,10 +20,10 @@ def reconstruct(
     batch_size: int = 4096,
     allow_unknown: bool = False,
     masks: np.ndarray | None = None,
-    search_rounds: int | None = None,
+    encoding=None,
 ) -> Reconstruction:
     """decode(encode(x)) for every row; `hands` names one hand per row, `masks` (N, 22) bool its active DoFs (for
-    the code search; None = from the hand specs), `search_rounds` None = the model config's."""
+    the code search; None = from the hand specs), `encoding` (an EncodingConfig) None = the model's own."""
     was_training = model.training
     model.eval()
     outs, codes = [], []
@@ -32,7 +32,7 @@ def reconstruct(
             x = torch.as_tensor(states_rad[i : i + batch_size], dtype=torch.float32)
             h = [str(s) for s in hands[i : i + batch_size]]
             m = None if masks is None else torch.tensor(masks[i : i + batch_size], dtype=torch.bool)  # (b, 22)
-            c = model.encode(x, h, allow_unknown=allow_unknown, mask=m, search_rounds=search_rounds)  # (b, T, K)
+            c = model.encode(x, h, allow_unknown=allow_unknown, mask=m, encoding=encoding)  # (b, T, K)
             outs.append(model.decode(c, h, allow_unknown=allow_unknown).cpu().numpy())
             codes.append(c.cpu().numpy())
     finally:

@@ -31,12 +31,7 @@ def evaluate_tokenizer(model, data, batch_size: int = 4096) -> dict:
 
 def encoding(config) -> str:
     """How codes were picked: the nearest codes (the paper's encoding) or the decoder-aware code search."""
-    if not config.search_rounds:
-        return "nearest codes"
-    if config.search_method == "sweeps":
-        return f"code search, {config.search_rounds} round(s) x {config.search_sweeps} sweep(s)"
-    stop = f", rows within {config.search_tolerance_deg:g} deg stop" if config.search_tolerance_deg else ""
-    return f"greedy code search, {config.search_rounds} round(s) x up to {config.search_changes} change(s){stop}"
+    return config.encoding.describe()
 
 
 HAND_ROWS = "hand-rows: one row per hand per frame (a two-hand frame gives two rows)"

@@ -32,7 +32,7 @@ What the mixin adds to the stock config, in `validate_features` (run when the po
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from lerobot.configs.types import FeatureType, NormalizationMode, PolicyFeature
@@ -58,7 +58,7 @@ from lerobot_unidextok.processor import (
     HandLayout,
     tokenizer_output_dims,
 )
-from lerobot_unidextok.tokenizer import UniDexTokConfig, check_encoding
+from lerobot_unidextok.tokenizer import EncodingConfig, UniDexTokConfig
 
 logger = logging.getLogger(__name__)
 
@@ -98,9 +98,12 @@ class UdtConfigMixin:
     udt_allow_unknown: bool = False
     # States outside their hands' ranges (degrees fed as radians, normalised values): raise | warn | off.
     udt_range_check: str = "raise"
-    # Rounds of the tokenizer's decoder-aware code search (docs/tokenizer.md "Code search"): null = the
-    # tokenizer's own encoding (the default; the shipped tokenizer searches); 0 = the nearest codes (cheapest);
-    # > 0 = that many rounds of its search.
+    # How the step picks codes instead of the tokenizer's own encoding (docs/tokenizer.md "Code search"): null =
+    # the tokenizer's (the default; the shipped tokenizer searches); --policy.udt_encoding.rounds=0 = the nearest
+    # codes (cheapest); an override replaces the tokenizer's whole encoding (rounds, method, changes, tolerance_deg).
+    udt_encoding: EncodingConfig | None = None
+    # Legacy (policy checkpoints saved before udt_encoding): rounds of the tokenizer's own search; upgraded into
+    # udt_encoding when the config is built, then null. Set udt_encoding instead.
     udt_search_rounds: int | None = None
     # Decode predicted actions to the robot's native action vector (arms copied, hands in native units) when
     # the dataset's hands have native joints; false keeps UDHM radians.
@@ -169,7 +172,9 @@ class UdtConfigMixin:
         super().__post_init__()
         if self.udt_representation not in REPRESENTATIONS:
             raise ValueError(f"udt_representation must be one of {REPRESENTATIONS}, got {self.udt_representation!r}")
-        check_encoding(self.udt_search_rounds, flag="udt_search_rounds")
+        if self.udt_encoding is not None:
+            self.udt_encoding = EncodingConfig.from_dict(self.udt_encoding)  # checked once, by EncodingConfig
+        self._upgrade_legacy_encoding()
         if self.udt_hand_input not in HAND_INPUTS:
             raise ValueError(f"udt_hand_input must be one of {HAND_INPUTS}, got {self.udt_hand_input!r}")
         if self.udt_range_check not in RANGE_CHECKS:
@@ -183,6 +188,18 @@ class UdtConfigMixin:
             self.normalization_mapping = {**self.normalization_mapping, "ACTION": NormalizationMode.IDENTITY}
 
     # ----------------------------------------------------------------------------------------------
+    def _upgrade_legacy_encoding(self) -> None:
+        """A checkpoint saved before udt_encoding (`udt_search_rounds`=R): the tokenizer's own encoding with R
+        rounds, what its step encoded with (R = 0: the nearest codes, without reading the tokenizer's config). A
+        saved pipeline's step upgrades its own legacy `search_rounds` from its own tokenizer."""
+        if self.udt_search_rounds is None:
+            return
+        if self.udt_encoding is not None:
+            raise ValueError("set udt_encoding only: udt_search_rounds is its legacy form (checkpoints saved before it)")
+        rounds, self.udt_search_rounds = self.udt_search_rounds, None
+        own = self.tokenizer_config().encoding if rounds else EncodingConfig()
+        self.udt_encoding = replace(own, rounds=rounds)  # checked by EncodingConfig
+
     def tokenizer_config(self):
         """The UniDexTokConfig the step will use (config.json of udt_pretrained, else the preset)."""
         preset = self.untrained_preset()

@@ -74,7 +74,7 @@ def insert_udt_steps(
         representation=config.udt_representation,
         allow_unknown=config.udt_allow_unknown,
         range_check=config.udt_range_check,
-        search_rounds=config.udt_search_rounds,
+        encoding=config.udt_encoding,
     )
     if config.udt_hand_vocabulary:  # a mix of robots and people: hands per row, and their identity
         step = UniDexTokMixedTokenizerStep(

@@ -61,7 +61,7 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
     _vocab_active: torch.Tensor | None = field(default=None, init=False, repr=False)  # (V, 22) bool
     _vocab_bounds: tuple[torch.Tensor, torch.Tensor] | None = field(default=None, init=False, repr=False)  # (H,V,22)
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, search_rounds: int | None = None) -> None:  # search_rounds: legacy (the base step's)
         self._check_settings()
         self.hand_vocabulary, self.state_names = list(self.hand_vocabulary), list(self.state_names)
         self.fixed_hand_ids, self.hand_layout = [int(i) for i in self.fixed_hand_ids], []
@@ -85,6 +85,7 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
             )
         self._columns = torch.as_tensor(np.concatenate([np.arange(b.start, b.stop) for b in blocks]))
         self._load_tokenizer()
+        self._upgrade_legacy_rounds(search_rounds)
         self._vocab_tokenizer_ids = torch.tensor(self._tokenizer_hand_ids(names))
         self._vocab_active = torch.as_tensor(np.stack([hands.get(h).active_mask for h in names]))
         per_side = [layout_bounds(names, [side] * len(names)) for side in self._sides]
@@ -171,21 +172,21 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
             check_ranges(picked[:, None], lo[block, v][:, None], hi[block, v][:, None], names, self.input_key,
                          self.range_check)  # fmt: skip
         cfg = tok.config
-        codes = torch.full((b, h, cfg.num_tokens, cfg.num_groups), ABSENT, dtype=torch.long, device=device)
+        codes = torch.full((b, h, cfg.num_tokens, cfg.num_groups * cfg.num_stages), ABSENT, dtype=torch.long,
+                           device=device)  # fmt: skip
         active = self._vocab_active[v]  # (P, 22)
         if len(v):
             ids = self._vocab_tokenizer_ids[v]  # (P,)
-            rounds = cfg.search_rounds if self.search_rounds is None else self.search_rounds
-            found, decoded = tok.encode_decode(picked, ids, mask=active if rounds else None, search_rounds=rounds)
+            found, decoded = tok.encode_decode(picked, ids, mask=active if self.searches else None, encoding=self.encoding)
             codes[present] = found  # (P, N, K)
         if self.representation == "dequantized":
             view = torch.zeros(b, h, UDHM_DIM, device=device)
             if len(v):
                 view[present] = decoded * active  # (P, 22), slots a hand lacks set to zero
         else:
-            view = torch.zeros(b, h, cfg.num_tokens * cfg.codebook_dim, device=device)
+            view = torch.zeros(b, h, cfg.num_tokens * cfg.codebook_dim * cfg.num_stages, device=device)
             if len(v):
-                view[present] = tok.quantizer.indices_to_codes(found).flatten(1)  # (P, N*d)
+                view[present] = tok.code_vectors(found).flatten(1)  # (P, N*K*S*d)
         identity = torch.zeros(b, h, len(self.hand_names), device=device)
         identity[present] = torch.nn.functional.one_hot(v, len(self.hand_names)).float()  # (P, V + E)
         identity = identity[..., : len(self.hand_vocabulary)]  # zero-shot hands: no identity the policy knows

@@ -6,17 +6,18 @@ lerobot 0.6).
 
 The state may be a whole robot: only the UDHM blocks (found by name) are tokenised.
 Keys written by `UniDexTokStateTokenizerStep`:
-- `observation.hand_tokens`: int64 `(H * N * K,)` codes, ordered (hand, token, group).
+- `observation.hand_tokens`: int64 `(H * N * K * S,)` codes, ordered (hand, token, stage-group); S = the
+  tokenizer's quantiser stages (1 unless it has residual stages).
 - `observation.environment_state`: float32 view for policies, `representation=`
   "dequantized" -> the decoded UDHM state, radians `(H * 22,)`;
-  "embedding"   -> the unit-norm code vectors `(H * N * codebook_dim,)`.
+  "embedding"   -> the unit-norm code vectors `(H * N * codebook_dim * S,)`.
 Both keep the input's leading shape ((), (B,), (B, T)) and device.
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import asdict, dataclass, field
+from dataclasses import InitVar, asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -46,7 +47,8 @@ from lerobot_unidextok.processor.guards import (
     layout_bounds,
     untrained_hands,
 )
-from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig, check_encoding
+from lerobot_unidextok.tokenizer import EncodingConfig, UniDexTok, UniDexTokConfig
+from lerobot_unidextok.tokenizer.configuration_unidextok import upgrade_legacy_encoding
 
 logger = logging.getLogger(__name__)
 
@@ -64,8 +66,8 @@ def tokenizer_output_dims(
     appends a one-hot identity over its `vocabulary_size` hands per block."""
     if representation not in REPRESENTATIONS:
         raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {representation!r}")
-    tokens = num_hands * config.num_tokens * config.num_groups
-    width = UDHM_DIM if representation == "dequantized" else config.num_tokens * config.codebook_dim
+    tokens = num_hands * config.symbols_per_hand()
+    width = UDHM_DIM if representation == "dequantized" else config.num_tokens * config.codebook_dim * config.num_stages
     return tokens, num_hands * (width + vocabulary_size)
 
 
@@ -101,10 +103,13 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     # True = tokenise them zero-shot with the tokenizer's "unknown hand" embedding (logged once).
     allow_unknown: bool = False
     range_check: str = "raise"  # states outside the hands' ranges (degrees, normalised): raise | warn | off
-    # Rounds of decoder-aware code search (tokenizer/search.py): None = the tokenizer's own encoding (the shipped
-    # tokenizer's config searches: docs/tokenizer.md "Code search", its cost per frame and per row); 0 = each
-    # group's nearest code, the paper's encoding and the cheapest; R > 0 = R rounds of the tokenizer's search.
-    search_rounds: int | None = None
+    # How codes are picked instead of the tokenizer's own encoding (an EncodingConfig, or its dict as saved):
+    # None = the tokenizer's (the shipped tokenizer's config searches: docs/tokenizer.md "Code search", its cost
+    # per frame and per row); EncodingConfig(rounds=0) = each group's nearest code, the paper's and the cheapest.
+    encoding: EncodingConfig | None = None
+    # Legacy (steps saved before EncodingConfig): rounds of the tokenizer's own search, upgraded on load into
+    # `encoding` (the tokenizer's encoding with that many rounds); not saved.
+    search_rounds: InitVar[int | None] = None
     input_key: str = OBS_STATE
     token_key: str = OBS_HAND_TOKENS
     features_key: str = OBS_HAND_TOKEN_FEATURES
@@ -116,12 +121,13 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     _columns: torch.Tensor | None = field(default=None, init=False, repr=False)  # (22*H,) block columns
     _bounds: tuple[torch.Tensor, torch.Tensor] | None = field(default=None, init=False, repr=False)  # (H, 22) x2
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, search_rounds: int | None = None) -> None:
         self._check_settings()
         self.hand_layout, self.state_names = list(self.hand_layout), list(self.state_names)
         check_registry(self.hand_layout)  # before any weights are loaded or anything is logged
         self._layout = HandLayout(self.hand_layout, state_names=self.state_names)
         self._load_tokenizer()
+        self._upgrade_legacy_rounds(search_rounds)
         self._hand_ids = torch.tensor(self._tokenizer_hand_ids(self.hand_layout))
         # (H, 22) active-DoF masks: decoded values on slots a hand does not have are zeroed, as in the data.
         self._active = torch.as_tensor(np.stack([hands.get(h).active_mask for h in self.hand_layout]))
@@ -134,14 +140,18 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {self.representation!r}")
         if self.range_check not in RANGE_CHECKS:
             raise ValueError(f"range_check must be one of {RANGE_CHECKS}, got {self.range_check!r}")
-        check_encoding(self.search_rounds)  # None = the tokenizer's encoding, 0 = nearest codes
+        if self.encoding is not None:
+            self.encoding = EncodingConfig.from_dict(self.encoding)  # a dict when loaded from a saved pipeline
 
     def _load_tokenizer(self) -> None:
         """The tokenizer from `tokenizer_config` (weights follow through `load_state_dict`), `pretrained`, or an
         untrained preset when one is asked for (`pretrained.untrained_preset`)."""
         preset = untrained_preset(self.pretrained, self.preset)
         if self.tokenizer_config is not None and (self.embed_weights or self.pretrained is None):
-            self._tokenizer = UniDexTok(UniDexTokConfig(**self.tokenizer_config)).eval()
+            # a step saved before EncodingConfig has the flat legacy keys; without `search_method` it loaded with
+            # the default method, and still does
+            config = upgrade_legacy_encoding(self.tokenizer_config, method_when_absent=None)
+            self._tokenizer = UniDexTok(UniDexTokConfig(**config)).eval()
         elif preset is None:
             self._tokenizer = UniDexTok.from_pretrained(self.pretrained)
         else:
@@ -149,6 +159,19 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             self.pretrained = None  # the weights are this preset's, not the default checkpoint's
             self._tokenizer = UniDexTok(UniDexTokConfig.from_preset(preset)).eval()
         self.tokenizer_config = asdict(self._tokenizer.config)
+        stages = self._tokenizer.config.num_stages
+        if self.encoding is not None and self.encoding.rounds and stages > 1:
+            raise ValueError(f"the code search picks one stage's codes and this tokenizer has {stages}: give the step "
+                             "the nearest codes (encoding=NEAREST_CODES, --policy.udt_encoding.rounds=0) or none")  # fmt: skip
+
+    def _upgrade_legacy_rounds(self, search_rounds: int | None) -> None:
+        """A step saved before EncodingConfig (`search_rounds`=R): the tokenizer's own encoding with R rounds, as it
+        encoded then."""
+        if search_rounds is None:
+            return
+        if self.encoding is not None:
+            raise ValueError("give `encoding` only: `search_rounds` is its legacy form (steps saved before it)")
+        self.encoding = replace(self.tokenizer.config.encoding, rounds=search_rounds)  # checked by EncodingConfig
 
     def _tokenizer_hand_ids(self, hand_names: list[str]) -> list[int]:
         """The tokenizer's hand id of each name: refused (or, with `allow_unknown`, its unknown-hand id) for a
@@ -228,15 +251,19 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
         ids = self._hand_ids if b == 1 else self._hand_ids.repeat(b)  # (B*H,) one id per row, block order
         if self._active.device != rows.device:
             self._active = self._active.to(rows.device)
-        rounds = tok.config.search_rounds if self.search_rounds is None else self.search_rounds
-        mask = self._active.repeat(b, 1) if rounds else None  # (B*H, 22)
+        mask = self._active.repeat(b, 1) if self.searches else None  # (B*H, 22)
         if self.representation == "dequantized":
-            codes, decoded = tok.encode_decode(rows.reshape(b * h, UDHM_DIM), ids, mask=mask, search_rounds=rounds)
+            codes, decoded = tok.encode_decode(rows.reshape(b * h, UDHM_DIM), ids, mask=mask, encoding=self.encoding)
             view = decoded.reshape(b, h, UDHM_DIM) * self._active  # (B, H, 22), slots a hand lacks set to zero
         else:
-            codes = tok.encode(rows.reshape(b * h, UDHM_DIM), ids, mask=mask, search_rounds=rounds)
-            view = tok.quantizer.indices_to_codes(codes).flatten(1)  # (B*H, N*K*d)
+            codes = tok.encode(rows.reshape(b * h, UDHM_DIM), ids, mask=mask, encoding=self.encoding)
+            view = tok.code_vectors(codes).flatten(1)  # (B*H, N*K*S*d)
         return codes.reshape(b, -1), view.reshape(b, -1).float()
+
+    @property
+    def searches(self) -> bool:
+        """Whether this step's encoding (its override, else the tokenizer's own) runs the code search."""
+        return (self.encoding or self.tokenizer.config.encoding).rounds > 0
 
     def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
         if self.input_key not in observation:
@@ -271,7 +298,7 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             "representation": self.representation,
             "allow_unknown": self.allow_unknown,
             "range_check": self.range_check,
-            "search_rounds": self.search_rounds,
+            "encoding": asdict(self.encoding) if self.encoding is not None else None,
             "input_key": self.input_key,
             "token_key": self.token_key,
             "features_key": self.features_key,

@@ -3,7 +3,7 @@
     unidextok-eval --checkpoint=outputs/small --datasets='[data/sample_mixture]'   # a run folder: uses best/
     unidextok-eval --checkpoint=outputs/small/best --datasets='[data/sample_mixture]'
     unidextok-eval --checkpoint=me/unidextok-small --datasets='[me/inspire_udhm]' --split=test
-    unidextok-eval --checkpoint=unidextok/universal-small --datasets='[data/g1]' --search_rounds=0   # nearest codes
+    unidextok-eval --checkpoint=unidextok/universal-small --datasets='[data/g1]' --encoding.rounds=0   # nearest codes
 
 Hands the checkpoint never saw are evaluated zero-shot (unknown-hand embedding) and flagged.
 Writes the report as two files and prints it: first what was scored (the checkpoint folder, and per dataset the
@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from lerobot_unidextok.errors import InvalidInputError
-from lerobot_unidextok.tokenizer.configuration_unidextok import check_encoding
+from lerobot_unidextok.tokenizer.configuration_unidextok import EncodingConfig
 from lerobot_unidextok.utils.cli import run_cli
 from lerobot_unidextok.utils.draccus_cli import wrap
 
@@ -38,9 +38,10 @@ class EvalConfig:
     split: str = "test"  # train | test | all
     holdout: str = "auto"  # datasets without a recorded test split (lerobot-edit-dataset): auto | recorded | hash
     hands: list[str] = field(default_factory=list)  # evaluate only these hands (empty = all)
-    # Rounds of decoder-aware code search when encoding (docs/tokenizer.md "Code search"): None = the
-    # checkpoint config's `search_rounds`; 0 = each group's nearest code (the paper's encoding).
-    search_rounds: int | None = None
+    # How to pick codes instead of the checkpoint's own encoding (docs/tokenizer.md "Code search"): unset = the
+    # checkpoint's; --encoding.rounds=0 = each group's nearest code (the paper's encoding); an override replaces
+    # the whole encoding (--encoding.rounds=2 --encoding.tolerance_deg=0.1 ...).
+    encoding: EncodingConfig | None = None
     # where the report goes: a path stem (<output>.json + <output>.md), or a folder (a trailing "/", or an
     # existing folder) that gets eval.json + eval.md inside
     output: str = "outputs/unidextok_eval/eval"
@@ -52,7 +53,6 @@ class EvalConfig:
                              "unidextok-train run folder, unidextok/universal-small, or a Hub repo id)")  # fmt: skip
         if self.split not in ("train", "test", "all"):
             raise InvalidInputError(f"--split must be train, test or all, got {self.split!r}")
-        check_encoding(self.search_rounds, flag="--search_rounds")
 
 
 REPORT_NAME = "eval"  # the report's stem inside a folder given as --output
@@ -104,7 +104,7 @@ def run(cfg: EvalConfig) -> dict:
             raise InvalidInputError(f"no rows for hands {cfg.hands} in {cfg.datasets}")
     # the folder scored (a run folder's best/), or the id as given (shipped or Hub)
     checkpoint = resolve(cfg.checkpoint) if Path(cfg.checkpoint).expanduser().is_dir() else cfg.checkpoint
-    model = UniDexTok.from_pretrained(cfg.checkpoint, search_rounds=cfg.search_rounds).to(cfg.device)
+    model = UniDexTok.from_pretrained(cfg.checkpoint, encoding=cfg.encoding).to(cfg.device)
     report = evaluate_tokenizer(model, data)
     report["checkpoint"], report["datasets"], report["split"] = checkpoint, cfg.datasets, cfg.split
     report["scored"] = describe_scored(data, cfg.datasets, cfg.split, checkpoint)

@@ -1,6 +1,6 @@
 """UniDexTok tokenizer (layer 2): config, adaLN blocks, factorised cosine VQ, Hub-format model.
 
-The config module imports no torch, so configs that take an encoding setting (`check_encoding`) stay light;
+The config module imports no torch, so configs that take an encoding setting (`EncodingConfig`) stay light;
 the model and the quantiser are imported on first use (PEP 562).
 """
 
@@ -9,9 +9,10 @@ import importlib
 from lerobot_unidextok.tokenizer.configuration_unidextok import (
     DEFAULT_HAND_NAMES,
     FORMAT_VERSION,
+    NEAREST_CODES,
     PRESETS,
+    EncodingConfig,
     UniDexTokConfig,
-    check_encoding,
 )
 
 _LAZY = {
@@ -33,11 +34,12 @@ def __getattr__(name: str):
 __all__ = [
     "DEFAULT_HAND_NAMES",
     "FORMAT_VERSION",
+    "NEAREST_CODES",
     "PRESETS",
+    "EncodingConfig",
     "FactorizedCosineVQ",
     "UniDexTok",
     "UniDexTokConfig",
     "UniDexTokOutput",
-    "check_encoding",
     "count_parameters",
 ]

@@ -10,31 +10,108 @@ from lerobot_unidextok.pretrained import config_path
 # Bump when a change makes old checkpoints unloadable (layer names, shapes, semantics of fields).
 FORMAT_VERSION = 1
 
-# Config fields (of UniDexTokConfig, and of TrainConfig where it has them) that only change how `encode` picks
-# codes at use, never training: cache keys and fingerprints of trainings leave them out.
-ENCODING_FIELDS: tuple[str, ...] = ("search_rounds", "search_method", "search_sweeps", "search_changes",
-                                   "search_tolerance_deg")
 SEARCH_METHODS: tuple[str, ...] = ("greedy", "sweeps")
+
+
+@dataclass(frozen=True)
+class EncodingConfig:
+    """How `UniDexTok.encode` picks codes: the one encoding setting, owned by the tokenizer's config
+    (`UniDexTokConfig.encoding`, saved in config.json). Everything else that encodes (the processor steps, the
+    `<type>_udt` policies, training, `unidextok-eval`, the experiments) uses the tokenizer as configured, or one
+    override of this same type passed through unchanged (None = the tokenizer's own): an override replaces the
+    whole encoding, so give every setting it needs (`EncodingConfig(rounds=0)` = the nearest codes).
+
+    Departure (option): decoder-aware code search (tokenizer/search.py). `rounds` 0 = the paper's encoding, each
+    group vector snapped to its nearest code; R > 0 refines those codes by R rounds of descent on the decoder
+    linearised around them (cost: benchmarks/bench_processor.py --encodings, docs/tokenizer.md "Code search").
+    Same codes, same decoder; training always uses the nearest codes."""
+
+    # Rounds of the decoder-aware code search after the nearest codes (0 = the nearest codes, the paper's encoding)
+    rounds: int = 0
+    # How a round moves: "greedy" makes up to `changes` best single code changes; "sweeps" (coordinate descent,
+    # `sweeps` passes over the N x K positions) is what config.json files written before the search had a method
+    # use, so they encode as they did.
+    method: str = "greedy"
+    sweeps: int = 2  # "sweeps": passes over the N x K code positions per round
+    changes: int = 16  # "greedy": best single code changes per round, at most
+    # "greedy": after a round, a row whose mean absolute error over its active DoFs is at most this (degrees)
+    # leaves the search, so later rounds cost only for the rows still above it (0 = every row runs every round)
+    tolerance_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        """The one rule for the encoding settings: a ConfigError (a ValueError) naming the setting."""
+        for name, kind in (("rounds", int), ("sweeps", int), ("changes", int), ("method", str)):
+            value = getattr(self, name)
+            if not isinstance(value, kind) or isinstance(value, bool):
+                raise ConfigError(f"encoding.{name} must be a {kind.__name__}, got {value!r}")
+        if isinstance(self.tolerance_deg, bool) or not isinstance(self.tolerance_deg, (int, float)):
+            raise ConfigError(f"encoding.tolerance_deg must be a number, got {self.tolerance_deg!r}")
+        if self.rounds < 0:
+            raise ConfigError(f"encoding.rounds must be >= 0 (0 = nearest codes), got {self.rounds}")
+        if self.method not in SEARCH_METHODS:
+            raise ConfigError(f"encoding.method must be one of {SEARCH_METHODS}, got {self.method!r}")
+        if self.sweeps < 1:
+            raise ConfigError(f"encoding.sweeps must be >= 1, got {self.sweeps}")
+        if self.changes < 1:
+            raise ConfigError(f"encoding.changes must be >= 1, got {self.changes}")
+        if self.tolerance_deg < 0:
+            raise ConfigError(
+                f"encoding.tolerance_deg must be >= 0 (0 = every row runs every round), got {self.tolerance_deg}"
+            )
+
+    @classmethod
+    def from_dict(cls, data: "dict | EncodingConfig") -> "EncodingConfig":
+        """An encoding from its JSON dict (config.json, a saved processor step); unknown keys are refused."""
+        if isinstance(data, cls):
+            return data
+        known = [f.name for f in fields(cls)]
+        if not isinstance(data, dict):
+            raise ConfigError(f"encoding must be a mapping of {known}, got {data!r}")
+        unknown = sorted(set(data) - set(known))
+        if unknown:
+            raise ConfigError(f"encoding has keys this version does not know: {unknown}; known: {known}")
+        return cls(**data)
+
+    def describe(self) -> str:
+        """How codes are picked, in words (reports, cards)."""
+        if not self.rounds:
+            return "nearest codes"
+        if self.method == "sweeps":
+            return f"code search, {self.rounds} round(s) x {self.sweeps} sweep(s)"
+        stop = f", rows within {self.tolerance_deg:g} deg stop" if self.tolerance_deg else ""
+        return f"greedy code search, {self.rounds} round(s) x up to {self.changes} change(s){stop}"
+
+
+NEAREST_CODES = EncodingConfig(rounds=0)  # the paper's encoding, as an override
+
+# Config fields (of UniDexTokConfig, and of TrainConfig) that only change how `encode` picks codes at use, never
+# training: cache keys and fingerprints of trainings leave them out.
+ENCODING_FIELDS: tuple[str, ...] = ("encoding",)
+
+# Legacy upgrade: configs written before `EncodingConfig` kept the encoding as flat fields (a UniDexTok
+# config.json, a processor step's `tokenizer_config`); old name -> EncodingConfig field. Only this module and the
+# legacy-upgrade code of the processor step and the policy config know these names
+# (tests/tokenizer/test_encoding_owner.py).
+LEGACY_ENCODING_KEYS: dict[str, str] = {"search_rounds": "rounds", "search_method": "method",
+                                        "search_sweeps": "sweeps", "search_changes": "changes",
+                                        "search_tolerance_deg": "tolerance_deg"}  # fmt: skip
 # What a config.json written before `search_method` existed searched with (`UniDexTokConfig.from_dict`).
 LEGACY_SEARCH_METHOD = "sweeps"
 
 
-def check_encoding(search_rounds: int | None, search_sweeps: int | None = None, flag: str = "search_rounds",
-                   search_method: str | None = None, search_changes: int | None = None,
-                   search_tolerance_deg: float | None = None) -> None:  # fmt: skip
-    """The one rule for the encoding settings (None = unset): `search_rounds` >= 0 (0 = the nearest codes),
-    `search_sweeps` >= 1, `search_method` one of SEARCH_METHODS, `search_changes` >= 1, `search_tolerance_deg`
-    >= 0; a ConfigError (a ValueError) naming `flag`, the field or flag that carries `search_rounds`."""
-    if search_rounds is not None and search_rounds < 0:
-        raise ConfigError(f"{flag} must be >= 0 (0 = nearest codes), got {search_rounds}")
-    if search_sweeps is not None and search_sweeps < 1:
-        raise ConfigError(f"search_sweeps must be >= 1, got {search_sweeps}")
-    if search_method is not None and search_method not in SEARCH_METHODS:
-        raise ConfigError(f"search_method must be one of {SEARCH_METHODS}, got {search_method!r}")
-    if search_changes is not None and search_changes < 1:
-        raise ConfigError(f"search_changes must be >= 1, got {search_changes}")
-    if search_tolerance_deg is not None and search_tolerance_deg < 0:
-        raise ConfigError(f"search_tolerance_deg must be >= 0 (0 = every row runs every round), got {search_tolerance_deg}")
+def upgrade_legacy_encoding(data: dict, method_when_absent: str | None = LEGACY_SEARCH_METHOD) -> dict:
+    """A UniDexTokConfig dict with the flat legacy `search_*` keys moved into one `encoding` dict (a dict without
+    them is returned as it is). A legacy dict without `search_method` searched with `method_when_absent` (None:
+    this version's default); a dict with both forms is refused."""
+    legacy = {k: data[k] for k in LEGACY_ENCODING_KEYS if k in data}
+    if not legacy:
+        return data
+    if "encoding" in data:
+        raise ConfigError(f"UniDexTok config has both `encoding` and the legacy keys {sorted(legacy)}; keep `encoding`")
+    encoding = {LEGACY_ENCODING_KEYS[k]: v for k, v in legacy.items()}
+    if "method" not in encoding and method_when_absent is not None:
+        encoding["method"] = method_when_absent
+    return {**{k: v for k, v in data.items() if k not in LEGACY_ENCODING_KEYS}, "encoding": encoding}
 
 
 # Hand-type vocabulary used for conditioning by default. Names are hand-spec names (side-independent);
@@ -112,21 +189,19 @@ class UniDexTokConfig:
     dead_code_threshold: float = 0.03
     usage_decay: float = 0.99  # EMA decay of per-code usage counts
 
+    # --- residual stages (departure, an option; 0 = the paper's single factorised VQ) ----------------------------
+    # Each residual stage is a second factorised cosine VQ (same K groups x codebook_size codes) on what the stages
+    # before it left out: the decoder input the unsnapped group vectors would give minus what the codes give. The
+    # decoder reads the sum. Codes: (B, N, K) per stage, concatenated along the last axis (stage 1 first), so the
+    # first stage stays the paper's token sequence (`UniDexTok.encode(..., stages=1)`).
+    residual_stages: int = 0
+    # In training, this share of rows is decoded from the first stage alone (the later stages dropped, as
+    # SoundStream's quantizer dropout), so the first stage's codes also decode on their own.
+    residual_drop_prob: float = 0.25
+
     # --- encoding ----------------------------------------------------------------------------------
-    # Departure (option): decoder-aware code search (tokenizer/search.py). 0 = the paper's encoding, each group
-    # vector snapped to its nearest code; R > 0 refines those codes by R rounds of descent on the decoder
-    # linearised around them (cost: benchmarks/bench_processor.py --encodings, docs/tokenizer.md "Code search").
-    # Same codes, same decoder; training always uses the nearest codes.
-    search_rounds: int = 0
-    # How a round moves: "greedy" makes up to `search_changes` best single code changes; "sweeps" (coordinate
-    # descent, `search_sweeps` passes over the N x K positions) is what config.json files written before this
-    # field existed use, so they encode as they did.
-    search_method: str = "greedy"
-    search_sweeps: int = 2
-    search_changes: int = 16
-    # "greedy": after a round, a row whose mean absolute error over its active DoFs is at most this (degrees)
-    # leaves the search, so later rounds cost only for the rows still above it (0 = every row runs every round)
-    search_tolerance_deg: float = 0.0
+    # How `encode` picks codes (EncodingConfig: the nearest codes by default, the paper's; or the code search)
+    encoding: EncodingConfig = field(default_factory=EncodingConfig)
 
     # --- reconstruction loss ------------------------------------------------------------------------
     # In angle / pi units: MSE (paper: plain MSE) + optional SmoothL1 (paper mentions it, weight unknown) +
@@ -167,8 +242,16 @@ class UniDexTokConfig:
             )
         if self.codebook_update not in ("gradient", "ema"):
             raise ConfigError(f"codebook_update must be 'gradient' or 'ema', got {self.codebook_update!r}")
-        check_encoding(self.search_rounds, self.search_sweeps, search_method=self.search_method,
-                       search_changes=self.search_changes, search_tolerance_deg=self.search_tolerance_deg)
+        self.encoding = EncodingConfig.from_dict(self.encoding)  # a dict from JSON or a keyword
+        if self.residual_stages < 0:
+            raise ConfigError(f"residual_stages must be >= 0 (0 = the paper's single VQ), got {self.residual_stages}")
+        if not 0.0 <= self.residual_drop_prob < 1.0:
+            raise ConfigError(f"residual_drop_prob must be in [0, 1), got {self.residual_drop_prob}")
+        if self.residual_stages and self.encoding.rounds:
+            raise ConfigError(
+                f"the code search picks one stage's codes: with residual_stages={self.residual_stages} the encoding "
+                "must be the nearest codes (encoding.rounds=0)"
+            )
         if min(self.mse_weight, self.smooth_l1_weight, self.l1_weight) < 0:
             raise ConfigError("mse_weight, smooth_l1_weight and l1_weight must be >= 0")
         if len(set(self.hand_names)) != len(self.hand_names):
@@ -177,8 +260,10 @@ class UniDexTokConfig:
     @classmethod
     def from_dict(cls, data: dict) -> "UniDexTokConfig":
         """A config from config.json's dict; a file without `format_version` is read as `format_version=None`
-        (refused), not as the current version, and one without `search_method` as LEGACY_SEARCH_METHOD (the only
-        code search there was when it was written)."""
+        (refused), not as the current version. A file with the flat legacy `search_*` keys (written before
+        `EncodingConfig`) is upgraded (`upgrade_legacy_encoding`), one without `search_method` searching with
+        LEGACY_SEARCH_METHOD (the only code search there was when it was written)."""
+        data = upgrade_legacy_encoding(data)
         unknown = sorted(set(data) - {f.name for f in fields(cls)})
         if unknown:
             raise ConfigError(
@@ -192,7 +277,7 @@ class UniDexTokConfig:
                     f"UniDexTok config.json: {key}={value!r} is a {type(value).__name__}, expected "
                     f"{_type_name(hints[key])}; correct the value in config.json"
                 )
-        return cls(**{"format_version": None, "search_method": LEGACY_SEARCH_METHOD, **data})
+        return cls(**{"format_version": None, **data})
 
     @classmethod
     def from_pretrained(cls, pretrained_model_name_or_path: str, revision: str | None = None) -> "UniDexTokConfig":
@@ -209,6 +294,15 @@ class UniDexTokConfig:
     def group_dim(self) -> int:
         return self.codebook_dim // self.num_groups
 
+    @property
+    def num_stages(self) -> int:
+        """Quantiser stages: 1 (the paper's) + the residual stages."""
+        return 1 + self.residual_stages
+
+    def symbols_per_hand(self, stages: int | None = None) -> int:
+        """Codes one hand state becomes: N tokens x K groups per stage (None = every stage)."""
+        return self.num_tokens * self.num_groups * (self.num_stages if stages is None else stages)
+
     @classmethod
     def from_preset(cls, name: str, **overrides) -> "UniDexTokConfig":
         """A preset by name (see PRESETS), with optional field overrides."""
@@ -218,7 +312,10 @@ class UniDexTokConfig:
 
 
 def _fits(value, hint) -> bool:
-    """Whether a JSON value fits a field's annotation (int, float, str, bool, list[...], X | None)."""
+    """Whether a JSON value fits a field's annotation (int, float, str, bool, list[...], X | None; EncodingConfig:
+    a dict, checked by `EncodingConfig.from_dict`)."""
+    if hint is EncodingConfig:
+        return isinstance(value, (dict, EncodingConfig))
     origin, args = typing.get_origin(hint), typing.get_args(hint)
     if origin in (typing.Union, types.UnionType):
         return any(_fits(value, a) for a in args)
@@ -237,7 +334,7 @@ def _type_name(hint) -> str:
     return getattr(hint, "__name__", None) if typing.get_origin(hint) is None else str(hint).replace("typing.", "")
 
 
-# Named presets; keys double as the CLI choices. VQ is the paper's (256 -> 8 x 32-entry) in all.
+# Named presets; keys double as the CLI choices. VQ is the paper's (256 -> 8 x 32-entry) in all (first stage).
 PRESETS: dict[str, UniDexTokConfig] = {
     # Paper sizes (N=8, C=512); depth/heads are our documented choice (not published).
     "paper": UniDexTokConfig(num_tokens=8, hidden_dim=512, encoder_depth=4, decoder_depth=4, num_heads=8),
@@ -260,3 +357,5 @@ PRESETS: dict[str, UniDexTokConfig] = {
     ),
     "tiny": UniDexTokConfig(num_tokens=4, hidden_dim=64, encoder_depth=1, decoder_depth=1, num_heads=4),
 }
+# small_residual: small + one residual stage (departure, #48): 2 x 64 codes a hand, the first 64 the paper's sequence
+PRESETS["small_residual"] = replace(PRESETS["small"], residual_stages=1)

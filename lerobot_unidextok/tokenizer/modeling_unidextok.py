@@ -23,7 +23,7 @@ from torch import nn
 from lerobot_unidextok.constants import ANGLE_SCALE_RAD
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.pretrained import hub_errors, resolve
-from lerobot_unidextok.tokenizer.configuration_unidextok import UniDexTokConfig
+from lerobot_unidextok.tokenizer.configuration_unidextok import EncodingConfig, UniDexTokConfig
 from lerobot_unidextok.tokenizer.layers import AdaLNBlock, AdaLNFinalNorm, HandEmbedder
 from lerobot_unidextok.tokenizer.quantizer import FactorizedCosineVQ
 from lerobot_unidextok.tokenizer.search import greedy_codes, search_codes
@@ -37,7 +37,7 @@ class UniDexTokOutput:
     """What `UniDexTok.forward` returns."""
 
     states_rad: torch.Tensor  # (B, 22) reconstruction in radians
-    indices: torch.Tensor  # (B, N, K) int64 codes
+    indices: torch.Tensor  # (B, N, K * stages) int64 codes, stage 1 first
     loss: torch.Tensor  # total = recon_loss + vq_loss
     recon_loss: torch.Tensor  # masked MSE in normalised angle space (+ optional SmoothL1)
     vq_loss: torch.Tensor  # commitment * beta + codebook (+ entropy)
@@ -68,8 +68,9 @@ class UniDexTok(
             AdaLNBlock(c, config.num_heads, config.mlp_ratio, config.dropout) for _ in range(config.encoder_depth)
         )
         self.enc_norm = AdaLNFinalNorm(c)
-        # quantiser
+        # quantiser: the paper's stage, then the residual stages (none by default: old checkpoints keep their layout)
         self.quantizer = FactorizedCosineVQ(config)
+        self.residual_quantizers = nn.ModuleList(FactorizedCosineVQ(config) for _ in range(config.residual_stages))
         # decoder (mirrors the encoder) and flatten head
         self.dec_pos = nn.Parameter(torch.zeros(1, n, c))
         self.decoder = nn.ModuleList(
@@ -96,7 +97,8 @@ class UniDexTok(
         nn.init.normal_(self.enc_pos, std=0.02)
         nn.init.normal_(self.dec_pos, std=0.02)
         nn.init.normal_(self.hand_embed.weight, std=0.02)
-        nn.init.normal_(self.quantizer.codebooks)
+        for vq in self.quantizers:
+            nn.init.normal_(vq.codebooks)
         # adaLN-Zero: every block starts as the identity, final norms as plain LayerNorm
         for block in [*self.encoder, *self.decoder, self.enc_norm, self.dec_norm]:
             nn.init.zeros_(block.adaLN_modulation[-1].weight)
@@ -175,6 +177,42 @@ class UniDexTok(
         x_hat = self.head(z.flatten(1))  # (B, 22) normalised
         return x_hat * self.norm_scale + self.norm_center  # (B, 22) radians
 
+    @property
+    def quantizers(self) -> list[FactorizedCosineVQ]:
+        """Every quantiser stage, the paper's first."""
+        return [self.quantizer, *self.residual_quantizers]
+
+    @staticmethod
+    def _left_out(vq: FactorizedCosineVQ, z: torch.Tensor, indices: torch.Tensor) -> torch.Tensor:
+        """(B, N, C) input of stage `vq` and its (B, N, K) codes -> (B, N, C) what the codes left out: the decoder
+        input its unsnapped group vectors would give minus the one its codes give (the next stage's input)."""
+        u = vq.unit_groups(z)  # (B, N, K, d)
+        return F.linear((u - vq.indices_to_codes(indices)).flatten(-2), vq.project_out.weight)  # (B, N, C)
+
+    def _nearest_codes(self, z: torch.Tensor, stages: int) -> torch.Tensor:
+        """(B, N, C) encoder output -> (B, N, K * stages) nearest codes of the first `stages` stages."""
+        codes = [self.quantizer.nearest_indices(z)]  # (B, N, K)
+        vq, z_in = self.quantizer, z
+        for rq in self.residual_quantizers[: stages - 1]:
+            z_in = self._left_out(vq, z_in, codes[-1])  # (B, N, C)
+            codes.append(rq.nearest_indices(z_in))
+            vq = rq
+        return torch.cat(codes, dim=-1)
+
+    def _decoder_input(self, codes: torch.Tensor) -> torch.Tensor:
+        """(B, N, K * s) codes of the first s stages -> (B, N, C) the decoder input (the sum of the stages')."""
+        k = self.config.num_groups
+        return sum(vq.get_output_from_indices(codes[..., i * k : (i + 1) * k])
+                   for i, vq in enumerate(self.quantizers[: codes.shape[-1] // k]))  # fmt: skip
+
+    def _stages(self, stages: int | None) -> int:
+        if stages is None:
+            return self.config.num_stages
+        if not 1 <= stages <= self.config.num_stages:
+            raise ValueError(f"stages must be in [1, {self.config.num_stages}] (this model's quantiser stages), "
+                             f"got {stages}")  # fmt: skip
+        return stages
+
     def forward(
         self,
         states_rad: torch.Tensor,
@@ -193,6 +231,8 @@ class UniDexTok(
         c = self.hand_embed(self.hand_ids(hand, b, allow_unknown), hand_drop_prob, generator)  # (B, C)
         z = self._encode_latent(x_rad, c)  # (B, N, C)
         zq, indices, vq_loss = self.quantizer(z)  # (B, N, C), (B, N, K), ()
+        if self.residual_quantizers:
+            zq, indices, vq_loss = self._residual_forward(z, zq, indices, vq_loss, generator)
         x_hat_rad = self._decode_latent(zq, c)  # (B, 22)
         recon_loss = self.reconstruction_loss(x_hat_rad / ANGLE_SCALE_RAD, x_rad / ANGLE_SCALE_RAD, mask)
         return UniDexTokOutput(
@@ -202,6 +242,23 @@ class UniDexTok(
             recon_loss=recon_loss,
             vq_loss=vq_loss,
         )
+
+    def _residual_forward(self, z, zq, indices, vq_loss, generator):
+        """The residual stages on top of the first one's (zq, indices, vq_loss): ((B, N, C) summed decoder input,
+        (B, N, K * stages) codes, summed VQ loss). In training a `residual_drop_prob` share of rows gets the first
+        stage's input alone."""
+        keep = torch.ones(z.shape[0], 1, 1, device=z.device)  # (B, 1, 1)
+        if self.training and self.config.residual_drop_prob > 0:
+            draw = torch.rand(z.shape[0], generator=generator, device=generator.device if generator else None)
+            keep = (draw.to(z.device) >= self.config.residual_drop_prob).to(z.dtype).view(-1, 1, 1)
+        codes, vq, z_in = [indices], self.quantizer, z
+        for rq in self.residual_quantizers:
+            z_in = self._left_out(vq, z_in, codes[-1])  # (B, N, C)
+            zq_r, idx_r, loss_r = rq(z_in)
+            zq, vq_loss = zq + keep * zq_r, vq_loss + loss_r
+            codes.append(idx_r)
+            vq = rq
+        return zq, torch.cat(codes, dim=-1), vq_loss
 
     def reconstruction_loss(self, x_hat: torch.Tensor, x: torch.Tensor, mask: torch.Tensor | None) -> torch.Tensor:
         """MSE (+ SmoothL1, + L1) in angle / pi units over active DoFs only; padded slots are not targets."""
@@ -234,15 +291,18 @@ class UniDexTok(
         hand: HandArg,
         allow_unknown: bool = False,
         mask: torch.Tensor | None = None,
-        search_rounds: int | None = None,
+        encoding: EncodingConfig | None = None,
+        stages: int | None = None,
     ) -> torch.Tensor:
-        """(B, 22) radians -> (B, N, K) int64 codes.
+        """(B, 22) radians -> (B, N, K * stages) int64 codes, picked as `encoding` says (None = the config's own,
+        `config.encoding`; `EncodingConfig(rounds=0)` = `NEAREST_CODES`).
 
-        With `search_rounds` 0 each group vector takes its nearest code (the paper's encoding); with R > 0 those
-        codes are refined by R rounds of the config's decoder-aware search (`search_method`, `tokenizer.search`)
-        over the active DoFs: `mask` (B, 22) bool, or each registered hand's spec when None. `search_rounds=None`
-        = the config's."""
-        return self._encode(states_rad, hand, allow_unknown, mask, search_rounds)[0]
+        With `rounds` 0 each group vector takes its nearest code (the paper's encoding); with R > 0 those codes are
+        refined by R rounds of the decoder-aware search (`tokenizer.search`) over the active DoFs: `mask` (B, 22)
+        bool, or each registered hand's spec when None (one stage only). `stages` (None = all of the model's): the
+        codes of the first stages, `stages=1` the paper's N x K token sequence; a residual model's stage 1 is its
+        own sequence (decodable alone, `decode`)."""
+        return self._encode(states_rad, hand, allow_unknown, mask, encoding, stages)[0]
 
     @torch.no_grad()
     def encode_decode(
@@ -251,34 +311,38 @@ class UniDexTok(
         hand: HandArg,
         allow_unknown: bool = False,
         mask: torch.Tensor | None = None,
-        search_rounds: int | None = None,
+        encoding: EncodingConfig | None = None,
+        stages: int | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """`encode` and `decode` of its codes: ((B, N, K) codes, (B, 22) radians). The greedy search decodes its
         codes as it checks them, so this saves the decoder pass a separate `decode` would repeat."""
-        codes, decoded, ids = self._encode(states_rad, hand, allow_unknown, mask, search_rounds)
+        codes, decoded, ids = self._encode(states_rad, hand, allow_unknown, mask, encoding, stages)
         if decoded is None:
-            zq = self.quantizer.get_output_from_indices(codes)  # (B, N, C)
-            decoded = self._decode_latent(zq, self.hand_embed(ids))  # (B, 22) radians
+            decoded = self._decode_latent(self._decoder_input(codes), self.hand_embed(ids))  # (B, 22) radians
         return codes, decoded
 
-    def _encode(self, states_rad, hand, allow_unknown, mask, search_rounds):
+    def _encode(self, states_rad, hand, allow_unknown, mask, encoding: EncodingConfig | None, stages: int | None = None):
         """((B, N, K) codes, (B, 22) their decoded states when the search computed them else None, (B,) hand ids)."""
         x_rad = self._check_states(states_rad)  # (B, 22)
         ids = self.hand_ids(hand, x_rad.shape[0], allow_unknown)  # (B,)
         c = self.hand_embed(ids)  # (B, C)
         z = self._encode_latent(x_rad, c)  # (B, N, C)
-        codes = self.quantizer.nearest_indices(z)  # (B, N, K) int64
-        rounds = self.config.search_rounds if search_rounds is None else search_rounds
-        if not rounds:
+        stages = self._stages(stages)
+        codes = self._nearest_codes(z, stages)  # (B, N, K * stages) int64
+        enc = self.config.encoding if encoding is None else encoding
+        if not isinstance(enc, EncodingConfig):
+            raise TypeError(f"encoding must be an EncodingConfig or None (the config's own), got {enc!r}")
+        if not enc.rounds:
             return codes, None, ids
+        if stages > 1:
+            raise ValueError(f"the code search picks one stage's codes; encode with stages=1, or with the nearest "
+                             f"codes (encoding=NEAREST_CODES) for all {stages} stages")  # fmt: skip
         active = self.active_dofs(ids) if mask is None else torch.as_tensor(mask, device=x_rad.device)
         if active.shape != x_rad.shape:
             raise ValueError(f"mask must have the states' shape {tuple(x_rad.shape)}, got {tuple(active.shape)}")
-        cfg = self.config
-        if cfg.search_method == "sweeps":
-            return search_codes(self, x_rad, codes, c, active, rounds, cfg.search_sweeps), None, ids
-        found = greedy_codes(self, x_rad, codes, c, active, rounds, cfg.search_changes,
-                             math.radians(cfg.search_tolerance_deg))  # fmt: skip
+        if enc.method == "sweeps":
+            return search_codes(self, x_rad, codes, c, active, enc.rounds, enc.sweeps), None, ids
+        found = greedy_codes(self, x_rad, codes, c, active, enc.rounds, enc.changes, math.radians(enc.tolerance_deg))
         return *found, ids
 
     def active_dofs(self, ids: torch.Tensor) -> torch.Tensor:
@@ -315,16 +379,29 @@ class UniDexTok(
 
     @torch.no_grad()
     def decode(self, codes: torch.Tensor, hand: HandArg, allow_unknown: bool = False) -> torch.Tensor:
-        """(B, N, K) int codes -> (B, 22) radians."""
+        """(B, N, K * s) int codes of the first s stages (s = 1: the paper's (B, N, K)) -> (B, 22) radians."""
         codes = torch.as_tensor(codes, device=self.enc_pos.device)
-        expected = (self.config.num_tokens, self.config.num_groups)
-        if codes.ndim != 3 or tuple(codes.shape[1:]) != expected:
-            raise ValueError(f"codes must have shape (B, {expected[0]}, {expected[1]}), got {tuple(codes.shape)}")
-        self.quantizer.check_indices(codes)
+        n, k, stages = self.config.num_tokens, self.config.num_groups, self.config.num_stages
+        widths = [k * s for s in range(1, stages + 1)]
+        if codes.ndim != 3 or codes.shape[1] != n or codes.shape[2] not in widths:
+            shapes = " or ".join(f"(B, {n}, {w})" for w in widths)
+            raise ValueError(f"codes must have shape {shapes} (stage 1 first), got {tuple(codes.shape)}")
+        for i in range(codes.shape[2] // k):
+            self.quantizers[i].check_indices(codes[..., i * k : (i + 1) * k])
         codes = codes.long()
         c = self.hand_embed(self.hand_ids(hand, codes.shape[0], allow_unknown))  # (B, C)
-        zq = self.quantizer.get_output_from_indices(codes)  # (B, N, C)
-        return self._decode_latent(zq, c)  # (B, 22) radians
+        return self._decode_latent(self._decoder_input(codes), c)  # (B, 22) radians
+
+    def code_vectors(self, codes: torch.Tensor) -> torch.Tensor:
+        """(B, N, K * s) codes -> (B, N, K * s, d) their unit-norm code vectors (each stage's own codebooks)."""
+        k = self.config.num_groups
+        return torch.cat([self.quantizers[i].indices_to_codes(codes[..., i * k : (i + 1) * k])
+                          for i in range(codes.shape[-1] // k)], dim=-2)  # fmt: skip
+
+    @torch.no_grad()
+    def reseed_dead_codes(self) -> int:
+        """Re-seed every stage's rarely used codes (training); returns how many were replaced."""
+        return sum(vq.reseed_dead_codes() for vq in self.quantizers)
 
     @torch.no_grad()
     def add_hands(self, names: Sequence[str]) -> list[str]:
@@ -345,7 +422,8 @@ class UniDexTok(
 
     @property
     def num_codes_per_state(self) -> int:
-        return self.config.num_tokens * self.config.num_groups
+        """Codes per hand state with every stage (`config.symbols_per_hand`)."""
+        return self.config.symbols_per_hand()
 
     # -----------------------------------------------------------------------------------------
     # Hub loading: format check, safetensors only, strict
@@ -355,11 +433,7 @@ class UniDexTok(
         cls,
         pretrained_model_name_or_path,
         *args,
-        search_rounds: int | None = None,
-        search_sweeps: int | None = None,
-        search_method: str | None = None,
-        search_changes: int | None = None,
-        search_tolerance_deg: float | None = None,
+        encoding: EncodingConfig | None = None,
         **kwargs,
     ) -> "UniDexTok":
         """The one door to a trained tokenizer: a checkpoint folder, a `unidextok-train` run folder (its
@@ -367,27 +441,20 @@ class UniDexTok(
         no HF cache), or a Hub repo id (the HF cache serves it offline; an explicit `revision` always means the
         Hub). A name found nowhere is a `CheckpointNotFoundError` saying how to fix it (`pretrained.resolve`).
 
-        `search_rounds` / `search_method` / `search_sweeps` / `search_changes` / `search_tolerance_deg`: the encoding
-        to use instead of the checkpoint's (None keeps it; `search_rounds=0` = the nearest codes), checked by `UniDexTokConfig` like every
-        config field."""
+        `encoding`: how the loaded model encodes instead of the checkpoint's own (None keeps it; `NEAREST_CODES` =
+        the nearest codes); it replaces the checkpoint's whole `EncodingConfig`."""
         name = str(pretrained_model_name_or_path)
         if kwargs.get("revision") is None:
             name = resolve(name, checkpoint=True)
         with hub_errors(str(pretrained_model_name_or_path)):
             model = super().from_pretrained(name, *args, **kwargs)
-        return model.with_encoding(search_rounds=search_rounds, search_sweeps=search_sweeps,
-                                   search_method=search_method, search_changes=search_changes,
-                                   search_tolerance_deg=search_tolerance_deg)  # fmt: skip
+        return model.with_encoding(encoding)
 
-    def with_encoding(self, search_rounds: int | None = None, search_sweeps: int | None = None,
-                      search_method: str | None = None, search_changes: int | None = None,
-                      search_tolerance_deg: float | None = None) -> "UniDexTok":  # fmt: skip
-        """Set how `encode` picks codes (None keeps a setting; checked by `UniDexTokConfig`); returns self."""
-        given = {"search_rounds": search_rounds, "search_sweeps": search_sweeps, "search_method": search_method,
-                 "search_changes": search_changes, "search_tolerance_deg": search_tolerance_deg}  # fmt: skip
-        changes = {k: v for k, v in given.items() if v is not None}
-        if changes:
-            self.config = dataclasses.replace(self.config, **changes)
+    def with_encoding(self, encoding: EncodingConfig | None) -> "UniDexTok":
+        """Make `encoding` this model's own (`config.encoding`, saved with it); None keeps the current one.
+        Returns self."""
+        if encoding is not None:
+            self.config = dataclasses.replace(self.config, encoding=EncodingConfig.from_dict(encoding))
         return self
 
     @classmethod

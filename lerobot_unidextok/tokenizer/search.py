@@ -15,14 +15,14 @@ never makes a row worse on its objective. Same tokens, same decoder: analysis by
 their codebook entries (CELP).
 
 Two ways to move through the codes, both on the same linearisation and with the same exact check per round:
-- `search_method="sweeps"` (`search_codes`, the first one; checkpoints written before `search_method` existed use
-  it): coordinate descent, each sweep gives each of the N*K positions in turn its best code; N*K*sweeps small
+- `EncodingConfig(method="sweeps")` (`search_codes`, the first one; checkpoints written before the search had a
+  method use it): coordinate descent, each sweep gives each of the N*K positions in turn its best code; N*K*sweeps small
   sequential steps per round.
-- `search_method="greedy"` (`greedy_codes`): each step scores every single change (all N*K positions x S codes at
+- `EncodingConfig(method="greedy")` (`greedy_codes`): each step scores every single change (all N*K positions x S codes at
   once) and makes the best one, up to `changes` steps per round, stopping early when no row gains. About as accurate
   per round and cheaper: the few changes that matter (a round changes a quarter of the positions) instead of
   N*K sequential steps, and the decoder's forward pass for the Jacobian also gives the round's start. A row
-  whose error is within `search_tolerance_deg` after a round leaves the search (early exit), so later rounds,
+  whose error is within `tolerance_deg` after a round leaves the search (early exit), so later rounds,
   each a Jacobian, cost only for the rows that need them.
 
 Cost: per round one Jacobian (a backward pass through one copy of the batch per active DoF), which dominates at

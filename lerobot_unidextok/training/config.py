@@ -6,7 +6,7 @@ the first field of each section has one of the first two, so the section divider
 
 from dataclasses import dataclass, field
 
-from lerobot_unidextok.tokenizer.configuration_unidextok import check_encoding
+from lerobot_unidextok.tokenizer.configuration_unidextok import EncodingConfig, UniDexTokConfig
 from lerobot_unidextok.training.coverage import CoverageConfig
 
 
@@ -41,15 +41,15 @@ class TrainConfig:
     row_store_dir: str = ""
 
     # --- model ------------------------------------------------------------------------------------
-    preset: str = "small"  # UniDexTokConfig preset: paper | small | tiny
+    preset: str = "small"  # UniDexTokConfig preset: paper | small | small_residual | tiny
     # Hands to give an embedding row besides the training hands, which always get one (listed first, then the
     # training hands). Other hands, e.g. those left out with exclude_hands, go through the unknown-hand row.
     hand_names: list[str] = field(default_factory=list)
     init_from: str | None = None  # start from a pretrained checkpoint (folder or repo id)
-    # Code search rounds written into the saved checkpoints' config (how `encode` picks codes at use, e.g. in
-    # unidextok-eval; docs/tokenizer.md "Code search"). Training and checkpoint selection always use the nearest
-    # codes. None = the preset's (0) or the init_from checkpoint's.
-    search_rounds: int | None = None
+    # The encoding written into the saved checkpoints' config (`EncodingConfig`: how `encode` picks codes at use,
+    # e.g. in unidextok-eval; docs/tokenizer.md "Code search"), e.g. --encoding.rounds=1. Training and checkpoint
+    # selection always use the nearest codes. None = the preset's (nearest codes) or the init_from checkpoint's.
+    encoding: EncodingConfig | None = None
 
     # --- optimisation -------------------------------------------------------------------------------
     steps: int = 5000  # optimiser steps (derived from `epochs` when that is > 0)
@@ -106,7 +106,8 @@ class TrainConfig:
     progress: bool = True  # tqdm bar
 
     def __post_init__(self) -> None:
-        check_encoding(self.search_rounds)
+        if self.encoding is not None and self.init_from is None:  # checked with the preset, before any data loads
+            UniDexTokConfig.from_preset(self.preset, encoding=self.encoding)  # e.g. residual stages take rounds=0
         if not 0.0 < self.fraction <= 1.0:
             raise ValueError(f"fraction must be in (0, 1], got {self.fraction}")
         if self.steps < 1 and self.epochs <= 0:

@@ -15,7 +15,7 @@ from lerobot_unidextok.data.rowstore import HandRowStore
 from lerobot_unidextok.errors import ConfigError, MissingInputError
 from lerobot_unidextok.evaluation.metrics import mpjae_deg
 from lerobot_unidextok.evaluation.reconstruct import codebook_usage, reconstruct
-from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
+from lerobot_unidextok.tokenizer import NEAREST_CODES, UniDexTok, UniDexTokConfig
 from lerobot_unidextok.training.arrays import HandStates
 from lerobot_unidextok.training.checkpoint import (
     check_checkpoint,
@@ -97,7 +97,7 @@ def build_model(cfg: TrainConfig, train_data: HandStates | HandRowStore, **overr
     hands (`joint_ranges_rad`) unless given.
     """
     if cfg.init_from:
-        model = UniDexTok.from_pretrained(cfg.init_from, search_rounds=cfg.search_rounds)
+        model = UniDexTok.from_pretrained(cfg.init_from, encoding=cfg.encoding)
         model.add_hands([*cfg.hand_names, *train_data.hand_names(), *resolve_range_hands(cfg.range_hands,
                                                                                          cfg.exclude_hands)])
         return model
@@ -106,8 +106,8 @@ def build_model(cfg: TrainConfig, train_data: HandStates | HandRowStore, **overr
         overrides["joint_range_rad"] = joint_ranges_rad(
             train_data, range_hands=resolve_range_hands(cfg.range_hands, cfg.exclude_hands)
         )
-    if cfg.search_rounds is not None:
-        overrides.setdefault("search_rounds", cfg.search_rounds)
+    if cfg.encoding is not None:
+        overrides.setdefault("encoding", cfg.encoding)
     return UniDexTok(
         UniDexTokConfig.from_preset(cfg.preset, hand_names=training_vocabulary(cfg, train_data), **overrides)
     )
@@ -119,7 +119,7 @@ def evaluate_mae_deg(model: UniDexTok, data: HandStates, max_frames: int, seed: 
         rows = np.sort(np.random.default_rng(seed).choice(len(data), max_frames, replace=False))
         data = data.select(rows)
     # the nearest codes (what training optimises), whatever code search the model's config asks for at use
-    rec = reconstruct(model, data.states_rad, data.hands, allow_unknown=True, masks=data.masks, search_rounds=0)
+    rec = reconstruct(model, data.states_rad, data.hands, allow_unknown=True, masks=data.masks, encoding=NEAREST_CODES)
     return mpjae_deg(rec.states_rad, data.states_rad, data.masks), codebook_usage(rec.codes, model.config.codebook_size)
 
 
@@ -388,10 +388,12 @@ def _sync_codebooks(cfg: TrainConfig, model: UniDexTok, step: int, n_steps: int,
     process on process 0's codes."""
     reseeding = cfg.adapt == "all" and cfg.reseed_every > 0 and step < cfg.reseed_until * n_steps
     if reseeding and (step + 1) % cfg.reseed_every == 0:
-        model.quantizer.reseed_dead_codes()
-        broadcast_from_main(model.quantizer)  # re-seeded from each process's own batch: keep process 0's
+        model.reseed_dead_codes()  # every quantiser stage
+        for vq in model.quantizers:
+            broadcast_from_main(vq)  # re-seeded from each process's own batch: keep process 0's
     elif model.config.codebook_update == "ema" and num_processes > 1:
-        broadcast_from_main(model.quantizer)  # EMA codes move with each process's batch: keep process 0's
+        for vq in model.quantizers:
+            broadcast_from_main(vq)  # EMA codes move with each process's batch: keep process 0's
 
 
 def _show_progress(bar, out, x: torch.Tensor, m: torch.Tensor, model: UniDexTok, lr: float) -> None:

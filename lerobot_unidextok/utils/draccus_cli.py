@@ -106,6 +106,9 @@ def parse_config[T](config_class: type[T], args: Sequence[str] | None = None, co
         return config_parser(config_class, config_path).parse_args(args)
     except ParsingError as exc:
         cause = exc.__cause__
+        nested = _user_error_in(exc)  # an optional nested config's own check, under draccus' union decoding
+        if nested is not None:
+            raise nested from None
         if isinstance(cause, UserError):
             raise cause from None
         if isinstance(cause, ValueError):  # a __post_init__ check: its message names the flag
@@ -113,6 +116,21 @@ def parse_config[T](config_class: type[T], args: Sequence[str] | None = None, co
         if isinstance(cause, TypeError):  # a value of the wrong type for a field, or a key it does not have
             raise ConfigError(f"{cause}: check the config file's keys and value types against --help") from None
         raise ConfigError(str(exc)) from None
+
+
+def _user_error_in(exc: BaseException) -> UserError | None:
+    """The first UserError (a config's own check) among the exceptions `exc` was raised from, if any."""
+    seen: set[int] = set()
+    todo = [exc.__cause__, exc.__context__]
+    while todo:
+        e = todo.pop(0)
+        if e is None or id(e) in seen:
+            continue
+        if isinstance(e, UserError):
+            return e
+        seen.add(id(e))
+        todo += [e.__cause__, e.__context__]
+    return None
 
 
 def _resolve_config_paths(args: list[str]) -> list[str]:

@@ -23,11 +23,11 @@ def test_every_arm_is_trained_bound_and_scored_in_closed_loop(tmp_path):
     folder = tmp_path / "out" / cl.NAME
     bound = json.loads((folder / "policies/GraspLift-v0/shadow/mix_seed0/bound/config.json").read_text())
     assert bound["udt_hand_vocabulary"] == ["allegro", "shadow"] and bound["udt_fixed_hand_ids"] == [1]
-    assert bound["n_action_steps"] == 10 and bound["udt_hand_input"] == "state" and bound["udt_search_rounds"] == 0
+    assert bound["n_action_steps"] == 10 and bound["udt_hand_input"] == "state" and bound["udt_encoding"]["rounds"] == 0
     zero = json.loads((folder / "policies/GraspLift-v0/shadow/zero_shot_seed0/bound/config.json").read_text())
     assert zero["udt_hand_vocabulary"] == ["allegro"] and zero["udt_extra_hands"] == ["shadow"]
     tokens = json.loads((folder / "policies/GraspLift-v0/allegro/tokens_nearest_seed0/bound/config.json").read_text())
-    assert tokens["udt_hand_input"] == "tokens" and tokens["udt_search_rounds"] == 0
+    assert tokens["udt_hand_input"] == "tokens" and tokens["udt_encoding"]["rounds"] == 0
     assert tokens["udt_pretrained"] == "unidextok/universal-small" and bound["udt_pretrained"] is None
     # the mix for a target writes its pool target_weight times; the packed mix is append_pad
     mix = UdhmDatasetMeta(tmp_path / "sim/GraspLift-v0/mix_semantic_for_shadow_w10").record

@@ -10,6 +10,7 @@ import pytest
 from experiments import finetune
 from lerobot_unidextok.configs import shipped_config
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.tokenizer import NEAREST_CODES
 
 TINY_RECIPE = shipped_config("train/tiny")
 NO_STEP = 1e-12  # a fine-tune lr whose updates stay far below float32 resolution of the weights
@@ -26,10 +27,10 @@ def result(converted_g1, tmp_path_factory) -> tuple[dict, Path]:
     return finetune.run(finetune.parse(_argv(converted_g1, out))), out
 
 
-def _scored(model, test, search_rounds: int) -> dict:
+def _scored(model, test, encoding) -> dict:
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer
 
-    model.config.search_rounds = search_rounds
+    model.with_encoding(encoding)
     return evaluate_tokenizer(model, test)["overall"]
 
 
@@ -61,13 +62,13 @@ def test_every_row_is_scored_on_the_test_split_only(result, converted_g1):
             assert r["best_step"] == 2 and r["train_cpu_s"] > 0
             # its figures are its kept checkpoint's on exactly the test rows, through the nearest codes and with
             # the code search (a fine-tuned model inherits the shipped config's search; the main columns do not use it)
-            again = _scored(UniDexTok.from_pretrained(r["model_dir"]), test, 0)
+            again = _scored(UniDexTok.from_pretrained(r["model_dir"]), test, NEAREST_CODES)
             assert r["overall"] == pytest.approx({k: again[k] for k in r["overall"]}, rel=1e-9)
-            searched = _scored(UniDexTok.from_pretrained(r["model_dir"]), test, 2)
+            searched = _scored(UniDexTok.from_pretrained(r["model_dir"]), test, finetune.FinetuneConfig().searched)
             assert r["searched"]["mpjae_deg"] == pytest.approx(searched["mpjae_deg"], rel=1e-9)
             assert r["searched"]["mpjae_deg"] < r["overall"]["mpjae_deg"]
     # the checkpoint row is the shipped model evaluated on exactly these rows
-    shipped = _scored(UniDexTok.from_pretrained(DEFAULT_TOKENIZER), test, 0)
+    shipped = _scored(UniDexTok.from_pretrained(DEFAULT_TOKENIZER), test, NEAREST_CODES)
     assert _row(res, "checkpoint as it is")["overall"]["mpjae_deg"] == pytest.approx(shipped["mpjae_deg"], rel=1e-9)
     assert res["summary"][0]["searched_mpjae_deg"] == pytest.approx(evaluate_tokenizer(
         UniDexTok.from_pretrained(DEFAULT_TOKENIZER), test)["overall"]["mpjae_deg"], rel=1e-9)  # the shipped encoding

@@ -49,9 +49,9 @@ def test_variants_are_scored_on_selection_episodes_and_cached(recipe, tmp_path):
     # ... and once per code search setting: the nearest codes first, then each method's rounds x sweeps or
     # rounds x changes pairs
     searched = universal_screen.run(universal_screen.parse([f"--recipe={recipe}", f"--runs=[{folder}]",
-                                                            "--range_rows=20", "--search_rounds=[0,1]",
-                                                            "--search_methods=[sweeps,greedy]", "--search_changes=[8]",
-                                                            "--search_sweeps=[1,2]", f"--output_root={tmp_path}"]))  # fmt: skip
+                                                            "--range_rows=20", "--rounds=[0,1]",
+                                                            "--methods=[sweeps,greedy]", "--changes=[8]",
+                                                            "--sweeps=[1,2]", f"--output_root={tmp_path}"]))  # fmt: skip
     assert [r["search"] for r in searched["runs"]] == ["nearest codes", "sweeps 1 x 1", "sweeps 1 x 2", "greedy 1 x 8"]
     assert searched["runs"][0]["in_range_deg"] == pytest.approx(row["in_range_deg"])
     for r in searched["runs"][1:]:  # the search never worsens a row's squared error: the mean drops
@@ -60,8 +60,8 @@ def test_variants_are_scored_on_selection_episodes_and_cached(recipe, tmp_path):
 
 
 def test_search_settings_and_their_labels():
-    cfg = universal_screen.ScreenConfig(search_rounds=[0, 1, 2], search_methods=["greedy", "sweeps"],
-                                        search_changes=[8], search_sweeps=[2], search_tolerances=[0.0, 0.1])  # fmt: skip
+    cfg = universal_screen.ScreenConfig(rounds=[0, 1, 2], methods=["greedy", "sweeps"],
+                                        changes=[8], sweeps=[2], tolerances_deg=[0.0, 0.1])  # fmt: skip
     labels = [universal_screen.search_label(s) for s in universal_screen.search_settings(cfg)]
     # a tolerance only matters from the second round on: one-round settings are scored once
     assert labels == ["nearest codes", "greedy 1 x 8", "greedy 2 x 8", "greedy 2 x 8, stop at 0.1 deg",

@@ -40,7 +40,7 @@ def test_unseen_episodes_kfold_scores_each_episode_once_and_caches_runs(converte
     # the same models scored with the code search: closer on both sets (the search never worsens a row)
     for k in (0, 1):
         r = runs["shipped", k]
-        assert r["search_rounds"] == 2 and r["heldout_searched_deg"]["all"] < r["heldout_deg"]["all"]
+        assert r["searched_encoding"]["rounds"] == 2 and r["heldout_searched_deg"]["all"] < r["heldout_deg"]["all"]
         assert r["range_searched_deg"]["all"] < r["range_deg"]["all"]
     assert s["heldout_searched_mean"] < s["heldout_mean"]
     cache = tmp_path / "unseen_episodes" / "runs_tiny.jsonl"
@@ -51,8 +51,8 @@ def test_unseen_episodes_kfold_scores_each_episode_once_and_caches_runs(converte
     assert len(cache.read_text().splitlines()) == 2
     assert again["summary"]["shipped"]["heldout_mean"] == s["heldout_mean"]
     assert "| shipped | 2 |" in (tmp_path / "unseen_episodes" / "unseen_episodes.md").read_text()
-    # a run cached without the searched score (an older cache, or --search_rounds=0) trains again when asked for it
-    plain = unseen_episodes.run(unseen_episodes.parse([*argv, "--search_rounds=0", f"--output_root={tmp_path / 'p'}"]))
+    # a run cached without the searched score (an older cache, or --searched=null) trains again when asked for it
+    plain = unseen_episodes.run(unseen_episodes.parse([*argv, "--searched=null", f"--output_root={tmp_path / 'p'}"]))
     assert "heldout_searched_mean" not in plain["summary"]["shipped"]
     again = unseen_episodes.run(unseen_episodes.parse([*argv, f"--output_root={tmp_path / 'p'}"]))
     assert len((tmp_path / "p" / "unseen_episodes" / "runs_tiny.jsonl").read_text().splitlines()) == 4

@@ -5,6 +5,7 @@ subprocesses get HTTPS_PROXY/HTTP_PROXY=127.0.0.1:9 with NO_PROXY=127.0.0.1, so 
 fails. The dataset is the synthetic whole-robot fixture (tests/fixtures/robot_udhm.py), in the repository.
 """
 
+import dataclasses
 import json
 import os
 import shutil
@@ -234,7 +235,7 @@ def test_policy_folder_gets_a_policy_card(tmp_path, g1_like):
 def test_card_lists_only_the_hands_trained(tmp_path):
     """A tokenizer trained on one hand had all 11 vocabulary hands listed as supported."""
     cfg = UniDexTokConfig.from_preset("tiny", trained_hands=[INSPIRE])
-    (tmp_path / "config.json").write_text(json.dumps(cfg.__dict__))
+    (tmp_path / "config.json").write_text(json.dumps(dataclasses.asdict(cfg)))
     card = tokenizer_card(tmp_path, "a/b")
     hands = card.split("## Hands trained")[1].split("##")[0]
     assert hands.count("\n- `") == 1 and f"- `{INSPIRE}`" in hands

@@ -5,6 +5,7 @@ converted contract (tests/fixtures/robot_udhm.py: 14 G1 arm joints + two Inspire
 `--policy.path`, and reload every checkpoint in a fresh process with LeRobot's stock factory.
 """
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -25,7 +26,7 @@ from lerobot_unidextok.policies import UDT_CONFIGS, ACTUdtConfig, DiffusionUdtCo
 from lerobot_unidextok.policies.act_udt import make_act_udt_pre_post_processors
 from lerobot_unidextok.policies.diffusion_udt import make_diffusion_udt_pre_post_processors
 from lerobot_unidextok.processor import NATIVE_TO_UDHM_STEP_NAME, STEP_NAME, UDHM_TO_NATIVE_STEP_NAME
-from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
+from lerobot_unidextok.tokenizer import EncodingConfig, UniDexTok, UniDexTokConfig
 
 REPO = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
@@ -122,8 +123,10 @@ def test_config_errors_name_the_fix(tok_dir, g1_like):
         _config(ACTUdtConfig, tok_dir).validate_features()
     with pytest.raises(ValueError, match="udt_range_check must be one of"):
         ACTUdtConfig(udt_range_check="sometimes")
-    with pytest.raises(ValueError, match="udt_search_rounds must be >= 0"):
-        ACTUdtConfig(udt_search_rounds=-1)
+    with pytest.raises(ValueError, match="encoding.rounds must be >= 0"):
+        ACTUdtConfig(udt_encoding={"rounds": -1})
+    with pytest.raises(ValueError, match="set udt_encoding only"):
+        ACTUdtConfig(udt_search_rounds=1, udt_encoding=EncodingConfig(rounds=0))
     meta = _Meta(g1_like["root"])
     meta.features = {**meta.features, OBS_HAND_TOKEN_FEATURES: {"dtype": "float32", "shape": (3,), "names": None}}
     cfg = _config(ACTUdtConfig, tok_dir, width=58)
@@ -184,9 +187,9 @@ def test_pre_processor_takes_the_robots_native_state(tok_dir, g1_like):
     robot = {PipelineFeatureType.OBSERVATION: {OBS_STATE: PolicyFeature(FeatureType.STATE, (26,))}}
     seen = pre.transform_features(robot)[PipelineFeatureType.OBSERVATION]
     assert {k: seen[k] for k in cfg.input_features} == cfg.input_features
-    searched = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"], udt_search_rounds=1)
-    step = next(s for s in make_act_udt_pre_post_processors(searched)[0].steps if hasattr(s, "search_rounds"))
-    assert step.search_rounds == 1 and a[OBS_HAND_TOKENS].shape == step.tokenize(converted[:1])[0].shape
+    searched = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"], udt_encoding=EncodingConfig(rounds=1))
+    step = next(s for s in make_act_udt_pre_post_processors(searched)[0].steps if hasattr(s, "encoding"))
+    assert step.encoding is searched.udt_encoding and a[OBS_HAND_TOKENS].shape == step.tokenize(converted[:1])[0].shape
     off = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"], udt_native_state=False)
     assert off.udt_native_state_layout == {}
     with pytest.raises(ValueError, match="width 26, but this step was set up for 58 columns"):
@@ -249,6 +252,51 @@ def _relative_round_trip(tok_dir, g1_like, tmp_path, hand_norm: str) -> None:
         native = torch.from_numpy(np.stack([g1_like["native_action"][i : i + 4] for i in range(8)])).float()
         torch.testing.assert_close(steps[-1][TransitionKey.ACTION], native, atol=1e-5, rtol=0)
     assert (relative - action).abs().max() > 0.1  # the state was really taken off
+
+
+def test_a_checkpoint_saved_with_the_legacy_udt_search_rounds_encodes_as_it_did(tok_dir, g1_like, tmp_path):
+    """A policy checkpoint written before udt_encoding: config.json has `udt_search_rounds`, the saved step
+    `search_rounds` and its tokenizer_config the flat legacy keys. It loads through the stock factory with both
+    upgraded into one EncodingConfig (the tokenizer's own encoding at that many rounds) and tokenises as the same
+    policy saved in the new form."""
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.policies.factory import make_pre_post_processors
+
+    cfg = _from_dataset(ACTUdtConfig, tok_dir, g1_like["root"])
+    cfg.udt_search_rounds = 1  # as a config.json written then sets it
+    cfg._upgrade_legacy_encoding()
+    own = UniDexTokConfig.from_pretrained(str(tok_dir)).encoding
+    assert cfg.udt_search_rounds is None and cfg.udt_encoding == dataclasses.replace(own, rounds=1)
+    pre, post = make_act_udt_pre_post_processors(cfg)
+    for folder in (tmp_path / "new", tmp_path / "old"):
+        pre.save_pretrained(folder)
+        post.save_pretrained(folder)
+        cfg.save_pretrained(folder)
+    old = tmp_path / "old"
+    config = json.loads((old / "config.json").read_text())
+    config.pop("udt_encoding")
+    (old / "config.json").write_text(json.dumps({**config, "udt_search_rounds": 1}))
+    for path in old.glob("policy_preprocessor*.json"):
+        pipeline = json.loads(path.read_text())
+        for entry in pipeline["steps"]:
+            if entry.get("registry_name") == STEP_NAME:
+                step_cfg = entry["config"]
+                step_cfg.pop("encoding")
+                tok_cfg = step_cfg["tokenizer_config"]
+                tok_cfg.update({"search_" + k: v for k, v in tok_cfg.pop("encoding").items()})  # the flat legacy keys
+                step_cfg["search_rounds"] = 1
+        path.write_text(json.dumps(pipeline))
+    assert '"search_rounds": 1' in next(old.glob("policy_preprocessor*.json")).read_text()
+    state = torch.from_numpy(to_converted(g1_like["native_state"][:6])).float()
+    tokens = {}
+    for folder in (tmp_path / "new", old):
+        loaded = PreTrainedConfig.from_pretrained(folder)
+        assert loaded.udt_encoding == cfg.udt_encoding and loaded.udt_search_rounds is None
+        pre_loaded, _ = make_pre_post_processors(loaded, pretrained_path=str(folder))
+        step = next(s for s in pre_loaded.steps if type(s).__name__ == "UniDexTokStateTokenizerStep")
+        assert step.encoding == cfg.udt_encoding and step.tokenizer.config.encoding == own
+        tokens[folder.name] = pre_loaded({OBS_STATE: state})[OBS_HAND_TOKENS]
+    assert torch.equal(tokens["new"], tokens["old"])
 
 
 def test_copy_start_makes_the_untrained_policy_copy_the_state(tok_dir, g1_like):
@@ -336,6 +384,13 @@ def test_lerobot_train_help_finds_the_plugin_without_the_flag_and_describes_ever
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
     assert "Traceback" not in r.stdout + r.stderr and "is installed but cannot be loaded" not in r.stderr
     for f in fields(UdtConfigMixin):
+        if f.name == "udt_encoding":  # a nested config: its comment heads its group, its fields are flags
+            group = r.stdout.split("Optional ['policy.udt_encoding']:\n", 1)[1].split("\n\n", 1)[0]
+            assert len(group.split()) >= 4, group
+            for sub in fields(EncodingConfig):
+                description = _help_text(r.stdout, f"--policy.udt_encoding.{sub.name}")
+                assert len(description.split()) >= 4, (sub.name, description)
+            continue
         description = _help_text(r.stdout, f"--policy.{f.name}")
         assert len(description.split()) >= 4, (f.name, description)  # a sentence, not just the type
 
@@ -557,7 +612,7 @@ def test_a_single_robot_dataset_trains_exactly_as_before_the_mixing(tok_dir, g1_
     assert "UniDexTokStateTokenizerStep" in names and "UniDexTokMixedTokenizerStep" not in names
     step = next(s for s in pre.steps if type(s).__name__ == "UniDexTokStateTokenizerStep")
     bare = UniDexTokStateTokenizerStep(hand_layout=list(step.hand_layout), state_names=list(step.state_names),
-                                       pretrained=str(tok_dir), search_rounds=step.search_rounds)  # fmt: skip
+                                       pretrained=str(tok_dir), encoding=step.encoding)  # fmt: skip
     converted = torch.from_numpy(to_converted(g1_like["native_state"][:4])).float()
     tokens, features = bare.tokenize(converted)  # (4, H*N*K), (4, F)
     for i in range(4):

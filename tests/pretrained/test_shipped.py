@@ -18,7 +18,7 @@ from experiments.universal import IN_RANGE_PREFIX, held_out_figures, in_range_fi
 from lerobot_unidextok.evaluation.report import encoding
 from lerobot_unidextok.hub.card import CARD_MARKER, card_status
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, SHIPPED, resolve, shipped_folder
-from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
+from lerobot_unidextok.tokenizer import NEAREST_CODES, UniDexTok, UniDexTokConfig
 
 FOLDER = SHIPPED[DEFAULT_TOKENIZER]
 REPO = Path(__file__).resolve().parents[2]
@@ -107,10 +107,11 @@ def test_the_card_tables_are_the_recorded_evaluation(recorded, section, key):
 
 def test_the_package_encodes_with_the_code_search_its_card_reports(shipped, recorded):
     cfg = shipped.config
-    assert (cfg.search_method, cfg.search_rounds, cfg.search_changes, cfg.search_tolerance_deg) == ("greedy", 2, 16, 0.1)
+    enc = cfg.encoding
+    assert (enc.method, enc.rounds, enc.changes, enc.tolerance_deg) == ("greedy", 2, 16, 0.1)
     assert recorded["encoding"] == encoding(cfg)
-    for flag in (f"--search_method={cfg.search_method}", f"--search_rounds={cfg.search_rounds}",
-                 f"--search_changes={cfg.search_changes}", f"--search_tolerance_deg={cfg.search_tolerance_deg:g}"):  # fmt: skip
+    for flag in (f"--encoding.method={enc.method}", f"--encoding.rounds={enc.rounds}",
+                 f"--encoding.changes={enc.changes}", f"--encoding.tolerance_deg={enc.tolerance_deg:g}"):  # fmt: skip
         assert flag in recorded["commands"]["figures"]
 
 
@@ -125,7 +126,7 @@ def test_the_default_encoding_decodes_within_the_cards_error_on_other_states(shi
     rows = range_states(hand, 64, seed=3)
     x = torch.tensor(rows.states_rad)
     got = mpjae_deg(shipped.decode(shipped.encode(x, hand), hand).numpy(), rows.states_rad, rows.masks)
-    nearest = mpjae_deg(shipped.decode(shipped.encode(x, hand, search_rounds=0), hand).numpy(), rows.states_rad,
+    nearest = mpjae_deg(shipped.decode(shipped.encode(x, hand, encoding=NEAREST_CODES), hand).numpy(), rows.states_rad,
                         rows.masks)  # fmt: skip
     stated = recorded["results"][IN_RANGE_PREFIX + hand]["mpjae_deg"]
     assert got <= 1.25 * stated and got < 0.6 * nearest, (got, stated, nearest)
@@ -134,19 +135,17 @@ def test_the_default_encoding_decodes_within_the_cards_error_on_other_states(shi
 def test_the_in_range_figures_are_what_the_shipped_weights_measure(shipped, recorded):
     """Recomputed through the nearest codes for the two recorded hands and one range-only hand, and with the
     package's code search for the G1's hand (the search costs about 1 ms per Inspire state, 3 per human one)."""
-    for key, search_rounds, hands_scored in [("nearest_codes", 0, ["human", "inspire_rh56_unitree", "shadow"]),
+    for key, override, hands_scored in [("nearest_codes", NEAREST_CODES, ["human", "inspire_rh56_unitree", "shadow"]),
                                              ("results", None, ["inspire_rh56_unitree"])]:  # fmt: skip
         want = {k: v for k, v in recorded[key].items() if k.startswith(IN_RANGE_PREFIX)}
         assert set(want) == {IN_RANGE_PREFIX + h for h in shipped.config.trained_hands}
-        model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
-        if search_rounds is not None:
-            model.config.search_rounds = search_rounds
+        model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER, encoding=override)
         got = in_range_figures(model, hands_scored)
         assert len(got) == len(hands_scored)
         # The nearest codes are a continuous function of the weights: equal to 1e-4 on any CPU. The search makes
         # discrete choices on sums whose rounding differs between CPUs and BLAS builds (on an AMD EPYC it picked
         # other codes for a few states: 0.04232 against the recorded 0.04230 deg), so its figures agree to 1 %.
-        rel = 1e-4 if search_rounds == 0 else 1e-2
+        rel = 1e-4 if override is NEAREST_CODES else 1e-2
         for name, entry in ((k, want[k]) for k in got):
             for metric, value in entry.items():
                 assert got[name][metric] == pytest.approx(value, rel=rel, abs=1e-6), (key, name, metric)

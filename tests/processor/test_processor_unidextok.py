@@ -27,7 +27,7 @@ from lerobot_unidextok.processor import (
     tokens_to_native,
     udhm_to_native,
 )
-from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
+from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig, UniDexTok, UniDexTokConfig
 
 PAIR = [INSPIRE, INSPIRE]
 
@@ -529,17 +529,17 @@ def test_the_default_tokenizer_is_the_shipped_universal_one_and_a_preset_only_wh
 
 
 def test_the_step_encodes_as_its_tokenizer_does_unless_told_and_keeps_it_on_reload():
-    """By default (`search_rounds=None`) the step encodes with its tokenizer's own encoding: for the shipped one,
+    """By default (`encoding=None`) the step encodes with its tokenizer's own encoding: for the shipped one,
     the decoder-aware search, which decodes closer to the state on the hands' active DoFs than the nearest codes
-    (`search_rounds=0`, what steps saved before kept). Both settings survive a reload."""
+    (`encoding=NEAREST_CODES`). Both settings survive a reload, the override unchanged."""
     states = torch.from_numpy(inspire_states(16, seed=2))  # (16, 44) two Inspire hands
     default = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE])
-    nearest = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE], search_rounds=0)
+    nearest = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE], encoding=NEAREST_CODES)
     tok = default.tokenizer
-    assert default.search_rounds is None and tok.config.search_rounds > 0
+    assert default.encoding is None and tok.config.encoding.rounds > 0 and nearest.encoding is NEAREST_CODES
     rows = states.reshape(-1, 22)  # (32, 22) one row per hand
     assert torch.equal(default.tokenize(states)[0].reshape(-1, 8, 8), tok.encode(rows, INSPIRE))
-    assert torch.equal(nearest.tokenize(states)[0].reshape(-1, 8, 8), tok.encode(rows, INSPIRE, search_rounds=0))
+    assert torch.equal(nearest.tokenize(states)[0].reshape(-1, 8, 8), tok.encode(rows, INSPIRE, encoding=NEAREST_CODES))
     active = nearest.active_masks.reshape(-1).repeat(16, 1)  # (16, 44)
     errors = []
     for step in (nearest, default):
@@ -549,7 +549,34 @@ def test_the_step_encodes_as_its_tokenizer_does_unless_told_and_keeps_it_on_relo
     for step in (default, nearest):
         again = UniDexTokStateTokenizerStep(**json.loads(json.dumps(step.get_config())))
         again.load_state_dict(step.state_dict())  # as the pipeline reloads a step
-        assert again.search_rounds == step.search_rounds
+        assert again.encoding == step.encoding
         assert torch.equal(again.tokenize(states)[0], step.tokenize(states)[0])
-    with pytest.raises(ValueError, match="search_rounds"):
-        UniDexTokStateTokenizerStep(hand_layout=[INSPIRE], search_rounds=-1)
+    with pytest.raises(ValueError, match="encoding.rounds must be >= 0"):
+        UniDexTokStateTokenizerStep(hand_layout=[INSPIRE], encoding={"rounds": -1})
+
+
+def test_a_step_saved_with_the_legacy_search_rounds_encodes_as_it_did():
+    """A step saved before EncodingConfig: its config has `search_rounds` and its tokenizer_config the flat legacy
+    keys. It loads with the tokenizer's own encoding at that many rounds (what it encoded with), and saves the new
+    form."""
+    states = torch.from_numpy(inspire_states(8, seed=4))
+    step = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE])
+    saved = json.loads(json.dumps(step.get_config()))
+    tok_cfg = dict(saved["tokenizer_config"])
+    legacy_keys = {"rounds": "search_rounds", "method": "search_method", "sweeps": "search_sweeps",
+                   "changes": "search_changes", "tolerance_deg": "search_tolerance_deg"}  # fmt: skip
+    tok_cfg.update({legacy_keys[k]: v for k, v in tok_cfg.pop("encoding").items()})
+    for rounds in (0, 1):
+        legacy = {**{k: v for k, v in saved.items() if k != "encoding"}, "tokenizer_config": tok_cfg,
+                  "search_rounds": rounds}  # fmt: skip
+        old = UniDexTokStateTokenizerStep(**legacy)
+        old.load_state_dict(step.state_dict())
+        own = step.tokenizer.config.encoding
+        assert old.tokenizer.config.encoding == own
+        assert old.encoding == EncodingConfig(rounds=rounds, method=own.method, changes=own.changes,
+                                              tolerance_deg=own.tolerance_deg, sweeps=own.sweeps)  # fmt: skip
+        assert torch.equal(old.tokenize(states)[0].reshape(-1, 8, 8),
+                           step.tokenizer.encode(states.reshape(-1, 22), INSPIRE, encoding=old.encoding))
+        assert old.get_config()["encoding"]["rounds"] == rounds and "search_rounds" not in old.get_config()
+    with pytest.raises(ValueError, match="give `encoding` only"):
+        UniDexTokStateTokenizerStep(hand_layout=[INSPIRE], search_rounds=1, encoding=NEAREST_CODES)

@@ -33,9 +33,9 @@ def test_shapes_for_every_preset(preset):
     x = _states(3)
     out = model(x, "human")
     assert out.states_rad.shape == (3, UDHM_DIM)
-    assert out.indices.shape == (3, cfg.num_tokens, cfg.num_groups)
+    assert out.indices.shape == (3, cfg.num_tokens, cfg.num_groups * cfg.num_stages)
     codes = model.encode(x, ["human", "allegro", "leap"])
-    assert codes.dtype == torch.int64 and codes.shape == (3, cfg.num_tokens, cfg.num_groups)
+    assert codes.dtype == torch.int64 and codes.shape == (3, cfg.num_tokens, cfg.num_groups * cfg.num_stages)
     assert int(codes.max()) < cfg.codebook_size and int(codes.min()) >= 0
     assert model.decode(codes, "human").shape == (3, UDHM_DIM)
 

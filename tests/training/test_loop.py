@@ -307,23 +307,26 @@ def test_joint_ranges_are_measured_only_for_range_normalisation(mixture):
     assert build_model(cfg, train, input_norm="range", joint_range_rad=given).config.joint_range_rad == given
 
 
-def test_search_rounds_go_into_the_saved_checkpoint_but_not_into_selection(mixture, tmp_path):
-    """`search_rounds` is how the saved checkpoint encodes at use; checkpoint selection still scores the nearest
+def test_the_encoding_goes_into_the_saved_checkpoint_but_not_into_selection(mixture, tmp_path):
+    """`encoding` is how the saved checkpoint encodes at use; checkpoint selection still scores the nearest
     codes, so a run with and without it keeps the same step and the same selection figure."""
+    from lerobot_unidextok.tokenizer import EncodingConfig
+
     train, test = mixture
     results = {}
     for rounds in (None, 1):
-        cfg = _cfg(tmp_path / str(rounds), steps=20, eval_every=10, search_rounds=rounds)
+        encoding = None if rounds is None else EncodingConfig(rounds=rounds, tolerance_deg=0.1)
+        cfg = _cfg(tmp_path / str(rounds), steps=20, eval_every=10, encoding=encoding)
         torch.manual_seed(cfg.seed)
-        assert build_model(cfg, train).config.search_rounds == (rounds or 0)
+        assert build_model(cfg, train).config.encoding == (encoding or EncodingConfig())
         torch.manual_seed(cfg.seed)
         results[rounds] = train_tokenizer(cfg, train, test)
     assert results[1].best_mae_deg == pytest.approx(results[None].best_mae_deg, abs=1e-9)
     assert results[1].best_step == results[None].best_step
-    assert UniDexTok.from_pretrained(results[1].best_dir).config.search_rounds == 1
-    assert UniDexTok.from_pretrained(results[None].best_dir).config.search_rounds == 0
-    with pytest.raises(ValueError, match="search_rounds must be >= 0"):
-        TrainConfig(search_rounds=-1)
+    assert UniDexTok.from_pretrained(results[1].best_dir).config.encoding == EncodingConfig(rounds=1, tolerance_deg=0.1)
+    assert UniDexTok.from_pretrained(results[None].best_dir).config.encoding.rounds == 0
+    with pytest.raises(ValueError, match="encoding.rounds must be >= 0"):
+        TrainConfig(encoding=EncodingConfig(rounds=-1))
 
 
 def test_ema_codebook_is_moved_by_the_ema_and_everything_else_by_the_optimiser(mixture, tmp_path):
