@@ -14,6 +14,7 @@ in-range figures cover the hands the checkpoint trained on (hands registered lat
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import subprocess
 from pathlib import Path
@@ -139,7 +140,7 @@ def main(argv: list[str] | None = None) -> None:
         "",
     ]
     target = write_package(args.run / "best", SHIPPED[DEFAULT_TOKENIZER], DEFAULT_TOKENIZER, results, about,
-                           sections, RECORDINGS, config_overrides=search)  # fmt: skip
+                           sections, RECORDINGS, config_overrides={"encoding": dataclasses.asdict(own)})  # fmt: skip
     print(json.dumps(results, indent=2))
     print(f"wrote {target}")
 

@@ -52,9 +52,9 @@ from lerobot_unidextok.policies.relative_layout import relative_layout_problem
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, untrained_preset
 from lerobot_unidextok.processor import (
     HAND_INPUTS,
-    STATS_OF_MODE,
     RANGE_CHECKS,
     REPRESENTATIONS,
+    STATS_OF_MODE,
     HandLayout,
     tokenizer_output_dims,
 )

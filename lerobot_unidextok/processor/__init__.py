@@ -19,14 +19,14 @@ from lerobot_unidextok.processor.native import (
     udhm_to_native,
 )
 from lerobot_unidextok.processor.preview import token_preview
-from lerobot_unidextok.processor.share_weights import SAMPLE_WEIGHT_KEY, SHARE_WEIGHTS_STEP_NAME, ShareWeightStep
-from lerobot_unidextok.processor.slot_mask import ACTION_SLOT_PAD_KEY, SLOT_MASK_STEP_NAME, SlotMaskStep
 from lerobot_unidextok.processor.processor_unidextok import (
     REPRESENTATIONS,
     STEP_NAME,
     UniDexTokStateTokenizerStep,
     tokenizer_output_dims,
 )
+from lerobot_unidextok.processor.share_weights import SAMPLE_WEIGHT_KEY, SHARE_WEIGHTS_STEP_NAME, ShareWeightStep
+from lerobot_unidextok.processor.slot_mask import ACTION_SLOT_PAD_KEY, SLOT_MASK_STEP_NAME, SlotMaskStep
 
 __all__ = [
     "ACTION_SLOT_PAD_KEY",

@@ -200,9 +200,6 @@ def test_relative_actions_round_trip_through_the_saved_and_reloaded_processors(t
     """udt_relative_actions: the pre-processor turns absolute actions into action - converted state (also from
     the robot's native state), the post-processor adds the cached state back; after save_pretrained and the
     stock factory's reload (which re-pairs LeRobot's two steps), absolute in == absolute out."""
-    from lerobot.configs.types import NormalizationMode
-    from lerobot.policies.factory import make_pre_post_processors
-    from lerobot.processor import TransitionKey
 
     for hand_norm in ("off", "auto"):
         _relative_round_trip(tok_dir, g1_like, tmp_path / hand_norm, hand_norm)
