@@ -36,8 +36,9 @@ class UniDexTokEnvConfig(EnvConfig):
     # button under the finger the goal names)
     task: str | None = "GraspLift-v0"
     fps: int = FPS
-    # the hand: a registered hand spec whose embodiment has a simulation model (inspire_rh56_unitree,
-    # inspire_rh56, shadow, allegro); the observation and the action are in that spec's native units
+    # the hand: a registered hand spec with a simulation model: a model file (inspire_rh56_unitree, inspire_rh56,
+    # shadow, allegro) or a URDF the builder reads (leap, xhand1, the LinkerHands, ...; the list:
+    # hand_model.sim_hand_names()); the observation and the action are in that spec's native units
     hand: str = "inspire_rh56_unitree"
     episode_length: int = EPISODE_STEPS  # steps (at fps) before an episode is cut
     # what the policy's model predicts: "udhm" (<type>_udt: wrist + one UDHM block) or "native"

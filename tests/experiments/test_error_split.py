@@ -7,7 +7,7 @@ import torch
 
 from experiments import error_split
 from lerobot_unidextok.evaluation import mpjae_deg, reconstruct
-from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
+from lerobot_unidextok.tokenizer import EncodingConfig, UniDexTok, UniDexTokConfig
 from lerobot_unidextok.training.coverage import range_states
 
 
@@ -19,7 +19,7 @@ def model() -> UniDexTok:
 
 def test_through_codes_is_the_tokenizers_reconstruction_error(model):
     data = range_states("linkerhand_l6", 50, seed=3)
-    split = error_split.split_errors(model, data)
+    split = error_split.split_errors(model, data, EncodingConfig(rounds=2))  # the fresh model's own: nearest
     rec = reconstruct(model, data.states_rad, data.hands, allow_unknown=True).states_rad
     assert split["coded_deg"] == pytest.approx(mpjae_deg(rec, data.states_rad, data.masks), rel=1e-5)
     assert split["unsnapped_deg"] != pytest.approx(split["coded_deg"])  # random codes: snapping moves the output

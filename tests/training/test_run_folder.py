@@ -200,8 +200,8 @@ def test_the_command_refuses_a_typo_and_a_sigterm_leaves_the_old_run(g1_like, tm
            "--batch_size=16", "--warmup_steps=1", "--progress=false"]  # fmt: skip
     r = subprocess.run([*cli, "--preset=tinny"], capture_output=True, text=True, timeout=300)
     errors = [line for line in r.stderr.splitlines() if line.startswith("error: ")]
-    assert r.returncode == 2 and errors == ["error: unknown UniDexTok preset 'tinny'; choose one of ['paper', 'small', "
-                                            "'tiny']"], r.stderr[-2000:]  # fmt: skip
+    assert r.returncode == 2 and len(errors) == 1, r.stderr[-2000:]
+    assert errors[0].startswith("error: unknown UniDexTok preset 'tinny'; choose one of [") and "'tiny'" in errors[0]
     proc = subprocess.Popen([*cli, "--preset=tiny", "--steps=1000000", "--save_last_every=1"], stderr=subprocess.PIPE,
                             text=True)  # fmt: skip
     try:
