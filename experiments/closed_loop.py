@@ -2,6 +2,8 @@
 
     python experiments/closed_loop.py                                    # 2 tasks x 3 hands x 8 arms x 3 seeds
     python experiments/closed_loop.py --tasks='[FingerPress-v0]' --hands='[shadow]' --seeds='[0]'
+    python experiments/closed_loop.py --tasks='[FingerPress-v0]' --targets='[inspire_rh56_unitree]' \
+        --arms='[alone,mix]' --demos='[10]' --seeds='[0]'            # one hand-task pair: its alone and mix arms
 
 Data (`lerobot_env_unidextok`, 10 fps): per task and hand, `pool` scripted expert episodes recorded as a LeRobot v3
 dataset in the hand's native units (`record.record`, what `unidextok-sim-record` runs), converted with
@@ -68,6 +70,9 @@ RECIPES = {"pooled": ["--policy.udt_hand_norm=off", "--policy.udt_mask_slots=fal
 class ClosedLoopConfig:
     tasks: list[str] = field(default_factory=lambda: list(TASKS))
     hands: list[str] = field(default_factory=lambda: list(HANDS))
+    # the hands scored as the target (every policy arm, the expert); empty = each of `hands`. The mixes still pool
+    # every hand of `hands`: `--targets='[inspire_rh56_unitree]'` runs one hand-task pair of the full table
+    targets: list[str] = field(default_factory=list)
     demos: list[int] = field(default_factory=lambda: [10, 25, 50])  # target demonstrations of the `alone` arms
     arms: list[str] = field(default_factory=lambda: ["alone", *MIX_ARMS])
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
@@ -102,8 +107,15 @@ class ClosedLoopConfig:
             raise ValueError(f"demos {self.demos} must be 1..pool ({self.pool})")
         if self.recipe not in RECIPES:
             raise ValueError(f"recipe must be one of {list(RECIPES)}, got {self.recipe!r}")
+        stray = sorted(set(self.targets) - set(self.hands))
+        if stray:
+            raise ValueError(f"targets {stray} are not among hands {self.hands}; a target must be one of the pooled hands")
         if len(self.hands) < 2 and set(self.arms) & set(MIX_ARMS):
             raise ValueError("the mix arms need at least two hands: --hands='[a,b]' or --arms='[alone]'")
+
+    @property
+    def target_hands(self) -> list[str]:
+        return [h for h in self.hands if h in self.targets] if self.targets else list(self.hands)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -307,7 +319,7 @@ def expert_success(cfg: ClosedLoopConfig, task: str, hand: str) -> dict:
 def jobs(cfg: ClosedLoopConfig) -> list[dict]:
     out = []
     for task in cfg.tasks:
-        for hand in cfg.hands:
+        for hand in cfg.target_hands:
             for seed in cfg.seeds:
                 if "alone" in cfg.arms:
                     out += [{"task": task, "hand": hand, "seed": seed, "arm": f"alone_{n}", "demos": n} for n in cfg.demos]
@@ -376,16 +388,16 @@ def prepare(cfg: ClosedLoopConfig) -> tuple[dict, dict]:
         if set(cfg.arms) & set(MIX_ARMS):
             # per target: its whole pool written `target_weight` times (the chosen demonstrations' copies are
             # selected at training), so that its few demonstrations are about half of what the mix trains on
-            for mapping in ("semantic", "packed"):
+            for mapping in ("semantic", "packed") if "packed" in cfg.arms else ("semantic",):
                 data[task][f"mix_{mapping}"] = {
                     hand: mixed(cfg, task, [data[task][h][mapping] for h in [hand, *(h for h in cfg.hands if h != hand)]],
                                 f"mix_{mapping}_for_{hand}_w{cfg.target_weight:g}",
                                 [cfg.target_weight] + [1.0] * (len(cfg.hands) - 1))
-                    for hand in cfg.hands
+                    for hand in cfg.target_hands
                 }  # fmt: skip
             data[task]["without"] = {
                 hand: mixed(cfg, task, [data[task][h]["semantic"] for h in cfg.hands if h != hand], f"mix_without_{hand}")
-                for hand in cfg.hands
+                for hand in cfg.target_hands
             }  # fmt: skip
     cpu = 0.0
     for task in cfg.tasks:
@@ -401,7 +413,7 @@ def run(cfg: ClosedLoopConfig) -> dict:
     t0, cpu0 = time.time(), time.process_time()
     folder = Path(cfg.output_root) / NAME
     data, costs = prepare(cfg)
-    experts = {f"{t}/{h}": expert_success(cfg, t, h) for t in cfg.tasks for h in cfg.hands}
+    experts = {f"{t}/{h}": expert_success(cfg, t, h) for t in cfg.tasks for h in cfg.target_hands}
     runs = [run_one(cfg, job, data, folder) for job in jobs(cfg)]
     summary = summarise(runs, cfg)
     result = {"experiment": NAME, "config": dataclasses.asdict(cfg), "runs": runs, "summary": summary,
@@ -446,7 +458,7 @@ def slot_scales(cfg: ClosedLoopConfig, data: dict) -> dict:
     for task in cfg.tasks:
         if "mix_semantic" not in data[task]:
             continue
-        for hand in cfg.hands:
+        for hand in cfg.target_hands:
             lacks = ~hands.get(hand).active_mask & np.any([hands.get(h).active_mask for h in cfg.hands if h != hand], 0)
             if not lacks.any():
                 continue

@@ -47,3 +47,32 @@ def test_bad_options_are_named():
         cl.ClosedLoopConfig(hands=["shadow"], arms=["mix"])
     with pytest.raises(ValueError, match="demos"):
         cl.ClosedLoopConfig(demos=[60])
+    with pytest.raises(ValueError, match=r"targets \['leap'\] are not among hands"):
+        cl.ClosedLoopConfig(targets=["leap"])
+
+
+@pytest.mark.slow
+def test_targets_restrict_the_pairs_and_both_recipes_run(tmp_path):
+    """--targets scores one hand of the pool (its mix still pools every hand), and the per_hand recipe (per-hand
+    normalisation, masked slots) trains, binds and scores beside the pooled one, in its own folders."""
+    common = ["--tasks=[GraspLift-v0]", "--hands=[shadow,allegro]", "--targets=[shadow]", "--seeds=[0]", "--demos=[2]",
+              "--pool=3", "--steps=2", "--eval_episodes=2", f"--output_root={tmp_path / 'out'}",
+              f"--cache_dir={tmp_path / 'sim'}"]  # fmt: skip
+    pooled = cl.run(cl.runtime.parse(cl.ClosedLoopConfig, [*common, "--arms=[alone,mix]"]))
+    per_hand = cl.run(cl.runtime.parse(cl.ClosedLoopConfig, [*common, "--arms=[mix]", "--recipe=per_hand"]))
+    assert {(r["hand"], r["arm"]) for r in pooled["runs"]} == {("shadow", "alone_2"), ("shadow", "mix")}
+    assert {(r["hand"], r["arm"]) for r in per_hand["runs"]} == {("shadow", "mix")}
+    assert all(r["episodes"] == 2 and 0 <= r["successes"] <= 2 for r in pooled["runs"] + per_hand["runs"])
+    assert set(pooled["experts"]) == {"GraspLift-v0/shadow"}
+    # the mix pools both hands; nothing is made for the hand that is not a target, nor the packed arm not asked for
+    mix = UdhmDatasetMeta(tmp_path / "sim/GraspLift-v0/mix_semantic_for_shadow_w10").record
+    assert [s.repeats for s in mix.sources] == [10, 1]
+    assert not (tmp_path / "sim/GraspLift-v0/mix_semantic_for_allegro_w10").exists()
+    assert not (tmp_path / "sim/GraspLift-v0/mix_packed_for_shadow_w10").exists()
+    folder = tmp_path / "out" / cl.NAME
+    old = json.loads((folder / "policies/GraspLift-v0/shadow/mix_seed0/bound/config.json").read_text())
+    new = json.loads((folder / "policies_per_hand/GraspLift-v0/shadow/mix_seed0/bound/config.json").read_text())
+    assert old["udt_hand_norm"] == "off" and old["udt_mask_slots"] is False
+    assert new["udt_hand_norm"] == "auto" and new["udt_mask_slots"] is True
+    assert (folder / "runs_per_hand/GraspLift-v0__shadow__mix__seed0.json").is_file()
+    assert "--targets=[\"shadow\"]" in per_hand["command"] and "--recipe=\"per_hand\"" in per_hand["command"]
