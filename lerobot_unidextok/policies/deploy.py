@@ -46,12 +46,11 @@ from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.layout import NativeLayout
 from lerobot_unidextok.policies.checkpoint import POSTPROCESSOR, PREPROCESSOR, check_policy_checkpoint
-from lerobot_unidextok.policies.deploy_single import bind_single_robot, bound_single_steps
+from lerobot_unidextok.policies.deploy_single import bind_single_robot, bound_single_steps, with_tokenizer_step
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.processor import (
     HandActionScaleStep,
     HandNormalizerStep,
-    NativeToUDHMStateStep,
     SlotMaskStep,
     UDHMToNativeCommandStep,
     UniDexTokMixedTokenizerStep,
@@ -235,13 +234,7 @@ def _bound_pre_steps(steps: list, config: UdtConfigMixin, binding: Binding) -> l
                                            "extra_hands": binding.extra_hands,
                                            "allow_unknown": config.udt_allow_unknown})  # fmt: skip
     mixed.load_state_dict(old.state_dict())
-    out = [s for s in steps if not isinstance(s, NativeToUDHMStateStep)]
-    at = next(i for i, s in enumerate(out) if isinstance(s, UniDexTokMixedTokenizerStep))
-    out[at] = mixed
-    if config.udt_native_state_layout:
-        robot = binding.robot_names if binding.robot_names != binding.state_layout.names else []
-        out.insert(at, NativeToUDHMStateStep.from_layout(binding.state_layout, robot_names=robot))
-    return out
+    return with_tokenizer_step(steps, mixed, config, binding)
 
 
 def _bound_scale(steps: list, binding: Binding) -> list:

@@ -100,16 +100,23 @@ def bound_single_steps(pre_steps: list, post_steps: list, config: UdtConfigMixin
     step = UniDexTokStateTokenizerStep(**{**old.get_config(), "hand_layout": list(config.udt_hand_layout),
                                           "allow_unknown": config.udt_allow_unknown})  # fmt: skip
     step.load_state_dict(old.state_dict())
-    pre = [s for s in pre_steps if not isinstance(s, NativeToUDHMStateStep)]
-    at = next(i for i, s in enumerate(pre) if isinstance(s, UniDexTokStateTokenizerStep))
-    pre[at] = step
-    if config.udt_native_state_layout:
-        robot = binding.robot_names if binding.robot_names != binding.state_layout.names else []
-        pre.insert(at, NativeToUDHMStateStep.from_layout(binding.state_layout, robot_names=robot))
+    pre = with_tokenizer_step(pre_steps, step, config, binding)
     post = [s for s in post_steps if not isinstance(s, UDHMToNativeCommandStep)]
     if config.udt_native_layout:
         post.append(UDHMToNativeCommandStep.from_layout(binding.action_layout))
     return pre, post
 
 
-__all__ = ["SingleBindError", "SingleBinding", "bind_single_robot", "bound_single_steps"]
+
+def with_tokenizer_step(steps: list, step, config: UdtConfigMixin, binding) -> list:
+    """`steps` with their tokenizer step (of `step`'s type) replaced by the bound `step` and, for a policy on a
+    native state, the new robot's native-to-UDHM step just before it (the old robot's removed)."""
+    out = [s for s in steps if not isinstance(s, NativeToUDHMStateStep)]
+    at = next(i for i, s in enumerate(out) if isinstance(s, type(step)))
+    out[at] = step
+    if config.udt_native_state_layout:
+        robot = binding.robot_names if binding.robot_names != binding.state_layout.names else []
+        out.insert(at, NativeToUDHMStateStep.from_layout(binding.state_layout, robot_names=robot))
+    return out
+
+__all__ = ["SingleBindError", "SingleBinding", "bind_single_robot", "bound_single_steps", "with_tokenizer_step"]
