@@ -8,12 +8,16 @@ several times:
   then a frame of that input uniformly. Same contract as LeRobot 0.6.1's `EpisodeAwareSampler` (episode bounds,
   `episode_indices_to_use`, a permutation that is a pure function of `(seed, epoch)`, `state_dict` /
   `load_state_dict` to resume): for a training loop that can be given a sampler.
-- `episode_loss_weights`: per episode, `share[k] / frames[k]` of its input (normalised so a frame of the mix weighs 1
-  on average). `lerobot-train` 0.6.1 cannot be given a sampler (it builds `EpisodeAwareSampler` itself,
-  `lerobot/scripts/lerobot_train.py`, and its `sample_weighting` knows only `rabc` and `uniform`), so the
-  `<type>_udt` policies weight each row's loss by its episode's weight instead (`unidextok.share_weights`): the
-  expected gradient is the one the sampler gives (sum over inputs of share x that input's mean loss), with the
-  variance of weighting rather than resampling.
+- `share_loss_weights`: per row, `share[k] / (rows of input k / rows)` of its input, the rows counted over every
+  batch seen so far (`ShareWeightStep` keeps the count), so a row weighs 1 on average. `lerobot-train` 0.6.1
+  cannot be given a sampler (it builds `EpisodeAwareSampler` itself, `lerobot/scripts/lerobot_train.py`, and its
+  `sample_weighting` knows only `rabc` and `uniform`), so the `<type>_udt` policies weight each row's loss
+  instead (`unidextok.share_weights`): the expected gradient is the one the sampler gives (sum over inputs of
+  share x that input's mean loss), with the variance of weighting rather than resampling. Frame fractions counted
+  from the batches, not fixed from the frame counts of the mix, keep the shares whatever subset of episodes a run
+  trains on (`--dataset.episodes`: 10 of a target's 50 demonstrations got a fifth of its share with weights fixed
+  by the mix's frame counts), and unlike fractions of each batch alone they are not biased by the batches that
+  miss a small input (a batch of 32 from an input of 5 % of the frames misses it 19 % of the time).
 
 The shares come from the mix's record (`MixedSource.share`, the normalised `--weights`; 0 = no share asked), the
 episodes' inputs from `EpisodeRecord.origin["mix_source"]`.
@@ -102,22 +106,36 @@ def mix_shares(record: ConversionRecord) -> tuple[dict[int, int], list[float]]:
     return groups, (shares if any(shares) else [])
 
 
-def episode_loss_weights(record: ConversionRecord) -> dict[int, float]:
-    """{training episode: loss weight} that gives each input its share (module docstring); {} when no share was
-    asked. A frame of input k weighs share[k] / (frames[k] / all training frames)."""
+def episode_inputs(record: ConversionRecord) -> tuple[list[int], list[float]]:
+    """(each episode's input by episode index, each input's share) of a mixed dataset's record; ([], []) when no
+    share was asked (a mix of copies, or `--weights` not given)."""
     groups, shares = mix_shares(record)
     if not shares:
-        return {}
-    train = [e for e in record.episodes if e.split == "train"]
-    frames = np.zeros(len(shares))
-    for e in train:
-        frames[groups[e.episode_index]] += e.length
-    total = frames.sum()
-    present = frames > 0
-    norm = np.asarray(shares) * present
-    norm = norm / norm.sum()
-    weight = np.where(present, norm / np.maximum(frames / max(total, 1), 1e-12), 0.0)
-    return {e.episode_index: round(float(weight[groups[e.episode_index]]), 8) for e in train}
+        return [], []
+    inputs = [-1] * (max(groups, default=-1) + 1)
+    for episode, k in groups.items():
+        inputs[episode] = k
+    return inputs, shares
 
 
-__all__ = ["ShareSampler", "episode_loss_weights", "mix_shares"]
+def share_loss_weights(inputs: torch.Tensor, shares: torch.Tensor, seen: torch.Tensor) -> torch.Tensor:
+    """(B,) loss weight of each row from its input `inputs` (B,) (-1: none, weight 1), the inputs' `shares` (K,)
+    and `seen` (K,), the rows of each input counted so far (this batch's included): `share[k] / (seen[k] /
+    seen.sum())`, the shares renormalised over the inputs seen, so that input k's rows carry `share[k]` of the
+    weight in expectation and a row with an input weighs 1 on average."""
+    inputs = inputs.long().reshape(-1)
+    weight = torch.ones(len(inputs), dtype=torch.float32)
+    known = inputs >= 0
+    seen = seen.float()
+    present = shares.float() * (seen > 0)
+    if not known.any():
+        return weight
+    if not present.sum() > 0:  # only inputs with share 0 seen: nothing to weight them against
+        weight[known] = 0.0
+        return weight
+    per_input = present / present.sum() * seen.sum() / seen.clamp(min=1)
+    weight[known] = per_input[inputs[known]]
+    return weight
+
+
+__all__ = ["ShareSampler", "share_loss_weights", "episode_inputs", "mix_shares"]

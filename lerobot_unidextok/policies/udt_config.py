@@ -149,10 +149,13 @@ class UdtConfigMixin:
     # taught to predict zeros for joints the hand does not have.
     udt_mask_slots: bool = True
     # On a mix whose --weights asked each input a share of the training frames (unidextok-mix, the default
-    # --weights_by=sampling): weight each row's loss by its input's share over its frame fraction (step
-    # unidextok.share_weights; lerobot-train takes no sampler from a plugin). ACT and Diffusion.
+    # --weights_by=sampling): weight each row's loss by its input's share over its fraction of the rows trained on
+    # (step unidextok.share_weights; lerobot-train takes no sampler from a plugin). ACT and Diffusion.
     udt_share_weights: bool = True
-    # The loss weight of each episode (by index); filled from the mix's record.
+    # Each episode's input (by episode index) and each input's share; filled from the mix's record.
+    udt_episode_inputs: list[int] = field(default_factory=list)
+    udt_input_shares: list[float] = field(default_factory=list)
+    # Checkpoints saved before udt_episode_inputs: a fixed loss weight per episode (by index), kept as saved.
     udt_episode_weights: list[float] = field(default_factory=list)
     # Checkpoints saved before udt_hand_norm (and udt_hand_norm=off): on a mix with relative actions, z-score each
     # block's offsets by its hand (step unidextok.hand_action_scale).
@@ -257,10 +260,13 @@ class UdtConfigMixin:
             )
         self.udt_hand_vocabulary = list(meta.record.hand_vocabulary)
         if self.udt_share_weights:
-            from lerobot_unidextok.data.share_sampler import episode_loss_weights
+            from lerobot_unidextok.data.share_sampler import episode_inputs
 
-            weights = episode_loss_weights(meta.record)
-            self.udt_episode_weights = [weights.get(e, 1.0) for e in range(max(weights, default=-1) + 1)]
+            self.udt_episode_inputs, self.udt_input_shares = episode_inputs(meta.record)
+            self.udt_episode_weights = []
+            if self.udt_input_shares:
+                logger.info("%s: each input's share of every batch's loss %s (unidextok.share_weights)", self.type,
+                            {s.dataset: round(w, 3) for s, w in zip(meta.record.sources, self.udt_input_shares, strict=True)})  # fmt: skip
         self.udt_name_map = dict(meta.record.name_map)
         self.udt_sides = [b.side for b in find_udhm_blocks(names)]
         self.udt_state_names = names

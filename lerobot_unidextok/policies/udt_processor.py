@@ -101,9 +101,11 @@ def insert_udt_steps(
         _insert_relative_pair(config, steps, post)
     if config.udt_hand_stats or (config.udt_mask_slots and config.udt_action_names):
         _insert_hand_steps(config, steps, post, dataset_stats or {})
-    if config.udt_share_weights and config.udt_episode_weights:  # before the normaliser, like the others
+    if config.udt_share_weights and (config.udt_input_shares or config.udt_episode_weights):  # before the normaliser
         at = max(i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep))
-        steps.insert(at, ShareWeightStep(episode_weights=list(config.udt_episode_weights)))
+        steps.insert(at, ShareWeightStep(episode_inputs=list(config.udt_episode_inputs),
+                                         shares=list(config.udt_input_shares),
+                                         episode_weights=list(config.udt_episode_weights)))  # fmt: skip
     if config.udt_hand_input != "both":  # after the relative step (it reads the real state), before normalising
         at = max(i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep))
         identity = config.num_udt_blocks * len(config.udt_hand_vocabulary)  # a mix's one-hot identity, kept

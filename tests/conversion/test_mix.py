@@ -111,7 +111,7 @@ def test_weights_repeat_the_small_inputs_training_episodes_not_its_test_episodes
 
 def test_weights_by_sampling_write_each_episode_once_and_record_the_shares(g1_like, l10_robot, tmp_path):
     from lerobot_unidextok.conversion.mix import format_report
-    from lerobot_unidextok.data.share_sampler import episode_loss_weights
+    from lerobot_unidextok.data.share_sampler import episode_inputs
 
     root = tmp_path / "sampled"
     report = mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(root), weights=[3, 1],
@@ -121,9 +121,8 @@ def test_weights_by_sampling_write_each_episode_once_and_record_the_shares(g1_li
     assert len(record.episodes) == 3 + 5  # every episode once
     assert report.train_shares == pytest.approx([0.75, 0.25])
     assert "75% of the sampled training frames (share recorded)" in format_report(report)
-    weights = episode_loss_weights(record)  # g1_like: 2 train episodes of 40 frames; the L10 robot: 4 of 40
-    assert {round(w, 6) for e, w in weights.items() if record.episode(e).origin["mix_source"] == 0} == {2.25}
-    assert {round(w, 6) for e, w in weights.items() if record.episode(e).origin["mix_source"] == 1} == {0.375}
+    inputs, shares = episode_inputs(record)  # what a <type>_udt policy weights each batch's rows by
+    assert shares == [0.75, 0.25] and inputs == [e.origin["mix_source"] for e in record.episodes]
     with pytest.raises(MixError, match="weights_by must be one of"):
         MixOptions(inputs=["a"], root="b", weights_by="repeat")
 

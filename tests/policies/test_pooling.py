@@ -240,18 +240,18 @@ def test_a_mixs_shares_weight_each_rows_loss_under_lerobot_train(tok_dir, weight
     (unidextok.share_weights from the batch's episode_index): ACT's loss is the weighted sum of its rows'."""
     from lerobot.policies.factory import get_policy_class, make_pre_post_processors
 
-    from lerobot_unidextok.data.share_sampler import episode_loss_weights
     from lerobot_unidextok.processor import SAMPLE_WEIGHT_KEY
 
     cfg, meta = _config("act_udt", tok_dir, weighted_mix)
     record = UdhmDatasetMeta(weighted_mix).record
-    weights = episode_loss_weights(record)
-    assert cfg.udt_episode_weights == [weights.get(e, 1.0) for e in range(len(cfg.udt_episode_weights))]
+    assert cfg.udt_input_shares == [0.75, 0.25]
+    assert cfg.udt_episode_inputs == [e.origin["mix_source"] for e in record.episodes]
     pre, _ = make_pre_post_processors(cfg, dataset_stats=meta.stats)
     g1, l10 = _mix_episodes(weighted_mix)
+    batch = pre(dict(_batch(weighted_mix, meta, CHUNK, g1[:1] + l10)))  # 1 row of the G1's input, 2 of the L10's
+    # 3:1 of the loss from rows that are 1:2 of the batch: the G1 row weighs 0.75 / (1/3), an L10 row 0.25 / (2/3)
+    torch.testing.assert_close(batch[SAMPLE_WEIGHT_KEY], torch.tensor([2.25, 0.375, 0.375]))
     batch = pre(dict(_batch(weighted_mix, meta, CHUNK, g1 + l10)))
-    torch.testing.assert_close(batch[SAMPLE_WEIGHT_KEY], torch.tensor([weights[e] for e in g1 + l10]))
-    assert batch[SAMPLE_WEIGHT_KEY][0] == pytest.approx(3 * batch[SAMPLE_WEIGHT_KEY][-1] * 2)  # 3:1 over 80:160 frames
     torch.manual_seed(0)
     policy = get_policy_class("act_udt")(cfg).eval()
 
