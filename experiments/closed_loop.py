@@ -20,17 +20,28 @@ re-plans every step stalls where the demonstrations pause); mixed checkpoints bo
 `lerobot-eval` rollout (`eval_policy_all`, sync envs, no video) on `eval_episodes` episodes drawn from seeds
 `eval_seed` + i, the same episodes for every arm; success as the simulator decides it (`info["is_success"]`).
 
-Arms, per task, target hand and seed (the target's demonstrations: a seed's random subset of its pool):
+Arms, per task, target hand and seed (the target's demonstrations: a seed's random subset of its pool). The recipe
+of every arm is the `<type>_udt` defaults (per-hand statistics, no loss on the slots a hand lacks, each input's share
+as a loss weight, wrist actions in the hand's grasp-centre frame) unless its row says what it turns off:
 - `alone_<n>` for n in `demos`: that hand's n demonstrations alone (its UDHM state);
-- `mix`: the target's `demos[0]` demonstrations (written `target_weight` times: about half the frames) and every
-  demonstration of the other hands, in one UDHM layout (semantic insertion), the hand's identity one-hot
-  (unidextok-mix), bound to the target;
-- `packed`: the same episodes with each hand's native joints packed at the front of the block and zero-padded;
-- `tokens_nearest`, `tokens_search`: `mix` with the hands given to the model only as the shipped tokenizer's
-  (`--tokenizer`) tokens (dequantized; the nearest codes, or the tokenizer's own encoding, its code search, unless `encoding`
-  is set) instead of the UDHM state (`udt_hand_input=tokens`; every other arm reads the state, `udt_hand_input=state`);
-- `zero_shot`: every demonstration of the other two hands, none of the target's, bound with `--zero_shot=true`.
-Also measured: the scripted expert on the same evaluation episodes.
+- `mix_<n>` for n in `mix_demos`: the target's n demonstrations and every demonstration of the other hands, in one
+  UDHM layout (semantic insertion), the hand's identity one-hot (unidextok-mix, each episode written once, the
+  target's share of every batch's loss `target_share`), bound to the target;
+- `mix_rule_<n>`: `mix_<n>` trained for the budget rule's updates, `steps / target_share` (the target's frames seen
+  as often as when it trains alone for `steps`), where every other arm trains `steps` (matched compute);
+- `pooled_<n>`: the recipe before 2026-12-05 on the same demonstrations: LeRobot's one set of statistics for the
+  mix, every slot trained, the target's pool written `target_weight` times (copies), the wrist frame of the robot;
+- the ablations, each `mix_<n>` with one mechanism off: `no_hand_norm_<n>` (LeRobot's statistics),
+  `no_mask_<n>` (every slot trained), `copies_<n>` (the `target_weight` copies instead of the share),
+  `no_frame_<n>` (wrist actions in the robot's wrist frame);
+- `packed_<n>`: `mix_<n>` with each hand's native joints packed at the front of the block and zero-padded;
+- `tokens_nearest_<n>`, `tokens_search_<n>`: `mix_<n>` with the hands given to the model only as the tokenizer's
+  (`--tokenizer`) tokens (dequantized; the nearest codes, or the tokenizer's own encoding unless `encoding` is
+  set) instead of the UDHM state (`udt_hand_input=tokens`; every other arm reads the state);
+- `zero_shot`: every demonstration of the other hands, none of the target's, bound with `--zero_shot=true`;
+  `zero_shot_no_frame`: the same in the robots' wrist frames.
+Also measured: the scripted expert on the same evaluation episodes. `plot` draws success against the target's
+demonstrations per hand and task (`closed_loop.png`).
 """
 
 from __future__ import annotations
@@ -59,11 +70,29 @@ logger = logging.getLogger(__name__)
 NAME = "closed_loop"
 TASKS = ("GraspLift-v0", "FingerPress-v0")
 HANDS = ("inspire_rh56_unitree", "shadow", "allegro")
-MIX_ARMS = ("mix", "packed", "tokens_nearest", "tokens_search", "zero_shot")
+# arm -> (its dataset, lerobot-train flags beyond the recipe's); the dataset: the target alone, the mix with the target's
+# share (`mix`), the mix of the target's copies (`copies`), the packed mix, or the other hands without it
+NO_FRAME = ("--policy.udt_wrist_frame=robot",)
+POOLED = ("--policy.udt_hand_norm=off", "--policy.udt_mask_slots=false", *NO_FRAME)
+ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "alone": ("alone", ()),
+    "mix": ("mix", ()),
+    "mix_rule": ("mix", ()),
+    "pooled": ("copies", POOLED),
+    "no_hand_norm": ("mix", ("--policy.udt_hand_norm=off",)),
+    "no_mask": ("mix", ("--policy.udt_mask_slots=false",)),
+    "copies": ("copies", ()),
+    "no_frame": ("mix", NO_FRAME),
+    "packed": ("packed", ('--policy.udt_range_check="off"',)),  # packed blocks are not UDHM: no range check
+    "tokens_nearest": ("mix", ()),
+    "tokens_search": ("mix", ()),
+    "zero_shot": ("without", ()),
+    "zero_shot_no_frame": ("without", NO_FRAME),
+}
+MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
 EXPERT_NOISE_SEED = 2_000_000  # the expert's noise on evaluation episode i: this + i (never a recording's)
 RECORD_SEED = 100_000  # recording: episode draws from RECORD_SEED + k, the expert's noise from RECORD_NOISE + k
 RECORD_NOISE = 200_000
-RECIPES = {"pooled": ["--policy.udt_hand_norm=off", "--policy.udt_mask_slots=false"], "per_hand": []}
 
 
 @dataclass
@@ -74,14 +103,17 @@ class ClosedLoopConfig:
     # every hand of `hands`: `--targets='[inspire_rh56_unitree]'` runs one hand-task pair of the full table
     targets: list[str] = field(default_factory=list)
     demos: list[int] = field(default_factory=lambda: [10, 25, 50])  # target demonstrations of the `alone` arms
-    arms: list[str] = field(default_factory=lambda: ["alone", *MIX_ARMS])
+    mix_demos: list[int] = field(default_factory=lambda: [10, 25])  # target demonstrations of the mix arms
+    arms: list[str] = field(default_factory=lambda: ["alone", "mix", "pooled", "zero_shot"])
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
     pool: int = 50  # expert episodes recorded per task and hand (the most `alone` trains on, a mix's other hands)
-    # how many times a mix writes the target's demonstrations (`unidextok-mix --weights`): 10 of them x 10 against
-    # 2 x 50 of the other hands make the target about half of the training frames, as cross_embodiment.py found
-    # a small target needs
+    # the target's share of every batch's loss in a mix (`unidextok-mix --weights`, honoured by sampling): about
+    # half, as cross_embodiment.py found a small target needs; the other hands share the rest equally
+    target_share: float = 0.5
+    # the `pooled` and `copies` arms: how many times the mix writes the target's demonstrations (the recipe before
+    # 2026-12-05): 10 of them x 10 against 2 x 50 of the other hands make the target about half of the frames
     target_weight: float = 10.0
-    steps: int = 400  # lerobot-train updates per policy
+    steps: int = 400  # lerobot-train updates per policy (`mix_rule`: steps / target_share)
     batch_size: int = 32
     n_action_steps: int = 10  # actions of each predicted chunk (act_udt_cpu.yaml: chunk 10) run before predicting again
     # the encoding of `tokens_search`: None = the shipped tokenizer's own, the package's default (greedy code search,
@@ -91,22 +123,20 @@ class ClosedLoopConfig:
     tokenizer: str = DEFAULT_TOKENIZER  # the tokens arms' tokenizer (shipped id, folder or Hub repo id)
     eval_episodes: int = 50
     eval_seed: int = 1000  # lerobot-eval's default: episode i is drawn from eval_seed + i
-    # pooled: the recipe of the table in docs/lerobot.md (LeRobot's one set of statistics, every UDHM slot trained:
-    # --policy.udt_hand_norm=off --policy.udt_mask_slots=false); per_hand: the <type>_udt defaults since 2026-12-05
-    # (per-hand normalisation, no loss on the slots a hand lacks), its policies under policies_per_hand/
-    recipe: str = "pooled"
     output_root: str = "outputs/experiments"
     cache_dir: str = "outputs/experiments/_sim"  # recorded, converted and mixed datasets (reused when complete)
+    figure_to: str = ""  # also write the figure there (e.g. docs/images/closed_loop.png)
 
     def __post_init__(self) -> None:
-        for name, given, allowed in (("tasks", self.tasks, TASKS), ("arms", self.arms, ("alone", *MIX_ARMS))):
+        for name, given, allowed in (("tasks", self.tasks, TASKS), ("arms", self.arms, tuple(ARMS))):
             unknown = sorted(set(given) - set(allowed))
             if unknown:
                 raise ValueError(f"unknown {name} {unknown}; choose from {list(allowed)}")
-        if any(d > self.pool for d in self.demos) or not self.demos:
-            raise ValueError(f"demos {self.demos} must be 1..pool ({self.pool})")
-        if self.recipe not in RECIPES:
-            raise ValueError(f"recipe must be one of {list(RECIPES)}, got {self.recipe!r}")
+        for name, demos in (("demos", self.demos), ("mix_demos", self.mix_demos)):
+            if not demos or any(not 1 <= d <= self.pool for d in demos):
+                raise ValueError(f"{name} {demos} must be 1..pool ({self.pool})")
+        if not 0 < self.target_share < 1:
+            raise ValueError(f"target_share must be in (0, 1), got {self.target_share}")
         stray = sorted(set(self.targets) - set(self.hands))
         if stray:
             raise ValueError(f"targets {stray} are not among hands {self.hands}; a target must be one of the pooled hands")
@@ -158,8 +188,10 @@ def recorded(cfg: ClosedLoopConfig, task: str, hand: str) -> dict:
     return info
 
 
-def mixed(cfg: ClosedLoopConfig, task: str, inputs: list[Path], name: str, weights: list[float] | None = None) -> Path:
-    """`unidextok-mix --keep=all` of `inputs` (a training-frame share per input with `weights`)."""
+def mixed(cfg: ClosedLoopConfig, task: str, inputs: list[Path], name: str, weights: list[float] | None = None,
+          weights_by: str = "sampling") -> Path:
+    """`unidextok-mix --keep=all` of `inputs` (a training-frame share per input with `weights`, honoured by
+    `weights_by`: sampling, a share recorded; copies, episodes written again)."""
     from lerobot_unidextok.conversion.mix import MixOptions, mix
 
     out = Path(cfg.cache_dir) / task / name
@@ -167,7 +199,7 @@ def mixed(cfg: ClosedLoopConfig, task: str, inputs: list[Path], name: str, weigh
         shutil.rmtree(out, ignore_errors=True)
         cpu = time.process_time()
         mix(MixOptions(inputs=[str(p) for p in inputs], root=str(out), repo_id=f"sim/{task}_{name}", keep="all",
-                       weights=weights or [], weights_by="copies", progress=False))  # fmt: skip
+                       weights=weights or [], weights_by=weights_by, progress=False))  # fmt: skip
         (out.parent / f"{out.name}.cpu").write_text(f"{time.process_time() - cpu:.1f}")
     return out
 
@@ -199,8 +231,9 @@ def subset(n: int, pool: int, seed: int) -> list[int]:
 # ---------------------------------------------------------------------------------------------
 # train (LeRobot's lerobot-train code), bind, evaluate (LeRobot's lerobot-eval rollout)
 # ---------------------------------------------------------------------------------------------
-def train_policy(cfg: ClosedLoopConfig, root: Path, episodes: list[int], out: Path, seed: int, flags: list[str]) -> Path:
-    """Train act_udt_cpu.yaml on `episodes` of `root`; the `pretrained_model` folder."""
+def train_policy(cfg: ClosedLoopConfig, root: Path, episodes: list[int], out: Path, seed: int, flags: list[str],
+                 steps: int | None = None) -> Path:
+    """Train act_udt_cpu.yaml on `episodes` of `root` for `steps` (default `cfg.steps`); the `pretrained_model`."""
     import draccus
     from lerobot.configs.train import TrainPipelineConfig
     from lerobot.scripts.lerobot_train import train
@@ -213,10 +246,11 @@ def train_policy(cfg: ClosedLoopConfig, root: Path, episodes: list[int], out: Pa
         return model
     shutil.rmtree(out, ignore_errors=True)
     _serve_frames_from_memory()
+    steps = steps or cfg.steps
     args = [f"--dataset.repo_id=sim/{root.name}", f"--dataset.root={root}", f"--dataset.episodes={episodes}",
-            "--policy.udt_relative_actions=false", "--policy.udt_copy_start=false", f"--steps={cfg.steps}",
-            f"--batch_size={cfg.batch_size}", f"--policy.n_action_steps={cfg.n_action_steps}", f"--save_freq={cfg.steps}", f"--log_freq={max(cfg.steps, 1)}",
-            f"--seed={seed}", f"--output_dir={out}", *RECIPES[cfg.recipe], *flags]  # fmt: skip
+            "--policy.udt_relative_actions=false", "--policy.udt_copy_start=false", f"--steps={steps}",
+            f"--batch_size={cfg.batch_size}", f"--policy.n_action_steps={cfg.n_action_steps}", f"--save_freq={steps}",
+            f"--log_freq={max(steps, 1)}", f"--seed={seed}", f"--output_dir={out}", *flags]  # fmt: skip
     train(draccus.parse(TrainPipelineConfig, config_path=resolve_config_path("lerobot/act_udt_cpu"), args=args))
     return model
 
@@ -317,15 +351,21 @@ def expert_success(cfg: ClosedLoopConfig, task: str, hand: str) -> dict:
 # the runs
 # ---------------------------------------------------------------------------------------------
 def jobs(cfg: ClosedLoopConfig) -> list[dict]:
+    """Every (task, target, seed, arm label, target demonstrations) to run: `alone_<n>` for n in demos, `<arm>_<n>`
+    for n in mix_demos, `zero_shot*` once."""
     out = []
     for task in cfg.tasks:
         for hand in cfg.target_hands:
             for seed in cfg.seeds:
-                if "alone" in cfg.arms:
-                    out += [{"task": task, "hand": hand, "seed": seed, "arm": f"alone_{n}", "demos": n} for n in cfg.demos]
-                out += [{"task": task, "hand": hand, "seed": seed, "arm": arm,
-                         "demos": 0 if arm == "zero_shot" else cfg.demos[0]} for arm in MIX_ARMS if arm in cfg.arms]  # fmt: skip
+                for arm in (a for a in ARMS if a in cfg.arms):
+                    counts = [0] if ARMS[arm][0] == "without" else cfg.demos if arm == "alone" else cfg.mix_demos
+                    out += [{"task": task, "hand": hand, "seed": seed, "arm": arm_label(arm, n), "kind": arm, "demos": n}
+                            for n in counts]  # fmt: skip
     return out
+
+
+def arm_label(arm: str, demos: int) -> str:
+    return arm if ARMS[arm][0] == "without" else f"{arm}_{demos}"
 
 
 def encoding_flags(encoding: EncodingConfig | None) -> list[str]:
@@ -333,46 +373,49 @@ def encoding_flags(encoding: EncodingConfig | None) -> list[str]:
     return [] if encoding is None else [f"--policy.udt_encoding.{k}={v}" for k, v in dataclasses.asdict(encoding).items()]
 
 
+def arm_flags(cfg: ClosedLoopConfig, arm: str) -> list[str]:
+    """The arm's lerobot-train flags: its hand view (the UDHM state, or the tokenizer's tokens) and what it turns off."""
+    # the token view is zeroed for the state arms, so the tokenizer behind it cannot matter: an untrained one (what
+    # act_udt_cpu.yaml gave until 2026-12-04) through its nearest codes, the cheapest
+    state = ["--policy.udt_hand_input=state", "--policy.udt_pretrained=null", *encoding_flags(NEAREST_CODES)]
+    tokens = ["--policy.udt_hand_input=tokens", f"--policy.udt_pretrained={cfg.tokenizer}"]
+    view = {"tokens_nearest": [*tokens, *encoding_flags(NEAREST_CODES)],
+            "tokens_search": [*tokens, *encoding_flags(cfg.encoding)]}.get(arm, state)  # fmt: skip
+    return [*view, *ARMS[arm][1]]
+
+
 def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
-    task, hand, seed, arm = job["task"], job["hand"], job["seed"], job["arm"]
-    key = f"{task}/{hand}/{arm}/seed{seed}"
-    done = folder / ("runs" if cfg.recipe == "pooled" else f"runs_{cfg.recipe}") / f"{key.replace('/', '__')}.json"
+    task, hand, seed, arm, label = job["task"], job["hand"], job["seed"], job["kind"], job["arm"]
+    key = f"{task}/{hand}/{label}/seed{seed}"
+    done = folder / "runs" / f"{key.replace('/', '__')}.json"
     if done.is_file():
         return json.loads(done.read_text())
     own = data[task][hand]
     target = subset(job["demos"], cfg.pool, seed) if job["demos"] else []
-    policies = "policies" if cfg.recipe == "pooled" else f"policies_{cfg.recipe}"
-    out = folder / policies / task / hand / f"{arm}_seed{seed}"
-    # the token view is zeroed for these arms, so the tokenizer behind it cannot matter: an untrained one (what
-    # act_udt_cpu.yaml gave until 2026-12-04, when these arms were run) through its nearest codes, the cheapest
-    state = ["--policy.udt_hand_input=state", "--policy.udt_pretrained=null", *encoding_flags(NEAREST_CODES)]
-    tokens = ["--policy.udt_hand_input=tokens", f"--policy.udt_pretrained={cfg.tokenizer}"]
+    out = folder / "policies" / task / hand / f"{label}_seed{seed}"
+    flags, kind = arm_flags(cfg, arm), ARMS[arm][0]
+    steps = round(cfg.steps / cfg.target_share) if arm == "mix_rule" else cfg.steps
     cpu0, t0 = time.process_time(), time.time()
-    if arm.startswith("alone"):
-        model = train_policy(cfg, own["semantic"], target, out, seed, state)
+    if kind == "alone":
+        model = train_policy(cfg, own["semantic"], target, out, seed, flags)
         bound = model
-    elif arm == "zero_shot":
+    elif kind == "without":
         mix_root = data[task]["without"][hand]
         episodes = sorted(e for by_source in mix_episodes(mix_root).values() for e in every_episode(by_source))
-        model = train_policy(cfg, mix_root, episodes, out, seed, state)
+        model = train_policy(cfg, mix_root, episodes, out, seed, flags)
         bound = bind(model, own["semantic"], out / "bound", zero_shot=True)
     else:
-        mapping = "packed" if arm == "packed" else "semantic"
-        mix_root = data[task][f"mix_{mapping}"][hand]
+        mix_root = data[task][kind][hand]
         by_hand = mix_episodes(mix_root)
         chosen = [e for i in target for e in by_hand[hand][i]]
         episodes = sorted(chosen + [e for h, by_source in by_hand.items() if h != hand for e in every_episode(by_source)])
-        # packed blocks are not UDHM: the tokenizer's range check would refuse them (its view is zero here anyway)
-        search = encoding_flags(cfg.encoding)
-        flags = {"mix": state, "packed": [*state, '--policy.udt_range_check="off"'],
-                 "tokens_nearest": [*tokens, *encoding_flags(NEAREST_CODES)], "tokens_search": [*tokens, *search]}[arm]  # fmt: skip
-        model = train_policy(cfg, mix_root, episodes, out, seed, flags)
-        bound = bind(model, own[mapping], out / "bound")
+        model = train_policy(cfg, mix_root, episodes, out, seed, flags, steps)
+        bound = bind(model, own["packed" if kind == "packed" else "semantic"], out / "bound")
     train_cpu = time.process_time() - cpu0
     cpu1 = time.process_time()
     scores = evaluate(cfg, bound, task, hand)
-    result = {**job, **scores, "train_cpu_s": round(train_cpu, 1), "eval_cpu_s": round(time.process_time() - cpu1, 1),
-              "wall_s": round(time.time() - t0, 1)}  # fmt: skip
+    result = {**job, **scores, "steps": steps, "train_cpu_s": round(train_cpu, 1),
+              "eval_cpu_s": round(time.process_time() - cpu1, 1), "wall_s": round(time.time() - t0, 1)}  # fmt: skip
     done.parent.mkdir(parents=True, exist_ok=True)
     done.write_text(json.dumps(result))
     shutil.rmtree(out / "checkpoints" / "last" / "training_state", ignore_errors=True)
@@ -383,18 +426,25 @@ def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
 def prepare(cfg: ClosedLoopConfig) -> tuple[dict, dict]:
     """All datasets, and the CPU seconds spent making them (when they were made, so a rerun counts them too)."""
     data: dict = {}
+    kinds = {ARMS[a][0] for a in cfg.arms}
+    others = len(cfg.hands) - 1
+    share = [cfg.target_share] + [(1 - cfg.target_share) / others] * others if others else []
+    copies = [cfg.target_weight] + [1.0] * others
+    # per target: its whole pool, the target first (the chosen demonstrations are selected at training); `mix` and
+    # `packed` write each episode once and record the shares, `copies` writes the target's `target_weight` times
+    plans = {"mix": ("semantic", share, "sampling", f"s{cfg.target_share:g}"),
+             "packed": ("packed", share, "sampling", f"s{cfg.target_share:g}"),
+             "copies": ("semantic", copies, "copies", f"w{cfg.target_weight:g}")}  # fmt: skip
     for task in cfg.tasks:
         data[task] = {hand: recorded(cfg, task, hand) for hand in cfg.hands}
-        if set(cfg.arms) & set(MIX_ARMS):
-            # per target: its whole pool written `target_weight` times (the chosen demonstrations' copies are
-            # selected at training), so that its few demonstrations are about half of what the mix trains on
-            for mapping in ("semantic", "packed") if "packed" in cfg.arms else ("semantic",):
-                data[task][f"mix_{mapping}"] = {
+        for kind, (mapping, weights, weights_by, tag) in plans.items():
+            if kind in kinds:
+                data[task][kind] = {
                     hand: mixed(cfg, task, [data[task][h][mapping] for h in [hand, *(h for h in cfg.hands if h != hand)]],
-                                f"mix_{mapping}_for_{hand}_w{cfg.target_weight:g}",
-                                [cfg.target_weight] + [1.0] * (len(cfg.hands) - 1))
+                                f"mix_{mapping}_for_{hand}_{tag}", weights, weights_by)
                     for hand in cfg.target_hands
                 }  # fmt: skip
+        if "without" in kinds:
             data[task]["without"] = {
                 hand: mixed(cfg, task, [data[task][h]["semantic"] for h in cfg.hands if h != hand], f"mix_without_{hand}")
                 for hand in cfg.target_hands
@@ -402,7 +452,7 @@ def prepare(cfg: ClosedLoopConfig) -> tuple[dict, dict]:
     cpu = 0.0
     for task in cfg.tasks:
         cpu += sum(data[task][h]["cpu_s"] for h in cfg.hands)
-        for key in ("mix_semantic", "mix_packed", "without"):
+        for key in ("mix", "packed", "copies", "without"):
             cpu += sum(mix_cpu_s(root) for root in data[task].get(key, {}).values())
     return data, {"data_cpu_s": round(cpu, 1)}
 
@@ -441,6 +491,10 @@ def run(cfg: ClosedLoopConfig) -> dict:
         "date_utc": result["date_utc"],
     }  # fmt: skip
     folder.mkdir(parents=True, exist_ok=True)
+    png = plot(result, folder / f"{NAME}.png")
+    if cfg.figure_to:
+        shutil.copyfile(png, cfg.figure_to)
+    result["figures"] = {"success": str(png)}
     (folder / f"{NAME}.json").write_text(json.dumps(result, indent=2))
     (folder / f"{NAME}.md").write_text(markdown(result) + "\n")
     return result
@@ -456,7 +510,8 @@ def slot_scales(cfg: ClosedLoopConfig, data: dict) -> dict:
 
     out: dict = {}
     for task in cfg.tasks:
-        if "mix_semantic" not in data[task]:
+        mix = data[task].get("copies") or data[task].get("mix")  # the pooled arm's mix when it ran
+        if mix is None or "without" not in data[task]:
             continue
         for hand in cfg.target_hands:
             lacks = ~hands.get(hand).active_mask & np.any([hands.get(h).active_mask for h in cfg.hands if h != hand], 0)
@@ -464,7 +519,7 @@ def slot_scales(cfg: ClosedLoopConfig, data: dict) -> dict:
                 continue
             cols = [f"right_{j}" for j, lacked in zip(_udhm_names(), lacks, strict=True) if lacked]
             scale = {}
-            for key, root in (("mix", data[task]["mix_semantic"][hand]), ("others_only", data[task]["without"][hand])):
+            for key, root in (("mix", mix[hand]), ("others_only", data[task]["without"][hand])):
                 meta = UdhmDatasetMeta(root)
                 names = meta.names("action")
                 std = np.asarray(json.loads((Path(root) / "meta" / "stats.json").read_text())["action"]["std"])
@@ -497,41 +552,52 @@ def summarise(runs: list[dict], cfg: ClosedLoopConfig) -> dict:
 
 
 def goals(result: dict, cfg: ClosedLoopConfig) -> list[dict]:
-    """The issue's goals, each with the figure it is judged on, whether it is met and, when not, the figures that
-    say why."""
+    """The issue's goals (#47), each with the figure it is judged on, whether it is met and the figures that say
+    why; `None` value when the arms it needs did not run."""
     s, out = result["summary"], []
-    small = f"alone_{cfg.demos[0]}"
-    scales = result.get("slot_scales", {})
+    n, more = cfg.mix_demos[0], next((d for d in cfg.demos if d > cfg.mix_demos[0]), None)
+    mix, alone, scales = f"mix_{n}", f"alone_{n}", result.get("slot_scales", {})
 
     def rate(arms: dict, arm: str) -> str:
-        return f"{arms[arm]['mean']:.0f} +- {arms[arm]['std']:.0f} %" if arm in arms else "-"
+        a = arms.get(arm)
+        return f"{a['mean']:.0f} % ({a['interval'][0]:.0f}-{a['interval'][1]:.0f})" if a else "-"
 
-    for task, by_hand in s.items():
-        for hand, arms in by_hand.items():
-            if small in arms:
-                out.append({"goal": f"{task} {hand}: one hand on {cfg.demos[0]} demos below 90 % (headroom)",
-                            "value": arms[small]["mean"], "met": arms[small]["mean"] < 90, "why": ""})
-            if small in arms and "mix" in arms:
-                gain = arms["mix"]["mean"] - arms[small]["mean"]
-                scale = scales.get(task, {}).get(hand)
-                why = (f"mix {rate(arms, 'mix')} against alone {rate(arms, small)}; the other hands alone, zero-shot: "
-                       f"{rate(arms, 'zero_shot')}"
-                       + (f"; the {scale['slots']} slots it lacks scaled {scale['mix']:.3f} rad in its mix, "
-                          f"{scale['others_only']:.3f} without it" if scale else ""))  # fmt: skip
-                out.append({"goal": f"{task} {hand}: mix beats the hand alone by >= 10 points at {cfg.demos[0]} demos",
-                            "value": gain, "met": gain >= 10, "why": why})
-            if task == "FingerPress-v0" and "mix" in arms and "packed" in arms:
-                gain = arms["mix"]["mean"] - arms["packed"]["mean"]
-                out.append({"goal": f"{task} {hand}: semantic insertion beats packing by >= 10 points", "value": gain,
-                            "met": gain >= 10, "why": f"semantic {rate(arms, 'mix')}, packed {rate(arms, 'packed')}"})
-            if task == "GraspLift-v0" and "zero_shot" in arms:
-                z = arms["zero_shot"]
-                out.append({"goal": f"{task} {hand}: zero-shot success above 0", "value": z["mean"],
-                            "met": z["successes"] > 0, "why": f"{z['successes']}/{z['episodes']} episodes"})
+    def goal(text: str, value: float, met: bool, why: str = "") -> None:
+        out.append({"goal": text, "value": value, "met": bool(met), "why": why})
+
+    pairs = [(task, hand, arms) for task, by_hand in s.items() for hand, arms in by_hand.items()]
+    for task, hand, arms in pairs:
+        if mix in arms and alone in arms:
+            gain = arms[mix]["mean"] - arms[alone]["mean"]
+            scale = scales.get(task, {}).get(hand)
+            why = (f"mix {rate(arms, mix)}, alone {rate(arms, alone)}, pooled recipe {rate(arms, f'pooled_{n}')}, "
+                   f"zero-shot {rate(arms, 'zero_shot')}"
+                   + (f"; the {scale['slots']} slots it lacks scaled {scale['mix']:.3f} rad in the pooled mix, "
+                      f"{scale['others_only']:.3f} without it" if scale else ""))  # fmt: skip
+            goal(f"{task} {hand}: mix beats the hand alone by >= 10 points at {n} demos", gain, gain >= 10, why)
+        if "zero_shot" in arms:
+            worse = [a for a in arms if a.split("_")[-1].isdigit() and a.startswith("mix_")
+                     and arms[a]["mean"] < arms["zero_shot"]["mean"]]  # fmt: skip
+            goal(f"{task} {hand}: no policy with target demonstrations below zero-shot", float(len(worse)), not worse,
+                 f"zero-shot {rate(arms, 'zero_shot')}" + (f"; below it: {', '.join(f'{a} {rate(arms, a)}' for a in worse)}"
+                                                           if worse else ""))  # fmt: skip
+        if "zero_shot" in arms and alone in arms:
+            half = arms[alone]["mean"] / 2
+            goal(f"{task} {hand}: zero-shot at least half the hand alone at {n} demos", arms["zero_shot"]["mean"],
+                 arms["zero_shot"]["mean"] >= half, f"zero-shot {rate(arms, 'zero_shot')}, half of alone {half:.0f} %, "
+                 f"without the grasp-centre frame {rate(arms, 'zero_shot_no_frame')}")  # fmt: skip
+        if task == "FingerPress-v0" and mix in arms and f"packed_{n}" in arms:
+            gain = arms[mix]["mean"] - arms[f"packed_{n}"]["mean"]
+            goal(f"{task} {hand}: semantic insertion beats packing by >= 10 points", gain, gain >= 10,
+                 f"semantic {rate(arms, mix)}, packed {rate(arms, f'packed_{n}')}")  # fmt: skip
+    both = [(a[mix]["mean"], a[f"alone_{more}"]["mean"]) for _, _, a in pairs if mix in a and f"alone_{more}" in a]
+    if both:
+        m, a = np.mean([b[0] for b in both]), np.mean([b[1] for b in both])
+        goal(f"mix at {n} demos reaches the hand alone at {more}, on average over {len(both)} pairs", float(m - a),
+             m >= a, f"mix {m:.1f} %, alone at {more} {a:.1f} %")
     for key, e in result["experts"].items():
         value = 100 * e["successes"] / e["episodes"]
-        out.append({"goal": f"{key.replace('/', ' ')}: expert at least 95 %", "value": value, "met": value >= 95,
-                    "why": f"{e['successes']}/{e['episodes']}"})
+        goal(f"{key.replace('/', ' ')}: expert at least 95 %", value, value >= 95, f"{e['successes']}/{e['episodes']}")
     return out
 
 
@@ -542,8 +608,19 @@ def command_line(cfg: ClosedLoopConfig) -> str:
     return " ".join([f"python experiments/{NAME}.py", *flags])
 
 
-ARM_TITLES = {"mix": "mix, UDHM state", "packed": "mix, packed native", "tokens_nearest": "mix, tokens (nearest)",
-              "tokens_search": "mix, tokens (code search)", "zero_shot": "zero-shot (other hands only)"}  # fmt: skip
+ARM_TITLES = {"mix": "mix", "mix_rule": "mix, budget rule", "pooled": "mix, pooled statistics (before 2026-12-05)",
+              "no_hand_norm": "mix without per-hand statistics", "no_mask": "mix without masked slots",
+              "copies": "mix with copies, not shares", "no_frame": "mix without the grasp-centre frame",
+              "packed": "mix, packed native", "tokens_nearest": "mix, tokens (nearest)",
+              "tokens_search": "mix, tokens (tokenizer's encoding)", "zero_shot": "zero-shot (other hands only)",
+              "zero_shot_no_frame": "zero-shot without the grasp-centre frame", "alone": "alone"}  # fmt: skip
+
+
+def arm_title(label: str) -> str:
+    kind, _, demos = label.rpartition("_")
+    if not demos.isdigit():
+        return ARM_TITLES.get(label, label)
+    return f"{ARM_TITLES.get(kind, kind)}, {demos} demos"
 
 
 def markdown(result: dict) -> str:
@@ -552,7 +629,9 @@ def markdown(result: dict) -> str:
     lines = [
         f"Success rate (%) in closed loop, mean +- std over seeds {cfg['seeds']} ({cfg['eval_episodes']} episodes each, "
         f"the same episodes for every policy), and the 95 % Wilson interval of the pooled episodes. Policies: "
-        f"act_udt_cpu.yaml through LeRobot's lerobot-train code, {cfg['steps']} steps at batch {cfg['batch_size']}, "
+        f"act_udt_cpu.yaml through LeRobot's lerobot-train code, {cfg['steps']} steps at batch {cfg['batch_size']} "
+        f"(the budget rule's arm: {round(cfg['steps'] / cfg['target_share'])}), the target's share of a mix "
+        f"{cfg['target_share']:g}, "
         f"absolute actions, chunks of {cfg['n_action_steps']} actions; mixes bound with unidextok-deploy. {cpu_min:.1f} "
         f"CPU-minutes in all ({costs['data_cpu_s']:.0f} s data, {costs['train_cpu_s']:.0f} s training, "
         f"{costs['eval_cpu_s']:.0f} s evaluation, {costs['expert_cpu_s']:.0f} s experts); the policies took "
@@ -572,13 +651,13 @@ def markdown(result: dict) -> str:
                     continue
                 e = by_hand[hand].get(arm)
                 cells.append(f"{e['mean']:.1f} +- {e['std']:.1f} ({e['interval'][0]:.0f}-{e['interval'][1]:.0f})" if e else "-")
-            title = "scripted expert" if arm == "expert" else ARM_TITLES.get(arm, arm.replace("_", " ") + " demos")
+            title = "scripted expert" if arm == "expert" else arm_title(arm)
             rows.append([title, *cells])
-        lines += [f"**{task}** (target demos: {cfg['demos'][0]} for the mix arms):", "", md_table(["policy", *hands], rows), ""]
+        lines += [f"**{task}**:", "", md_table(["policy", *hands], rows), ""]
     scales = result.get("slot_scales", {})
     if scales:
         lines += ["Action scale of the UDHM slots a target lacks (mean std, rad, of those action columns; LeRobot z-scores "
-                  "each column by it): in the mix it trains in / in the other hands' mix:", ""]
+                  "each column by it in the pooled arm): in the mix it trains in / in the other hands' mix:", ""]
         lines += [f"- {task} {hand} ({e['slots']} slots): {e['mix']:.3f} / {e['others_only']:.3f}"
                   for task, by_hand in scales.items() for hand, e in by_hand.items()]
         lines += [""]
@@ -586,6 +665,55 @@ def markdown(result: dict) -> str:
     lines += [f"- {'met' if g['met'] else 'NOT met'}: {g['goal']} ({g['value']:+.1f}; {g['why']})" if g.get("why")
               else f"- {'met' if g['met'] else 'NOT met'}: {g['goal']} ({g['value']:+.1f})" for g in result["goals"]]
     return "\n".join(lines).rstrip()
+
+
+CURVES = (("alone", "#0074d9", "o", "alone"), ("mix", "#2ecc40", "s", "mix"), ("mix_rule", "#3d9970", "D", "mix, budget rule"),
+          ("pooled", "#ff4136", "^", "mix, pooled statistics (before)"))  # fmt: skip
+
+
+def plot(result: dict, out_path: Path) -> Path:
+    """Success (%) against the target's demonstrations, one panel per task (rows) and target hand (columns): the
+    hand alone, the mix (and its other recipes) as curves, zero-shot at 0 (hollow: without the grasp-centre frame),
+    the expert as a dashed line; bars are the 95 % Wilson intervals of the pooled episodes."""
+    from matplotlib.figure import Figure
+
+    from lerobot_unidextok.viz.style import save
+
+    s = result["summary"]
+    tasks = list(s)
+    hands = list(dict.fromkeys(h for t in tasks for h in s[t]))
+    fig = Figure(figsize=(3.6 * len(hands), 3.0 * len(tasks)))
+    for r, task in enumerate(tasks):
+        for c, hand in enumerate(hands):
+            ax = fig.add_subplot(len(tasks), len(hands), r * len(hands) + c + 1)
+            arms = s[task].get(hand, {})
+            for kind, color, marker, label in CURVES:
+                points = sorted((int(a.rpartition("_")[2]), v) for a, v in arms.items()
+                                if a.rpartition("_")[0] == kind and a.rpartition("_")[2].isdigit())  # fmt: skip
+                if points:
+                    x = [p[0] for p in points]
+                    y = [p[1]["mean"] for p in points]
+                    err = [[p[1]["mean"] - p[1]["interval"][0] for p in points], [p[1]["interval"][1] - p[1]["mean"] for p in points]]
+                    ax.errorbar(x, y, yerr=err, color=color, marker=marker, ms=5, lw=1.4, capsize=3, label=label)
+            for arm, face, label in (("zero_shot", "#b10dc9", "zero-shot"), ("zero_shot_no_frame", "none", "zero-shot, robot frame")):
+                if arm in arms:
+                    z = arms[arm]
+                    ax.errorbar([0], [z["mean"]], yerr=[[z["mean"] - z["interval"][0]], [z["interval"][1] - z["mean"]]],
+                                color="#b10dc9", mfc=face, marker="o", ms=7, capsize=3, ls="none", label=label)  # fmt: skip
+            expert = result["experts"].get(f"{task}/{hand}")
+            if expert:
+                ax.axhline(100 * expert["successes"] / expert["episodes"], color="#888888", ls="--", lw=1, label="expert")
+            ax.set_ylim(0, 102)
+            ax.set_title(f"{task} · {hand}", fontsize=9)
+            ax.set_xlabel("target demonstrations", fontsize=8)
+            ax.set_ylabel("success (%)", fontsize=8)
+            ax.grid(alpha=0.3)
+            ax.tick_params(labelsize=7)
+            if r == 0 and c == 0:
+                ax.legend(fontsize=6, frameon=False, loc="lower right")
+    fig.suptitle(f"Closed loop, {len(result['config']['seeds'])} seeds x {result['config']['eval_episodes']} episodes "
+                 "per point (95 % intervals)", fontsize=10)  # fmt: skip
+    return save(fig, out_path)
 
 
 def main(argv: list[str] | None = None) -> None:
