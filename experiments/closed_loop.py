@@ -63,7 +63,9 @@ MIX_ARMS = ("mix", "packed", "tokens_nearest", "tokens_search", "zero_shot")
 EXPERT_NOISE_SEED = 2_000_000  # the expert's noise on evaluation episode i: this + i (never a recording's)
 RECORD_SEED = 100_000  # recording: episode draws from RECORD_SEED + k, the expert's noise from RECORD_NOISE + k
 RECORD_NOISE = 200_000
-RECIPES = {"pooled": ["--policy.udt_hand_norm=off", "--policy.udt_mask_slots=false"], "per_hand": []}
+# pooled keeps the wrist as recorded (udt_wrist_frame=robot): the recipe of the recorded table, before the frame
+RECIPES = {"pooled": ["--policy.udt_hand_norm=off", "--policy.udt_mask_slots=false", "--policy.udt_wrist_frame=robot"],
+           "per_hand": [], "per_hand_robot_frame": ["--policy.udt_wrist_frame=robot"]}  # the last: no grasp-centre frame
 
 
 @dataclass
