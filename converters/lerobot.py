@@ -16,7 +16,9 @@ are read straight from parquet (lerobot 0.6 refuses v2.1), following LeRobot's l
 
 The whole robot is kept: every state/action column that belongs to no hand (arms, grippers, base) is a
 passthrough column (source name, source order, stored value), every other feature (images, other
-observations) is copied unchanged and every video feature is copied as a file segment.
+observations) is copied unchanged and every video feature is copied as a file segment. A wrist frame the
+recorder wrote (`meta/unidextok_wrist_frame.json`: the simulator's wrist columns and the hand's grasp centre) is
+carried into the conversion record (`wrist_frame`) when its columns are kept.
 Hand names and columns are checked once against each dataset's `meta/info.json` when the episodes are
 listed, so a typo fails before any episode is read.
 """
@@ -35,6 +37,7 @@ from lerobot_unidextok import hands
 from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode
 from lerobot_unidextok.conversion.registry import check_hand, register_source
+from lerobot_unidextok.data.wrist_frame import WristFrame, merge_frames, read_recorded
 from lerobot_unidextok.converters import _lerobot_files as lr
 
 logger = logging.getLogger(__name__)
@@ -255,6 +258,14 @@ class LeRobotSource:
 
     def robot_type(self, refs: list) -> str | None:
         return lr.robot_type_of(refs)
+
+    def wrist_frame(self, refs: list) -> WristFrame | None:
+        """The wrist frame the datasets' recorder wrote (`meta/unidextok_wrist_frame.json`, the simulator's:
+        `lerobot_unidextok/data/wrist_frame.py`); None when a dataset has none. Several datasets must agree."""
+        frames = [read_recorded(root) for root in sorted({r.root for r in refs})]
+        if not frames or any(f is None for f in frames):
+            return None
+        return merge_frames(frames, "the input datasets' meta/unidextok_wrist_frame.json")
 
     def read_episode(self, ref: lr.LeRobotEpisodeRef) -> RawEpisode:
         return read_mapped_episode(ref, self.hands, self.state_key, self.action_key, self.keep)

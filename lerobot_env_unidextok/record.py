@@ -7,10 +7,12 @@
 The dataset is what a robot would record, in the hand's native units: `observation.state` (the wrist pose, the
 task's object and goal columns, the hand's native joints, named as `columns.state_names`) and `action` (the wrist
 target and the native hand command the expert sent), 10 fps, no images, one task text; each episode goes on
-for `AFTER_SUCCESS_STEPS` steps of the expert's plan after the task succeeded. Only episodes the expert completed
-are kept (`--keep_failures=true` keeps all); episode i is drawn from seed `seed + i` and the
-expert's noise from `noise_seed + i`, so a dataset is reproducible from its flags, and seeds are never shared
-with `lerobot-eval`'s (1000 + i) unless asked.
+for `AFTER_SUCCESS_STEPS` steps of the expert's plan after the task succeeded. `meta/unidextok_wrist_frame.json`
+records the wrist-pose columns, their rotation convention and the hand's grasp centre in the wrist frame
+(`grasp_centre.py`), which `unidextok-convert --source=lerobot` carries into the converted dataset's record.
+Only episodes the expert completed are kept (`--keep_failures=true` keeps all); episode i is drawn from seed
+`seed + i` and the expert's noise from `noise_seed + i`, so a dataset is reproducible from its flags, and seeds
+are never shared with `lerobot-eval`'s (1000 + i) unless asked.
 
 `--root` follows every writer's destination rule (`lerobot_unidextok.data.destination`): it is checked before any
 episode is simulated (never inside a dataset or a checkpoint; an existing LeRobot dataset only with
@@ -31,6 +33,7 @@ import numpy as np
 from lerobot_env_unidextok.columns import TASK_TEXT
 from lerobot_env_unidextok.errors import SimInputError
 from lerobot_unidextok.data.destination import Kind, claim, move_into_place
+from lerobot_unidextok.data.wrist_frame import write_recorded
 from lerobot_unidextok.utils.cli import run_cli
 from lerobot_unidextok.utils.draccus_cli import wrap
 from lerobot_unidextok.utils.files import temp_sibling
@@ -109,6 +112,7 @@ def record(cfg: RecordConfig) -> RecordReport:
     from lerobot.datasets import LeRobotDataset
 
     from lerobot_env_unidextok.env import UniDexTokEnv
+    from lerobot_env_unidextok.grasp_centre import wrist_frame_of
 
     # a plain LeRobot dataset (no conversion record): what a robot records
     root = claim(cfg.root, Kind.DATASET, overwrite=cfg.overwrite, flag="--root")
@@ -139,6 +143,7 @@ def record(cfg: RecordConfig) -> RecordReport:
             ds.save_episode()
             kept, frames = kept + 1, frames + len(states)
         ds.finalize()
+        write_recorded(tmp, wrist_frame_of(cfg.hand))  # the hand's grasp centre (lerobot_unidextok/data/wrist_frame.py)
         move_into_place(tmp, root, Kind.DATASET, cfg.overwrite)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

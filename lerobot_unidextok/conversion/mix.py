@@ -26,6 +26,9 @@ conversion's own writer (`conversion.writer`, LeRobot's file format and statisti
 - `action_delta_stats` in the record: per block side and hand, the mean and std of `action - state` over the
   training episodes, with which a relative-action policy scales each hand's offsets
   (`processor/hand_action_scale.py`).
+- `wrist_frame` in the record: the inputs' wrist columns (under the mix's names) and each hand's grasp centre
+  (`data/wrist_frame.py`), when every input records one and `--keep=all` keeps the columns; a `<type>_udt`
+  policy then learns the wrist in each hand's grasp-centre frame (`processor/wrist_frame.py`).
 - Inputs that hold the same episodes are refused (`conversion/fingerprint.py`: one folder given twice, a copy,
   two conversions of one source, found by the content of their episodes); `--allow_repeats=true` mixes them.
 - `--weights` (training-frame share per input): recorded as each input's `share` of the sampled training frames
@@ -67,6 +70,7 @@ from lerobot_unidextok.data.destination import MIX_SOURCE, Kind, claim, move_int
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.data.reader import data_files, dataset_folder
 from lerobot_unidextok.data.record import ConversionRecord, EpisodeRecord, MixedSource, write_record
+from lerobot_unidextok.data.wrist_frame import WristFrame, merge_frames
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.utils.cli import progress_bar
 from lerobot_unidextok.utils.files import temp_sibling
@@ -393,6 +397,25 @@ def action_delta_stats(root: str | Path, episodes: list[int]) -> dict[str, dict[
     return out
 
 
+def mixed_wrist_frame(inputs: list[_Input], opts: MixOptions, mixer: _Mixer) -> dict:
+    """The mix's `wrist_frame`: every input's grasp centre per hand, its columns under the mix's names
+    (`data/wrist_frame.py`); {} when an input records none or the mix drops the columns (`--keep=hands`), so a
+    policy on it keeps the wrist as recorded."""
+    frames = [i.record.wrist_frame for i in inputs]
+    if not any(frames):
+        return {}
+    if not all(frames):
+        logger.warning("inputs %s record no wrist frame: the mix has none (grasp-centre frame off)",
+                       [i.name for i in inputs if not i.record.wrist_frame])  # fmt: skip
+        return {}
+    merged = merge_frames([WristFrame.from_dict(f, f"{i.name}: its record's wrist_frame").renamed(opts.name_map)
+                           for f, i in zip(frames, inputs, strict=True)], "unidextok-mix")  # fmt: skip
+    if merged.missing_columns(mixer.state_pass, mixer.action_pass):
+        logger.info("the mix drops the wrist columns %s (--keep=%s): no wrist frame", merged.columns, opts.keep)
+        return {}
+    return merged.to_dict()
+
+
 def mix(opts: MixOptions) -> MixReport:
     """Mix `opts.inputs` into one dataset at `opts.root` (module docstring)."""
     t0 = time.perf_counter()
@@ -471,6 +494,7 @@ def mix(opts: MixOptions) -> MixReport:
             hand_vocabulary=mixer.vocabulary,
             sources=sources,
             name_map=dict(opts.name_map),
+            wrist_frame=mixed_wrist_frame(inputs, opts, mixer),
             action_rule=(
                 f"inputs without actions: action[t] = state[t + {opts.action_ahead}] (the last frames hold the last state)"
                 if not all(i.has_action for i in inputs)

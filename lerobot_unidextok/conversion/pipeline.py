@@ -57,6 +57,7 @@ from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 from lerobot_unidextok.data.destination import Kind, claim, move_into_place, recover
 from lerobot_unidextok.data.record import ConversionRecord, EpisodeRecord, load_record, write_record
 from lerobot_unidextok.data.splits import split_order
+from lerobot_unidextok.data.wrist_frame import WristFrame
 from lerobot_unidextok.errors import InvalidInputError, MissingInputError, UnavailableError
 from lerobot_unidextok.layout import NativeLayout
 from lerobot_unidextok.utils.cli import progress_bar
@@ -332,6 +333,7 @@ class _Plan:
     items: list[tuple[Any, str, str]]
     num_listed: int
     robot_type: str | None = None  # the source's own robot type, of the whole listing (equal in every shard)
+    wrist_frame: WristFrame | None = None  # what the source's recorder wrote of its wrist (data/wrist_frame.py)
 
 
 def plan_episodes(reader, opts: ConvertOptions, input_path: Path) -> _Plan:
@@ -352,7 +354,27 @@ def plan_episodes(reader, opts: ConvertOptions, input_path: Path) -> _Plan:
         items = items[bounds[opts.shard_index] : bounds[opts.shard_index + 1]]
         if not items:
             raise SetupError(f"shard {opts.shard_index}/{opts.num_shards} is empty ({len(refs)} episodes)")
-    return _Plan(items, len(refs), source_robot_type(reader, refs))
+    return _Plan(items, len(refs), source_robot_type(reader, refs), source_wrist_frame(reader, refs))
+
+
+def source_wrist_frame(reader, refs: list) -> WristFrame | None:
+    """The wrist frame the source recorded (the reader's optional `wrist_frame(refs)`), or None."""
+    method = getattr(reader, "wrist_frame", None)
+    return method(refs) if callable(method) else None
+
+
+def kept_wrist_frame(frame: WristFrame | None, hands_seen, passthrough: dict[str, list[str]]) -> dict:
+    """The record's `wrist_frame`: the source's, for the hands converted, when the state and action keep its
+    columns (`--keep=hands` drops them); {} otherwise."""
+    if frame is None:
+        return {}
+    centres = {h: c for h, c in frame.grasp_centre_in_wrist_m.items() if h in hands_seen}
+    missing = frame.missing_columns(passthrough.get("observation.state", []), passthrough.get("action", []))
+    if missing or not centres:
+        logger.warning("the source records a wrist frame, not kept: %s", f"its columns {missing} are not in the "
+                       "converted state and action" if missing else f"it has no grasp centre for {list(hands_seen)}")
+        return {}
+    return WristFrame(frame.columns, frame.rotation, centres).to_dict()
 
 
 def source_robot_type(reader, refs: list) -> str | None:
@@ -580,6 +602,7 @@ class _RunState:
             test_episodes=self.test_episodes,
             native_layouts=self.native,
             episodes=self.records,
+            wrist_frame=kept_wrist_frame(plan.wrist_frame, self.hands_seen, dict(passthrough)),
         )
         write_record(self.writer.root, record)
         return record

@@ -128,6 +128,9 @@ class ConversionRecord:
     # per key (observation.state, action, action_delta), block side and hand: that hand's statistics over the
     # training episodes (mean, std, min, max, q01, q10, q90, q99, frames; conversion/hand_stats.py)
     hand_stats: dict[str, dict[str, dict[str, dict[str, Any]]]] = field(default_factory=dict)
+    # the wrist-pose columns, their rotation convention and each hand's grasp centre in the wrist frame, when the
+    # source recorded them (data/wrist_frame.py: the simulator's recordings); {} = no frame
+    wrist_frame: dict[str, Any] = field(default_factory=dict)
     record_version: int = RECORD_VERSION
 
     def __post_init__(self) -> None:

@@ -25,7 +25,8 @@ LeRobot's stock factory, `lerobot-rollout` and `--policy.path` fine-tuning rebui
 whose hands were never in the mix is refused unless `zero_shot`: its hands are then tokenised (by the
 tokenizer's own embedding, or its unknown-hand one) with an all-zero identity the policy never saw, and normalised
 with the pooled statistics of the mix's hands. A checkpoint trained on one robot's dataset binds zero-shot to
-another robot's hands too (`deploy_single.py`).
+another robot's hands too (`deploy_single.py`). A checkpoint that learned the wrist in each hand's grasp-centre
+frame gets the robot's own grasp centre in its `unidextok.wrist_frame` steps (`deploy_frame.py`).
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.layout import NativeLayout
 from lerobot_unidextok.policies.checkpoint import POSTPROCESSOR, PREPROCESSOR, check_policy_checkpoint
+from lerobot_unidextok.policies.deploy_frame import bound_frame_steps, bound_grasp_centres
 from lerobot_unidextok.policies.deploy_single import bind_single_robot, bound_single_steps, with_tokenizer_step
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.processor import (
@@ -157,9 +159,10 @@ def _into_mix(robot: NativeLayout, mix_names: list[str], mix_sides: list[str], w
 
 
 def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_shot: bool = False,
-           overwrite: bool = False) -> Path:
+           overwrite: bool = False, grasp_centre_m: list[float] | None = None) -> Path:
     """Write the checkpoint at `checkpoint`, bound to the robot of the converted dataset `robot`, to `output`
-    (`overwrite`: replace a policy checkpoint there, once the new one is whole; `data.destination.claim`)."""
+    (`overwrite`: replace a policy checkpoint there, once the new one is whole; `data.destination.claim`);
+    `grasp_centre_m`: the robot's grasp centre for a checkpoint in the grasp-centre frame (`deploy_frame.py`)."""
     checkpoint, robot = Path(checkpoint), Path(robot)
     if not (checkpoint / "config.json").is_file() or not (checkpoint / PREPROCESSOR).is_file():
         raise DeployError(
@@ -192,6 +195,9 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
             udt_native_state_layout=binding.state_layout.to_dict() if config.udt_native_state else {},
             udt_native_layout=binding.action_layout.to_dict() if config.udt_native_action else {},
         )
+    centres = bound_grasp_centres(config, UdhmDatasetMeta(Path(robot)), grasp_centre_m)
+    if centres:  # the robot's own grasp centre turns the predicted grasp centre into its wrist command
+        bound = dataclasses.replace(bound, udt_grasp_centres_m=centres)
     pre = PolicyProcessorPipeline.from_pretrained(checkpoint, config_filename=PREPROCESSOR)
     post = PolicyProcessorPipeline.from_pretrained(checkpoint, config_filename=POSTPROCESSOR)
     if single:
@@ -199,6 +205,8 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
     else:
         pre.steps = _bound_pre_steps(pre.steps, bound, binding)
     pre.steps, post.steps = (_bound_scale(steps, binding) for steps in (pre.steps, post.steps))
+    if centres:
+        pre.steps, post.steps = (bound_frame_steps(steps, bound) for steps in (pre.steps, post.steps))
     if bound.udt_native_layout and not single:
         post.steps = [*post.steps, UDHMToNativeCommandStep.from_layout(binding.action_layout)]
     output.parent.mkdir(parents=True, exist_ok=True)
@@ -213,7 +221,9 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
         post.save_pretrained(tmp, config_filename=POSTPROCESSOR)
         (tmp / "unidextok_deploy.json").write_text(json.dumps(
             {"checkpoint": str(checkpoint), "robot": str(robot), "robot_type": UdhmDatasetMeta(robot).robot_type,
-             "fixed_hand_ids": binding.fixed_hand_ids, "zero_shot_hands": binding.extra_hands}, indent=2))  # fmt: skip
+             "fixed_hand_ids": binding.fixed_hand_ids, "zero_shot_hands": binding.extra_hands,
+             "grasp_centres_m": {h: centres[h] for h in UdhmDatasetMeta(robot).block_hands() if h in centres}},
+            indent=2))  # fmt: skip
         check_policy_checkpoint(tmp)  # what is shipped loads, before it is called bound
         move_into_place(tmp, output, Kind.POLICY, overwrite=overwrite)
     except BaseException:

@@ -26,7 +26,9 @@ What the mixin adds to the stock config, in `validate_features` (run when the po
   statistics are of absolute actions, not of the offsets the policy predicts);
 - unless `udt_hand_norm=off`, the per-hand statistics of the state and action blocks (`udt_hand_stats`: a mix's
   record, or one robot's training episodes, `conversion/hand_stats.py`) and IDENTITY for STATE and ACTION in
-  LeRobot's normaliser, whose work `unidextok.hand_normalizer` does then (docs/lerobot.md "Pooling hands").
+  LeRobot's normaliser, whose work `unidextok.hand_normalizer` does then (docs/lerobot.md "Pooling hands");
+- unless `udt_wrist_frame=robot`, the wrist columns and each hand's grasp centre (`udt_wrist_columns`,
+  `udt_grasp_centres_m`: the dataset record's `wrist_frame`), for `unidextok.wrist_frame`.
 """
 
 from __future__ import annotations
@@ -47,7 +49,9 @@ from lerobot_unidextok.constants import (
     UDHM_DIM,
 )
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
-from lerobot_unidextok.errors import InvalidInputError
+from lerobot_unidextok.data.wrist_frame import NUM_COLUMNS as NUM_WRIST_COLUMNS
+from lerobot_unidextok.data.wrist_frame import WristFrame, check_centre
+from lerobot_unidextok.errors import ConfigError, InvalidInputError
 from lerobot_unidextok.policies.relative_layout import relative_layout_problem
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, untrained_preset
 from lerobot_unidextok.processor import (
@@ -64,6 +68,7 @@ logger = logging.getLogger(__name__)
 
 UDT_SUFFIX = "_udt"
 # udt_hand_norm -> LeRobot's normalisation mode of the per-hand statistics (None: the stock policy's; off: none)
+WRIST_FRAMES = ("auto", "grasp_centre", "robot")  # udt_wrist_frame
 HAND_NORMS = {"auto": None, "mean_std": "MEAN_STD", "min_max": "MIN_MAX", "quantiles": "QUANTILES",
               "quantile10": "QUANTILE10", "off": None}  # fmt: skip
 
@@ -167,6 +172,16 @@ class UdtConfigMixin:
     # observation.environment_state), state (the token view held at zero) or tokens (the state's UDHM blocks held
     # at zero); step unidextok.hand_input, before the normaliser.
     udt_hand_input: str = "both"
+    # The wrist position of state and action as the position of the hand's grasp centre (step unidextok.wrist_frame,
+    # docs/lerobot.md "Pooling hands"): auto = when the dataset records a wrist frame with a grasp centre for every
+    # hand (the simulator's recordings), grasp_centre = the same but refused without one, robot = the wrist as
+    # recorded (the ablation; what every dataset without a frame gets).
+    udt_wrist_frame: str = "auto"
+    # The 6 wrist-pose columns (x, y, z, roll, pitch, yaw) of the frame; filled from the dataset's record.
+    udt_wrist_columns: list[str] = field(default_factory=list)
+    # Per hand, its grasp centre in the wrist frame (x, y, z m); filled from the dataset's record (unidextok-deploy:
+    # the bound robot's), saved with the checkpoint; empty = no frame.
+    udt_grasp_centres_m: dict[str, list[float]] = field(default_factory=dict)
     # Accepted and ignored, so --policy.discover_packages_path=lerobot_unidextok also works with
     # --policy.path=<checkpoint> (LeRobot passes every --policy.* flag to the loaded config).
     discover_packages_path: str | None = None
@@ -186,11 +201,56 @@ class UdtConfigMixin:
             self.udt_hand_norm = "off"
         if self.udt_hand_norm not in HAND_NORMS:
             raise ValueError(f"udt_hand_norm must be one of {tuple(HAND_NORMS)}, got {self.udt_hand_norm!r}")
+        self._check_wrist_frame()
         self._stock_normalization = dict(self.normalization_mapping)  # before the relative override
         if self.udt_relative_actions:  # offsets around the state: the absolute action stats do not describe them
             self.normalization_mapping = {**self.normalization_mapping, "ACTION": NormalizationMode.IDENTITY}
 
     # ----------------------------------------------------------------------------------------------
+    def _check_wrist_frame(self) -> None:
+        """udt_wrist_frame's value, and the filled frame's shape (a checkpoint's, or flags given by hand)."""
+        if self.udt_wrist_frame not in WRIST_FRAMES:
+            raise ConfigError(f"udt_wrist_frame must be one of {WRIST_FRAMES}, got {self.udt_wrist_frame!r}")
+        if self.udt_grasp_centres_m and len(self.udt_wrist_columns) != NUM_WRIST_COLUMNS:
+            raise ConfigError(f"udt_wrist_columns must name the {NUM_WRIST_COLUMNS} wrist-pose columns (x, y, z, "
+                              f"roll, pitch, yaw) of udt_grasp_centres_m, got {self.udt_wrist_columns}")  # fmt: skip
+        self.udt_grasp_centres_m = {h: check_centre(h, v, "udt_grasp_centres_m")
+                                    for h, v in self.udt_grasp_centres_m.items()}  # fmt: skip
+
+    @property
+    def uses_wrist_frame(self) -> bool:
+        """Whether the processors put the wrist in the grasp-centre frame (unidextok.wrist_frame)."""
+        return self.udt_wrist_frame != "robot" and bool(self.udt_grasp_centres_m) and bool(self.udt_wrist_columns)
+
+    def _fill_wrist_frame(self, meta: UdhmDatasetMeta) -> None:
+        """The dataset's wrist columns and grasp centres (its record's `wrist_frame`), when udt_wrist_frame asks
+        and the record has them for every hand; `grasp_centre` refuses a dataset without them."""
+        if self.udt_wrist_frame == "robot":
+            return
+        record = meta.record
+        hands = list(self.udt_hand_vocabulary) or sorted(set(self.udt_hand_layout))
+        problem = ""
+        if record is None or not record.wrist_frame:
+            problem = f"{meta.root} records no wrist frame (its conversion record has no wrist_frame)"
+        else:
+            frame = WristFrame.from_dict(record.wrist_frame, f"{meta.root} conversion record, wrist_frame")
+            missing = frame.missing_columns(meta.names(OBS_STATE), self.udt_action_names)
+            lacking = [h for h in hands if h not in frame.grasp_centre_in_wrist_m]
+            if missing:
+                problem = f"{meta.root} has no wrist columns {missing} in its state and action"
+            elif lacking:
+                problem = f"{meta.root} records no grasp centre for hands {lacking}"
+        if problem and self.udt_wrist_frame == "grasp_centre":
+            raise ConfigError(f"udt_wrist_frame=grasp_centre: {problem}; record the data with its wrist frame "
+                              "(unidextok-sim-record), or set --policy.udt_wrist_frame=robot")  # fmt: skip
+        if problem:
+            logger.info("%s: wrist as recorded (no grasp-centre frame): %s", self.type, problem)
+            return
+        self.udt_wrist_columns = list(frame.columns)
+        self.udt_grasp_centres_m = {h: list(frame.grasp_centre_in_wrist_m[h]) for h in hands}
+        logger.info("%s: wrist columns %s in each hand's grasp-centre frame %s", self.type, frame.columns,
+                    self.udt_grasp_centres_m)  # fmt: skip
+
     def _upgrade_legacy_encoding(self) -> None:
         """A checkpoint saved before udt_encoding (`udt_search_rounds`=R): the tokenizer's own encoding with R
         rounds, what its step encoded with (R = 0: the nearest codes, without reading the tokenizer's config). A
@@ -220,6 +280,7 @@ class UdtConfigMixin:
             return
         meta = UdhmDatasetMeta.from_lerobot(lerobot_meta)
         self._fill_layout(meta)
+        self._fill_wrist_frame(meta)
         if self.udt_hand_norm != "off":
             self._fill_hand_stats(meta)
 

@@ -1,9 +1,15 @@
 """The processors of every `<type>_udt` type: the stock pipelines with the UniDexTok step inserted after batching.
 
-    rename -> to_batch [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer -> device [-> relative]
-        [-> unidextok.hand_normalizer] [-> unidextok.slot_mask] [-> unidextok.share_weights]
-        [-> unidextok.hand_input] -> normalizer                                                                 (pre)
-    unnormalizer [-> unidextok.hand_normalizer] [-> absolute] -> to cpu [-> unidextok.udhm_to_native]           (post)
+    rename -> to_batch [-> unidextok.native_to_udhm] -> unidextok.state_tokenizer [-> unidextok.wrist_frame]
+        -> device [-> relative] [-> unidextok.hand_normalizer] [-> unidextok.slot_mask]
+        [-> unidextok.share_weights] [-> unidextok.hand_input] -> normalizer                                    (pre)
+    unnormalizer [-> unidextok.hand_normalizer] [-> absolute] -> to cpu [-> unidextok.wrist_frame]
+        [-> unidextok.udhm_to_native]                                                                           (post)
+
+Grasp-centre frame (`udt_grasp_centres_m`, filled unless `udt_wrist_frame=robot`): `unidextok.wrist_frame` moves
+the wrist position of the state and action to each row's hand's grasp centre before everything that reads them
+(relative step, normalisers) and moves the predicted action back to the wrist after them
+(`processor/wrist_frame.py`).
 
 Per-hand normalisation (`udt_hand_stats`, filled unless `udt_hand_norm=off`): `unidextok.hand_normalizer`
 normalises the state and action per hand before LeRobot's normaliser (IDENTITY for them then) and restores the
@@ -56,6 +62,7 @@ from lerobot_unidextok.processor import (
     UDHMToNativeCommandStep,
     UniDexTokMixedTokenizerStep,
     UniDexTokStateTokenizerStep,
+    WristFrameStep,
 )
 
 
@@ -95,6 +102,9 @@ def insert_udt_steps(
         )
     at = min(after_batch[:1] + normalizer[:1])  # after batching, before normalising
     steps.insert(at, step)
+    frame = wrist_frame_steps(config) if config.uses_wrist_frame else None
+    if frame is not None:  # right after the UniDexTok step: the converted state, before relative and normalisers
+        steps.insert(at + 1, frame[0])
     if config.udt_native_state and config.udt_native_state_layout:
         steps.insert(at, NativeToUDHMStateStep.from_layout(NativeLayout.from_dict(config.udt_native_state_layout)))
     if config.udt_relative_actions:
@@ -112,6 +122,8 @@ def insert_udt_steps(
         steps.insert(at, HandInputStep(mode=config.udt_hand_input, state_names=list(config.udt_state_names),
                                        identity_width=identity))  # fmt: skip
     pre.steps = steps
+    if frame is not None:  # after the absolute step and the unnormalisers, before the native decoder
+        post.steps = [*post.steps, frame[1]]
     if config.udt_native_action and config.udt_native_layout:
         post.steps = [
             *post.steps,
@@ -153,6 +165,16 @@ def row_hands(config: UdtConfigMixin) -> tuple[list[str], list[str], list[int]]:
     known = sorted(trained) if trained else sorted(set(config.udt_hand_layout))
     extra = sorted(set(config.udt_hand_layout) - set(known))
     return known, extra, [[*known, *extra].index(h) for h in config.udt_hand_layout]
+
+
+def wrist_frame_steps(config: UdtConfigMixin) -> tuple[WristFrameStep, WristFrameStep]:
+    """The pre (`to_centre`) and post (`to_wrist`) grasp-centre frame steps of `config`'s hands and centres."""
+    known, extra, fixed = row_hands(config)
+    common = dict(state_names=list(config.udt_state_names), action_names=list(config.udt_action_names),
+                  wrist_columns=list(config.udt_wrist_columns), hand_vocabulary=[*known, *extra],
+                  grasp_centres_m=dict(config.udt_grasp_centres_m), fixed_hand_ids=fixed)  # fmt: skip
+    pre = WristFrameStep(mode="to_centre", **common)
+    return pre, WristFrameStep(mode="to_wrist", pair=pre, **common)
 
 
 def _insert_hand_steps(config: UdtConfigMixin, pre_steps: list, post: PolicyProcessorPipeline,

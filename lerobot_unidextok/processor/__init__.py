@@ -2,7 +2,9 @@
 (`processor_unidextok.py`), its per-row variant for mixed datasets (`mixed.py`) and the two native steps, one per
 direction (`native.py`); per-hand normalisation of the state and actions (`hand_normalizer.py`; the relative-action
 scale of checkpoints saved before it, `hand_action_scale.py`); the action slots a row's hand lacks, left out of the
-loss (`slot_mask.py`); each input's share of a mix as a loss weight per row (`share_weights.py`); and which view of the hands the model reads, state or tokens (`hand_input.py`)."""
+loss (`slot_mask.py`); each input's share of a mix as a loss weight per row (`share_weights.py`); which view of
+the hands the model reads, state or tokens (`hand_input.py`); and the wrist position as the hand's grasp centre
+(`wrist_frame.py`)."""
 
 from lerobot_unidextok.layout import HandLayout, NativeLayout
 from lerobot_unidextok.processor.guards import RANGE_CHECKS, hand_bounds_rad
@@ -27,6 +29,7 @@ from lerobot_unidextok.processor.processor_unidextok import (
 )
 from lerobot_unidextok.processor.share_weights import SAMPLE_WEIGHT_KEY, SHARE_WEIGHTS_STEP_NAME, ShareWeightStep
 from lerobot_unidextok.processor.slot_mask import ACTION_SLOT_PAD_KEY, SLOT_MASK_STEP_NAME, SlotMaskStep
+from lerobot_unidextok.processor.wrist_frame import WRIST_FRAME_STEP_NAME, WristFrameStep
 
 __all__ = [
     "ACTION_SLOT_PAD_KEY",
@@ -44,6 +47,7 @@ __all__ = [
     "STATS_OF_MODE",
     "STEP_NAME",
     "UDHM_TO_NATIVE_STEP_NAME",
+    "WRIST_FRAME_STEP_NAME",
     "HandActionScaleStep",
     "HandInputStep",
     "HandNormalizerStep",
@@ -55,6 +59,7 @@ __all__ = [
     "UDHMToNativeCommandStep",
     "UniDexTokMixedTokenizerStep",
     "UniDexTokStateTokenizerStep",
+    "WristFrameStep",
     "hand_bounds_rad",
     "token_preview",
     "tokenizer_output_dims",

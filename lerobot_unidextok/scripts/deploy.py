@@ -26,6 +26,9 @@ class DeployConfig:
     output: str = ""  # the bound checkpoint folder (must not exist unless --overwrite)
     # a robot whose hands were never in the mix: bind it anyway (its hands get no identity the policy knows)
     zero_shot: bool = False
+    # the robot's grasp centre (x, y, z m, in its wrist frame) for a policy that learned the wrist in each hand's
+    # grasp-centre frame; default: the robot's converted dataset's record, else the checkpoint's for a known hand
+    grasp_centre_m: list[float] | None = None
     # replace the policy checkpoint at --output (never anything else), once the bound one is written whole
     overwrite: bool = False
 
@@ -40,7 +43,7 @@ def deploy_cli(cfg: DeployConfig) -> None:
         if not getattr(cfg, flag):
             raise DeployError(f"--{flag} is required (unidextok-deploy --help)")
     out = deploy(cfg.checkpoint, dataset_folder(cfg.robot), cfg.output, zero_shot=cfg.zero_shot,
-                 overwrite=cfg.overwrite)
+                 overwrite=cfg.overwrite, grasp_centre_m=cfg.grasp_centre_m)
     print(f"wrote {out}: {cfg.checkpoint} bound to the robot of {cfg.robot}")
 
 
