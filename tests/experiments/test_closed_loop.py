@@ -28,8 +28,10 @@ def test_every_arm_is_trained_bound_and_scored_in_closed_loop(tmp_path):
     assert bound["udt_hand_vocabulary"] == ["allegro", "shadow"] and bound["udt_fixed_hand_ids"] == [1]
     assert bound["n_action_steps"] == 10 and bound["udt_hand_input"] == "state" and bound["udt_encoding"]["rounds"] == 0
     assert bound["udt_hand_norm"] == "auto" and bound["udt_mask_slots"] is True and bound["udt_input_shares"]
+    assert set(bound["udt_grasp_centres_m"]) >= {"shadow", "allegro"} and len(bound["udt_wrist_columns"]) == 6
     pooled = json.loads((folder / "policies/GraspLift-v0/shadow/pooled_2_seed0/bound/config.json").read_text())
     assert pooled["udt_hand_norm"] == "off" and pooled["udt_mask_slots"] is False and not pooled["udt_input_shares"]
+    assert pooled["udt_wrist_frame"] == "robot"
     zero = json.loads((folder / "policies/GraspLift-v0/shadow/zero_shot_seed0/bound/config.json").read_text())
     assert zero["udt_hand_vocabulary"] == ["allegro"] and zero["udt_extra_hands"] == ["shadow"]
     tokens = json.loads((folder / "policies/GraspLift-v0/allegro/tokens_nearest_2_seed0/bound/config.json").read_text())
