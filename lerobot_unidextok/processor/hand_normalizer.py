@@ -12,7 +12,8 @@ have them, and one hand's range sets another's scale. So, before LeRobot's norma
 - the passthrough columns (arms, wrist, task columns) with their own statistics (LeRobot's dataset statistics of
   those columns), as LeRobot would;
 - in LeRobot's modes: MEAN_STD `(x - mean) / std`, MIN_MAX / QUANTILES / QUANTILE10 `2 (x - lo) / (hi - lo) - 1`
-  (lo, hi = min/max, q01/q99, q10/q90). A slot that never varies (std or range below 1e-6) is scaled by 1;
+  (lo, hi = min/max, q01/q99, q10/q90). A column that never varies (std or range at most 1e-6) is normalised by 1
+  and unnormalised to its center whatever the prediction, as LeRobot's MEAN_STD does with a zero std;
 - relative actions (after LeRobot's RelativeActionsProcessorStep, `relative_actions`): the blocks' offsets are
   scaled, not shifted (MEAN_STD by their root mean square, range modes by max(|lo|, |hi|)), so an output of zero
   still means "hold the state" (`udt_copy_start`); the passthrough offsets pass unscaled (LeRobot's IDENTITY);
@@ -52,7 +53,11 @@ MODES = ("normalize", "unnormalize")
 STATS_OF_MODE = {"MEAN_STD": ("mean", "std"), "MIN_MAX": ("min", "max"), "QUANTILES": ("q01", "q99"),
                  "QUANTILE10": ("q10", "q90")}  # fmt: skip
 KEYS = (OBS_STATE, ACTION)
-MIN_SPREAD = 1e-6  # a slot whose std / half range is below this never varies: scaled by 1
+# a column whose std / half range is at most this never varies in the data: normalised by 1 (x - center), and
+# unnormalised to its center whatever the policy predicts (as LeRobot's MEAN_STD does with std 0: a prediction's
+# noise on a constant column, e.g. a wrist roll the demonstrations never moved, would otherwise become a real
+# command, and a state column of tiny std then reads it 1000s of stds away)
+MIN_SPREAD = 1e-6
 
 
 def _pooled(mode: str, lo: torch.Tensor, hi: torch.Tensor, frames: torch.Tensor, has: torch.Tensor):
@@ -171,7 +176,7 @@ class HandNormalizerStep(ProcessorStep):
             center, scale = (lo + hi) / 2, (hi - lo) / 2
             if relative:
                 center, scale = torch.zeros_like(lo), torch.maximum(lo.abs(), hi.abs())
-        return center, torch.where(scale > MIN_SPREAD, scale, torch.ones_like(scale))
+        return center, torch.where(scale > MIN_SPREAD, scale, torch.zeros_like(scale))  # 0: a constant column
 
     def _block_tables(self, key: str) -> tuple[torch.Tensor, torch.Tensor]:
         """(blocks, V + E + 1, 22) center and scale: the vocabulary's, the zero-shot hands' (pooled), identity."""
@@ -256,8 +261,8 @@ class HandNormalizerStep(ProcessorStep):
             center[:, b.slice], scale[:, b.slice] = center_b[:, j], scale_b[:, j]
         center, scale = center.reshape(*view, len(names)), scale.reshape(*view, len(names))
         if self.mode == "normalize":
-            return (x - center) / scale
-        out = x * scale + center
+            return (x - center) / torch.where(scale > 0, scale, torch.ones_like(scale))
+        out = x * scale + center  # a constant column (scale 0): its center
         if key == ACTION:  # the slots the row's hand lacks (and absent blocks): 0, they were never trained
             active = torch.cat([self._active, torch.zeros(1, UDHM_DIM, dtype=torch.bool)]).to(x.device)
             keep = torch.ones(rows, len(names), dtype=torch.bool, device=x.device)

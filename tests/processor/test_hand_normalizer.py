@@ -167,3 +167,34 @@ def test_bad_settings_are_named():
     step = _step("normalize", fixed_hand_ids=[0])
     with pytest.raises(ValueError, match="24 wide|expected 24"):
         step({TransitionKey.OBSERVATION: {OBS_STATE: torch.zeros(2, 23)}})
+
+
+@pytest.mark.parametrize("norm", ["MEAN_STD", "MIN_MAX"])
+def test_a_column_that_never_varies_comes_back_as_its_value_whatever_the_policy_predicts(norm):
+    """A wrist roll the demonstrations never moved (std 0): a prediction's noise there must not become a command.
+    Scaled by 1 on the way back it did (0.005-0.007 rad of roll in closed loop, which the state, z-scored by its
+    1e-4 std, then read 50 stds out: the Inspire's press fell from 30/50 to 7/50 alone); LeRobot's MEAN_STD
+    returns the mean, and so does this step, for a passthrough column and a hand's slot alike."""
+    rows, stats, dataset = _data()
+    for key in (OBS_STATE, ACTION):
+        dataset[key]["std"][0], dataset[key]["min"][0], dataset[key]["max"][0] = 0.0, 5.0, 5.0
+        dataset[key]["mean"][0] = 5.0
+    steady = hands.get(VOCAB[1]).active_mask.nonzero()[0][0]  # one of the Shadow's slots, held at 0.25 rad
+    for key in (OBS_STATE, ACTION):
+        s = stats[key]["right"][VOCAB[1]]
+        for name in ("std",):
+            s[name][steady] = 0.0
+        for name in ("mean", "min", "max", "q01", "q99", "q10", "q90"):
+            s[name][steady] = 0.25
+    post = _step("unnormalize", stats, dataset, norm)
+    noisy = torch.randn(64, len(NAMES), generator=torch.Generator().manual_seed(1))
+    out = post({TransitionKey.ACTION: noisy, TransitionKey.OBSERVATION: {OBS_HAND_IDS: torch.ones(64, 1, dtype=torch.long)}})
+    action = out[TransitionKey.ACTION]
+    torch.testing.assert_close(action[:, 0], torch.full((64,), 5.0))  # the constant passthrough column
+    torch.testing.assert_close(action[:, 2 + steady], torch.full((64,), 0.25))  # the hand's constant slot
+    assert action[:, 1].std() > 0.1  # a column that varies still follows the prediction
+    pre = _step("normalize", stats, dataset, norm)
+    x = torch.full((4, len(NAMES)), 5.0)
+    normed = pre({TransitionKey.OBSERVATION: {OBS_STATE: x, OBS_HAND_IDS: torch.ones(4, 1, dtype=torch.long)}})
+    assert torch.isfinite(normed[TransitionKey.OBSERVATION][OBS_STATE]).all()
+    assert normed[TransitionKey.OBSERVATION][OBS_STATE][:, 0].abs().max() == 0  # its value, centred, scaled by 1
