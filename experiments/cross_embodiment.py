@@ -337,6 +337,18 @@ def run_one(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], target_
                                                   "target_share": round(target_share, 3)}  # fmt: skip
 
 
+def held_out_spread(target: Source, train_episodes: np.ndarray, test_rows: np.ndarray, sizes: list[int]) -> dict:
+    """{N: the 99th percentile of |z| of the target's held-out hand states (the slots its hands have), z-scored with
+    the statistics of its first N training episodes}: how far outside its own few episodes `hand_norm=per_source`
+    puts the states the policy is scored on."""
+    active = ~lacking(target, packed=False)
+    out = {}
+    for n in sizes:
+        scale = Standardiser.fit(target.udhm[np.isin(target.episode, train_episodes[:n])])
+        out[str(n)] = round(float(np.percentile(np.abs(scale(target.udhm[test_rows])[:, active]), 99)), 2)
+    return out
+
+
 def to_target_layout(pred: np.ndarray, arm: str, frames, test_rows: np.ndarray) -> np.ndarray:
     """(R, chunk, D) the prediction in the target's converted layout (its hand block columns filled)."""
     out = np.repeat(frames.action[test_rows][:, None, :], pred.shape[1], axis=1)
@@ -399,6 +411,7 @@ def run(cfg: CrossEmbodimentConfig) -> dict:
               "sources": [{"name": s.name, "label": s.label, "frames": len(s.episode),
                            "episodes": int(len(np.unique(s.episode)))} for s in sources],
               "summary": summarise(runs, cfg), "runs": runs, "git_commit": git_commit(),
+              "held_out_state_z_p99": held_out_spread(sources[0], train_eps, test_rows, cfg.target_episodes),
               "wall_seconds": round(time.time() - t0, 1), "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
     result["command"] = command_line(cfg)
     result["provenance"] = {
@@ -473,6 +486,9 @@ def markdown(result: dict) -> str:
         "degrees over the slots its hands have, and native units), mean +- std over seeds.", "",
         md_table(header, rows), "",
         "`chunk vs target only`: hands UDHM MAE over the chunk against `target_only` at the same size (-5 % = 5 % better).",
+        *([f"The target's held-out hand states z-scored with the statistics of its first N training episodes "
+           f"(`hand_norm=per_source`): 99th percentile of |z| {spread} (N: value)."]
+          if (spread := result.get("held_out_state_z_p99")) else []),
         f"Wall time {result['wall_seconds']:.0f} s; command: `{result.get('command', 'python experiments/cross_embodiment.py')}`.",
     ])  # fmt: skip
 
