@@ -28,7 +28,8 @@ The recipe (the `<type>_udt` defaults, docs/lerobot.md "Pooling hands"), each pa
   hand per block, so per source is per hand), the target's predictions un-scaled with the target's;
 - `hand_norm=per_source`: the hand input likewise, each source with its own statistics, and nothing pooled on
   top (`train_act`'s own z-score of the hand input and of the per-source actions is the identity, as LeRobot's
-  normaliser is under `unidextok.hand_normalizer`);
+  normaliser is under `unidextok.hand_normalizer`); `state` / `actions`: only that half per source, the other
+  z-scored pooled (to tell which half matters);
 - `mask_slots=true`: no loss on the action slots a source's hand lacks (the hand spec's active mask through
   `unidextok.slot_mask`; a side a source lacks entirely lacks every slot; packed: the zero padding), and the
   target's prediction there set to 0, as `unidextok.hand_normalizer` does;
@@ -64,6 +65,7 @@ from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 logger = logging.getLogger(__name__)
 NAME = "cross_embodiment"
 ARMS = ("target_only", "udhm_mix", "udhm_mix_old", "native_packed", "tokens_dequantized")
+HAND_NORMS = ("per_source", "state", "actions", "pooled")  # which of hand input and actions are z-scored per source
 OLD_ARM = "udhm_mix_old"  # udhm_mix with the recipe before 2026-12-05 (module docstring)
 OTHERS = {"human_clip": "real", "l10_presets": "real poses, synthetic motion", "xhand_gestures": "synthetic"}
 SIDES = ("left", "right")  # the mixed UDHM layout: a left block, then a right block
@@ -93,7 +95,7 @@ class CrossEmbodimentConfig:
     normalise: str = "per_source"
     # How the hand input is z-scored: "per_source" (each source with its own mean / std, and the per-source actions
     # not z-scored again) or "pooled" (one mean / std over every training row, for the hand input and on top of the
-    # actions: the recipe before 2026-12-05)
+    # actions: the recipe before 2026-12-05); "state" / "actions": only that half per source, the other pooled
     hand_norm: str = "per_source"
     mask_slots: bool = True  # no loss on the action slots a source's hand lacks (false: trained as zeros)
     target_share: float = 0.5  # share of the training batches' rows that are the target's; 0 = as they come
@@ -112,9 +114,10 @@ class CrossEmbodimentConfig:
             unknown = sorted(set(given) - set(allowed))
             if unknown:
                 raise ValueError(f"unknown {name} {unknown}; choose from {list(allowed)}")
-        for name in ("normalise", "hand_norm"):
-            if getattr(self, name) not in ("per_source", "pooled"):
-                raise ValueError(f"{name} must be per_source or pooled, got {getattr(self, name)!r}")
+        if self.normalise not in ("per_source", "pooled"):
+            raise ValueError(f"normalise must be per_source or pooled, got {self.normalise!r}")
+        if self.hand_norm not in HAND_NORMS:
+            raise ValueError(f"hand_norm must be one of {HAND_NORMS}, got {self.hand_norm!r}")
         if self.share_by not in ("sampling", "copies"):
             raise ValueError(f"share_by must be sampling or copies, got {self.share_by!r}")
         if not 0.0 <= self.target_share < 1.0:
@@ -264,16 +267,16 @@ class TrainingSet:
     """An arm's training arrays (rows of every source, the target's first) and the target's own scales."""
 
     identity: np.ndarray  # (N, sources) one-hot embodiment
-    hands: np.ndarray  # (N, D) the hand input (z-scored per source with hand_norm=per_source)
+    hands: np.ndarray  # (N, D) the hand input (z-scored per source with hand_norm=per_source or state)
     actions: np.ndarray  # (N, chunk, D) relative action chunks (z-scored per source with normalise=per_source)
     is_pad: np.ndarray  # (N, chunk)
     slot_pad: np.ndarray | None  # (N, D) no loss there (mask_slots), else None
     order: np.ndarray | None  # the batches' rows drawn by ShareSampler (share_by=sampling), else None
     target_rows: int  # how many of the N rows are the target's (its copies included)
-    state_scale: Standardiser | None  # the target's hand-input z-score (hand_norm=per_source)
+    state_scale: Standardiser | None  # the target's hand-input z-score (hand_norm=per_source or state)
     action_scale: Standardiser | None  # the target's action z-score (normalise=per_source)
     target_lacks: np.ndarray | None  # (D,) the target's lacked slots (mask_slots)
-    actions_prescaled: bool = False  # the actions are z-scored per source and not again (hand_norm=per_source)
+    actions_prescaled: bool = False  # the actions are z-scored per source and not again (hand_norm=per_source, actions)
 
 
 def training_set(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], target_train: np.ndarray,
@@ -295,7 +298,7 @@ def training_set(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], ta
         cur, nxt = (src.packed, src.packed_next) if packed else (src.udhm, src.udhm_next)
         y, pad = chunks(cur, nxt, src.episode, cfg.act.chunk_size)
         x = (views[src.name] if arm == "tokens_dequantized" else cur)[rows]
-        x_scale = Standardiser.fit(x) if hand_norm == "per_source" else None
+        x_scale = Standardiser.fit(x) if hand_norm in ("per_source", "state") else None
         y_scale = Standardiser.fit(y[rows][:, 0]) if cfg.normalise == "per_source" else None
         lacks = lacking(src, packed) if mask else None
         scales.append((x_scale, y_scale, lacks))
@@ -310,7 +313,7 @@ def training_set(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], ta
         order = np.fromiter(iter(sampler), np.int64, count=len(sampler))
     return TrainingSet(np.eye(len(sources))[np.concatenate(ids)], np.concatenate(xs), np.concatenate(ys),
                        np.concatenate(pads), None if not mask else np.concatenate(slot_pads), order, n0, *scales[0],
-                       actions_prescaled=hand_norm == "per_source" and cfg.normalise == "per_source")  # fmt: skip
+                       actions_prescaled=hand_norm in ("per_source", "actions") and cfg.normalise == "per_source")  # fmt: skip
 
 
 def run_one(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], target_train: np.ndarray,

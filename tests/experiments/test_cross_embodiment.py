@@ -1,6 +1,8 @@
 """experiments/cross_embodiment.py on the synthetic G1 sample and a synthetic second hand (no ../shared): every arm
 trains the same ACT, predictions come back in the target's own layout, and the reference is copying the state."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -119,6 +121,12 @@ def test_the_new_recipe_normalises_per_source_masks_and_samples_the_old_arm_does
     np.testing.assert_array_equal(same.hands, old.hands)  # the old recipe is these three flags away
     np.testing.assert_array_equal(same.actions, old.actions)
     assert new.actions_prescaled and not old.actions_prescaled and not same.actions_prescaled
+    state = ce.training_set(dataclasses.replace(cfg, hand_norm="state"), "udhm_mix", sources, target_train, {}, 0)
+    actions = ce.training_set(dataclasses.replace(cfg, hand_norm="actions"), "udhm_mix", sources, target_train, {}, 0)
+    np.testing.assert_array_equal(state.hands, new.hands)  # the hand input per source, the actions pooled on top
+    assert state.state_scale is not None and not state.actions_prescaled
+    np.testing.assert_array_equal(actions.hands[:n0], raw)  # the hand input pooled, the actions per source only
+    assert actions.state_scale is None and actions.actions_prescaled
 
 
 def test_a_masked_slot_gets_exactly_zero_gradient():
