@@ -14,13 +14,29 @@ Other embodiments, each labelled by what it is:
 Action rule for sources without recorded actions: the hand state one frame ahead.
 
 Arms (same ACT, steps, seeds, batches): `target_only`; `udhm_mix` (every source in one UDHM layout, a left and
-a right block, a side a source lacks zero: semantic insertion); `native_packed` (each source's own joints
-packed at the front of one vector and zero-padded, pi0's way; the human hand's joints are its 22 UDHM angles);
-`tokens_dequantized` (`udhm_mix` with the hand input through the shipped tokenizer's codes and back). Every
-arm gets the embodiment as a one-hot `observation.state`. Targets: relative actions (the action chunk minus
-the current state, as `act_udt_cpu.yaml`), z-scored on the training rows. Metric: open-loop MAE on the
-target's held-out frames, first action and over the chunk, hands in UDHM degrees and in the Inspire's native
-units; `copy_state` (every future action = the current state) as reference.
+a right block, a side a source lacks zero: semantic insertion); `udhm_mix_old` (`udhm_mix` with the recipe
+before 2026-12-05, below); `native_packed` (each source's own joints packed at the front of one vector and
+zero-padded, pi0's way; the human hand's joints are its 22 UDHM angles); `tokens_dequantized` (`udhm_mix` with
+the hand input through the shipped tokenizer's codes and back). Every arm gets the embodiment as a one-hot
+`observation.state`. Targets: relative actions (the action chunk minus the current state, as
+`act_udt_cpu.yaml`). Metric: open-loop MAE on the target's held-out frames, first action and over the chunk,
+hands in UDHM degrees and in the Inspire's native units; `copy_state` (every future action = the current
+state) as reference.
+
+The recipe (the `<type>_udt` defaults, docs/lerobot.md "Pooling hands"), each part one flag:
+- `normalise=per_source`: the relative actions z-scored with each source's own mean / std (a source holds one
+  hand per block, so per source is per hand), the target's predictions un-scaled with the target's;
+- `hand_norm=per_source`: the hand input likewise, each source with its own statistics, and nothing pooled on
+  top (`train_act`'s own z-score of the hand input and of the per-source actions is the identity, as LeRobot's
+  normaliser is under `unidextok.hand_normalizer`); `state` / `actions`: only that half per source, the other
+  z-scored pooled (to tell which half matters);
+- `mask_slots=true`: no loss on the action slots a source's hand lacks (the hand spec's active mask through
+  `unidextok.slot_mask`; a side a source lacks entirely lacks every slot; packed: the zero padding), and the
+  target's prediction there set to 0, as `unidextok.hand_normalizer` does;
+- `share_by=sampling`: the target's `target_share` of the batches drawn by `ShareSampler`, not by copies.
+`udhm_mix_old` always runs the old one: `hand_norm=pooled` (one mean / std over the training rows for the hand
+input, and one for the per-source actions on top),
+`mask_slots=false`, `share_by=copies` (the target's rows repeated up to its share).
 """
 
 from __future__ import annotations
@@ -42,13 +58,15 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 
 from experiments import runtime
 from experiments.common import git_commit, md_table
-from experiments.policy_training import SmallACT
+from experiments.policy_training import SmallACT, Standardiser
 from lerobot_unidextok.constants import ACTION, OBS_STATE, UDHM_DIM
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 
 logger = logging.getLogger(__name__)
 NAME = "cross_embodiment"
-ARMS = ("target_only", "udhm_mix", "native_packed", "tokens_dequantized")
+ARMS = ("target_only", "udhm_mix", "udhm_mix_old", "native_packed", "tokens_dequantized")
+HAND_NORMS = ("per_source", "state", "actions", "pooled")  # which of hand input and actions are z-scored per source
+OLD_ARM = "udhm_mix_old"  # udhm_mix with the recipe before 2026-12-05 (module docstring)
 OTHERS = {"human_clip": "real", "l10_presets": "real poses, synthetic motion", "xhand_gestures": "synthetic"}
 SIDES = ("left", "right")  # the mixed UDHM layout: a left block, then a right block
 PACKED_WIDTH = UDHM_DIM  # the widest source's joints (the human hand's 22 angles)
@@ -75,7 +93,13 @@ class CrossEmbodimentConfig:
     # predictions un-scaled with the target's: a hand's small moves are not drowned by another's large ones) or
     # "pooled" (one mean / std over every training row)
     normalise: str = "per_source"
-    target_share: float = 0.5  # share of the training rows that are the target's (its rows repeated); 0 = as they come
+    # How the hand input is z-scored: "per_source" (each source with its own mean / std, and the per-source actions
+    # not z-scored again) or "pooled" (one mean / std over every training row, for the hand input and on top of the
+    # actions: the recipe before 2026-12-05); "state" / "actions": only that half per source, the other pooled
+    hand_norm: str = "per_source"
+    mask_slots: bool = True  # no loss on the action slots a source's hand lacks (false: trained as zeros)
+    target_share: float = 0.5  # share of the training batches' rows that are the target's; 0 = as they come
+    share_by: str = "sampling"  # "sampling" (ShareSampler draws the batches) or "copies" (the target's rows repeated)
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
     act: CrossEmbodimentACT = field(default_factory=CrossEmbodimentACT)
     target: str = ""  # a converted robot dataset with recorded test episodes; empty = the real G1 + Inspire recording
@@ -92,6 +116,10 @@ class CrossEmbodimentConfig:
                 raise ValueError(f"unknown {name} {unknown}; choose from {list(allowed)}")
         if self.normalise not in ("per_source", "pooled"):
             raise ValueError(f"normalise must be per_source or pooled, got {self.normalise!r}")
+        if self.hand_norm not in HAND_NORMS:
+            raise ValueError(f"hand_norm must be one of {HAND_NORMS}, got {self.hand_norm!r}")
+        if self.share_by not in ("sampling", "copies"):
+            raise ValueError(f"share_by must be sampling or copies, got {self.share_by!r}")
         if not 0.0 <= self.target_share < 1.0:
             raise ValueError(f"target_share must be in [0, 1), got {self.target_share}")
         if not self.seeds or not self.target_episodes:
@@ -110,6 +138,8 @@ class Source:
     packed: np.ndarray  # (N, 22) the source's own joints at the front, zero-padded
     packed_next: np.ndarray  # (N, 22)
     episode: np.ndarray  # (N,)
+    hands: list[str | None]  # the hand spec of each UDHM block (SIDES order); None = a side the source lacks
+    joints: int  # how many of `packed`'s columns are the source's own (the rest is padding)
 
 
 def _blocks(states: dict[str, np.ndarray], n: int) -> np.ndarray:
@@ -140,9 +170,10 @@ def target_source(frames) -> Source:
     cols = frames.native_hand_columns(ACTION)
     by_side = {s: frames.block_columns[i * UDHM_DIM : (i + 1) * UDHM_DIM] for i, s in enumerate(frames.sides)}
     n = len(frames.state)
+    hand_of = dict(zip(frames.sides, frames.hands, strict=True))
     return Source("target", "the target robot", _blocks({s: frames.state[:, c] for s, c in by_side.items()}, n),
                   _blocks({s: frames.action[:, c] for s, c in by_side.items()}, n), _pad(state_native[:, cols]),
-                  _pad(action_native[:, cols]), frames.episode)  # fmt: skip
+                  _pad(action_native[:, cols]), frames.episode, [hand_of.get(s) for s in SIDES], len(cols))  # fmt: skip
 
 
 def human_source(real: Path) -> Source:
@@ -152,7 +183,7 @@ def human_source(real: Path) -> Source:
     episode = np.minimum(np.arange(len(q)) * 6 // len(q), 5)
     nxt = _next_in_episode(q, episode)
     return Source("human_clip", OTHERS["human_clip"], _blocks({"right": q}, len(q)), _blocks({"right": nxt}, len(q)),
-                  _pad(q), _pad(nxt), episode)  # fmt: skip
+                  _pad(q), _pad(nxt), episode, [None, "human"], q.shape[1])  # fmt: skip
 
 
 def l10_source(real: Path, episodes: int, frames: int) -> Source:
@@ -169,7 +200,8 @@ def l10_source(real: Path, episodes: int, frames: int) -> Source:
     spec = hands.get("linkerhand_l10")
     q, q_next = spec.to_udhm(native, "right"), spec.to_udhm(nxt, "right")
     return Source("l10_presets", OTHERS["l10_presets"], _blocks({"right": q}, len(q)),
-                  _blocks({"right": q_next}, len(q)), _pad(native), _pad(nxt), episode)  # fmt: skip
+                  _blocks({"right": q_next}, len(q)), _pad(native), _pad(nxt), episode, [None, "linkerhand_l10"],
+                  native.shape[1])  # fmt: skip
 
 
 def xhand_source(episodes: int, frames: int) -> Source:
@@ -184,7 +216,8 @@ def xhand_source(episodes: int, frames: int) -> Source:
     episode = np.repeat(np.arange(episodes), frames)
     nxt = _next_in_episode(native, episode)
     return Source("xhand_gestures", OTHERS["xhand_gestures"], _blocks({"right": q}, len(q)),
-                  _blocks({"right": spec.to_udhm(nxt, "right")}, len(q)), _pad(native), _pad(nxt), episode)  # fmt: skip
+                  _blocks({"right": spec.to_udhm(nxt, "right")}, len(q)), _pad(native), _pad(nxt), episode,
+                  [None, "xhand1"], native.shape[1])  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------------------
@@ -212,37 +245,115 @@ def chunks(current: np.ndarray, future: np.ndarray, episode: np.ndarray, chunk: 
     return future[index] - current[:, None, :], pad
 
 
+def lacking(src: Source, packed: bool) -> np.ndarray:
+    """(D,) bool: the action slots the source lacks, in the arm's layout: UDHM (44), the slots its hands' specs
+    lack and every slot of a side it lacks (`unidextok.slot_mask`'s mask); packed (22), its zero padding."""
+    if packed:
+        return np.arange(PACKED_WIDTH) >= src.joints
+    import torch
+
+    from lerobot_unidextok.blocks import udhm_block_names
+    from lerobot_unidextok.processor.slot_mask import SlotMaskStep
+
+    names = [name for side in SIDES for name in udhm_block_names(side)]
+    vocabulary = sorted({h for h in src.hands if h is not None})
+    step = SlotMaskStep(state_names=names, action_names=names, hand_vocabulary=vocabulary)
+    ids = torch.tensor([[-1 if h is None else vocabulary.index(h) for h in src.hands]])
+    return step.pad_mask(ids, 1)[0].numpy()
+
+
+@dataclass
+class TrainingSet:
+    """An arm's training arrays (rows of every source, the target's first) and the target's own scales."""
+
+    identity: np.ndarray  # (N, sources) one-hot embodiment
+    hands: np.ndarray  # (N, D) the hand input (z-scored per source with hand_norm=per_source or state)
+    actions: np.ndarray  # (N, chunk, D) relative action chunks (z-scored per source with normalise=per_source)
+    is_pad: np.ndarray  # (N, chunk)
+    slot_pad: np.ndarray | None  # (N, D) no loss there (mask_slots), else None
+    order: np.ndarray | None  # the batches' rows drawn by ShareSampler (share_by=sampling), else None
+    target_rows: int  # how many of the N rows are the target's (its copies included)
+    state_scale: Standardiser | None  # the target's hand-input z-score (hand_norm=per_source or state)
+    action_scale: Standardiser | None  # the target's action z-score (normalise=per_source)
+    target_lacks: np.ndarray | None  # (D,) the target's lacked slots (mask_slots)
+    actions_prescaled: bool = False  # the actions are z-scored per source and not again (hand_norm=per_source, actions)
+
+
+def training_set(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], target_train: np.ndarray,
+                 views: dict, seed: int) -> TrainingSet:  # fmt: skip
+    """The arm's rows under its recipe (`udhm_mix_old`: the old one whatever the flags; module docstring)."""
+    from lerobot_unidextok.data.share_sampler import ShareSampler
+
+    old = arm == OLD_ARM
+    hand_norm, mask, share_by = ("pooled", False, "copies") if old else (cfg.hand_norm, cfg.mask_slots, cfg.share_by)
+    used = sources[:1] if arm == "target_only" else sources
+    packed = arm == "native_packed"
+    others = sum(len(src.episode) for src in used[1:])
+    share = cfg.target_share if others else 0.0
+    parts, scales = [], []
+    for k, src in enumerate(used):
+        rows = target_train if k == 0 else np.arange(len(src.episode))
+        if k == 0 and share and share_by == "copies":  # repeat the target's rows up to its share
+            rows = np.tile(rows, max(1, round(share / (1 - share) * others / len(rows))))
+        cur, nxt = (src.packed, src.packed_next) if packed else (src.udhm, src.udhm_next)
+        y, pad = chunks(cur, nxt, src.episode, cfg.act.chunk_size)
+        x = (views[src.name] if arm == "tokens_dequantized" else cur)[rows]
+        x_scale = Standardiser.fit(x) if hand_norm in ("per_source", "state") else None
+        y_scale = Standardiser.fit(y[rows][:, 0]) if cfg.normalise == "per_source" else None
+        lacks = lacking(src, packed) if mask else None
+        scales.append((x_scale, y_scale, lacks))
+        parts.append((x if x_scale is None else x_scale(x), y[rows] if y_scale is None else y_scale(y[rows]),
+                      pad[rows], np.full(len(rows), k), None if lacks is None else np.tile(lacks, (len(rows), 1))))  # fmt: skip
+    xs, ys, pads, ids, slot_pads = (list(p) for p in zip(*parts, strict=True))
+    n0, total = len(ids[0]), sum(len(i) for i in ids)
+    order = None
+    if share and share_by == "sampling":  # group 0 the target's rows, group 1 the others' (uniform within each)
+        sampler = ShareSampler([0, n0], [n0, total], [0, 1], [share, 1 - share],
+                               num_samples=cfg.act.steps * cfg.act.batch_size, seed=seed)  # fmt: skip
+        order = np.fromiter(iter(sampler), np.int64, count=len(sampler))
+    return TrainingSet(np.eye(len(sources))[np.concatenate(ids)], np.concatenate(xs), np.concatenate(ys),
+                       np.concatenate(pads), None if not mask else np.concatenate(slot_pads), order, n0, *scales[0],
+                       actions_prescaled=hand_norm in ("per_source", "actions") and cfg.normalise == "per_source")  # fmt: skip
+
+
 def run_one(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], target_train: np.ndarray,
             test_rows: np.ndarray, views: dict, seed: int) -> tuple[np.ndarray, dict]:  # fmt: skip
     """(predicted absolute hand chunks of the target's test rows in the arm's space, facts)."""
-    from experiments.policy_training import Standardiser, train_act
+    from experiments.policy_training import train_act
 
-    chunk = cfg.act.chunk_size
-    used = sources[:1] if arm == "target_only" else sources
-    packed = arm == "native_packed"
-    xs, ys, pads, ids, scales = [], [], [], [], []
-    others = sum(len(src.episode) for src in used[1:])
-    for k, src in enumerate(used):
-        rows = target_train if k == 0 else np.arange(len(src.episode))
-        if k == 0 and others and cfg.target_share > 0:  # repeat the target's rows up to its share
-            rows = np.tile(rows, max(1, round(cfg.target_share / (1 - cfg.target_share) * others / len(rows))))
-        cur, nxt = (src.packed, src.packed_next) if packed else (src.udhm, src.udhm_next)
-        y, pad = chunks(cur, nxt, src.episode, chunk)
-        scale = Standardiser.fit(y[rows][:, 0])
-        scales.append(scale)
-        x = views[src.name] if arm == "tokens_dequantized" else cur
-        xs.append(x[rows]), pads.append(pad[rows]), ids.append(np.full(len(rows), k))
-        ys.append(scale(y[rows]) if cfg.normalise == "per_source" else y[rows])
-    identity = np.eye(len(sources))[np.concatenate(ids)]
-    model = train_act(cfg.act, identity, np.concatenate(xs), np.concatenate(ys), np.concatenate(pads), seed)
+    data = training_set(cfg, arm, sources, target_train, views, seed)
+    model = train_act(cfg.act, data.identity, data.hands, data.actions, data.is_pad, seed, slot_pad=data.slot_pad,
+                      order=data.order, hands_prescaled=data.state_scale is not None,
+                      actions_prescaled=data.actions_prescaled)  # fmt: skip
     target = sources[0]
-    cur = target.packed if packed else target.udhm
-    x = views[target.name] if arm == "tokens_dequantized" else cur
-    delta = model.predict(np.eye(len(sources))[np.zeros(len(test_rows), int)], x[test_rows])
-    if cfg.normalise == "per_source":
-        delta = scales[0].inverse(delta)
-    return cur[test_rows][:, None, :] + delta, {"train_rows": int(sum(len(v) for v in xs)),
-                                                  "train_cpu_s": round(model.cpu_s, 1)}
+    cur = target.packed if arm == "native_packed" else target.udhm
+    x = (views[target.name] if arm == "tokens_dequantized" else cur)[test_rows]
+    delta = model.predict(np.eye(len(sources))[np.zeros(len(test_rows), int)],
+                          x if data.state_scale is None else data.state_scale(x))  # fmt: skip
+    if data.action_scale is not None:
+        delta = data.action_scale.inverse(delta)
+    if data.target_lacks is not None:  # never trained there: hold the state (a lacked slot is 0)
+        delta[..., data.target_lacks] = 0.0
+    drawn = data.order[: cfg.act.steps * cfg.act.batch_size] if data.order is not None else None
+    target_share = float(np.mean(drawn < data.target_rows)) if drawn is not None else data.target_rows / len(data.hands)
+    return cur[test_rows][:, None, :] + delta, {"train_rows": int(len(data.hands)), "train_cpu_s": round(model.cpu_s, 1),
+                                                  "target_share": round(target_share, 3)}  # fmt: skip
+
+
+def held_out_spread(cfg: CrossEmbodimentConfig, sources: list[Source], target_train: np.ndarray,
+                    test_rows: np.ndarray) -> dict[str, float]:  # fmt: skip
+    """The 99th percentile of |z| of the target's held-out hand states (the slots its hands have), z-scored with
+    the statistics of its own training rows (`hand_norm=per_source`) and with those pooled over every source's
+    rows (the old recipe's, `train_act`'s z-score of `udhm_mix_old`'s input): how far outside its statistics the
+    states the policy is scored on lie."""
+    target = sources[0]
+    active = ~lacking(target, packed=False)
+    pooled = training_set(cfg, OLD_ARM, sources, target_train, {}, seed=0).hands
+    out = {}
+    for name, rows in (("per_source", target.udhm[target_train]), ("pooled", pooled)):
+        z = Standardiser.fit(rows)(target.udhm[test_rows])[:, active]
+        out[name] = round(float(np.percentile(np.abs(z), 99)), 2)
+    return out
 
 
 def to_target_layout(pred: np.ndarray, arm: str, frames, test_rows: np.ndarray) -> np.ndarray:
@@ -277,14 +388,12 @@ def run(cfg: CrossEmbodimentConfig) -> dict:
              "l10_presets": lambda: l10_source(real, cfg.other_episodes, cfg.other_frames),
              "xhand_gestures": lambda: xhand_source(cfg.other_episodes, cfg.other_frames)}  # fmt: skip
     sources = [target_source(frames), *(build[name]() for name in cfg.others)]
-    block_hands = {"target": list(frames.hands), "human_clip": [None, "human"],
-                   "l10_presets": [None, "linkerhand_l10"], "xhand_gestures": [None, "xhand1"]}  # fmt: skip
     views = {}
     if "tokens_dequantized" in cfg.arms:
         from lerobot_unidextok.tokenizer import UniDexTok
 
         tok = UniDexTok.from_pretrained(cfg.tokenizer)
-        views = {s.name: dequantized(s.udhm, block_hands[s.name], tok) for s in sources}
+        views = {s.name: dequantized(s.udhm, s.hands, tok) for s in sources}
     test_rows = np.flatnonzero(np.isin(frames.episode, test_eps))
     covered = np.zeros(frames.action.shape[1], bool)
     covered[frames.block_columns] = True
@@ -294,8 +403,10 @@ def run(cfg: CrossEmbodimentConfig) -> dict:
                                         predicted=covered)}]  # fmt: skip
     folder = Path(cfg.output_root) / NAME
     folder.mkdir(parents=True, exist_ok=True)
+    spread = {}
     for n in cfg.target_episodes:
         target_train = np.flatnonzero(np.isin(frames.episode, train_eps[:n]))
+        spread[str(n)] = held_out_spread(cfg, sources, target_train, test_rows)
         for arm in cfg.arms:
             for seed in cfg.seeds:
                 logger.info("%d target episodes, %s, seed %d: training ACT (%d steps)", n, arm, seed, cfg.act.steps)
@@ -309,6 +420,7 @@ def run(cfg: CrossEmbodimentConfig) -> dict:
               "sources": [{"name": s.name, "label": s.label, "frames": len(s.episode),
                            "episodes": int(len(np.unique(s.episode)))} for s in sources],
               "summary": summarise(runs, cfg), "runs": runs, "git_commit": git_commit(),
+              "held_out_state_z_p99": spread,
               "wall_seconds": round(time.time() - t0, 1), "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
     result["command"] = command_line(cfg)
     result["provenance"] = {
@@ -374,12 +486,19 @@ def markdown(result: dict) -> str:
         f"# {NAME}", "",
         f"LeRobot's ACT (stock model, act_udt_cpu.yaml's sizes, chunk {act['chunk_size']}, {act['steps']} steps at "
         f"batch {act['batch_size']}, one CPU thread), relative actions z-scored {cfg['normalise'].replace('_', ' ')}, "
-        f"the target {cfg['target_share']:.0%} of the mixed training rows, seeds {cfg['seeds']}. Target: "
+        f"the hand input z-scored {cfg.get('hand_norm', 'pooled').replace('_', ' ')}, "
+        f"{'no loss on the slots a source lacks' if cfg.get('mask_slots') else 'every slot trained'}, the target "
+        f"{cfg['target_share']:.0%} of the mixed training rows ({cfg.get('share_by', 'copies')}); `{OLD_ARM}`: the "
+        f"recipe before 2026-12-05 (hand input pooled, every slot trained, copies); seeds {cfg['seeds']}. Target: "
         f"{result['target']}, test episodes {result['test_episodes']}, its first N training episodes of the order "
         f"{result['train_episode_order']}. Sources: {srcs}. Open-loop MAE on the target's test frames (hands: UDHM "
         "degrees over the slots its hands have, and native units), mean +- std over seeds.", "",
         md_table(header, rows), "",
         "`chunk vs target only`: hands UDHM MAE over the chunk against `target_only` at the same size (-5 % = 5 % better).",
+        *([("The target's held-out hand states z-scored with its own training rows' statistics "
+            "(`hand_norm=per_source`) / with those pooled over every source (the old recipe): 99th percentile of "
+            "|z| " + ", ".join(f"{v['per_source']:.2f} / {v['pooled']:.2f} at {n} episodes" for n, v in spread.items())
+            + ".")] if (spread := result.get("held_out_state_z_p99")) else []),
         f"Wall time {result['wall_seconds']:.0f} s; command: `{result.get('command', 'python experiments/cross_embodiment.py')}`.",
     ])  # fmt: skip
 

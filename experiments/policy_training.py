@@ -1,6 +1,7 @@
 """A small stock LeRobot ACT trained on arrays: the arms as `observation.state`, a hand input as
 `observation.environment_state` (as `act_udt` feeds its token view), z-scored with training statistics, the
-converted action chunk as target (L1 on unpadded steps, ACT's own loss).
+converted action chunk as target (L1 on unpadded steps, ACT's own loss; with `slot_pad`, `act_udt`'s loss, which
+leaves the marked action entries out).
 
 The model is LeRobot's `ACTPolicy` unchanged; what is left out is `lerobot-train`'s data loader, so every input
 variant trains on exactly the same rows, batches and initialisation for a seed.
@@ -48,6 +49,10 @@ class Standardiser:
     def fit(cls, x: np.ndarray) -> Standardiser:
         std = x.std(0)
         return cls(x.mean(0), np.where(std > 1e-6, std, 1.0))
+
+    @classmethod
+    def identity(cls, width: int) -> Standardiser:
+        return cls(np.zeros(width), np.ones(width))
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         return ((x - self.mean) / self.std).astype(np.float32)
@@ -97,29 +102,46 @@ class TrainedACT:
 
 
 def train_act(size: SmallACT, arms: np.ndarray, hands: np.ndarray, actions: np.ndarray, is_pad: np.ndarray,
-              seed: int) -> TrainedACT:  # fmt: skip
-    """Train on (N, arms) + (N, hands) inputs and (N, chunk, A) action chunks with (N, chunk) padding flags."""
+              seed: int, slot_pad: np.ndarray | None = None, order: np.ndarray | None = None,
+              hands_prescaled: bool = False, actions_prescaled: bool = False) -> TrainedACT:  # fmt: skip
+    """Train on (N, arms) + (N, hands) inputs and (N, chunk, A) action chunks with (N, chunk) padding flags.
+    `slot_pad` (N, A) bool: no loss (and no gradient) on those action entries of a row, through `act_udt`'s loss
+    (`ACTUdtPolicy.forward`, which reads only the model and ACT's fields). `order`: the rows of the batches in
+    turn (e.g. a share sampler's draw, at least steps x batch_size of them) instead of shuffled epochs.
+    `hands_prescaled` / `actions_prescaled`: the caller z-scored them already (e.g. per source); this function's
+    own z-score of them is then the identity, not a pooled one on top."""
     import torch
     from lerobot.policies.act.modeling_act import ACTPolicy
 
+    from lerobot_unidextok.policies.act_udt.modeling_act_udt import ACTUdtPolicy
+    from lerobot_unidextok.processor.slot_mask import ACTION_SLOT_PAD_KEY
+
+    if order is not None and len(order) < size.steps * size.batch_size:
+        raise ValueError(f"order has {len(order)} rows, the training needs {size.steps * size.batch_size}")
+
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    arm_s, hand_s = Standardiser.fit(arms), Standardiser.fit(hands)
-    act_s = Standardiser.fit(actions[:, 0])
+    arm_s = Standardiser.fit(arms)
+    hand_s = Standardiser.identity(hands.shape[1]) if hands_prescaled else Standardiser.fit(hands)
+    act_s = Standardiser.identity(actions.shape[2]) if actions_prescaled else Standardiser.fit(actions[:, 0])
     x_arms, x_hands = torch.from_numpy(arm_s(arms)), torch.from_numpy(hand_s(hands))
     y, pad = torch.from_numpy(act_s(actions)), torch.from_numpy(is_pad)
+    slots = None if slot_pad is None else torch.from_numpy(np.asarray(slot_pad, bool))
     policy = ACTPolicy(act_config(size, arms.shape[1], hands.shape[1], actions.shape[2]))
     policy.train()
     optim = torch.optim.AdamW(policy.parameters(), lr=size.lr, weight_decay=size.weight_decay)
     cpu0, loss = time.process_time(), float("nan")
-    order = np.empty(0, dtype=np.int64)
+    order = np.empty(0, dtype=np.int64) if order is None else np.asarray(order, dtype=np.int64)
     for _ in range(size.steps):
         if len(order) < size.batch_size:  # epochs of shuffled rows, as a shuffling data loader
             order = np.concatenate([order, rng.permutation(len(arms))])
         idx, order = torch.from_numpy(order[: size.batch_size]), order[size.batch_size :]
         batch = {"observation.state": x_arms[idx], "observation.environment_state": x_hands[idx], "action": y[idx],
                  "action_is_pad": pad[idx]}  # fmt: skip
-        loss_t, _ = policy.forward(batch)
+        if slots is None:
+            loss_t, _ = policy.forward(batch)
+        else:
+            loss_t, _ = ACTUdtPolicy.forward(policy, {**batch, ACTION_SLOT_PAD_KEY: slots[idx]})
         optim.zero_grad()
         loss_t.backward()
         torch.nn.utils.clip_grad_norm_(policy.parameters(), size.grad_clip_norm)
