@@ -32,7 +32,8 @@ as a loss weight, wrist actions in the hand's grasp-centre frame) unless its row
 - `pooled_<n>`: the recipe before 2026-12-05 on the same demonstrations: LeRobot's one set of statistics for the
   mix, every slot trained, the target's pool written `target_weight` times (copies), the wrist frame of the robot;
 - the ablations, each `mix_<n>` with one mechanism off: `no_hand_norm_<n>` (LeRobot's statistics),
-  `no_mask_<n>` (every slot trained), `copies_<n>` (the `target_weight` copies instead of the share),
+  `no_state_norm_<n>` (the actions per hand, the state with LeRobot's statistics), `no_mask_<n>` (every slot
+  trained), `copies_<n>` (the `target_weight` copies instead of the share),
   `no_frame_<n>` (wrist actions in the robot's wrist frame);
 - `packed_<n>`: `mix_<n>` with each hand's native joints packed at the front of the block and zero-padded;
 - `tokens_nearest_<n>`, `tokens_search_<n>`: `mix_<n>` with the hands given to the model only as the tokenizer's
@@ -80,6 +81,7 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "mix_rule": ("mix", ()),
     "pooled": ("copies", POOLED),
     "no_hand_norm": ("mix", ("--policy.udt_hand_norm=off",)),
+    "no_state_norm": ("mix", ("--policy.udt_hand_norm_state=false",)),
     "no_mask": ("mix", ("--policy.udt_mask_slots=false",)),
     "copies": ("copies", ()),
     "no_frame": ("mix", NO_FRAME),
@@ -609,7 +611,7 @@ def command_line(cfg: ClosedLoopConfig) -> str:
 
 
 ARM_TITLES = {"mix": "mix", "mix_rule": "mix, budget rule", "pooled": "mix, pooled statistics (before 2026-12-05)",
-              "no_hand_norm": "mix without per-hand statistics", "no_mask": "mix without masked slots",
+              "no_hand_norm": "mix without per-hand statistics", "no_state_norm": "mix, per-hand statistics for actions only", "no_mask": "mix without masked slots",
               "copies": "mix with copies, not shares", "no_frame": "mix without the grasp-centre frame",
               "packed": "mix, packed native", "tokens_nearest": "mix, tokens (nearest)",
               "tokens_search": "mix, tokens (tokenizer's encoding)", "zero_shot": "zero-shot (other hands only)",

@@ -147,6 +147,10 @@ class UdtConfigMixin:
     # auto (the stock policy's modes: ACT mean/std, Diffusion min/max) | mean_std | min_max | quantiles (q01/q99) |
     # quantile10 (q10/q90) | off (LeRobot's one set of statistics per column, as before 2026-12-05).
     udt_hand_norm: str = "auto"
+    # With udt_hand_norm: normalise the state's UDHM blocks per hand too (false: only the actions per hand, the
+    # state with LeRobot's one set of statistics per column; a target with few episodes has narrow statistics of
+    # its own, which held-out states leave far behind).
+    udt_hand_norm_state: bool = True
     # The per-hand statistics and their modes {"modes": {key: mode}, key: {side: {hand: {lo, hi, "frames"}}}}; filled
     # from the dataset (a mix's record, or one robot's training episodes) and saved with the checkpoint.
     udt_hand_stats: dict[str, Any] = field(default_factory=dict)
@@ -157,8 +161,9 @@ class UdtConfigMixin:
     # --weights_by=sampling): weight each row's loss by its input's share over its fraction of the rows trained on
     # (step unidextok.share_weights; lerobot-train takes no sampler from a plugin). ACT and Diffusion.
     udt_share_weights: bool = True
-    # Each episode's input (by episode index) and each input's share; filled from the mix's record.
+    # Each episode's input in the mix (by episode index; -1 none), filled from the mix's record.
     udt_episode_inputs: list[int] = field(default_factory=list)
+    # Each input's asked share of the training loss (the mix's normalised --weights), filled from its record.
     udt_input_shares: list[float] = field(default_factory=list)
     # Checkpoints saved before udt_episode_inputs: a fixed loss weight per episode (by index), kept as saved.
     udt_episode_weights: list[float] = field(default_factory=list)
@@ -359,7 +364,7 @@ class UdtConfigMixin:
         for key, kind, source in ((OBS_STATE, "STATE", OBS_STATE),
                                   (ACTION, "ACTION", ACTION_DELTA if self.udt_relative_actions else ACTION)):  # fmt: skip
             mode = HAND_NORMS[self.udt_hand_norm] or _mode_name(stock.get(kind, NormalizationMode.IDENTITY))
-            if mode not in STATS_OF_MODE or source not in stats:
+            if mode not in STATS_OF_MODE or source not in stats or (key == OBS_STATE and not self.udt_hand_norm_state):
                 continue
             lo, hi = STATS_OF_MODE[mode]
             chosen["modes"][key] = mode

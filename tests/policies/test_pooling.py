@@ -235,6 +235,22 @@ def weighted_mix(g1_like, l10_robot, tmp_path_factory):
     return root
 
 
+def test_hand_norm_state_false_leaves_the_state_to_lerobots_statistics(tok_dir, g1_l10_mix):
+    """udt_hand_norm_state=false: only the actions per hand; the state with LeRobot's one set of statistics."""
+    from lerobot.policies.factory import make_pre_post_processors
+
+    cfg, meta = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_norm_state=False)
+    assert cfg.udt_hand_stats["modes"] == {ACTION: "MEAN_STD"} and OBS_STATE not in cfg.udt_hand_stats
+    assert cfg.normalization_mapping["STATE"].value == "MEAN_STD" and cfg.normalization_mapping["ACTION"].value == "IDENTITY"
+    pre, _ = make_pre_post_processors(cfg, dataset_stats=meta.stats)
+    g1, l10 = _mix_episodes(g1_l10_mix)
+    batch = _batch(g1_l10_mix, meta, CHUNK, g1 + l10)
+    out = pre(dict(batch))
+    mean, std = (torch.as_tensor(meta.stats[OBS_STATE][k], dtype=torch.float32) for k in ("mean", "std"))
+    torch.testing.assert_close(out[OBS_STATE], (batch[OBS_STATE] - mean) / (std + 1e-8), rtol=1e-4, atol=1e-4)
+
+
+
 def test_a_mixs_shares_weight_each_rows_loss_under_lerobot_train(tok_dir, weighted_mix):
     """lerobot-train samples every frame equally; the shares the mix recorded reach the loss as row weights
     (unidextok.share_weights from the batch's episode_index): ACT's loss is the weighted sum of its rows'."""
