@@ -6,7 +6,7 @@ import torch
 from lerobot.lerobot_types import TransitionKey
 from lerobot.processor import PolicyProcessorPipeline
 
-from lerobot_unidextok.constants import ACTION, OBS_HAND_IDS, OBS_STATE
+from lerobot_unidextok.constants import OBS_HAND_IDS, OBS_STATE
 from lerobot_unidextok.data.wrist_frame import WristFrame, WristFrameError, merge_frames
 from lerobot_unidextok.processor import WristFrameStep
 from lerobot_unidextok.processor.wrist_frame import rotation_rpy
