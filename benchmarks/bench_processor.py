@@ -19,21 +19,27 @@ tokenizer step on the converted state.
     .venv/bin/python benchmarks/bench_processor.py --threads 1 --layout robot --presets small --native
     .venv/bin/python benchmarks/bench_processor.py --threads 1 --presets small --encoding_rounds 2   # code search
 
-`--encodings` compares the encodings of a trained tokenizer (`--pretrained`, default the shipped one) in one run:
+`--encodings` compares the encodings of a trained tokenizer (`--pretrained`, default unidextok/universal-small) in one
+run:
 the nearest codes, the code search as shipped before (sweeps, 2 rounds x 2), and the checkpoint's own encoding
 (the default of `encode` and of the step), each an `EncodingConfig` override of the step: the step's CPU ms per two-hand frame at batch 1 and per hand-row at
 batch 256 (ratios to the nearest codes), and MPJAE (deg) of each on `--error_rows` states uniform inside each of
-`--error_hands`' registered ranges (seed `--error_seed`; the card's in-range figures use seed 0). `--candidates`
-adds other tokenizers (folders, ids), each with its own encoding (e.g. a residual model's nearest codes of both
-stages), to the same table and the same ratios.
+`--error_hands`' registered ranges (seed `--error_seed`; the card's in-range figures use seed 0), and on the test
+episodes of each `--error_datasets` root (converted datasets, e.g. the card's G1 recording
+outputs/universal_data/g1_inspire). `--candidates` adds other tokenizers (folders, ids), each with its own encoding
+(e.g. a residual model's nearest codes of both stages), to the same table and the same ratios.
 
 `--select_action` runs a robot's loop: every tick the pre-processor, `select_action` and the post-processor of a
 LeRobot ACT (`--act_config`'s sizes, re-predicting every tick) on one G1-like frame (14 arm joints + two Inspire
-hands), for the stock ACT on the state alone (the bare policy) and for `act_udt` with each encoding; p50 / p99 of
-the tick and of the tokenizer step inside it (CPU and wall ms), and the tick over the bare policy's.
+hands), for the stock ACT on the state alone (the bare policy) and for `act_udt` with each encoding and with each
+`--candidates` tokenizer (its own encoding); p50 / p99 of the tick and of the tokenizer step inside it (CPU and
+wall ms), and the tick over the bare policy's.
 
     .venv/bin/python benchmarks/bench_processor.py --threads 1 --encodings
-    .venv/bin/python benchmarks/bench_processor.py --threads 1 --select_action --ticks 1000
+    .venv/bin/python benchmarks/bench_processor.py --threads 1 --encodings \
+        --candidates unidextok/universal-small-residual --error_datasets outputs/universal_data/g1_inspire
+    .venv/bin/python benchmarks/bench_processor.py --threads 1 --select_action --ticks 1000 \
+        --candidates unidextok/universal-small-residual
 """
 
 from __future__ import annotations
@@ -50,7 +56,7 @@ import torch
 from lerobot.processor import PolicyProcessorPipeline
 
 from lerobot_unidextok.constants import ACTION, OBS_HAND_TOKEN_FEATURES, OBS_STATE
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
 from lerobot_unidextok.processor import NativeLayout, NativeToUDHMStateStep, UniDexTokStateTokenizerStep
 from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 
@@ -88,8 +94,11 @@ def main() -> None:
                         help="the step's encoding: EncodingConfig(rounds=this) (0 = nearest codes)")  # fmt: skip
     parser.add_argument("--encodings", action="store_true", help="compare a trained tokenizer's encodings")
     parser.add_argument("--select_action", action="store_true", help="a robot's loop around select_action")
-    parser.add_argument("--pretrained", default=DEFAULT_TOKENIZER, help="tokenizer of --encodings / --select_action")
-    parser.add_argument("--candidates", nargs="*", default=[], help="--encodings: more tokenizers, own encoding")
+    parser.add_argument("--pretrained", default=UNIVERSAL_SMALL,
+                        help="tokenizer of --encodings / --select_action, one that the code search can encode with")
+    parser.add_argument("--candidates", nargs="*", default=[], help="more tokenizers, each with its own encoding")
+    parser.add_argument("--error_datasets", nargs="*", default=[],
+                        help="--encodings: MPJAE on these converted datasets' test episodes too")
     parser.add_argument("--error_hands", nargs="+", default=["inspire_rh56_unitree", "human"])
     parser.add_argument("--error_rows", type=int, default=1000, help="in-range states per hand for the MPJAE")
     parser.add_argument("--error_seed", type=int, default=1, help="their seed (not 0, the card's)")
@@ -198,7 +207,22 @@ def encoding_step(pretrained: str, names: list[str], encoding: EncodingConfig | 
 
 
 def describe(step: UniDexTokStateTokenizerStep) -> str:
-    return (step.encoding or step.tokenizer.config.encoding).describe()
+    cfg = step.tokenizer.config
+    words = (step.encoding or cfg.encoding).describe()
+    return f"{words} of all {cfg.num_stages} stages" if cfg.num_stages > 1 else words
+
+
+def held_out_rows(roots: list[str]) -> dict[str, tuple[str, np.ndarray, np.ndarray]]:
+    """{f"{dataset name}: {hand}": (hand, states_rad, masks)} of each converted dataset's test episodes."""
+    from lerobot_unidextok.training import load_hand_states
+
+    out = {}
+    for root in roots:
+        data = load_hand_states([root], split="test")
+        for hand in np.unique(data.hands):
+            rows = data.hands == hand
+            out[f"{Path(root).name} test episodes: {hand}"] = (str(hand), data.states_rad[rows], data.masks[rows])
+    return out
 
 
 def compare_encodings(args) -> None:
@@ -208,7 +232,9 @@ def compare_encodings(args) -> None:
     frames, names = g1_frames(256)
     steps = {label: encoding_step(args.pretrained, names, enc) for label, enc in ENCODINGS.items()}
     steps |= {f"candidate {path}": encoding_step(path, names, None) for path in args.candidates}
-    sets = {hand: range_states(hand, args.error_rows, args.error_seed) for hand in args.error_hands}
+    sets = {hand: (hand, s.states_rad, s.masks) for hand, s in
+            ((h, range_states(h, args.error_rows, args.error_seed)) for h in args.error_hands)}  # fmt: skip
+    sets |= held_out_rows(args.error_datasets)
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, load average {os.getloadavg()[0]:.1f} on "
           f"{os.cpu_count()} cores; tokenizer {args.pretrained}; the step on G1-like frames (two Inspire hands); "
           f"MPJAE on {args.error_rows} in-range states per hand, seed {args.error_seed}")  # fmt: skip
@@ -223,16 +249,16 @@ def compare_encodings(args) -> None:
     with torch.inference_mode():
         for label, st in steps.items():
             tok = st.tokenizer
-            for hand, data in sets.items():
-                x, m = torch.tensor(data.states_rad), torch.tensor(data.masks)
+            for name, (hand, states, masks) in sets.items():
+                x, m = torch.tensor(states), torch.tensor(masks)
                 back = tok.decode(tok.encode(x, hand, mask=m, encoding=st.encoding), hand)
-                err[label][hand] = mpjae_deg(back.numpy(), data.states_rad, data.masks)
-    head = " | ".join(f"MPJAE {h} (deg)" for h in args.error_hands)
+                err[label][name] = mpjae_deg(back.numpy(), states, masks)
+    head = " | ".join(f"MPJAE {name} (deg)" for name in sets)
     print(f"\n| encoding | {head} | symbols per hand | CPU ms per frame, batch 1 | x nearest | CPU ms per hand-row, "
           "batch 256 | x nearest |")  # fmt: skip
-    print("|" + "---|" * (6 + len(args.error_hands)))
+    print("|" + "---|" * (6 + len(sets)))
     for i, (label, st) in enumerate(steps.items()):
-        errs = " | ".join(f"{err[label][h]:.3f}" for h in args.error_hands)
+        errs = " | ".join(f"{err[label][name]:.3f}" for name in sets)
         print(f"| {label}: {describe(st)} | {errs} | {st.tokenizer.config.symbols_per_hand()} | {cost[1][i]:.2f} | {cost[1][i] / cost[1][0]:.1f} | "
               f"{cost[256][i]:.3f} | {cost[256][i] / cost[256][0]:.1f} |")  # fmt: skip
 
@@ -277,6 +303,8 @@ def select_action_loop(args) -> None:
     loops = {"bare ACT (state only)": act_policy(names, frames, args.act_config, None, None)}
     for label, enc in ENCODINGS.items():
         loops[f"act_udt, {label}"] = act_policy(names, frames, args.act_config, args.pretrained, enc)
+    for path in args.candidates:  # each with its own encoding
+        loops[f"act_udt, candidate {path}"] = act_policy(names, frames, args.act_config, path, None)
     tick: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in loops}
     step_ms = {k: [] for k in loops}
     for label, (_, _, _, step) in loops.items():
@@ -303,13 +331,15 @@ def select_action_loop(args) -> None:
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, load average {os.getloadavg()[0]:.1f} on "
           f"{os.cpu_count()} cores; {args.ticks} ticks per policy (after 50 warm-up), interleaved; ACT sizes of "
           f"{args.act_config}; tokenizer {args.pretrained}")  # fmt: skip
-    print("\n| policy | tick CPU ms p50 / p99 | tick wall ms p50 / p99 | tokenizer step CPU ms p50 / p99 | tick CPU over bare |")
-    print("|---|---|---|---|---|")
+    print("\n| policy | tick CPU ms p50 / p99 | tick wall ms p50 / p99 | tokenizer step CPU ms p50 / p99 | tick CPU over "
+          "bare | tick CPU ms p50 minus bare's |")
+    print("|---|---|---|---|---|---|")
     for label, (cpu, wall) in tick.items():
         st = step_ms[label][50:]
         steps = f"{np.median(st):.2f} / {np.percentile(st, 99):.2f}" if st else "-"
         print(f"| {label} | {np.median(cpu):.2f} / {np.percentile(cpu, 99):.2f} | {np.median(wall):.2f} / "
-              f"{np.percentile(wall, 99):.2f} | {steps} | {np.median(cpu) / bare:.2f} |")  # fmt: skip
+              f"{np.percentile(wall, 99):.2f} | {steps} | {np.median(cpu) / bare:.2f} | "
+              f"{np.median(cpu) - bare:+.2f} |")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -27,7 +27,7 @@ if __package__ in (None, ""):  # `python experiments/residual_ab.py`
 
 from experiments import runtime
 from experiments.common import git_commit, md_table
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
 
 NAME = "residual_ab"
 CARD_SEED = 0  # the card's in-range states (experiments/universal.py IN_RANGE_SEED)
@@ -42,7 +42,7 @@ class ResidualABConfig:
     train_seed: int = 11
     rows: int = 1000  # in-range states per hand scored (the card's seed 0; the card scores 5000)
     seed: int = 0
-    checkpoint: str = DEFAULT_TOKENIZER  # the reference rows
+    checkpoint: str = UNIVERSAL_SMALL  # the reference rows
     tiny: bool = False  # tests: tiny preset, a few steps
     output_root: str = "outputs/experiments"
 

@@ -35,7 +35,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 
 from experiments import runtime
 from experiments.common import git_commit, md_table
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
 from lerobot_unidextok.tokenizer import NEAREST_CODES
 
 NAME = "search_distill"
@@ -49,7 +49,7 @@ ENCODER = ("input_proj", "enc_pos", "encoder.", "enc_norm", "quantizer.project_i
 
 @dataclass
 class SearchDistillConfig:
-    checkpoint: str = DEFAULT_TOKENIZER  # a tokenizer whose config.json searches (encoding.rounds > 0)
+    checkpoint: str = UNIVERSAL_SMALL  # a tokenizer whose config.json searches (encoding.rounds > 0)
     recipe: str = "train/universal"  # the unidextok-train config whose data and sampler the pool comes from
     variants: list[str] = field(default_factory=lambda: list(VARIANTS))
     steps: int = 2000  # optimiser steps per variant

@@ -29,36 +29,38 @@ def _summary(entry: dict) -> dict:
 
 
 def in_range_figures(model, hand_names: list[str] | None = None, rows: int = IN_RANGE_ROWS,
-                     seed: int = IN_RANGE_SEED) -> dict[str, dict]:  # fmt: skip
+                     seed: int = IN_RANGE_SEED, stages: int | None = None) -> dict[str, dict]:  # fmt: skip
     """{f"in-range states: {hand}": summary} for every registered hand (or `hand_names`): `rows` states each,
-    drawn with `seed` (the card's set by default)."""
+    drawn with `seed` (the card's set by default); `stages` the quantiser stages used (None = all)."""
     from lerobot_unidextok import hands
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer
     from lerobot_unidextok.training.coverage import range_states
 
     out = {}
     for hand in hand_names or list(hands.names()):
-        report = evaluate_tokenizer(model, range_states(hand, rows, seed))
+        report = evaluate_tokenizer(model, range_states(hand, rows, seed), stages=stages)
         out[IN_RANGE_PREFIX + hand] = _summary(report["per_hand"][hand])
     return out
 
 
-def held_out_figures(model, datasets: dict[str, str]) -> dict[str, dict]:
+def held_out_figures(model, datasets: dict[str, str], stages: int | None = None) -> dict[str, dict]:
     """{f"{label} test episodes: {hand}": summary} for each labelled converted dataset root."""
     from lerobot_unidextok.evaluation.report import evaluate_tokenizer
     from lerobot_unidextok.training import load_hand_states
 
     out = {}
     for label, root in datasets.items():
-        report = evaluate_tokenizer(model, load_hand_states([root], split="test"))
+        report = evaluate_tokenizer(model, load_hand_states([root], split="test"), stages=stages)
         for hand, entry in report["per_hand"].items():
             out[f"{label} test episodes: {hand}"] = _summary(entry)
     return out
 
 
-def figures(model, datasets: dict[str, str], hand_names: list[str] | None = None) -> dict[str, dict]:
-    """The held-out figures of `datasets` and the in-range figures of `hand_names` (None = every registered hand)."""
-    return {**held_out_figures(model, datasets), **in_range_figures(model, hand_names)}
+def figures(model, datasets: dict[str, str], hand_names: list[str] | None = None,
+            stages: int | None = None) -> dict[str, dict]:  # fmt: skip
+    """The held-out figures of `datasets` and the in-range figures of `hand_names` (None = every registered hand),
+    through the first `stages` quantiser stages (None = all)."""
+    return {**held_out_figures(model, datasets, stages), **in_range_figures(model, hand_names, stages=stages)}
 
 
 def write_package(

@@ -21,9 +21,11 @@ def reconstruct(
     allow_unknown: bool = False,
     masks: np.ndarray | None = None,
     encoding=None,
+    stages: int | None = None,
 ) -> Reconstruction:
     """decode(encode(x)) for every row; `hands` names one hand per row, `masks` (N, 22) bool its active DoFs (for
-    the code search; None = from the hand specs), `encoding` (an EncodingConfig) None = the model's own."""
+    the code search; None = from the hand specs), `encoding` (an EncodingConfig) None = the model's own, `stages`
+    the quantiser stages encoded and decoded (None = all; 1 = a residual model's first stage alone)."""
     was_training = model.training
     model.eval()
     outs, codes = [], []
@@ -32,7 +34,7 @@ def reconstruct(
             x = torch.as_tensor(states_rad[i : i + batch_size], dtype=torch.float32)
             h = [str(s) for s in hands[i : i + batch_size]]
             m = None if masks is None else torch.tensor(masks[i : i + batch_size], dtype=torch.bool)  # (b, 22)
-            c = model.encode(x, h, allow_unknown=allow_unknown, mask=m, encoding=encoding)  # (b, T, K)
+            c = model.encode(x, h, allow_unknown=allow_unknown, mask=m, encoding=encoding, stages=stages)  # (b, T, K*s)
             outs.append(model.decode(c, h, allow_unknown=allow_unknown).cpu().numpy())
             codes.append(c.cpu().numpy())
     finally:

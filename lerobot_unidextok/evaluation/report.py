@@ -12,11 +12,12 @@ from lerobot_unidextok.evaluation.reconstruct import codebook_usage, reconstruct
 from lerobot_unidextok.utils.files import jsonable
 
 
-def evaluate_tokenizer(model, data, batch_size: int = 4096) -> dict:
+def evaluate_tokenizer(model, data, batch_size: int = 4096, stages: int | None = None) -> dict:
     """Per-hand and overall metrics of decode(encode(x)); hands unknown to the model are scored
-    zero-shot through its unknown-hand embedding and flagged `zero_shot`."""
+    zero-shot through its unknown-hand embedding and flagged `zero_shot`. `stages`: the quantiser stages used
+    (None = all of the model's; 1 = a residual model's first stage alone)."""
     rec = reconstruct(model, data.states_rad, data.hands, batch_size=batch_size, allow_unknown=True,
-                      masks=data.masks)
+                      masks=data.masks, stages=stages)
     report = reconstruction_metrics(rec.states_rad, data.states_rad, data.hands, data.masks)
     size = model.config.codebook_size
     report["overall"]["codebook"] = codebook_usage(rec.codes, size)

@@ -272,6 +272,12 @@ def tokenizer_card(folder: str | Path, repo_id: str | None = None, training_data
             f"hand -> {config.get('num_tokens')} tokens x {config.get('num_groups')} groups of "
             f"{config.get('codebook_size')}-entry cosine codebooks, decoded back to angles."
         ),
+        *(  # a residual model (#48): the stages after the paper's first one
+            [f"Plus {config['residual_stages']} residual stage(s) of as many codes on what the stages before leave "
+             f"out: {config['num_tokens'] * config['num_groups'] * (1 + config['residual_stages'])} codes per hand "
+             "in all, the first stage's first."]
+            if config.get("residual_stages") else []
+        ),  # fmt: skip
         "",
         f"## {hands_title}",
         "",

@@ -1,6 +1,7 @@
 """Where a tokenizer checkpoint is: the name resolution behind `UniDexTok.from_pretrained` (the one door).
 
     UniDexTok.from_pretrained("unidextok/universal-small")        # shipped in this package: no network
+    UniDexTok.from_pretrained("unidextok/universal-small-residual")  # shipped too: + a residual stage (#48)
     UniDexTok.from_pretrained("outputs/small")                    # a unidextok-train run folder: its best/
     UniDexTok.from_pretrained("outputs/small/best")               # a checkpoint folder
     UniDexTok.from_pretrained("lab/unidextok-small")              # a Hub repo id (the HF cache serves it offline)
@@ -11,8 +12,9 @@ else the name unchanged (a Hub repo id); a checkpoint that a killed `unidextok-t
 (`.best.old-<pid>-*`) is named with the fix. `hub_errors(name)` turns the Hub's failures (offline and not cached,
 not a repo id, no such repo) into one `CheckpointNotFoundError` that says how to fix it. `DEFAULT_TOKENIZER`
 is the tokenizer of the `<type>_udt` policies and of `UniDexTokStateTokenizerStep` unless they are given
-another one or an untrained preset explicitly. Each shipped folder is a Hub-format checkpoint (config.json,
-model.safetensors, README.md card, eval.json with the card's figures); `train/universal` is its recipe.
+another one or an untrained preset explicitly: one of the shipped ids, set on one line. Each shipped folder is a
+Hub-format checkpoint (config.json, model.safetensors, README.md card, eval.json with the card's figures);
+`train/universal` is their recipe (the residual one with `--preset=small_residual`).
 """
 
 from __future__ import annotations
@@ -26,9 +28,14 @@ from lerobot_unidextok.errors import CheckpointNotFoundError
 
 logger = logging.getLogger(__name__)
 
-DEFAULT_TOKENIZER = "unidextok/universal-small"
+UNIVERSAL_SMALL = "unidextok/universal-small"  # the paper's single VQ, 64 codes a hand, greedy code search
+UNIVERSAL_SMALL_RESIDUAL = "unidextok/universal-small-residual"  # + one residual stage, 128 codes, nearest codes (#48)
+DEFAULT_TOKENIZER = UNIVERSAL_SMALL  # the one line that picks the default of the step and the <type>_udt policies
 HERE = Path(__file__).resolve().parent
-SHIPPED: dict[str, Path] = {"unidextok/universal-small": HERE / "universal-small"}
+SHIPPED: dict[str, Path] = {
+    UNIVERSAL_SMALL: HERE / "universal-small",
+    UNIVERSAL_SMALL_RESIDUAL: HERE / "universal-small-residual",
+}
 CONFIG_FILE = "config.json"
 RUN_BEST = "best"  # the checkpoint a unidextok-train run folder keeps for use
 
@@ -128,5 +135,5 @@ def config_path(name: str | Path, revision: str | None = None) -> Path:
         return Path(hf_hub_download(repo_id=resolved, filename=CONFIG_FILE, revision=revision))
 
 
-__all__ = ["DEFAULT_TOKENIZER", "SHIPPED", "config_path", "hub_errors", "refuse_set_aside", "resolve", "shipped_folder",
-           "untrained_preset"]
+__all__ = ["DEFAULT_TOKENIZER", "SHIPPED", "UNIVERSAL_SMALL", "UNIVERSAL_SMALL_RESIDUAL", "config_path", "hub_errors",
+           "refuse_set_aside", "resolve", "shipped_folder", "untrained_preset"]

@@ -23,7 +23,7 @@ from experiments.universal_zeroshot import (
 )
 from lerobot_unidextok import hands
 from lerobot_unidextok.constants import UDHM_INDEX
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, UNIVERSAL_SMALL
 from lerobot_unidextok.tokenizer import UniDexTok
 from lerobot_unidextok.training.coverage import range_states
 
@@ -143,10 +143,12 @@ def test_the_experiment_scores_yaml_only_hands_zero_shot_end_to_end(tmp_path):
 
 def test_a_hand_in_the_vocabulary_is_refused_and_a_newer_registered_one_is_scored(tmp_path):
     """Zero-shot means outside the tokenizer's vocabulary: the L6 (trained) is refused, by file or by name; the
-    Dex3-1, registered after the shipped tokenizer was trained, is scored through the unknown-hand row."""
+    Dex3-1, registered after `unidextok/universal-small` was trained (named by its id: the residual one trained on
+    it), is scored through the unknown-hand row."""
     for spec in (str(hands.SPECS_DIR / "linkerhand_l6.yaml"), "linkerhand_l6"):
         with pytest.raises(ValueError, match=r"\['linkerhand_l6'\] are in the tokenizer's vocabulary"):
             run_and_write(ZeroShotConfig(specs=[spec], rows=8, output_root=str(tmp_path)))
-    result = run_and_write(ZeroShotConfig(specs=["unitree_dex3_1"], relatives=[], rows=8, output_root=str(tmp_path)))
+    result = run_and_write(ZeroShotConfig(specs=["unitree_dex3_1"], relatives=[], rows=8, output_root=str(tmp_path),
+                                          checkpoint=UNIVERSAL_SMALL))  # fmt: skip
     (row,) = result["rows"]
     assert row["hand"] == "unitree_dex3_1" and row["zero_shot"] and row["rows"] == 8

@@ -162,7 +162,7 @@ def test_the_shipped_tokenizer_is_pushed_by_its_id_like_any_model(hub, tmp_path)
     shipped_card = (SHIPPED[DEFAULT_TOKENIZER] / "README.md").read_text()
     card = uploaded["README.md"].decode()
     assert "# lab/universal-small\n" in card and 'from_pretrained("lab/universal-small")' in card
-    assert card.split("## Use")[0] == shipped_card.split("## Use")[0].replace("# unidextok/universal-small\n",
+    assert card.split("## Use")[0] == shipped_card.split("## Use")[0].replace(f"# {DEFAULT_TOKENIZER}\n",
                                                                                "# lab/universal-small\n")
 
 

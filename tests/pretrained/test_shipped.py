@@ -1,6 +1,7 @@
-"""The tokenizer shipped in the package (`lerobot_unidextok/pretrained/universal-small`): it loads by id in a
-fresh process with no network and an empty HF home, its card shows the figures of its recorded evaluation, and
-those figures are what the shipped weights measure."""
+"""The tokenizer shipped in the package as `unidextok/universal-small` (`lerobot_unidextok/pretrained/universal-small`):
+it loads by id in a fresh process with no network and an empty HF home, its card shows the figures of its recorded
+evaluation, and those figures are what the shipped weights measure. By its id, whichever shipped id is
+`DEFAULT_TOKENIZER` (the residual model: test_shipped_residual.py)."""
 
 import json
 import os
@@ -17,16 +18,16 @@ from linkerhand_udhm import subprocess_env
 from experiments.universal import IN_RANGE_PREFIX, held_out_figures, in_range_figures
 from lerobot_unidextok.evaluation.report import encoding
 from lerobot_unidextok.hub.card import CARD_MARKER, card_status
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, SHIPPED, resolve, shipped_folder
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, SHIPPED, UNIVERSAL_SMALL, resolve, shipped_folder
 from lerobot_unidextok.tokenizer import NEAREST_CODES, UniDexTok, UniDexTokConfig
 
-FOLDER = SHIPPED[DEFAULT_TOKENIZER]
+FOLDER = SHIPPED[UNIVERSAL_SMALL]
 REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
 def shipped() -> UniDexTok:
-    return UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
+    return UniDexTok.from_pretrained(UNIVERSAL_SMALL)
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +40,7 @@ def test_the_package_holds_a_small_hub_format_checkpoint_with_our_card():
     assert {"config.json", "model.safetensors", "README.md", "eval.json"} <= names
     assert sum(p.stat().st_size for p in FOLDER.iterdir()) <= 5 * 1024 * 1024
     assert card_status(FOLDER / "README.md") == "ours"
-    assert shipped_folder(DEFAULT_TOKENIZER) == FOLDER and shipped_folder("lab/other") is None
+    assert shipped_folder(UNIVERSAL_SMALL) == FOLDER and shipped_folder("lab/other") is None
     text = (REPO / "pyproject.toml").read_text()  # a non-editable install carries the weights and the card
     assert '"pretrained/*/model.safetensors"' in text and '"pretrained/*/README.md"' in text
 
@@ -48,7 +49,7 @@ def test_loads_by_id_in_a_fresh_process_offline_with_an_empty_hf_home(tmp_path):
     home = tmp_path / "hf"
     home.mkdir()
     code = ("from lerobot_unidextok.tokenizer import UniDexTok; import json; "
-            f"m = UniDexTok.from_pretrained({DEFAULT_TOKENIZER!r}); "
+            f"m = UniDexTok.from_pretrained({UNIVERSAL_SMALL!r}); "
             "print(json.dumps([m.config.hand_names, m.config.trained_hands]))")  # fmt: skip
     env = subprocess_env(HF_HUB_OFFLINE="1", HF_HOME=str(home), PYTHONPATH=str(REPO))
     env.pop("HF_HUB_CACHE", None)
@@ -139,7 +140,7 @@ def test_the_in_range_figures_are_what_the_shipped_weights_measure(shipped, reco
                                              ("results", None, ["inspire_rh56_unitree"])]:  # fmt: skip
         want = {k: v for k, v in recorded[key].items() if k.startswith(IN_RANGE_PREFIX)}
         assert set(want) == {IN_RANGE_PREFIX + h for h in shipped.config.trained_hands}
-        model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER, encoding=override)
+        model = UniDexTok.from_pretrained(UNIVERSAL_SMALL, encoding=override)
         got = in_range_figures(model, hands_scored)
         assert len(got) == len(hands_scored)
         # The nearest codes are a continuous function of the weights: equal to 1e-4 on any CPU. The search makes
@@ -170,39 +171,45 @@ def test_the_g1_test_episode_figure_is_what_the_shipped_weights_measure(shipped,
         assert got[name][key] == pytest.approx(value, rel=1e-2, abs=1e-6), key
 
 
+def test_the_default_is_a_shipped_id_and_every_shipped_id_has_its_folder():
+    assert DEFAULT_TOKENIZER in SHIPPED
+    for name, folder in SHIPPED.items():
+        assert shipped_folder(name) == folder and folder.parent == FOLDER.parent, name
+
+
 def test_resolution_order_local_folder_then_shipped_id_then_hub(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert resolve(DEFAULT_TOKENIZER) == str(FOLDER)
+    assert resolve(UNIVERSAL_SMALL) == str(FOLDER)
     assert resolve("lab/not-shipped") == "lab/not-shipped"
-    local = tmp_path / DEFAULT_TOKENIZER  # a folder of that name in the working directory wins
+    local = tmp_path / UNIVERSAL_SMALL  # a folder of that name in the working directory wins
     torch.manual_seed(0)
     UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["human"])).save_pretrained(local)
-    assert resolve(DEFAULT_TOKENIZER) == DEFAULT_TOKENIZER
-    assert UniDexTok.from_pretrained(DEFAULT_TOKENIZER).config.num_tokens == 4  # the local tiny one
+    assert resolve(UNIVERSAL_SMALL) == UNIVERSAL_SMALL
+    assert UniDexTok.from_pretrained(UNIVERSAL_SMALL).config.num_tokens == 4  # the local tiny one
     monkeypatch.chdir(REPO)
-    assert UniDexTok.from_pretrained(DEFAULT_TOKENIZER).config.num_tokens == 8
+    assert UniDexTok.from_pretrained(UNIVERSAL_SMALL).config.num_tokens == 8
 
 
 @pytest.mark.slow
 def test_unidextok_eval_takes_the_shipped_id(g1_like_hands, tmp_path):
     out = tmp_path / "eval"
     env = subprocess_env(HF_HUB_OFFLINE="1", HF_HOME=str(tmp_path / "hf"), PYTHONPATH=str(REPO))
-    r = subprocess.run([str(Path(sys.executable).parent / "unidextok-eval"), f"--checkpoint={DEFAULT_TOKENIZER}",
+    r = subprocess.run([str(Path(sys.executable).parent / "unidextok-eval"), f"--checkpoint={UNIVERSAL_SMALL}",
                         f"--datasets=[{g1_like_hands['root']}]", f"--output={out}"],
                        env=env, cwd=tmp_path, capture_output=True, text=True, timeout=180, check=False)  # fmt: skip
     assert r.returncode == 0, r.stderr[-2000:]
     report = json.loads(out.with_suffix(".json").read_text())
-    assert report["checkpoint"] == DEFAULT_TOKENIZER
+    assert report["checkpoint"] == UNIVERSAL_SMALL
     assert all(not e["zero_shot"] and np.isfinite(e["mpjae_deg"]) for e in report["per_hand"].values())
 
 
 def test_init_from_the_shipped_id_starts_from_its_weights(g1_like_hands, tmp_path):
     from lerobot_unidextok.training import TrainConfig, build_model, load_hand_states
 
-    cfg = TrainConfig(datasets=[str(g1_like_hands["root"])], init_from=DEFAULT_TOKENIZER, steps=1,
+    cfg = TrainConfig(datasets=[str(g1_like_hands["root"])], init_from=UNIVERSAL_SMALL, steps=1,
                       output_dir=str(tmp_path / "run"), progress=False)  # fmt: skip
     model = build_model(cfg, load_hand_states(cfg.datasets, split="train"))
-    shipped = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
+    shipped = UniDexTok.from_pretrained(UNIVERSAL_SMALL)
     assert model.config.hand_names == shipped.config.hand_names  # every data hand was already known
     for (name, a), (_, b) in zip(model.state_dict().items(), shipped.state_dict().items(), strict=True):
         assert torch.equal(a, b), name
@@ -213,5 +220,5 @@ def test_revision_means_the_hub_repo_not_the_shipped_copy(monkeypatch):
 
     monkeypatch.setenv("HF_HUB_OFFLINE", "1")
     with pytest.raises((LocalEntryNotFoundError, OfflineModeIsEnabled, FileNotFoundError, OSError)):
-        UniDexTok.from_pretrained(DEFAULT_TOKENIZER, revision="main")
+        UniDexTok.from_pretrained(UNIVERSAL_SMALL, revision="main")
     assert os.environ["HF_HUB_OFFLINE"] == "1"

@@ -531,10 +531,14 @@ def test_the_default_tokenizer_is_the_shipped_universal_one_and_a_preset_only_wh
 def test_the_step_encodes_as_its_tokenizer_does_unless_told_and_keeps_it_on_reload():
     """By default (`encoding=None`) the step encodes with its tokenizer's own encoding: for the shipped one,
     the decoder-aware search, which decodes closer to the state on the hands' active DoFs than the nearest codes
-    (`encoding=NEAREST_CODES`). Both settings survive a reload, the override unchanged."""
+    (`encoding=NEAREST_CODES`). Both settings survive a reload, the override unchanged. (`unidextok/universal-small`
+    by its id: the searching one, whichever shipped id is the default.)"""
+    from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
+
     states = torch.from_numpy(inspire_states(16, seed=2))  # (16, 44) two Inspire hands
-    default = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE])
-    nearest = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE], encoding=NEAREST_CODES)
+    default = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE], pretrained=UNIVERSAL_SMALL)
+    nearest = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE], pretrained=UNIVERSAL_SMALL,
+                                          encoding=NEAREST_CODES)  # fmt: skip
     tok = default.tokenizer
     assert default.encoding is None and tok.config.encoding.rounds > 0 and nearest.encoding is NEAREST_CODES
     rows = states.reshape(-1, 22)  # (32, 22) one row per hand
@@ -558,9 +562,11 @@ def test_the_step_encodes_as_its_tokenizer_does_unless_told_and_keeps_it_on_relo
 def test_a_step_saved_with_the_legacy_search_rounds_encodes_as_it_did():
     """A step saved before EncodingConfig: its config has `search_rounds` and its tokenizer_config the flat legacy
     keys. It loads with the tokenizer's own encoding at that many rounds (what it encoded with), and saves the new
-    form."""
+    form. (Steps saved then held `unidextok/universal-small`: named by its id, whichever shipped id is the default.)"""
+    from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
+
     states = torch.from_numpy(inspire_states(8, seed=4))
-    step = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE])
+    step = UniDexTokStateTokenizerStep(hand_layout=[INSPIRE, INSPIRE], pretrained=UNIVERSAL_SMALL)
     saved = json.loads(json.dumps(step.get_config()))
     tok_cfg = dict(saved["tokenizer_config"])
     legacy_keys = {"rounds": "search_rounds", "method": "search_method", "sweeps": "search_sweeps",

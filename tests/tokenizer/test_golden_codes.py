@@ -18,7 +18,7 @@ from pathlib import Path
 
 import torch
 
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, SHIPPED
+from lerobot_unidextok.pretrained import SHIPPED, UNIVERSAL_SMALL
 from lerobot_unidextok.tokenizer import UniDexTok
 from lerobot_unidextok.training.coverage import range_states
 
@@ -41,7 +41,7 @@ def record(model: UniDexTok) -> dict:
 
 if __name__ == "__main__" and "--write" in sys.argv:
     torch.set_num_threads(1)
-    hands = record(UniDexTok.from_pretrained(DEFAULT_TOKENIZER))
+    hands = record(UniDexTok.from_pretrained(UNIVERSAL_SMALL))
     about = ("codes of lerobot_unidextok/pretrained/universal-small (its own encoding, and the nearest codes) on "
              "fixed in-range rows; regenerate: .venv/bin/python tests/tokenizer/test_golden_codes.py --write")
     GOLDEN.write_text(json.dumps({"about": about, "commit": "a33cb3b", "hands": hands}, separators=(",", ":")) + "\n")
@@ -69,7 +69,7 @@ def _assert_encodes_as_recorded(model: UniDexTok) -> None:
 def test_the_shipped_model_encodes_as_before():
     from lerobot_unidextok.tokenizer import EncodingConfig
 
-    model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
+    model = UniDexTok.from_pretrained(UNIVERSAL_SMALL)
     assert model.config.encoding == EncodingConfig(rounds=2, method="greedy", changes=16, tolerance_deg=0.1)
     _assert_encodes_as_recorded(model)
 
@@ -81,7 +81,7 @@ def test_a_checkpoint_with_the_flat_legacy_config_encodes_as_before(tmp_path):
     from lerobot_unidextok.tokenizer import EncodingConfig
 
     folder = tmp_path / "old"
-    shutil.copytree(SHIPPED[DEFAULT_TOKENIZER], folder)
+    shutil.copytree(SHIPPED[UNIVERSAL_SMALL], folder)
     legacy = (Path(__file__).parent / "legacy_config_universal_small.json").read_text()
     assert '"search_rounds": 2' in legacy and '"encoding"' not in legacy
     (folder / "config.json").write_text(legacy)

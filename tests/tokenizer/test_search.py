@@ -12,7 +12,7 @@ import pytest
 import torch
 
 from lerobot_unidextok import hands
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, SHIPPED
+from lerobot_unidextok.pretrained import SHIPPED, UNIVERSAL_SMALL
 from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig, UniDexTok, UniDexTokConfig
 from lerobot_unidextok.tokenizer.search import decoded_and_jacobian, decoder_jacobian, greedy_codes, search_codes
 from lerobot_unidextok.training.coverage import range_states
@@ -20,7 +20,7 @@ from lerobot_unidextok.training.coverage import range_states
 
 @pytest.fixture(scope="module")
 def shipped() -> UniDexTok:
-    return UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
+    return UniDexTok.from_pretrained(UNIVERSAL_SMALL)
 
 
 def _rows(hand: str, n: int, seed: int = 3):
@@ -61,7 +61,7 @@ def test_the_jacobian_pass_also_decodes_the_codes():
 @pytest.mark.parametrize("hand", ["human", "inspire_rh56_unitree"])
 def test_search_never_worsens_a_row_and_cuts_the_error_of_the_shipped_model(shipped, hand, method):
     x, mask = _rows(hand, 48)
-    model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
+    model = UniDexTok.from_pretrained(UNIVERSAL_SMALL)
     nearest = model.encode(x, hand, encoding=NEAREST_CODES)
     searched = model.encode(x, hand, encoding=EncodingConfig(rounds=1, method=method))
     assert searched.shape == nearest.shape and searched.dtype == torch.int64
@@ -159,7 +159,7 @@ def test_a_checkpoint_from_before_search_method_encodes_as_it_did(tmp_path):
     2, no `search_method`) load with the coordinate-descent search and give the codes that commit's search gave
     (`legacy_search_codes.json`, recorded with that commit's tokenizer/search.py)."""
     folder = tmp_path / "old"
-    shutil.copytree(SHIPPED[DEFAULT_TOKENIZER], folder)
+    shutil.copytree(SHIPPED[UNIVERSAL_SMALL], folder)
     config = json.loads((folder / "config.json").read_text())
     config.pop("encoding")  # that config.json had the flat keys of before EncodingConfig, and no method
     (folder / "config.json").write_text(json.dumps({**config, "search_rounds": 2, "search_sweeps": 2}))
@@ -181,7 +181,7 @@ def test_a_checkpoint_from_before_search_method_encodes_as_it_did(tmp_path):
 @pytest.mark.parametrize("method", ["greedy", "sweeps"])
 def test_search_runs_under_inference_mode(method):
     """LeRobot runs policies under torch.inference_mode; the search's own autograd must still work there."""
-    model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER, encoding=EncodingConfig(rounds=1, method=method))
+    model = UniDexTok.from_pretrained(UNIVERSAL_SMALL, encoding=EncodingConfig(rounds=1, method=method))
     x, _ = _rows("linkerhand_l10", 4)
     expected = model.encode(x, "linkerhand_l10")
     with torch.inference_mode():
