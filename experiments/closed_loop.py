@@ -31,11 +31,12 @@ as a loss weight, wrist actions in the hand's grasp-centre frame) unless its row
   as often as when it trains alone for `steps`), where every other arm trains `steps` (matched compute);
 - `pooled_<n>`: the recipe before 2026-12-05 on the same demonstrations: LeRobot's one set of statistics for the
   mix, every slot trained, the target's pool written `target_weight` times (copies), the wrist frame of the robot;
-- the ablations, each `mix_<n>` with one mechanism off: `no_hand_norm_<n>` (LeRobot's statistics),
+- the ablations (on `ablation_targets`, default every target), each `mix_<n>` with one mechanism off: `no_hand_norm_<n>` (LeRobot's statistics),
   `no_state_norm_<n>` (the actions per hand, the state with LeRobot's statistics), `no_mask_<n>` (every slot
   trained), `copies_<n>` (the `target_weight` copies instead of the share),
   `no_frame_<n>` (wrist actions in the robot's wrist frame);
-- `packed_<n>`: `mix_<n>` with each hand's native joints packed at the front of the block and zero-padded;
+- `packed_<n>`: `mix_<n>` with each hand's native joints packed at the front of the block and zero-padded (on the
+  finger task only: the grasp closes every finger together, and there the two tied in the first table);
 - `tokens_nearest_<n>`, `tokens_search_<n>`: `mix_<n>` with the hands given to the model only as the tokenizer's
   (`--tokenizer`) tokens (dequantized; the nearest codes, or the tokenizer's own encoding unless `encoding` is
   set) instead of the UDHM state (`udt_hand_input=tokens`; every other arm reads the state);
@@ -92,6 +93,8 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "zero_shot_no_frame": ("without", NO_FRAME),
 }
 MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
+ABLATIONS = ("mix_rule", "no_hand_norm", "no_state_norm", "no_mask", "copies", "no_frame")  # run on ablation_targets
+FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 EXPERT_NOISE_SEED = 2_000_000  # the expert's noise on evaluation episode i: this + i (never a recording's)
 RECORD_SEED = 100_000  # recording: episode draws from RECORD_SEED + k, the expert's noise from RECORD_NOISE + k
 RECORD_NOISE = 200_000
@@ -128,6 +131,8 @@ class ClosedLoopConfig:
     output_root: str = "outputs/experiments"
     cache_dir: str = "outputs/experiments/_sim"  # recorded, converted and mixed datasets (reused when complete)
     figure_to: str = ""  # also write the figure there (e.g. docs/images/closed_loop.png)
+    # the targets of the ablation arms (`ABLATIONS`; empty = every target): prune pairs, not seeds or episodes
+    ablation_targets: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         for name, given, allowed in (("tasks", self.tasks, TASKS), ("arms", self.arms, tuple(ARMS))):
@@ -139,6 +144,9 @@ class ClosedLoopConfig:
                 raise ValueError(f"{name} {demos} must be 1..pool ({self.pool})")
         if not 0 < self.target_share < 1:
             raise ValueError(f"target_share must be in (0, 1), got {self.target_share}")
+        stray = sorted(set(self.ablation_targets) - set(self.hands))
+        if stray:
+            raise ValueError(f"ablation_targets {stray} are not among hands {self.hands}")
         stray = sorted(set(self.targets) - set(self.hands))
         if stray:
             raise ValueError(f"targets {stray} are not among hands {self.hands}; a target must be one of the pooled hands")
@@ -360,6 +368,10 @@ def jobs(cfg: ClosedLoopConfig) -> list[dict]:
         for hand in cfg.target_hands:
             for seed in cfg.seeds:
                 for arm in (a for a in ARMS if a in cfg.arms):
+                    if arm in ABLATIONS and cfg.ablation_targets and hand not in cfg.ablation_targets:
+                        continue
+                    if arm in FINGER_ONLY and task != "FingerPress-v0":
+                        continue
                     counts = [0] if ARMS[arm][0] == "without" else cfg.demos if arm == "alone" else cfg.mix_demos
                     out += [{"task": task, "hand": hand, "seed": seed, "arm": arm_label(arm, n), "kind": arm, "demos": n}
                             for n in counts]  # fmt: skip
