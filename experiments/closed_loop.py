@@ -615,10 +615,13 @@ def goals(result: dict, cfg: ClosedLoopConfig) -> list[dict]:
     return out
 
 
+WHERE_TO = ("output_root", "cache_dir", "figure_to")  # where a run writes, not what it measures: left out of its command
+
+
 def command_line(cfg: ClosedLoopConfig) -> str:
     default = ClosedLoopConfig()
-    flags = [f"--{f.name}={json.dumps(getattr(cfg, f.name)).replace(' ', '')}"
-             for f in dataclasses.fields(cfg) if getattr(cfg, f.name) != getattr(default, f.name)]  # fmt: skip
+    flags = [f"--{f.name}={json.dumps(getattr(cfg, f.name)).replace(' ', '')}" for f in dataclasses.fields(cfg)
+             if f.name not in WHERE_TO and getattr(cfg, f.name) != getattr(default, f.name)]  # fmt: skip
     return " ".join([f"python experiments/{NAME}.py", *flags])
 
 
