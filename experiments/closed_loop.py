@@ -387,15 +387,20 @@ def encoding_flags(encoding: EncodingConfig | None) -> list[str]:
     return [] if encoding is None else [f"--policy.udt_encoding.{k}={v}" for k, v in dataclasses.asdict(encoding).items()]
 
 
-def arm_flags(cfg: ClosedLoopConfig, arm: str) -> list[str]:
-    """The arm's lerobot-train flags: its hand view (the UDHM state, or the tokenizer's tokens) and what it turns off."""
+def arm_flags(cfg: ClosedLoopConfig, arm: str, task: str) -> list[str]:
+    """The arm's lerobot-train flags: its hand view (the UDHM state, or the tokenizer's tokens) and what it turns off.
+    On a task that grasps nothing (`Task.grasps`) every arm keeps the robot's wrist frame, as a recording made since
+    2026-12-05 carries no grasp centre there (one made before carried it: the flag makes both the same)."""
+    from lerobot_env_unidextok.tasks import TASKS as SIM_TASKS
+
     # the token view is zeroed for the state arms, so the tokenizer behind it cannot matter: an untrained one (what
     # act_udt_cpu.yaml gave until 2026-12-04) through its nearest codes, the cheapest
     state = ["--policy.udt_hand_input=state", "--policy.udt_pretrained=null", *encoding_flags(NEAREST_CODES)]
     tokens = ["--policy.udt_hand_input=tokens", f"--policy.udt_pretrained={cfg.tokenizer}"]
     view = {"tokens_nearest": [*tokens, *encoding_flags(NEAREST_CODES)],
             "tokens_search": [*tokens, *encoding_flags(cfg.encoding)]}.get(arm, state)  # fmt: skip
-    return [*view, *ARMS[arm][1]]
+    own = list(ARMS[arm][1])
+    return [*view, *own, *([] if SIM_TASKS[task].grasps or NO_FRAME[0] in own else NO_FRAME)]
 
 
 def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
@@ -407,7 +412,7 @@ def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
     own = data[task][hand]
     target = subset(job["demos"], cfg.pool, seed) if job["demos"] else []
     out = folder / "policies" / task / hand / f"{label}_seed{seed}"
-    flags, kind = arm_flags(cfg, arm), ARMS[arm][0]
+    flags, kind = arm_flags(cfg, arm, task), ARMS[arm][0]
     steps = round(cfg.steps / cfg.target_share) if arm == "mix_rule" else cfg.steps
     cpu0, t0 = time.process_time(), time.time()
     if kind == "alone":

@@ -28,7 +28,7 @@ def test_every_arm_is_trained_bound_and_scored_in_closed_loop(tmp_path):
     assert bound["udt_hand_vocabulary"] == ["allegro", "shadow"] and bound["udt_fixed_hand_ids"] == [1]
     assert bound["n_action_steps"] == 10 and bound["udt_hand_input"] == "state" and bound["udt_encoding"]["rounds"] == 0
     assert bound["udt_hand_norm"] == "auto" and bound["udt_mask_slots"] is True and bound["udt_input_shares"]
-    assert set(bound["udt_grasp_centres_m"]) >= {"shadow", "allegro"} and len(bound["udt_wrist_columns"]) == 6
+    assert bound["udt_grasp_centres_m"] == {}  # a press grasps nothing: its recordings carry no grasp centre
     pooled = json.loads((folder / "policies/FingerPress-v0/shadow/pooled_2_seed0/bound/config.json").read_text())
     assert pooled["udt_hand_norm"] == "off" and pooled["udt_mask_slots"] is False and not pooled["udt_input_shares"]
     assert pooled["udt_wrist_frame"] == "robot"
@@ -42,7 +42,9 @@ def test_every_arm_is_trained_bound_and_scored_in_closed_loop(tmp_path):
     mix = UdhmDatasetMeta(tmp_path / "sim/FingerPress-v0/mix_semantic_for_shadow_s0.5").record
     assert [s.repeats for s in mix.sources] == [1, 1] and [s.share for s in mix.sources] == [0.5, 0.5]
     copies = UdhmDatasetMeta(tmp_path / "sim/FingerPress-v0/mix_semantic_for_shadow_w10").record
-    assert copies.sources[0].repeats == 10 and copies.sources[1].repeats == 1
+    # whole repeats that bring the frame shares near 10:1 (9 or 10 with these episode lengths), no share recorded
+    assert copies.sources[0].repeats in (9, 10) and copies.sources[1].repeats == 1
+    assert [s.share for s in copies.sources] == [0.0, 0.0]
     assert UdhmDatasetMeta(tmp_path / "sim/FingerPress-v0/mix_packed_for_shadow_s0.5").record.mapping == "append_pad"
     costs = result["costs"]
     assert costs["data_cpu_s"] > 0 and costs["train_cpu_s"] > 0 and costs["eval_cpu_s"] > 0
