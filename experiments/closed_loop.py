@@ -704,7 +704,8 @@ def plot(result: dict, out_path: Path) -> Path:
     s = result["summary"]
     tasks = list(s)
     hands = list(dict.fromkeys(h for t in tasks for h in s[t]))
-    fig = Figure(figsize=(3.6 * len(hands), 3.0 * len(tasks)))
+    fig = Figure(figsize=(3.6 * len(hands), 3.3 * len(tasks) + 0.6))
+    handles, labels = [], []
     for r, task in enumerate(tasks):
         for c, hand in enumerate(hands):
             ax = fig.add_subplot(len(tasks), len(hands), r * len(hands) + c + 1)
@@ -722,6 +723,10 @@ def plot(result: dict, out_path: Path) -> Path:
                     z = arms[arm]
                     ax.errorbar([0], [z["mean"]], yerr=[[z["mean"] - z["interval"][0]], [z["interval"][1] - z["mean"]]],
                                 color="#b10dc9", mfc=face, marker="o", ms=7, capsize=3, ls="none", label=label)  # fmt: skip
+            mix = sorted((int(a.rpartition("_")[2]), v) for a, v in arms.items() if a.rpartition("_")[0] == "mix"
+                         and a.rpartition("_")[2].isdigit())  # fmt: skip
+            if "zero_shot" in arms and mix:  # the mix curve starts at zero-shot: the same other hands, no target
+                ax.plot([0, mix[0][0]], [arms["zero_shot"]["mean"], mix[0][1]["mean"]], color="#2ecc40", ls=":", lw=1.2)
             expert = result["experts"].get(f"{task}/{hand}")
             if expert:
                 ax.axhline(100 * expert["successes"] / expert["episodes"], color="#888888", ls="--", lw=1, label="expert")
@@ -732,7 +737,9 @@ def plot(result: dict, out_path: Path) -> Path:
             ax.grid(alpha=0.3)
             ax.tick_params(labelsize=7)
             if r == 0 and c == 0:
-                ax.legend(fontsize=6, frameon=False, loc="lower right")
+                handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=7, frameon=False)
+    fig.subplots_adjust(hspace=0.45, bottom=0.16)
     fig.suptitle(f"Closed loop, {len(result['config']['seeds'])} seeds x {result['config']['eval_episodes']} episodes "
                  "per point (95 % intervals)", fontsize=10)  # fmt: skip
     return save(fig, out_path)
