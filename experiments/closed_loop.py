@@ -31,11 +31,12 @@ as a loss weight, wrist actions in the hand's grasp-centre frame) unless its row
   as often as when it trains alone for `steps`), where every other arm trains `steps` (matched compute);
 - `pooled_<n>`: the recipe before 2026-12-05 on the same demonstrations: LeRobot's one set of statistics for the
   mix, every slot trained, the target's pool written `target_weight` times (copies), the wrist frame of the robot;
-- the ablations, each `mix_<n>` with one mechanism off: `no_hand_norm_<n>` (LeRobot's statistics),
+- the ablations (on `ablation_targets`, default every target), each `mix_<n>` with one mechanism off: `no_hand_norm_<n>` (LeRobot's statistics),
   `no_state_norm_<n>` (the actions per hand, the state with LeRobot's statistics), `no_mask_<n>` (every slot
   trained), `copies_<n>` (the `target_weight` copies instead of the share),
   `no_frame_<n>` (wrist actions in the robot's wrist frame);
-- `packed_<n>`: `mix_<n>` with each hand's native joints packed at the front of the block and zero-padded;
+- `packed_<n>`: `mix_<n>` with each hand's native joints packed at the front of the block and zero-padded (on the
+  finger task only: the grasp closes every finger together, and there the two tied in the first table);
 - `tokens_nearest_<n>`, `tokens_search_<n>`: `mix_<n>` with the hands given to the model only as the tokenizer's
   (`--tokenizer`) tokens (dequantized; the nearest codes, or the tokenizer's own encoding unless `encoding` is
   set) instead of the UDHM state (`udt_hand_input=tokens`; every other arm reads the state);
@@ -92,6 +93,8 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "zero_shot_no_frame": ("without", NO_FRAME),
 }
 MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
+ABLATIONS = ("mix_rule", "no_hand_norm", "no_state_norm", "no_mask", "copies", "no_frame")  # run on ablation_targets
+FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 EXPERT_NOISE_SEED = 2_000_000  # the expert's noise on evaluation episode i: this + i (never a recording's)
 RECORD_SEED = 100_000  # recording: episode draws from RECORD_SEED + k, the expert's noise from RECORD_NOISE + k
 RECORD_NOISE = 200_000
@@ -128,6 +131,8 @@ class ClosedLoopConfig:
     output_root: str = "outputs/experiments"
     cache_dir: str = "outputs/experiments/_sim"  # recorded, converted and mixed datasets (reused when complete)
     figure_to: str = ""  # also write the figure there (e.g. docs/images/closed_loop.png)
+    # the targets of the ablation arms (`ABLATIONS`; empty = every target): prune pairs, not seeds or episodes
+    ablation_targets: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         for name, given, allowed in (("tasks", self.tasks, TASKS), ("arms", self.arms, tuple(ARMS))):
@@ -139,6 +144,9 @@ class ClosedLoopConfig:
                 raise ValueError(f"{name} {demos} must be 1..pool ({self.pool})")
         if not 0 < self.target_share < 1:
             raise ValueError(f"target_share must be in (0, 1), got {self.target_share}")
+        stray = sorted(set(self.ablation_targets) - set(self.hands))
+        if stray:
+            raise ValueError(f"ablation_targets {stray} are not among hands {self.hands}")
         stray = sorted(set(self.targets) - set(self.hands))
         if stray:
             raise ValueError(f"targets {stray} are not among hands {self.hands}; a target must be one of the pooled hands")
@@ -360,6 +368,10 @@ def jobs(cfg: ClosedLoopConfig) -> list[dict]:
         for hand in cfg.target_hands:
             for seed in cfg.seeds:
                 for arm in (a for a in ARMS if a in cfg.arms):
+                    if arm in ABLATIONS and cfg.ablation_targets and hand not in cfg.ablation_targets:
+                        continue
+                    if arm in FINGER_ONLY and task != "FingerPress-v0":
+                        continue
                     counts = [0] if ARMS[arm][0] == "without" else cfg.demos if arm == "alone" else cfg.mix_demos
                     out += [{"task": task, "hand": hand, "seed": seed, "arm": arm_label(arm, n), "kind": arm, "demos": n}
                             for n in counts]  # fmt: skip
@@ -375,15 +387,20 @@ def encoding_flags(encoding: EncodingConfig | None) -> list[str]:
     return [] if encoding is None else [f"--policy.udt_encoding.{k}={v}" for k, v in dataclasses.asdict(encoding).items()]
 
 
-def arm_flags(cfg: ClosedLoopConfig, arm: str) -> list[str]:
-    """The arm's lerobot-train flags: its hand view (the UDHM state, or the tokenizer's tokens) and what it turns off."""
+def arm_flags(cfg: ClosedLoopConfig, arm: str, task: str) -> list[str]:
+    """The arm's lerobot-train flags: its hand view (the UDHM state, or the tokenizer's tokens) and what it turns off.
+    On a task that grasps nothing (`Task.grasps`) every arm keeps the robot's wrist frame, as a recording made since
+    2026-12-05 carries no grasp centre there (one made before carried it: the flag makes both the same)."""
+    from lerobot_env_unidextok.tasks import TASKS as SIM_TASKS
+
     # the token view is zeroed for the state arms, so the tokenizer behind it cannot matter: an untrained one (what
     # act_udt_cpu.yaml gave until 2026-12-04) through its nearest codes, the cheapest
     state = ["--policy.udt_hand_input=state", "--policy.udt_pretrained=null", *encoding_flags(NEAREST_CODES)]
     tokens = ["--policy.udt_hand_input=tokens", f"--policy.udt_pretrained={cfg.tokenizer}"]
     view = {"tokens_nearest": [*tokens, *encoding_flags(NEAREST_CODES)],
             "tokens_search": [*tokens, *encoding_flags(cfg.encoding)]}.get(arm, state)  # fmt: skip
-    return [*view, *ARMS[arm][1]]
+    own = list(ARMS[arm][1])
+    return [*view, *own, *([] if SIM_TASKS[task].grasps or NO_FRAME[0] in own else NO_FRAME)]
 
 
 def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
@@ -395,7 +412,7 @@ def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
     own = data[task][hand]
     target = subset(job["demos"], cfg.pool, seed) if job["demos"] else []
     out = folder / "policies" / task / hand / f"{label}_seed{seed}"
-    flags, kind = arm_flags(cfg, arm), ARMS[arm][0]
+    flags, kind = arm_flags(cfg, arm, task), ARMS[arm][0]
     steps = round(cfg.steps / cfg.target_share) if arm == "mix_rule" else cfg.steps
     cpu0, t0 = time.process_time(), time.time()
     if kind == "alone":
@@ -603,10 +620,13 @@ def goals(result: dict, cfg: ClosedLoopConfig) -> list[dict]:
     return out
 
 
+WHERE_TO = ("output_root", "cache_dir", "figure_to")  # where a run writes, not what it measures: left out of its command
+
+
 def command_line(cfg: ClosedLoopConfig) -> str:
     default = ClosedLoopConfig()
-    flags = [f"--{f.name}={json.dumps(getattr(cfg, f.name)).replace(' ', '')}"
-             for f in dataclasses.fields(cfg) if getattr(cfg, f.name) != getattr(default, f.name)]  # fmt: skip
+    flags = [f"--{f.name}={json.dumps(getattr(cfg, f.name)).replace(' ', '')}" for f in dataclasses.fields(cfg)
+             if f.name not in WHERE_TO and getattr(cfg, f.name) != getattr(default, f.name)]  # fmt: skip
     return " ".join([f"python experiments/{NAME}.py", *flags])
 
 
@@ -684,7 +704,8 @@ def plot(result: dict, out_path: Path) -> Path:
     s = result["summary"]
     tasks = list(s)
     hands = list(dict.fromkeys(h for t in tasks for h in s[t]))
-    fig = Figure(figsize=(3.6 * len(hands), 3.0 * len(tasks)))
+    fig = Figure(figsize=(3.6 * len(hands), 3.3 * len(tasks) + 0.6))
+    handles, labels = [], []
     for r, task in enumerate(tasks):
         for c, hand in enumerate(hands):
             ax = fig.add_subplot(len(tasks), len(hands), r * len(hands) + c + 1)
@@ -702,6 +723,10 @@ def plot(result: dict, out_path: Path) -> Path:
                     z = arms[arm]
                     ax.errorbar([0], [z["mean"]], yerr=[[z["mean"] - z["interval"][0]], [z["interval"][1] - z["mean"]]],
                                 color="#b10dc9", mfc=face, marker="o", ms=7, capsize=3, ls="none", label=label)  # fmt: skip
+            mix = sorted((int(a.rpartition("_")[2]), v) for a, v in arms.items() if a.rpartition("_")[0] == "mix"
+                         and a.rpartition("_")[2].isdigit())  # fmt: skip
+            if "zero_shot" in arms and mix:  # the mix curve starts at zero-shot: the same other hands, no target
+                ax.plot([0, mix[0][0]], [arms["zero_shot"]["mean"], mix[0][1]["mean"]], color="#2ecc40", ls=":", lw=1.2)
             expert = result["experts"].get(f"{task}/{hand}")
             if expert:
                 ax.axhline(100 * expert["successes"] / expert["episodes"], color="#888888", ls="--", lw=1, label="expert")
@@ -712,7 +737,9 @@ def plot(result: dict, out_path: Path) -> Path:
             ax.grid(alpha=0.3)
             ax.tick_params(labelsize=7)
             if r == 0 and c == 0:
-                ax.legend(fontsize=6, frameon=False, loc="lower right")
+                handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=7, frameon=False)
+    fig.subplots_adjust(hspace=0.45, bottom=0.16)
     fig.suptitle(f"Closed loop, {len(result['config']['seeds'])} seeds x {result['config']['eval_episodes']} episodes "
                  "per point (95 % intervals)", fontsize=10)  # fmt: skip
     return save(fig, out_path)

@@ -8,7 +8,7 @@ The dataset is what a robot would record, in the hand's native units: `observati
 task's object and goal columns, the hand's native joints, named as `columns.state_names`) and `action` (the wrist
 target and the native hand command the expert sent), 10 fps, no images, one task text; each episode goes on
 for `AFTER_SUCCESS_STEPS` steps of the expert's plan after the task succeeded. `meta/unidextok_wrist_frame.json`
-records the wrist-pose columns, their rotation convention and the hand's grasp centre in the wrist frame
+records (for a task that grasps, `Task.grasps`) the wrist-pose columns, their rotation convention and the hand's grasp centre in the wrist frame
 (`grasp_centre.py`), which `unidextok-convert --source=lerobot` carries into the converted dataset's record.
 Only episodes the expert completed are kept (`--keep_failures=true` keeps all); episode i is drawn from seed
 `seed + i` and the expert's noise from `noise_seed + i`, so a dataset is reproducible from its flags, and seeds
@@ -143,7 +143,8 @@ def record(cfg: RecordConfig) -> RecordReport:
             ds.save_episode()
             kept, frames = kept + 1, frames + len(states)
         ds.finalize()
-        write_recorded(tmp, wrist_frame_of(cfg.hand))  # the hand's grasp centre (lerobot_unidextok/data/wrist_frame.py)
+        if env.task.grasps:  # the hand's grasp centre (lerobot_unidextok/data/wrist_frame.py); a press has none
+            write_recorded(tmp, wrist_frame_of(cfg.hand))
         move_into_place(tmp, root, Kind.DATASET, cfg.overwrite)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -12,7 +12,7 @@ from lerobot_unidextok.data import UdhmDatasetMeta
 
 @pytest.mark.slow
 def test_every_arm_is_trained_bound_and_scored_in_closed_loop(tmp_path):
-    argv = ["--tasks=[GraspLift-v0]", "--hands=[shadow,allegro]", "--seeds=[0]", "--demos=[2]", "--mix_demos=[2]",
+    argv = ["--tasks=[FingerPress-v0]", "--hands=[shadow,allegro]", "--seeds=[0]", "--demos=[2]", "--mix_demos=[2]",
             "--pool=3", "--arms=[alone,mix,mix_rule,pooled,packed,tokens_nearest,zero_shot]", "--steps=2",
             "--eval_episodes=2", f"--output_root={tmp_path / 'out'}", f"--cache_dir={tmp_path / 'sim'}",
             f"--figure_to={tmp_path / 'fig.png'}"]  # fmt: skip
@@ -24,26 +24,28 @@ def test_every_arm_is_trained_bound_and_scored_in_closed_loop(tmp_path):
     assert all(r["episodes"] == 2 and 0 <= r["successes"] <= 2 for r in runs.values())
     assert runs[("shadow", "mix_rule_2")]["steps"] == 4 and runs[("shadow", "mix_2")]["steps"] == 2  # steps / 0.5
     folder = tmp_path / "out" / cl.NAME
-    bound = json.loads((folder / "policies/GraspLift-v0/shadow/mix_2_seed0/bound/config.json").read_text())
+    bound = json.loads((folder / "policies/FingerPress-v0/shadow/mix_2_seed0/bound/config.json").read_text())
     assert bound["udt_hand_vocabulary"] == ["allegro", "shadow"] and bound["udt_fixed_hand_ids"] == [1]
     assert bound["n_action_steps"] == 10 and bound["udt_hand_input"] == "state" and bound["udt_encoding"]["rounds"] == 0
     assert bound["udt_hand_norm"] == "auto" and bound["udt_mask_slots"] is True and bound["udt_input_shares"]
-    assert set(bound["udt_grasp_centres_m"]) >= {"shadow", "allegro"} and len(bound["udt_wrist_columns"]) == 6
-    pooled = json.loads((folder / "policies/GraspLift-v0/shadow/pooled_2_seed0/bound/config.json").read_text())
+    assert bound["udt_grasp_centres_m"] == {}  # a press grasps nothing: its recordings carry no grasp centre
+    pooled = json.loads((folder / "policies/FingerPress-v0/shadow/pooled_2_seed0/bound/config.json").read_text())
     assert pooled["udt_hand_norm"] == "off" and pooled["udt_mask_slots"] is False and not pooled["udt_input_shares"]
     assert pooled["udt_wrist_frame"] == "robot"
-    zero = json.loads((folder / "policies/GraspLift-v0/shadow/zero_shot_seed0/bound/config.json").read_text())
+    zero = json.loads((folder / "policies/FingerPress-v0/shadow/zero_shot_seed0/bound/config.json").read_text())
     assert zero["udt_hand_vocabulary"] == ["allegro"] and zero["udt_extra_hands"] == ["shadow"]
-    tokens = json.loads((folder / "policies/GraspLift-v0/allegro/tokens_nearest_2_seed0/bound/config.json").read_text())
+    tokens = json.loads((folder / "policies/FingerPress-v0/allegro/tokens_nearest_2_seed0/bound/config.json").read_text())
     assert tokens["udt_hand_input"] == "tokens" and tokens["udt_encoding"]["rounds"] == 0
     assert tokens["udt_pretrained"] == "unidextok/universal-small" and bound["udt_pretrained"] is None
     # the mix for a target writes each episode once with the target's share; the pooled arm's writes its pool
     # target_weight times; the packed mix is append_pad
-    mix = UdhmDatasetMeta(tmp_path / "sim/GraspLift-v0/mix_semantic_for_shadow_s0.5").record
+    mix = UdhmDatasetMeta(tmp_path / "sim/FingerPress-v0/mix_semantic_for_shadow_s0.5").record
     assert [s.repeats for s in mix.sources] == [1, 1] and [s.share for s in mix.sources] == [0.5, 0.5]
-    copies = UdhmDatasetMeta(tmp_path / "sim/GraspLift-v0/mix_semantic_for_shadow_w10").record
-    assert copies.sources[0].repeats == 10 and copies.sources[1].repeats == 1
-    assert UdhmDatasetMeta(tmp_path / "sim/GraspLift-v0/mix_packed_for_shadow_s0.5").record.mapping == "append_pad"
+    copies = UdhmDatasetMeta(tmp_path / "sim/FingerPress-v0/mix_semantic_for_shadow_w10").record
+    # whole repeats that bring the frame shares near 10:1 (9 or 10 with these episode lengths), no share recorded
+    assert copies.sources[0].repeats in (9, 10) and copies.sources[1].repeats == 1
+    assert [s.share for s in copies.sources] == [0.0, 0.0]
+    assert UdhmDatasetMeta(tmp_path / "sim/FingerPress-v0/mix_packed_for_shadow_s0.5").record.mapping == "append_pad"
     costs = result["costs"]
     assert costs["data_cpu_s"] > 0 and costs["train_cpu_s"] > 0 and costs["eval_cpu_s"] > 0
     text = cl.markdown(result)
@@ -68,6 +70,17 @@ def test_bad_options_are_named():
         cl.ClosedLoopConfig(target_share=1.0)
     with pytest.raises(ValueError, match=r"targets \['leap'\] are not among hands"):
         cl.ClosedLoopConfig(targets=["leap"])
+    with pytest.raises(ValueError, match=r"ablation_targets \['leap'\] are not among hands"):
+        cl.ClosedLoopConfig(ablation_targets=["leap"])
+
+
+def test_packed_runs_on_the_finger_task_only_and_ablations_on_their_targets():
+    cfg = cl.ClosedLoopConfig(arms=["mix", "packed", "no_mask"], mix_demos=[10], seeds=[0],
+                              ablation_targets=["shadow"])  # fmt: skip
+    runs = {(j["task"], j["hand"], j["arm"]) for j in cl.jobs(cfg)}
+    assert {a for t, _, a in runs if t == "GraspLift-v0"} == {"mix_10", "no_mask_10"}
+    assert {h for _, h, a in runs if a == "no_mask_10"} == {"shadow"}
+    assert {h for t, h, a in runs if a == "packed_10"} == set(cl.HANDS) and len(runs) == 2 * 3 + 3 + 2
 
 
 @pytest.mark.slow

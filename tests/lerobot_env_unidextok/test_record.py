@@ -68,6 +68,7 @@ def test_an_existing_dataset_is_replaced_only_with_overwrite_and_other_folders_n
     first = record(RecordConfig(hand="shadow", task="FingerPress-v0", episodes=1, root=str(tmp_path / "sim"),
                                 episode_length=5, keep_failures=True))  # fmt: skip
     assert kind_of(first.root) is Kind.DATASET and first.frames == 5
+    assert not (first.root / "meta" / "unidextok_wrist_frame.json").exists()  # a press grasps nothing: no grasp centre
     before = _tree(tmp_path / "sim")
     with pytest.raises(DestinationError, match="already holds a LeRobot dataset: pass --overwrite=true"):
         record(RecordConfig(hand="shadow", task="FingerPress-v0", episodes=1, root=str(tmp_path / "sim")))
