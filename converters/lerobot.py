@@ -37,8 +37,8 @@ from lerobot_unidextok import hands
 from lerobot_unidextok.constants import INFO_PATH
 from lerobot_unidextok.conversion.episode import HandStream, Passthrough, RawEpisode
 from lerobot_unidextok.conversion.registry import check_hand, register_source
-from lerobot_unidextok.data.wrist_frame import WristFrame, merge_frames, read_recorded
 from lerobot_unidextok.converters import _lerobot_files as lr
+from lerobot_unidextok.data.wrist_frame import WristFrame, merge_frames, read_recorded
 
 logger = logging.getLogger(__name__)
 
