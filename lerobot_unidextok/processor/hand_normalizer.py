@@ -46,6 +46,7 @@ from lerobot.processor import ProcessorStep, ProcessorStepRegistry
 from lerobot_unidextok import hands
 from lerobot_unidextok.blocks import find_udhm_blocks, passthrough_indices
 from lerobot_unidextok.constants import ACTION, OBS_HAND_IDS, OBS_STATE, UDHM_DIM
+from lerobot_unidextok.processor.hand_rows import match_rows, row_hand_ids
 
 HAND_NORMALIZER_STEP_NAME = "unidextok.hand_normalizer"
 MODES = ("normalize", "unnormalize")
@@ -199,35 +200,15 @@ class HandNormalizerStep(ProcessorStep):
     # ----------------------------------------------------------------------------------------- hands per row
     def _ids(self, observation: dict[str, Any] | None) -> torch.Tensor:
         """(R, H) hand index per state block: the observation's, the bound robot's, or the pair's last."""
-        ids = observation.get(self.hand_ids_key) if observation else None
-        if ids is None and self.fixed_hand_ids:
-            ids = torch.tensor(self.fixed_hand_ids)
-        if ids is None and self.mode == "unnormalize" and self.pair is not None:
-            ids = self.pair._last_ids
-        if ids is None:
-            raise KeyError(
-                f"{HAND_NORMALIZER_STEP_NAME} ({self.mode}) needs each block's hand ('{self.hand_ids_key}'): this "
-                "policy was trained on a mix of hands, normalised per hand. Bind it to your robot with "
-                "`unidextok-deploy --checkpoint=... --robot=<its converted dataset> --output=...`"
-            )
-        ids = torch.as_tensor(ids).long().reshape(-1, len(self._sides))
+        last = self.pair._last_ids if self.mode == "unnormalize" and self.pair is not None else None
+        ids = row_hand_ids(observation, self.hand_ids_key, self.fixed_hand_ids, last, len(self._sides),
+            f"{HAND_NORMALIZER_STEP_NAME} ({self.mode}) needs each block's hand ('{self.hand_ids_key}'): this "
+            "policy was trained on a mix of hands, normalised per hand. Bind it to your robot with "
+            "`unidextok-deploy --checkpoint=... --robot=<its converted dataset> --output=...`")  # fmt: skip
         if bool(((ids < -1) | (ids >= len(self.hand_names))).any()):
             raise ValueError(f"{self.hand_ids_key} holds {sorted(set(ids.unique().tolist()))}, outside -1 .. "
                              f"{len(self.hand_names) - 1} (hands {self.hand_names})")  # fmt: skip
         return ids
-
-    @staticmethod
-    def _rows(ids: torch.Tensor, lead: tuple[int, ...]) -> tuple[torch.Tensor, tuple[int, ...]]:
-        """`ids` matched to a value of leading dims `lead`: (R, H) and the shape to view (R, W) tables as."""
-        total = int(np.prod(lead)) if lead else 1
-        if ids.shape[0] == 1:
-            return ids, (1,) * max(len(lead), 1)
-        if ids.shape[0] == total:
-            return ids, (*lead,) if lead else (1,)
-        if lead and ids.shape[0] % lead[0] == 0:  # (B * n_obs) rows of ids for a (B, chunk) action: the last step
-            ids = ids.reshape(lead[0], -1, ids.shape[-1])[:, -1]
-            return ids, (lead[0], *([1] * (len(lead) - 1)))
-        raise ValueError(f"{HAND_NORMALIZER_STEP_NAME}: {ids.shape[0]} rows of hand ids for a value of shape {lead}")
 
     def _apply(self, key: str, x: torch.Tensor, ids: torch.Tensor) -> torch.Tensor:
         names = self._names(key)
@@ -235,7 +216,7 @@ class HandNormalizerStep(ProcessorStep):
             raise ValueError(f"{HAND_NORMALIZER_STEP_NAME}: {key} is {x.shape[-1]} wide, expected {len(names)} "
                              f"({len(find_udhm_blocks(names))} UDHM blocks and the passthrough columns)")  # fmt: skip
         lead = tuple(x.shape[:-1])
-        ids, view = self._rows(ids, lead)
+        ids, view = match_rows(ids, lead, HAND_NORMALIZER_STEP_NAME)
         ids = ids.to(x.device)
         blocks = find_udhm_blocks(names)
         block_of_state = torch.tensor([self._sides.index(b.side) for b in blocks], device=x.device)

@@ -33,6 +33,7 @@ from lerobot.processor import ProcessorStep, ProcessorStepRegistry
 from lerobot_unidextok.blocks import find_udhm_blocks
 from lerobot_unidextok.constants import ACTION, OBS_HAND_IDS, OBS_STATE
 from lerobot_unidextok.data.wrist_frame import NUM_COLUMNS, ROTATION, WristFrameError, check_centre
+from lerobot_unidextok.processor.hand_rows import match_rows, row_hand_ids
 
 WRIST_FRAME_STEP_NAME = "unidextok.wrist_frame"
 MODES = ("to_centre", "to_wrist")
@@ -104,18 +105,11 @@ class WristFrameStep(ProcessorStep):
 
     # ----------------------------------------------------------------------------------------- hands per row
     def _ids(self, observation: dict[str, Any] | None) -> torch.Tensor:
-        ids = observation.get(self.hand_ids_key) if observation else None
-        if ids is None and self.fixed_hand_ids:
-            ids = torch.tensor(self.fixed_hand_ids)
-        if ids is None and self.mode == "to_wrist" and self.pair is not None:
-            ids = self.pair._last_ids
-        if ids is None:
-            raise KeyError(
-                f"{WRIST_FRAME_STEP_NAME} ({self.mode}) needs each row's hand ('{self.hand_ids_key}'): this policy "
-                "was trained on a mix of hands in the grasp-centre frame. Bind it to your robot with "
-                "`unidextok-deploy --checkpoint=... --robot=<its converted dataset> --output=...`"
-            )
-        return torch.as_tensor(ids).long().reshape(-1, self._num_blocks)
+        last = self.pair._last_ids if self.mode == "to_wrist" and self.pair is not None else None
+        return row_hand_ids(observation, self.hand_ids_key, self.fixed_hand_ids, last, self._num_blocks,
+            f"{WRIST_FRAME_STEP_NAME} ({self.mode}) needs each row's hand ('{self.hand_ids_key}'): this policy "
+            "was trained on a mix of hands in the grasp-centre frame. Bind it to your robot with "
+            "`unidextok-deploy --checkpoint=... --robot=<its converted dataset> --output=...`")  # fmt: skip
 
     def _offsets(self, ids: torch.Tensor) -> torch.Tensor:
         """(R, H) hand ids -> (R, 3) grasp centre of each row's first hand (zero for a row without one)."""
@@ -131,18 +125,8 @@ class WristFrameStep(ProcessorStep):
     @staticmethod
     def _broadcast(offsets: torch.Tensor, lead: tuple[int, ...]) -> torch.Tensor:
         """(R, 3) per-row offsets against a value of leading dims `lead` (batch, then time)."""
-        rows = offsets.shape[0]
-        total = 1
-        for d in lead:
-            total *= d
-        if rows == 1:
-            return offsets.reshape(*([1] * len(lead)), 3)
-        if rows == total:
-            return offsets.reshape(*lead, 3)
-        if lead and rows % lead[0] == 0:  # (B * n_obs) rows for a (B, ...) value: every step of a row, one hand
-            offsets = offsets.reshape(lead[0], -1, 3)[:, -1]
-            return offsets.reshape(lead[0], *([1] * (len(lead) - 1)), 3)
-        raise ValueError(f"{WRIST_FRAME_STEP_NAME}: {rows} rows of hand ids for a value of shape {lead}")
+        offsets, view = match_rows(offsets, lead, WRIST_FRAME_STEP_NAME)
+        return offsets.reshape(*view, 3) if lead else offsets.reshape(3)
 
     def _apply(self, key: str, x: torch.Tensor, offsets: torch.Tensor, sign: float) -> torch.Tensor:
         width = len(self.state_names if key == OBS_STATE else self.action_names)
