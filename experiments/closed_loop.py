@@ -32,7 +32,7 @@ as a loss weight, wrist actions in the hand's grasp-centre frame) unless its row
 - `pooled_<n>`: the recipe before 2026-12-05 on the same demonstrations: LeRobot's one set of statistics for the
   mix, every slot trained, the target's pool written `target_weight` times (copies), the wrist frame of the robot;
 - the ablations (on `ablation_targets`, default every target), each `mix_<n>` with one mechanism off: `no_hand_norm_<n>` (LeRobot's statistics),
-  `no_state_norm_<n>` (the actions per hand, the state with LeRobot's statistics), `no_mask_<n>` (every slot
+  `state_norm_<n>` (the state per hand too, the default before 2026-12-05 evening), `no_mask_<n>` (every slot
   trained), `copies_<n>` (the `target_weight` copies instead of the share),
   `no_frame_<n>` (wrist actions in the robot's wrist frame);
 - `packed_<n>`: `mix_<n>` with each hand's native joints packed at the front of the block and zero-padded (on the
@@ -82,7 +82,7 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "mix_rule": ("mix", ()),
     "pooled": ("copies", POOLED),
     "no_hand_norm": ("mix", ("--policy.udt_hand_norm=off",)),
-    "no_state_norm": ("mix", ("--policy.udt_hand_norm_state=false",)),
+    "state_norm": ("mix", ("--policy.udt_hand_norm_state=true",)),
     "no_mask": ("mix", ("--policy.udt_mask_slots=false",)),
     "copies": ("copies", ()),
     "no_frame": ("mix", NO_FRAME),
@@ -93,7 +93,7 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "zero_shot_no_frame": ("without", NO_FRAME),
 }
 MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
-ABLATIONS = ("mix_rule", "no_hand_norm", "no_state_norm", "no_mask", "copies", "no_frame")  # run on ablation_targets
+ABLATIONS = ("mix_rule", "no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")  # run on ablation_targets
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 EXPERT_NOISE_SEED = 2_000_000  # the expert's noise on evaluation episode i: this + i (never a recording's)
 RECORD_SEED = 100_000  # recording: episode draws from RECORD_SEED + k, the expert's noise from RECORD_NOISE + k
@@ -631,7 +631,7 @@ def command_line(cfg: ClosedLoopConfig) -> str:
 
 
 ARM_TITLES = {"mix": "mix", "mix_rule": "mix, budget rule", "pooled": "mix, pooled statistics (before 2026-12-05)",
-              "no_hand_norm": "mix without per-hand statistics", "no_state_norm": "mix, per-hand statistics for actions only", "no_mask": "mix without masked slots",
+              "no_hand_norm": "mix without per-hand statistics", "state_norm": "mix, per-hand statistics for the state too", "no_mask": "mix without masked slots",
               "copies": "mix with copies, not shares", "no_frame": "mix without the grasp-centre frame",
               "packed": "mix, packed native", "tokens_nearest": "mix, tokens (nearest)",
               "tokens_search": "mix, tokens (tokenizer's encoding)", "zero_shot": "zero-shot (other hands only)",

@@ -26,10 +26,11 @@ state) as reference.
 The recipe (the `<type>_udt` defaults, docs/lerobot.md "Pooling hands"), each part one flag:
 - `normalise=per_source`: the relative actions z-scored with each source's own mean / std (a source holds one
   hand per block, so per source is per hand), the target's predictions un-scaled with the target's;
-- `hand_norm=per_source`: the hand input likewise, each source with its own statistics, and nothing pooled on
-  top (`train_act`'s own z-score of the hand input and of the per-source actions is the identity, as LeRobot's
-  normaliser is under `unidextok.hand_normalizer`); `state` / `actions`: only that half per source, the other
-  z-scored pooled (to tell which half matters);
+- `hand_norm=actions`: the per-source actions not z-scored again, the hand input z-scored pooled over every
+  training row (`udt_hand_norm_state=false`: a target of 2-4 episodes has narrow statistics of its own, which its
+  held-out states leave far behind); `per_source`: the hand input too with each source's own statistics
+  (`train_act`'s own z-score of the hand input and of the per-source actions is then the identity, as LeRobot's
+  normaliser is under `unidextok.hand_normalizer`); `state`: only the hand input per source;
 - `mask_slots=true`: no loss on the action slots a source's hand lacks (the hand spec's active mask through
   `unidextok.slot_mask`; a side a source lacks entirely lacks every slot; packed: the zero padding), and the
   target's prediction there set to 0, as `unidextok.hand_normalizer` does;
@@ -95,8 +96,9 @@ class CrossEmbodimentConfig:
     normalise: str = "per_source"
     # How the hand input is z-scored: "per_source" (each source with its own mean / std, and the per-source actions
     # not z-scored again) or "pooled" (one mean / std over every training row, for the hand input and on top of the
-    # actions: the recipe before 2026-12-05); "state" / "actions": only that half per source, the other pooled
-    hand_norm: str = "per_source"
+    # actions: the recipe before 2026-12-05); "actions" (the default, as udt_hand_norm_state=false) / "state": only
+    # that half per source, the other pooled
+    hand_norm: str = "actions"
     mask_slots: bool = True  # no loss on the action slots a source's hand lacks (false: trained as zeros)
     target_share: float = 0.5  # share of the training batches' rows that are the target's; 0 = as they come
     share_by: str = "sampling"  # "sampling" (ShareSampler draws the batches) or "copies" (the target's rows repeated)

@@ -147,10 +147,11 @@ class UdtConfigMixin:
     # auto (the stock policy's modes: ACT mean/std, Diffusion min/max) | mean_std | min_max | quantiles (q01/q99) |
     # quantile10 (q10/q90) | off (LeRobot's one set of statistics per column, as before 2026-12-05).
     udt_hand_norm: str = "auto"
-    # With udt_hand_norm: normalise the state's UDHM blocks per hand too (false: only the actions per hand, the
-    # state with LeRobot's one set of statistics per column; a target with few episodes has narrow statistics of
-    # its own, which held-out states leave far behind).
-    udt_hand_norm_state: bool = True
+    # With udt_hand_norm: normalise the state's UDHM blocks per hand too (the default, false: only the actions per
+    # hand, the state with LeRobot's one set of statistics per column; a target with few episodes has narrow
+    # statistics of its own, which held-out states leave far behind: experiments/cross_embodiment.py). A checkpoint
+    # keeps what it trained with (the halves it normalises per hand are in udt_hand_stats).
+    udt_hand_norm_state: bool = False
     # The per-hand statistics and their modes {"modes": {key: mode}, key: {side: {hand: {lo, hi, "frames"}}}}; filled
     # from the dataset (a mix's record, or one robot's training episodes) and saved with the checkpoint.
     udt_hand_stats: dict[str, Any] = field(default_factory=dict)

@@ -161,7 +161,7 @@ def row_hands(config: UdtConfigMixin) -> tuple[list[str], list[str], list[int]]:
     another robot's hands, `unidextok-deploy --zero_shot=true`) and its layout."""
     if config.udt_hand_vocabulary:
         return list(config.udt_hand_vocabulary), list(config.udt_extra_hands), list(config.udt_fixed_hand_ids)
-    trained = {h for per in config.udt_hand_stats.get(OBS_STATE, {}).values() for h in per}
+    trained = {h for key in (OBS_STATE, ACTION) for per in config.udt_hand_stats.get(key, {}).values() for h in per}
     known = sorted(trained) if trained else sorted(set(config.udt_hand_layout))
     extra = sorted(set(config.udt_hand_layout) - set(known))
     return known, extra, [[*known, *extra].index(h) for h in config.udt_hand_layout]

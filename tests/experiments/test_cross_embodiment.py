@@ -90,7 +90,8 @@ def test_the_slots_a_source_lacks_are_its_specs_and_whole_missing_sides(converte
 
 def test_the_new_recipe_normalises_per_source_masks_and_samples_the_old_arm_does_not(converted_g1):
     frames, sources = _target_and_xhand(converted_g1)
-    cfg = ce.CrossEmbodimentConfig(target_episodes=[2], seeds=[0], act=ce.CrossEmbodimentACT(steps=50, batch_size=8))
+    cfg = ce.CrossEmbodimentConfig(target_episodes=[2], seeds=[0], hand_norm="per_source",
+                                   act=ce.CrossEmbodimentACT(steps=50, batch_size=8))  # fmt: skip
     target_train = np.flatnonzero(frames.episode == np.unique(frames.episode)[0])
     new = ce.training_set(cfg, "udhm_mix", sources, target_train, {}, seed=0)
     n0 = len(target_train)
@@ -127,6 +128,7 @@ def test_the_new_recipe_normalises_per_source_masks_and_samples_the_old_arm_does
     assert state.state_scale is not None and not state.actions_prescaled
     np.testing.assert_array_equal(actions.hands[:n0], raw)  # the hand input pooled, the actions per source only
     assert actions.state_scale is None and actions.actions_prescaled
+    assert ce.CrossEmbodimentConfig().hand_norm == "actions"  # the recipe's default, as udt_hand_norm_state=false
 
 
 def test_a_masked_slot_gets_exactly_zero_gradient():

@@ -77,7 +77,7 @@ def test_a_mixed_policy_bound_to_each_robot_takes_its_native_state_and_returns_i
     assert config["udt_hand_vocabulary"] == sorted([INSPIRE, L10]) and config["udt_native_layout"] == {}
     # relative actions on a mix: each hand's offsets scaled by its own statistics, between the relative pair
     delta = UdhmDatasetMeta(g1_l10_mix).record.hand_stats["action_delta"]
-    assert config["udt_hand_stats"]["modes"] == {"observation.state": "MEAN_STD", "action": "MEAN_STD"}
+    assert config["udt_hand_stats"]["modes"] == {"action": "MEAN_STD"}  # the state: LeRobot's statistics (default)
     assert config["udt_hand_stats"]["action"]["right"][L10]["std"] == delta["right"][L10]["std"]
     pre_steps = [s["registry_name"] for s in json.loads((mixed_policy / "policy_preprocessor.json").read_text())["steps"]]
     post_steps = [s["registry_name"] for s in json.loads((mixed_policy / "policy_postprocessor.json").read_text())["steps"]]

@@ -80,7 +80,7 @@ def _mix_episodes(root) -> tuple[list[int], list[int]]:
 def test_a_mix_policy_normalises_each_hand_by_its_own_statistics(tok_dir, g1_l10_mix):
     from lerobot_unidextok.policies.act_udt import make_act_udt_pre_post_processors
 
-    cfg, meta = _config("act_udt", tok_dir, g1_l10_mix)
+    cfg, meta = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_norm_state=True)  # the state half too
     record = UdhmDatasetMeta(g1_l10_mix).record
     # the mix recorded each hand's statistics; the policy took them, and LeRobot's normaliser leaves state and
     # action to the per-hand step
@@ -118,7 +118,7 @@ def test_a_mix_policy_normalises_each_hand_by_its_own_statistics(tok_dir, g1_l10
 def test_a_single_robot_policy_normalises_its_hands_from_its_own_training_episodes(tok_dir, g1_like):
     from lerobot_unidextok.conversion.hand_stats import hand_stats, training_episodes
 
-    cfg, meta = _config("act_udt", tok_dir, g1_like["root"])
+    cfg, meta = _config("act_udt", tok_dir, g1_like["root"], udt_hand_norm_state=True)
     udhm = UdhmDatasetMeta(g1_like["root"])
     want = hand_stats(g1_like["root"], training_episodes(udhm))
     assert training_episodes(udhm) is not None and len(training_episodes(udhm)) < udhm.total_episodes
@@ -236,10 +236,10 @@ def weighted_mix(g1_like, l10_robot, tmp_path_factory):
 
 
 def test_hand_norm_state_false_leaves_the_state_to_lerobots_statistics(tok_dir, g1_l10_mix):
-    """udt_hand_norm_state=false: only the actions per hand; the state with LeRobot's one set of statistics."""
+    """udt_hand_norm_state=false (the default): only the actions per hand; the state with LeRobot's statistics."""
     from lerobot.policies.factory import make_pre_post_processors
 
-    cfg, meta = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_norm_state=False)
+    cfg, meta = _config("act_udt", tok_dir, g1_l10_mix)
     assert cfg.udt_hand_stats["modes"] == {ACTION: "MEAN_STD"} and OBS_STATE not in cfg.udt_hand_stats
     assert cfg.normalization_mapping["STATE"].value == "MEAN_STD" and cfg.normalization_mapping["ACTION"].value == "IDENTITY"
     pre, _ = make_pre_post_processors(cfg, dataset_stats=meta.stats)
@@ -294,18 +294,22 @@ def _save_checkpoint(cfg, meta, out):
     return out
 
 
-def test_a_single_robot_checkpoint_binds_zero_shot_to_another_robots_hands(tok_dir, g1_like_hands, tmp_path):
+@pytest.mark.parametrize("state_half", [False, True], ids=["actions_per_hand", "state_too"])
+def test_a_single_robot_checkpoint_binds_zero_shot_to_another_robots_hands(tok_dir, g1_like_hands, tmp_path,
+                                                                           state_half):  # fmt: skip
     """A policy trained on one robot (two Inspire hands) was refused by unidextok-deploy ("nothing to bind"); with
     --zero_shot=true it is bound to a robot with two XHand1 hands: the bound checkpoint reloads through LeRobot's
     factory and one select_action on that robot's native state gives its native action, the XHand1 blocks
-    normalised with the Inspire's statistics on the slots the Inspire has."""
+    normalised with the Inspire's statistics on the slots the Inspire has. With the actions per hand only (the
+    default) the XHand1 is still the zero-shot hand: the trained hands were once read from the state's statistics
+    alone, which made it a known hand without statistics."""
     from lerobot.configs.policies import PreTrainedConfig
     from lerobot.policies.factory import get_policy_class, make_pre_post_processors
 
     import lerobot_policy_unidextok  # noqa: F401
     from lerobot_unidextok.policies.deploy import DeployError, deploy
 
-    cfg, meta = _config("act_udt", tok_dir, g1_like_hands["root"])
+    cfg, meta = _config("act_udt", tok_dir, g1_like_hands["root"], udt_hand_norm_state=state_half)
     checkpoint = _save_checkpoint(cfg, meta, tmp_path / "inspire_act")
     robot = _dexora_robot(tmp_path)
     with pytest.raises(DeployError, match="pass --zero_shot=true"):
@@ -326,10 +330,14 @@ def test_a_single_robot_checkpoint_binds_zero_shot_to_another_robots_hands(tok_d
     action = post(policy.select_action(pre({OBS_STATE: state})))
     assert action.shape == (1, len(robot_meta.native_layout(ACTION).native_names)) and torch.isfinite(action).all()
     # the XHand1's slots the Inspire has are z-scored with the Inspire's statistics; the others pass unscaled
+    # (the actions per hand only: the state is left to LeRobot's normaliser)
     from lerobot.lerobot_types import TransitionKey
 
     x = torch.rand(2, len(cfg2.udt_state_names))
     z = normaliser({TransitionKey.OBSERVATION: {OBS_STATE: x}})[TransitionKey.OBSERVATION][OBS_STATE]
+    if not state_half:
+        assert OBS_STATE not in cfg.udt_hand_stats and torch.equal(z, x)
+        return
     has = torch.from_numpy(hands.get(INSPIRE).active_mask)
     for block in find_udhm_blocks(cfg2.udt_state_names):
         s = cfg.udt_hand_stats[OBS_STATE][block.side][INSPIRE]
