@@ -31,7 +31,7 @@ as a loss weight, wrist actions in the hand's grasp-centre frame) unless its row
   as often as when it trains alone for `steps`), where every other arm trains `steps` (matched compute);
 - `pooled_<n>`: the recipe before 2026-12-05 on the same demonstrations: LeRobot's one set of statistics for the
   mix, every slot trained, the target's pool written `target_weight` times (copies), the wrist frame of the robot;
-- the ablations (on `ablation_targets`, default every target), each `mix_<n>` with one mechanism off: `no_hand_norm_<n>` (LeRobot's statistics),
+- the ablations (on `ablation_targets`, default every target; `mix_rule` runs on every target), each `mix_<n>` with one mechanism off: `no_hand_norm_<n>` (LeRobot's statistics),
   `state_norm_<n>` (the state per hand too, the default before 2026-12-05 evening), `no_mask_<n>` (every slot
   trained), `copies_<n>` (the `target_weight` copies instead of the share),
   `no_frame_<n>` (wrist actions in the robot's wrist frame);
@@ -93,7 +93,7 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "zero_shot_no_frame": ("without", NO_FRAME),
 }
 MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
-ABLATIONS = ("mix_rule", "no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")  # run on ablation_targets
+ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")  # run on ablation_targets
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 EXPERT_NOISE_SEED = 2_000_000  # the expert's noise on evaluation episode i: this + i (never a recording's)
 RECORD_SEED = 100_000  # recording: episode draws from RECORD_SEED + k, the expert's noise from RECORD_NOISE + k

@@ -75,12 +75,13 @@ def test_bad_options_are_named():
 
 
 def test_packed_runs_on_the_finger_task_only_and_ablations_on_their_targets():
-    cfg = cl.ClosedLoopConfig(arms=["mix", "packed", "no_mask"], mix_demos=[10], seeds=[0],
+    cfg = cl.ClosedLoopConfig(arms=["mix", "mix_rule", "packed", "no_mask"], mix_demos=[10], seeds=[0],
                               ablation_targets=["shadow"])  # fmt: skip
     runs = {(j["task"], j["hand"], j["arm"]) for j in cl.jobs(cfg)}
-    assert {a for t, _, a in runs if t == "GraspLift-v0"} == {"mix_10", "no_mask_10"}
+    assert {a for t, _, a in runs if t == "GraspLift-v0"} == {"mix_10", "mix_rule_10", "no_mask_10"}
     assert {h for _, h, a in runs if a == "no_mask_10"} == {"shadow"}
-    assert {h for t, h, a in runs if a == "packed_10"} == set(cl.HANDS) and len(runs) == 2 * 3 + 3 + 2
+    assert {h for _, h, a in runs if a == "mix_rule_10"} == set(cl.HANDS)  # the rule's budget: every pair, not an ablation
+    assert {h for t, h, a in runs if a == "packed_10"} == set(cl.HANDS) and len(runs) == 2 * 3 * 2 + 3 + 2
 
 
 @pytest.mark.slow
