@@ -65,6 +65,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 
 from experiments import runtime
 from experiments.common import git_commit, md_table
+from lerobot_unidextok.conversion.mix import budget_steps
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 
@@ -413,7 +414,7 @@ def run_one(cfg: ClosedLoopConfig, job: dict, data: dict, folder: Path) -> dict:
     target = subset(job["demos"], cfg.pool, seed) if job["demos"] else []
     out = folder / "policies" / task / hand / f"{label}_seed{seed}"
     flags, kind = arm_flags(cfg, arm, task), ARMS[arm][0]
-    steps = round(cfg.steps / cfg.target_share) if arm == "mix_rule" else cfg.steps
+    steps = budget_steps(cfg.steps, cfg.target_share) if arm == "mix_rule" else cfg.steps
     cpu0, t0 = time.process_time(), time.time()
     if kind == "alone":
         model = train_policy(cfg, own["semantic"], target, out, seed, flags)
@@ -652,7 +653,7 @@ def markdown(result: dict) -> str:
         f"Success rate (%) in closed loop, mean +- std over seeds {cfg['seeds']} ({cfg['eval_episodes']} episodes each, "
         f"the same episodes for every policy), and the 95 % Wilson interval of the pooled episodes. Policies: "
         f"act_udt_cpu.yaml through LeRobot's lerobot-train code, {cfg['steps']} steps at batch {cfg['batch_size']} "
-        f"(the budget rule's arm: {round(cfg['steps'] / cfg['target_share'])}), the target's share of a mix "
+        f"(the budget rule's arm: {budget_steps(cfg['steps'], cfg['target_share'])}), the target's share of a mix "
         f"{cfg['target_share']:g}, "
         f"absolute actions, chunks of {cfg['n_action_steps']} actions; mixes bound with unidextok-deploy. {cpu_min:.1f} "
         f"CPU-minutes in all ({costs['data_cpu_s']:.0f} s data, {costs['train_cpu_s']:.0f} s training, "

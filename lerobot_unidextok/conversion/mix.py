@@ -518,8 +518,18 @@ def mix(opts: MixOptions) -> MixReport:
                      asked or [s / max(sum(shares), 1) for s in shares], time.perf_counter() - t0)  # fmt: skip
 
 
+def budget_steps(alone_steps: int, share: float) -> int:
+    """The budget rule for a mix: the updates in which an input with `share` of the sampled training frames sees
+    its frames as often as in `alone_steps` updates on it alone (`alone_steps / share`; docs/lerobot.md "Pooling
+    hands" measures it against matched compute)."""
+    if not 0 < share <= 1:
+        raise MixError(f"a share of the training frames must be in (0, 1], got {share}")
+    return max(1, round(alone_steps / share))
+
+
 def format_report(report: MixReport) -> str:
-    """The summary `unidextok-mix` prints: per input, its episodes, repeats and training-frame share."""
+    """The summary `unidextok-mix` prints: per input, its episodes, repeats, training-frame share and the budget
+    rule's factor (`budget_steps`)."""
     lines = [
         f"wrote {report.root}: {report.num_episodes} episodes, {report.num_frames} frames, "
         f"{len(report.test_episodes)} test episodes ({report.seconds:.1f} s)"
@@ -531,8 +541,9 @@ def format_report(report: MixReport) -> str:
             + (f"{share:.0%} of the sampled training frames (share recorded)" if s.share else
                f"{share:.0%} of the training frames")
             + ("" if s.has_action else "; actions by the action rule")
+            + (f"; budget rule: {1 / share:.1f}x the updates it would train alone" if share > 0 else "")
         )
     return "\n".join(lines)
 
 
-__all__ = ["MixError", "MixOptions", "MixReport", "format_report", "mix", "repeat_factors"]
+__all__ = ["MixError", "MixOptions", "MixReport", "budget_steps", "format_report", "mix", "repeat_factors"]

@@ -110,7 +110,7 @@ def test_weights_repeat_the_small_inputs_training_episodes_not_its_test_episodes
 
 
 def test_weights_by_sampling_write_each_episode_once_and_record_the_shares(g1_like, l10_robot, tmp_path):
-    from lerobot_unidextok.conversion.mix import format_report
+    from lerobot_unidextok.conversion.mix import budget_steps, format_report
     from lerobot_unidextok.data.share_sampler import episode_inputs
 
     root = tmp_path / "sampled"
@@ -120,7 +120,14 @@ def test_weights_by_sampling_write_each_episode_once_and_record_the_shares(g1_li
     assert [s.repeats for s in record.sources] == [1, 1] and [s.share for s in record.sources] == [0.75, 0.25]
     assert len(record.episodes) == 3 + 5  # every episode once
     assert report.train_shares == pytest.approx([0.75, 0.25])
-    assert "75% of the sampled training frames (share recorded)" in format_report(report)
+    text = format_report(report)
+    assert "75% of the sampled training frames (share recorded)" in text
+    assert "budget rule: 1.3x the updates" in text and "budget rule: 4.0x the updates" in text
+    # the rule: an input at a quarter of the frames sees them as often as alone in four times the updates
+    assert budget_steps(400, 0.25) == 1600 and budget_steps(400, 0.5) == 800 and budget_steps(400, 1.0) == 400
+    for bad in (0.0, 1.5):
+        with pytest.raises(MixError, match=r"must be in \(0, 1\]"):
+            budget_steps(400, bad)
     inputs, shares = episode_inputs(record)  # what a <type>_udt policy weights each batch's rows by
     assert shares == [0.75, 0.25] and inputs == [e.origin["mix_source"] for e in record.episodes]
     with pytest.raises(MixError, match="weights_by must be one of"):
