@@ -24,9 +24,9 @@ What the mixin adds to the stock config, in `validate_features` (run when the po
 - with `udt_relative_actions`, the action column names, checked to be the first columns of the state (the
   policy learns `action - state` per column), and IDENTITY action normalisation (the dataset's action
   statistics are of absolute actions, not of the offsets the policy predicts);
-- unless `udt_hand_norm=off`, the per-hand statistics of the state and action blocks (`udt_hand_stats`: a mix's
-  record, or one robot's training episodes, `conversion/hand_stats.py`) and IDENTITY for STATE and ACTION in
-  LeRobot's normaliser, whose work `unidextok.hand_normalizer` does then (docs/lerobot.md "Pooling hands");
+- unless `udt_hand_norm=off`, the per-hand statistics of the action blocks, and of the state's with
+  `udt_hand_norm_state` (`udt_hand_stats`: a mix's record, or one robot's training episodes,
+  `conversion/hand_stats.py`) and IDENTITY for those keys in LeRobot's normaliser, whose work `unidextok.hand_normalizer` does then (docs/lerobot.md "Pooling hands");
 - unless `udt_wrist_frame=robot`, the wrist columns and each hand's grasp centre (`udt_wrist_columns`,
   `udt_grasp_centres_m`: the dataset record's `wrist_frame`), for `unidextok.wrist_frame`.
 """
@@ -142,8 +142,8 @@ class UdtConfigMixin:
     udt_extra_hands: list[str] = field(default_factory=list)
     # The mix's column renames (unidextok-mix --keep=all --name_map); filled from the dataset.
     udt_name_map: dict[str, str] = field(default_factory=dict)
-    # Normalise each UDHM block of observation.state and action with the statistics of the hand it holds in that
-    # row (step unidextok.hand_normalizer; relative actions: their offsets), the passthrough columns with their own:
+    # Normalise each UDHM block of action (and observation.state: udt_hand_norm_state) with the statistics of the
+    # hand it holds in that row (step unidextok.hand_normalizer; relative actions: their offsets), the passthrough columns with their own:
     # auto (the stock policy's modes: ACT mean/std, Diffusion min/max) | mean_std | min_max | quantiles (q01/q99) |
     # quantile10 (q10/q90) | off (LeRobot's one set of statistics per column, as before 2026-12-05).
     udt_hand_norm: str = "auto"
@@ -351,8 +351,9 @@ class UdtConfigMixin:
         )  # fmt: skip
 
     def _fill_hand_stats(self, meta: UdhmDatasetMeta) -> None:
-        """Per-hand statistics of the state and action blocks in the modes `udt_hand_norm` asks (a mix's record,
-        else computed from the dataset's training episodes), and LeRobot's normaliser set to IDENTITY for them."""
+        """Per-hand statistics of the action blocks (and the state's, `udt_hand_norm_state`) in the modes
+        `udt_hand_norm` asks (a mix's record, else computed from the dataset's training episodes), and LeRobot's
+        normaliser set to IDENTITY for them."""
         from lerobot_unidextok.conversion.hand_stats import ACTION_DELTA, hand_stats, training_episodes
 
         record = meta.record

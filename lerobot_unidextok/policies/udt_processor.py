@@ -12,9 +12,10 @@ the wrist position of the state and action to each row's hand's grasp centre bef
 (`processor/wrist_frame.py`).
 
 Per-hand normalisation (`udt_hand_stats`, filled unless `udt_hand_norm=off`): `unidextok.hand_normalizer`
-normalises the state and action per hand before LeRobot's normaliser (IDENTITY for them then) and restores the
-action after its unnormaliser; `unidextok.slot_mask` marks the action slots each row's hand lacks for the loss
-(`udt_mask_slots`), `unidextok.share_weights` each row's share weight on a mix with `--weights`. Checkpoints saved
+normalises the action (and the state, `udt_hand_norm_state`) per hand before LeRobot's normaliser (IDENTITY for
+them then) and restores the action after its unnormaliser; `unidextok.slot_mask` marks the action slots each
+row's hand lacks for the loss (`udt_mask_slots`), `unidextok.share_weights` each row's share weight on a mix with
+`--weights`. Checkpoints saved
 before these (and `udt_hand_norm=off`) keep `unidextok.hand_action_scale` between the relative pair on a mix.
 
 The steps sit after `to_batch_processor`, so their outputs have the batch dimensions of the batched state
