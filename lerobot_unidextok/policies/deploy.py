@@ -262,7 +262,8 @@ def _bound_scale(steps: list, binding: Binding) -> list:
         elif isinstance(s, SlotMaskStep):
             known = [h for h in s.hand_vocabulary if h not in binding.extra_hands]
             s = SlotMaskStep(**{**s.get_config(), "fixed_hand_ids": binding.fixed_hand_ids,
-                                "hand_vocabulary": [*known, *binding.extra_hands]})  # fmt: skip
+                                "hand_vocabulary": [*known, *binding.extra_hands],
+                                "extra_hands": list(binding.extra_hands)})  # fmt: skip
         out.append(s)
     return out
 

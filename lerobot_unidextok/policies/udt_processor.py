@@ -189,7 +189,8 @@ def _insert_hand_steps(config: UdtConfigMixin, pre_steps: list, post: PolicyProc
     at = max(i for i, s in enumerate(pre_steps) if isinstance(s, NormalizerProcessorStep))
     if config.udt_mask_slots and action_names:
         pre_steps.insert(at, SlotMaskStep(state_names=state_names, action_names=action_names,
-                                          hand_vocabulary=[*known, *extra], fixed_hand_ids=fixed))  # fmt: skip
+                                          hand_vocabulary=[*known, *extra], fixed_hand_ids=fixed,
+                                          extra_hands=extra))  # fmt: skip
     stats = config.udt_hand_stats
     if not stats or not stats.get("modes"):
         return

@@ -11,7 +11,13 @@ A row's hands come from `observation.hand_ids` (a mix) or `fixed_hand_ids` (one 
 from its spec (`hands.get(name).active_mask`), the mask the converters write as `udhm_mask` for a present hand
 (LeRobot's batch conversion keeps only `observation.*`, `action*`, `*_is_pad` and a few named keys, so the
 dataset's own `udhm_mask` column never reaches a processor step or the policy). Without an action (inference)
-the step does nothing.
+the step writes no mask.
+
+A hand the policy never trained on (`extra_hands`, after the vocabulary: `unidextok-deploy --zero_shot=true`)
+can have slots that none of the trained hands has. Every training row held 0 there, and LeRobot's statistics of
+such a column have std 0, so its normaliser divides the new hand's angle by 1e-8. For that hand's blocks the step
+holds those state slots at 0, the value the policy learnt with (the input side of the mask); a trained hand's
+rows are left as they are.
 """
 
 from __future__ import annotations
@@ -27,7 +33,7 @@ from lerobot.processor import ProcessorStep, ProcessorStepRegistry
 
 from lerobot_unidextok import hands
 from lerobot_unidextok.blocks import find_udhm_blocks
-from lerobot_unidextok.constants import OBS_HAND_IDS, UDHM_DIM
+from lerobot_unidextok.constants import OBS_HAND_IDS, OBS_STATE, UDHM_DIM
 
 SLOT_MASK_STEP_NAME = "unidextok.slot_mask"
 ACTION_SLOT_PAD_KEY = "action_slot_is_pad"  # (B, A) bool in the batch: true = no loss on that action slot
@@ -43,6 +49,8 @@ class SlotMaskStep(ProcessorStep):
     hand_vocabulary: list[str] = field(default_factory=list)
     fixed_hand_ids: list[int] = field(default_factory=list)  # one robot's hand per block ([] = per row)
     hand_ids_key: str = OBS_HAND_IDS
+    # the vocabulary's last hands, never trained on (zero-shot): their state slots no trained hand has held at 0
+    extra_hands: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self._sides = [b.side for b in find_udhm_blocks(self.state_names)]
@@ -55,6 +63,14 @@ class SlotMaskStep(ProcessorStep):
                              f"block {self._sides}")  # fmt: skip
         active = np.stack([hands.get(h).active_mask for h in self.hand_vocabulary] + [np.zeros(UDHM_DIM, bool)])
         self._lacks = ~torch.as_tensor(active)  # (V + 1, 22): row V = no hand, every slot lacking
+        self.extra_hands = list(self.extra_hands)
+        if self.hand_vocabulary[len(self.hand_vocabulary) - len(self.extra_hands):] != self.extra_hands:
+            raise ValueError(f"{SLOT_MASK_STEP_NAME}: extra_hands {self.extra_hands} must end hand_vocabulary "
+                             f"{self.hand_vocabulary}")  # fmt: skip
+        trained = active[: len(self.hand_vocabulary) - len(self.extra_hands)].any(axis=0)
+        self._untrained = torch.as_tensor(~trained)  # (22,) slots no trained hand has
+        self._first_extra = len(self.hand_vocabulary) - len(self.extra_hands)
+        self._state_blocks = find_udhm_blocks(self.state_names)
 
     def pad_mask(self, ids: torch.Tensor, batch: int) -> torch.Tensor:
         """(batch, A) bool from (R, H) hand ids (R = batch, or 1 for a robot's fixed hands)."""
@@ -68,20 +84,40 @@ class SlotMaskStep(ProcessorStep):
             mask[:, b.slice] = self._lacks[index[:, self._sides.index(b.side)].cpu()]
         return mask
 
+    def held_state(self, state: torch.Tensor, ids: torch.Tensor) -> torch.Tensor:
+        """`state` (..., D) with the slots no trained hand has at 0 in every block an extra hand holds; `ids`
+        (R, H) hand ids, R = 1 (fixed) or the rows of `state` flattened over its leading dimensions."""
+        rows = state.reshape(-1, state.shape[-1])
+        ids = ids.reshape(-1, len(self._sides))
+        ids = ids.expand(rows.shape[0], -1) if ids.shape[0] == 1 else ids
+        out = rows.clone()
+        for block in self._state_blocks:
+            new_hand = (ids[:, self._sides.index(block.side)] >= self._first_extra).to(rows.device)  # (R,)
+            hold = new_hand[:, None] & self._untrained.to(rows.device)[None, :]  # (R, 22)
+            out[:, block.slice] = torch.where(hold, torch.zeros((), dtype=rows.dtype, device=rows.device),
+                                              rows[:, block.slice])  # fmt: skip
+        return out.reshape(state.shape)
+
     def __call__(self, transition: EnvTransition) -> EnvTransition:
         action = transition.get(TransitionKey.ACTION)
-        if action is None:
-            return transition
         observation = transition.get(TransitionKey.OBSERVATION) or {}
+        if action is None and not (self.extra_hands and OBS_STATE in observation):
+            return transition
         ids = observation.get(self.hand_ids_key)
         if ids is None:
             if not self.fixed_hand_ids:
                 raise KeyError(f"{SLOT_MASK_STEP_NAME} needs '{self.hand_ids_key}' in a training batch of a mix")
             ids = torch.tensor(self.fixed_hand_ids)
+        ids = torch.as_tensor(ids).long()
+        new = transition.copy()
+        if self.extra_hands and OBS_STATE in observation:
+            state = torch.as_tensor(observation[OBS_STATE])
+            new[TransitionKey.OBSERVATION] = {**observation, OBS_STATE: self.held_state(state, ids)}
+        if action is None:
+            return new
         action = torch.as_tensor(action)
         batch = action.shape[0] if action.ndim > 1 else 1
-        mask = self.pad_mask(torch.as_tensor(ids).long(), batch).to(action.device)
-        new = transition.copy()
+        mask = self.pad_mask(ids, batch).to(action.device)
         new[TransitionKey.COMPLEMENTARY_DATA] = {**(transition.get(TransitionKey.COMPLEMENTARY_DATA) or {}),
                                                  ACTION_SLOT_PAD_KEY: mask if action.ndim > 1 else mask[0]}  # fmt: skip
         return new
@@ -98,6 +134,7 @@ class SlotMaskStep(ProcessorStep):
             "hand_vocabulary": list(self.hand_vocabulary),
             "fixed_hand_ids": list(self.fixed_hand_ids),
             "hand_ids_key": self.hand_ids_key,
+            "extra_hands": list(self.extra_hands),
         }
 
 

@@ -12,7 +12,7 @@ from robot_udhm import INSPIRE
 
 from lerobot_unidextok import hands
 from lerobot_unidextok.blocks import find_udhm_blocks
-from lerobot_unidextok.constants import ACTION, OBS_HAND_IDS, OBS_STATE, UDHM_DIM
+from lerobot_unidextok.constants import ACTION, OBS_HAND_IDS, OBS_STATE, UDHM_DIM, UDHM_JOINT_NAMES
 from lerobot_unidextok.data import UdhmDatasetMeta
 from lerobot_unidextok.policies import ACTUdtConfig, DiffusionUdtConfig
 from lerobot_unidextok.processor import ACTION_SLOT_PAD_KEY, HandNormalizerStep, SlotMaskStep
@@ -187,6 +187,37 @@ def test_slot_mask_of_each_hand_is_the_datasets_udhm_mask(g1_l10_mix):
     assert torch.equal(step.pad_mask(ids, len(ids)), ~udhm_mask)
 
 
+def test_a_zero_shot_hands_state_slots_no_trained_hand_has_are_held_at_zero():
+    """A hand after the vocabulary's trained ones (zero-shot) keeps its state on the slots a trained hand has and
+    reads 0 on the others (every training row held 0 there; LeRobot's std of such a column is 0); a trained hand's
+    rows, and every row of a step without extra hands, pass unchanged, at inference (no action) too."""
+    from lerobot.lerobot_types import TransitionKey
+
+    names = [f"{side}_{n}" for side in ("left", "right") for n in UDHM_JOINT_NAMES]
+    vocab = [INSPIRE, "allegro", "shadow"]
+    step = SlotMaskStep(state_names=names, action_names=names, hand_vocabulary=vocab, extra_hands=["shadow"])
+    trained = hands.get(INSPIRE).active_mask | hands.get("allegro").active_mask
+    new_slots = hands.get("shadow").active_mask & ~trained
+    assert new_slots.any()  # the Shadow has slots neither the Inspire nor the Allegro has
+    state = torch.rand(3, 2 * UDHM_DIM) + 0.1
+    ids = torch.tensor([[2, 2], [0, 1], [0, 2]])  # both blocks the Shadow; trained hands; Inspire left, Shadow right
+    out = step({TransitionKey.OBSERVATION: {OBS_STATE: state, OBS_HAND_IDS: ids}})[TransitionKey.OBSERVATION][OBS_STATE]
+    hold = torch.from_numpy(~trained)
+    want = state.clone()
+    want[0, :UDHM_DIM][hold] = 0
+    want[0, UDHM_DIM:][hold] = 0
+    want[2, UDHM_DIM:][hold] = 0
+    assert torch.equal(out, want) and torch.equal(out[1], state[1])
+    bound = SlotMaskStep(**{**step.get_config(), "fixed_hand_ids": [2, 2]})  # a robot bound zero-shot
+    one = bound({TransitionKey.OBSERVATION: {OBS_STATE: state[:1]}})[TransitionKey.OBSERVATION][OBS_STATE]
+    assert torch.equal(one, want[:1])
+    plain = SlotMaskStep(state_names=names, action_names=names, hand_vocabulary=vocab)
+    assert torch.equal(plain({TransitionKey.OBSERVATION: {OBS_STATE: state, OBS_HAND_IDS: ids}})
+                       [TransitionKey.OBSERVATION][OBS_STATE], state)  # fmt: skip
+    with pytest.raises(ValueError, match="must end hand_vocabulary"):
+        SlotMaskStep(state_names=names, action_names=names, hand_vocabulary=vocab, extra_hands=[INSPIRE])
+
+
 def test_a_checkpoint_saved_before_pooling_loads_and_acts_as_before(tok_dir, g1_l10_mix, tmp_path):
     """A checkpoint of the code before per-hand normalisation: no hand statistics, no slot mask, and a config.json
     without the new fields. It reloads through LeRobot's factory with the processors it was saved with and gives
@@ -337,6 +368,10 @@ def test_a_single_robot_checkpoint_binds_zero_shot_to_another_robots_hands(tok_d
     z = normaliser({TransitionKey.OBSERVATION: {OBS_STATE: x}})[TransitionKey.OBSERVATION][OBS_STATE]
     if not state_half:
         assert OBS_STATE not in cfg.udt_hand_stats and torch.equal(z, x)
+        # the XHand1's slots the Inspire lacks held at 0 before LeRobot's normaliser (std 0 there): the state the
+        # policy reads stays in range (it was divided by 1e-8)
+        normalised = pre({OBS_STATE: state})[OBS_STATE]
+        assert normalised.abs().max() < 1e3
         return
     has = torch.from_numpy(hands.get(INSPIRE).active_mask)
     for block in find_udhm_blocks(cfg2.udt_state_names):
