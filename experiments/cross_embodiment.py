@@ -438,10 +438,22 @@ def run(cfg: CrossEmbodimentConfig) -> dict:
     return result
 
 
+WHERE_TO = ("output_root", "cache_dir")  # where a run writes, not what it measures: left out of its command
+
+
+def shown_command(result: dict) -> str:
+    """The run's recorded command without `WHERE_TO` flags (runs recorded before they were left out had them)."""
+    words = result.get("command", f"python experiments/{NAME}.py").split()
+    return " ".join(w for w in words if not any(w.startswith(f"--{name}=") for name in WHERE_TO))
+
+
 def command_line(cfg: CrossEmbodimentConfig) -> str:
-    """`python experiments/cross_embodiment.py` with the flags of the settings that differ from the defaults."""
+    """`python experiments/cross_embodiment.py` with the flags of the settings that differ from the defaults
+    (but `WHERE_TO`)."""
     default, flags = CrossEmbodimentConfig(), []
     for f in dataclasses.fields(cfg):
+        if f.name in WHERE_TO:
+            continue
         value, base = getattr(cfg, f.name), getattr(default, f.name)
         if dataclasses.is_dataclass(value):
             flags += [f"--{f.name}.{g.name}={getattr(value, g.name)}" for g in dataclasses.fields(value)
@@ -501,7 +513,7 @@ def markdown(result: dict) -> str:
             "(`hand_norm=per_source`) / with those pooled over every source (the old recipe): 99th percentile of "
             "|z| " + ", ".join(f"{v['per_source']:.2f} / {v['pooled']:.2f} at {n} episodes" for n, v in spread.items())
             + ".")] if (spread := result.get("held_out_state_z_p99")) else []),
-        f"Wall time {result['wall_seconds']:.0f} s; command: `{result.get('command', 'python experiments/cross_embodiment.py')}`.",
+        f"Wall time {result['wall_seconds']:.0f} s; command: `{shown_command(result)}`.",
     ])  # fmt: skip
 
 

@@ -153,3 +153,10 @@ def test_a_masked_slot_gets_exactly_zero_gradient():
     head = policy.model.action_head
     assert torch.equal(head.weight.grad[1], torch.zeros_like(head.weight.grad[1])) and head.bias.grad[1] == 0
     assert all(head.weight.grad[c].abs().sum() > 0 for c in (0, 2, 3))
+
+
+def test_the_recorded_command_leaves_out_where_the_run_writes():
+    cfg = ce.CrossEmbodimentConfig(output_root="elsewhere/out", cache_dir="elsewhere/data", hand_norm="pooled")
+    assert ce.command_line(cfg) == "python experiments/cross_embodiment.py --hand_norm=pooled"
+    recorded = {"command": "python experiments/cross_embodiment.py --output_root=x/y --cache_dir=x/z --seeds='[0]'"}
+    assert ce.shown_command(recorded) == "python experiments/cross_embodiment.py --seeds='[0]'"
