@@ -64,7 +64,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from experiments import runtime
-from experiments.common import git_commit, md_table
+from experiments.common import WHERE_TO, git_commit, md_table
 from lerobot_unidextok.conversion.mix import budget_steps
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
@@ -621,7 +621,6 @@ def goals(result: dict, cfg: ClosedLoopConfig) -> list[dict]:
     return out
 
 
-WHERE_TO = ("output_root", "cache_dir", "figure_to")  # where a run writes, not what it measures: left out of its command
 
 
 def command_line(cfg: ClosedLoopConfig) -> str:

@@ -32,6 +32,14 @@ UNIDEXTOK = "UniDexTok"
 # ---------------------------------------------------------------------------------------------
 # provenance and result files
 # ---------------------------------------------------------------------------------------------
+WHERE_TO = ("output_root", "cache_dir", "figure_to")  # where a run writes, not what it measures: not in its command
+
+
+def shown_command(command: str) -> str:
+    """A recorded command without its `WHERE_TO` flags (paths of the machine that ran it)."""
+    return " ".join(w for w in command.split() if not any(w.startswith(f"--{name}=") for name in WHERE_TO))
+
+
 def git_commit() -> str:
     """HEAD of the checkout these experiments live in (+ '-dirty' with uncommitted changes), or 'unknown'."""
     repo = Path(__file__).resolve().parents[1]

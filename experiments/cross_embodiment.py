@@ -58,7 +58,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from experiments import runtime
-from experiments.common import git_commit, md_table
+from experiments.common import WHERE_TO, git_commit, md_table, shown_command
 from experiments.policy_training import SmallACT, Standardiser
 from lerobot_unidextok.constants import ACTION, OBS_STATE, UDHM_DIM
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
@@ -438,15 +438,6 @@ def run(cfg: CrossEmbodimentConfig) -> dict:
     return result
 
 
-WHERE_TO = ("output_root", "cache_dir")  # where a run writes, not what it measures: left out of its command
-
-
-def shown_command(result: dict) -> str:
-    """The run's recorded command without `WHERE_TO` flags (runs recorded before they were left out had them)."""
-    words = result.get("command", f"python experiments/{NAME}.py").split()
-    return " ".join(w for w in words if not any(w.startswith(f"--{name}=") for name in WHERE_TO))
-
-
 def command_line(cfg: CrossEmbodimentConfig) -> str:
     """`python experiments/cross_embodiment.py` with the flags of the settings that differ from the defaults
     (but `WHERE_TO`)."""
@@ -513,7 +504,7 @@ def markdown(result: dict) -> str:
             "(`hand_norm=per_source`) / with those pooled over every source (the old recipe): 99th percentile of "
             "|z| " + ", ".join(f"{v['per_source']:.2f} / {v['pooled']:.2f} at {n} episodes" for n, v in spread.items())
             + ".")] if (spread := result.get("held_out_state_z_p99")) else []),
-        f"Wall time {result['wall_seconds']:.0f} s; command: `{shown_command(result)}`.",
+        f"Wall time {result['wall_seconds']:.0f} s; command: `{shown_command(result.get('command', f'python experiments/{NAME}.py'))}`.",
     ])  # fmt: skip
 
 

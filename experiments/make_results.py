@@ -30,6 +30,7 @@ from experiments import (
     rate_distortion,
     transfer,
 )
+from experiments.common import shown_command
 
 logger = logging.getLogger(__name__)
 MARKDOWN = {"main_table": main_table.markdown, "ablation_human": ablation_human.markdown,
@@ -138,7 +139,7 @@ def section(name: str, r: dict | None, image_dir: Path, page: Path) -> list[str]
     body = MARKDOWN[name](r).split("\n")
     body = body[2:] if body and body[0].startswith("# ") else body  # drop the experiment's own title
     note = reduced_size_note(r)
-    out = [f"## {name}", "", *([note, ""] if note else []), f"Command: `{r.get('command', COMMANDS[name])}`", "",
+    out = [f"## {name}", "", *([note, ""] if note else []), f"Command: `{shown_command(r.get('command', COMMANDS[name]))}`", "",
            _provenance_line(r), "", *body, ""]  # fmt: skip
     return out + _copy_figures(name, r.get("figures", {}), image_dir, page) + [""]
 

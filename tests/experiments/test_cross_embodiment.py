@@ -156,7 +156,9 @@ def test_a_masked_slot_gets_exactly_zero_gradient():
 
 
 def test_the_recorded_command_leaves_out_where_the_run_writes():
+    from experiments.common import shown_command
+
     cfg = ce.CrossEmbodimentConfig(output_root="elsewhere/out", cache_dir="elsewhere/data", hand_norm="pooled")
     assert ce.command_line(cfg) == "python experiments/cross_embodiment.py --hand_norm=pooled"
     recorded = {"command": "python experiments/cross_embodiment.py --output_root=x/y --cache_dir=x/z --seeds='[0]'"}
-    assert ce.shown_command(recorded) == "python experiments/cross_embodiment.py --seeds='[0]'"
+    assert shown_command(recorded["command"]) == "python experiments/cross_embodiment.py --seeds='[0]'"
