@@ -32,7 +32,7 @@ as a loss weight, wrist actions in the hand's grasp-centre frame) unless its row
 - `pooled_<n>`: the recipe before 2026-12-05 on the same demonstrations: LeRobot's one set of statistics for the
   mix, every slot trained, the target's pool written `target_weight` times (copies), the wrist frame of the robot;
 - the ablations (on `ablation_targets`, default every target; `mix_rule` runs on every target), each `mix_<n>` with one mechanism off: `no_hand_norm_<n>` (LeRobot's statistics),
-  `state_norm_<n>` (the state per hand too, the default before 2026-12-05 evening), `no_mask_<n>` (every slot
+  `state_norm_<n>` (the state per hand too, the default until commit 7d0a25a), `no_mask_<n>` (every slot
   trained), `copies_<n>` (the `target_weight` copies instead of the share),
   `no_frame_<n>` (wrist actions in the robot's wrist frame);
 - `packed_<n>`: `mix_<n>` with each hand's native joints packed at the front of the block and zero-padded (on the
