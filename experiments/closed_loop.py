@@ -114,7 +114,9 @@ class ClosedLoopConfig:
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
     pool: int = 50  # expert episodes recorded per task and hand (the most `alone` trains on, a mix's other hands)
     # the target's share of every batch's loss in a mix (`unidextok-mix --weights`, honoured by sampling): about
-    # half, as cross_embodiment.py found a small target needs; the other hands share the rest equally
+    # half, as cross_embodiment.py found a small target needs; the other hands share the rest equally. In closed
+    # loop a tenth did as well or better with three hands and much better with six (docs/lerobot.md "Six hands
+    # pooled"); the headline table keeps half until it is rerun
     target_share: float = 0.5
     # the `pooled` and `copies` arms: how many times the mix writes the target's demonstrations (the recipe before
     # 2026-12-05): 10 of them x 10 against 2 x 50 of the other hands make the target about half of the frames
