@@ -116,7 +116,8 @@ class ClosedLoopConfig:
     # the target's share of every batch's loss in a mix (`unidextok-mix --weights`, honoured by sampling): about
     # half, as cross_embodiment.py found a small target needs; the other hands share the rest equally. In closed
     # loop a tenth did as well or better with three hands and much better with six (docs/lerobot.md "Six hands
-    # pooled"); the headline table keeps half until it is rerun
+    # pooled"); the headline table keeps half until it is rerun. 0 = no weights: each episode once, the target at
+    # its frame share (`unidextok-mix` without --weights; no budget-rule arm)
     target_share: float = 0.5
     # the `pooled` and `copies` arms: how many times the mix writes the target's demonstrations (the recipe before
     # 2026-12-05): 10 of them x 10 against 2 x 50 of the other hands make the target about half of the frames
@@ -145,8 +146,10 @@ class ClosedLoopConfig:
         for name, demos in (("demos", self.demos), ("mix_demos", self.mix_demos)):
             if not demos or any(not 1 <= d <= self.pool for d in demos):
                 raise ValueError(f"{name} {demos} must be 1..pool ({self.pool})")
-        if not 0 < self.target_share < 1:
-            raise ValueError(f"target_share must be in (0, 1), got {self.target_share}")
+        if not 0 <= self.target_share < 1:
+            raise ValueError(f"target_share must be in [0, 1) (0: no weights), got {self.target_share}")
+        if self.target_share == 0 and "mix_rule" in self.arms:
+            raise ValueError("mix_rule needs a target share to divide the updates by: --target_share in (0, 1)")
         stray = sorted(set(self.ablation_targets) - set(self.hands))
         if stray:
             raise ValueError(f"ablation_targets {stray} are not among hands {self.hands}")
@@ -450,12 +453,13 @@ def prepare(cfg: ClosedLoopConfig) -> tuple[dict, dict]:
     data: dict = {}
     kinds = {ARMS[a][0] for a in cfg.arms}
     others = len(cfg.hands) - 1
-    share = [cfg.target_share] + [(1 - cfg.target_share) / others] * others if others else []
+    share = [cfg.target_share] + [(1 - cfg.target_share) / others] * others if others and cfg.target_share else []
     copies = [cfg.target_weight] + [1.0] * others
     # per target: its whole pool, the target first (the chosen demonstrations are selected at training); `mix` and
     # `packed` write each episode once and record the shares, `copies` writes the target's `target_weight` times
-    plans = {"mix": ("semantic", share, "sampling", f"s{cfg.target_share:g}"),
-             "packed": ("packed", share, "sampling", f"s{cfg.target_share:g}"),
+    tag = f"s{cfg.target_share:g}" if cfg.target_share else "frames"
+    plans = {"mix": ("semantic", share, "sampling", tag),
+             "packed": ("packed", share, "sampling", tag),
              "copies": ("semantic", copies, "copies", f"w{cfg.target_weight:g}")}  # fmt: skip
     for task in cfg.tasks:
         data[task] = {hand: recorded(cfg, task, hand) for hand in cfg.hands}
@@ -647,6 +651,13 @@ def arm_title(label: str) -> str:
     return f"{ARM_TITLES.get(kind, kind)}, {demos} demos"
 
 
+def share_words(steps: int, target_share: float) -> str:
+    """How a run's mixes weight the target, for its table's caption (0: no weights)."""
+    if not target_share:
+        return "(no budget-rule arm), the target at its frame share of a mix (no weights)"
+    return f"(the budget rule's arm: {budget_steps(steps, target_share)}), the target's share of a mix {target_share:g}"
+
+
 def markdown(result: dict) -> str:
     cfg, s, costs = result["config"], result["summary"], result["costs"]
     cpu_min = sum(costs[k] for k in ("data_cpu_s", "train_cpu_s", "eval_cpu_s", "expert_cpu_s")) / 60
@@ -654,8 +665,7 @@ def markdown(result: dict) -> str:
         f"Success rate (%) in closed loop, mean +- std over seeds {cfg['seeds']} ({cfg['eval_episodes']} episodes each, "
         f"the same episodes for every policy), and the 95 % Wilson interval of the pooled episodes. Policies: "
         f"act_udt_cpu.yaml through LeRobot's lerobot-train code, {cfg['steps']} steps at batch {cfg['batch_size']} "
-        f"(the budget rule's arm: {budget_steps(cfg['steps'], cfg['target_share'])}), the target's share of a mix "
-        f"{cfg['target_share']:g}, "
+        f"{share_words(cfg['steps'], cfg['target_share'])}, "
         f"absolute actions, chunks of {cfg['n_action_steps']} actions; mixes bound with unidextok-deploy. {cpu_min:.1f} "
         f"CPU-minutes in all ({costs['data_cpu_s']:.0f} s data, {costs['train_cpu_s']:.0f} s training, "
         f"{costs['eval_cpu_s']:.0f} s evaluation, {costs['expert_cpu_s']:.0f} s experts); the policies took "

@@ -68,6 +68,11 @@ def test_bad_options_are_named():
         cl.ClosedLoopConfig(mix_demos=[0])
     with pytest.raises(ValueError, match="target_share"):
         cl.ClosedLoopConfig(target_share=1.0)
+    # 0: no weights (the target at its frame share), and then no budget-rule arm to divide the updates by
+    assert cl.ClosedLoopConfig(target_share=0.0, arms=["mix"]).target_share == 0
+    with pytest.raises(ValueError, match="mix_rule needs a target share"):
+        cl.ClosedLoopConfig(target_share=0.0, arms=["mix", "mix_rule"])
+    assert "frame share" in cl.share_words(400, 0.0) and "800" in cl.share_words(400, 0.5)
     with pytest.raises(ValueError, match=r"targets \['leap'\] are not among hands"):
         cl.ClosedLoopConfig(targets=["leap"])
     with pytest.raises(ValueError, match=r"ablation_targets \['leap'\] are not among hands"):
