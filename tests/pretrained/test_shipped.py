@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import torch
 from linkerhand_udhm import subprocess_env
+from model_cards import assert_rows_are_recorded, card_table
 
 from experiments.universal import IN_RANGE_PREFIX, held_out_figures, in_range_figures
 from lerobot_unidextok.evaluation.report import encoding
@@ -80,28 +81,15 @@ def test_every_registered_hand_is_trained_or_goes_through_the_unknown_hand_path(
     assert err_deg < 2.0
 
 
-def _card_table(text: str, section: str) -> dict[str, list[str]]:
-    rows = {}
-    for line in text.split(f"## {section}", 1)[1].split("\n## ", 1)[0].splitlines():
-        cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if len(cells) == 5 and cells[1] not in ("rows", "---"):
-            rows[cells[0]] = cells[1:]
-    return rows
-
-
 @pytest.mark.parametrize(("section", "key"), [("Evaluation", "results"), ("Encoding", "nearest_codes")])
 def test_the_card_tables_are_the_recorded_evaluation(recorded, section, key):
     """Every row of the card's evaluation table (the package's encoding) and of its nearest-codes table is a row
     of eval.json with the same numbers (as the card formats them), and every eval.json row is in the card."""
     text = (FOLDER / "README.md").read_text()
     assert CARD_MARKER in text
-    rows = _card_table(text, section)
+    rows = card_table(text, section)
     assert set(rows) == set(recorded[key]) and len(rows) >= 17
-    for name, cells in rows.items():
-        want = recorded[key][name]
-        assert int(cells[0]) == want["rows"]
-        for cell, metric in zip(cells[1:], ("mpjae_deg", "mpjpe_mm", "fingertip_mm"), strict=True):
-            assert cell == f"{want[metric]:.4g}", (name, metric)
+    assert_rows_are_recorded(rows, recorded[key])
     assert recorded["commit"] and re.fullmatch(r"[0-9a-f]{40}", recorded["commit"])
     assert "unidextok-train --config_path=train/universal" in text
 

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from model_cards import assert_rows_are_recorded, card_table
 
 from experiments.universal import IN_RANGE_PREFIX, held_out_figures, in_range_figures
 from lerobot_unidextok.evaluation import mpjae_deg
@@ -47,29 +48,16 @@ def test_a_small_hub_format_folder_that_loads_by_id(model):
     assert "human" in cfg.trained_hands and "inspire_rh56_unitree" in cfg.trained_hands
 
 
-def _card_table(text: str, section: str) -> dict[str, list[str]]:
-    rows = {}
-    for line in text.split(f"## {section}", 1)[1].split("\n## ", 1)[0].splitlines():
-        cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if len(cells) == 5 and cells[1] not in ("rows", "---"):
-            rows[cells[0]] = cells[1:]
-    return rows
-
-
 @pytest.mark.parametrize(("section", "key"), [("Evaluation", "results"), ("Encoding", "first_stage")])
 def test_the_card_tables_are_the_recorded_evaluation(model, recorded, section, key):
     """The card's evaluation table (both stages) and its first-stage table are eval.json's rows, every trained hand
     in range and the G1 test episodes; the card names the training command, its CPU time and commit."""
     text = (FOLDER / "README.md").read_text()
     assert CARD_MARKER in text and "128 codes per hand" in text
-    rows = _card_table(text, section)
+    rows = card_table(text, section)
     assert set(rows) == set(recorded[key])
     assert {IN_RANGE_PREFIX + h for h in model.config.trained_hands} | {G1} <= set(rows)
-    for name, cells in rows.items():
-        want = recorded[key][name]
-        assert int(cells[0]) == want["rows"]
-        for cell, metric in zip(cells[1:], ("mpjae_deg", "mpjpe_mm", "fingertip_mm"), strict=True):
-            assert cell == f"{want[metric]:.4g}", (name, metric)
+    assert_rows_are_recorded(rows, recorded[key])
     assert re.fullmatch(r"[0-9a-f]{40}", recorded["commit"]) and recorded["training_cpu_s"] > 60
     assert recorded["encoding"] == encoding(model.config) == "nearest codes"
     assert recorded["symbols_per_hand"] == {"all stages": 128, "first stage": 64}
