@@ -223,11 +223,6 @@ class FingerPress(Task):
     def state_names(self) -> list[str]:
         return list(TASK_COLUMNS[self.name])
 
-    def button_layout(self) -> dict[str, np.ndarray]:
-        """Where each finger's button sits on the panel (cap top centre, panel frame), from the hand's own
-        kinematics: where its tip is at its press posture with the wrist at HOVER_M (see `press_geometry`)."""
-        return {f: top for f, (top, _) in press_geometry(self.hand, self.HOVER_M).items()}
-
     def add_to_spec(self, spec: mujoco.MjSpec) -> None:
         geometry = press_geometry(self.hand, self.HOVER_M)
         layout = {f: top for f, (top, _) in geometry.items()}
