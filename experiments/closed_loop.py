@@ -31,10 +31,11 @@ as a loss weight, wrist actions in the hand's grasp-centre frame) unless its row
   as often as when it trains alone for `steps`), where every other arm trains `steps` (matched compute);
 - `pooled_<n>`: the recipe before 2026-12-05 on the same demonstrations: LeRobot's one set of statistics for the
   mix, every slot trained, the target's pool written `target_weight` times (copies), the wrist frame of the robot;
-- the ablations (on `ablation_targets`, default every target; `mix_rule` runs on every target), each `mix_<n>` with one mechanism off: `no_hand_norm_<n>` (LeRobot's statistics),
+- the ablations, each `mix_<n>` with one mechanism off: `no_hand_norm_<n>` (LeRobot's statistics),
   `state_norm_<n>` (the state per hand too, the default until commit 7d0a25a), `no_mask_<n>` (every slot
   trained), `copies_<n>` (the `target_weight` copies instead of the share),
-  `no_frame_<n>` (wrist actions in the robot's wrist frame);
+  `no_frame_<n>` (wrist actions in the robot's wrist frame); these, `mix_rule` and `pooled` run on `ablation_targets`
+  (default every target: `PRUNED`);
 - `packed_<n>`: `mix_<n>` with each hand's native joints packed at the front of the block and zero-padded (on the
   finger task only: the grasp closes every finger together, and there the two tied in the first table);
 - `tokens_nearest_<n>`, `tokens_search_<n>`: `mix_<n>` with the hands given to the model only as the tokenizer's
@@ -72,7 +73,8 @@ from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 logger = logging.getLogger(__name__)
 NAME = "closed_loop"
 TASKS = ("GraspLift-v0", "FingerPress-v0")
-HANDS = ("inspire_rh56_unitree", "shadow", "allegro")
+# the issue's three hands, then every other hand the simulator models (docs/lerobot.md "The hands' models")
+HANDS = ("inspire_rh56_unitree", "shadow", "allegro", "leap", "xhand1", "linkerhand_l10")
 # arm -> (its dataset, lerobot-train flags beyond the recipe's); the dataset: the target alone, the mix with the target's
 # share (`mix`), the mix of the target's copies (`copies`), the packed mix, or the other hands without it
 NO_FRAME = ("--policy.udt_wrist_frame=robot",)
@@ -94,7 +96,9 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "zero_shot_no_frame": ("without", NO_FRAME),
 }
 MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
-ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")  # run on ablation_targets
+ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")
+# run on ablation_targets: the ablations, the old recipe and the budget rule's arm (10x the updates at a tenth)
+PRUNED = (*ABLATIONS, "pooled", "mix_rule")
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 EXPERT_NOISE_SEED = 2_000_000  # the expert's noise on evaluation episode i: this + i (never a recording's)
 RECORD_SEED = 100_000  # recording: episode draws from RECORD_SEED + k, the expert's noise from RECORD_NOISE + k
@@ -113,14 +117,13 @@ class ClosedLoopConfig:
     arms: list[str] = field(default_factory=lambda: ["alone", "mix", "pooled", "zero_shot"])
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
     pool: int = 50  # expert episodes recorded per task and hand (the most `alone` trains on, a mix's other hands)
-    # the target's share of every batch's loss in a mix (`unidextok-mix --weights`, honoured by sampling): about
-    # half, as cross_embodiment.py found a small target needs; the other hands share the rest equally. In closed
-    # loop a tenth did as well or better with three hands and much better with six (docs/lerobot.md "Six hands
-    # pooled"); the headline table keeps half until it is rerun. 0 = no weights: each episode once, the target at
-    # its frame share (`unidextok-mix` without --weights; no budget-rule arm)
-    target_share: float = 0.5
+    # the target's share of every batch's loss in a mix (`unidextok-mix --weights`, as a loss weight); the other
+    # hands share the rest equally. A tenth: with 10 target demonstrations among six hands' it beat half on every
+    # pair and no weights on the grasp (docs/lerobot.md "Pooling hands"). 0 = no weights: each episode once, the
+    # target at its frame share (`unidextok-mix` without --weights; no budget-rule arm)
+    target_share: float = 0.1
     # the `pooled` and `copies` arms: how many times the mix writes the target's demonstrations (the recipe before
-    # 2026-12-05): 10 of them x 10 against 2 x 50 of the other hands make the target about half of the frames
+    # 2026-12-05): 10 of them x 10 make the target half of the frames beside two other hands' 50 each, 29 % beside five
     target_weight: float = 10.0
     steps: int = 400  # lerobot-train updates per policy (`mix_rule`: steps / target_share)
     batch_size: int = 32
@@ -135,7 +138,8 @@ class ClosedLoopConfig:
     output_root: str = "outputs/experiments"
     cache_dir: str = "outputs/experiments/_sim"  # recorded, converted and mixed datasets (reused when complete)
     figure_to: str = ""  # also write the figure there (e.g. docs/images/closed_loop.png)
-    # the targets of the ablation arms (`ABLATIONS`; empty = every target): prune pairs, not seeds or episodes
+    # the targets of the ablations, the old recipe and the budget rule (`PRUNED`; empty = every target): prune
+    # pairs, not seeds or episodes
     ablation_targets: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -374,7 +378,7 @@ def jobs(cfg: ClosedLoopConfig) -> list[dict]:
         for hand in cfg.target_hands:
             for seed in cfg.seeds:
                 for arm in (a for a in ARMS if a in cfg.arms):
-                    if arm in ABLATIONS and cfg.ablation_targets and hand not in cfg.ablation_targets:
+                    if arm in PRUNED and cfg.ablation_targets and hand not in cfg.ablation_targets:
                         continue
                     if arm in FINGER_ONLY and task != "FingerPress-v0":
                         continue

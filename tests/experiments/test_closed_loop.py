@@ -22,7 +22,7 @@ def test_every_arm_is_trained_bound_and_scored_in_closed_loop(tmp_path):
                          for a in ("alone_2", "mix_2", "mix_rule_2", "pooled_2", "packed_2", "tokens_nearest_2",
                                    "zero_shot")}  # fmt: skip
     assert all(r["episodes"] == 2 and 0 <= r["successes"] <= 2 for r in runs.values())
-    assert runs[("shadow", "mix_rule_2")]["steps"] == 4 and runs[("shadow", "mix_2")]["steps"] == 2  # steps / 0.5
+    assert runs[("shadow", "mix_rule_2")]["steps"] == 20 and runs[("shadow", "mix_2")]["steps"] == 2  # steps / 0.1
     folder = tmp_path / "out" / cl.NAME
     bound = json.loads((folder / "policies/FingerPress-v0/shadow/mix_2_seed0/bound/config.json").read_text())
     assert bound["udt_hand_vocabulary"] == ["allegro", "shadow"] and bound["udt_fixed_hand_ids"] == [1]
@@ -39,13 +39,13 @@ def test_every_arm_is_trained_bound_and_scored_in_closed_loop(tmp_path):
     assert tokens["udt_pretrained"] == "unidextok/universal-small" and bound["udt_pretrained"] is None
     # the mix for a target writes each episode once with the target's share; the pooled arm's writes its pool
     # target_weight times; the packed mix is append_pad
-    mix = UdhmDatasetMeta(tmp_path / "sim/FingerPress-v0/mix_semantic_for_shadow_s0.5").record
-    assert [s.repeats for s in mix.sources] == [1, 1] and [s.share for s in mix.sources] == [0.5, 0.5]
+    mix = UdhmDatasetMeta(tmp_path / "sim/FingerPress-v0/mix_semantic_for_shadow_s0.1").record
+    assert [s.repeats for s in mix.sources] == [1, 1] and [s.share for s in mix.sources] == [0.1, 0.9]
     copies = UdhmDatasetMeta(tmp_path / "sim/FingerPress-v0/mix_semantic_for_shadow_w10").record
     # whole repeats that bring the frame shares near 10:1 (9 or 10 with these episode lengths), no share recorded
     assert copies.sources[0].repeats in (9, 10) and copies.sources[1].repeats == 1
     assert [s.share for s in copies.sources] == [0.0, 0.0]
-    assert UdhmDatasetMeta(tmp_path / "sim/FingerPress-v0/mix_packed_for_shadow_s0.5").record.mapping == "append_pad"
+    assert UdhmDatasetMeta(tmp_path / "sim/FingerPress-v0/mix_packed_for_shadow_s0.1").record.mapping == "append_pad"
     costs = result["costs"]
     assert costs["data_cpu_s"] > 0 and costs["train_cpu_s"] > 0 and costs["eval_cpu_s"] > 0
     text = cl.markdown(result)
@@ -74,19 +74,20 @@ def test_bad_options_are_named():
         cl.ClosedLoopConfig(target_share=0.0, arms=["mix", "mix_rule"])
     assert "frame share" in cl.share_words(400, 0.0) and "800" in cl.share_words(400, 0.5)
     with pytest.raises(ValueError, match=r"targets \['leap'\] are not among hands"):
-        cl.ClosedLoopConfig(targets=["leap"])
+        cl.ClosedLoopConfig(hands=["shadow", "allegro"], targets=["leap"])
     with pytest.raises(ValueError, match=r"ablation_targets \['leap'\] are not among hands"):
-        cl.ClosedLoopConfig(ablation_targets=["leap"])
+        cl.ClosedLoopConfig(hands=["shadow", "allegro"], ablation_targets=["leap"])
 
 
 def test_packed_runs_on_the_finger_task_only_and_ablations_on_their_targets():
-    cfg = cl.ClosedLoopConfig(arms=["mix", "mix_rule", "packed", "no_mask"], mix_demos=[10], seeds=[0],
+    cfg = cl.ClosedLoopConfig(arms=["mix", "mix_rule", "pooled", "packed", "no_mask"], mix_demos=[10], seeds=[0],
                               ablation_targets=["shadow"])  # fmt: skip
     runs = {(j["task"], j["hand"], j["arm"]) for j in cl.jobs(cfg)}
-    assert {a for t, _, a in runs if t == "GraspLift-v0"} == {"mix_10", "mix_rule_10", "no_mask_10"}
-    assert {h for _, h, a in runs if a == "no_mask_10"} == {"shadow"}
-    assert {h for _, h, a in runs if a == "mix_rule_10"} == set(cl.HANDS)  # the rule's budget: every pair, not an ablation
-    assert {h for t, h, a in runs if a == "packed_10"} == set(cl.HANDS) and len(runs) == 2 * 3 * 2 + 3 + 2
+    assert {a for t, _, a in runs if t == "GraspLift-v0"} == {"mix_10", "mix_rule_10", "pooled_10", "no_mask_10"}
+    for pruned in ("no_mask_10", "mix_rule_10", "pooled_10"):  # 10x the updates at a tenth, the old recipe: pruned too
+        assert {h for _, h, a in runs if a == pruned} == {"shadow"}
+    assert {h for _, h, a in runs if a == "mix_10"} == set(cl.HANDS) == {h for t, h, a in runs if a == "packed_10"}
+    assert len(runs) == 2 * 6 + 6 + 2 * 3
 
 
 @pytest.mark.slow
