@@ -1,0 +1,145 @@
+"""Where each hand's scripted expert holds an object when it lifts it, in the grasp-centre frame the policies learn.
+
+A mix teaches a hand what the other hands did: with wrist actions in the grasp-centre frame (docs/lerobot.md "The
+grasp-centre frame"), where their grasp centres went relative to the object. This measures that point per hand on
+the GraspLift recordings `experiments/closed_loop.py` made (its `--cache_dir`), so a hand whose own point lies far
+from the others' can be told apart from one the policy simply fails on.
+
+Per recorded episode: the lift frame is the first whose object centre is `lift_m` above where it rested; there the
+grasp centre c_h (the recording's `meta/unidextok_wrist_frame.json`) in world is wrist xyz + R(roll, pitch, yaw) c_h,
+and its offset from the object centre is turned into the object's frame by the object's yaw (the drawn yaw of a box;
+a cylinder's is 0). The grasp kind follows the object (`lerobot_env_unidextok.tasks.SHAPES`: power for the two
+larger shapes, pinch for the two small ones). Per hand and kind: the mean offset (cm), its spread, the wrist pitch
+(rad), and the distance from the hand's mean offset to the mean of the other hands' (what a policy pooled without
+this hand is taught).
+
+    python experiments/grasp_points.py --cache_dir=outputs/experiments/_sim
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on sys.path, for `experiments.*`
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from experiments import runtime
+from experiments.closed_loop import HANDS
+from experiments.common import git_commit, md_table, write_result
+
+logger = logging.getLogger(__name__)
+NAME = "grasp_points"
+TASK = "GraspLift-v0"
+PINCH_HALF_M = 0.02  # SHAPES: the power shapes' half widths are >= 0.022 m, the pinch shapes' <= 0.017 m
+
+
+@dataclass
+class GraspPointsConfig:
+    cache_dir: str = "outputs/experiments/_sim"  # closed_loop.py's: <cache_dir>/GraspLift-v0/<hand>/native_<pool>
+    hands: list[str] = field(default_factory=lambda: list(HANDS))
+    pool: int = 50
+    lift_m: float = 0.01  # the object counts as lifted this far above its resting height
+    output_root: str = "outputs/experiments"
+
+
+def rotation_rpy(rpy: np.ndarray) -> np.ndarray:
+    """(3,) roll, pitch, yaw (rad) -> (3, 3) Rz(yaw) Ry(pitch) Rx(roll), the recordings' convention."""
+    (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    return rz @ ry @ rx
+
+
+def grasp_point(state: np.ndarray, names: list[str], centre_m: np.ndarray, lift_m: float) -> dict | None:
+    """One episode's (T, D) state -> {"kind", "offset_m" (3,), "pitch_rad"} at its lift frame (None: never lifted)."""
+    col = {n: i for i, n in enumerate(names)}
+    z = state[:, col["object_z"]]
+    lifted = np.flatnonzero(z > z[0] + lift_m)
+    if not len(lifted):
+        return None
+    row = state[lifted[0]]
+    wrist = row[[col[n] for n in ("wrist_x", "wrist_y", "wrist_z")]]
+    rpy = row[[col[n] for n in ("wrist_roll", "wrist_pitch", "wrist_yaw")]]
+    obj = row[[col[n] for n in ("object_x", "object_y", "object_z")]]
+    world = wrist + rotation_rpy(rpy) @ centre_m - obj  # grasp centre from the object centre, world axes
+    yaw = row[col["object_yaw"]]
+    in_object = rotation_rpy(np.array([0.0, 0.0, -yaw])) @ world
+    kind = "pinch" if row[col["object_half_x"]] < PINCH_HALF_M else "power"
+    return {"kind": kind, "offset_m": in_object, "pitch_rad": float(rpy[1])}
+
+
+def hand_points(cfg: GraspPointsConfig, hand: str) -> list[dict]:
+    """Every recorded episode's grasp point of one hand."""
+    import json
+
+    import pandas as pd
+
+    from lerobot_unidextok.constants import DATA_GLOB, INFO_PATH
+    from lerobot_unidextok.data.wrist_frame import read_recorded
+
+    root = Path(cfg.cache_dir) / TASK / hand / f"native_{cfg.pool}"
+    frame = read_recorded(root)
+    if frame is None or hand not in frame.grasp_centre_in_wrist_m:
+        raise FileNotFoundError(f"{root}: no recorded GraspLift dataset with a grasp centre for {hand}; record it "
+                                f"with experiments/closed_loop.py --cache_dir={cfg.cache_dir} --hands='[{hand}]'")  # fmt: skip
+    names = json.loads((root / INFO_PATH).read_text())["features"]["observation.state"]["names"]
+    table = pd.concat([pd.read_parquet(p) for p in sorted(root.glob(DATA_GLOB))])
+    centre = np.asarray(frame.grasp_centre_in_wrist_m[hand])
+    points = []
+    for _, episode in table.groupby("episode_index"):
+        state = np.stack(episode.sort_values("frame_index")["observation.state"].to_numpy())
+        point = grasp_point(state, names, centre, cfg.lift_m)
+        points.append(point or {"kind": "never lifted"})
+    return points
+
+
+def run(cfg: GraspPointsConfig) -> dict:
+    t0 = time.time()
+    points = {hand: hand_points(cfg, hand) for hand in cfg.hands}
+    rows = []
+    for kind in ("power", "pinch"):
+        means = {h: np.mean([p["offset_m"] for p in ps if p["kind"] == kind], axis=0) for h, ps in points.items()}
+        for hand, ps in points.items():
+            own = [p for p in ps if p["kind"] == kind]
+            offsets = np.array([p["offset_m"] for p in own])
+            others = np.mean([m for h, m in means.items() if h != hand], axis=0)
+            rows.append({"hand": hand, "kind": kind, "episodes": len(own),
+                         "offset_cm": (100 * offsets.mean(0)).round(1).tolist(),
+                         "spread_cm": round(float(100 * np.linalg.norm(offsets.std(0))), 1),
+                         "pitch_rad": round(float(np.mean([p["pitch_rad"] for p in own])), 2),
+                         "from_others_cm": round(float(100 * np.linalg.norm(means[hand] - others)), 1)})  # fmt: skip
+    never = {h: sum(p["kind"] == "never lifted" for p in ps) for h, ps in points.items()}
+    return {"config": vars(cfg), "rows": rows, "never_lifted": never, "git_commit": git_commit(),
+            "wall_seconds": round(time.time() - t0, 1)}  # fmt: skip
+
+
+def markdown(result: dict) -> str:
+    head = ["hand", "grasp", "episodes", "offset x, y, z (cm)", "spread (cm)", "wrist pitch (rad)",
+            "from the other hands' mean (cm)"]  # fmt: skip
+    rows = [[r["hand"], r["kind"], r["episodes"], ", ".join(f"{v:+.1f}" for v in r["offset_cm"]), f"{r['spread_cm']:.1f}",
+             f"{r['pitch_rad']:.2f}", f"{r['from_others_cm']:.1f}"] for r in result["rows"]]  # fmt: skip
+    return md_table(head, rows)
+
+
+def run_and_write(cfg: GraspPointsConfig) -> dict:
+    result = run(cfg)
+    folder = Path(cfg.output_root) / NAME
+    folder.mkdir(parents=True, exist_ok=True)
+    write_result(folder, NAME, result, f"# {NAME}\n\n{markdown(result)}")
+    return result
+
+
+def main(argv: list[str] | None = None) -> None:
+    runtime.cli(GraspPointsConfig, run_and_write, markdown, argv)
+
+
+if __name__ == "__main__":
+    main()

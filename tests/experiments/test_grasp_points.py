@@ -1,0 +1,33 @@
+"""experiments/grasp_points.py: the grasp centre's offset from the object at the lift frame, in the object's frame."""
+
+import numpy as np
+
+from experiments import grasp_points as gp
+
+NAMES = ["wrist_x", "wrist_y", "wrist_z", "wrist_roll", "wrist_pitch", "wrist_yaw", "object_x", "object_y", "object_z",
+         "object_yaw", "object_half_x", "object_half_y", "object_half_z", "goal_z", "finger"]  # fmt: skip
+
+
+def episode(wrist: list[float], obj_xyz: list[float], obj_yaw: float, half_x: float, lift_at: int) -> np.ndarray:
+    state = np.zeros((8, len(NAMES)))
+    state[:, :6] = wrist
+    state[:, 6:9] = obj_xyz
+    state[:, 9] = obj_yaw
+    state[:, 10:13] = half_x
+    state[lift_at:, 8] += 0.03  # the object rises 3 cm from frame `lift_at` on
+    return state
+
+
+def test_the_offset_is_the_grasp_centre_from_the_object_in_its_own_frame():
+    # the wrist pitched 90 degrees down: the centre 5 cm along the wrist's x points straight down (world -z)
+    state = episode([0.10, 0.02, 0.20, 0.0, np.pi / 2, 0.0], [0.10, 0.0, 0.10], np.pi / 2, 0.025, lift_at=5)
+    point = gp.grasp_point(state, NAMES, np.array([0.05, 0.0, 0.0]), lift_m=0.01)
+    # world offset at frame 5: (0, 0.02, 0.20 - 0.05 - 0.13); in the frame of the object, yawed 90 degrees, world y is its x
+    np.testing.assert_allclose(point["offset_m"], [0.02, 0.0, 0.02], atol=1e-12)
+    assert point["kind"] == "power" and point["pitch_rad"] == np.pi / 2
+
+
+def test_a_small_object_is_a_pinch_and_an_object_never_lifted_gives_nothing():
+    pinch = episode([0.0, 0.0, 0.1, 0.0, 0.0, 0.0], [0.0, 0.0, 0.05], 0.0, 0.015, lift_at=3)
+    assert gp.grasp_point(pinch, NAMES, np.zeros(3), lift_m=0.01)["kind"] == "pinch"
+    assert gp.grasp_point(pinch, NAMES, np.zeros(3), lift_m=0.05) is None  # it rose 3 cm, not 5
