@@ -8,8 +8,8 @@
 Data (`lerobot_env_unidextok`, 10 fps): per task and hand, `pool` scripted expert episodes recorded as a LeRobot v3
 dataset in the hand's native units (`record.record`, what `unidextok-sim-record` runs), converted with
 `unidextok-convert --source=lerobot` (semantic insertion, and `--mapping=append_pad` for the packed arm, no test
-split: the test is the simulator), and mixed with `unidextok-mix --keep=all` (one mix of the three hands per task
-and mapping; per left-out hand, a mix of the other two). The conversion and mix run in this process through the
+split: the test is the simulator), and mixed with `unidextok-mix --keep=all` (per target, task and mapping one mix of
+every hand of `hands`; per left-out hand, a mix of the others). The conversion and mix run in this process through the
 functions the CLIs call.
 Policy: `act_udt_cpu.yaml` through LeRobot's own `lerobot-train` code (`lerobot.scripts.lerobot_train.train`, in
 this process; its dataset items read once per process and then served from memory, `_MemoryFrames`) with
@@ -118,8 +118,8 @@ class ClosedLoopConfig:
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
     pool: int = 50  # expert episodes recorded per task and hand (the most `alone` trains on, a mix's other hands)
     # the target's share of every batch's loss in a mix (`unidextok-mix --weights`, as a loss weight); the other
-    # hands share the rest equally. A tenth: with 10 target demonstrations among six hands' it beat half on every
-    # pair and no weights on the grasp (docs/lerobot.md "Pooling hands"). 0 = no weights: each episode once, the
+    # hands share the rest equally. A tenth: with 10 target demonstrations among six hands' it beat half on 11 of
+    # 12 pairs (tied on the 12th) and no weights on the grasp (docs/lerobot.md "Pooling hands"). 0 = no weights: each episode once, the
     # target at its frame share (`unidextok-mix` without --weights; no budget-rule arm)
     target_share: float = 0.1
     # the `pooled` and `copies` arms: how many times the mix writes the target's demonstrations (the recipe before
