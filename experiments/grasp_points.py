@@ -13,7 +13,7 @@ larger shapes, pinch for the two small ones). Per hand and kind: the mean offset
 (rad), and the distance from the hand's mean offset to the mean of the other hands' (what a policy pooled without
 this hand is taught).
 
-    python experiments/grasp_points.py --cache_dir=outputs/experiments/_sim
+    python experiments/grasp_points.py --cache_dir=outputs/experiments/_sim [--frame=wrist]
 """
 
 from __future__ import annotations
@@ -37,6 +37,7 @@ from experiments.common import git_commit, md_table, write_result
 logger = logging.getLogger(__name__)
 NAME = "grasp_points"
 TASK = "GraspLift-v0"
+FRAMES = ("grasp_centre", "wrist")
 PINCH_HALF_M = 0.02  # SHAPES: the power shapes' half widths are >= 0.022 m, the pinch shapes' <= 0.017 m
 
 
@@ -46,7 +47,14 @@ class GraspPointsConfig:
     hands: list[str] = field(default_factory=lambda: list(HANDS))
     pool: int = 50
     lift_m: float = 0.01  # the object counts as lifted this far above its resting height
+    # the point measured: the hand's grasp centre (what the policies learn with `udt_wrist_frame=grasp_centre`) or
+    # the wrist itself (what they learn in the robot's wrist frame, `closed_loop.py`'s `no_frame` arms)
+    frame: str = "grasp_centre"
     output_root: str = "outputs/experiments"
+
+    def __post_init__(self) -> None:
+        if self.frame not in FRAMES:
+            raise ValueError(f"frame must be one of {FRAMES}, got {self.frame!r}")
 
 
 def rotation_rpy(rpy: np.ndarray) -> np.ndarray:
@@ -92,7 +100,7 @@ def hand_points(cfg: GraspPointsConfig, hand: str) -> list[dict]:
                                 f"with experiments/closed_loop.py --cache_dir={cfg.cache_dir} --hands='[{hand}]'")  # fmt: skip
     names = json.loads((root / INFO_PATH).read_text())["features"]["observation.state"]["names"]
     table = pd.concat([pd.read_parquet(p) for p in sorted(root.glob(DATA_GLOB))])
-    centre = np.asarray(frame.grasp_centre_in_wrist_m[hand])
+    centre = np.asarray(frame.grasp_centre_in_wrist_m[hand]) if cfg.frame == "grasp_centre" else np.zeros(3)
     points = []
     for _, episode in table.groupby("episode_index"):
         state = np.stack(episode.sort_values("frame_index")["observation.state"].to_numpy())
@@ -131,9 +139,10 @@ def markdown(result: dict) -> str:
 
 def run_and_write(cfg: GraspPointsConfig) -> dict:
     result = run(cfg)
-    folder = Path(cfg.output_root) / NAME
+    name = NAME if cfg.frame == "grasp_centre" else f"{NAME}_{cfg.frame}"
+    folder = Path(cfg.output_root) / name
     folder.mkdir(parents=True, exist_ok=True)
-    write_result(folder, NAME, result, f"# {NAME}\n\n{markdown(result)}")
+    write_result(folder, name, result, f"# {name}\n\n{markdown(result)}")
     return result
 
 

@@ -1,6 +1,7 @@
 """experiments/grasp_points.py: the grasp centre's offset from the object at the lift frame, in the object's frame."""
 
 import numpy as np
+import pytest
 
 from experiments import grasp_points as gp
 
@@ -31,3 +32,8 @@ def test_a_small_object_is_a_pinch_and_an_object_never_lifted_gives_nothing():
     pinch = episode([0.0, 0.0, 0.1, 0.0, 0.0, 0.0], [0.0, 0.0, 0.05], 0.0, 0.015, lift_at=3)
     assert gp.grasp_point(pinch, NAMES, np.zeros(3), lift_m=0.01)["kind"] == "pinch"
     assert gp.grasp_point(pinch, NAMES, np.zeros(3), lift_m=0.05) is None  # it rose 3 cm, not 5
+
+
+def test_an_unknown_frame_is_named():
+    with pytest.raises(ValueError, match=r"frame must be one of \('grasp_centre', 'wrist'\)"):
+        gp.GraspPointsConfig(frame="palm")
