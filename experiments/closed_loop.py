@@ -112,9 +112,10 @@ class ClosedLoopConfig:
     # the hands scored as the target (every policy arm, the expert); empty = each of `hands`. The mixes still pool
     # every hand of `hands`: `--targets='[inspire_rh56_unitree]'` runs one hand-task pair of the full table
     targets: list[str] = field(default_factory=list)
-    demos: list[int] = field(default_factory=lambda: [10, 25, 50])  # target demonstrations of the `alone` arms
-    mix_demos: list[int] = field(default_factory=lambda: [10, 25])  # target demonstrations of the mix arms
-    arms: list[str] = field(default_factory=lambda: ["alone", "mix", "pooled", "zero_shot"])
+    demos: list[int] = field(default_factory=lambda: [10, 25])  # target demonstrations of the `alone` arms
+    mix_demos: list[int] = field(default_factory=lambda: [10])  # target demonstrations of the mix arms
+    # the main table; docs/lerobot.md "Pooling hands" adds the ablations and the budget rule's arm
+    arms: list[str] = field(default_factory=lambda: ["alone", "mix", "packed", "zero_shot"])
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
     pool: int = 50  # expert episodes recorded per task and hand (the most `alone` trains on, a mix's other hands)
     # the target's share of every batch's loss in a mix (`unidextok-mix --weights`, as a loss weight); the other

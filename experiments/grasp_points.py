@@ -58,12 +58,12 @@ class GraspPointsConfig:
 
 
 def rotation_rpy(rpy: np.ndarray) -> np.ndarray:
-    """(3,) roll, pitch, yaw (rad) -> (3, 3) Rz(yaw) Ry(pitch) Rx(roll), the recordings' convention."""
-    (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
-    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    return rz @ ry @ rx
+    """(3,) roll, pitch, yaw (rad) -> (3, 3), the recordings' convention (the wrist-frame step's own rotation)."""
+    import torch
+
+    from lerobot_unidextok.processor.wrist_frame import rotation_rpy as rotation
+
+    return rotation(torch.as_tensor(rpy, dtype=torch.float64)).numpy()
 
 
 def grasp_point(state: np.ndarray, names: list[str], centre_m: np.ndarray, lift_m: float) -> dict | None:
