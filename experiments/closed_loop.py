@@ -120,11 +120,12 @@ class ClosedLoopConfig:
     pool: int = 50  # expert episodes recorded per task and hand (the most `alone` trains on, a mix's other hands)
     # the target's share of every batch's loss in a mix (`unidextok-mix --weights`, as a loss weight); the other
     # hands share the rest equally. A tenth: with 10 target demonstrations among six hands' it beat half on 11 of
-    # 12 pairs (tied on the 12th) and no weights on the grasp (docs/lerobot.md "Pooling hands"). 0 = no weights: each episode once, the
-    # target at its frame share (`unidextok-mix` without --weights; no budget-rule arm)
+    # 12 pairs (tied on the 12th) and no weights on the grasp (docs/lerobot.md "Pooling hands"). 0 = no weights:
+    # each episode once, the target at its frame share (`unidextok-mix` without --weights; no budget-rule arm)
     target_share: float = 0.1
     # the `pooled` and `copies` arms: how many times the mix writes the target's demonstrations (the recipe before
-    # 2026-12-05): 10 of them x 10 make the target half of the frames beside two other hands' 50 each, 29 % beside five
+    # 2026-12-05): 10 of them x 10 make the target half of the frames beside two other hands' 50 each, 29 % beside
+    # five
     target_weight: float = 10.0
     steps: int = 400  # lerobot-train updates per policy (`mix_rule`: steps / target_share)
     batch_size: int = 32
