@@ -23,7 +23,8 @@ re-plans every step stalls where the demonstrations pause); mixed checkpoints bo
 Arms, per task, target hand and seed (the target's demonstrations: a seed's random subset of its pool). The recipe
 of every arm is the `<type>_udt` defaults (per-hand statistics, no loss on the slots a hand lacks, each input's share
 as a loss weight, wrist actions in the hand's grasp-centre frame) unless its row says what it turns off:
-- `alone_<n>` for n in `demos`: that hand's n demonstrations alone (its UDHM state);
+- `alone_<n>` for n in `demos`: that hand's n demonstrations alone (its UDHM state); `alone_no_frame_<n>`: the same
+  with wrist actions in the robot's wrist frame;
 - `mix_<n>` for n in `mix_demos`: the target's n demonstrations and every demonstration of the other hands, in one
   UDHM layout (semantic insertion), the hand's identity one-hot (unidextok-mix, each episode written once, the
   target's share of every batch's loss `target_share`), bound to the target;
@@ -34,8 +35,8 @@ as a loss weight, wrist actions in the hand's grasp-centre frame) unless its row
 - the ablations, each `mix_<n>` with one mechanism off: `no_hand_norm_<n>` (LeRobot's statistics),
   `state_norm_<n>` (the state per hand too, the default until commit 7d0a25a), `no_mask_<n>` (every slot
   trained), `copies_<n>` (the `target_weight` copies instead of the share),
-  `no_frame_<n>` (wrist actions in the robot's wrist frame); these, `mix_rule` and `pooled` run on `ablation_targets`
-  (default every target: `PRUNED`);
+  `no_frame_<n>` (wrist actions in the robot's wrist frame); these, `alone_no_frame`, `mix_rule` and `pooled` run on
+  `ablation_targets` (default every target: `PRUNED`);
 - `packed_<n>`: `mix_<n>` with each hand's native joints packed at the front of the block and zero-padded (on the
   finger task only: the grasp closes every finger together, and there the two tied in the first table);
 - `tokens_nearest_<n>`, `tokens_search_<n>`: `mix_<n>` with the hands given to the model only as the tokenizer's
@@ -81,6 +82,7 @@ NO_FRAME = ("--policy.udt_wrist_frame=robot",)
 POOLED = ("--policy.udt_hand_norm=off", "--policy.udt_mask_slots=false", *NO_FRAME)
 ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "alone": ("alone", ()),
+    "alone_no_frame": ("alone", NO_FRAME),
     "mix": ("mix", ()),
     "mix_rule": ("mix", ()),
     "pooled": ("copies", POOLED),
@@ -98,7 +100,7 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
 MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
 ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")
 # run on ablation_targets: the ablations, the old recipe and the budget rule's arm (10x the updates at a tenth)
-PRUNED = (*ABLATIONS, "pooled", "mix_rule")
+PRUNED = (*ABLATIONS, "alone_no_frame", "pooled", "mix_rule")
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 EXPERT_NOISE_SEED = 2_000_000  # the expert's noise on evaluation episode i: this + i (never a recording's)
 RECORD_SEED = 100_000  # recording: episode draws from RECORD_SEED + k, the expert's noise from RECORD_NOISE + k
@@ -384,7 +386,7 @@ def jobs(cfg: ClosedLoopConfig) -> list[dict]:
                         continue
                     if arm in FINGER_ONLY and task != "FingerPress-v0":
                         continue
-                    counts = [0] if ARMS[arm][0] == "without" else cfg.demos if arm == "alone" else cfg.mix_demos
+                    counts = [0] if ARMS[arm][0] == "without" else cfg.demos if ARMS[arm][0] == "alone" else cfg.mix_demos
                     out += [{"task": task, "hand": hand, "seed": seed, "arm": arm_label(arm, n), "kind": arm, "demos": n}
                             for n in counts]  # fmt: skip
     return out
@@ -647,7 +649,8 @@ ARM_TITLES = {"mix": "mix", "mix_rule": "mix, budget rule", "pooled": "mix, pool
               "copies": "mix with copies, not shares", "no_frame": "mix without the grasp-centre frame",
               "packed": "mix, packed native", "tokens_nearest": "mix, tokens (nearest)",
               "tokens_search": "mix, tokens (tokenizer's encoding)", "zero_shot": "zero-shot (other hands only)",
-              "zero_shot_no_frame": "zero-shot without the grasp-centre frame", "alone": "alone"}  # fmt: skip
+              "zero_shot_no_frame": "zero-shot without the grasp-centre frame", "alone": "alone",
+              "alone_no_frame": "alone without the grasp-centre frame"}  # fmt: skip
 
 
 def arm_title(label: str) -> str:

@@ -80,14 +80,17 @@ def test_bad_options_are_named():
 
 
 def test_packed_runs_on_the_finger_task_only_and_ablations_on_their_targets():
-    cfg = cl.ClosedLoopConfig(arms=["mix", "mix_rule", "pooled", "packed", "no_mask"], mix_demos=[10], seeds=[0],
-                              ablation_targets=["shadow"])  # fmt: skip
+    cfg = cl.ClosedLoopConfig(arms=["mix", "mix_rule", "pooled", "packed", "no_mask", "alone_no_frame"], seeds=[0],
+                              demos=[10, 25], mix_demos=[10], ablation_targets=["shadow"])  # fmt: skip
     runs = {(j["task"], j["hand"], j["arm"]) for j in cl.jobs(cfg)}
-    assert {a for t, _, a in runs if t == "GraspLift-v0"} == {"mix_10", "mix_rule_10", "pooled_10", "no_mask_10"}
-    for pruned in ("no_mask_10", "mix_rule_10", "pooled_10"):  # 10x the updates at a tenth, the old recipe: pruned too
+    assert {a for t, _, a in runs if t == "GraspLift-v0"} == {"mix_10", "mix_rule_10", "pooled_10", "no_mask_10",
+                                                               "alone_no_frame_10", "alone_no_frame_25"}  # fmt: skip
+    # 10x the updates at a tenth, the old recipe, the hand alone in the robot's frame (at `demos`): pruned too
+    for pruned in ("no_mask_10", "mix_rule_10", "pooled_10", "alone_no_frame_10", "alone_no_frame_25"):
         assert {h for _, h, a in runs if a == pruned} == {"shadow"}
     assert {h for _, h, a in runs if a == "mix_10"} == set(cl.HANDS) == {h for t, h, a in runs if a == "packed_10"}
-    assert len(runs) == 2 * 6 + 6 + 2 * 3
+    assert len(runs) == 2 * 6 + 6 + 2 * 5
+    assert cl.arm_title("alone_no_frame_25") == "alone without the grasp-centre frame, 25 demos"
 
 
 @pytest.mark.slow
