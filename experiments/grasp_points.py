@@ -84,8 +84,8 @@ def grasp_point(state: np.ndarray, names: list[str], centre_m: np.ndarray, lift_
     return {"kind": kind, "offset_m": in_object, "pitch_rad": float(rpy[1])}
 
 
-def hand_points(cfg: GraspPointsConfig, hand: str) -> list[dict]:
-    """Every recorded episode's grasp point of one hand."""
+def hand_points(cfg: GraspPointsConfig, hand: str) -> tuple[list[dict], np.ndarray]:
+    """Every recorded episode's grasp point of one hand, and its grasp centre in the wrist frame (m)."""
     import json
 
     import pandas as pd
@@ -100,18 +100,20 @@ def hand_points(cfg: GraspPointsConfig, hand: str) -> list[dict]:
                                 f"with experiments/closed_loop.py --cache_dir={cfg.cache_dir} --hands='[{hand}]'")  # fmt: skip
     names = json.loads((root / INFO_PATH).read_text())["features"]["observation.state"]["names"]
     table = pd.concat([pd.read_parquet(p) for p in sorted(root.glob(DATA_GLOB))])
-    centre = np.asarray(frame.grasp_centre_in_wrist_m[hand]) if cfg.frame == "grasp_centre" else np.zeros(3)
+    grasp_centre = np.asarray(frame.grasp_centre_in_wrist_m[hand])
+    centre = grasp_centre if cfg.frame == "grasp_centre" else np.zeros(3)
     points = []
     for _, episode in table.groupby("episode_index"):
         state = np.stack(episode.sort_values("frame_index")["observation.state"].to_numpy())
         point = grasp_point(state, names, centre, cfg.lift_m)
         points.append(point or {"kind": "never lifted"})
-    return points
+    return points, grasp_centre
 
 
 def run(cfg: GraspPointsConfig) -> dict:
     t0 = time.time()
-    points = {hand: hand_points(cfg, hand) for hand in cfg.hands}
+    measured = {hand: hand_points(cfg, hand) for hand in cfg.hands}
+    points = {hand: ps for hand, (ps, _) in measured.items()}
     rows = []
     for kind in ("power", "pinch"):
         means = {h: np.mean([p["offset_m"] for p in ps if p["kind"] == kind], axis=0) for h, ps in points.items()}
@@ -123,7 +125,8 @@ def run(cfg: GraspPointsConfig) -> dict:
                          "offset_cm": (100 * offsets.mean(0)).round(1).tolist(),
                          "spread_cm": round(float(100 * np.linalg.norm(offsets.std(0))), 1),
                          "pitch_rad": round(float(np.mean([p["pitch_rad"] for p in own])), 2),
-                         "from_others_cm": round(float(100 * np.linalg.norm(means[hand] - others)), 1)})  # fmt: skip
+                         "from_others_cm": round(float(100 * np.linalg.norm(means[hand] - others)), 1),
+                         "centre_from_wrist_cm": round(float(100 * np.linalg.norm(measured[hand][1])), 1)})  # fmt: skip
     never = {h: sum(p["kind"] == "never lifted" for p in ps) for h, ps in points.items()}
     return {"config": vars(cfg), "rows": rows, "never_lifted": never, "git_commit": git_commit(),
             "wall_seconds": round(time.time() - t0, 1)}  # fmt: skip
@@ -131,9 +134,10 @@ def run(cfg: GraspPointsConfig) -> dict:
 
 def markdown(result: dict) -> str:
     head = ["hand", "grasp", "episodes", "offset x, y, z (cm)", "spread (cm)", "wrist pitch (rad)",
-            "from the other hands' mean (cm)"]  # fmt: skip
+            "from the other hands' mean (cm)", "grasp centre from the wrist (cm)"]  # fmt: skip
     rows = [[r["hand"], r["kind"], r["episodes"], ", ".join(f"{v:+.1f}" for v in r["offset_cm"]), f"{r['spread_cm']:.1f}",
-             f"{r['pitch_rad']:.2f}", f"{r['from_others_cm']:.1f}"] for r in result["rows"]]  # fmt: skip
+             f"{r['pitch_rad']:.2f}", f"{r['from_others_cm']:.1f}", f"{r['centre_from_wrist_cm']:.1f}"]
+            for r in result["rows"]]  # fmt: skip
     return md_table(head, rows)
 
 
