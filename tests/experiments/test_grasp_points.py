@@ -34,6 +34,10 @@ def test_a_small_object_is_a_pinch_and_an_object_never_lifted_gives_nothing():
     assert gp.grasp_point(pinch, NAMES, np.zeros(3), lift_m=0.05) is None  # it rose 3 cm, not 5
 
 
-def test_an_unknown_frame_is_named():
+def test_an_unknown_frame_and_a_hand_never_recorded_are_named(tmp_path):
     with pytest.raises(ValueError, match=r"frame must be one of \('grasp_centre', 'wrist'\)"):
         gp.GraspPointsConfig(frame="palm")
+    cfg = gp.GraspPointsConfig(cache_dir=str(tmp_path), hands=["shadow"])
+    with pytest.raises(FileNotFoundError, match=r"no recorded GraspLift dataset .* for shadow; record it with "
+                                                r"experiments/closed_loop.py"):  # fmt: skip
+        gp.run(cfg)
