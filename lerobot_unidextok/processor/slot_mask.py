@@ -53,7 +53,8 @@ class SlotMaskStep(ProcessorStep):
     extra_hands: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        self._sides = [b.side for b in find_udhm_blocks(self.state_names)]
+        self._state_blocks = find_udhm_blocks(self.state_names)
+        self._sides = [b.side for b in self._state_blocks]
         self._blocks = find_udhm_blocks(self.action_names)
         if not self._sides or not self._blocks or not self.hand_vocabulary:
             raise ValueError(f"{SLOT_MASK_STEP_NAME} needs state and action names with UDHM blocks and the hands")
@@ -64,13 +65,11 @@ class SlotMaskStep(ProcessorStep):
         active = np.stack([hands.get(h).active_mask for h in self.hand_vocabulary] + [np.zeros(UDHM_DIM, bool)])
         self._lacks = ~torch.as_tensor(active)  # (V + 1, 22): row V = no hand, every slot lacking
         self.extra_hands = list(self.extra_hands)
-        if self.hand_vocabulary[len(self.hand_vocabulary) - len(self.extra_hands):] != self.extra_hands:
+        self._first_extra = len(self.hand_vocabulary) - len(self.extra_hands)
+        if self._first_extra < 0 or self.hand_vocabulary[self._first_extra :] != self.extra_hands:
             raise ValueError(f"{SLOT_MASK_STEP_NAME}: extra_hands {self.extra_hands} must end hand_vocabulary "
                              f"{self.hand_vocabulary}")  # fmt: skip
-        trained = active[: len(self.hand_vocabulary) - len(self.extra_hands)].any(axis=0)
-        self._untrained = torch.as_tensor(~trained)  # (22,) slots no trained hand has
-        self._first_extra = len(self.hand_vocabulary) - len(self.extra_hands)
-        self._state_blocks = find_udhm_blocks(self.state_names)
+        self._untrained = torch.as_tensor(~active[: self._first_extra].any(axis=0))  # (22,) slots no trained hand has
 
     def pad_mask(self, ids: torch.Tensor, batch: int) -> torch.Tensor:
         """(batch, A) bool from (R, H) hand ids (R = batch, or 1 for a robot's fixed hands)."""
