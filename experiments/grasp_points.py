@@ -90,7 +90,8 @@ def hand_points(cfg: GraspPointsConfig, hand: str) -> tuple[list[dict], np.ndarr
 
     import pandas as pd
 
-    from lerobot_unidextok.constants import DATA_GLOB, INFO_PATH
+    from lerobot_unidextok.constants import INFO_PATH
+    from lerobot_unidextok.data.reader import data_files
     from lerobot_unidextok.data.wrist_frame import read_recorded
 
     root = Path(cfg.cache_dir) / TASK / hand / f"native_{cfg.pool}"
@@ -99,7 +100,7 @@ def hand_points(cfg: GraspPointsConfig, hand: str) -> tuple[list[dict], np.ndarr
         raise FileNotFoundError(f"{root}: no recorded GraspLift dataset with a grasp centre for {hand}; record it "
                                 f"with experiments/closed_loop.py --cache_dir={cfg.cache_dir} --hands='[{hand}]'")  # fmt: skip
     names = json.loads((root / INFO_PATH).read_text())["features"]["observation.state"]["names"]
-    table = pd.concat([pd.read_parquet(p) for p in sorted(root.glob(DATA_GLOB))])
+    table = pd.concat([pd.read_parquet(p) for p in data_files(root)])
     grasp_centre = np.asarray(frame.grasp_centre_in_wrist_m[hand])
     centre = grasp_centre if cfg.frame == "grasp_centre" else np.zeros(3)
     points = []
