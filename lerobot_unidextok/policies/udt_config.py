@@ -26,7 +26,8 @@ What the mixin adds to the stock config, in `validate_features` (run when the po
   statistics are of absolute actions, not of the offsets the policy predicts);
 - unless `udt_hand_norm=off`, the per-hand statistics of the action blocks, and of the state's with
   `udt_hand_norm_state` (`udt_hand_stats`: a mix's record, or one robot's training episodes,
-  `conversion/hand_stats.py`) and IDENTITY for those keys in LeRobot's normaliser, whose work `unidextok.hand_normalizer` does then (docs/lerobot.md "Pooling hands");
+  `conversion/hand_stats.py`) and IDENTITY for those keys in LeRobot's normaliser, whose work
+  `unidextok.hand_normalizer` does then (docs/lerobot.md "Pooling hands");
 - unless `udt_wrist_frame=robot`, the wrist columns and each hand's grasp centre (`udt_wrist_columns`,
   `udt_grasp_centres_m`: the dataset record's `wrist_frame`), for `unidextok.wrist_frame`.
 """
@@ -143,7 +144,8 @@ class UdtConfigMixin:
     # The mix's column renames (unidextok-mix --keep=all --name_map); filled from the dataset.
     udt_name_map: dict[str, str] = field(default_factory=dict)
     # Normalise each UDHM block of action (and observation.state: udt_hand_norm_state) with the statistics of the
-    # hand it holds in that row (step unidextok.hand_normalizer; relative actions: their offsets), the passthrough columns with their own:
+    # hand it holds in that row (step unidextok.hand_normalizer; relative actions: their offsets), the passthrough
+    # columns with their own:
     # auto (the stock policy's modes: ACT mean/std, Diffusion min/max) | mean_std | min_max | quantiles (q01/q99) |
     # quantile10 (q10/q90) | off (LeRobot's one set of statistics per column, as before 2026-12-05).
     udt_hand_norm: str = "auto"

@@ -15,8 +15,8 @@ Per-hand normalisation (`udt_hand_stats`, filled unless `udt_hand_norm=off`): `u
 normalises the action (and the state, `udt_hand_norm_state`) per hand before LeRobot's normaliser (IDENTITY for
 them then) and restores the action after its unnormaliser; `unidextok.slot_mask` marks the action slots each
 row's hand lacks for the loss (`udt_mask_slots`), `unidextok.share_weights` each row's share weight on a mix with
-`--weights`. Checkpoints saved
-before these (and `udt_hand_norm=off`) keep `unidextok.hand_action_scale` between the relative pair on a mix.
+`--weights`. Checkpoints saved before these (and `udt_hand_norm=off`) keep `unidextok.hand_action_scale` between
+the relative pair on a mix.
 
 The steps sit after `to_batch_processor`, so their outputs have the batch dimensions of the batched state
 (LeRobot's batching step adds them only to its own keys: with the tokenizer step before it,
