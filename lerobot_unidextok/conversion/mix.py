@@ -30,7 +30,8 @@ conversion's own writer (`conversion.writer`, LeRobot's file format and statisti
   (`data/wrist_frame.py`), when every input records one and `--keep=all` keeps the columns; a `<type>_udt`
   policy then learns the wrist in each hand's grasp-centre frame (`processor/wrist_frame.py`).
 - Inputs that hold the same episodes are refused (`conversion/fingerprint.py`: one folder given twice, a copy,
-  two conversions of one source, found by the content of their episodes); `--allow_repeats=true` mixes them.
+  two conversions of one source, one hand of a recording converted beside all of it, a near copy; found by the
+  content of each hand of each episode); `--allow_repeats=true` mixes them.
 - `--weights` (training-frame share per input): recorded as each input's `share` of the sampled training frames
   (`--weights_by=sampling`, the default): `data/share_sampler.py` samples by it, and the `<type>_udt` policies
   weight each row's loss by it under `lerobot-train`, whose sampler takes every frame equally. `--weights_by=copies`
