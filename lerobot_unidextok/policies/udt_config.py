@@ -100,7 +100,8 @@ class UdtConfigMixin:
     # Column names of observation.state, which locate the UDHM blocks; filled from the dataset.
     udt_state_names: list[str] = field(default_factory=list)
     # Hands the tokenizer was not trained on: false refuses them, true tokenises them zero-shot with the
-    # tokenizer's unknown-hand embedding.
+    # tokenizer's unknown-hand embedding. Asked only when the policy reads a trained tokenizer's tokens
+    # (udt_hand_input both or tokens): with udt_hand_input=state or an untrained preset any registered hand trains.
     udt_allow_unknown: bool = False
     # States outside their hands' ranges (degrees fed as radians, normalised values): raise | warn | off.
     udt_range_check: str = "raise"
@@ -275,6 +276,13 @@ class UdtConfigMixin:
         """The UniDexTokConfig the step will use (config.json of udt_pretrained, else the preset)."""
         preset = self.untrained_preset()
         return UniDexTokConfig.from_preset(preset) if preset else UniDexTokConfig.from_pretrained(self.udt_pretrained)
+
+    @property
+    def reads_trained_tokens(self) -> bool:
+        """Whether what the policy reads depends on the tokenizer knowing each hand: the token view is an input
+        (udt_hand_input both or tokens) and comes from a trained tokenizer (not an untrained preset, which knows no
+        hand). Otherwise the tokenizer is never asked about the hands: a hand it was not trained on trains as any."""
+        return self.udt_hand_input != "state" and self.untrained_preset() is None
 
     def untrained_preset(self) -> str | None:
         """The preset of an untrained tokenizer when one was asked for (as `UniDexTokStateTokenizerStep`

@@ -80,7 +80,8 @@ def insert_udt_steps(
         pretrained=config.udt_pretrained,
         preset=config.udt_preset,
         representation=config.udt_representation,
-        allow_unknown=config.udt_allow_unknown,
+        # the one place that asks the tokenizer about the hands, and only when its tokens are the policy's input
+        allow_unknown=config.udt_allow_unknown or not config.reads_trained_tokens,
         range_check=config.udt_range_check,
         encoding=config.udt_encoding,
     )
