@@ -67,7 +67,7 @@ from lerobot_unidextok.conversion.fingerprint import find_repeat
 from lerobot_unidextok.conversion.hand_stats import hand_stats
 from lerobot_unidextok.conversion.registry import resamples
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
-from lerobot_unidextok.data.destination import MIX_SOURCE, Kind, claim, move_into_place, recover
+from lerobot_unidextok.data.destination import MIX_SOURCE, Kind, claim, move_into_place, recover, release
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.data.reader import data_files, dataset_folder
 from lerobot_unidextok.data.record import ConversionRecord, EpisodeRecord, MixedSource, write_record
@@ -423,6 +423,14 @@ def mix(opts: MixOptions) -> MixReport:
     target = recover(opts.root)  # before anything can fail: a dead run's half-replaced mix is put back
     inputs = [_open_input(name, opts) for name in opts.inputs]
     claim(target, Kind.MIX, inputs=[i.meta.root for i in inputs], overwrite=opts.overwrite)
+    try:
+        return _mix_into(target, inputs, opts, t0)
+    finally:
+        release(target)  # the destination's lock (data/destination.py), however the mix ended
+
+
+def _mix_into(target: Path, inputs: list[_Input], opts: MixOptions, t0: float) -> MixReport:
+    """The mix of the opened `inputs` into the claimed `target`."""
     _check_compatible(inputs, opts)
     _refuse_repeats(inputs, opts)  # after the metadata checks: it reads every input's states
     mixer = _Mixer(inputs, opts)

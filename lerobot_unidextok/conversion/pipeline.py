@@ -54,7 +54,7 @@ from lerobot_unidextok.conversion.registry import (
 )
 from lerobot_unidextok.conversion.workers import PARENT_ENV, die_with
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
-from lerobot_unidextok.data.destination import Kind, claim, move_into_place, recover
+from lerobot_unidextok.data.destination import Kind, claim, move_into_place, recover, release
 from lerobot_unidextok.data.record import ConversionRecord, EpisodeRecord, load_record, write_record
 from lerobot_unidextok.data.splits import split_order
 from lerobot_unidextok.data.wrist_frame import WristFrame
@@ -404,6 +404,14 @@ def convert(opts: ConvertOptions) -> ConvertReport:
     """Convert `opts.source` at `opts.input` into a UDHM LeRobotDataset at `opts.root`."""
     t0 = time.perf_counter()
     target, input_path = checked_paths(opts)
+    try:
+        return _convert_into(target, input_path, opts, t0)
+    finally:
+        release(target)  # the destination's lock (data/destination.py), however the conversion ended
+
+
+def _convert_into(target: Path, input_path: Path, opts: ConvertOptions, t0: float) -> ConvertReport:
+    """The conversion of `input_path` into the claimed `target`."""
     import_sources()
     reader_cls = get_source(opts.source)
     reader_options = opts.reader_options()
@@ -649,11 +657,11 @@ def merge_shards(
 
     target = Path(root).expanduser().resolve()
     shard_roots = [Path(r) for r in shard_roots]
-    claim(target, Kind.CONVERTED, inputs=shard_roots, overwrite=overwrite)
     shard_records = [load_record(r) for r in shard_roots]
     missing = [str(r) for r, rec in zip(shard_roots, shard_records, strict=True) if rec is None]
     if missing:
         raise InvalidInputError(f"not converted shards (no {CONVERSION_PATH}): {missing}")
+    claim(target, Kind.CONVERTED, inputs=shard_roots, overwrite=overwrite)
     tmp = temp_sibling(target)
     try:
         aggregate_datasets(
@@ -703,6 +711,7 @@ def merge_shards(
         move_into_place(tmp, target, Kind.CONVERTED, overwrite)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
+        release(target)
         raise
     return target
 

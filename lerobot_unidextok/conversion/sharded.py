@@ -43,7 +43,7 @@ from lerobot_unidextok.conversion.pipeline import (
     plan_episodes,
 )
 from lerobot_unidextok.conversion.registry import import_sources, make_reader
-from lerobot_unidextok.data.destination import LOGGING_MARKER, Kind, claim, kind_of
+from lerobot_unidextok.data.destination import LOGGING_MARKER, Kind, claim, kind_of, release
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.utils.imports import missing_package_message
 
@@ -110,17 +110,20 @@ def convert_with_executor(opts: ConvertOptions, cfg: ExecutorOptions) -> Path:
     except ImportError as exc:
         raise SetupError(f"{DATATROVE_MISSING}; {exc}") from exc
     target, input_path = checked_paths(opts)
-    logs = logging_dir_of(opts, cfg)
-    claimed_with = [input_path, target]  # the logs are neither, hold neither and sit inside neither
-    _check_logging_dir(logs, claimed_with, opts.overwrite)  # before the input is read or anything deleted
-    import_sources()
-    plan = plan_episodes(make_reader(opts.source, opts.reader_options()), opts, input_path)
-    num_shards = min(cfg.tasks, len(plan.items))
-    if num_shards < cfg.tasks:
-        logger.warning("%d tasks for %d episodes: running %d tasks", cfg.tasks, len(plan.items), num_shards)
+    try:
+        logs = logging_dir_of(opts, cfg)
+        claimed_with = [input_path, target]  # the logs are neither, hold neither and sit inside neither
+        _check_logging_dir(logs, claimed_with, opts.overwrite)  # before the input is read or anything deleted
+        import_sources()
+        plan = plan_episodes(make_reader(opts.source, opts.reader_options()), opts, input_path)
+        num_shards = min(cfg.tasks, len(plan.items))
+        if num_shards < cfg.tasks:
+            logger.warning("%d tasks for %d episodes: running %d tasks", cfg.tasks, len(plan.items), num_shards)
 
-    _claim_logging_dir(logs, _run_settings(opts, cfg, num_shards), opts.overwrite, claimed_with)
-    convert_exec, merge_exec = dt.build_executors(opts, cfg, num_shards)
+        _claim_logging_dir(logs, _run_settings(opts, cfg, num_shards), opts.overwrite, claimed_with)
+        convert_exec, merge_exec = dt.build_executors(opts, cfg, num_shards)
+    finally:
+        release(target)  # its lock: the merge task claims the target again, in its own process under Slurm
     merge_exec.run()  # runs (local) or submits (Slurm) its dependency, the shard conversions, first
     if cfg.type == "slurm":
         logger.info(

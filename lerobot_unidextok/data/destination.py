@@ -14,6 +14,11 @@ and after it has checked its other inputs and flags:
   be, a parent folder this process may not write (read-only, no permission);
 - a destination another run is writing now (a live writer's temp or set-aside folder beside it,
   `utils.files.live_writers`) is refused, naming that run's pid;
+- a folder destination is then locked for this run (`.<name>.lock` beside it, an exclusive `fcntl.flock` the
+  kernel drops when the process ends): a second writer that starts while the first still reads its inputs, before
+  any temp folder exists, is refused as it starts, naming the first's pid, not after its own whole run. The lock
+  is released when the writer moves its output into place or fails (`release`), or when the process exits; a
+  lock file left by a killed run is taken over, with a note naming its pid;
 - an existing destination is refused, unless it holds what this writer writes and the user asked to replace
   it (`--overwrite=true`; `unidextok-train --resume=true` continues its own run). A converted dataset is not a
   mix, a mix is not a converted dataset, a folder of other files is neither. A writer recognises its own by
@@ -26,6 +31,8 @@ Folder writers then write into `utils.files.temp_sibling(target)` and move it in
 
 from __future__ import annotations
 
+import atexit
+import fcntl
 import json
 import logging
 import os
@@ -127,13 +134,19 @@ def claim(target: str | Path, writes: Kind, *, inputs: list[Path] | tuple[Path, 
     _refuse_inside_a_unit(target, f"{flag} {target}", flag)
     _refuse_unwritable(target, flag, inside=resume)
     _refuse_live_writers(target, flag)
+    _refuse_existing(target, writes, overwrite, resume, flag)
+    _lock(target, flag)
+    return target
+
+
+def _refuse_existing(target: Path, writes: Kind, overwrite: bool, resume: bool, flag: str) -> None:
     if not target.exists():
-        return target
+        return
     if not target.is_dir():
         raise DestinationError(f"{flag} {target} is a file, not a folder: choose another {flag}")
     there = kind_of(target)
     if there is None and not any(target.iterdir()):
-        return target  # an empty folder (made by the user beforehand) is as good as none
+        return  # an empty folder (made by the user beforehand) is as good as none
     if there != writes:
         what = there.value if there is not None else "other files"
         raise DestinationError(
@@ -141,10 +154,73 @@ def claim(target: str | Path, writes: Kind, *, inputs: list[Path] | tuple[Path, 
             f"(--overwrite=true only replaces {writes.value}); choose another {flag}"
         )
     if resume or overwrite:
-        return target
+        return
     fix = "--resume=true to continue it, --overwrite=true to replace it" if writes is Kind.TOKENIZER_RUN else (
         "--overwrite=true to replace it")  # fmt: skip
     raise DestinationError(f"{flag} {target} already holds {writes.value}: pass {fix}, or choose another {flag}")
+
+
+# ---------------------------------------------------------------------------------------------
+# the lock of a destination being written
+# ---------------------------------------------------------------------------------------------
+_HELD: dict[Path, tuple[int, Path]] = {}  # destination -> (open lock file descriptor, lock file) of this process
+
+
+def lock_path(target: Path) -> Path:
+    """The lock file of the destination `target`: `.<name>.lock` beside it."""
+    return target.parent / f".{target.name}.lock"
+
+
+def _lock(target: Path, flag: str) -> None:
+    """Take the lock of `target` for this process (module docstring), or refuse naming the run that holds it.
+    Taken again by the process that holds it, it is held once."""
+    if target in _HELD:
+        return
+    path = lock_path(target)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "unknown"
+            os.close(fd)
+            raise DestinationError(
+                f"{flag} {target} is being written by another run now: pid {holder} (it holds {path}); wait for it "
+                f"to end, or choose another {flag}"
+            ) from None
+        try:
+            same = os.fstat(fd).st_ino == os.stat(path).st_ino
+        except FileNotFoundError:  # released (and removed) by its holder between our open and our lock
+            same = False
+        if same:
+            break
+        os.close(fd)  # locked a file its holder had just removed: lock the one at `path` now
+    left = os.pread(fd, 64, 0).decode(errors="replace").strip()
+    if left and left != str(os.getpid()):
+        logger.warning("%s: took over the lock of pid %s, a run that ended without releasing it", path, left)
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, str(os.getpid()).encode(), 0)
+    _HELD[target] = (fd, path)
+
+
+def release(target: str | Path) -> None:
+    """Release this process's lock of the destination `target` and remove its lock file (nothing when it holds
+    none). Writers call it when their output is in place or they failed; the rest are released at exit."""
+    held = _HELD.pop(Path(target).expanduser().resolve(), None)
+    if held is None:
+        return
+    fd, path = held
+    try:
+        path.unlink(missing_ok=True)  # while still locked: a writer waiting on this file locks a fresh one
+    finally:
+        os.close(fd)
+
+
+@atexit.register
+def _release_all() -> None:
+    for target in list(_HELD):
+        release(target)
 
 
 def move_into_place(tmp: Path, target: Path, writes: Kind, overwrite: bool) -> None:
@@ -156,6 +232,7 @@ def move_into_place(tmp: Path, target: Path, writes: Kind, overwrite: bool) -> N
     if target.is_dir() and not any(target.iterdir()):
         target.rmdir()  # an empty folder made beforehand: replaced by the finished one
     replace_folder(tmp, target)
+    release(target)
 
 
 def claim_files(paths: list[Path], *, inputs: list[Path] | tuple[Path, ...] = (), flag: str = "--output",
@@ -244,4 +321,4 @@ def _refuse_inputs(target: Path, inputs, flag: str) -> None:
 
 
 __all__ = ["LOGGING_MARKER", "MIX_SOURCE", "UNITS", "DestinationError", "Kind", "claim", "claim_files",
-           "enclosing_unit", "is_json_with", "kind_of", "move_into_place", "recover"]  # fmt: skip
+           "enclosing_unit", "is_json_with", "kind_of", "lock_path", "move_into_place", "recover", "release"]  # fmt: skip

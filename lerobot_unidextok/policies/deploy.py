@@ -42,7 +42,7 @@ from lerobot.processor import PolicyProcessorPipeline
 
 from lerobot_unidextok.blocks import find_udhm_blocks, passthrough_indices
 from lerobot_unidextok.constants import ACTION, OBS_STATE
-from lerobot_unidextok.data.destination import Kind, claim, move_into_place
+from lerobot_unidextok.data.destination import Kind, claim, move_into_place, release
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.layout import NativeLayout
@@ -170,6 +170,15 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
             "pretrained_model folder of a lerobot-train run, e.g. outputs/<run>/checkpoints/last/pretrained_model"
         )
     output = claim(output, Kind.POLICY, inputs=[checkpoint, robot], overwrite=overwrite, flag="--output")
+    try:
+        return _deploy_into(checkpoint, robot, output, zero_shot, overwrite, grasp_centre_m)
+    finally:
+        release(output)  # the destination's lock (data/destination.py), however the binding ended
+
+
+def _deploy_into(checkpoint: Path, robot: Path, output: Path, zero_shot: bool, overwrite: bool,
+                 grasp_centre_m: list[float] | None) -> Path:  # fmt: skip
+    """`deploy` into the claimed `output`."""
     check_policy_checkpoint(checkpoint)
     config = PreTrainedConfig.from_pretrained(checkpoint)
     if not isinstance(config, UdtConfigMixin):

@@ -2,13 +2,16 @@
 each leftover state. A cell is either one clear refusal (a `DestinationError`, which every CLI prints as one
 `error:` line and exit status 2) with nothing changed, or a correct result. Adding a writer is adding a row.
 
-How the cells run, to keep the table fast (114 cells and the commands: 39 s on a loaded 2-core machine):
+How the cells run, to keep the table fast (130 cells and the commands: 27 s on a loaded 2-core machine):
 - Every cell calls `data.destination.claim` / `claim_files` exactly as that writer does before it writes (its kind,
   flag, inputs, `overwrite` / `resume`; `WRITERS` below, each with the module it mirrors). The destinations are
   folders with the files `kind_of` recognises (a dataset's `meta/info.json` and conversion record, a checkpoint's
   `config.json` + weights...), which is all `claim` reads.
 - A representative subset runs the real CLIs' `main()` (`test_the_real_commands`): convert, mix, eval and the
   sharded conversion's `--executor.logging_dir`, on the smallest sample input the conversion tests use.
+- The destination's lock (`.<name>.lock`, taken by a folder writer's claim): the column `live run's lock` holds it
+  from another open file (flock conflicts between open files, also within one process); two real processes run
+  in `test_a_second_writer_is_refused_as_it_starts_and_a_killed_ones_lock_is_taken_over`.
 - `unidextok-sim-record` (owned by another change right now) is the row `sim-record`: `claim(root, Kind.DATASET,
   flag="--root")` without overwrite, the call its record module is being routed through.
 - A read-only parent: we run as root, which `chmod` does not stop, so the cell runs in a child process in its own
@@ -32,12 +35,12 @@ from pathlib import Path
 
 import pytest
 
-from lerobot_unidextok.data.destination import DestinationError, Kind, claim, claim_files
+from lerobot_unidextok.data.destination import DestinationError, Kind, claim, claim_files, lock_path, release
 
 DEAD = 999999999  # no such process
 COLUMNS = ("input", "dataset", "converted", "checkpoint", "run", "logging", "user", "empty", "own", "read-only parent",
            "file as parent", "dead run's leftovers", "dead run's leftovers, root made empty",
-           "live run's leftovers")  # fmt: skip
+           "live run's leftovers", "live run's lock", "dead run's lock")  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------------------
@@ -96,7 +99,8 @@ class Writer:
     input: str | None  # the sandbox folder it reads (its "input" column), if any
     own: Callable[[Path], Path]  # makes what this writer wrote before, returns the destination naming it
     # one letter per column: E = refused, nothing changed; o = a correct result; R = the dead run's folder
-    # restored (nothing lost), then refused as an existing output (a writer without --overwrite); - = no such cell
+    # restored (nothing lost), then refused as an existing output (a writer without --overwrite); - = no such cell.
+    # A folder writer's claim takes the destination's lock (`.<name>.lock` beside it), which the cell releases.
     expected: str
     folder: bool = True  # writes a folder (`claim`: recovers leftovers), else files (`claim_files`)
 
@@ -127,34 +131,34 @@ WRITERS: dict[str, Writer] = {
     "convert": Writer(
         "conversion/pipeline.py checked_paths (--overwrite=true)",
         lambda d, b: claim(d, Kind.CONVERTED, inputs=[b / "raw"], overwrite=True),
-        "raw", lambda b: b / "converted2", "EEoEEEEooEEooE"),
+        "raw", lambda b: b / "converted2", "EEoEEEEooEEooEEo"),
     "mix": Writer(
         "conversion/mix.py mix (--overwrite=true)",
         lambda d, b: claim(d, Kind.MIX, inputs=[b / "converted"], overwrite=True),
-        "converted", lambda b: _dataset(b / "mixed", "mix"), "EEEEEEEooEEooE"),
+        "converted", lambda b: _dataset(b / "mixed", "mix"), "EEEEEEEooEEooEEo"),
     "train run folder": Writer(
         "training/run.py claim_run_folder (--overwrite=true)",
         lambda d, b: claim(d, Kind.TOKENIZER_RUN, inputs=[b / "converted"], overwrite=True, flag="--output_dir"),
-        "converted", lambda b: b / "run", "EEEEoEEooEEooE"),
+        "converted", lambda b: b / "run", "EEEEoEEooEEooEEo"),
     "logging dir": Writer(
         "conversion/sharded.py _check_logging_dir (--overwrite=true)",
         lambda d, b: _logging_claim(d, b),
-        "raw", lambda b: b / "logs", "EEEEEoEooEEooE"),
+        "raw", lambda b: b / "logs", "EEEEEoEooEEooEEo"),
     "eval output": Writer(
         "scripts/eval.py run: report_stem, refuse_a_training_report, claim_report",
-        _eval_claim, "converted", _own_report, "EEEEEooooEEooo", folder=False),
+        _eval_claim, "converted", _own_report, "EEEEEooooEEooooo", folder=False),
     "deploy": Writer(
         "policies/deploy.py (no --overwrite)",
         lambda d, b: claim(d, Kind.POLICY, inputs=[b / "policy_in", b / "converted"], flag="--output"),
-        "policy_in", lambda b: b / "policy", "EEEEEEEoEEERRE"),
+        "policy_in", lambda b: b / "policy", "EEEEEEEoEEERREEo"),
     "view": Writer(
         "scripts/view.py view_cli (.mp4)",
         lambda d, b: claim_files([d], is_ours=lambda p: p.suffix.lower() == ".mp4"),
-        "converted", _own_video, "EEEEEEEEoEEoEE", folder=False),
+        "converted", _own_video, "EEEEEEEEoEEoEEoo", folder=False),
     "sim-record": Writer(
         "lerobot_env_unidextok/record.py (routed through claim, no --overwrite)",
         lambda d, b: claim(d, Kind.DATASET, flag="--root"),
-        None, lambda b: b / "plain", "-EEEEEEoEEERRE"),
+        None, lambda b: b / "plain", "-EEEEEEoEEERREEo"),
 }
 
 
@@ -189,7 +193,26 @@ def destination(writer: Writer, column: str, base: Path) -> Path:
     if column == "live run's leftovers":  # a run writing `new` now: this test's parent started before it
         (base / f".new.tmp-{os.getppid()}-abcd1234").mkdir()
         return base / "new"
+    if column == "live run's lock":  # a run that claimed `new` and still reads its inputs: no temp folder yet
+        _LIVE_LOCKS.append(_hold_lock(base / "new"))
+        return base / "new"
+    if column == "dead run's lock":  # the lock file of a run killed after its claim (nothing holds it)
+        lock_path(base / "new").write_text(str(DEAD))
+        return base / "new"
     raise AssertionError(column)
+
+
+_LIVE_LOCKS: list[int] = []  # lock file descriptors held by "another run" (another open file: flock conflicts)
+
+
+def _hold_lock(target: Path) -> int:
+    """Hold the lock of `target` as another writer would (its own open file), naming this test's parent's pid."""
+    import fcntl
+
+    fd = os.open(lock_path(target), os.O_RDWR | os.O_CREAT)
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    os.pwrite(fd, str(os.getppid()).encode(), 0)
+    return fd
 
 
 CELLS = [(name, column) for name in WRITERS for column in COLUMNS]
@@ -205,6 +228,13 @@ def run_cell(name: str, column: str, base: Path, dest: Path) -> str:
         WRITERS[name].claim(dest, base)
     except DestinationError as exc:
         return f"error: {exc}"
+    finally:
+        while _LIVE_LOCKS:
+            os.close(_LIVE_LOCKS.pop())
+    if WRITERS[name].folder:  # the claim took the lock, which the writer releases when its output is in place
+        assert lock_path(dest.expanduser().resolve()).read_text() == str(os.getpid())
+        release(dest)
+        assert not lock_path(dest.expanduser().resolve()).exists()
     return "ok"
 
 
@@ -240,8 +270,12 @@ def test_cell(name, column, tmp_path):
             del before["new"]  # the empty folder made after the kill gave way to the restored one
         assert sorted(after.values()) == sorted(before.values())
         assert not [p for p in base.iterdir() if p.name.startswith(".new.")]
+    elif column == "dead run's lock":  # taken over, then released: the dead run's lock file is gone, nothing else
+        assert after == {k: v for k, v in before.items() if k != ".new.lock"} or not writer.folder
     else:
         assert after == before  # refused: nothing changed; passed: a claim changes nothing (replaced at the end)
+    if column == "live run's lock" and expected == "E":
+        assert f"being written by another run now: pid {os.getppid()}" in outcome, outcome
 
 
 # ---------------------------------------------------------------------------------------------
@@ -333,6 +367,45 @@ def test_the_real_commands(raw, tmp_path, monkeypatch, capsys):
     # and an empty folder made beforehand takes a conversion
     assert _main("convert", [*convert, f"--root={base / 'empty'}"], monkeypatch, capsys) == (0, [])
     assert (base / "empty" / "meta" / "unidextok_conversion.json").is_file()
+
+
+HOLD = """
+import sys
+from lerobot_unidextok.data.destination import Kind, claim
+claim(sys.argv[1], Kind.CONVERTED)
+print("claimed", flush=True)
+sys.stdin.read()
+"""
+
+
+def test_a_second_writer_is_refused_as_it_starts_and_a_killed_ones_lock_is_taken_over(raw, tmp_path):
+    """Two processes: the first has claimed `out` (it still reads its inputs: no temp folder yet); the real
+    `unidextok-convert` into `out` is refused as it starts, naming the first's pid, with nothing written. The first is
+    killed (kill -9, its lock file left behind): the next conversion takes the lock over, says so, and converts."""
+    from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS
+
+    out = tmp_path / "out"
+    first = subprocess.Popen([sys.executable, "-c", HOLD, str(out)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                             text=True)  # fmt: skip
+    try:
+        assert first.stdout.readline().strip() == "claimed"
+        convert = [str(Path(sys.executable).parent / "unidextok-convert"), "--source=lerobot", f"--input={raw}",
+                   f"--source_options={json.dumps(SAMPLE_SOURCE_OPTIONS['lerobot'])}", f"--root={out}",
+                   "--progress=false"]  # fmt: skip
+        before = tree_hash(tmp_path)
+        second = subprocess.run(convert, capture_output=True, text=True, timeout=300)
+        errors = [line for line in second.stderr.splitlines() if line.startswith("error:")]
+        assert second.returncode == 2 and len(errors) == 1, second.stderr[-2000:]
+        assert errors[0].startswith(f"error: --root {out} is being written by another run now: pid {first.pid}")
+        assert tree_hash(tmp_path) == before and not out.exists()
+    finally:
+        first.kill()
+        first.wait()
+    assert lock_path(out).read_text() == str(first.pid)  # killed: its lock file stays, the kernel dropped the lock
+    third = subprocess.run(convert, capture_output=True, text=True, timeout=300)
+    assert third.returncode == 0, third.stderr[-2000:]
+    assert f"took over the lock of pid {first.pid}" in third.stderr
+    assert (out / "meta" / "unidextok_conversion.json").is_file() and not lock_path(out).exists()
 
 
 if __name__ == "__main__":  # one cell in a child process (the read-only parent): prints its outcome
