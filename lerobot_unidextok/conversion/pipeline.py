@@ -527,6 +527,8 @@ class _RunState:
         if isinstance(result, EpisodeFailure):
             raise EpisodeError(result.source_file, result.reason)
         fps = _int_fps(result.fps, result.source_file)
+        if opts.sides is not None:
+            _refuse_dropped_sides(result, opts.sides)
         if self.sides is not None:
             result = to_sides(result, self.sides)
         if opts.keep == "hands":
@@ -614,6 +616,21 @@ class _RunState:
         )
         write_record(self.writer.root, record)
         return record
+
+
+def _refuse_dropped_sides(ep: UdhmEpisode, sides: tuple[str, ...]) -> None:
+    """`--sides` orders the blocks; it does not choose hands. An episode holding a side it leaves out is a setup
+    error, not a bad episode: `--on_error=skip` would skip every episode that has that hand."""
+    dropped = [s for s in ep.sides if s not in sides]
+    if dropped:
+        every = ",".join([*sides, *dropped])
+        raise SetupError(
+            f"--sides={','.join(sides)} leaves out the {'/'.join(dropped)} hand that {ep.source_file} holds: --sides "
+            f"orders the blocks of every hand the source has, it does not choose hands (and --on_error=skip would "
+            f"skip every episode with that hand). Pass --sides={every}, or leave it unset; to convert only the "
+            f"{'/'.join(sides)} hand, name only it in the source's options (the lerobot source: "
+            f"--source_options='{{\"hands\": {{\"{sides[0]}\": \"<hand spec>:<column prefix>\"}}}}')"
+        )
 
 
 def _signature_difference(ep: UdhmEpisode, fps: int, signature: tuple, signature_fps: int) -> str:

@@ -31,7 +31,7 @@ from lerobot_unidextok.conversion.pipeline import ConvertOptions
 from lerobot_unidextok.conversion.sharded import ExecutorOptions
 from lerobot_unidextok.errors import ConfigError
 from lerobot_unidextok.utils.cli import EXIT_USER_ERROR, run_cli
-from lerobot_unidextok.utils.draccus_cli import parse_config
+from lerobot_unidextok.utils.draccus_cli import load_flag_value, parse_config
 
 
 @dataclass
@@ -74,9 +74,10 @@ def _source_options(text: str) -> dict:
     if not text:
         return {}
     try:
-        value = yaml.safe_load(text)
+        value = load_flag_value(text)  # a key given twice is an error, not the last one kept
     except yaml.YAMLError as exc:
-        raise ConfigError(f"--source_options must be a JSON object: {exc}") from exc
+        problem = " ".join(str(getattr(exc, "problem", None) or exc).split())
+        raise ConfigError(f"--source_options must be a JSON object with each key once: {problem}") from None
     if not isinstance(value, dict):
         raise ConfigError(f"--source_options must be a JSON object, got {type(value).__name__}")
     return value

@@ -13,7 +13,8 @@ Five draccus (0.11) habits this corrects:
 - a field comment with a percent sign ("6.2 % of the frames") broke `--help` (argparse formats help
   with %); it is escaped.
 - a flag value YAML cannot read (`--source_options={bad`) ended in a yaml traceback; it is a ValueError
-  naming the flag.
+  naming the flag. A mapping that names one key twice (`--source_options='{"hands": {"left": ..., "left": ...}}'`)
+  kept the last entry with no word; it is refused the same way, naming the key.
 - a ValueError raised by a config's `__post_init__` (a bad flag value) reaches the caller wrapped in
   `ParsingError("Couldn't instantiate class ...")`; it is raised as itself, with its own message.
 
@@ -91,7 +92,10 @@ def parse_config[T](config_class: type[T], args: Sequence[str] | None = None, co
     for arg in args:
         name, _, value = arg.partition("=")
         try:  # draccus reads every value as YAML; a value YAML cannot read would end in a parser traceback
-            yaml.safe_load(value)
+            load_flag_value(value)
+        except DuplicateKeyError as exc:
+            raise ConfigError(f"{name}: {value!r} {exc.problem}: give each key once (the later entry would silently "
+                              "replace the earlier one)") from None  # fmt: skip
         except yaml.YAMLError as exc:
             problem = " ".join(str(getattr(exc, "problem", None) or exc).split())
             raise ConfigError(
@@ -116,6 +120,28 @@ def parse_config[T](config_class: type[T], args: Sequence[str] | None = None, co
         if isinstance(cause, TypeError):  # a value of the wrong type for a field, or a key it does not have
             raise ConfigError(f"{cause}: check the config file's keys and value types against --help") from None
         raise ConfigError(str(exc)) from None
+
+
+class DuplicateKeyError(yaml.constructor.ConstructorError):
+    """A YAML mapping names one key twice."""
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """YAML's safe loader, refusing a mapping that names one key twice (PyYAML keeps the last one silently)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise DuplicateKeyError(None, None, f"names the key {key!r} twice", key_node.start_mark)
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
+def load_flag_value(text: str):
+    """A flag's value read as YAML (JSON is YAML), as draccus reads it, with a key given twice a `yaml.YAMLError`."""
+    return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506  (a SafeLoader subclass)
 
 
 def _user_error_in(exc: BaseException) -> UserError | None:
@@ -172,4 +198,4 @@ def wrap(config_path: str | None = None) -> Callable:
     return decorate
 
 
-__all__ = ["config_parser", "parse_config", "wrap"]
+__all__ = ["config_parser", "load_flag_value", "parse_config", "wrap"]

@@ -3,10 +3,13 @@ before any episode is read, with the fix in the message; nothing is written."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
 from lerobot_unidextok.conversion.registry import SetupError, register_source, unregister_source
+from lerobot_unidextok.errors import ConfigError
 from lerobot_unidextok.scripts.convert import ConvertConfig, run
 
 READS: list[str] = []
@@ -86,3 +89,49 @@ def test_fps_flag_only_for_time_stamped_sources(g1_sample, tmp_path):
     with pytest.raises(SetupError, match="fixed frame rate: drop --fps"):
         convert(ConvertOptions(source="lerobot", input=g1_sample, root=tmp_path / "c", fps=25,
                                source_options={"hands": {"left": "inspire_rh56_unitree:kLeftHand"}}, progress=False))  # fmt: skip
+
+
+def test_sides_leaving_out_a_hand_of_the_source_is_one_setup_error(g1_sample, tmp_path, monkeypatch, capsys):
+    """`--sides=right` on a two-hand source ended in "use --on_error=skip", which would skip every episode; it is one
+    error naming both fixes (all sides, or only the right hand in the source's options), skip or not."""
+    import sys
+
+    from lerobot_unidextok.samples import SAMPLE_SOURCE_OPTIONS
+    from lerobot_unidextok.scripts.convert import main
+
+    options = SAMPLE_SOURCE_OPTIONS["lerobot"]
+    for on_error in ("raise", "skip"):
+        with pytest.raises(SetupError) as err:
+            convert(ConvertOptions(source="lerobot", input=g1_sample, root=tmp_path / "d", sides="right",
+                                   source_options=options, on_error=on_error, progress=False))  # fmt: skip
+        text = str(err.value)
+        assert text.startswith("--sides=right leaves out the left hand that ") and "--sides=right,left" in text
+        assert "name only it in the source's options" in text and "use --on_error=skip" not in text
+        assert not (tmp_path / "d").exists()
+    monkeypatch.setattr(sys, "argv", ["unidextok-convert", "--source=lerobot", f"--input={g1_sample}", "--sides=right",
+                                      f"--root={tmp_path / 'd'}", f"--source_options={json.dumps(options)}"])  # fmt: skip
+    with pytest.raises(SystemExit) as exit_info:
+        main()
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
+    assert exit_info.value.code == 2 and len(errors) == 1 and "--sides=right leaves out the left hand" in errors[0]
+
+
+def test_source_options_naming_a_side_twice_is_refused(g1_sample, tmp_path, monkeypatch, capsys):
+    """`{"hands": {"left": <left columns>, "left": <right columns>}}` kept the last entry: a one-hand dataset of the
+    right hand's joints labelled left. A key given twice is one error naming it, on the command line and as text."""
+    import sys
+
+    from lerobot_unidextok.scripts.convert import main
+
+    twice = '{"hands": {"left": "inspire_rh56_unitree:kLeftHand", "left": "inspire_rh56_unitree:kRightHand"}}'
+    monkeypatch.setattr(sys, "argv", ["unidextok-convert", "--source=lerobot", f"--input={g1_sample}",
+                                      f"--root={tmp_path / 'e'}", f"--source_options={twice}"])  # fmt: skip
+    with pytest.raises(SystemExit) as exit_info:
+        main()
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
+    assert exit_info.value.code == 2 and len(errors) == 1, errors
+    assert errors[0].startswith("error: --source_options: ") and "names the key 'left' twice" in errors[0]
+    with pytest.raises(ConfigError, match="--source_options must be a JSON object with each key once: names the key "
+                                          "'left' twice"):  # fmt: skip
+        ConvertConfig(source="lerobot", input=str(g1_sample), root=str(tmp_path / "e"), source_options=twice)
+    assert not (tmp_path / "e").exists()
