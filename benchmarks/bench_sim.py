@@ -10,8 +10,8 @@ the figures hold on shared cores.
     .venv/bin/python benchmarks/bench_sim.py                          # 100 episodes per hand and task
     .venv/bin/python benchmarks/bench_sim.py --episodes 20 --hands shadow
 
-Hands: by default every hand spec the simulator runs (`hand_model.sim_hand_names()`: the model files', the Allegro's
-shipped model, and every spec whose URDF is found under `$UNIDEXTOK_URDF_DIR`, else ../shared/data/urdf). The
+Hands: by default every hand spec the simulator runs (`sim_hands.sim_hand_names()`: the model files', the shipped
+built models, and every spec whose URDF is found under `$UNIDEXTOK_URDF_DIR`, else ../shared/data/urdf). The
 failures column says how the failed episodes failed: a grasp's by the kind of grasp its object needed (power or
 pinch), a press's as "wrong" (another button pressed: the episode ends) or "timeout" (the goal button not
 pressed in 50 steps).
@@ -35,7 +35,7 @@ def main() -> None:
     ap.add_argument("--tasks", nargs="+", default=list(TASKS))
     args = ap.parse_args()
 
-    from lerobot_env_unidextok import hand_model
+    from lerobot_env_unidextok import sim_hands
     from lerobot_env_unidextok.env import SUBSTEPS, UniDexTokEnv
     from lerobot_env_unidextok.experts import Expert
     from lerobot_env_unidextok.scene import TIMESTEP_S
@@ -44,7 +44,7 @@ def main() -> None:
     print("| hand | task | expert success | 95 % interval | failures | env steps / CPU-s | CPU ms / MuJoCo step | "
           "x real time |")  # fmt: skip
     print("|---|---|---|---|---|---|---|---|")
-    for hand in args.hands or hand_model.sim_hand_names():
+    for hand in args.hands or sim_hands.sim_hand_names():
         for task in args.tasks:
             env = UniDexTokEnv(hand, task, render_mode=None)
             wins, steps, cpu, failures = 0, 0, 0.0, {}

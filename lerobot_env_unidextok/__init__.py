@@ -10,10 +10,13 @@ it through `lerobot_policy_unidextok` (the distribution they discover). Needs th
     env = gym.make("lerobot_env_unidextok/GraspLift-v0", hand="shadow")
     obs, info = env.reset(seed=0)     # obs["agent_pos"]: wrist pose, object and goal, the Shadow's 22 joints (rad)
 
-Layout: `columns` (vector names), `hand_model` (a hand's MJCF and how its native joints drive it: a YAML per
-embodiment in `hand_models/`, else built from the spec's URDF by `urdf_model`, the rest read from its kinematic
-chain by `urdf_hand`), `scene` (table, wrist, hand), `tasks`, `env` (the gymnasium env), `experts`
-(scripted demonstrations), `record` (expert datasets, `unidextok-sim-record`), `configuration` (LeRobot's config).
+Layout, lowest first: `errors`, `columns` (vector names), `objects` (the shapes to grasp), `gl` (MuJoCo, its
+OpenGL backend chosen first: every module imports MuJoCo from it), `hand_model` (a hand's model and how its native
+joints drive it; the YAML model files in `hand_models/`), `urdf_model` (a hand's MJCF built from its URDF, or the
+one shipped in `assets/`) and `urdf_hand` (the rest read from its kinematic chain), `sim_hands` (which of the two
+a hand runs on), `scene` (table, wrist, hand), `tasks`, `grasp_centre`, `env` (the gymnasium env), `experts`
+(scripted demonstrations), `record` (expert datasets, `unidextok-sim-record`), `success`, `configuration`
+(LeRobot's config).
 """
 
 from lerobot_env_unidextok.registration import GYM_NAMESPACE, register_gym_ids

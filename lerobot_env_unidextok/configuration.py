@@ -37,8 +37,8 @@ class UniDexTokEnvConfig(EnvConfig):
     task: str | None = "GraspLift-v0"
     fps: int = FPS
     # the hand: a registered hand spec with a simulation model: a model file (inspire_rh56_unitree, inspire_rh56,
-    # shadow, allegro) or a URDF the builder reads (leap, xhand1, the LinkerHands, ...; the list:
-    # hand_model.sim_hand_names()); the observation and the action are in that spec's native units
+    # shadow), a built model the package ships (allegro, leap, xhand1, the LinkerHands, unitree_dex3_1, ...) or one
+    # built from your URDF (the list: sim_hands.sim_hand_names()); observation and action in the spec's native units
     hand: str = "inspire_rh56_unitree"
     episode_length: int = EPISODE_STEPS  # steps (at fps) before an episode is cut
     # what the policy's model predicts: "udhm" (<type>_udt: wrist + one UDHM block) or "native"
@@ -49,7 +49,8 @@ class UniDexTokEnvConfig(EnvConfig):
     features_map: dict[str, str] = field(default_factory=lambda: {"agent_pos": "observation.state", "action": "action"})
 
     def __post_init__(self) -> None:
-        from lerobot_env_unidextok import hand_model  # hand specs and models: YAML, no MuJoCo
+        # start-up: MuJoCo and the hand specs (torch) load here, not in every LeRobot CLI that imports this module
+        from lerobot_env_unidextok import sim_hands
 
         if self.task not in TASKS:
             raise SimInputError(f"unknown task {self.task!r}; --env.task takes one of {', '.join(TASKS)}")
@@ -57,7 +58,7 @@ class UniDexTokEnvConfig(EnvConfig):
             raise SimInputError(f"--env.policy_action must be one of {POLICY_ACTIONS}, got {self.policy_action!r}")
         if self.episode_length < 1:
             raise SimInputError(f"--env.episode_length must be >= 1 step, got {self.episode_length}")
-        native = hand_model.load(self.hand).native_names
+        native = sim_hands.load(self.hand).native_names
         # the checkpoint lerobot-eval was given, read from the command line as LeRobot's EvalPipelineConfig does
         check_policy_fits(parser.get_path_arg("policy"), self.task, self.hand)
         hand_width = UDHM_DIM if self.policy_action == "udhm" else len(native)

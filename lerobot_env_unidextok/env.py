@@ -18,34 +18,21 @@ the episode (object, place, goal, the wrist's start) from `s` alone.
 from __future__ import annotations
 
 import copy
-import ctypes.util
 import functools
 import logging
-import os
-import sys
 from typing import Any
 
+import gymnasium as gym
+import numpy as np
 
-def _choose_gl_backend() -> None:
-    """MuJoCo picks its OpenGL backend when it is imported: headless Linux gets EGL when libEGL is there (software
-    rendering works without a GPU), else rendering is off (an attempt through GLFW without a display crashed the
-    process); a MUJOCO_GL already set is kept."""
-    if "MUJOCO_GL" in os.environ or sys.platform != "linux" or os.environ.get("DISPLAY"):
-        return
-    os.environ["MUJOCO_GL"] = "egl" if ctypes.util.find_library("EGL") else "disable"
-
-
-_choose_gl_backend()
-
-import gymnasium as gym  # noqa: E402
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-
-from lerobot_env_unidextok import hand_model  # noqa: E402
-from lerobot_env_unidextok.columns import FPS, STATE_IS_NATIVE_KEY, action_names, state_names  # noqa: E402
-from lerobot_env_unidextok.errors import SimInputError  # noqa: E402
-from lerobot_env_unidextok.scene import WRIST_NAMES, WRIST_RANGE, Scene, base_spec  # noqa: E402
-from lerobot_env_unidextok.tasks import TASKS, Task  # noqa: E402
+from lerobot_env_unidextok import sim_hands
+from lerobot_env_unidextok.columns import FPS, STATE_IS_NATIVE_KEY, action_names, state_names
+from lerobot_env_unidextok.errors import SimInputError
+from lerobot_env_unidextok.gl import mujoco, render_problem
+from lerobot_env_unidextok.grasp_centre import wrist_frame_of
+from lerobot_env_unidextok.scene import WRIST_NAMES, WRIST_RANGE, Scene, base_spec
+from lerobot_env_unidextok.tasks import TASKS, Task
+from lerobot_unidextok.data.wrist_frame import WristFrame
 
 logger = logging.getLogger(__name__)
 
@@ -55,12 +42,17 @@ START_NOISE = np.array([0.02, 0.02, 0.01, 0.0, 0.0, 0.05])
 MAX_WRIST_STEP = np.array([0.04, 0.04, 0.04, 0.3, 0.3, 0.3])  # per env step, from the current pose
 
 
+@functools.cache
+def _warn_once(problem: str) -> None:
+    logger.warning("no frames: %s; the frames are black", problem)
+
+
 def make_scene(hand: str, task: str) -> tuple[Scene, Task]:
     """A scene of its own for (hand, task): a copy of the model compiled once per process (episodes change the
     model's object sizes and places, so envs never share one)."""
     if task not in TASKS:
         raise SimInputError(f"unknown task {task!r}; tasks: {', '.join(TASKS)}")
-    sim_hand = hand_model.load(hand)
+    sim_hand = sim_hands.load(hand)
     t = TASKS[task](sim_hand)
     scene = Scene.bind(copy.deepcopy(_compiled(hand, task)), sim_hand)
     t.bind(scene)
@@ -69,7 +61,7 @@ def make_scene(hand: str, task: str) -> tuple[Scene, Task]:
 
 @functools.cache
 def _compiled(hand: str, task: str) -> mujoco.MjModel:
-    sim_hand = hand_model.load(hand)
+    sim_hand = sim_hands.load(hand)
     spec = base_spec(sim_hand)
     TASKS[task](sim_hand).add_to_spec(spec)
     return spec.compile()
@@ -143,16 +135,25 @@ class UniDexTokEnv(gym.Env):
                                 self.scene.native_state(self.data)])  # fmt: skip
         return {"agent_pos": state.astype(np.float32), STATE_IS_NATIVE_KEY: np.ones(1, dtype=np.float32)}
 
+    def wrist_frame(self) -> WristFrame:
+        """The wrist frame a recording of this hand carries: the wrist columns and the hand's grasp centre
+        (`grasp_centre.py`)."""
+        return wrist_frame_of(self.hand_name)
+
     # -- rendering -------------------------------------------------------------------------------
     def render(self) -> np.ndarray:
-        """An RGB frame (H, W, 3) uint8 from the scene's camera; black when no headless renderer works here."""
+        """An RGB frame (H, W, 3) uint8 from the scene's camera; black where MuJoCo cannot render (`gl.py`: no
+        display and no headless backend), with one warning per process, never a crash."""
         if self._renderer is None and not self._render_failed:
-            try:
-                self._renderer = mujoco.Renderer(self.model, self.height, self.width)
-            except Exception as err:  # noqa: BLE001 (no GL context: EGL/OSMesa missing, no display)
+            problem = render_problem()
+            if problem is None:
+                try:
+                    self._renderer = mujoco.Renderer(self.model, self.height, self.width)
+                except Exception as err:  # noqa: BLE001 (no GL context: EGL/OSMesa present but not working)
+                    problem = f"MuJoCo cannot open an OpenGL context here ({' '.join(str(err).split())})"
+            if self._renderer is None:
                 self._render_failed = True
-                logger.warning("no frames: MuJoCo cannot render here (%s; MUJOCO_GL=%s)", err,
-                               os.environ.get("MUJOCO_GL"))  # fmt: skip
+                _warn_once(problem)
         if self._renderer is None:
             return np.zeros((self.height, self.width, 3), dtype=np.uint8)
         self._renderer.update_scene(self.data, camera="front")

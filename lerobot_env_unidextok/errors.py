@@ -7,4 +7,13 @@ class SimInputError(InvalidInputError):
     """A hand, task, action or option the simulator cannot take; the message names it and the fix."""
 
 
-__all__ = ["SimInputError"]
+class SimHandError(SimInputError):
+    """A hand the simulator cannot run (unknown, or no model for it); the message lists the ones it can."""
+
+
+class SimBuildError(SimInputError):
+    """A URDF the builder cannot turn into a model (unreadable, cut short, a joint without finite limits); the
+    message names the file and, where one is to blame, the joint."""
+
+
+__all__ = ["SimBuildError", "SimHandError", "SimInputError"]

@@ -11,10 +11,11 @@ wrist from the object's top, which depends on the object.) The recorder writes i
 
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 
+from lerobot_env_unidextok import sim_hands
 from lerobot_env_unidextok.columns import WRIST_NAMES
+from lerobot_env_unidextok.gl import mujoco
 from lerobot_env_unidextok.scene import Scene, base_spec
 from lerobot_unidextok.data.wrist_frame import ROTATION, WristFrame
 
@@ -35,9 +36,8 @@ def grasp_centre_in_wrist_m(scene: Scene, posture: str = GRASP_POSTURE) -> np.nd
 
 def wrist_frame_of(hand: str) -> WristFrame:
     """The wrist frame a recording of the registered hand `hand` carries (its grasp centre, the wrist columns)."""
-    from lerobot_env_unidextok import hand_model
-
-    scene = Scene.compile(base_spec(hand_model.load(hand)), hand_model.load(hand))
+    sim_hand = sim_hands.load(hand)
+    scene = Scene.compile(base_spec(sim_hand), sim_hand)
     centre = grasp_centre_in_wrist_m(scene)
     return WristFrame(list(WRIST_NAMES), ROTATION, {hand: [round(float(x), 6) for x in centre]})
 

@@ -1,18 +1,17 @@
 """A hand in the simulator: its MuJoCo model, where it sits on the wrist, and how its native joints drive it.
 
-Two sources. A spec whose URDF is found (or whose built model ships, the Allegro's) needs no file here: its model
-is built from the URDF and everything else read from the kinematic chain (`urdf_model.py`, `urdf_hand.py`). A
-model from elsewhere is one YAML per embodiment in `hand_models/<embodiment>.yaml` (the Inspire's robosuite model,
-the Shadow's gymnasium-robotics model): every hand spec of that embodiment runs on it (`inspire_rh56_unitree` and
-`inspire_rh56` share the Inspire's), and its file wins over the URDF. A native joint
+The types (`SimHand`, `Drive`), the postures every hand shares, and the hands on a model file from elsewhere: one
+YAML per embodiment in `hand_models/<embodiment>.yaml` (the Inspire's robosuite model, the Shadow's
+gymnasium-robotics model); every hand spec of that embodiment runs on it (`inspire_rh56_unitree` and
+`inspire_rh56` share the Inspire's). A hand built from its URDF is `urdf_hand.py`'s; which of the two a hand runs
+on is `sim_hands.py`'s choice (a model file wins). A native joint
 (the spec's, in the spec's radians) drives one or more MJCF joints, each through a linear map written as two
 points (`native_rad: [a, b]` -> `joint_rad: [qa, qb]`); one of them, `measures: true`, is read back as the
 native state. That is how coupled joints are written: the Inspire's 6 native DoF drive its 12 MJCF joints, the
 Shadow's distal joints follow their middle joints through the model's own tendons (no actuator: the native
 command of a distal joint is not used, as on the real hand).
 
-Nothing here imports MuJoCo at import time: the scene (`scene.py`) builds the model, this module is the data and
-the maps (a built hand's derivation, `urdf_hand.py`, loads on its first use).
+Nothing here imports MuJoCo: the scene (`scene.py`) builds the model, this module is the data and the maps.
 """
 
 from __future__ import annotations
@@ -26,16 +25,12 @@ from typing import Any
 import numpy as np
 import yaml
 
-from lerobot_env_unidextok.errors import SimInputError
+from lerobot_env_unidextok.errors import SimHandError
 from lerobot_unidextok import hands
 from lerobot_unidextok.constants import UDHM_JOINT_NAMES
 
 MODELS_DIR = Path(__file__).parent / "hand_models"
 FINGERS = ("thumb", "index", "middle", "ring", "little")
-
-
-class SimHandError(SimInputError):
-    """A hand the simulator cannot run (unknown, or no model for it); the message lists the ones it can."""
 
 
 @dataclass(frozen=True)
@@ -133,45 +128,9 @@ def model_names() -> tuple[str, ...]:
     return tuple(sorted(p.stem for p in MODELS_DIR.glob("*.yaml")))
 
 
-def _has_urdf(spec: hands.HandSpec) -> bool:
-    from lerobot_env_unidextok.urdf_model import buildable  # MuJoCo loads with it; only its file look-ups here
-
-    return buildable(spec, "right")
-
-
-def sim_hand_names() -> tuple[str, ...]:
-    """Hand specs the simulator runs: every registered spec whose embodiment has a model file, or whose URDF is
-    found (`$UNIDEXTOK_URDF_DIR`, else ../shared/data/urdf; the model is built from it), or whose built model
-    ships with the package."""
-    models = set(model_names())
-    return tuple(n for n in hands.names() if hands.get(n).embodiment in models or _has_urdf(hands.get(n)))
-
-
-def load(hand: str) -> SimHand:
-    """The simulator's model of the registered hand spec `hand` (its native units), right side: its embodiment's
-    model file when there is one, else built from its URDF."""
-    if hand not in hands.names():
-        raise SimHandError(f"unknown hand {hand!r}; the simulator runs: {', '.join(sim_hand_names())}")
-    spec = hands.get(hand)
-    if spec.embodiment not in model_names() and not _has_urdf(spec):
-        from lerobot_env_unidextok.urdf_model import urdf_dir
-
-        why = (f"its URDF {spec.urdf.files['right']} is not under {urdf_dir()} (set UNIDEXTOK_URDF_DIR to the "
-               "folder holding it)" if spec.kind == "joints" and spec.urdf is not None and "right" in spec.urdf.files
-               else "its spec maps no URDF (a `urdf:` block, docs/hands.md)")  # fmt: skip
-        raise SimHandError(f"hand {hand!r} cannot be simulated: {why}; the simulator runs: "
-                           f"{', '.join(sim_hand_names())}")  # fmt: skip
-    return _load(hand)
-
-
-@functools.cache
-def _load(hand: str) -> SimHand:
-    spec = hands.get(hand)
-    path = MODELS_DIR / f"{spec.embodiment}.yaml"
-    if not path.is_file():
-        from lerobot_env_unidextok.urdf_hand import sim_hand
-
-        return sim_hand(spec)
+def from_model_file(spec: hands.HandSpec) -> SimHand:
+    """The simulated hand of `spec` on its embodiment's model file (`model_names()`)."""
+    hand, path = spec.name, MODELS_DIR / f"{spec.embodiment}.yaml"
     data = yaml.safe_load(path.read_text())
     side = data["side"]
     model = data["model"]
@@ -243,4 +202,4 @@ def _model_xml(model: dict[str, Any]) -> str:
     return model["template"].format(folder=base, meshdir=meshes)
 
 
-__all__ = ["Drive", "FINGERS", "POSTURES", "SimHand", "SimHandError", "load", "model_names", "sim_hand_names"]
+__all__ = ["Drive", "FINGERS", "POSTURES", "SimHand", "SimHandError", "from_model_file", "model_names"]

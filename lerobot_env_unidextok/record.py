@@ -89,7 +89,7 @@ def expert_episode(env, seed: int, noise_seed: int, max_steps: int, after_succes
     """(states (T, D), actions (T, A), success) of one expert episode; `after_success` more steps of the expert's
     plan are kept once the task succeeded (the env ends the episode there; a demonstration that stops at the
     first lifted frame shows too little of the lift for a policy to learn it)."""
-    from lerobot_env_unidextok.experts import Expert
+    from lerobot_env_unidextok.experts import Expert  # start-up: MuJoCo and torch load with it, not with --help
 
     obs, _ = env.reset(seed=seed)
     expert = Expert(env, np.random.default_rng(noise_seed))
@@ -111,8 +111,7 @@ def expert_episode(env, seed: int, noise_seed: int, max_steps: int, after_succes
 def record(cfg: RecordConfig) -> RecordReport:
     from lerobot.datasets import LeRobotDataset
 
-    from lerobot_env_unidextok.env import UniDexTokEnv
-    from lerobot_env_unidextok.grasp_centre import wrist_frame_of
+    from lerobot_env_unidextok.env import UniDexTokEnv  # start-up: MuJoCo and torch load with it, not with --help
 
     # a plain LeRobot dataset (no conversion record): what a robot records
     root = claim(cfg.root, Kind.DATASET, overwrite=cfg.overwrite, flag="--root")
@@ -144,7 +143,7 @@ def record(cfg: RecordConfig) -> RecordReport:
             kept, frames = kept + 1, frames + len(states)
         ds.finalize()
         if env.task.grasps:  # the hand's grasp centre (lerobot_unidextok/data/wrist_frame.py); a press has none
-            write_recorded(tmp, wrist_frame_of(cfg.hand))
+            write_recorded(tmp, env.wrist_frame())
         move_into_place(tmp, root, Kind.DATASET, cfg.overwrite)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -12,10 +12,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 
 from lerobot_env_unidextok.columns import WRIST_NAMES
+from lerobot_env_unidextok.gl import mujoco
 from lerobot_env_unidextok.hand_model import SimHand
 
 TIMESTEP_S = 0.004

@@ -16,12 +16,13 @@ from __future__ import annotations
 import abc
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 
 from lerobot_env_unidextok.columns import PRESS_FINGERS, TASK_COLUMNS, TASK_TEXT
+from lerobot_env_unidextok.gl import mujoco
 from lerobot_env_unidextok.hand_model import SimHand
-from lerobot_env_unidextok.scene import Scene
+from lerobot_env_unidextok.objects import DENSITY, SHAPES, Shape
+from lerobot_env_unidextok.scene import Scene, base_spec
 
 TABLE_Z = 0.0
 
@@ -62,22 +63,6 @@ class Task(abc.ABC):
 # ---------------------------------------------------------------------------------------------
 # grasp and lift
 # ---------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Shape:
-    name: str
-    geom: str  # MuJoCo geom type
-    half_m: tuple[tuple[float, float], ...]  # per size parameter: (low, high), drawn uniformly
-    grasp: str  # "power" or "pinch"
-    yaw: bool  # drawn yaw matters (boxes)
-
-
-SHAPES = (
-    Shape("box", "box", ((0.022, 0.028), (0.022, 0.028), (0.025, 0.035)), "power", True),
-    Shape("cylinder", "cylinder", ((0.022, 0.028), (0.03, 0.04)), "power", False),
-    Shape("block", "box", ((0.012, 0.015), (0.012, 0.015), (0.018, 0.024)), "pinch", True),
-    Shape("cube", "box", ((0.013, 0.017),), "pinch", True),
-)
-DENSITY = 400.0  # kg/m^3: 20-100 g objects
 PARK = np.array([2.0, 2.0, 0.5])  # where unused objects wait, far from everything
 
 
@@ -291,8 +276,6 @@ def press_geometry(hand: SimHand, hover_m: np.ndarray) -> dict[str, tuple[np.nda
     relative to the panel origin (the finger's tip at its press posture, the cap top `PRESS_DEPTH_M` above it),
     and how far forward of that (m, along x) the tip comes down to the cap's height on its way from the open pose
     to the press posture (the commands in between, as the expert sends them)."""
-    from lerobot_env_unidextok.scene import Scene, base_spec
-
     scene = Scene.compile(base_spec(hand), hand)
     m, d = scene.model, mujoco.MjData(scene.model)
 

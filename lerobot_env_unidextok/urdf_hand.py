@@ -22,10 +22,13 @@ the experts need, read from the kinematic chain, with no number tuned per hand.
 
 from __future__ import annotations
 
-import mujoco
+from dataclasses import replace
+
 import numpy as np
 
+from lerobot_env_unidextok.gl import mujoco
 from lerobot_env_unidextok.hand_model import POSTURES, Drive, SimHand
+from lerobot_env_unidextok.objects import SHAPES
 from lerobot_env_unidextok.urdf_model import FINGER_KEYPOINTS, capsule_radius_m, hand_axes, model_xml
 from lerobot_unidextok import hands
 from lerobot_unidextok.constants import UDHM_JOINT_NAMES
@@ -65,18 +68,12 @@ def sim_hand(spec: hands.HandSpec) -> SimHand:
     fk = HandFK(hand, model)
     axes = hand_axes(fk.keypoints(open_raw))
     mount_pos = -axes @ fk.keypoints(open_raw)[0]
-    hand = _replace(hand, mount_pos_m=tuple(float(x) for x in mount_pos),
-                    mount_matrix=tuple(tuple(float(x) for x in row) for row in axes))  # fmt: skip
+    hand = replace(hand, mount_pos_m=tuple(float(x) for x in mount_pos),
+                   mount_matrix=tuple(tuple(float(x) for x in row) for row in axes))  # fmt: skip
     fk = HandFK(hand, model)
     postures, pinch_fingers = fit_postures(hand, fk)
-    hand = _replace(hand, postures=postures)
-    return _replace(hand, grasp=grasp_offsets(hand, fk, pinch_fingers))
-
-
-def _replace(hand: SimHand, **changes) -> SimHand:
-    from dataclasses import replace
-
-    return replace(hand, **changes)
+    hand = replace(hand, postures=postures)
+    return replace(hand, grasp=grasp_offsets(hand, fk, pinch_fingers))
 
 
 def _descends(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
@@ -200,9 +197,7 @@ def fit_postures(hand: SimHand, fk: HandFK) -> tuple[dict[str, dict[str, float]]
     pose to them, as far as keeps the closing tips clear of the widest object of their grasp (`PRESHAPE_CLEAR_M`
     past its half width), the thumb and the fingers each on their own (they then reach the object about
     together)."""
-    from scipy.optimize import minimize
-
-    from lerobot_env_unidextok.tasks import SHAPES
+    from scipy.optimize import minimize  # start-up: SciPy's optimiser, only when a hand is built
 
     spec, side = hand.spec, hand.side
     lo, hi = spec.udhm_limits_rad(side)

@@ -20,24 +20,31 @@ mimic joints become MuJoCo's joint equality constraints, `follower = offset + mu
   at the open pose (the URDF's zero pose, joints clipped into their limits): geometry that overlaps there is
   the approximation's, not a contact.
 
-A model can also ship with the package, built by `tools/sim/build_hand.py` (the Allegro's, so that it runs without
-the URDF; a test rebuilds it bit for bit). Built models are cached outside the repository: `$UNIDEXTOK_SIM_CACHE`,
-else `$XDG_CACHE_HOME/unidextok/sim` (`~/.cache/unidextok/sim`), one file per hand keyed by a fingerprint of the
-URDF's bytes, the spec's keypoints, the builder's version and MuJoCo's; a changed input is a new file, never a
-stale one.
+Built models ship with the package, written by `tools/sim/build_hand.py`, for every hand whose URDF's licence
+permits it (`assets/<embodiment>/`, the licence beside each; a test rebuilds each bit for bit): they run without
+the URDF. Which model a hand gets (`model_xml`): built from its URDF when `$UNIDEXTOK_URDF_DIR` is set and holds
+it (how a hand is added or rebuilt); else the shipped model; else built from the URDF in ../shared/data/urdf.
+Built models are cached outside the repository: `$UNIDEXTOK_SIM_CACHE`, else `$XDG_CACHE_HOME/unidextok/sim`
+(`~/.cache/unidextok/sim`), one file per hand keyed by a fingerprint of the URDF's bytes, the spec's keypoints,
+the builder's version and MuJoCo's; a changed input is a new file, never a stale one. A cached file's first line
+holds the fingerprint of the rest: a file cut short, emptied, overwritten or edited by hand is rebuilt, with one
+warning naming it. A URDF the builder cannot read (cut short, a joint without a parent, non-finite limits) is one
+`SimBuildError` naming the file and the joint.
 """
 
 from __future__ import annotations
 
+import logging
+import math
 import os
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-import mujoco
 import numpy as np
 
-from lerobot_env_unidextok.hand_model import SimHandError
+from lerobot_env_unidextok.errors import SimBuildError, SimHandError
+from lerobot_env_unidextok.gl import mujoco
 from lerobot_unidextok import hands
 from lerobot_unidextok.utils.files import fingerprint
 from lerobot_unidextok.utils.shared_data import URDF_DIR_ENV, urdf_dir
@@ -54,6 +61,8 @@ KV_NMS_PER_RAD = 0.3
 TORQUE_NM = 1.0
 ARMATURE = 0.002
 MIN_SEGMENT_M = 0.002  # shorter parent-child offsets get no capsule (a joint of two axes at one point)
+CACHE_HEADER = "<!-- unidextok-sim-cache fingerprint={} -->\n"  # the first line of a cached model: of the rest
+logger = logging.getLogger(__name__)
 FINGER_KEYPOINTS = {  # MANO-21 indices: base (CMC / MCP), then to the tip
     "thumb": (1, 2, 3, 4), "index": (5, 6, 7, 8), "middle": (9, 10, 11, 12), "ring": (13, 14, 15, 16),
     "little": (17, 18, 19, 20),
@@ -73,8 +82,8 @@ def urdf_path(spec: hands.HandSpec, side: str = "right") -> Path | None:
 
 
 def shipped_path(spec: hands.HandSpec, side: str = "right") -> Path | None:
-    """A built model that ships with the package (`assets/<embodiment>/<embodiment>_<side>.xml`, the Allegro's:
-    the simulator runs it without the URDF), or None. `tools/sim/build_hand.py` writes it; a test rebuilds it."""
+    """A built model that ships with the package (`assets/<embodiment>/<embodiment>_<side>.xml`: the simulator
+    runs it without the URDF), or None. `tools/sim/build_hand.py` writes it; a test rebuilds it."""
     path = SHIPPED_DIR / spec.embodiment / f"{spec.embodiment}_{side}.xml"
     return path if spec.kind == "joints" and spec.urdf is not None and path.is_file() else None
 
@@ -148,12 +157,53 @@ def hand_axes(keypoints_m: np.ndarray) -> np.ndarray:
     return np.stack([x, y, np.cross(x, y)])
 
 
-def build_mjcf(urdf_text: str, spec: hands.HandSpec, side: str = "right") -> str:
-    """The hand's MJCF (a complete document, no files) from its URDF text and spec (module docstring)."""
+def check_urdf(urdf_text: str, source: str) -> None:
+    """Refuse a URDF the builder cannot read, naming `source` (its file) and the joint: not XML (cut short), no
+    `<robot>`, a joint whose parent or child link is missing, a limit that is not a finite number or whose lower
+    end is above its upper."""
+    try:
+        root = ET.fromstring(urdf_text)
+    except ET.ParseError as err:
+        raise SimBuildError(f"{source} is not a readable URDF ({err}): is the file cut short? Restore it from "
+                            "its source") from None  # fmt: skip
+    if root.tag != "robot":
+        raise SimBuildError(f"{source} is not a URDF: its root element is <{root.tag}>, not <robot>")
+    links = {link.get("name") for link in root.iter("link")}
+    for joint in root.iter("joint"):
+        name = joint.get("name")
+        for end in ("parent", "child"):
+            tag = joint.find(end)
+            if tag is None or tag.get("link") not in links:
+                raise SimBuildError(f"{source}: joint {name!r} names {end} link "
+                                    f"{None if tag is None else tag.get('link')!r}, which the file does not have")  # fmt: skip
+        limit = joint.find("limit")
+        if limit is None or joint.get("type") not in ("revolute", "prismatic"):
+            continue
+        try:
+            lo, hi = (float(limit.get(k, "0")) for k in ("lower", "upper"))
+        except ValueError:
+            raise SimBuildError(f"{source}: joint {name!r} has limits {limit.get('lower')!r}, {limit.get('upper')!r}, "
+                                "not numbers") from None  # fmt: skip
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+            raise SimBuildError(f"{source}: joint {name!r} has limits [{lo}, {hi}] rad; a built joint needs finite "
+                                "limits, lower <= upper")  # fmt: skip
+
+
+def build_mjcf(urdf_text: str, spec: hands.HandSpec, side: str = "right", source: str = "the URDF") -> str:
+    """The hand's MJCF (a complete document, no files) from its URDF text and spec (module docstring); a URDF it
+    cannot read is one `SimBuildError` naming `source` (`check_urdf`)."""
+    check_urdf(urdf_text, source)
     text, mesh_links, primitive_links = urdf_without_meshes(urdf_text)
-    mj = mujoco.MjSpec.from_string(text)
-    mj.modelname = f"{spec.embodiment}_{side}"
-    model = mj.compile()
+    try:
+        mj = mujoco.MjSpec.from_string(text)
+        mj.modelname = f"{spec.embodiment}_{side}"
+        model = mj.compile()
+    except ValueError as err:
+        raise SimBuildError(f"{source}: MuJoCo cannot compile it ({' '.join(str(err).split())})") from None
+    missing = sorted({k.link for k in spec.urdf.keypoints[side]} - {model.body(b).name for b in range(model.nbody)})
+    if missing:
+        raise SimBuildError(f"{source} has no link {', '.join(missing)}, which hand spec {spec.name!r} places its "
+                            "keypoints on: is it the spec's URDF?")  # fmt: skip
     data = mujoco.MjData(model)
     data.qpos[:] = _open_qpos(model)
     mujoco.mj_kinematics(model, data)
@@ -260,29 +310,50 @@ def model_key(spec: hands.HandSpec, urdf_bytes: bytes, side: str = "right") -> s
 
 
 def model_xml(spec: hands.HandSpec, side: str = "right") -> str:
-    """The spec's built MJCF from its URDF: from the cache when built before with the same inputs, else built and
-    cached; without the URDF, the model that ships with the package (the Allegro's)."""
-    found = urdf_path(spec, side)
-    if found is None:
-        shipped = shipped_path(spec, side)
-        if shipped is None:
-            raise SimHandError(f"hand {spec.name!r}: no URDF found under {urdf_dir()} (set {URDF_DIR_ENV}) and no "
-                               "built model ships for it")  # fmt: skip
+    """The spec's built MJCF: built from its URDF when `$UNIDEXTOK_URDF_DIR` holds it; else the model the package
+    ships; else built from the URDF in ../shared/data/urdf. A build is read from the cache when made before from
+    the same inputs and intact, else built and cached (module docstring)."""
+    found, shipped = urdf_path(spec, side), shipped_path(spec, side)
+    if shipped is not None and (found is None or not os.environ.get(URDF_DIR_ENV, "").strip()):
         return shipped.read_text()
+    if found is None:
+        raise SimHandError(f"hand {spec.name!r}: no URDF found under {urdf_dir()} (set {URDF_DIR_ENV}) and no "
+                           "built model ships for it")  # fmt: skip
     urdf = found.read_bytes()
     path = cache_dir() / f"{spec.embodiment}_{side}_{model_key(spec, urdf, side)}.xml"
     if path.is_file():
-        return path.read_text()
-    xml = build_mjcf(urdf.decode(), spec, side)
+        xml, problem = read_cached(path)
+        if problem is None:
+            return xml
+        logger.warning("rebuilding the cached model %s: %s", path, problem)
+    try:
+        text = urdf.decode()
+    except UnicodeDecodeError:
+        raise SimBuildError(f"{found} is not a readable URDF (not UTF-8 text): restore it from its source") from None
+    xml = build_mjcf(text, spec, side, source=str(found))
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        tmp.write_text(xml)
+        tmp.write_text(CACHE_HEADER.format(fingerprint(xml.encode())) + xml)
         os.replace(tmp, path)  # readers see the whole file or none
     except OSError:
         pass  # a read-only cache costs a rebuild next time, nothing else
     return xml
 
 
-__all__ = ["BUILDER_VERSION", "CACHE_ENV", "build_mjcf", "buildable", "cache_dir", "model_xml", "shipped_path",
-           "urdf_path"]  # fmt: skip
+def read_cached(path: Path) -> tuple[str, str | None]:
+    """(the model, None) of an intact cached file, else ("", what is wrong with it)."""
+    try:
+        first, _, xml = path.read_text().partition("\n")
+    except (OSError, UnicodeDecodeError) as err:
+        return "", f"it cannot be read ({err})"
+    expected = CACHE_HEADER.format(fingerprint(xml.encode())).rstrip("\n")
+    if not first.startswith(CACHE_HEADER.split("{")[0]):
+        return "", "it is not a model this builder wrote (empty, or overwritten)"
+    if first != expected:
+        return "", "its content does not match the fingerprint it was written with (cut short or edited)"
+    return xml, None
+
+
+__all__ = ["BUILDER_VERSION", "CACHE_ENV", "build_mjcf", "buildable", "cache_dir", "check_urdf", "model_xml",
+           "read_cached", "shipped_path", "urdf_path"]  # fmt: skip

@@ -22,6 +22,8 @@ import sys
 from collections.abc import Callable, Iterable
 from typing import Any
 
+from lerobot_unidextok.errors import UserError  # layer 0: errors imports nothing of the package
+
 
 class Terminated(KeyboardInterrupt):
     """SIGTERM, raised like Ctrl-C's KeyboardInterrupt so that the same clean-up runs (temporary folders
@@ -153,8 +155,6 @@ def user_errors_in_lerobot_clis(
     import atexit
     from pathlib import Path
 
-    from lerobot_unidextok.errors import UserError
-
     if not Path(sys.argv[0] if sys.argv else "").name.startswith(("lerobot-", "lerobot_")):
         return
     previous = sys.excepthook
@@ -188,8 +188,6 @@ def run_cli(fn: Callable[[], object]) -> None:
     and exits with status 2; Ctrl-C / SIGTERM print one line and exit with 130 / 143 after the body's clean-up;
     anything else is a bug and keeps its traceback. `UNIDEXTOK_TRACEBACK=1` shows the traceback of user errors.
     The body may return an exit status (an int) for outcomes that are not errors (an INVALID dataset)."""
-    from lerobot_unidextok.errors import UserError  # layer 0: errors imports nothing of the package
-
     configure_output()
     signal.signal(signal.SIGTERM, _terminate)
     try:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import lerobot_env_unidextok  # noqa: F401  (registers the gym ids)
-from lerobot_env_unidextok import hand_model
+from lerobot_env_unidextok import hand_model, sim_hands
 from lerobot_env_unidextok.columns import TASK_COLUMNS, WRIST_NAMES
 from lerobot_env_unidextok.env import UniDexTokEnv
 from lerobot_env_unidextok.errors import SimInputError
@@ -94,10 +94,10 @@ def test_bad_input_is_one_clear_error():
 
 
 def test_every_shipped_model_loads_for_every_hand_spec_of_its_embodiment():
-    runs = hand_model.sim_hand_names()
+    runs = sim_hands.sim_hand_names()
     assert {"inspire_rh56_unitree", "inspire_rh56", "shadow", "allegro"} <= set(runs)
     for name in runs:
-        sim = hand_model.load(name)
+        sim = sim_hands.load(name)
         read = [n for n, d in zip(sim.native_names, sim.measuring, strict=True) if d is not None]
         assert [d.native for d in sim.measuring if d is not None] == read
         if sim.spec.embodiment in hand_model.model_names():  # a model file measures every native joint
@@ -114,7 +114,7 @@ BUILT_HANDS = ("leap", "xhand1", "linkerhand_l10", "linkerhand_l20", "linkerhand
 
 
 def _need(hand: str) -> None:
-    if hand not in hand_model.sim_hand_names():
+    if hand not in sim_hands.sim_hand_names():
         pytest.skip(f"{hand}'s URDF is not found (set UNIDEXTOK_URDF_DIR to a copy of shared/data/urdf)")
 
 

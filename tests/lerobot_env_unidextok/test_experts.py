@@ -31,9 +31,9 @@ def test_the_expert_succeeds_on_seeded_episodes(hand, task):
 def test_the_expert_of_a_hand_built_from_its_urdf_succeeds(hand):
     """Four seeded episodes per task of every hand the simulator builds from its URDF, with no number tuned for
     it (the rates over 100 episodes: docs/lerobot.md, bench_sim.py)."""
-    from lerobot_env_unidextok import hand_model
+    from lerobot_env_unidextok import sim_hands
 
-    if hand not in hand_model.sim_hand_names():
+    if hand not in sim_hands.sim_hand_names():
         pytest.skip(f"{hand}'s URDF is not found (set UNIDEXTOK_URDF_DIR to a copy of shared/data/urdf)")
     for task in ("GraspLift-v0", "FingerPress-v0"):
         env = UniDexTokEnv(hand, task, render_mode=None)

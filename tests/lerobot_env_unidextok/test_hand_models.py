@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from lerobot_env_unidextok import hand_model
+from lerobot_env_unidextok import sim_hands
 from lerobot_env_unidextok.scene import Scene, base_spec
 from lerobot_unidextok.utils.shared_data import urdf_dir as shared_urdf_dir
 
@@ -39,7 +39,7 @@ def test_shadow_drives_turn_as_the_urdf_joints(urdf_dir):
     urdf = (urdf_dir / "dex-urdf/shadow_hand_right.urdf").read_text()
     urdf = re.sub(r"<(visual|collision)>.*?</\1>", "", urdf, flags=re.S)  # kinematics only (no meshes here)
     reference = mujoco.MjModel.from_xml_string(urdf)
-    hand = hand_model.load("shadow")
+    hand = sim_hands.load("shadow")
     scene = Scene.compile(base_spec(hand), hand)
     sim_axes = _joint_axes(scene.model, "hand/robot0:palm", [f"hand/{d.joint}" for d in hand.drives])
     urdf_axes = _joint_axes(reference, "palm", list(hand.native_names))

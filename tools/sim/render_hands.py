@@ -4,9 +4,9 @@
 
 Each embodiment once (the two Inspire specs share a model): the hand on the simulator's wrist, level, as the
 experts hold it, at `power` (left) and `press_index` (right) of its `SimHand.posture`, the table hidden. Hands come
-from `hand_model.sim_hand_names()`: the URDF hands need `$UNIDEXTOK_URDF_DIR` (else ../shared/data/urdf). The
-image is quantised to 64 colours to stay small. EGL and OSMesa both render on a CPU (llvmpipe); without either,
-`mujoco.Renderer` fails and so does this script.
+from `sim_hands.sim_hand_names()`: the model files', the shipped built models and any URDF found under
+`$UNIDEXTOK_URDF_DIR`. The image is quantised to 64 colours to stay small. EGL and OSMesa both render on a CPU
+(llvmpipe); without either, `mujoco.Renderer` fails and so does this script.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 from PIL import Image, ImageDraw  # noqa: E402
 
-from lerobot_env_unidextok import hand_model  # noqa: E402
+from lerobot_env_unidextok import sim_hands  # noqa: E402
 from lerobot_env_unidextok.scene import Scene, base_spec  # noqa: E402
 
 TILE = (240, 180)  # width, height of one posture's view (px)
@@ -31,7 +31,7 @@ POSTURES = ("power", "press_index")
 
 def render_hand(name: str, renderer_cache: dict) -> Image.Image:
     """The hand `name` at POSTURES, side by side, its name written on top."""
-    hand = hand_model.load(name)
+    hand = sim_hands.load(name)
     scene = Scene.compile(base_spec(hand), hand)
     m, d = scene.model, mujoco.MjData(scene.model)
     m.geom_rgba[m.geom("table").id, 3] = 0.0
@@ -62,8 +62,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("docs/images/sim_hands.png"))
     args = ap.parse_args()
     seen, names = set(), []
-    for name in hand_model.sim_hand_names():
-        embodiment = hand_model.load(name).spec.embodiment
+    for name in sim_hands.sim_hand_names():
+        embodiment = sim_hands.load(name).spec.embodiment
         if embodiment not in seen:
             seen.add(embodiment)
             names.append(name)
