@@ -18,6 +18,7 @@ from lerobot_unidextok.utils.cli import run_cli
 from lerobot_unidextok.utils.draccus_cli import wrap
 
 Z95 = 1.959963984540054
+MAX_EPISODES = 10_000_000  # more episodes than any lerobot-eval run holds: a larger count is a damaged file
 
 
 def wilson_interval(successes: int, n: int, z: float = Z95) -> tuple[float, float]:
@@ -32,10 +33,13 @@ def wilson_interval(successes: int, n: int, z: float = Z95) -> tuple[float, floa
 
 def from_eval_info(path: str | Path) -> tuple[int, int]:
     """(successes, episodes) of a `lerobot-eval` output folder or its `eval_info.json`; a file that is not
-    JSON, has no `overall` numbers, a rate outside 0-100 %, no episodes, or a rate that is no whole number of
-    its episodes is refused, naming the file."""
+    JSON (or a folder), has no `overall` numbers, a rate outside 0-100 %, no episodes, more than `MAX_EPISODES`,
+    or a rate that is no whole number of its episodes is refused, naming the file."""
     path = Path(path)
-    path = path / "eval_info.json" if path.is_dir() else path
+    path = path / "eval_info.json" if path.is_dir() and path.name != "eval_info.json" else path
+    if path.is_dir():
+        raise SimInputError(f"{path} is a folder, not the file lerobot-eval writes: pass lerobot-eval's --output_dir "
+                            "holding the eval_info.json it wrote")  # fmt: skip
     if not path.is_file():
         raise SimInputError(f"{path} is not there: pass lerobot-eval's --output_dir (it holds eval_info.json)")
     try:
@@ -48,6 +52,9 @@ def from_eval_info(path: str | Path) -> tuple[int, int]:
     n = _number(path, overall, "n_episodes")
     if n != int(n) or n < 0:
         raise SimInputError(f"{path}: 'overall.n_episodes' is {overall['n_episodes']}, not a whole number >= 0")
+    if n > MAX_EPISODES:
+        raise SimInputError(f"{path}: 'overall.n_episodes' is {overall['n_episodes']}, more than any lerobot-eval run "
+                            f"holds (at most {MAX_EPISODES:,}): is the file damaged?")  # fmt: skip
     n = int(n)
     if n == 0:  # lerobot-eval writes a NaN rate then
         raise SimInputError(

@@ -39,6 +39,8 @@ def test_reads_lerobot_evals_output(tmp_path):
     ('{"overall": {"pc_success": 0.0, "n_episodes": 0}}', "no episodes: 'overall.n_episodes' is 0"),
     ('{"overall": {"pc_success": NaN, "n_episodes": 0}}', "no episodes: 'overall.n_episodes' is 0"),
     ('{"overall": {"pc_success": 33.0, "n_episodes": 2}}', "33.0 % of 2 episodes is not a whole number of episodes"),
+    ('{"overall": {"pc_success": 50.0, "n_episodes": 1e20}}', "'overall.n_episodes' is 1e+20, more than any"),
+    ('{"overall": {"pc_success": 50.0, "n_episodes": 100000000000000000000}}', "more than any lerobot-eval run"),
 ])  # fmt: skip
 def test_a_malformed_or_impossible_eval_info_is_one_clear_error(tmp_path, content, said):
     """Before: tracebacks on malformed JSON, a missing 'overall' and a pc_success of 150, and 0 of 0 episodes
@@ -47,6 +49,14 @@ def test_a_malformed_or_impossible_eval_info_is_one_clear_error(tmp_path, conten
     with pytest.raises(SimInputError, match=re.escape(said)) as err:
         from_eval_info(tmp_path)
     assert str(tmp_path / "eval_info.json") in str(err.value)
+
+
+@pytest.mark.parametrize("given", ["output_dir", "file"])
+def test_an_eval_info_that_is_a_folder_is_said_to_be_one(tmp_path, given):
+    """Before: reported as "not there" (it is there, as a folder)."""
+    (tmp_path / "eval_info.json").mkdir()
+    with pytest.raises(SimInputError, match=r"eval_info.json is a folder, not the file lerobot-eval writes"):
+        from_eval_info(tmp_path if given == "output_dir" else tmp_path / "eval_info.json")
 
 
 def test_the_cli_says_no_episodes_in_one_line(tmp_path):
