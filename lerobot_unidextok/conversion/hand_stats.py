@@ -14,7 +14,9 @@ another's scale. Here every block side and hand gets its own, over the frames wh
 Quantiles are computed from the frames of each hand, never merged from per-episode quantiles (LeRobot #4156:
 merged quantiles are frame-weighted averages of the episodes' quantiles). `unidextok-mix` records them over the
 mix's training episodes (`ConversionRecord.hand_stats`); a `<type>_udt` policy trained on one robot's dataset
-computes them from that dataset's training episodes when `lerobot-train` builds it.
+computes them from that dataset's training episodes when `lerobot-train` builds it. Both are checked where they
+are written and read (`utils/number_checks.checked_hand_stats`: 22 finite numbers per statistic, a std >= 0, every
+hand of the vocabulary and no other), so a NaN std is one error naming the file, the hand and the statistic.
 """
 
 from __future__ import annotations
@@ -25,9 +27,10 @@ from typing import Any
 import numpy as np
 
 from lerobot_unidextok.blocks import find_udhm_blocks
-from lerobot_unidextok.constants import ACTION, HAND_TYPE_KEY, OBS_STATE, UDHM_DIM, UDHM_MASK_KEY
+from lerobot_unidextok.constants import ACTION, CONVERSION_PATH, HAND_TYPE_KEY, OBS_STATE, UDHM_DIM, UDHM_MASK_KEY
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.data.reader import data_files
+from lerobot_unidextok.utils.number_checks import checked_hand_stats
 
 ACTION_DELTA = "action_delta"  # the statistics of action - state (relative actions)
 QUANTILES = {"q01": 0.01, "q10": 0.10, "q90": 0.90, "q99": 0.99}
@@ -90,7 +93,22 @@ def hand_stats(root: str | Path, episodes: list[int] | None = None) -> dict[str,
                 a = action[pick][:, action_blocks[block.side].slice]
                 out[ACTION].setdefault(block.side, {})[hand] = _summary(a)
                 out[ACTION_DELTA].setdefault(block.side, {})[hand] = _summary(a - s)
-    return out
+    return checked_hand_stats(out, f"the per-hand statistics of {meta.root}", sides=[b.side for b in state_blocks],
+                              fix="a converted dataset holds finite UDHM radians: validate it (unidextok-convert "
+                              "--validate=true) and convert it again")  # fmt: skip
+
+
+def recorded_hand_stats(meta: UdhmDatasetMeta) -> dict[str, dict[str, dict[str, dict]]] | None:
+    """The per-hand statistics a mix records (`ConversionRecord.hand_stats`), checked against its hand vocabulary
+    and blocks; None when the record has none (one robot's dataset: `hand_stats` computes them)."""
+    record = meta.record
+    if record is None or not record.hand_stats:
+        return None
+    sides = [b.side for b in find_udhm_blocks(meta.names(OBS_STATE))]
+    return checked_hand_stats(record.hand_stats, f"{meta.root / CONVERSION_PATH} hand_stats",
+                              hands=list(record.hand_vocabulary) or None, sides=sides,
+                              fix="the file was edited or damaged: mix the datasets again (unidextok-mix "
+                              "--overwrite=true) to recompute it")  # fmt: skip
 
 
 def training_episodes(meta: UdhmDatasetMeta) -> list[int] | None:
@@ -102,4 +120,4 @@ def training_episodes(meta: UdhmDatasetMeta) -> list[int] | None:
     return [e for e in range(meta.total_episodes) if e not in test]
 
 
-__all__ = ["ACTION_DELTA", "QUANTILES", "hand_stats", "training_episodes"]
+__all__ = ["ACTION_DELTA", "QUANTILES", "hand_stats", "recorded_hand_stats", "training_episodes"]

@@ -36,6 +36,8 @@ conversion's own writer (`conversion.writer`, LeRobot's file format and statisti
   (`--weights_by=sampling`, the default): `data/share_sampler.py` samples by it, and the `<type>_udt` policies
   weight each row's loss by it under `lerobot-train`, whose sampler takes every frame equally. `--weights_by=copies`
   writes an input's training episodes several times instead (`repeats`; test episodes once), for other policies.
+  They are checked as they enter (`utils/number_checks.checked_shares`): one positive number per input, divided by
+  the largest before they are summed (1e308 does not overflow), and no input's share below 1e-3.
 
 Bad input (a dataset that was not converted, datasets at different fps, layouts that cannot share one vector)
 is one `MixError` naming the fix; nothing is written then.
@@ -44,7 +46,6 @@ is one `MixError` naming the fix; nothing is written then.
 from __future__ import annotations
 
 import logging
-import math
 import shutil
 import time
 from dataclasses import dataclass, field
@@ -75,6 +76,7 @@ from lerobot_unidextok.data.wrist_frame import WristFrame, merge_frames
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.utils.cli import progress_bar
 from lerobot_unidextok.utils.files import temp_sibling
+from lerobot_unidextok.utils.number_checks import checked_shares, weights_text
 
 logger = logging.getLogger(__name__)
 
@@ -107,17 +109,16 @@ class MixOptions:
     progress: bool = True
 
     def __post_init__(self) -> None:
-        self.inputs, self.weights = [str(i) for i in self.inputs], [float(w) for w in self.weights]
+        self.inputs = [str(i) for i in self.inputs]
         if not self.inputs:
             raise MixError("no inputs: pass --inputs='[<converted dataset folder or repo id>, ...]'")
         if self.keep not in KEEP:
             raise MixError(f"keep must be one of {KEEP}, got {self.keep!r}")
         if self.weights_by not in WEIGHTS_BY:
             raise MixError(f"weights_by must be one of {WEIGHTS_BY}, got {self.weights_by!r}")
-        if self.weights and (len(self.weights) != len(self.inputs) or not all(math.isfinite(w) and w > 0
-                                                                               for w in self.weights)):
-            raise MixError(f"--weights needs one positive, finite weight per input ({len(self.inputs)}), got "
-                           f"{self.weights}")  # fmt: skip
+        if self.weights:  # one positive, finite number per input, and no input's share below MIN_SHARE
+            checked_shares(self.weights, "--weights", count=len(self.inputs))
+            self.weights = [float(w) for w in self.weights]
         if self.action_ahead < 1:
             raise MixError(f"action_ahead must be >= 1 frame, got {self.action_ahead}")
         if not self.root:
@@ -238,7 +239,8 @@ def repeat_factors(train_frames: list[int], weights: list[float]) -> list[int]:
     wanted least per frame is written once)."""
     if not weights:
         return [1] * len(train_frames)
-    per_frame = [w / sum(weights) / max(f, 1) for w, f in zip(weights, train_frames, strict=True)]
+    shares = checked_shares(weights, "--weights")  # divided by the largest first: 1e308 does not overflow
+    per_frame = [s / max(f, 1) for s, f in zip(shares, train_frames, strict=True)]
     base = min(per_frame)
     return [max(1, round(p / base)) for p in per_frame]
 
@@ -438,12 +440,13 @@ def _mix_into(target: Path, inputs: list[_Input], opts: MixOptions, t0: float) -
         sum(length for e, length in (i.meta.episode_lengths or {}).items() if e not in i.test) for i in inputs
     ]
     repeats = repeat_factors(train_frames, opts.weights if opts.weights_by == "copies" else [])
-    asked = [w / sum(opts.weights) for w in opts.weights] if opts.weights_by == "sampling" else []
+    asked = checked_shares(opts.weights, "--weights") if opts.weights and opts.weights_by == "sampling" else []
     written = sum(r * f for r, f in zip(repeats, train_frames, strict=True))
     if written > MAX_GROWTH * max(sum(train_frames), 1):
         raise MixError(
-            f"--weights {opts.weights} would write the training episodes {repeats} times ({written} frames, more "
-            f"than {MAX_GROWTH:g}x the inputs' {sum(train_frames)}): choose weights closer to the inputs' sizes"
+            f"--weights {weights_text(opts.weights)} would write the training episodes {repeats} times ({written} "
+            f"frames, more than {MAX_GROWTH:g}x the inputs' {sum(train_frames)}): choose weights closer to the inputs' "
+            "sizes"
         )
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = temp_sibling(target)

@@ -30,10 +30,12 @@ from typing import Any
 import numpy as np
 
 from lerobot_unidextok.errors import InvalidInputError
+from lerobot_unidextok.utils.number_checks import NumberError, checked_numbers
 
 ROTATION = "Rz(yaw) Ry(pitch) Rx(roll)"  # world <- wrist, from the columns' roll, pitch, yaw
 WRIST_FRAME_PATH = "meta/unidextok_wrist_frame.json"  # in a recorded (not converted) LeRobot dataset
 NUM_COLUMNS = 6
+MAX_CENTRE_M = 0.3  # a hand's fingers close within this distance of its wrist (the largest hands: ~0.15 m)
 
 
 class WristFrameError(InvalidInputError):
@@ -41,22 +43,13 @@ class WristFrameError(InvalidInputError):
 
 
 def check_centre(hand: str, value: Any, where: str) -> list[float]:
-    """`value` as a grasp centre (3 finite numbers, m), or a WristFrameError naming `where`."""
-    arr = np.asarray(value, dtype=np.float64) if _numeric(value) else None
-    if arr is None or arr.shape != (3,) or not np.isfinite(arr).all():
-        raise WristFrameError(
-            f"{where}: the grasp centre of {hand!r} must be 3 finite numbers (x, y, z in m, in the wrist frame), "
-            f"got {value!r}"
-        )
-    return [float(x) for x in arr]
-
-
-def _numeric(value: Any) -> bool:
+    """`value` as a grasp centre (3 finite numbers, m, within MAX_CENTRE_M of the wrist), or a WristFrameError
+    naming `where` and the hand (`utils/number_checks.py`)."""
     try:
-        np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        return False
-    return True
+        return checked_numbers(value, f"{where}: the grasp centre of {hand!r}", length=3, max_abs=MAX_CENTRE_M,
+                               unit="m", fix="give x, y, z in m in the wrist frame (a value typed in mm is 1000x)")
+    except NumberError as err:
+        raise WristFrameError(str(err)) from None
 
 
 @dataclass
@@ -112,7 +105,9 @@ def read_recorded(root: str | Path) -> WristFrame | None:
 
 
 def write_recorded(root: str | Path, frame: WristFrame) -> Path:
+    """Write `frame` into the LeRobot dataset at `root`, checked as `read_recorded` will read it."""
     path = Path(root) / WRIST_FRAME_PATH
+    WristFrame.from_dict(frame.to_dict(), f"the wrist frame for {path}")
     path.write_text(json.dumps(frame.to_dict(), indent=1))
     return path
 

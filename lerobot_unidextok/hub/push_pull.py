@@ -21,6 +21,7 @@ from lerobot_unidextok.errors import InvalidInputError, MissingInputError, Unava
 from lerobot_unidextok.hub.card import card_status, model_card, with_repo_id, with_training_data
 from lerobot_unidextok.pretrained import resolve as resolve_pretrained
 from lerobot_unidextok.utils.hf_cache import DATASET_REVISIONS, cached_repo_snapshot, hub_cache, lerobot_home
+from lerobot_unidextok.utils.number_checks import nonfinite_tensors, nonfinite_text
 
 logger = logging.getLogger(__name__)
 
@@ -57,7 +58,8 @@ def detect_repo_type(local_dir: Path) -> str:
 
 def check_loadable(local_dir: Path, repo_type: str) -> None:
     """Read back what a push would upload, so a damaged folder (a truncated safetensors, a JSON file cut
-    short, an unreadable parquet file) is refused before anything reaches the Hub."""
+    short, an unreadable parquet file) is refused before anything reaches the Hub; a model must load as its users
+    load it and hold no NaN/inf in any tensor (a policy's statistics included)."""
     from safetensors import SafetensorError
     from safetensors.torch import load_file
 
@@ -81,7 +83,15 @@ def check_loadable(local_dir: Path, repo_type: str) -> None:
                 "re-save or re-convert) and push again"
             ) from None
     if repo_type == "model":
-        check_model_loads(local_dir)
+        check_model_loads(local_dir)  # a policy: also every tensor finite (policies.checkpoint)
+        tokenizer = not (local_dir / "policy_preprocessor.json").is_file()
+        for path in sorted(local_dir.glob("*.safetensors")) if tokenizer else []:  # no NaN/inf in what is pushed
+            found = nonfinite_tensors(path)
+            if found:
+                raise InvalidInputError(
+                    f"{path}: {nonfinite_text(found)}, so nothing was pushed: a model with them outputs NaN; the "
+                    "training diverged or the file was edited: push an earlier checkpoint, or train again"
+                )
 
 
 def check_model_loads(local_dir: Path) -> None:

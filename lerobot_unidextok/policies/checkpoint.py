@@ -10,6 +10,10 @@ is reported as bound or pushed. The check is stricter than LeRobot's own load wh
   key(s)" / "Unexpected key(s)" log line. Here the file's tensors must be the state dict of the policy its
   `config.json` builds, exactly; the weights are loaded once, by the loader LeRobot uses (safetensors'
   `load_model`, which accounts for tensors saved once for several names).
+- a tensor holding NaN or inf, in `model.safetensors` or in a processor step's saved statistics, is named (LeRobot
+  loads it without a word; the policy then acts on NaN or never moves a hand).
+- a `config.json` value its config class refuses (a NaN std in a `<type>_udt`'s `udt_hand_stats`) is that
+  refusal, naming the file.
 - a `config.json` whose `type` is not a registered policy, or whose fields are another policy's (draccus'
   `DecodingError`), and a processor step that is neither registered nor importable (LeRobot's `ImportError`)
   are named with what is known.
@@ -23,7 +27,8 @@ import logging
 import re
 from pathlib import Path
 
-from lerobot_unidextok.errors import InvalidInputError
+from lerobot_unidextok.errors import InvalidInputError, UserError
+from lerobot_unidextok.utils.number_checks import nonfinite_tensors, nonfinite_text
 
 PREPROCESSOR = "policy_preprocessor.json"
 POSTPROCESSOR = "policy_postprocessor.json"
@@ -49,6 +54,8 @@ def check_policy_checkpoint(folder: str | Path) -> None:
     _register_plugins()
     config = _load_config(folder / "config.json")
     _check_weights(folder / WEIGHTS, config)
+    for path in sorted(folder.glob("*.safetensors")):  # the weights and the processors' saved statistics
+        check_finite(path)
     for name in (PREPROCESSOR, POSTPROCESSOR):
         _check_pipeline(folder / name)
 
@@ -76,7 +83,7 @@ def _damaged() -> tuple[type[BaseException], ...]:
 
 def _load_config(path: Path):
     """The checkpoint's policy config; its `type` must be a registered policy whose fields the file holds."""
-    from draccus.utils import DecodingError
+    from draccus.utils import DecodingError, ParsingError
     from lerobot.configs.policies import PreTrainedConfig
 
     try:
@@ -92,7 +99,12 @@ def _load_config(path: Path):
         )
     try:
         return PreTrainedConfig.from_pretrained(path.parent)
-    except DecodingError as e:
+    except ParsingError as e:  # a DecodingError, or the config's own refusal of a value (its __post_init__)
+        refusal = _refusal_in(e)
+        if refusal is not None:  # e.g. a NaN std in udt_hand_stats: the message names the field and the fix
+            raise PolicyCheckpointError(f"{path}: {refusal}") from e
+        if not isinstance(e, DecodingError):
+            raise _error(path, e) from e
         raise PolicyCheckpointError(
             f"{path} says type {found!r} but does not decode as one ({_decoding_reason(e)}): its type was changed, "
             f"or it is another policy's config (known types: {', '.join(known)}); use the config.json "
@@ -100,6 +112,17 @@ def _load_config(path: Path):
         ) from e
     except _damaged() as e:
         raise _error(path, e) from e
+
+
+def _refusal_in(err: BaseException) -> UserError | None:
+    """The config's own refusal of a value (a `UserError` its `__post_init__` raised) that draccus wrapped."""
+    seen: set[int] = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, UserError):
+            return err
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return None
 
 
 def _check_weights(path: Path, config) -> None:
@@ -123,6 +146,20 @@ def _check_weights(path: Path, config) -> None:
             + ("the missing ones left random" if missing else "the extra ones ignored")
             + "; the file was edited or comes from another checkpoint: use the model.safetensors lerobot-train "
             "saved with this config.json (one pretrained_model folder), or train again"
+        )
+
+
+def check_finite(path: Path) -> None:
+    """Every tensor of the safetensors file at `path` finite: a NaN weight or statistic makes a policy that
+    crashes on its own output or never moves a hand, and nothing in LeRobot's load notices it."""
+    try:
+        found = nonfinite_tensors(path)
+    except _damaged() as e:
+        raise _error(path, e) from e
+    if found:
+        raise PolicyCheckpointError(
+            f"{path}: {nonfinite_text(found)}: a policy with them acts on NaN; the training diverged or the file "
+            "was edited: use an earlier checkpoint of the run (checkpoints/<step>/pretrained_model), or train again"
         )
 
 
@@ -194,4 +231,4 @@ def _error(path: Path, e: BaseException) -> PolicyCheckpointError:
     )
 
 
-__all__ = ["POSTPROCESSOR", "PREPROCESSOR", "WEIGHTS", "PolicyCheckpointError", "check_policy_checkpoint"]
+__all__ = ["POSTPROCESSOR", "PREPROCESSOR", "WEIGHTS", "PolicyCheckpointError", "check_finite", "check_policy_checkpoint"]

@@ -44,6 +44,7 @@ from lerobot_unidextok.blocks import find_udhm_blocks, passthrough_indices
 from lerobot_unidextok.constants import ACTION, OBS_STATE
 from lerobot_unidextok.data.destination import Kind, claim, move_into_place, release
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
+from lerobot_unidextok.data.wrist_frame import check_centre
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.layout import NativeLayout
 from lerobot_unidextok.policies.checkpoint import POSTPROCESSOR, PREPROCESSOR, check_policy_checkpoint
@@ -164,6 +165,8 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
     (`overwrite`: replace a policy checkpoint there, once the new one is whole; `data.destination.claim`);
     `grasp_centre_m`: the robot's grasp centre for a checkpoint in the grasp-centre frame (`deploy_frame.py`)."""
     checkpoint, robot = Path(checkpoint), Path(robot)
+    if grasp_centre_m is not None:  # before anything is read: 3 numbers in m within 0.3 m of the wrist
+        check_centre("the robot's hands", grasp_centre_m, "--grasp_centre_m")
     if not (checkpoint / "config.json").is_file() or not (checkpoint / PREPROCESSOR).is_file():
         raise DeployError(
             f"{checkpoint} is not a LeRobot policy checkpoint (config.json + {PREPROCESSOR}): pass the "

@@ -5,7 +5,8 @@ A `<type>_udt` policy trained with `udt_grasp_centres_m` predicts where each han
 checkpoint's `unidextok.wrist_frame` steps turn that into the robot's wrist command with the robot's own grasp
 centre, taken, per robot hand, from (first that has it):
 
-1. `--grasp_centre_m='[x, y, z]'` (m, in the wrist frame of the wrist columns), for every hand of the robot;
+1. `--grasp_centre_m='[x, y, z]'` (m, in the wrist frame of the wrist columns, within 0.3 m of the wrist), for
+   every hand of the robot; a centre the robot's dataset records that it overrides is named in a one-line note;
 2. the robot's converted dataset (its record's `wrist_frame`: the simulator's recordings have it);
 3. the checkpoint (a hand it trained on).
 
@@ -15,12 +16,18 @@ guessed centre would put its fingers where another hand's close, the error the f
 
 from __future__ import annotations
 
+import logging
+
+import numpy as np
+
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.data.wrist_frame import WristFrame, check_centre
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.policies.udt_processor import row_hands
 from lerobot_unidextok.processor import WristFrameStep
+
+logger = logging.getLogger(__name__)
 
 
 class FrameBindError(InvalidInputError):
@@ -48,9 +55,15 @@ def bound_grasp_centres(config: UdtConfigMixin, robot: UdhmDatasetMeta,
                 f"{list(config.udt_wrist_columns)}: bind a robot with the policy's wrist columns"
             )
         recorded = frame.grasp_centre_in_wrist_m
-    for hand in dict.fromkeys(robot.block_hands()):
-        if grasp_centre_m is not None:
-            centres[hand] = check_centre(hand, grasp_centre_m, "--grasp_centre_m")
+    hands = list(dict.fromkeys(robot.block_hands()))
+    flag = None if grasp_centre_m is None else check_centre(" + ".join(hands), grasp_centre_m, "--grasp_centre_m")
+    for hand in hands:
+        if flag is not None:
+            known, whose = (recorded, f"{robot.root} records") if hand in recorded else (centres, "the checkpoint has")
+            if hand in known and not np.allclose(known[hand], flag, rtol=0, atol=1e-6):
+                logger.warning("note: --grasp_centre_m=%s overrides the grasp centre %s m of %r that %s", flag,
+                               list(known[hand]), hand, whose)  # fmt: skip
+            centres[hand] = list(flag)
         elif hand in recorded:
             centres[hand] = list(recorded[hand])
         elif hand not in centres:

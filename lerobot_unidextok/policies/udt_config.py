@@ -64,6 +64,7 @@ from lerobot_unidextok.processor import (
     tokenizer_output_dims,
 )
 from lerobot_unidextok.tokenizer import EncodingConfig, UniDexTokConfig
+from lerobot_unidextok.utils.number_checks import NumberError, checked_hand_stats
 
 logger = logging.getLogger(__name__)
 
@@ -211,6 +212,7 @@ class UdtConfigMixin:
         if self.udt_hand_norm not in HAND_NORMS:
             raise ValueError(f"udt_hand_norm must be one of {tuple(HAND_NORMS)}, got {self.udt_hand_norm!r}")
         self._check_wrist_frame()
+        self._check_hand_stats()
         self._stock_normalization = dict(self.normalization_mapping)  # before the relative override
         if self.udt_relative_actions:  # offsets around the state: the absolute action stats do not describe them
             self.normalization_mapping = {**self.normalization_mapping, "ACTION": NormalizationMode.IDENTITY}
@@ -225,6 +227,27 @@ class UdtConfigMixin:
                               f"roll, pitch, yaw) of udt_grasp_centres_m, got {self.udt_wrist_columns}")  # fmt: skip
         self.udt_grasp_centres_m = {h: check_centre(h, v, "udt_grasp_centres_m")
                                     for h, v in self.udt_grasp_centres_m.items()}  # fmt: skip
+
+    def _check_hand_stats(self) -> None:
+        """udt_hand_stats as filled from the dataset or read from a checkpoint's config.json: a mode per key, and per
+        key the mode's two statistics of every hand it normalises (a mix's vocabulary; one robot's layout, unless
+        bound zero-shot), finite and of the right sign and length (`utils/number_checks.py`)."""
+        if not self.udt_hand_stats:
+            return
+        fix = ("use the config.json lerobot-train wrote with this checkpoint, or train again (lerobot-train fills "
+               "udt_hand_stats from the dataset)")  # fmt: skip
+        stats = dict(self.udt_hand_stats)
+        modes = stats.pop("modes", None)
+        if not isinstance(modes, dict) or not modes or any(m not in STATS_OF_MODE for m in modes.values()):
+            raise NumberError(f"udt_hand_stats['modes'] must map {OBS_STATE} / {ACTION} to one of "
+                              f"{tuple(STATS_OF_MODE)}, got {modes!r}; {fix}")  # fmt: skip
+        if sorted(stats) != sorted(modes):
+            raise NumberError(f"udt_hand_stats has statistics for {sorted(stats)} but modes for {sorted(modes)}; {fix}")
+        hands = self.udt_hand_vocabulary or (None if self.udt_allow_unknown else sorted(set(self.udt_hand_layout)))
+        for key, mode in modes.items():
+            checked = checked_hand_stats({key: stats[key]}, "udt_hand_stats", hands=list(hands) if hands else None,
+                                         sides=list(self.udt_sides) or None, required=STATS_OF_MODE[mode], fix=fix)
+            self.udt_hand_stats[key] = checked[key]
 
     @property
     def uses_wrist_frame(self) -> bool:
@@ -364,10 +387,14 @@ class UdtConfigMixin:
         """Per-hand statistics of the action blocks (and the state's, `udt_hand_norm_state`) in the modes
         `udt_hand_norm` asks (a mix's record, else computed from the dataset's training episodes), and LeRobot's
         normaliser set to IDENTITY for them."""
-        from lerobot_unidextok.conversion.hand_stats import ACTION_DELTA, hand_stats, training_episodes
+        from lerobot_unidextok.conversion.hand_stats import (
+            ACTION_DELTA,
+            hand_stats,
+            recorded_hand_stats,
+            training_episodes,
+        )
 
-        record = meta.record
-        stats = record.hand_stats if record is not None and record.hand_stats else None
+        stats = recorded_hand_stats(meta)  # a mix's, checked against its vocabulary
         if stats is None:
             stats = hand_stats(meta.root, training_episodes(meta))
             logger.info("%s: per-hand statistics computed from %s's training episodes", self.type, meta.root)
@@ -384,6 +411,7 @@ class UdtConfigMixin:
                            for side, per in stats[source].items()}  # fmt: skip
             self.normalization_mapping = {**self.normalization_mapping, kind: NormalizationMode.IDENTITY}
         self.udt_hand_stats = chosen if chosen["modes"] else {}
+        self._check_hand_stats()
 
     @property
     def num_udt_blocks(self) -> int:

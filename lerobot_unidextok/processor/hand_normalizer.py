@@ -25,7 +25,10 @@ normalised per slot with the pooled statistics of the known hands that have that
 and std over their frames; range modes: the lowest low and highest high); a slot no known hand has passes
 unscaled. A block without a hand (id -1) passes unscaled.
 
-The statistics are the step's state (`state_dict`: per key, the two statistics of its mode per block, hand and
+The statistics are checked where they enter (`utils/number_checks.py`: finite, a std and frames >= 0, every hand
+of the vocabulary with statistics and no other), when the step is built and in `load_state_dict`, so a damaged
+checkpoint is one error naming the tensor, not a policy that never moves a hand. They are the step's state
+(`state_dict`: per key, the two statistics of its mode per block, hand and
 slot, the frames per block and hand, and the passthrough columns' two statistics), so they are saved with the
 policy's processors and reloaded bit-exactly; `get_config` holds the layout and the modes. The post step of an
 unbound mix checkpoint reads the hand ids its paired pre step saw last (`pair`); reloaded unbound it has neither
@@ -47,6 +50,7 @@ from lerobot_unidextok import hands
 from lerobot_unidextok.blocks import find_udhm_blocks, passthrough_indices
 from lerobot_unidextok.constants import ACTION, OBS_HAND_IDS, OBS_STATE, UDHM_DIM
 from lerobot_unidextok.processor.hand_rows import match_rows, row_hand_ids
+from lerobot_unidextok.utils.number_checks import MAX_STAT_RAD, NumberError, checked_hand_stats, checked_tensor
 
 HAND_NORMALIZER_STEP_NAME = "unidextok.hand_normalizer"
 MODES = ("normalize", "unnormalize")
@@ -121,8 +125,15 @@ class HandNormalizerStep(ProcessorStep):
             raise ValueError(f"{name}: fixed_hand_ids {self.fixed_hand_ids} must give one hand per block {self._sides}")
         names = self.hand_names
         self._active = torch.as_tensor(np.stack([hands.get(h).active_mask for h in names]))  # (V + E, 22)
+        fix = "compute them again (lerobot-train fills udt_hand_stats from the dataset)"
         for key in self.modes:
+            if self.stats.get(key):
+                self.stats[key] = checked_hand_stats({key: self.stats[key]}, f"{name} stats", fix=fix,
+                                                     hands=self.hand_vocabulary, sides=self._sides,
+                                                     required=STATS_OF_MODE[self.modes[key]])[key]  # fmt: skip
             self._build(key)
+        # a post step is built without stats and loads its pre step's (`load_state_dict` checks every hand's)
+        self._check_tensors(self._tensors, f"{name}: the statistics built from stats / dataset_stats", fix, False)
 
     # ----------------------------------------------------------------------------------------- statistics
     @property
@@ -293,6 +304,21 @@ class HandNormalizerStep(ProcessorStep):
     def state_dict(self) -> dict[str, torch.Tensor]:
         return {k: v.detach().cpu().contiguous() for k, v in self._tensors.items()}
 
+    def _check_tensors(self, tensors: dict[str, torch.Tensor], where: str, fix: str, every_hand: bool = True) -> None:
+        """Every statistic finite, each scale (std, frames) >= 0, and (`every_hand`) each hand of the vocabulary
+        with frames in some block of each key (a hand without them would pass unnormalised): a NumberError naming
+        the tensor."""
+        for k in self._tensors:  # "<key>.<statistic>" of the blocks (rad), "<key>.passthrough.<statistic>", frames
+            scale, block = k.endswith((".std", ".frames")), ".passthrough." not in k and not k.endswith(".frames")
+            checked_tensor(tensors[k], f"{where}: tensor {k!r}", sign="non_negative" if scale else None, fix=fix,
+                           max_abs=MAX_STAT_RAD if block else None, unit="rad" if block else "")  # fmt: skip
+        for key in self.modes if every_hand else ():
+            frames = tensors[f"{key}.frames"]  # (blocks, V)
+            none = [h for v, h in enumerate(self.hand_vocabulary) if frames.shape[0] and not bool(frames[:, v].any())]
+            if none:
+                raise NumberError(f"{where}: tensor '{key}.frames' gives hands {none} no frames in any block: they "
+                                  f"would pass unnormalised; {fix}")  # fmt: skip
+
     def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
         missing = sorted(set(self._tensors) - set(state))
         if missing:
@@ -301,6 +327,10 @@ class HandNormalizerStep(ProcessorStep):
             if tuple(state[k].shape) != tuple(v.shape):
                 raise ValueError(f"{HAND_NORMALIZER_STEP_NAME}: saved {k} has shape {tuple(state[k].shape)}, "
                                  f"this step's layout {tuple(v.shape)}")  # fmt: skip
+        self._check_tensors(state, f"{HAND_NORMALIZER_STEP_NAME}: the saved statistics",
+                            "the checkpoint's processor file was edited or damaged: use the one lerobot-train saved "
+                            "with it, or train again")  # fmt: skip
+        for k in self._tensors:
             self._tensors[k] = state[k].clone().float()
         self._cache.clear()
 

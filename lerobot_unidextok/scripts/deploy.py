@@ -27,7 +27,8 @@ class DeployConfig:
     # a robot whose hands were never in the mix: bind it anyway (its hands get no identity the policy knows)
     zero_shot: bool = False
     # the robot's grasp centre (x, y, z m, in its wrist frame) for a policy that learned the wrist in each hand's
-    # grasp-centre frame; default: the robot's converted dataset's record, else the checkpoint's for a known hand
+    # grasp-centre frame, within 0.3 m of the wrist; default: the robot's converted dataset's record, else the
+    # checkpoint's for a known hand (a recorded centre the flag overrides is named in a note)
     grasp_centre_m: list[float] | None = None
     # replace the policy checkpoint at --output (never anything else), once the bound one is written whole
     overwrite: bool = False

@@ -1,6 +1,6 @@
 """draccus parsing for the command-line tools: one help line per flag, config checks as their own errors.
 
-Five draccus (0.11) habits this corrects:
+Six draccus (0.11) habits this corrects:
 
 - every nested config (`--coverage.*`, `--executor.*`, `--train.*`) gets a whole-group flag registered
   twice, once by the parent as `--<field name>` and once by the nested wrapper as `--<dotted path>`.
@@ -15,6 +15,8 @@ Five draccus (0.11) habits this corrects:
 - a flag value YAML cannot read (`--source_options={bad`) ended in a yaml traceback; it is a ValueError
   naming the flag. A mapping that names one key twice (`--source_options='{"hands": {"left": ..., "left": ...}}'`)
   kept the last entry with no word; it is refused the same way, naming the key.
+- a value draccus cannot read as its field's type (`--weights='[a, 1]'`) was named by its Python message alone;
+  the flag (and the list item) is named.
 - a ValueError raised by a config's `__post_init__` (a bad flag value) reaches the caller wrapped in
   `ParsingError("Couldn't instantiate class ...")`; it is raised as itself, with its own message.
 
@@ -40,7 +42,7 @@ from collections.abc import Callable, Sequence
 
 import yaml
 from draccus.argparsing import ArgumentParser
-from draccus.utils import ParsingError
+from draccus.utils import DecodingError, ParsingError
 
 from lerobot_unidextok.configs import resolve_config_path
 from lerobot_unidextok.errors import ConfigError, UserError
@@ -115,6 +117,8 @@ def parse_config[T](config_class: type[T], args: Sequence[str] | None = None, co
             raise nested from None
         if isinstance(cause, UserError):
             raise cause from None
+        if isinstance(exc, DecodingError) and exc.key_path and not exc.message.startswith("Couldn't instantiate"):
+            raise ConfigError(_undecodable(exc)) from None  # `--weights='[a, 1]'`: name the flag and the item
         if isinstance(cause, ValueError):  # a __post_init__ check: its message names the flag
             raise ConfigError(str(cause)) from None
         if isinstance(cause, TypeError):  # a value of the wrong type for a field, or a key it does not have
@@ -142,6 +146,13 @@ class _UniqueKeyLoader(yaml.SafeLoader):
 def load_flag_value(text: str):
     """A flag's value read as YAML (JSON is YAML), as draccus reads it, with a key given twice a `yaml.YAMLError`."""
     return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506  (a SafeLoader subclass)
+
+
+def _undecodable(exc: DecodingError) -> str:
+    """'--weights: item 0: Couldn't parse 'a' into a float; ...' for a value draccus cannot read as its type."""
+    flag = ".".join(k for k in exc.key_path if not str(k).isdigit())
+    items = "".join(f"item {k}: " for k in exc.key_path if str(k).isdigit())
+    return f"--{flag}: {items}{' '.join(exc.message.split())}; check the value against --help"
 
 
 def _user_error_in(exc: BaseException) -> UserError | None:

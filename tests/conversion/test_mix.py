@@ -19,6 +19,7 @@ from lerobot_unidextok.conversion.mix import MixError, MixOptions, mix, repeat_f
 from lerobot_unidextok.conversion.validate import validate_dataset
 from lerobot_unidextok.data import UdhmDatasetMeta, load_udhm_frames
 from lerobot_unidextok.data.destination import DestinationError
+from lerobot_unidextok.utils.number_checks import NumberError
 
 BIN = Path(sys.executable).parent
 
@@ -175,11 +176,11 @@ def test_bad_inputs_are_one_clear_error_and_nothing_is_written(g1_like, l10_robo
     again = f"{l10_robot.parent}/../{l10_robot.parent.name}/{l10_robot.name}/"
     with pytest.raises(MixError, match=r"are the same dataset \(one folder\).*Pass each dataset once"):
         mix(MixOptions(inputs=[str(l10_robot), again], root=str(root)))
-    with pytest.raises(MixError, match="one positive, finite weight per input"):
+    with pytest.raises(NumberError, match=r"--weights holds NaN at index 0 .*one positive number per input"):
         MixOptions(inputs=["a", "b"], root=str(root), weights=[float("nan"), 1])
     with pytest.raises(DestinationError, match="is, holds or sits inside the input"):
         mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(l10_robot / "mix")))
-    with pytest.raises(MixError, match="one positive, finite weight per input"):
+    with pytest.raises(NumberError, match=r"--weights must be 2 numbers, got 1; pass one positive number per input"):
         MixOptions(inputs=["a", "b"], root=str(root), weights=[1])
     assert not root.exists() and not list(tmp_path.glob(".out*"))
     other = tmp_path / "not_a_mix"
@@ -201,7 +202,7 @@ def test_the_cli_mixes_and_prints_the_training_flag(g1_like, l10_robot, tmp_path
     assert r.returncode == 2 and r.stderr.startswith("error: ") and "already holds a mixed dataset" in r.stderr
     r = subprocess.run([str(BIN / "unidextok-mix"), "--inputs=[a,b]", "--weights=[nan,1]", f"--root={out}"],
                        capture_output=True, text=True, timeout=300)  # fmt: skip
-    assert r.returncode == 2 and r.stderr.startswith("error: ") and "finite weight" in r.stderr
+    assert r.returncode == 2 and r.stderr.startswith("error: --weights holds NaN at index 0"), r.stderr
 
 
 def test_mix_overwrite_replaces_a_mix_and_never_a_converted_dataset(g1_like, l10_robot, tmp_path):

@@ -400,16 +400,20 @@ def _push_in_process(hub, monkeypatch, capsys, folder: Path, repo_id: str) -> tu
     return code, capsys.readouterr().err
 
 
-@pytest.mark.parametrize("edit", ["missing_tensor", "extra_tensor", "other_type", "unknown_step"])
+@pytest.mark.parametrize("edit", ["missing_tensor", "extra_tensor", "other_type", "unknown_step", "nan_weight",
+                                  "nan_stats"])  # fmt: skip
 def test_push_refuses_a_policy_that_does_not_load_strictly(hub, tmp_path, monkeypatch, capsys, edit):
     """A policy missing a tensor was pushed with a "Missing key(s)" warning (an extra one silently); a config of
-    another policy type and an unknown processor step were tracebacks. Each is one line; nothing is pushed."""
+    another policy type and an unknown processor step were tracebacks; a NaN weight or a NaN std in the saved
+    normaliser was published (issue 54). Each is one line naming the tensor; nothing is pushed."""
     from tiny_policy import edited_copy, write_tiny_act
 
     bad = edited_copy(write_tiny_act(tmp_path / "ok"), tmp_path / "bad", edit)
     code, err = _push_in_process(hub, monkeypatch, capsys, bad, f"lab/{edit.replace('_', '-')}")
     what = {"missing_tensor": "(missing model.action_head.bias)", "extra_tensor": "(extra model.spare.weight)",
-            "other_type": "config.json says type 'diffusion'", "unknown_step": "'unidextok.no_such_step'"}[edit]  # fmt: skip
+            "other_type": "config.json says type 'diffusion'", "unknown_step": "'unidextok.no_such_step'",
+            "nan_weight": "model.safetensors: tensor model.action_head.weight holds 1 NaN/inf",
+            "nan_stats": "normalizer_processor.safetensors: tensor action.std holds 1 NaN/inf"}[edit]  # fmt: skip
     assert code == 2 and err.startswith(f"error: {bad} does not load, so nothing was pushed:"), err
     assert what in err.splitlines()[0] and "Traceback" not in err
     assert ("model", f"lab/{edit.replace('_', '-')}") not in hub.repos

@@ -32,6 +32,10 @@ EXPECTED = {
     "unknown_step": r"policy_preprocessor.json has the processor step 1 'unidextok.no_such_step', which is not "
     r"known here: steps come from LeRobot's registry",
     "unknown_class": r"policy_preprocessor.json has the processor step 1 'no_such_package.steps.Step'",
+    "nan_weight": r"model.safetensors: tensor model.action_head.weight holds 1 NaN/inf of 32 values: a policy with "
+    r"them acts on NaN; .*use an earlier checkpoint of the run",
+    "nan_stats": r"policy_preprocessor_step_3_normalizer_processor.safetensors: tensor action.std holds 1 NaN/inf "
+    r"of 4 values",
 }
 
 

@@ -226,7 +226,7 @@ def test_deploy_binds_the_target_robots_own_centre_to_the_mix_and_zero_shot(sim,
     plain = _save(plain_cfg, meta, tmp_path / "plain")
     with pytest.raises(FrameBindError, match="leave the flag out"):
         deploy(plain, sim["shadow"]["udhm"], tmp_path / "refused", grasp_centre_m=[0.05, 0.0, -0.05])
-    with pytest.raises(WristFrameError, match="must be 3 finite numbers"):
+    with pytest.raises(WristFrameError, match="must be 3 numbers in m"):
         deploy(checkpoint, sim["allegro"]["udhm"], tmp_path / "bad", zero_shot=True, grasp_centre_m=[0.1, 0.2])
 
 

@@ -113,7 +113,7 @@ def test_saved_and_reloaded_it_carries_its_centres_and_an_unbound_post_step_says
 @pytest.mark.parametrize(
     "kw, said",
     [
-        (dict(grasp_centres_m={**CENTRES, "allegro": [0.1, 0.2]}), "must be 3 finite numbers"),
+        (dict(grasp_centres_m={**CENTRES, "allegro": [0.1, 0.2]}), "must be 3 numbers in m"),
         (dict(grasp_centres_m={"allegro": [0.1, 0.2, 0.0]}), "no grasp centre for hands ['inspire_rh56_unitree']"),
         (dict(action_names=ACT[3:]), "the action has no wrist columns ['wrist_x', 'wrist_y', 'wrist_z']"),
         (dict(wrist_columns=WRIST[:3]), "wrist_columns must name x, y, z, roll, pitch, yaw"),
@@ -138,5 +138,5 @@ def test_a_frame_record_is_checked_and_inputs_merge_by_hand():
         merge_frames([frame, WristFrame([f"{c}_2" for c in WRIST])], "mix")
     with pytest.raises(WristFrameError, match="'columns' must name the 6"):
         WristFrame.from_dict({"columns": WRIST[:5]}, "x")
-    with pytest.raises(WristFrameError, match="must be 3 finite numbers"):
+    with pytest.raises(WristFrameError, match="must be 3 numbers in m"):
         WristFrame.from_dict({"columns": WRIST, "grasp_centre_in_wrist_m": {"allegro": [1, "a", 2]}}, "x")
