@@ -35,11 +35,14 @@ def installed(tmp_path_factory):
     return site, site / "bin", wheel
 
 
-def _run(installed, args: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:
+def _run(installed, args: list[str], cwd: Path, timeout: int = 600, unset=()) -> subprocess.CompletedProcess:
+    """`args` run from `cwd` on the installed wheel, offline, without the checkout's data folders (and without the
+    variables in `unset`)."""
     site, bin_dir, _ = installed
     env = subprocess_env(PYTHONPATH=str(site), HF_HUB_OFFLINE="1", HF_HOME=str(cwd / "hf"), MPLBACKEND="Agg",
                          PATH=f"{bin_dir}{os.pathsep}{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")  # fmt: skip
-    env.pop("UNIDEXTOK_REAL_DATA", None)
+    for name in ("UNIDEXTOK_REAL_DATA", "UNIDEXTOK_URDF_DIR", *unset):
+        env.pop(name, None)
     r = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
     assert r.returncode == 0, f"{args}\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
     return r
@@ -55,6 +58,9 @@ def test_the_wheel_holds_the_library_its_data_and_licences(installed):
     assert {"lerobot_env_unidextok/hand_models/shadow.yaml", "lerobot_env_unidextok/assets/inspire/inspire_right_hand.xml",
             "lerobot_env_unidextok/assets/inspire/LICENSE.robosuite", "lerobot_env_unidextok/assets/allegro/allegro_right.xml",
             "lerobot_env_unidextok/assets/allegro/LICENSE.allegro_hand"} <= set(names)  # fmt: skip
+    for folder in (REPO / "lerobot_env_unidextok" / "assets").iterdir():  # every shipped model with its licence
+        shipped = {f"lerobot_env_unidextok/assets/{folder.name}/{f.name}" for f in folder.iterdir()}
+        assert shipped <= set(names) and any("/LICENSE" in n for n in shipped), folder.name
     assert any(n.endswith("licenses/LICENSE") for n in names) and any(n.endswith("licenses/NOTICE") for n in names)
     # the checkout's top-level converters/ and configs/ install inside the package, nowhere else
     assert "lerobot_unidextok/converters/README.md" in names and "lerobot_unidextok/configs/__init__.py" in names
@@ -110,6 +116,47 @@ def test_lerobot_finds_the_simulator_in_the_installed_wheel(installed, tmp_path)
             "print(lerobot_env_unidextok.__file__, obs['agent_pos'].shape, cfg.features['action'].shape)\n")  # fmt: skip
     out = _run(installed, [sys.executable, "-c", code], tmp_path).stdout.split()
     assert out[0].startswith(str(site)) and out[1:] == ["(29,)", "(28,)"], out
+
+
+SHIPPED_HANDS = """
+import os, sys
+from lerobot.envs.factory import make_env
+from lerobot_env_unidextok.configuration import UniDexTokEnvConfig
+from lerobot_env_unidextok.record import RecordConfig, record
+from lerobot_env_unidextok.urdf_model import shipped_path
+from lerobot_unidextok import hands
+for hand in (n for n in hands.names() if shipped_path(hands.get(n))):
+    report = record(RecordConfig(hand=hand, episodes=1, root=hand, max_attempts_factor=4))
+    vec = make_env(UniDexTokEnvConfig(hand=hand), n_envs=1)["unidextok"][0]  # what lerobot-eval makes
+    vec.reset(seed=0)
+    frame = vec.envs[0].render()
+    print("HAND", hand, report.episodes, report.frames, int(frame.max() > 0), os.environ.get("MUJOCO_GL"))
+    vec.close()
+"""
+
+
+@pytest.mark.slow
+def test_every_shipped_hand_records_and_runs_in_lerobot_from_the_installed_wheel(installed, tmp_path):
+    """A pip user's simulator, with no URDF and no variable set (MUJOCO_GL neither, no display): the issue's
+    `unidextok-sim-record --hand=unitree_dex3_1`, then in one process every hand whose built model ships recorded
+    (one episode its expert completed) and made by LeRobot's own env factory (what lerobot-eval makes), a frame
+    drawn. Nothing is built (the cache stays empty). Before: every built hand but the Allegro was refused ("its URDF
+    ... is not under .../shared/data/urdf")."""
+    site = installed[0]
+    cache = tmp_path / "sim_cache"
+    headless = ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")
+    out = _run(installed, ["unidextok-sim-record", "--hand=unitree_dex3_1", "--episodes=1", "--root=dex3"], tmp_path,
+               unset=headless).stdout  # fmt: skip
+    assert "wrote" in out and "1 episodes" in out and (tmp_path / "dex3" / "meta" / "info.json").is_file(), out
+    code = f"import os; os.environ['UNIDEXTOK_SIM_CACHE'] = {str(cache)!r}\n" + SHIPPED_HANDS
+    lines = [line.split()[1:] for line in _run(installed, [sys.executable, "-c", code], tmp_path, unset=headless)
+             .stdout.splitlines() if line.startswith("HAND")]  # fmt: skip
+    shipped = sorted(p.name for p in (site / "lerobot_env_unidextok" / "assets").iterdir() if p.name != "inspire")
+    assert sorted(line[0] for line in lines) == shipped and len(shipped) >= 10, lines
+    for hand, episodes, frames, drawn, backend in lines:
+        assert episodes == "1" and int(frames) > 5, (hand, frames)
+        assert drawn == "1" or backend == "disable", (hand, backend)  # black only where no backend exists
+    assert not cache.exists() or not any(cache.iterdir())
 
 
 def test_the_sdist_is_the_library_with_its_licences(tmp_path):

@@ -15,9 +15,12 @@ BIN = Path(sys.executable).parent
 pytestmark = pytest.mark.slow
 
 
-def _run(args: list[str], cwd: Path, check: bool = True) -> subprocess.CompletedProcess:
-    r = subprocess.run(args, cwd=cwd, env=subprocess_env(OMP_NUM_THREADS="1", MUJOCO_GL="disable"), text=True,
-                       capture_output=True, timeout=600)  # fmt: skip
+def _run(args: list[str], cwd: Path, check: bool = True, headless: bool = False) -> subprocess.CompletedProcess:
+    """`args` with rendering off, or (`headless`) as on a machine without a display: MUJOCO_GL unset."""
+    env = subprocess_env(OMP_NUM_THREADS="1", MUJOCO_GL="disable")
+    if headless:
+        env = {k: v for k, v in env.items() if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
+    r = subprocess.run(args, cwd=cwd, env=env, text=True, capture_output=True, timeout=600)
     if check:
         assert r.returncode == 0, f"{args}\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
     return r
@@ -90,7 +93,9 @@ def test_a_checkpoint_of_another_task_is_refused_as_such_before_anything_runs(sh
 
 def test_a_one_hand_checkpoint_bound_zero_shot_to_another_hand_runs_in_lerobot_eval(shadow_checkpoint, tmp_path):
     """A policy trained on the Shadow alone, bound to the Allegro by `unidextok-deploy --zero_shot=true` (refused
-    before: "nothing to bind"), is scored by the stock lerobot-eval on the Allegro (issue 47)."""
+    before: "nothing to bind"), is scored by the stock lerobot-eval on the Allegro (issue 47). With MUJOCO_GL unset
+    and no display: the Allegro's model is built (it loads MuJoCo while LeRobot parses the config), which aborted
+    lerobot-eval in GLFW before the simulator chose the backend first (issue 55); its videos are written."""
     from lerobot_env_unidextok.record import RecordConfig, record
     from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
 
@@ -102,6 +107,8 @@ def test_a_one_hand_checkpoint_bound_zero_shot_to_another_hand_runs_in_lerobot_e
     assert json.loads((tmp_path / "bound" / "config.json").read_text())["udt_hand_layout"] == ["allegro"]
     _run([str(BIN / "lerobot-eval"), f"--policy.path={tmp_path / 'bound'}", "--env.type=unidextok",
           "--env.task=GraspLift-v0", "--env.hand=allegro", "--eval.n_episodes=1", "--eval.batch_size=1",
-          "--eval.use_async_envs=false", "--policy.device=cpu", f"--output_dir={tmp_path / 'eval'}"], tmp_path)  # fmt: skip
+          "--eval.use_async_envs=false", "--policy.device=cpu", f"--output_dir={tmp_path / 'eval'}"], tmp_path,
+         headless=True)  # fmt: skip
     overall = json.loads((tmp_path / "eval" / "eval_info.json").read_text())["overall"]
     assert overall["n_episodes"] == 1 and 0 <= overall["pc_success"] <= 100
+    assert [p.name for p in (tmp_path / "eval" / "videos").rglob("*.mp4")] == ["eval_episode_0.mp4"]
