@@ -193,13 +193,19 @@ def build_mjcf(urdf_text: str, spec: hands.HandSpec, side: str = "right", source
     """The hand's MJCF (a complete document, no files) from its URDF text and spec (module docstring); a URDF it
     cannot read is one `SimBuildError` naming `source` (`check_urdf`)."""
     check_urdf(urdf_text, source)
-    text, mesh_links, primitive_links = urdf_without_meshes(urdf_text)
     try:
-        mj = mujoco.MjSpec.from_string(text)
-        mj.modelname = f"{spec.embodiment}_{side}"
-        model = mj.compile()
-    except ValueError as err:
+        return _build(urdf_text, spec, side, source)
+    except SimBuildError:
+        raise
+    except ValueError as err:  # MuJoCo's compiler: its message names the element
         raise SimBuildError(f"{source}: MuJoCo cannot compile it ({' '.join(str(err).split())})") from None
+
+
+def _build(urdf_text: str, spec: hands.HandSpec, side: str, source: str) -> str:
+    text, mesh_links, primitive_links = urdf_without_meshes(urdf_text)
+    mj = mujoco.MjSpec.from_string(text)
+    mj.modelname = f"{spec.embodiment}_{side}"
+    model = mj.compile()
     missing = sorted({k.link for k in spec.urdf.keypoints[side]} - {model.body(b).name for b in range(model.nbody)})
     if missing:
         raise SimBuildError(f"{source} has no link {', '.join(missing)}, which hand spec {spec.name!r} places its "
@@ -245,6 +251,9 @@ def build_mjcf(urdf_text: str, spec: hands.HandSpec, side: str = "right", source
         movable = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
         if name in followers or int(model.jnt_type[j]) not in movable:
             continue
+        if not model.jnt_limited[j]:
+            raise SimBuildError(f"{source}: joint {name!r} has no limits (a continuous joint, or no <limit>): each "
+                                "driven joint needs its range (a revolute joint with lower and upper)")  # fmt: skip
         lo, hi = model.jnt_range[j]
         mj.add_actuator(name=f"{name}_drive", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
                         gaintype=mujoco.mjtGain.mjGAIN_FIXED, biastype=mujoco.mjtBias.mjBIAS_AFFINE,
