@@ -3,6 +3,7 @@
 process, takes that robot's native state and returns its native action."""
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -208,10 +209,12 @@ def _deploy_in_process(monkeypatch, capsys, *args: str) -> tuple[int, str]:
     return code, capsys.readouterr().err
 
 
-@pytest.mark.parametrize("edit", ["missing_tensor", "extra_tensor", "other_type", "unknown_step"])
+@pytest.mark.parametrize("edit", ["missing_tensor", "extra_tensor", "other_type", "unknown_step", "nan_weight",
+                                  "nan_stats"])  # fmt: skip
 def test_deploy_refuses_a_checkpoint_that_does_not_load_strictly(edit, g1_like, tmp_path, monkeypatch, capsys):
     """A checkpoint missing a tensor was bound with a "Missing key(s)" warning (an extra one silently); a config
-    of another policy type and an unknown processor step ended in tracebacks. Each is one line, nothing written."""
+    of another policy type and an unknown processor step ended in tracebacks; a NaN weight or a NaN std in the
+    saved normaliser was bound (issue 54). Each is one line naming the tensor, nothing written."""
     from tiny_policy import edited_copy, write_tiny_act
 
     bad = edited_copy(write_tiny_act(tmp_path / "ok"), tmp_path / "bad", edit)
@@ -220,7 +223,9 @@ def test_deploy_refuses_a_checkpoint_that_does_not_load_strictly(edit, g1_like, 
     lines = [line for line in err.splitlines() if line.startswith("error:")]
     assert code == 2 and len(lines) == 1 and err.startswith(f"error: {bad}"), err
     what = {"missing_tensor": "missing model.action_head.bias", "extra_tensor": "extra model.spare.weight",
-            "other_type": "says type 'diffusion'", "unknown_step": "'unidextok.no_such_step'"}[edit]  # fmt: skip
+            "other_type": "says type 'diffusion'", "unknown_step": "'unidextok.no_such_step'",
+            "nan_weight": "model.safetensors: tensor model.action_head.weight holds 1 NaN/inf",
+            "nan_stats": "normalizer_processor.safetensors: tensor action.std holds 1 NaN/inf"}[edit]  # fmt: skip
     assert what in lines[0] and "Traceback" not in err
     assert not (tmp_path / "bound").exists() and not list(tmp_path.glob(".bound*"))
 
@@ -242,3 +247,33 @@ def test_deploy_has_the_overwrite_flag_its_refusals_name(g1_like, tmp_path, monk
     code, err = _deploy_in_process(monkeypatch, capsys, f"--checkpoint={checkpoint}", f"--robot={g1_like['root']}",
                                    f"--output={g1_like['root'].parent}", "--overwrite=true")  # fmt: skip
     assert code == 2 and "is, holds or sits inside the input" in err, err
+
+
+@pytest.mark.parametrize("edit", ["config_std", "normaliser_std"])
+def test_deploy_refuses_a_mix_checkpoint_whose_hand_statistics_hold_nan(edit, mixed_policy, g1_like, tmp_path,
+                                                                         monkeypatch, capsys):  # fmt: skip
+    """Issue 54 cases 1-3: a NaN std in a checkpoint's udt_hand_stats (config.json) or in its saved per-hand
+    normaliser was bound with exit 0 (the bound policy never moved that hand). One line naming the field or
+    tensor; nothing written."""
+    from safetensors.torch import load_file, save_file
+
+    bad = tmp_path / "bad"
+    shutil.copytree(mixed_policy, bad)
+    if edit == "config_std":
+        config = json.loads((bad / "config.json").read_text())
+        side, per = next(iter(config["udt_hand_stats"]["action"].items()))
+        hand = next(iter(per))
+        per[hand]["std"][2] = float("nan")
+        (bad / "config.json").write_text(json.dumps(config))
+        what = f"config.json: udt_hand_stats['action']['{side}']['{hand}'].std holds NaN at index 2"
+    else:
+        path = next(bad.glob("policy_preprocessor_step_*_unidextok.hand_normalizer.safetensors"))
+        tensors = load_file(path)
+        tensors["action.std"].view(-1)[5] = float("nan")
+        save_file(tensors, path)
+        what = f"{path.name}: tensor action.std holds 1 NaN/inf"
+    code, err = _deploy_in_process(monkeypatch, capsys, f"--checkpoint={bad}", f"--robot={g1_like['root']}",
+                                   f"--output={tmp_path / 'bound'}")  # fmt: skip
+    lines = [line for line in err.splitlines() if line.startswith("error:")]
+    assert code == 2 and len(lines) == 1 and what in lines[0] and "Traceback" not in err, err
+    assert not (tmp_path / "bound").exists() and not list(tmp_path.glob(".bound*"))
