@@ -14,7 +14,9 @@ Hands: by default every hand spec the simulator runs (`sim_hands.sim_hand_names(
 built models, and every spec whose URDF is found under `$UNIDEXTOK_URDF_DIR`, else ../shared/data/urdf). The
 failures column says how the failed episodes failed: a grasp's by the kind of grasp its object needed (power or
 pinch), a press's as "wrong" (another button pressed: the episode ends) or "timeout" (the goal button not
-pressed in 50 steps).
+pressed in 50 steps), a sequence's as "wrong order" (a button pressed out of turn), "wrong finger" (the button due
+pressed by another finger) or "timeout (k of 3 done)" (`Task.failure_reason`). A hand a task refuses (too few
+fingers) gets a row saying so.
 """
 
 from __future__ import annotations
@@ -24,7 +26,8 @@ import time
 
 import numpy as np
 
-TASKS = ("GraspLift-v0", "FingerPress-v0")
+from lerobot_env_unidextok.columns import TASKS
+from lerobot_env_unidextok.errors import SimInputError
 
 
 def main() -> None:
@@ -32,7 +35,7 @@ def main() -> None:
     ap.add_argument("--episodes", type=int, default=100)
     ap.add_argument("--seed", type=int, default=1000)
     ap.add_argument("--hands", nargs="+", default=None, help="hand specs (default: every one the simulator runs)")
-    ap.add_argument("--tasks", nargs="+", default=list(TASKS))
+    ap.add_argument("--tasks", nargs="+", default=list(TASKS), help=f"default: every task ({', '.join(TASKS)})")
     args = ap.parse_args()
 
     from lerobot_env_unidextok import sim_hands
@@ -46,7 +49,11 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|")
     for hand in args.hands or sim_hands.sim_hand_names():
         for task in args.tasks:
-            env = UniDexTokEnv(hand, task, render_mode=None)
+            try:
+                env = UniDexTokEnv(hand, task, render_mode=None)
+            except SimInputError as err:  # a hand the task refuses
+                print(f"| {hand} | {task} | refused | - | {err} | - | - | - |")
+                continue
             wins, steps, cpu, failures = 0, 0, 0.0, {}
             for i in range(args.episodes):
                 obs, _ = env.reset(seed=args.seed + i)
@@ -62,7 +69,7 @@ def main() -> None:
                         break
                 wins += bool(info["is_success"])
                 if not info["is_success"]:
-                    kind = env.task.shape.grasp if task == "GraspLift-v0" else "wrong" if terminated else "timeout"
+                    kind = env.task.failure_reason(terminated)
                     failures[kind] = failures.get(kind, 0) + 1
             lo, hi = wilson_interval(wins, args.episodes)
             per_step = cpu / steps

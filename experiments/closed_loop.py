@@ -67,13 +67,14 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 
 from experiments import runtime
 from experiments.common import WHERE_TO, git_commit, md_table
+from lerobot_env_unidextok.columns import TASKS as SIM_TASK_IDS
 from lerobot_unidextok.conversion.mix import budget_steps
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
 from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 
 logger = logging.getLogger(__name__)
 NAME = "closed_loop"
-TASKS = ("GraspLift-v0", "FingerPress-v0")
+TASKS = ("GraspLift-v0", "FingerPress-v0")  # the default; --tasks takes any of the simulator's (SIM_TASK_IDS)
 # the issue's three hands, then every other hand the simulator models (docs/lerobot.md "The hands' models")
 HANDS = ("inspire_rh56_unitree", "shadow", "allegro", "leap", "xhand1", "linkerhand_l10")
 # arm -> (its dataset, lerobot-train flags beyond the recipe's); the dataset: the target alone, the mix with the target's
@@ -147,7 +148,7 @@ class ClosedLoopConfig:
     ablation_targets: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        for name, given, allowed in (("tasks", self.tasks, TASKS), ("arms", self.arms, tuple(ARMS))):
+        for name, given, allowed in (("tasks", self.tasks, SIM_TASK_IDS), ("arms", self.arms, tuple(ARMS))):
             unknown = sorted(set(given) - set(allowed))
             if unknown:
                 raise ValueError(f"unknown {name} {unknown}; choose from {list(allowed)}")
@@ -405,7 +406,7 @@ def arm_flags(cfg: ClosedLoopConfig, arm: str, task: str) -> list[str]:
     """The arm's lerobot-train flags: its hand view (the UDHM state, or the tokenizer's tokens) and what it turns off.
     On a task that grasps nothing (`Task.grasps`) every arm keeps the robot's wrist frame, as a recording made since
     2026-12-05 carries no grasp centre there (one made before carried it: the flag makes both the same)."""
-    from lerobot_env_unidextok.tasks import TASKS as SIM_TASKS
+    from lerobot_env_unidextok.task_classes import TASKS as SIM_TASKS
 
     # the token view is zeroed for the state arms, so the tokenizer behind it cannot matter: an untrained one (what
     # act_udt_cpu.yaml gave until 2026-12-04) through its nearest codes, the cheapest

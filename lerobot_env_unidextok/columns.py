@@ -18,8 +18,14 @@ TASK_COLUMNS: dict[str, tuple[str, ...]] = {
     "GraspLift-v0": ("object_x", "object_y", "object_z", "object_yaw", "object_half_x", "object_half_y",
                      "object_half_z", "goal_z"),
     "FingerPress-v0": ("panel_x", "panel_y", "panel_z", *(f"goal_{f}" for f in PRESS_FINGERS)),
+    # each finger's place in the order (1, 2, 3; 0: not in it), and how many of the three are done
+    "FingerSequence-v0": ("panel_x", "panel_y", "panel_z", *(f"order_{f}" for f in PRESS_FINGERS), "presses_done"),
 }  # fmt: skip
-TASK_TEXT = {"GraspLift-v0": "grasp the object and lift it", "FingerPress-v0": "press the button under the named finger"}
+TASK_TEXT = {
+    "GraspLift-v0": "grasp the object and lift it",
+    "FingerPress-v0": "press the button under the named finger",
+    "FingerSequence-v0": "press the three buttons in the given order, each with its own finger",
+}
 TASKS = tuple(TASK_COLUMNS)
 # what `observation.state_is_native` carries: 1.0, the state is the hand's native layout (processor/native.py)
 STATE_IS_NATIVE_KEY = "state_is_native"

@@ -31,7 +31,7 @@ from lerobot_env_unidextok.errors import SimInputError
 from lerobot_env_unidextok.gl import mujoco, render_problem
 from lerobot_env_unidextok.grasp_centre import wrist_frame_of
 from lerobot_env_unidextok.scene import WRIST_NAMES, WRIST_RANGE, Scene, base_spec
-from lerobot_env_unidextok.tasks import TASKS, Task
+from lerobot_env_unidextok.task_classes import TASKS, Task
 from lerobot_unidextok.data.wrist_frame import WristFrame
 
 logger = logging.getLogger(__name__)

@@ -5,7 +5,8 @@ kinematics for a hand built from its URDF, or a model file's own), turned into t
 spec (`SimHand.posture` -> `spec.from_udhm`); the grasp offsets (where the wrist goes relative to the object) are
 `SimHand.grasp` (computed for a built hand, `urdf_hand.grasp_offsets`; a model file's `grasp:` entries). The
 expert reads only what the observation holds (the object's pose and size, the panel's place, the goal finger),
-plans its key poses once at the episode's start, and moves between them at most 3 cm per step. Noise (its own
+plans its key poses once at the episode's start, and moves between them at most 3 cm per step; a sequence's
+presses (`FingerSequence-v0`) follow `presses_done`, each held until it counted (`SequencePresses`). Noise (its own
 generator, seeded per episode): key poses +-4 mm (+-3 mm in height) and +-0.04 rad of yaw (a press turns the hand
 about its fingertips over the buttons), postures +-0.05 rad per UDHM slot, phase lengths +-1 step.
 """
@@ -17,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lerobot_env_unidextok.env import UniDexTokEnv
+from lerobot_env_unidextok.finger_sequence import SEQUENCE_LENGTH, FingerSequence
 from lerobot_env_unidextok.tasks import PRESS_FINGERS, FingerPress, GraspLift
 
 WRIST_SPEED_M = 0.03  # per step
@@ -41,6 +43,9 @@ class Expert:
         self.hand = env.hand
         self.plan: list[tuple[np.ndarray, np.ndarray]] = []
         self.t = 0
+        self.presses: SequencePresses | None = None  # FingerSequence-v0's, set by `sequence_segments`
+        self.done_column = env.state_names.index("presses_done") if "presses_done" in env.state_names else -1
+        self.last_hand = self.hand.posture("open")
 
     # -- postures and noise -----------------------------------------------------------------------
     def posture(self, name: str) -> np.ndarray:
@@ -79,12 +84,18 @@ class Expert:
 
     def act(self, obs: dict[str, np.ndarray] | None = None) -> np.ndarray:
         pose, hand = self.plan[min(self.t, len(self.plan) - 1)]
+        if self.presses is not None and self.t >= len(self.plan):  # a sequence's presses, on what it observes
+            done = int(round(float(obs["agent_pos"][self.done_column])))
+            pose, hand = self.presses.act(done, self.last_hand)
         self.t += 1
+        self.last_hand = hand
         return np.concatenate([pose, hand]).astype(np.float32)
 
     def segments(self, task: dict[str, float], wrist: np.ndarray) -> list[Segment]:
         if isinstance(self.env.task, GraspLift):
             return self.grasp_segments(task)
+        if isinstance(self.env.task, FingerSequence):  # before FingerPress: its panel is FingerPress's
+            return self.sequence_segments(task)
         if isinstance(self.env.task, FingerPress):
             return self.press_segments(task)
         raise TypeError(f"no expert for {type(self.env.task).__name__}")
@@ -114,19 +125,57 @@ class Expert:
                 Segment(grasp_pose, closed, self.steps(8)), Segment(grasp_pose + [0, 0, 0.01, 0, 0, 0], closed, 5),
                 Segment(lifted, closed, self.steps(5)), Segment(lifted, closed, 10)]  # fmt: skip
 
-    def press_segments(self, task: dict[str, float]) -> list[Segment]:
-        goal = next(f for f in PRESS_FINGERS if task[f"goal_{f}"] > 0.5)
+    def hover_pose(self, task: dict[str, float]) -> np.ndarray:
+        """The wrist over the panel, every button under its finger, with the pose noise."""
         panel = np.array([task["panel_x"], task["panel_y"], task["panel_z"]])
         hover = self.jitter(np.array([*(panel + FingerPress.HOVER_M), 0.0, 0.0, 0.0]))
         # the yaw noise turns the hand about its fingertips over the buttons, not about the wrist: a hand's tips
         # then miss their buttons by the position noise alone, whatever the hand's length
         reach = self.env.task.buttons_x_m - FingerPress.HOVER_M[0]
         hover[:2] += reach * np.array([1 - np.cos(hover[5]), -np.sin(hover[5])])
+        return hover
+
+    def press_segments(self, task: dict[str, float]) -> list[Segment]:
+        goal = next(f for f in PRESS_FINGERS if task[f"goal_{f}"] > 0.5)
+        hover = self.hover_pose(task)
         above = hover + [0, 0, 0.04, 0, 0, 0]
         open_ = self.posture("open")
         press = self.posture(f"press_{goal}")
         return [Segment(above, open_, self.steps(8)), Segment(hover, open_, self.steps(3)),
                 Segment(hover, press, self.steps(5)), Segment(hover, press, 15)]  # fmt: skip
 
+    def sequence_segments(self, task: dict[str, float]) -> list[Segment]:
+        """Over the panel as for one press; the presses follow from the observation (`act`, `SequencePresses`)."""
+        order = sorted((f for f in PRESS_FINGERS if task[f"order_{f}"] > 0.5), key=lambda f: task[f"order_{f}"])
+        assert len(order) == SEQUENCE_LENGTH, order
+        hover = self.hover_pose(task)
+        open_ = self.posture("open")
+        presses = [self.posture(f"press_{f}") for f in order]
+        self.presses = SequencePresses(hover, [*presses, open_], self.steps(SEQUENCE_PRESS_STEPS))
+        return [Segment(hover + [0, 0, 0.04, 0, 0, 0], open_, self.steps(8)), Segment(hover, open_, self.steps(3))]
 
+
+@dataclass
+class SequencePresses:
+    """A sequence's presses, closed loop on `presses_done`: the hand moves from where it is to the posture of the
+    press due (the next finger's press posture, the others open; after the last, open) over `steps`, and holds it
+    until the observation says the press counted. A slow hand (the Inspire's drives take about 0.5 s per e-fold)
+    then presses as long as it needs and a fast one moves on at once, within the 50 steps."""
+
+    hover: np.ndarray  # (6,) the wrist, held
+    postures: list[np.ndarray]  # (J,) per press due, then open
+    steps: int
+    due: int = -1
+    start: np.ndarray | None = None
+    k: int = 0
+
+    def act(self, done: int, hand_now: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if done != self.due:
+            self.due, self.start, self.k = done, hand_now, 0
+        self.k += 1
+        a = min(1.0, self.k / self.steps)
+        return self.hover, (1 - a) * self.start + a * self.postures[min(done, len(self.postures) - 1)]
+
+
+SEQUENCE_PRESS_STEPS = 5  # a sequence's move from one press posture to the next (or to open after the last)
 GRASP_WIDTH_M = 0.04  # objects at least this wide get a power grasp, narrower ones a pinch

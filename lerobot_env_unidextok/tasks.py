@@ -1,4 +1,5 @@
-"""The two tasks: what each adds to the scene, how an episode is drawn, what it observes, when it succeeds.
+"""The `Task` base and the first two tasks: what each adds to the scene, how an episode is drawn, what it observes,
+when it succeeds. Each later task has a module of its own (`finger_sequence.py`); `task_classes.py` lists them all.
 
 - `GraspLift-v0`: one object on the table, drawn per episode: a box or an upright cylinder wide enough to need a
   power grasp, or a small cube or block that a power grasp's fingers close past (a pinch). Size, place and yaw
@@ -58,6 +59,10 @@ class Task(abc.ABC):
     @abc.abstractmethod
     def evaluate(self, data: mujoco.MjData) -> tuple[bool, bool]:
         """(success, failed) now."""
+
+    def failure_reason(self, terminated: bool) -> str:
+        """How an episode that did not succeed failed (`terminated`: the task ended it), for the benchmark."""
+        return "failed" if terminated else "timeout"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -176,6 +181,9 @@ class GraspLift(Task):
         z = data.qpos[self.qpos[self.shape.name] + 2]
         return bool(z >= self.rest_z + self.LIFT_M), False
 
+    def failure_reason(self, terminated: bool) -> str:
+        return self.shape.grasp  # the kind of grasp the object needed
+
 
 # ---------------------------------------------------------------------------------------------
 # press the button under the named finger
@@ -270,6 +278,9 @@ class FingerPress(Task):
         failed = wrong or (pressed[self.goal] and bool(by) and self.goal not in by)
         return success, failed
 
+    def failure_reason(self, terminated: bool) -> str:
+        return "wrong" if terminated else "timeout"  # another button pressed, or the goal's not in time
+
 
 def press_geometry(hand: SimHand, hover_m: np.ndarray) -> dict[str, tuple[np.ndarray, float]]:
     """Per finger, with the wrist at `hover_m` (level, fingers along +x): the cap-top centre of its button
@@ -303,4 +314,3 @@ CAP_HALF_M = (0.02, 0.0065)  # a button cap's half length (along the fingers, at
 CAP_BACK_M = 0.008  # the cap reaches this far behind the press posture's tip
 CAP_GAP_M = 0.0065  # at least this far between two buttons' caps (fingertips that meet when pressing, the BrainCo's)
 CAP_CLEAR_M = 0.01  # the cap reaches this far past where the tip comes down to this height over it
-TASKS: dict[str, type[Task]] = {t.name: t for t in (GraspLift, FingerPress)}

@@ -1,0 +1,96 @@
+"""The dexterous tasks after GraspLift and FingerPress (issue 56): each passes gymnasium's checker, reproduces a
+seeded episode exactly, has the same task columns for every hand, is done by its scripted expert on seeded
+episodes, and refuses a hand that cannot do it at `gym.make` in one line."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import lerobot_env_unidextok  # noqa: F401  (registers the gym ids)
+from lerobot_env_unidextok.columns import TASK_COLUMNS, TASK_TEXT
+from lerobot_env_unidextok.env import UniDexTokEnv
+from lerobot_env_unidextok.errors import SimInputError
+from lerobot_env_unidextok.record import expert_episode
+
+# task -> hands its fast tests run on (the rates over 50 episodes per hand: docs/lerobot.md, bench_sim.py)
+TASK_HANDS = {"FingerSequence-v0": ("inspire_rh56_unitree", "shadow", "allegro")}
+
+
+def _rollout(env: UniDexTokEnv, seed: int, steps: int) -> np.ndarray:
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(0)
+    states = [obs["agent_pos"]]
+    for _ in range(steps):
+        action = env.action_low + rng.uniform(0, 1, env.action_space.shape) * (env.action_high - env.action_low)
+        obs, *_ = env.step(action.astype(np.float32))
+        states.append(obs["agent_pos"])
+    return np.stack(states)
+
+
+@pytest.mark.parametrize("task", list(TASK_HANDS))
+def test_gymnasium_env_checker_passes(task):
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make(f"lerobot_env_unidextok/{task}", hand="allegro", disable_env_checker=True)
+    check_env(env.unwrapped, skip_render_check=True)
+    assert env.unwrapped.task_description == TASK_TEXT[task]
+
+
+@pytest.mark.parametrize("task", list(TASK_HANDS))
+def test_a_seeded_episode_is_reproduced_exactly_and_the_columns_are_every_hands(task):
+    a = _rollout(UniDexTokEnv("shadow", task, render_mode=None), seed=7, steps=5)
+    b = _rollout(UniDexTokEnv("shadow", task, render_mode=None), seed=7, steps=5)
+    c = _rollout(UniDexTokEnv("shadow", task, render_mode=None), seed=8, steps=5)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a[0], c[0])
+    width = len(TASK_COLUMNS[task])
+    for hand in TASK_HANDS[task]:
+        names = UniDexTokEnv(hand, task, render_mode=None).state_names
+        assert names[6 : 6 + width] == list(TASK_COLUMNS[task]), hand
+
+
+@pytest.mark.parametrize("task", list(TASK_HANDS))
+def test_the_expert_succeeds_on_seeded_episodes(task):
+    for hand in TASK_HANDS[task]:
+        env = UniDexTokEnv(hand, task, render_mode=None)
+        wins = sum(expert_episode(env, 3000 + i, 4000 + i, 50)[2] for i in range(4))
+        assert wins >= 3, f"{hand} {task}: {wins}/4"
+
+
+def test_finger_sequence_succeeds_only_in_order_and_by_each_finger():
+    """The order is in the columns; pressing the buttons in another order ends the episode as a failure, and
+    `presses_done` counts the presses of the expert's own run."""
+    from lerobot_env_unidextok.experts import Expert
+
+    env = UniDexTokEnv("allegro", "FingerSequence-v0", render_mode=None)
+    obs, _ = env.reset(seed=3)
+    cols = dict(zip(env.state_names, obs["agent_pos"], strict=True))
+    order = sorted((f for f in ("index", "middle", "ring") if cols[f"order_{f}"] > 0), key=lambda f: cols[f"order_{f}"])
+    assert tuple(order) == env.task.order and cols["presses_done"] == 0
+    expert = Expert(env, np.random.default_rng(0), noise=False)
+    expert.reset(obs)
+    seen = []
+    for _ in range(50):
+        obs, _, terminated, _, info = env.step(expert.act(obs))
+        seen.append(float(obs["agent_pos"][env.state_names.index("presses_done")]))
+        if terminated:
+            break
+    assert info["is_success"] and seen[-1] == 3 and sorted(set(seen)) == [0, 1, 2, 3]
+
+    # the same episode with the order reversed by the expert: the last finger's button first is out of turn
+    obs, _ = env.reset(seed=3)
+    expert = Expert(env, np.random.default_rng(0), noise=False)
+    env.task.order = env.task.order[::-1]  # the expert reads the order from the observation
+    expert.reset(obs)
+    for _ in range(50):
+        obs, _, terminated, _, info = env.step(expert.act(obs))
+        if terminated:
+            break
+    assert terminated and not info["is_success"] and env.task.failure == "wrong order"
+
+
+def test_a_hand_with_too_few_fingers_is_refused_in_one_line():
+    refusal = r"^hand 'unitree_dex3_1' has 2 fingers besides the thumb .*FingerPress-v0"
+    with pytest.raises(SimInputError, match=refusal) as e:
+        gym.make("lerobot_env_unidextok/FingerSequence-v0", hand="unitree_dex3_1")
+    assert "\n" not in str(e.value)
