@@ -193,7 +193,7 @@ def _bound_post_shift(bound, sim, robot_hand):
                                rtol=0, atol=1e-6)  # fmt: skip
 
 
-def test_deploy_binds_the_target_robots_own_centre_to_the_mix_and_zero_shot(sim, tmp_path):
+def test_deploy_binds_the_target_robots_own_centre_to_the_mix_and_zero_shot(sim, tmp_path, caplog):
     from lerobot_unidextok.policies.deploy import deploy
     from lerobot_unidextok.policies.deploy_frame import FrameBindError
 
@@ -205,9 +205,18 @@ def test_deploy_binds_the_target_robots_own_centre_to_the_mix_and_zero_shot(sim,
     _bound_post_shift(allegro, sim, "allegro")
     written = json.loads((allegro / "unidextok_deploy.json").read_text())
     assert written["grasp_centres_m"] == {"allegro": _centre(sim, "allegro")}
-    override = deploy(checkpoint, sim["allegro"]["udhm"], tmp_path / "override", zero_shot=True,
-                      grasp_centre_m=[0.05, 0.0, -0.05])  # fmt: skip
+    with caplog.at_level("WARNING", logger="lerobot_unidextok.policies.deploy_frame"):
+        override = deploy(checkpoint, sim["allegro"]["udhm"], tmp_path / "override", zero_shot=True,
+                          grasp_centre_m=[0.05, 0.0, -0.05])  # fmt: skip
     assert json.loads((override / "config.json").read_text())["udt_grasp_centres_m"]["allegro"] == [0.05, 0.0, -0.05]
+    # the centre the robot's dataset records, which the flag overrides, is named in one note (issue 54)
+    notes = [r.getMessage() for r in caplog.records if "overrides" in r.getMessage()]
+    assert len(notes) == 1 and notes[0].startswith("note: --grasp_centre_m=[0.05, 0.0, -0.05] overrides the grasp "
+                                                   f"centre {_centre(sim, 'allegro')} m of 'allegro' that")  # fmt: skip
+    for absurd in ([1e6, 0.0, 0.0], [-5.0, 3.0, 7.0]):  # metres typed as mm, or nonsense: refused before binding
+        with pytest.raises(WristFrameError, match=r"--grasp_centre_m: .* m at ind.*beyond the plausible 0.3 m"):
+            deploy(checkpoint, sim["allegro"]["udhm"], tmp_path / "absurd", zero_shot=True, grasp_centre_m=absurd)
+    assert not (tmp_path / "absurd").exists()
     # a zero-shot hand whose dataset records no frame: refused, naming the flag; nothing written
     record_path = sim["allegro"]["udhm"] / "meta" / "unidextok_conversion.json"
     saved = record_path.read_text()
