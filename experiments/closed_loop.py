@@ -24,7 +24,8 @@ Arms, per task, target hand and seed (the target's demonstrations: a seed's rand
 of every arm is the `<type>_udt` defaults (per-hand statistics, no loss on the slots a hand lacks, each input's share
 as a loss weight, wrist actions in the hand's grasp-centre frame) unless its row says what it turns off:
 - `alone_<n>` for n in `demos`: that hand's n demonstrations alone (its UDHM state); `alone_no_frame_<n>`: the same
-  with wrist actions in the robot's wrist frame;
+  with wrist actions in the robot's wrist frame; `both_<n>`: the same with the hands as the `<type>_udt` default
+  gives them, the UDHM state and the tokenizer's (`--tokenizer`) tokens in its own encoding (`udt_hand_input=both`);
 - `mix_<n>` for n in `mix_demos`: the target's n demonstrations and every demonstration of the other hands, in one
   UDHM layout (semantic insertion), the hand's identity one-hot (unidextok-mix, each episode written once, the
   target's share of every batch's loss `target_share`), bound to the target;
@@ -84,6 +85,7 @@ POOLED = ("--policy.udt_hand_norm=off", "--policy.udt_mask_slots=false", *NO_FRA
 ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "alone": ("alone", ()),
     "alone_no_frame": ("alone", NO_FRAME),
+    "both": ("alone", ()),
     "mix": ("mix", ()),
     "mix_rule": ("mix", ()),
     "pooled": ("copies", POOLED),
@@ -413,7 +415,9 @@ def arm_flags(cfg: ClosedLoopConfig, arm: str, task: str) -> list[str]:
     state = ["--policy.udt_hand_input=state", "--policy.udt_pretrained=null", *encoding_flags(NEAREST_CODES)]
     tokens = ["--policy.udt_hand_input=tokens", f"--policy.udt_pretrained={cfg.tokenizer}"]
     view = {"tokens_nearest": [*tokens, *encoding_flags(NEAREST_CODES)],
-            "tokens_search": [*tokens, *encoding_flags(cfg.encoding)]}.get(arm, state)  # fmt: skip
+            "tokens_search": [*tokens, *encoding_flags(cfg.encoding)],
+            "both": ["--policy.udt_hand_input=both", f"--policy.udt_pretrained={cfg.tokenizer}"],
+            }.get(arm, state)  # fmt: skip
     own = list(ARMS[arm][1])
     return [*view, *own, *([] if SIM_TASKS[task].grasps or NO_FRAME[0] in own else NO_FRAME)]
 
@@ -651,7 +655,8 @@ ARM_TITLES = {"mix": "mix", "mix_rule": "mix, budget rule", "pooled": "mix, pool
               "packed": "mix, packed native", "tokens_nearest": "mix, tokens (nearest)",
               "tokens_search": "mix, tokens (tokenizer's encoding)", "zero_shot": "zero-shot (other hands only)",
               "zero_shot_no_frame": "zero-shot without the grasp-centre frame", "alone": "alone",
-              "alone_no_frame": "alone without the grasp-centre frame"}  # fmt: skip
+              "alone_no_frame": "alone without the grasp-centre frame",
+              "both": "alone, state and tokens (the default view)"}  # fmt: skip
 
 
 def arm_title(label: str) -> str:

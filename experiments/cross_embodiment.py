@@ -61,7 +61,7 @@ from experiments import runtime
 from experiments.common import WHERE_TO, git_commit, md_table, shown_command
 from experiments.policy_training import SmallACT, Standardiser
 from lerobot_unidextok.constants import ACTION, OBS_STATE, UDHM_DIM
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
 
 logger = logging.getLogger(__name__)
 NAME = "cross_embodiment"
@@ -105,7 +105,7 @@ class CrossEmbodimentConfig:
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
     act: CrossEmbodimentACT = field(default_factory=CrossEmbodimentACT)
     target: str = ""  # a converted robot dataset with recorded test episodes; empty = the real G1 + Inspire recording
-    tokenizer: str = DEFAULT_TOKENIZER  # the tokenizer of `tokens_dequantized` (never trained on these episodes)
+    tokenizer: str = UNIVERSAL_SMALL  # the tokenizer of `tokens_dequantized` (never trained on these episodes)
     output_root: str = "outputs/experiments"
     cache_dir: str = "outputs/experiments/_data"  # where the real G1 recording is converted once
 

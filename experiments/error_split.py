@@ -29,7 +29,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 
 from experiments import runtime
 from experiments.common import git_commit, md_table
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
 from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 
 NAME = "error_split"
@@ -38,7 +38,7 @@ NUDGE_DEG = 0.5  # joint motion for the codes' sensitivity: about the tokenizer'
 
 @dataclass
 class ErrorSplitConfig:
-    checkpoint: str = DEFAULT_TOKENIZER  # a local folder, a shipped id or a Hub repo id
+    checkpoint: str = UNIVERSAL_SMALL  # a local folder, a shipped id or a Hub repo id
     # Converted UDHM datasets scored on their test split (absent ones are skipped with a note).
     datasets: list[str] = field(
         default_factory=lambda: ["outputs/universal_data/g1_inspire", "outputs/universal_data/human_clip"]

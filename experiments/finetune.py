@@ -39,7 +39,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 from experiments import runtime
 from experiments.common import git_commit, md_table
 from lerobot_unidextok.configs import resolve_config_path
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
 from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 from lerobot_unidextok.tokenizer.configuration_unidextok import ENCODING_FIELDS
 from lerobot_unidextok.utils.files import fingerprint
@@ -53,7 +53,7 @@ SCRATCH, FINETUNED, CHECKPOINT = "scratch", "fine-tuned", "checkpoint as it is"
 @dataclass
 class FinetuneConfig:
     dataset: str = "outputs/universal_data/g1_inspire"  # a converted UDHM dataset with test-split episodes
-    checkpoint: str = DEFAULT_TOKENIZER  # what fine-tuning starts from: shipped id, local folder or Hub repo id
+    checkpoint: str = UNIVERSAL_SMALL  # what fine-tuning starts from: shipped id, local folder or Hub repo id
     recipe: str = "train/small"  # unidextok-train config (shipped name or file) of every training (scratch: as it is)
     steps: list[int] = field(default_factory=lambda: [500, 1500, 5000])  # step budgets, each for both trainings
     seeds: list[int] = field(default_factory=lambda: [0])  # batches, splits and scratch initialisation

@@ -57,7 +57,7 @@ if __package__ in (None, ""):  # `python experiments/<name>.py`: the checkout on
 
 from experiments import runtime
 from experiments.common import git_commit, md_table
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
 from lerobot_unidextok.tokenizer import NEAREST_CODES, EncodingConfig
 from lerobot_unidextok.training import HandStates
 
@@ -69,7 +69,7 @@ DATA_COMMAND = "python experiments/universal_data.py --out=outputs/universal_dat
 @dataclass
 class RateDistortionConfig:
     # Tokenizer checkpoint: a local folder, a shipped id or a Hub repo id.
-    checkpoint: str = DEFAULT_TOKENIZER
+    checkpoint: str = UNIVERSAL_SMALL
     # Converted UDHM datasets (local roots) scored on their test split, one set per hand in each.
     datasets: list[str] = field(default_factory=lambda: list(DEFAULT_DATASETS))
     # Registered hands scored on states uniform inside their registered ranges; empty = every registered hand.

@@ -15,7 +15,7 @@ import yaml
 
 from lerobot_unidextok import hands
 from lerobot_unidextok.evaluation.report import evaluate_tokenizer
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
 from lerobot_unidextok.tokenizer import NEAREST_CODES, UniDexTok
 from lerobot_unidextok.training import HandStates
 from lerobot_unidextok.utils.shared_data import real_data_dir
@@ -43,7 +43,7 @@ def main() -> None:
     p.add_argument("--real", type=Path, default=real_data_dir(REPO))
     p.add_argument("--nearest", action="store_true", help="the nearest codes (default: the package's encoding)")
     args = p.parse_args()
-    model = UniDexTok.from_pretrained(DEFAULT_TOKENIZER, encoding=NEAREST_CODES if args.nearest else None)
+    model = UniDexTok.from_pretrained(UNIVERSAL_SMALL, encoding=NEAREST_CODES if args.nearest else None)
     report = evaluate_tokenizer(model, preset_states(args.real))
     print(f"encoding: {report['model']['encoding']}")
     print("| hand | presets (both sides) | MPJAE (deg) | MPJPE (mm) | fingertip (mm) |\n|---|---|---|---|---|")

@@ -36,7 +36,7 @@ from experiments import runtime
 from experiments.common import git_commit, write_result
 from experiments.config import PROJECT_ROOT, default_real_data_dir
 from experiments.universal import IN_RANGE_ROWS, IN_RANGE_SEED
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
 from lerobot_unidextok.tokenizer import EncodingConfig
 
 logger = logging.getLogger(__name__)
@@ -49,7 +49,7 @@ UNKNOWN_PREFIX = "unregistered_copy_of_"  # a registered hand's states under a n
 
 @dataclass
 class ZeroShotConfig:
-    checkpoint: str = DEFAULT_TOKENIZER  # shipped id, local folder or Hub id of the tokenizer scored
+    checkpoint: str = UNIVERSAL_SMALL  # shipped id, local folder or Hub id of the tokenizer scored
     # Hands outside the tokenizer's vocabulary: YAMLs kept out of the registry (relative paths: to the working
     # directory, else to the project root), or registered hands added after the tokenizer was trained, by name
     specs: list[str] = field(

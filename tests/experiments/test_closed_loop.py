@@ -36,7 +36,7 @@ def test_every_arm_is_trained_bound_and_scored_in_closed_loop(tmp_path):
     assert zero["udt_hand_vocabulary"] == ["allegro"] and zero["udt_extra_hands"] == ["shadow"]
     tokens = json.loads((folder / "policies/FingerPress-v0/allegro/tokens_nearest_2_seed0/bound/config.json").read_text())
     assert tokens["udt_hand_input"] == "tokens" and tokens["udt_encoding"]["rounds"] == 0
-    assert tokens["udt_pretrained"] == "unidextok/universal-small" and bound["udt_pretrained"] is None
+    assert tokens["udt_pretrained"] == cl.ClosedLoopConfig().tokenizer and bound["udt_pretrained"] is None
     # the mix for a target writes each episode once with the target's share; the pooled arm's writes its pool
     # target_weight times; the packed mix is append_pad
     mix = UdhmDatasetMeta(tmp_path / "sim/FingerPress-v0/mix_semantic_for_shadow_s0.1").record
@@ -91,6 +91,16 @@ def test_packed_runs_on_the_finger_task_only_and_ablations_on_their_targets():
     assert {h for _, h, a in runs if a == "mix_10"} == set(cl.HANDS) == {h for t, h, a in runs if a == "packed_10"}
     assert len(runs) == 2 * 6 + 6 + 2 * 5
     assert cl.arm_title("alone_no_frame_25") == "alone without the grasp-centre frame, 25 demos"
+
+
+def test_the_both_arm_reads_the_hands_as_the_default_policy_does():
+    """The `<type>_udt` default view: the UDHM state and the given tokenizer's tokens in its own encoding."""
+    cfg = cl.ClosedLoopConfig(arms=["both"], demos=[10], tokenizer="unidextok/universal-small")
+    assert {j["arm"] for j in cl.jobs(cfg)} == {"both_10"}
+    flags = cl.arm_flags(cfg, "both", "GraspLift-v0")
+    assert flags[:2] == ["--policy.udt_hand_input=both", "--policy.udt_pretrained=unidextok/universal-small"]
+    assert not [f for f in flags if "udt_encoding" in f]  # the tokenizer's own encoding
+    assert cl.arm_title("both_10") == "alone, state and tokens (the default view), 10 demos"
 
 
 @pytest.mark.slow

@@ -9,7 +9,7 @@ import pytest
 
 from experiments import finetune
 from lerobot_unidextok.configs import shipped_config
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER
+from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
 from lerobot_unidextok.tokenizer import NEAREST_CODES
 
 TINY_RECIPE = shipped_config("train/tiny")
@@ -68,17 +68,17 @@ def test_every_row_is_scored_on_the_test_split_only(result, converted_g1):
             assert r["searched"]["mpjae_deg"] == pytest.approx(searched["mpjae_deg"], rel=1e-9)
             assert r["searched"]["mpjae_deg"] < r["overall"]["mpjae_deg"]
     # the checkpoint row is the shipped model evaluated on exactly these rows
-    shipped = _scored(UniDexTok.from_pretrained(DEFAULT_TOKENIZER), test, NEAREST_CODES)
+    shipped = _scored(UniDexTok.from_pretrained(UNIVERSAL_SMALL), test, NEAREST_CODES)
     assert _row(res, "checkpoint as it is")["overall"]["mpjae_deg"] == pytest.approx(shipped["mpjae_deg"], rel=1e-9)
     assert res["summary"][0]["searched_mpjae_deg"] == pytest.approx(evaluate_tokenizer(
-        UniDexTok.from_pretrained(DEFAULT_TOKENIZER), test)["overall"]["mpjae_deg"], rel=1e-9)  # the shipped encoding
+        UniDexTok.from_pretrained(UNIVERSAL_SMALL), test)["overall"]["mpjae_deg"], rel=1e-9)  # the shipped encoding
 
 
 def test_finetuned_rows_start_from_the_checkpoint_and_scratch_does_not(result):
     from lerobot_unidextok.tokenizer import UniDexTok
 
     res, _ = result
-    shipped = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
+    shipped = UniDexTok.from_pretrained(UNIVERSAL_SMALL)
     still = UniDexTok.from_pretrained(_row(res, "fine-tuned", NO_STEP)["model_dir"])
     assert still.config.num_tokens == shipped.config.num_tokens == 8  # the checkpoint's architecture, not tiny's
     ref = dict(shipped.named_parameters())
@@ -118,7 +118,7 @@ def test_a_retrained_checkpoint_retrains_the_finetuned_rows_only(result, convert
 
     res, _ = result
     ckpt = tmp_path / "checkpoint"
-    shutil.copytree(SHIPPED[DEFAULT_TOKENIZER], ckpt)
+    shutil.copytree(SHIPPED[UNIVERSAL_SMALL], ckpt)
     argv = _argv(converted_g1, tmp_path / "out", f"--finetune_lrs=[{NO_STEP}]", f"--checkpoint={ckpt}")
     first = finetune.run(finetune.parse(argv))
     cache = tmp_path / "out" / "finetune" / "runs.jsonl"

@@ -23,7 +23,7 @@ from experiments.universal_zeroshot import (
 )
 from lerobot_unidextok import hands
 from lerobot_unidextok.constants import UDHM_INDEX
-from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, UNIVERSAL_SMALL
+from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
 from lerobot_unidextok.tokenizer import UniDexTok
 from lerobot_unidextok.training.coverage import range_states
 
@@ -50,7 +50,7 @@ def specs() -> dict:
 
 def test_the_yaml_only_specs_load_and_stay_outside_the_registry_and_the_shipped_vocabulary(specs):
     assert set(specs) == {"O6", "L7"}
-    shipped = UniDexTok.from_pretrained(DEFAULT_TOKENIZER)
+    shipped = UniDexTok.from_pretrained(UNIVERSAL_SMALL)
     for spec in specs.values():
         assert spec.name not in hands.names()
         assert not shipped.knows_hand(spec.name)
@@ -136,7 +136,7 @@ def test_the_experiment_scores_yaml_only_hands_zero_shot_end_to_end(tmp_path):
     own, unknown = result["rows"][3], result["rows"][4]
     assert own["binning_mpjae_deg"] == unknown["binning_mpjae_deg"] and own["mpjae_deg"] != unknown["mpjae_deg"]
     written = json.loads((tmp_path / "out" / "universal_zeroshot" / "universal_zeroshot.json").read_text())
-    assert written["rows"] == result["rows"] and written["model"]["checkpoint"] == DEFAULT_TOKENIZER
+    assert written["rows"] == result["rows"] and written["model"]["checkpoint"] == UNIVERSAL_SMALL
     table = markdown(result).splitlines()
     assert len(table) == 2 + 5 and "unknown (zero-shot)" in table[2]
 
