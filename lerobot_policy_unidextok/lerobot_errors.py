@@ -8,7 +8,11 @@ with the command line that led to it:
   (`BackwardCompatibilityError`, pointing at its own v2.1 -> v3.0 script), while the policy needs the dataset
   converted to UDHM anyway, and `unidextok-convert --source=lerobot` reads v2.1 as it is;
 - `lerobot-eval` with `--eval.n_episodes` (or `--eval.batch_size`) below 1: LeRobot's `make_env` raises
-  "`n_envs` must be at least 1" after loading everything, a traceback naming neither flag.
+  "`n_envs` must be at least 1" after loading everything, a traceback naming neither flag;
+- `lerobot-train --output_dir=<a dataset or a checkpoint>`: LeRobot's `FileExistsError` ("already exists and resume
+  is False") says to pick another folder but not that this one is a dataset, whose files other tools read whole
+  (`lerobot_unidextok/policies/train_output.py`; an `--output_dir` inside one is refused when a `<type>_udt` policy
+  is built).
 
 Anything else (and a stock policy's v2.1 dataset, for which LeRobot's hint is right) is left as it was.
 """
@@ -20,7 +24,9 @@ from pathlib import Path
 
 import yaml
 
+from lerobot_unidextok.data.destination import DestinationError
 from lerobot_unidextok.errors import InvalidInputError, UserError
+from lerobot_unidextok.policies.train_output import output_dir_problem
 
 UDT_SUFFIX = "_udt"
 N_ENVS_MESSAGE = "`n_envs` must be at least 1"  # lerobot/envs/factory.py make_env, LeRobot 0.6.1
@@ -34,6 +40,9 @@ def user_error_for(err: BaseException, argv: list[str]) -> UserError | None:
         return InvalidInputError(_v21_message(argv, _policy_type(argv)))
     if isinstance(err, ValueError) and str(err) == N_ENVS_MESSAGE:
         return InvalidInputError(_no_envs_message(argv))
+    output_dir = _flag(argv, "--output_dir")
+    if isinstance(err, FileExistsError) and output_dir and output_dir_problem(output_dir):
+        return DestinationError(output_dir_problem(output_dir))
     return None
 
 

@@ -414,7 +414,9 @@ def mixed_wrist_frame(inputs: list[_Input], opts: MixOptions, mixer: _Mixer) -> 
     merged = merge_frames([WristFrame.from_dict(f, f"{i.name}: its record's wrist_frame").renamed(opts.name_map)
                            for f, i in zip(frames, inputs, strict=True)], "unidextok-mix")  # fmt: skip
     if merged.missing_columns(mixer.state_pass, mixer.action_pass):
-        logger.info("the mix drops the wrist columns %s (--keep=%s): no wrist frame", merged.columns, opts.keep)
+        logger.warning("the inputs record each hand's grasp centre, but --keep=%s drops their wrist columns %s: the mix "
+                       "has no wrist frame (a policy on it learns the wrist as recorded); --keep=all keeps it",
+                       opts.keep, merged.columns)  # fmt: skip
         return {}
     return merged.to_dict()
 

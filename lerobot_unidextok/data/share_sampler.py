@@ -20,7 +20,9 @@ several times:
   miss a small input (a batch of 32 from an input of 5 % of the frames misses it 19 % of the time).
 
 The shares come from the mix's record (`MixedSource.share`, the normalised `--weights`; 0 = no share asked), the
-episodes' inputs from `EpisodeRecord.origin["mix_source"]`.
+episodes' inputs from `EpisodeRecord.origin["mix_source"]`. `episode_map_key` names the dataset a map was made
+for, so a checkpoint trained further on another dataset (fine-tuning a pooled policy on one robot's data) gets the
+map of that dataset instead of weighting its rows by the old one (`policies/udt_config.py`).
 """
 
 from __future__ import annotations
@@ -30,7 +32,9 @@ from collections.abc import Iterator
 import numpy as np
 import torch
 
+from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.data.record import ConversionRecord
+from lerobot_unidextok.utils.files import fingerprint
 
 
 class ShareSampler(torch.utils.data.Sampler[int]):
@@ -118,6 +122,15 @@ def episode_inputs(record: ConversionRecord) -> tuple[list[int], list[float]]:
     return inputs, shares
 
 
+def episode_map_key(meta: UdhmDatasetMeta) -> str:
+    """Which dataset an episode map is for: `"<N> episodes <12 hex digits>"`, the digits a fingerprint of the
+    episodes' lengths and (converted or mixed) sources. The same for a copy or a move of the dataset, another for a
+    dataset with other episodes."""
+    lengths = sorted((meta.episode_lengths or {}).items())
+    sources = [e.source for e in meta.record.episodes] if meta.record is not None else []
+    return f"{meta.total_episodes} episodes {fingerprint(lengths, sources)}"
+
+
 def share_loss_weights(inputs: torch.Tensor, shares: torch.Tensor, seen: torch.Tensor) -> torch.Tensor:
     """(B,) loss weight of each row from its input `inputs` (B,) (-1: none, weight 1), the inputs' `shares` (K,)
     and `seen` (K,), the rows of each input counted so far (this batch's included): `share[k] / (seen[k] /
@@ -138,4 +151,4 @@ def share_loss_weights(inputs: torch.Tensor, shares: torch.Tensor, seen: torch.T
     return weight
 
 
-__all__ = ["ShareSampler", "share_loss_weights", "episode_inputs", "mix_shares"]
+__all__ = ["ShareSampler", "episode_inputs", "episode_map_key", "mix_shares", "share_loss_weights"]

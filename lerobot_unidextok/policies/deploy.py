@@ -49,7 +49,12 @@ from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.layout import NativeLayout
 from lerobot_unidextok.policies.checkpoint import POSTPROCESSOR, PREPROCESSOR, check_policy_checkpoint
 from lerobot_unidextok.policies.deploy_frame import bound_frame_steps, bound_grasp_centres
-from lerobot_unidextok.policies.deploy_single import bind_single_robot, bound_single_steps, with_tokenizer_step
+from lerobot_unidextok.policies.deploy_single import (
+    bind_single_robot,
+    bound_single_steps,
+    refuse_several_hand_sets,
+    with_tokenizer_step,
+)
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
 from lerobot_unidextok.processor import (
     HandActionScaleStep,
@@ -85,16 +90,7 @@ def bind_layouts(config: UdtConfigMixin, robot: UdhmDatasetMeta, zero_shot: bool
     vocab, mix_sides = list(config.udt_hand_vocabulary), list(config.udt_sides)
     if robot.record is not None and robot.record.hand_vocabulary:
         raise DeployError(f"{robot.root} is a mix; pass one robot's converted dataset (one of the mix's inputs)")
-    if len(robot.hand_types) > 1:
-        episodes = {}
-        for e in robot.record.episodes if robot.record is not None else []:
-            episodes.setdefault(e.hand_type, []).append(e.episode_index)
-        which = "; ".join(f"{t}: episodes {v[:6]}{' ...' if len(v) > 6 else ''}" for t, v in episodes.items())
-        raise DeployError(
-            f"{robot.root} holds episodes of different hands ({which or ', '.join(robot.hand_types)}), but a robot "
-            "has one set of hands: bind to a dataset of this robot alone (convert its own recordings into their "
-            "own dataset and pass that as --robot)"
-        )
+    refuse_several_hand_sets(robot, DeployError)
     hands, sides = robot.block_hands(), [b.side for b in find_udhm_blocks(robot.names(OBS_STATE))]
     lacking = [s for s in sides if s not in mix_sides]
     if lacking:

@@ -21,7 +21,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 
-from lerobot_unidextok.blocks import find_udhm_blocks
+from lerobot_unidextok.blocks import find_udhm_blocks, passthrough_indices
 from lerobot_unidextok.constants import ACTION, OBS_STATE
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.errors import InvalidInputError
@@ -37,6 +37,36 @@ from lerobot_unidextok.processor import (
 
 class SingleBindError(InvalidInputError):
     """The one-robot checkpoint cannot be bound to that robot; the message names why and the fix."""
+
+
+def refuse_several_hand_sets(robot: UdhmDatasetMeta, error: type[InvalidInputError]) -> None:
+    """A robot has one set of hands: a dataset whose episodes hold different hands is refused with `error`, naming
+    them and deploy's fix (the dataset's own check names lerobot-train's flags, which deploy does not have)."""
+    if len(robot.hand_types) <= 1:
+        return
+    episodes: dict[str, list[int]] = {}
+    for e in robot.record.episodes if robot.record is not None else []:
+        episodes.setdefault(e.hand_type, []).append(e.episode_index)
+    which = "; ".join(f"{t}: episodes {v[:6]}{' ...' if len(v) > 6 else ''}" for t, v in episodes.items())
+    raise error(
+        f"{robot.root} holds episodes of different hands ({which or ', '.join(robot.hand_types)}), but a robot "
+        "has one set of hands: bind to a dataset of this robot alone (convert its own recordings into their "
+        "own dataset and pass that as --robot)"
+    )
+
+
+def _refuse_missing_columns(config: UdtConfigMixin, layout: NativeLayout, names: list[str], what: str) -> None:
+    """The columns besides the hands (arms, task columns) the policy read in every training frame must be among the
+    robot's own, under the same names."""
+    trained = [names[i] for i in passthrough_indices(names)]
+    missing = [n for n in trained if n not in layout.native_names]
+    if missing:
+        raise SingleBindError(
+            f"the policy was trained on a robot whose {what} has columns {missing[:4]}{' ...' if len(missing) > 4 else ''} "
+            f"besides its hands ({len(trained)} in all: arms, task columns), which this robot does not report: a "
+            "one-robot policy reads them in every frame. Bind it to a robot that reports them under the same names, "
+            "or train on the hands only (unidextok-convert --keep=hands) and bind that"
+        )
 
 
 @dataclasses.dataclass
@@ -57,6 +87,7 @@ def bind_single_robot(
     sides, "state" | "action")` puts the robot's native layout against the trained columns (`deploy._into_mix`)."""
     if robot.record is not None and robot.record.hand_vocabulary:
         raise SingleBindError(f"{robot.root} is a mix; pass one robot's converted dataset")
+    refuse_several_hand_sets(robot, SingleBindError)
     sides = list(config.udt_sides)
     robot_hands = robot.block_hands()
     robot_sides = [b.side for b in find_udhm_blocks(robot.names(OBS_STATE))]
@@ -78,6 +109,8 @@ def bind_single_robot(
             f"{robot.root} records no native state and action layout (a human dataset, or one converted without "
             "actions): there is no robot to bind to"
         )
+    _refuse_missing_columns(config, state, list(config.udt_state_names), "state")
+    _refuse_missing_columns(config, action, list(config.udt_action_names), "action")
     state_layout = place(state, list(config.udt_state_names), sides, "state")
     action_layout = place(action, list(config.udt_action_names), sides, "action")
     bound = dataclasses.replace(
@@ -119,4 +152,5 @@ def with_tokenizer_step(steps: list, step, config: UdtConfigMixin, binding) -> l
         out.insert(at, NativeToUDHMStateStep.from_layout(binding.state_layout, robot_names=robot))
     return out
 
-__all__ = ["SingleBindError", "SingleBinding", "bind_single_robot", "bound_single_steps", "with_tokenizer_step"]
+__all__ = ["SingleBindError", "SingleBinding", "bind_single_robot", "bound_single_steps", "refuse_several_hand_sets",
+           "with_tokenizer_step"]

@@ -50,10 +50,12 @@ from lerobot_unidextok.constants import (
     UDHM_DIM,
 )
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
+from lerobot_unidextok.data.share_sampler import episode_inputs, episode_map_key
 from lerobot_unidextok.data.wrist_frame import NUM_COLUMNS as NUM_WRIST_COLUMNS
 from lerobot_unidextok.data.wrist_frame import WristFrame, check_centre
 from lerobot_unidextok.errors import ConfigError, InvalidInputError
 from lerobot_unidextok.policies.relative_layout import relative_layout_problem
+from lerobot_unidextok.policies.train_output import refuse_training_into_a_unit
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, untrained_preset
 from lerobot_unidextok.processor import (
     HAND_INPUTS,
@@ -170,6 +172,10 @@ class UdtConfigMixin:
     udt_episode_inputs: list[int] = field(default_factory=list)
     # Each input's asked share of the training loss (the mix's normalised --weights), filled from its record.
     udt_input_shares: list[float] = field(default_factory=list)
+    # The dataset udt_episode_inputs and udt_input_shares were made for ("<N> episodes <fingerprint>"); a checkpoint
+    # trained further on another dataset (fine-tuning: --policy.path=<checkpoint> --dataset.root=<other>) gets
+    # both made anew for it. Filled from the dataset.
+    udt_episode_map_of: str = ""
     # Checkpoints saved before udt_episode_inputs: a fixed loss weight per episode (by index), kept as saved.
     udt_episode_weights: list[float] = field(default_factory=list)
     # Checkpoints saved before udt_hand_norm (and udt_hand_norm=off): on a mix with relative actions, z-score each
@@ -313,12 +319,19 @@ class UdtConfigMixin:
         return untrained_preset(self.udt_pretrained, self.udt_preset)
 
     def _fill_from_dataset(self) -> None:
-        """Hand layout, state names and native action layout from the dataset lerobot-train loaded."""
+        """Hand layout, state names and native action layout from the dataset lerobot-train loaded; for a checkpoint
+        loaded to train further (its layout filled already), the episode map of that dataset."""
         lerobot_meta = getattr(self, "_runtime_dataset_meta", None)
-        if lerobot_meta is None or self.udt_state_names:
+        if lerobot_meta is None:
             return
+        refuse_training_into_a_unit()  # lerobot-train's --output_dir inside a dataset or a checkpoint
         meta = UdhmDatasetMeta.from_lerobot(lerobot_meta)
+        if self.udt_state_names:  # a checkpoint loaded to train further (fine-tuning, resuming)
+            self._check_same_layout(meta)
+            self._refit_episode_map(meta)
+            return
         self._fill_layout(meta)
+        self._fill_episode_map(meta)
         self._fill_wrist_frame(meta)
         if self.udt_hand_norm != "off":
             self._fill_hand_stats(meta)
@@ -359,14 +372,6 @@ class UdtConfigMixin:
                 "written by unidextok-mix (or its meta/unidextok_conversion.json was dropped); mix it again"
             )
         self.udt_hand_vocabulary = list(meta.record.hand_vocabulary)
-        if self.udt_share_weights:
-            from lerobot_unidextok.data.share_sampler import episode_inputs
-
-            self.udt_episode_inputs, self.udt_input_shares = episode_inputs(meta.record)
-            self.udt_episode_weights = []
-            if self.udt_input_shares:
-                logger.info("%s: each input's share of every batch's loss %s (unidextok.share_weights)", self.type,
-                            {s.dataset: round(w, 3) for s, w in zip(meta.record.sources, self.udt_input_shares, strict=True)})  # fmt: skip
         self.udt_name_map = dict(meta.record.name_map)
         self.udt_sides = [b.side for b in find_udhm_blocks(names)]
         self.udt_state_names = names
@@ -382,6 +387,60 @@ class UdtConfigMixin:
             "%s: a mix of hands %s (blocks %s, hands per row from %s), from %s",
             self.type, self.udt_hand_vocabulary, self.udt_sides, OBS_HAND_IDS, meta.root,
         )  # fmt: skip
+
+    def _fill_episode_map(self, meta: UdhmDatasetMeta) -> None:
+        """Each episode's input and each input's share (a mix with --weights; none otherwise), for the dataset
+        `meta` (`udt_episode_map_of`)."""
+        inputs, shares = self._dataset_map(meta)
+        self.udt_episode_inputs, self.udt_input_shares, self.udt_episode_weights = inputs, shares, []
+        self.udt_episode_map_of = episode_map_key(meta)
+        if shares:
+            logger.info("%s: each input's share of every batch's loss %s (unidextok.share_weights)", self.type,
+                        {s.dataset: round(w, 3) for s, w in zip(meta.record.sources, shares, strict=True)})  # fmt: skip
+
+    def _dataset_map(self, meta: UdhmDatasetMeta) -> tuple[list[int], list[float]]:
+        """(each episode's input, each input's share) of `meta`'s dataset: a mix's record with shares, else none."""
+        mixed = meta.record is not None and bool(meta.record.hand_vocabulary)
+        return episode_inputs(meta.record) if self.udt_share_weights and mixed else ([], [])
+
+    def _check_same_layout(self, meta: UdhmDatasetMeta) -> None:
+        """A checkpoint trains further only on a dataset whose state has its columns (LeRobot's shape error
+        otherwise, after loading everything)."""
+        names = meta.names(OBS_STATE)
+        if names != list(self.udt_state_names):
+            def sides(n):
+                return [b.side for b in find_udhm_blocks(n)]
+            raise InvalidInputError(
+                f"{meta.root}: its {OBS_STATE} has {len(names)} columns (hand blocks {sides(names)}), the checkpoint "
+                f"was trained on {len(self.udt_state_names)} (hand blocks {sides(self.udt_state_names)}): it trains "
+                "further only on a dataset of its layout. Run it on this robot as it is with unidextok-deploy, or "
+                "fine-tune on a dataset with those columns (a mix of this robot's dataset with one that has the other "
+                "blocks, unidextok-mix)"
+            )
+
+    def _refit_episode_map(self, meta: UdhmDatasetMeta) -> None:
+        """A checkpoint loaded to train on `meta`'s dataset: the same dataset keeps its map (resuming); another one
+        (fine-tuning a pooled or bound checkpoint on one robot's data) gets its own, said in one line. The saved
+        pre-processor's step keeps the old map; the policy weighs by this one (`policies/udt_loss.py`)."""
+        key = episode_map_key(meta)
+        if key == self.udt_episode_map_of or (not self.udt_episode_map_of and self._map_fits(meta)):
+            return  # the same dataset (a checkpoint saved before the key: its map fits the dataset), as saved
+        before = len(self.udt_episode_inputs or self.udt_episode_weights)
+        self._fill_episode_map(meta)
+        if before or self.udt_input_shares:
+            logger.warning(
+                "%s: the checkpoint's episode map (%d episodes) was made for another dataset; trained on %s (%s) each "
+                "row is weighted by %s", self.type, before, meta.root, key,
+                f"the shares {self.udt_input_shares} of its own inputs" if self.udt_input_shares else "1 (one dataset, "
+                "no shares)",
+            )  # fmt: skip
+
+    def _map_fits(self, meta: UdhmDatasetMeta) -> bool:
+        """Whether a map saved without `udt_episode_map_of` is the one `meta`'s dataset gives (legacy fixed weights:
+        one per episode of it)."""
+        if self.udt_episode_weights:
+            return len(self.udt_episode_weights) == meta.total_episodes
+        return (list(self.udt_episode_inputs), list(self.udt_input_shares)) == self._dataset_map(meta)
 
     def _fill_hand_stats(self, meta: UdhmDatasetMeta) -> None:
         """Per-hand statistics of the action blocks (and the state's, `udt_hand_norm_state`) in the modes

@@ -117,7 +117,8 @@ def insert_udt_steps(
         at = max(i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep))
         steps.insert(at, ShareWeightStep(episode_inputs=list(config.udt_episode_inputs),
                                          shares=list(config.udt_input_shares),
-                                         episode_weights=list(config.udt_episode_weights)))  # fmt: skip
+                                         episode_weights=list(config.udt_episode_weights),
+                                         map_of=config.udt_episode_map_of))  # fmt: skip
     if config.udt_hand_input != "both":  # after the relative step (it reads the real state), before normalising
         at = max(i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep))
         identity = config.num_udt_blocks * len(config.udt_hand_vocabulary)  # a mix's one-hot identity, kept

@@ -11,6 +11,11 @@ the step does nothing.
 
 Checkpoints saved before 2026-12-05 carry `episode_weights` (one fixed weight per episode, from the mix's frame
 counts) instead; they keep those weights when training resumes.
+
+`map_of` names the dataset the map was made for (`data.share_sampler.episode_map_key`) and goes into the batch
+beside the weights (`unidextok_sample_weight_map`): a checkpoint trained further on another dataset keeps this step
+as it was saved (LeRobot reloads the pipeline unchanged), while its config's map is made anew for the new dataset;
+the policies then weight by the config's map, not by this one (`policies/udt_loss.py`).
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from lerobot_unidextok.data.share_sampler import share_loss_weights
 
 SHARE_WEIGHTS_STEP_NAME = "unidextok.share_weights"
 SAMPLE_WEIGHT_KEY = "unidextok_sample_weight"  # (B,) float in the batch: the row's loss weight
+SAMPLE_WEIGHT_MAP_KEY = "unidextok_sample_weight_map"  # str in the batch: the dataset the weights' map is for
 
 
 @ProcessorStepRegistry.register(SHARE_WEIGHTS_STEP_NAME)
@@ -37,6 +43,7 @@ class ShareWeightStep(ProcessorStep):
     episode_inputs: list[int] = field(default_factory=list)  # by episode index: its input (-1 none); none past the end
     shares: list[float] = field(default_factory=list)  # each input's asked share of the training frames
     episode_weights: list[float] = field(default_factory=list)  # legacy (saved before 2026-12-05): fixed weights
+    map_of: str = ""  # the dataset the map is for (data.share_sampler.episode_map_key); "" before 2026-12-06
 
     def __post_init__(self) -> None:
         self._inputs = torch.tensor([int(k) for k in self.episode_inputs], dtype=torch.long)
@@ -74,7 +81,8 @@ class ShareWeightStep(ProcessorStep):
             return transition
         new = transition.copy()
         device = torch.as_tensor(transition[TransitionKey.ACTION]).device
-        new[TransitionKey.COMPLEMENTARY_DATA] = {**extra, SAMPLE_WEIGHT_KEY: self.weights(torch.as_tensor(episodes)).to(device)}
+        new[TransitionKey.COMPLEMENTARY_DATA] = {**extra, SAMPLE_WEIGHT_KEY: self.weights(torch.as_tensor(episodes)).to(device),
+                                                 SAMPLE_WEIGHT_MAP_KEY: self.map_of}  # fmt: skip
         return new
 
     def reset(self) -> None:
@@ -88,7 +96,8 @@ class ShareWeightStep(ProcessorStep):
     def get_config(self) -> dict[str, Any]:
         if self.episode_weights and not self.episode_inputs:  # a legacy checkpoint saves what it loaded
             return {"episode_weights": [float(w) for w in self.episode_weights]}
-        return {"episode_inputs": [int(k) for k in self.episode_inputs], "shares": [float(s) for s in self.shares]}
+        return {"episode_inputs": [int(k) for k in self.episode_inputs], "shares": [float(s) for s in self.shares],
+                "map_of": self.map_of}  # fmt: skip
 
 
-__all__ = ["SAMPLE_WEIGHT_KEY", "SHARE_WEIGHTS_STEP_NAME", "ShareWeightStep"]
+__all__ = ["SAMPLE_WEIGHT_KEY", "SAMPLE_WEIGHT_MAP_KEY", "SHARE_WEIGHTS_STEP_NAME", "ShareWeightStep"]

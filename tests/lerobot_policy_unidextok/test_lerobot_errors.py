@@ -110,3 +110,26 @@ def test_a_translator_that_fails_leaves_the_error_as_it_was(tmp_path):
             assert r.stderr.splitlines()[0] == "error: translated: from lerobot" and "Traceback" not in r.stderr
         else:
             assert "ValueError: from lerobot" in r.stderr and "translator bug" not in r.stderr
+
+
+def test_lerobot_train_into_a_dataset_or_inside_one_is_one_line(g1_like, tmp_path):
+    """`--output_dir=<dataset>` was LeRobot's FileExistsError traceback; `--output_dir=<dataset>/runs/a` wrote the
+    checkpoints into the converted dataset. The first is one line from LeRobot's error, the second is refused when
+    the `<type>_udt` policy is built, before the first step; nothing is written into the dataset."""
+    from lerobot_unidextok.policies.train_output import refuse_training_into_a_unit
+
+    root = g1_like["root"]
+    exists = FileExistsError(f"Output directory {root} already exists and resume is False.")
+    err = user_error_for(exists, ["lerobot-train", "--policy.type=act", f"--output_dir={root}"])
+    assert isinstance(err, UserError) and str(err).startswith(f"--output_dir {root} is a dataset written by "
+                                                              "unidextok-convert, whose files other tools read")
+    assert user_error_for(exists, ["lerobot-train", f"--output_dir={tmp_path}"]) is None  # any other folder: LeRobot's
+    before = sorted(p.relative_to(root) for p in root.rglob("*"))
+    r = _run([str(BIN / "lerobot-train"), "--policy.type=act_udt", "--policy.device=cpu", "--policy.push_to_hub=false",
+              "--policy.udt_preset=tiny", "--dataset.repo_id=test/g1", f"--dataset.root={root}", "--steps=1",
+              f"--output_dir={root / 'runs' / 'a'}"], tmp_path)  # fmt: skip
+    line = _one_error(r)
+    assert line.startswith(f"error: --output_dir {root / 'runs' / 'a'} sits inside a dataset written by "
+                           f"unidextok-convert ({root})") and "choose an --output_dir outside it" in line
+    assert sorted(p.relative_to(root) for p in root.rglob("*")) == before
+    refuse_training_into_a_unit(["python", f"--output_dir={root / 'runs' / 'a'}"])  # only lerobot-train's flag

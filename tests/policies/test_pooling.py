@@ -389,3 +389,88 @@ def _dexora_robot(tmp_path):
     root = tmp_path / "dexora"
     convert(ConvertOptions(source="dexora", input=raw["dexora"], root=root, progress=False, keep="hands"))
     return root
+
+
+def test_a_single_robot_checkpoints_refusals_name_deploys_own_fixes(tok_dir, g1_like, tmp_path):
+    """A one-robot checkpoint with arms, bound to a robot without them, was told to "bind a hands-only mix" (it is not
+    a mix); bound to a dataset whose episodes hold different hands, it got lerobot-train's --policy.udt_hand_layout
+    hint. Each is one error with deploy's own fix, and nothing is written."""
+    from lerobot_unidextok.conversion.pipeline import ConvertOptions, convert
+    from lerobot_unidextok.policies.deploy import deploy
+    from lerobot_unidextok.policies.deploy_single import SingleBindError
+    from lerobot_unidextok.samples import write_samples
+
+    cfg, meta = _config("act_udt", tok_dir, g1_like["root"])
+    checkpoint = _save_checkpoint(cfg, meta, tmp_path / "g1_act")
+    with pytest.raises(SingleBindError) as err:
+        deploy(checkpoint, _dexora_robot(tmp_path), tmp_path / "a", zero_shot=True)
+    text = str(err.value)
+    assert text.startswith("the policy was trained on a robot whose state has columns [") and "hands-only mix" not in text
+    assert "which this robot does not report" in text and "unidextok-convert --keep=hands" in text
+    raw = write_samples(tmp_path / "raw_lh", sources=["linkerhand"], episodes_per_source=4, frames_per_episode=20)
+    several = tmp_path / "lh"
+    convert(ConvertOptions(source="linkerhand", input=raw["linkerhand"], root=several, progress=False))
+    with pytest.raises(SingleBindError, match=r"holds episodes of different hands .*a robot has one set of hands: bind "
+                                              r"to a dataset of this robot alone") as err:  # fmt: skip
+        deploy(checkpoint, several, tmp_path / "b", zero_shot=True)
+    assert "udt_hand_layout" not in str(err.value) and "lerobot-train" not in str(err.value)
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+    assert not list(tmp_path.glob(".a*")) and not list(tmp_path.glob(".b*"))
+
+
+def test_fine_tuning_a_bound_mix_checkpoint_on_one_robot_makes_the_episode_map_anew(tok_dir, weighted_mix, l10_robot,
+                                                                                    g1_like_hands, tmp_path):  # fmt: skip
+    """Pool, then specialise: `lerobot-train --policy.path=<bound mix> --dataset.root=<one robot>` kept the mix's
+    episode map and shares, so the target's rows were weighted by another dataset's map (its first episodes
+    happened to be the target's). The map is now made for the dataset trained on, said in one line; the saved
+    pre-processor keeps its step with the old map, whose weights the policy no longer takes."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+    from linkerhand_udhm import subprocess_env
+
+    from lerobot_unidextok.data.share_sampler import episode_map_key
+    from lerobot_unidextok.errors import InvalidInputError
+    from lerobot_unidextok.policies.deploy import deploy
+    from lerobot_unidextok.policies.udt_loss import share_weight
+    from lerobot_unidextok.processor import SAMPLE_WEIGHT_KEY
+
+    cfg, meta = _config("act_udt", tok_dir, weighted_mix)
+    mix_episodes = UdhmDatasetMeta(weighted_mix).total_episodes
+    assert len(cfg.udt_episode_inputs) == mix_episodes and cfg.udt_episode_map_of == episode_map_key(
+        UdhmDatasetMeta(weighted_mix))
+    robot = g1_like_hands["root"]  # two Inspire hands: the mix's blocks (a robot with fewer is refused, below)
+    bound = deploy(_save_checkpoint(cfg, meta, tmp_path / "pooled"), robot, tmp_path / "bound")
+    out = tmp_path / "fine_tuned"
+    r = subprocess.run([str(Path(sys.executable).parent / "lerobot-train"), f"--policy.path={bound}",
+                        f"--dataset.root={robot}", "--dataset.repo_id=test/g1_hands", "--policy.device=cpu",
+                        "--policy.push_to_hub=false", "--steps=1", "--batch_size=2", "--num_workers=0", "--save_freq=1",
+                        f"--output_dir={out}"], env=subprocess_env(HF_HOME=str(tmp_path / "hf")), capture_output=True,
+                       text=True, timeout=600)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    target = UdhmDatasetMeta(robot)
+    assert target.total_episodes != mix_episodes and f"episode map ({mix_episodes} episodes) was made for another dataset" in r.stderr
+    tuned = json.loads((out / "checkpoints" / "last" / "pretrained_model" / "config.json").read_text())
+    assert tuned["udt_episode_map_of"] == episode_map_key(target)
+    assert tuned["udt_episode_map_of"].startswith(f"{target.total_episodes} episodes ")
+    assert tuned["udt_episode_inputs"] == [] and tuned["udt_input_shares"] == []  # one robot: no shares to weigh by
+    # in the process: the reloaded pipeline still weighs by the mix's map; the policy takes none of it
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.datasets import LeRobotDataset, LeRobotDatasetMetadata
+
+    tuning = PreTrainedConfig.from_pretrained(bound)
+    tuning._runtime_dataset_meta = LeRobotDatasetMetadata("test/g1_hands", root=robot)
+    policy = get_policy_class("act_udt").from_pretrained(bound, config=tuning)
+    pre, _ = make_pre_post_processors(tuning, pretrained_path=str(bound))
+    rows = LeRobotDataset("test/g1_hands", root=robot, delta_timestamps={ACTION: [i / target.fps for i in range(
+        tuning.chunk_size)]})  # fmt: skip
+    batch = pre(torch.utils.data.default_collate([rows[0], rows[len(rows) - 1]]))
+    assert SAMPLE_WEIGHT_KEY in batch and share_weight(batch, policy.config, policy._own_shares) is None
+    # a robot whose blocks are not the checkpoint's (the right-only L10): one line, not LeRobot's shape error
+    other = PreTrainedConfig.from_pretrained(bound)
+    other._runtime_dataset_meta = LeRobotDatasetMetadata("test/l10_udhm", root=l10_robot)
+    with pytest.raises(InvalidInputError, match=r"hand blocks \['right'\]\), the checkpoint was trained on 44 \(hand "
+                                                r"blocks \['left', 'right'\]\): it trains further only on"):  # fmt: skip
+        other.validate_features()

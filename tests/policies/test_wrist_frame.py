@@ -282,13 +282,18 @@ def test_a_checkpoint_saved_before_the_frame_loads_and_acts_as_before(sim, tmp_p
     assert torch.equal(old, fresh_post(policy.select_action(fresh_pre(dict(obs)))))
 
 
-def test_a_mix_without_the_wrist_columns_has_no_frame_and_grasp_centre_refuses_it(sim, tmp_path):
+def test_a_mix_without_the_wrist_columns_has_no_frame_and_grasp_centre_refuses_it(sim, tmp_path, caplog):
+    """The default --keep=hands drops the inputs' wrist columns and with them their frame: said in one warning
+    naming --keep=all (it was an info line, silent in most logs; issue 54)."""
     from lerobot_unidextok.conversion.mix import MixOptions, mix
     from lerobot_unidextok.errors import ConfigError
 
     root = tmp_path / "hands_only"
-    mix(MixOptions(inputs=[str(sim[h]["udhm"]) for h in HANDS[:2]], root=str(root), repo_id="test/hands",
-                   keep="hands", progress=False))  # fmt: skip
+    with caplog.at_level("WARNING", logger="lerobot_unidextok.conversion.mix"):
+        mix(MixOptions(inputs=[str(sim[h]["udhm"]) for h in HANDS[:2]], root=str(root), repo_id="test/hands",
+                       keep="hands", progress=False))  # fmt: skip
+    notes = [r.getMessage() for r in caplog.records if "wrist" in r.getMessage()]
+    assert len(notes) == 1 and "--keep=hands drops their wrist columns" in notes[0] and "--keep=all keeps it" in notes[0]
     assert UdhmDatasetMeta(root).record.wrist_frame == {}
     cfg, _ = _config(sim, root)
     assert not cfg.uses_wrist_frame

@@ -19,8 +19,7 @@ from lerobot.utils.constants import OBS_IMAGES
 
 from lerobot_unidextok.constants import ACTION
 from lerobot_unidextok.policies.act_udt.configuration_act_udt import ACTUdtConfig
-from lerobot_unidextok.policies.udt_loss import row_weights
-from lerobot_unidextok.processor.share_weights import SAMPLE_WEIGHT_KEY
+from lerobot_unidextok.policies.udt_loss import own_share_weights, row_weights, share_weight
 from lerobot_unidextok.processor.slot_mask import ACTION_SLOT_PAD_KEY
 
 
@@ -32,13 +31,14 @@ class ACTUdtPolicy(ACTPolicy):
 
     def __init__(self, config: ACTUdtConfig, **kwargs):
         super().__init__(config, **kwargs)
+        self._own_shares = own_share_weights(config)  # when the saved pre-processor weighs by another dataset's map
         if config.udt_relative_actions and config.udt_copy_start:  # the untrained policy copies the state
             torch.nn.init.zeros_(self.model.action_head.weight)
             torch.nn.init.zeros_(self.model.action_head.bias)
 
     def forward(self, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict]:
         """ACT's loss without the action slots `batch["action_slot_is_pad"]` marks (module docstring)."""
-        slot_pad, weight = batch.get(ACTION_SLOT_PAD_KEY), batch.get(SAMPLE_WEIGHT_KEY)
+        slot_pad, weight = batch.get(ACTION_SLOT_PAD_KEY), share_weight(batch, self.config, self._own_shares)
         if slot_pad is None and weight is None:
             return super().forward(batch)
         if self.config.image_features:

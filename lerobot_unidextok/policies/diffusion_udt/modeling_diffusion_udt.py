@@ -19,8 +19,7 @@ from lerobot.utils.constants import OBS_IMAGES
 
 from lerobot_unidextok.constants import ACTION
 from lerobot_unidextok.policies.diffusion_udt.configuration_diffusion_udt import DiffusionUdtConfig
-from lerobot_unidextok.policies.udt_loss import row_weights
-from lerobot_unidextok.processor.share_weights import SAMPLE_WEIGHT_KEY
+from lerobot_unidextok.policies.udt_loss import own_share_weights, row_weights, share_weight
 from lerobot_unidextok.processor.slot_mask import ACTION_SLOT_PAD_KEY
 
 
@@ -56,9 +55,13 @@ class DiffusionUdtPolicy(DiffusionPolicy):
     config_class = DiffusionUdtConfig
     name = "diffusion_udt"
 
+    def __init__(self, config: DiffusionUdtConfig, **kwargs):
+        super().__init__(config, **kwargs)
+        self._own_shares = own_share_weights(config)  # when the saved pre-processor weighs by another dataset's map
+
     def forward(self, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, None]:
         """Diffusion's loss without the action slots `batch["action_slot_is_pad"]` marks (module docstring)."""
-        slot_pad, weight = batch.get(ACTION_SLOT_PAD_KEY), batch.get(SAMPLE_WEIGHT_KEY)
+        slot_pad, weight = batch.get(ACTION_SLOT_PAD_KEY), share_weight(batch, self.config, self._own_shares)
         if slot_pad is None and weight is None:
             return super().forward(batch)
         if self.config.image_features:
