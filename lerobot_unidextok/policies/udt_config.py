@@ -87,7 +87,8 @@ class UdtConfigMixin:
     (`class ACTUdtConfig(UdtConfigMixin, ACTConfig)`). Each field's comment is its `--help` text."""
 
     # UniDexTok checkpoint folder, shipped id or Hub repo id (offline from the HF cache once pulled). Default:
-    # the shipped `unidextok/universal-small`, trained on every registered hand (no network needed).
+    # the shipped `unidextok/universal-small-residual`, trained on every registered hand (no network needed);
+    # `unidextok/universal-small`, the default until 2026-12-06, loads and encodes as before by its id.
     udt_pretrained: str | None = DEFAULT_TOKENIZER
     # An untrained tokenizer of this preset (tiny | small | paper; smoke tests only) instead of the default
     # udt_pretrained; `udt_pretrained=null` without a preset is an untrained `small`.
@@ -109,8 +110,9 @@ class UdtConfigMixin:
     # States outside their hands' ranges (degrees fed as radians, normalised values): raise | warn | off.
     udt_range_check: str = "raise"
     # How the step picks codes instead of the tokenizer's own encoding (docs/tokenizer.md "Code search"): null =
-    # the tokenizer's (the default; the shipped tokenizer searches); --policy.udt_encoding.rounds=0 = the nearest
-    # codes (cheapest); an override replaces the tokenizer's whole encoding (rounds, method, changes, tolerance_deg).
+    # the tokenizer's (the default: the default tokenizer's nearest codes, `unidextok/universal-small`'s code search);
+    # --policy.udt_encoding.rounds=0 = the nearest codes (cheapest); an override replaces the tokenizer's whole
+    # encoding (rounds, method, changes, tolerance_deg).
     udt_encoding: EncodingConfig | None = None
     # Legacy (policy checkpoints saved before udt_encoding): rounds of the tokenizer's own search; upgraded into
     # udt_encoding when the config is built, then null. Set udt_encoding instead.
@@ -249,10 +251,14 @@ class UdtConfigMixin:
                               f"{tuple(STATS_OF_MODE)}, got {modes!r}; {fix}")  # fmt: skip
         if sorted(stats) != sorted(modes):
             raise NumberError(f"udt_hand_stats has statistics for {sorted(stats)} but modes for {sorted(modes)}; {fix}")
-        hands = self.udt_hand_vocabulary or (None if self.udt_allow_unknown else sorted(set(self.udt_hand_layout)))
+        # a mix: exactly its vocabulary; one robot: its layout's hands (a checkpoint bound zero-shot to another
+        # robot's hands keeps the statistics of the hands it trained on, `udt_processor.row_hands`)
+        mix = bool(self.udt_hand_vocabulary)
+        hands = self.udt_hand_vocabulary if mix else [] if self.udt_allow_unknown else sorted(set(self.udt_hand_layout))
         for key, mode in modes.items():
-            checked = checked_hand_stats({key: stats[key]}, "udt_hand_stats", hands=list(hands) if hands else None,
-                                         sides=list(self.udt_sides) or None, required=STATS_OF_MODE[mode], fix=fix)
+            checked = checked_hand_stats({key: stats[key]}, "udt_hand_stats", hands=list(hands) or None,
+                                         others=not mix, sides=list(self.udt_sides) or None,
+                                         required=STATS_OF_MODE[mode], fix=fix)  # fmt: skip
             self.udt_hand_stats[key] = checked[key]
 
     @property

@@ -122,13 +122,15 @@ def checked_tensor(value: Any, where: str, *, sign: str | None = None, max_abs: 
     _check_values(arr, where, sign, max_abs, unit, fix)
 
 
-def checked_hand_stats(stats: Any, where: str, *, hands: list[str] | None = None, sides: list[str] | None = None,
-                       required: tuple[str, ...] = (), fix: str = "") -> dict[str, dict[str, dict[str, dict]]]:  # fmt: skip
+def checked_hand_stats(stats: Any, where: str, *, hands: list[str] | None = None, others: bool = False,
+                       sides: list[str] | None = None, required: tuple[str, ...] = (),
+                       fix: str = "") -> dict[str, dict[str, dict[str, dict]]]:  # fmt: skip
     """Per-hand statistics `{key: {side: {hand: {stat: [22], "frames": n}}}}` checked whole, or a NumberError
     naming the key, side, hand and statistic: each statistic 22 finite numbers in rad within MAX_STAT_RAD, a std
     >= 0, a low statistic not above its high one (min/max, q01/q99, q10/q90), frames a whole number >= 1.
-    `hands`: the hands they are read for, each of which must have statistics under every key and no other hand
-    may (a hand missing, or renamed, would silently be normalised with other hands' statistics); `sides`: the
+    `hands`: the hands they are read for, each of which must have statistics under every key and, unless
+    `others`, no other hand may (a hand missing, or renamed, would silently be normalised with other hands'
+    statistics); `sides`: the
     block sides they may name; `required`: the statistics every entry must have. Returns `stats`, its lists as
     floats."""
     if not isinstance(stats, dict):
@@ -148,7 +150,7 @@ def checked_hand_stats(stats: Any, where: str, *, hands: list[str] | None = None
             out[key][side] = {hand: _checked_entry(entry, f"{where}[{key!r}][{side!r}][{hand!r}]", required, fix)
                               for hand, entry in per_hand.items()}  # fmt: skip
         if hands is not None:
-            _check_coverage(out[key], f"{where}[{key!r}]", hands, fix)
+            _check_coverage(out[key], f"{where}[{key!r}]", hands, others, fix)
     return out
 
 
@@ -177,9 +179,10 @@ def _checked_entry(entry: Any, where: str, required: tuple[str, ...], fix: str) 
     return out
 
 
-def _check_coverage(per_side: dict[str, dict[str, Any]], where: str, hands: list[str], fix: str) -> None:
+def _check_coverage(per_side: dict[str, dict[str, Any]], where: str, hands: list[str], others: bool,
+                    fix: str) -> None:  # fmt: skip
     present = {h for per_hand in per_side.values() for h in per_hand}
-    unknown = sorted(present - set(hands))
+    unknown = [] if others else sorted(present - set(hands))
     if unknown:
         raise _problem(where, f"names hands {unknown}, which are not among the hands {list(hands)} it is read for "
                               "(renamed, or from another dataset)", fix)  # fmt: skip
