@@ -310,3 +310,27 @@ def test_training_on_a_mix_whose_record_holds_a_nan_std_is_refused_naming_the_fi
     with pytest.raises(NumberError, match=rf"{CONVERSION_PATH} hand_stats\['action'\]\['left'\]\['{INSPIRE}'\]\.std "
                                           r"holds NaN at index 4 .*mix the datasets again"):  # fmt: skip
         cfg.validate_features()
+
+
+def test_a_one_robot_config_needs_statistics_for_its_layouts_hands_and_may_keep_the_trained_others():
+    """One robot's checkpoint bound zero-shot to some of the hands it trained on keeps every trained hand's
+    statistics (they are what it normalises with); a hand of its layout without any, not bound zero-shot, is named."""
+    from lerobot.configs.types import FeatureType, PolicyFeature
+
+    from lerobot_unidextok.policies import ACTUdtConfig
+
+    names = udhm_state_names(["left", "right"])
+    stats = {"modes": {ACTION: "MEAN_STD"}, ACTION: {"left": {INSPIRE: _stats_entry(None)},
+                                                     "right": {L10: _stats_entry(None)}}}  # fmt: skip
+
+    def config(layout: list[str]) -> ACTUdtConfig:
+        return ACTUdtConfig(
+            input_features={OBS_STATE: PolicyFeature(FeatureType.STATE, (len(names),))},
+            output_features={ACTION: PolicyFeature(FeatureType.ACTION, (len(names),))},
+            udt_hand_layout=layout, udt_sides=["left", "right"], udt_state_names=names, udt_action_names=names,
+            udt_hand_stats=copy.deepcopy(stats), device="cpu",
+        )  # fmt: skip
+
+    assert set(config([INSPIRE, INSPIRE]).udt_hand_stats[ACTION]["right"]) == {L10}
+    with pytest.raises(NumberError, match=r"udt_hand_stats\['action'\] has no statistics for hands \['shadow'\]"):
+        config([INSPIRE, "shadow"])
