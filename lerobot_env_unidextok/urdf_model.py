@@ -53,6 +53,7 @@ BUILDER_VERSION = 1  # bump when the built MJCF changes for the same inputs
 SHIPPED_DIR = Path(__file__).parent / "assets"
 CACHE_ENV = "UNIDEXTOK_SIM_CACHE"
 PRIMITIVES = ("box", "cylinder", "sphere")
+URDF_JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 RADIUS_SHARE = 0.1  # capsule radius: this share of the median finger's length (MCP to tip along the chain),
 SPACING_SHARE = 0.35  # at most this share of the closest two fingers' MCP spacing (fingers 70 % as wide as
 RADIUS_RANGE_M = (0.006, 0.012)  # their spacing, so neighbours do not touch), within this range
@@ -159,7 +160,7 @@ def hand_axes(keypoints_m: np.ndarray) -> np.ndarray:
 
 def check_urdf(urdf_text: str, source: str) -> None:
     """Refuse a URDF the builder cannot read, naming `source` (its file) and the joint: not XML (cut short), no
-    `<robot>`, a joint whose parent or child link is missing, a limit that is not a finite number or whose lower
+    `<robot>`, a joint of no URDF type, a joint whose parent or child link is missing, a limit that is not a finite number or whose lower
     end is above its upper."""
     try:
         root = ET.fromstring(urdf_text)
@@ -171,6 +172,9 @@ def check_urdf(urdf_text: str, source: str) -> None:
     links = {link.get("name") for link in root.iter("link")}
     for joint in root.iter("joint"):
         name = joint.get("name")
+        if joint.get("type") not in URDF_JOINT_TYPES:
+            raise SimBuildError(f"{source}: joint {name!r} has type {joint.get('type')!r}; a URDF joint is one of "
+                                f"{', '.join(URDF_JOINT_TYPES)}")  # fmt: skip
         for end in ("parent", "child"):
             tag = joint.find(end)
             if tag is None or tag.get("link") not in links:

@@ -200,6 +200,7 @@ def _urdf(tmp_path: Path, hand: str, edit) -> None:
     (lambda t: t.replace('lower="0"', 'lower="zero"', 1), r"joint '\w+' has limits 'zero', .*not numbers"),
     (lambda t: t.replace("<robot", "<robat", 1).replace("</robot>", "</robat>"), r"its root element is <robat>"),
     (lambda t: t.replace('type="revolute"', 'type="continuous"', 1), r"joint '\w+' has no limits \(a continuous"),
+    (lambda t: t.replace('type="revolute"', 'type="bogus"', 1), r"joint '\w+' has type 'bogus'; a URDF joint is one"),
 ])  # fmt: skip
 def test_a_urdf_that_cannot_be_built_is_one_error_naming_the_file_and_joint(monkeypatch, tmp_path, edit, said):
     need_urdfs()
