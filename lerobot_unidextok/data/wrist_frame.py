@@ -45,9 +45,10 @@ class WristFrameError(InvalidInputError):
 def check_centre(hand: str, value: Any, where: str) -> list[float]:
     """`value` as a grasp centre (3 finite numbers, m, within MAX_CENTRE_M of the wrist), or a WristFrameError
     naming `where` and the hand (`utils/number_checks.py`)."""
+    fix = "give x, y, z in m in the wrist frame (a value typed in mm is 1000x)"
     try:
         return checked_numbers(value, f"{where}: the grasp centre of {hand!r}", length=3, max_abs=MAX_CENTRE_M,
-                               unit="m", fix="give x, y, z in m in the wrist frame (a value typed in mm is 1000x)")
+                               unit="m", fix=fix)  # fmt: skip
     except NumberError as err:
         raise WristFrameError(str(err)) from None
 

@@ -231,4 +231,11 @@ def _error(path: Path, e: BaseException) -> PolicyCheckpointError:
     )
 
 
-__all__ = ["POSTPROCESSOR", "PREPROCESSOR", "WEIGHTS", "PolicyCheckpointError", "check_finite", "check_policy_checkpoint"]
+__all__ = [
+    "POSTPROCESSOR",
+    "PREPROCESSOR",
+    "WEIGHTS",
+    "PolicyCheckpointError",
+    "check_finite",
+    "check_policy_checkpoint",
+]
