@@ -357,6 +357,21 @@ def test_push_refuses_a_damaged_checkpoint_before_uploading(hub, tok_dir, tmp_pa
     assert "nothing was pushed" in r.stderr and ("model", "lab/damaged") not in hub.repos
 
 
+def test_push_refuses_a_tokenizer_with_a_nan_weight_naming_it(hub, tok_dir, tmp_path, monkeypatch, capsys):
+    """A tokenizer whose weights hold NaN loads (nothing in its load checks values) and was published (issue 54)."""
+    from safetensors.torch import load_file, save_file
+
+    folder = tmp_path / "nan_tok"
+    shutil.copytree(tok_dir, folder)
+    weights = load_file(folder / "model.safetensors")
+    name = sorted(k for k, v in weights.items() if v.is_floating_point() and v.numel() > 3)[0]
+    weights[name].view(-1)[3] = float("inf")
+    save_file(weights, folder / "model.safetensors", metadata={"format": "pt"})
+    code, err = _push_in_process(hub, monkeypatch, capsys, folder, "lab/nan-tok")
+    assert code == 2 and err.startswith(f"error: {folder / 'model.safetensors'}: tensor {name} holds 1 NaN/inf"), err
+    assert "nothing was pushed" in err.splitlines()[0] and ("model", "lab/nan-tok") not in hub.repos
+
+
 @pytest.mark.parametrize("edit", ["unknown_key", "hidden_dim"])
 def test_push_refuses_a_checkpoint_that_reads_but_does_not_load(hub, tok_dir, tmp_path, edit):
     """Every file reads, but the config does not build the model the weights are: a key this version does not
