@@ -552,8 +552,8 @@ def format_report(report: MixReport) -> str:
         lines.append(
             f"  {s.dataset}: {s.robot_type or s.source}, hands {', '.join(s.hands)} ({', '.join(s.sides)}), "
             f"{s.num_episodes} episodes ({len(s.test_episodes)} test), training episodes x{s.repeats}: "
-            + (f"{share:.0%} of the sampled training frames (share recorded)" if s.share else
-               f"{share:.0%} of the training frames")
+            + (f"{share * 100:.3g}% of the sampled training frames (share recorded)" if s.share else
+               f"{share * 100:.3g}% of the training frames")
             + ("" if s.has_action else "; actions by the action rule")
             + (f"; budget rule: {1 / share:.1f}x the updates it would train alone" if share > 0 else "")
         )

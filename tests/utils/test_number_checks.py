@@ -275,6 +275,15 @@ def test_weights_near_the_float_limit_are_normalised_not_dropped():
     from lerobot_unidextok.conversion.mix import repeat_factors
 
     assert repeat_factors([100, 100], [1e308, 1e308]) == [1, 1]
+    # a small share that passes is printed as a number, not as 0 %
+    from lerobot_unidextok.conversion.mix import MixReport, format_report
+    from lerobot_unidextok.data.record import MixedSource
+
+    shares = checked_shares([0.002, 1], "--weights")
+    sources = [MixedSource(f"in{k}", None, "src", ["right"], [L10], 4, [], weight=w, share=sh)
+               for k, (w, sh) in enumerate(zip([0.002, 1], shares, strict=True))]  # fmt: skip
+    text = format_report(MixReport(Path("out"), 8, 80, [], sources, shares, 0.1))
+    assert "0.2% of the sampled training frames (share recorded); budget rule: 501.0x the updates" in text, text
 
 
 def test_a_grasp_centre_written_by_a_recorder_is_checked_before_it_is_written(tmp_path):
