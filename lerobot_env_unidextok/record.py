@@ -32,7 +32,7 @@ import numpy as np
 
 from lerobot_env_unidextok.columns import TASK_TEXT
 from lerobot_env_unidextok.errors import SimInputError
-from lerobot_unidextok.data.destination import Kind, claim, move_into_place
+from lerobot_unidextok.data.destination import Kind, claim, move_into_place, release
 from lerobot_unidextok.data.wrist_frame import write_recorded
 from lerobot_unidextok.utils.cli import run_cli
 from lerobot_unidextok.utils.draccus_cli import wrap
@@ -109,12 +109,20 @@ def expert_episode(env, seed: int, noise_seed: int, max_steps: int, after_succes
 
 
 def record(cfg: RecordConfig) -> RecordReport:
+    # a plain LeRobot dataset (no conversion record): what a robot records
+    root = claim(cfg.root, Kind.DATASET, overwrite=cfg.overwrite, flag="--root")
+    try:
+        return _record_into(root, cfg)
+    finally:
+        release(root)  # the destination's lock (lerobot_unidextok/data/destination.py), however the run ended
+
+
+def _record_into(root: Path, cfg: RecordConfig) -> RecordReport:
+    """`record` into the claimed `root`."""
     from lerobot.datasets import LeRobotDataset
 
     from lerobot_env_unidextok.env import UniDexTokEnv  # start-up: MuJoCo and torch load with it, not with --help
 
-    # a plain LeRobot dataset (no conversion record): what a robot records
-    root = claim(cfg.root, Kind.DATASET, overwrite=cfg.overwrite, flag="--root")
     env = UniDexTokEnv(cfg.hand, cfg.task, render_mode=None)
     features = {
         "observation.state": {"dtype": "float32", "shape": (len(env.state_names),), "names": env.state_names},

@@ -25,6 +25,7 @@ from lerobot_unidextok.data.destination import (
     kind_of,
     move_into_place,
     recover,
+    release,
 )
 from lerobot_unidextok.data.rowstore import INDEX as ROW_STORE_INDEX
 from lerobot_unidextok.data.rowstore import HandRowStore
@@ -250,6 +251,8 @@ def train_and_evaluate(cfg: TrainConfig) -> tuple[dict, str]:
             with signals_deferred():
                 shutil.rmtree(work, ignore_errors=True)
         raise
+    finally:
+        release(cfg.output_dir)  # the run folder's lock (data/destination.py), however the run ended
     return report, md
 
 
