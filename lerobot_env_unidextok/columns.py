@@ -20,11 +20,15 @@ TASK_COLUMNS: dict[str, tuple[str, ...]] = {
     "FingerPress-v0": ("panel_x", "panel_y", "panel_z", *(f"goal_{f}" for f in PRESS_FINGERS)),
     # each finger's place in the order (1, 2, 3; 0: not in it), and how many of the three are done
     "FingerSequence-v0": ("panel_x", "panel_y", "panel_z", *(f"order_{f}" for f in PRESS_FINGERS), "presses_done"),
+    # the cylinder (centre, radius, half height), the target's centre, and the finger that pinches with the thumb
+    "PinchPlace-v0": ("object_x", "object_y", "object_z", "object_radius", "object_half_height", "target_x",
+                      "target_y", "pinch_index", "pinch_middle"),
 }  # fmt: skip
 TASK_TEXT = {
     "GraspLift-v0": "grasp the object and lift it",
     "FingerPress-v0": "press the button under the named finger",
     "FingerSequence-v0": "press the three buttons in the given order, each with its own finger",
+    "PinchPlace-v0": "pinch the cylinder with the thumb and the named finger and stand it in the target",
 }
 TASKS = tuple(TASK_COLUMNS)
 # what `observation.state_is_native` carries: 1.0, the state is the hand's native layout (processor/native.py)

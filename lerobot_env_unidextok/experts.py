@@ -6,7 +6,8 @@ spec (`SimHand.posture` -> `spec.from_udhm`); the grasp offsets (where the wrist
 `SimHand.grasp` (computed for a built hand, `urdf_hand.grasp_offsets`; a model file's `grasp:` entries). The
 expert reads only what the observation holds (the object's pose and size, the panel's place, the goal finger),
 plans its key poses once at the episode's start, and moves between them at most 3 cm per step; a sequence's
-presses (`FingerSequence-v0`) follow `presses_done`, each held until it counted (`SequencePresses`). Noise (its own
+presses (`FingerSequence-v0`) follow `presses_done`, each held until it counted (`SequencePresses`), and a pinch's
+lift, carry and set-down (`PinchPlace-v0`) follow the object's place (`PinchCarry`). Noise (its own
 generator, seeded per episode): key poses +-4 mm (+-3 mm in height) and +-0.04 rad of yaw (a press turns the hand
 about its fingertips over the buttons), postures +-0.05 rad per UDHM slot, phase lengths +-1 step.
 """
@@ -18,7 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from lerobot_env_unidextok.env import UniDexTokEnv
+from lerobot_env_unidextok.hand_model import SimHand
 from lerobot_env_unidextok.finger_sequence import SEQUENCE_LENGTH, FingerSequence
+from lerobot_env_unidextok.pinch_place import PINCH_FINGERS, PinchPlace, pinch_of
 from lerobot_env_unidextok.tasks import PRESS_FINGERS, FingerPress, GraspLift
 
 WRIST_SPEED_M = 0.03  # per step
@@ -42,23 +45,31 @@ class Expert:
         self.env, self.rng, self.noise = env, rng, noise
         self.hand = env.hand
         self.plan: list[tuple[np.ndarray, np.ndarray]] = []
+        self.segment_ends: list[int] = []  # per segment of the plan, its last step (pictures of each phase)
         self.t = 0
         self.presses: SequencePresses | None = None  # FingerSequence-v0's, set by `sequence_segments`
         self.done_column = env.state_names.index("presses_done") if "presses_done" in env.state_names else -1
+        self.carry: PinchCarry | None = None  # PinchPlace-v0's, set by `pinch_place_segments`
+        self.object_columns = [env.state_names.index(c) for c in ("object_x", "object_y", "object_z")
+                               if c in env.state_names]  # fmt: skip
         self.last_hand = self.hand.posture("open")
 
     # -- postures and noise -----------------------------------------------------------------------
     def posture(self, name: str) -> np.ndarray:
         """A named posture in native units, each UDHM slot of it jittered (noise)."""
+        return self.jittered(self.hand.posture(name))
+
+    def jittered(self, native: np.ndarray) -> np.ndarray:
+        """A native command with each UDHM slot of it jittered (noise)."""
         hand = self.hand
         if not self.noise:
-            return hand.posture(name)
-        base = np.asarray(hand.spec.to_udhm(hand.posture(name), hand.side), dtype=np.float64)
+            return native.copy()
+        base = np.asarray(hand.spec.to_udhm(native, hand.side), dtype=np.float64)
         mask = hand.spec.active_mask
         base[mask] += self.rng.uniform(-POSTURE_NOISE_RAD, POSTURE_NOISE_RAD, int(mask.sum()))
         raw = np.asarray(hand.spec.from_udhm(base, hand.side), dtype=np.float64)
         dropped = ~np.isin(np.arange(len(raw)), hand.spec.active_joint_indices)
-        raw[dropped] = hand.posture(name)[dropped]
+        raw[dropped] = native[dropped]
         return raw
 
     def jitter(self, pose: np.ndarray) -> np.ndarray:
@@ -73,13 +84,14 @@ class Expert:
         wrist, task_cols = state[:6], state[6 : 6 + len(self.env.task.state_names())]
         segments = self.segments(dict(zip(self.env.task.state_names(), task_cols, strict=True)), wrist)
         pose, hand = wrist.copy(), self.hand.posture("open")
-        self.plan = []
+        self.plan, self.segment_ends = [], []
         for seg in segments:
             n = max(seg.steps, int(np.ceil(np.abs(seg.pose[:3] - pose[:3]).max() / WRIST_SPEED_M)))
             for k in range(1, n + 1):
                 a = k / n
                 self.plan.append(((1 - a) * pose + a * seg.pose, (1 - a) * hand + a * seg.hand))
             pose, hand = seg.pose, seg.hand
+            self.segment_ends.append(len(self.plan))  # the step at which this segment's target is sent
         self.t = 0
 
     def act(self, obs: dict[str, np.ndarray] | None = None) -> np.ndarray:
@@ -87,6 +99,9 @@ class Expert:
         if self.presses is not None and self.t >= len(self.plan):  # a sequence's presses, on what it observes
             done = int(round(float(obs["agent_pos"][self.done_column])))
             pose, hand = self.presses.act(done, self.last_hand)
+        if self.carry is not None and self.t >= len(self.plan):  # a pinch's carry and set-down, on what it observes
+            state = obs["agent_pos"].astype(np.float64)
+            pose, hand = self.carry.act(state[self.object_columns], state[-len(self.hand.native_names) :])
         self.t += 1
         self.last_hand = hand
         return np.concatenate([pose, hand]).astype(np.float32)
@@ -98,6 +113,8 @@ class Expert:
             return self.sequence_segments(task)
         if isinstance(self.env.task, FingerPress):
             return self.press_segments(task)
+        if isinstance(self.env.task, PinchPlace):
+            return self.pinch_place_segments(task)
         raise TypeError(f"no expert for {type(self.env.task).__name__}")
 
     def grasp_segments(self, task: dict[str, float]) -> list[Segment]:
@@ -154,6 +171,88 @@ class Expert:
         self.presses = SequencePresses(hover, [*presses, open_], self.steps(SEQUENCE_PRESS_STEPS))
         return [Segment(hover + [0, 0, 0.04, 0, 0, 0], open_, self.steps(8)), Segment(hover, open_, self.steps(3))]
 
+    def pinch_place_segments(self, task: dict[str, float]) -> list[Segment]:
+        """Over the cylinder, down, pinch; the rest follows from the observation (`act`, `PinchCarry`). The wrist
+        level, its yaw 0: the point halfway between the fingers where they close to the cylinder's width
+        (`pinch_place.Pinch.point_m`) on its centre."""
+        finger = next(f for f in PINCH_FINGERS if task[f"pinch_{f}"] > 0.5)
+        pinch = pinch_of(self.hand, finger)
+        width = 2 * task["object_radius"]
+        centre = np.array([task["object_x"], task["object_y"], task["object_z"]])
+        grasp = self.jitter(np.array([*(centre - pinch.point_m(width)), 0.0, 0.0, 0.0]))
+        pre, hold = self.jittered(pinch.pre), self.jittered(pinch.hold(width))
+        self.carry = PinchCarry(self.hand, np.array([task["target_x"], task["target_y"]]),
+                                task["object_half_height"], grasp.copy(), hold, self.posture("open"))  # fmt: skip
+        return [Segment(grasp + [0, 0, 0.05, 0, 0, 0], pre, self.steps(8)), Segment(grasp, pre, self.steps(4)),
+                Segment(grasp, hold, self.steps(PINCH_CLOSE_STEPS))]  # fmt: skip
+
+
+@dataclass
+class PinchCarry:
+    """A pinch-and-place after the fingers were sent to the pinch, closed loop on the observation: the wrist waits
+    until the fingers stop moving (each UDHM slot under `SETTLED_RAD` a step, at most `SETTLE_STEPS`: the hand's
+    own speed, the Inspire's slow drives), lifts `LIFT_M`, carries the object level toward the target, correcting
+    for where it sits in the fingers (at most `CARRY_M` a step, reached over `RAMP_STEPS`); over the target (within
+    `OVER_M`) it goes down `LOWER_M` a step until the object stands on the table (within 2 mm), then the hand opens
+    to its open pose over `OPEN_STEPS` and the wrist rises. The object not in the fingers after the lift: the hand
+    stays where it is (the episode runs out)."""
+
+    hand: SimHand
+    target_xy: np.ndarray  # (2,)
+    half_height_m: float
+    pose: np.ndarray  # (6,) the wrist, at the pinch
+    hold: np.ndarray  # (J,) the pinch
+    release: np.ndarray  # (J,) the open hand
+    phase: str = "settle"
+    k: int = 0
+    last_udhm: np.ndarray | None = None
+    LIFT_M = 0.04
+    LIFT_STEPS = 5
+    SETTLED_RAD = 0.005
+    SETTLE_STEPS = 12  # at most
+    CARRY_M = 0.015
+    RAMP_STEPS = 3
+    OVER_M = 0.003
+    LOWER_M = 0.01
+    OPEN_STEPS = 4
+
+    def act(self, object_xyz: np.ndarray, native: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        self.k += 1
+        if self.phase == "settle":
+            udhm = np.asarray(self.hand.spec.to_udhm(native, self.hand.side), dtype=np.float64)
+            still = self.last_udhm is not None and np.abs(udhm - self.last_udhm).max() < self.SETTLED_RAD
+            self.last_udhm = udhm
+            if not still and self.k < self.SETTLE_STEPS:
+                return self.pose.copy(), self.hold
+            self.phase, self.k = "lift", 1
+        if self.phase == "lift":
+            self.pose[2] += self.LIFT_M / self.LIFT_STEPS
+            if self.k == self.LIFT_STEPS:
+                self.phase, self.k = "carry", 0
+            return self.pose.copy(), self.hold
+        miss = self.target_xy - object_xyz[:2]
+        if self.phase == "carry" and object_xyz[2] - self.half_height_m < 0.01:  # not in the fingers: stay
+            return self.pose.copy(), self.hold
+        if self.phase in ("carry", "lower"):  # from rest up to CARRY_M a step over RAMP_STEPS: no jerk to drop it
+            limit = self.CARRY_M * min(1.0, self.k / self.RAMP_STEPS)
+            self.pose[:2] += miss * min(1.0, limit / max(float(np.linalg.norm(miss)), 1e-9))
+        if self.phase == "carry" and np.linalg.norm(miss) <= self.OVER_M:
+            self.phase = "lower"
+        if self.phase == "lower":
+            if object_xyz[2] - self.half_height_m <= 0.002:
+                self.phase, self.k = "open", 1
+            else:
+                self.pose[2] -= min(self.LOWER_M, object_xyz[2] - self.half_height_m)
+        if self.phase == "open":
+            a = min(1.0, self.k / self.OPEN_STEPS)
+            if a == 1.0:
+                self.phase = "up"
+            return self.pose.copy(), (1 - a) * self.hold + a * self.release
+        if self.phase == "up":
+            self.pose[2] += self.LOWER_M
+            return self.pose.copy(), self.release
+        return self.pose.copy(), self.hold
+
 
 @dataclass
 class SequencePresses:
@@ -177,5 +276,6 @@ class SequencePresses:
         return self.hover, (1 - a) * self.start + a * self.postures[min(done, len(self.postures) - 1)]
 
 
+PINCH_CLOSE_STEPS = 6  # a pinch-and-place's pre-shape to closed
 SEQUENCE_PRESS_STEPS = 5  # a sequence's move from one press posture to the next (or to open after the last)
 GRASP_WIDTH_M = 0.04  # objects at least this wide get a power grasp, narrower ones a pinch

@@ -44,7 +44,7 @@ logger = logging.getLogger(__name__)
 @dataclass
 class RecordConfig:
     hand: str = "inspire_rh56_unitree"  # a hand spec with a simulation model
-    task: str = "GraspLift-v0"  # GraspLift-v0 | FingerPress-v0
+    task: str = "GraspLift-v0"  # one of columns.TASKS (GraspLift-v0, FingerPress-v0, FingerSequence-v0, ...)
     episodes: int = 50  # episodes to write (successful ones, unless keep_failures)
     root: str = ""  # output folder (new or empty; an existing LeRobot dataset only with --overwrite=true)
     overwrite: bool = False  # replace the LeRobot dataset already at --root (once this one is finished)

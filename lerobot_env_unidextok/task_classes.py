@@ -5,8 +5,9 @@ own."""
 from __future__ import annotations
 
 from lerobot_env_unidextok.finger_sequence import FingerSequence
+from lerobot_env_unidextok.pinch_place import PinchPlace
 from lerobot_env_unidextok.tasks import FingerPress, GraspLift, Task
 
-TASKS: dict[str, type[Task]] = {t.name: t for t in (GraspLift, FingerPress, FingerSequence)}
+TASKS: dict[str, type[Task]] = {t.name: t for t in (GraspLift, FingerPress, FingerSequence, PinchPlace)}
 
 __all__ = ["TASKS", "Task"]

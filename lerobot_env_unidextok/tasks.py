@@ -1,5 +1,6 @@
 """The `Task` base and the first two tasks: what each adds to the scene, how an episode is drawn, what it observes,
-when it succeeds. Each later task has a module of its own (`finger_sequence.py`); `task_classes.py` lists them all.
+when it succeeds. Each later task has a module of its own (`finger_sequence.py`, `pinch_place.py`); `task_classes.py`
+lists them all.
 
 - `GraspLift-v0`: one object on the table, drawn per episode: a box or an upright cylinder wide enough to need a
   power grasp, or a small cube or block that a power grasp's fingers close past (a pinch). Size, place and yaw

@@ -13,7 +13,15 @@ from lerobot_env_unidextok.errors import SimInputError
 from lerobot_env_unidextok.record import expert_episode
 
 # task -> hands its fast tests run on (the rates over 50 episodes per hand: docs/lerobot.md, bench_sim.py)
-TASK_HANDS = {"FingerSequence-v0": ("inspire_rh56_unitree", "shadow", "allegro")}
+TASK_HANDS = {"FingerSequence-v0": ("inspire_rh56_unitree", "shadow", "allegro"),
+              "PinchPlace-v0": ("shadow", "xhand1", "unitree_dex3_1")}  # the Allegro is refused: see below
+
+
+def _need(hand: str) -> None:
+    from lerobot_env_unidextok import sim_hands
+
+    if hand not in sim_hands.sim_hand_names():
+        pytest.skip(f"{hand}'s URDF is not found (set UNIDEXTOK_URDF_DIR to a copy of shared/data/urdf)")
 
 
 def _rollout(env: UniDexTokEnv, seed: int, steps: int) -> np.ndarray:
@@ -31,7 +39,7 @@ def _rollout(env: UniDexTokEnv, seed: int, steps: int) -> np.ndarray:
 def test_gymnasium_env_checker_passes(task):
     from gymnasium.utils.env_checker import check_env
 
-    env = gym.make(f"lerobot_env_unidextok/{task}", hand="allegro", disable_env_checker=True)
+    env = gym.make(f"lerobot_env_unidextok/{task}", hand="shadow", disable_env_checker=True)
     check_env(env.unwrapped, skip_render_check=True)
     assert env.unwrapped.task_description == TASK_TEXT[task]
 
@@ -45,6 +53,7 @@ def test_a_seeded_episode_is_reproduced_exactly_and_the_columns_are_every_hands(
     assert not np.array_equal(a[0], c[0])
     width = len(TASK_COLUMNS[task])
     for hand in TASK_HANDS[task]:
+        _need(hand)
         names = UniDexTokEnv(hand, task, render_mode=None).state_names
         assert names[6 : 6 + width] == list(TASK_COLUMNS[task]), hand
 
@@ -52,6 +61,7 @@ def test_a_seeded_episode_is_reproduced_exactly_and_the_columns_are_every_hands(
 @pytest.mark.parametrize("task", list(TASK_HANDS))
 def test_the_expert_succeeds_on_seeded_episodes(task):
     for hand in TASK_HANDS[task]:
+        _need(hand)
         env = UniDexTokEnv(hand, task, render_mode=None)
         wins = sum(expert_episode(env, 3000 + i, 4000 + i, 50)[2] for i in range(4))
         assert wins >= 3, f"{hand} {task}: {wins}/4"
@@ -89,8 +99,32 @@ def test_finger_sequence_succeeds_only_in_order_and_by_each_finger():
     assert terminated and not info["is_success"] and env.task.failure == "wrong order"
 
 
-def test_a_hand_with_too_few_fingers_is_refused_in_one_line():
-    refusal = r"^hand 'unitree_dex3_1' has 2 fingers besides the thumb .*FingerPress-v0"
+def test_pinch_place_fails_when_another_finger_than_the_named_one_touches():
+    """The expert pinches with the finger its first observation named; the task then names the other one: the
+    named finger's neighbour holds the cylinder, which ends the episode as a failure, not a success."""
+    from lerobot_env_unidextok.experts import Expert
+
+    env = UniDexTokEnv("shadow", "PinchPlace-v0", render_mode=None)
+    obs, _ = env.reset(seed=1001)
+    cols = dict(zip(env.state_names, obs["agent_pos"], strict=True))
+    assert cols["pinch_index"] + cols["pinch_middle"] == 1
+    assert cols["object_z"] == pytest.approx(cols["object_half_height"])  # standing on the table
+    expert = Expert(env, np.random.default_rng(0), noise=False)
+    expert.reset(obs)
+    env.task.finger = "middle" if cols["pinch_index"] else "index"
+    for _ in range(50):
+        obs, _, terminated, _, info = env.step(expert.act(obs))
+        if terminated:
+            break
+    assert terminated and not info["is_success"] and env.task.failure == "other finger"
+
+
+@pytest.mark.parametrize(("task", "hand", "refusal"), [
+    ("FingerSequence-v0", "unitree_dex3_1", r"^hand 'unitree_dex3_1' has 2 fingers besides the thumb .*FingerPress-v0"),
+    ("PinchPlace-v0", "allegro", r"^hand 'allegro' cannot pinch .*no closer than 35 mm to the middle's .*GraspLift-v0"),
+])  # fmt: skip
+def test_a_hand_that_cannot_do_the_task_is_refused_in_one_line(task, hand, refusal):
+    _need(hand)
     with pytest.raises(SimInputError, match=refusal) as e:
-        gym.make("lerobot_env_unidextok/FingerSequence-v0", hand="unitree_dex3_1")
+        gym.make(f"lerobot_env_unidextok/{task}", hand=hand)
     assert "\n" not in str(e.value)
