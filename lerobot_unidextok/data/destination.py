@@ -124,7 +124,8 @@ def enclosing_unit(path: Path) -> tuple[Path, Kind] | None:
 
 def claim(target: str | Path, writes: Kind, *, inputs: list[Path] | tuple[Path, ...] = (), overwrite: bool = False,
           resume: bool = False, flag: str = "--root") -> Path:  # fmt: skip
-    """Check that this writer may write the folder `target` (module docstring); returns it resolved.
+    """Check that this writer may write the folder `target` and lock it for this process (module docstring);
+    returns it resolved.
 
     `writes`: the kind this writer produces; `overwrite`: the user asked to replace an existing one of that
     kind; `resume`: continue into an existing one (training); `flag`: the option that named `target`, for the
@@ -164,6 +165,7 @@ def _refuse_existing(target: Path, writes: Kind, overwrite: bool, resume: bool, 
 # the lock of a destination being written
 # ---------------------------------------------------------------------------------------------
 _HELD: dict[Path, tuple[int, Path]] = {}  # destination -> (open lock file descriptor, lock file) of this process
+_OWNER_PID = os.getpid()  # the process whose locks _HELD holds (a forked child inherits the dict, not the locks' use)
 
 
 def lock_path(target: Path) -> Path:
@@ -219,6 +221,10 @@ def release(target: str | Path) -> None:
 
 @atexit.register
 def _release_all() -> None:
+    """At exit, the locks this process took (a forked child that ran its parent's exit handlers would otherwise
+    remove the lock files its parent still holds)."""
+    if os.getpid() != _OWNER_PID:
+        return
     for target in list(_HELD):
         release(target)
 
