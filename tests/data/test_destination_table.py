@@ -369,6 +369,34 @@ def test_the_real_commands(raw, tmp_path, monkeypatch, capsys):
     assert (base / "empty" / "meta" / "unidextok_conversion.json").is_file()
 
 
+# lerobot-train is LeRobot's writer: the plugin checks its --output_dir flag (policies/train_output.py) against the
+# same kinds of folder, at them and inside them; an existing folder that is none of them is LeRobot's own refusal
+# (its FileExistsError), a new one LeRobot's to make. E = refused by the plugin, o = left to LeRobot.
+TRAIN_OUTPUT = {"converted": "E", "plain": "E", "policy": "E", "run/best": "E", "mixed": "E", "run": "o", "logs": "o",
+                "user": "o", "empty": "o", "new": "o"}  # fmt: skip
+
+
+@pytest.mark.parametrize("inside", [False, True], ids=["at", "inside"])
+def test_lerobot_train_output_dir_is_held_to_the_units_at_and_inside(inside, tmp_path):
+    from lerobot_unidextok.policies.train_output import refuse_training_into_a_unit
+
+    base = tmp_path / "sandbox"
+    base.mkdir()
+    build_sandbox(base)
+    _dataset(base / "mixed", "mix")
+    before = tree_hash(base)
+    for name, expected in TRAIN_OUTPUT.items():
+        dest = base / name / "runs" / "a" if inside else base / name
+        try:
+            refuse_training_into_a_unit(["lerobot-train", "--policy.type=act_udt", f"--output_dir={dest}"])
+            outcome = "o"
+        except DestinationError as exc:
+            assert str(exc).startswith(f"--output_dir {dest} ") and "choose an --output_dir outside it" in str(exc)
+            outcome = "E"
+        assert outcome == expected, (name, inside, outcome)
+    assert tree_hash(base) == before  # a check, nothing written
+
+
 HOLD = """
 import sys
 from lerobot_unidextok.data.destination import Kind, claim
