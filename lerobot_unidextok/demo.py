@@ -168,7 +168,7 @@ def demo_train(out: Path, roots: dict[str, Path], preset: str, steps: int, seed:
 # 5. pictures
 # ---------------------------------------------------------------------------------------------
 def demo_pictures(out: Path, model, test_data, seed: int) -> None:
-    """The shipped tokenizer (what `UniDexTok.from_pretrained("unidextok/universal-small")` gives, its default
+    """The default shipped tokenizer (what `UniDexTok.from_pretrained(DEFAULT_TOKENIZER)` gives, its own
     encoding) beside the one trained above and 8-bit binning, on the same held-out rows: a table and pictures."""
     from lerobot_unidextok import hands, udhm
     from lerobot_unidextok.baselines import HandRange, UniformBinning
@@ -210,8 +210,9 @@ def demo_pictures(out: Path, model, test_data, seed: int) -> None:
     table.append(["all test rows", *(f"{np.nanmean(e):.3f}" for e in errors_deg.values())])
     print("MPJAE (deg) on the test episodes, active joints:")
     print(_table(["hand", shipped_name, own_name, bins_name], table))
-    print(f"{shipped_name}: {DEFAULT_TOKENIZER}, in the package for every registered hand (its default encoding, "
-          f"the code search); {own_name}: the tokenizer of step 4, trained on this synthetic mixture only")  # fmt: skip
+    how = "the code search" if shipped.config.encoding.rounds else "the nearest codes"
+    print(f"{shipped_name}: {DEFAULT_TOKENIZER}, in the package for every registered hand (its own encoding, "
+          f"{how}); {own_name}: the tokenizer of step 4, trained on this synthetic mixture only")  # fmt: skip
     paths = []
     for hand in test_data.hand_names():
         pick = rng.choice(np.flatnonzero(test_data.hands == hand), size=min(3, int((test_data.hands == hand).sum())),

@@ -30,7 +30,10 @@ logger = logging.getLogger(__name__)
 
 UNIVERSAL_SMALL = "unidextok/universal-small"  # the paper's single VQ, 64 codes a hand, greedy code search
 UNIVERSAL_SMALL_RESIDUAL = "unidextok/universal-small-residual"  # + one residual stage, 128 codes, nearest codes (#48)
-DEFAULT_TOKENIZER = UNIVERSAL_SMALL  # the one line that picks the default of the step and the <type>_udt policies
+DEFAULT_TOKENIZER = UNIVERSAL_SMALL_RESIDUAL  # the one line that picks the default of the step and the <type>_udt ones
+# every id that has been DEFAULT_TOKENIZER: a config saved with one of them and a preset (the field written out as it
+# was by default) meant the untrained preset, and still does (`untrained_preset`)
+DEFAULTS_SO_FAR = tuple(dict.fromkeys((DEFAULT_TOKENIZER, UNIVERSAL_SMALL)))
 HERE = Path(__file__).resolve().parent
 SHIPPED: dict[str, Path] = {
     UNIVERSAL_SMALL: HERE / "universal-small",
@@ -116,11 +119,12 @@ def hub_errors(name: str) -> Iterator[None]:
 
 def untrained_preset(pretrained: str | None, preset: str | None) -> str | None:
     """The preset of an untrained tokenizer when one is asked for, else None (load `pretrained`): `preset` given
-    with `pretrained` left at `DEFAULT_TOKENIZER`, or `pretrained=None` (then `preset`, else "small"). The rule of
+    with `pretrained` left at the default (`DEFAULT_TOKENIZER`, or an id that was the default when a config was
+    saved: `DEFAULTS_SO_FAR`), or `pretrained=None` (then `preset`, else "small"). The rule of
     `UniDexTokStateTokenizerStep`, the `<type>_udt` configs and their cards."""
     if pretrained is None:
         return preset or "small"
-    return preset if pretrained == DEFAULT_TOKENIZER else None
+    return preset if pretrained in DEFAULTS_SO_FAR else None
 
 
 def config_path(name: str | Path, revision: str | None = None) -> Path:
@@ -135,5 +139,5 @@ def config_path(name: str | Path, revision: str | None = None) -> Path:
         return Path(hf_hub_download(repo_id=resolved, filename=CONFIG_FILE, revision=revision))
 
 
-__all__ = ["DEFAULT_TOKENIZER", "SHIPPED", "UNIVERSAL_SMALL", "UNIVERSAL_SMALL_RESIDUAL", "config_path", "hub_errors",
-           "refuse_set_aside", "resolve", "shipped_folder", "untrained_preset"]
+__all__ = ["DEFAULTS_SO_FAR", "DEFAULT_TOKENIZER", "SHIPPED", "UNIVERSAL_SMALL", "UNIVERSAL_SMALL_RESIDUAL",
+           "config_path", "hub_errors", "refuse_set_aside", "resolve", "shipped_folder", "untrained_preset"]

@@ -84,8 +84,9 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     leading shape works: (D,), (B, D), temporal stacks (B, T, D).
 
     The tokenizer comes from `tokenizer_config` (+ weights through `load_state_dict`, as the
-    pipeline does on reload), else from `pretrained` (folder, shipped id or Hub repo id; default the
-    shipped `unidextok/universal-small`, trained on every registered hand), else, only when asked for with
+    pipeline does on reload), else from `pretrained` (folder, shipped id or Hub repo id; default
+    `DEFAULT_TOKENIZER`, the shipped `unidextok/universal-small-residual`, trained on every registered hand and
+    encoding with its nearest codes), else, only when asked for with
     `preset=` (and `pretrained` left at its default) or `pretrained=None`, an untrained preset with random
     weights (benchmarks, tests).
     """
