@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from lerobot_unidextok import hands
-from lerobot_unidextok.pretrained import UNIVERSAL_SMALL
+from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, UNIVERSAL_SMALL
 from lerobot_unidextok.tokenizer import UniDexTokConfig
 
 HAND = "unitree_dex3_1"
@@ -80,6 +80,14 @@ def test_a_hand_the_tokenizer_does_not_know_trains_when_its_tokens_are_not_the_i
     assert (model / "model.safetensors").is_file()
     config = json.loads((model / "config.json").read_text())
     assert config["udt_hand_layout"] == [HAND] and config["udt_allow_unknown"] is False  # the user's setting, kept
+
+
+def test_the_documented_command_trains_the_hand_with_the_default_tokenizer(dex3_robot, tmp_path):
+    """No flag at all: the default tokenizer knows the Dex3-1, and its tokens are the policy's input."""
+    model = _lerobot_train(dex3_robot, tmp_path / "run", [])
+    config = json.loads((model / "config.json").read_text())
+    assert config["udt_pretrained"] == DEFAULT_TOKENIZER and config["udt_hand_input"] == "both"
+    assert config["udt_hand_layout"] == [HAND] and config["udt_allow_unknown"] is False
 
 
 def test_the_tokens_of_a_trained_tokenizer_still_refuse_a_hand_it_does_not_know(dex3_robot, tmp_path):
