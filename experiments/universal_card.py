@@ -144,7 +144,7 @@ def main(argv: list[str] | None = None) -> None:
         encoding_lines = [
             f"This package's config.json sets its encoding (`encoding`: method {own.method}, rounds {own.rounds}, "
             f"{per_round.strip().replace('--encoding.', '').replace(' ', ', ')}): `encode`, and so the processor "
-            "step and every `<type>_udt` policy by default, refines each group's nearest code with the "
+            "step and every `<type>_udt` policy that use this tokenizer, refines each group's nearest code with the "
             "decoder-aware code search (docs/tokenizer.md \"Code search\", its cost per frame and per row; same "
             "tokens, same decoder), and the evaluation table above is measured that way. `encode(..., "
             "encoding=NEAREST_CODES)` (`unidextok-eval --encoding.rounds=0`, `--policy.udt_encoding.rounds=0`) gives "
