@@ -38,7 +38,9 @@ class ACTUdtPolicy(ACTPolicy):
 
     def forward(self, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict]:
         """ACT's loss without the action slots `batch["action_slot_is_pad"]` marks (module docstring)."""
-        slot_pad, weight = batch.get(ACTION_SLOT_PAD_KEY), share_weight(batch, self.config, self._own_shares)
+        # a plain ACTPolicy given this loss (experiments/policy_training.py's masked ACT) has no shares of its own
+        own = getattr(self, "_own_shares", None)
+        slot_pad, weight = batch.get(ACTION_SLOT_PAD_KEY), share_weight(batch, self.config, own)
         if slot_pad is None and weight is None:
             return super().forward(batch)
         if self.config.image_features:
