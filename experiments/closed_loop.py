@@ -743,12 +743,15 @@ def plot(result: dict, out_path: Path) -> Path:
                 if points:
                     x = [p[0] for p in points]
                     y = [p[1]["mean"] for p in points]
-                    err = [[p[1]["mean"] - p[1]["interval"][0] for p in points], [p[1]["interval"][1] - p[1]["mean"] for p in points]]
+                    # clipped at 0: a mean at the floor may sit outside its rounded interval (all seeds at 0 %)
+                    err = [[max(0.0, p[1]["mean"] - p[1]["interval"][0]) for p in points],
+                           [max(0.0, p[1]["interval"][1] - p[1]["mean"]) for p in points]]
                     ax.errorbar(x, y, yerr=err, color=color, marker=marker, ms=5, lw=1.4, capsize=3, label=label)
             for arm, face, label in (("zero_shot", "#b10dc9", "zero-shot"), ("zero_shot_no_frame", "none", "zero-shot, robot frame")):
                 if arm in arms:
                     z = arms[arm]
-                    ax.errorbar([0], [z["mean"]], yerr=[[z["mean"] - z["interval"][0]], [z["interval"][1] - z["mean"]]],
+                    ax.errorbar([0], [z["mean"]], yerr=[[max(0.0, z["mean"] - z["interval"][0])],
+                                                        [max(0.0, z["interval"][1] - z["mean"])]],
                                 color="#b10dc9", mfc=face, marker="o", ms=7, capsize=3, ls="none", label=label)  # fmt: skip
             mix = sorted((int(a.rpartition("_")[2]), v) for a, v in arms.items() if a.rpartition("_")[0] == "mix"
                          and a.rpartition("_")[2].isdigit())  # fmt: skip
