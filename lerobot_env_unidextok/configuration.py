@@ -51,7 +51,7 @@ class UniDexTokEnvConfig(EnvConfig):
 
     def __post_init__(self) -> None:
         # start-up: MuJoCo and the hand specs (torch) load here, not in every LeRobot CLI that imports this module
-        from lerobot_env_unidextok import sim_hands
+        from lerobot_env_unidextok import sim_hands, task_classes
 
         if self.task not in TASKS:
             raise SimInputError(f"unknown task {self.task!r}; --env.task takes one of {', '.join(TASKS)}")
@@ -59,7 +59,11 @@ class UniDexTokEnvConfig(EnvConfig):
             raise SimInputError(f"--env.policy_action must be one of {POLICY_ACTIONS}, got {self.policy_action!r}")
         if self.episode_length < 1:
             raise SimInputError(f"--env.episode_length must be >= 1 step, got {self.episode_length}")
-        native = sim_hands.load(self.hand).native_names
+        sim_hand = sim_hands.load(self.hand)
+        # a hand that cannot do the task (FingerSequence-v0 on a two-finger Dex3-1) is refused here in one line, not
+        # in lerobot-eval's gym.make traceback
+        task_classes.TASKS[self.task](sim_hand)
+        native = sim_hand.native_names
         # the checkpoint lerobot-eval was given, read from the command line as LeRobot's EvalPipelineConfig does
         check_policy_fits(parser.get_path_arg("policy"), self.task, self.hand)
         hand_width = UDHM_DIM if self.policy_action == "udhm" else len(native)

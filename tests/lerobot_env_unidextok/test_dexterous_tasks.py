@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import lerobot_env_unidextok  # noqa: F401  (registers the gym ids)
+from lerobot_env_unidextok.configuration import UniDexTokEnvConfig
 from lerobot_env_unidextok.columns import TASK_COLUMNS, TASK_TEXT
 from lerobot_env_unidextok.env import UniDexTokEnv
 from lerobot_env_unidextok.errors import SimInputError
@@ -128,3 +129,6 @@ def test_a_hand_that_cannot_do_the_task_is_refused_in_one_line(task, hand, refus
     with pytest.raises(SimInputError, match=refusal) as e:
         gym.make(f"lerobot_env_unidextok/{task}", hand=hand)
     assert "\n" not in str(e.value)
+    # and as lerobot-eval meets it: --env.task / --env.hand are checked when its config is made, before gym.make
+    with pytest.raises(SimInputError, match=refusal):
+        UniDexTokEnvConfig(task=task, hand=hand)
