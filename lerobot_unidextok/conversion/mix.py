@@ -441,6 +441,11 @@ def _mix_into(target: Path, inputs: list[_Input], opts: MixOptions, t0: float) -
     train_frames = [
         sum(length for e, length in (i.meta.episode_lengths or {}).items() if e not in i.test) for i in inputs
     ]
+    for i, frames in zip(inputs, train_frames, strict=True):  # its hands would have no per-hand statistics
+        if not frames:
+            raise MixError(f"input {i.meta.root} has no training episodes: all {i.meta.total_episodes} are in its "
+                           "recorded test split, so the mix could neither train on its hands nor normalise them; "
+                           "convert it again with a smaller --test_fraction (or more episodes), or leave it out")  # fmt: skip
     repeats = repeat_factors(train_frames, opts.weights if opts.weights_by == "copies" else [])
     asked = checked_shares(opts.weights, "--weights") if opts.weights and opts.weights_by == "sampling" else []
     written = sum(r * f for r, f in zip(repeats, train_frames, strict=True))

@@ -182,6 +182,15 @@ def test_bad_inputs_are_one_clear_error_and_nothing_is_written(g1_like, l10_robo
         mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(l10_robot / "mix")))
     with pytest.raises(NumberError, match=r"--weights must be 2 numbers, got 1; pass one positive number per input"):
         MixOptions(inputs=["a", "b"], root=str(root), weights=[1])
+    # every episode of an input in its recorded test split: its hand would have no per-hand statistics, which the
+    # mix wrote and only training then refused, blaming an edited file
+    all_test = tmp_path / "l10_all_test"
+    shutil.copytree(l10_robot, all_test)
+    record = json.loads((all_test / "meta/unidextok_conversion.json").read_text())
+    record["test_episodes"] = list(range(record["num_episodes"]))
+    (all_test / "meta/unidextok_conversion.json").write_text(json.dumps(record))
+    with pytest.raises(MixError, match=rf"input {all_test} has no training episodes: all 5 .*smaller --test_fraction"):
+        mix(MixOptions(inputs=[str(g1_like["root"]), str(all_test)], root=str(root)))
     assert not root.exists() and not list(tmp_path.glob(".out*"))
     other = tmp_path / "not_a_mix"
     other.mkdir()
