@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from lerobot_env_unidextok.env import UniDexTokEnv
-from lerobot_env_unidextok.hand_model import SimHand
 from lerobot_env_unidextok.finger_sequence import SEQUENCE_LENGTH, FingerSequence
+from lerobot_env_unidextok.hand_model import SimHand
 from lerobot_env_unidextok.pinch_place import PINCH_FINGERS, PinchPlace, pinch_of
 from lerobot_env_unidextok.tasks import PRESS_FINGERS, FingerPress, GraspLift
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import lerobot_env_unidextok  # noqa: F401  (registers the gym ids)
-from lerobot_env_unidextok.configuration import UniDexTokEnvConfig
 from lerobot_env_unidextok.columns import TASK_COLUMNS, TASK_TEXT
+from lerobot_env_unidextok.configuration import UniDexTokEnvConfig
 from lerobot_env_unidextok.env import UniDexTokEnv
 from lerobot_env_unidextok.errors import SimInputError
 from lerobot_env_unidextok.record import expert_episode
