@@ -109,10 +109,12 @@ class SimHand:
 
     def posture(self, name: str) -> np.ndarray:
         """A named posture in native units: the open pose with the posture's UDHM slots set (spec.from_udhm)."""
-        if name == "open":
-            return self.open_raw.copy()
+        return self.open_raw.copy() if name == "open" else self.with_slots(self.postures[name])
+
+    def with_slots(self, overrides_rad: dict[str, float]) -> np.ndarray:
+        """(J,) native command of the open pose with the UDHM slots `overrides_rad` set (slot name -> rad)."""
         udhm = np.asarray(self.spec.to_udhm(self.open_raw, self.side), dtype=np.float64)
-        for slot, value in self.postures[name].items():
+        for slot, value in overrides_rad.items():
             udhm[UDHM_JOINT_NAMES.index(slot)] = value
         raw = np.asarray(self.spec.from_udhm(udhm, self.side), dtype=np.float64)
         dropped = ~np.isin(np.arange(len(raw)), self.spec.active_joint_indices)

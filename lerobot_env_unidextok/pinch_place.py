@@ -77,17 +77,6 @@ class Pinch:
         return (1 - a) * self.pre + a * self.closed
 
 
-def _native(hand: SimHand, overrides: dict[str, float]) -> np.ndarray:
-    """The open pose with UDHM slots set, as a native command (as `SimHand.posture`)."""
-    udhm = np.asarray(hand.spec.to_udhm(hand.open_raw, hand.side), dtype=np.float64)
-    for slot, value in overrides.items():
-        udhm[UDHM_JOINT_NAMES.index(slot)] = value
-    raw = np.asarray(hand.spec.from_udhm(udhm, hand.side), dtype=np.float64)
-    dropped = ~np.isin(np.arange(len(raw)), hand.spec.active_joint_indices)
-    raw[dropped] = hand.open_raw[dropped]
-    return raw
-
-
 def pinch_of(hand: SimHand, finger: str) -> Pinch:
     """The thumb-`finger` pinch of `hand` (module docstring); fitted once per hand and finger in a process."""
     return _pinch(hand.name, finger)
@@ -118,7 +107,7 @@ def _pinch(hand_name: str, finger: str) -> Pinch:
                 **{s: float(k * x[-1]) for s, k in zip(curl_slots, CURL, strict=True)}}  # fmt: skip
 
     def gap(x: np.ndarray) -> float:
-        t = tips(_native(hand, overrides(x)))
+        t = tips(hand.with_slots(overrides(x)))
         return float(np.sum((t["thumb"] - t[finger]) ** 2))
 
     start = np.array([hand.postures["pinch"].get(s, 0.5 * (lo[i] + hi[i])) for s, i in zip(slots, idx, strict=True)]
@@ -127,7 +116,7 @@ def _pinch(hand_name: str, finger: str) -> Pinch:
     best = minimize(gap, np.clip(start, *np.array(bounds).T), method="Powell", bounds=bounds,
                     options={"xtol": 1e-3, "ftol": 1e-9, "maxfev": 3000})  # fmt: skip
     closed_over = overrides(best.x)
-    closed = _native(hand, closed_over)
+    closed = hand.with_slots(closed_over)
     t = tips(closed)
     point = (t["thumb"] + t[finger]) / 2
     opened = {s: float(v) for s, v in zip(UDHM_JOINT_NAMES, hand.spec.to_udhm(hand.open_raw, hand.side), strict=True)}
@@ -137,10 +126,10 @@ def _pinch(hand_name: str, finger: str) -> Pinch:
         part = {}
         for share in np.linspace(1.0, 0.0, 21):
             part = {s: opened[s] + share * (closed_over[s] - opened[s]) for s in group}
-            if np.linalg.norm((tips(_native(hand, {**closed_over, **part}))[tip] - point)[:2]) >= clear:
+            if np.linalg.norm((tips(hand.with_slots({**closed_over, **part}))[tip] - point)[:2]) >= clear:
                 break
         pre_over.update(part)
-    pre = _native(hand, {**closed_over, **pre_over})
+    pre = hand.with_slots({**closed_over, **pre_over})
     # along the closing path (pre to closed, linear in native), the closest points of the thumb's and the finger's
     # surfaces (their collision geoms): an object as wide as their distance touches both there
     solid = lambda f: [g for g in scene.finger_geoms[f] if m.geom_contype[g] or m.geom_conaffinity[g]]  # noqa: E731

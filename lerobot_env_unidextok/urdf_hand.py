@@ -206,13 +206,13 @@ def fit_postures(hand: SimHand, fk: HandFK) -> tuple[dict[str, dict[str, float]]
     postures = {k: dict(v) for k, v in hand.postures.items()}
 
     def tips_at(udhm_overrides: dict[str, float]) -> dict[str, np.ndarray]:
-        return fk.tips(_with(hand, udhm_overrides))
+        return fk.tips(hand.with_slots(udhm_overrides))
 
     def fit_thumb(base: dict[str, float], target: list[int]) -> dict[str, float]:
         start = np.array([base.get(s, float(_open_udhm(hand)[i])) for s, i in zip(slots, idx, strict=True)])
 
         def gap(x) -> float:
-            kp = fk.keypoints(_with(hand, {**base, **dict(zip(slots, x, strict=True))}))
+            kp = fk.keypoints(hand.with_slots({**base, **dict(zip(slots, x, strict=True))}))
             return float(np.sum((kp[4] - kp[target].mean(0)) ** 2))
 
         best = minimize(gap, start, method="Powell", bounds=list(zip(lo[idx], hi[idx], strict=True)),
@@ -222,7 +222,7 @@ def fit_postures(hand: SimHand, fk: HandFK) -> tuple[dict[str, dict[str, float]]
     tips = [FINGER_KEYPOINTS[f][-1] for f in ("index", "middle")]  # MANO-21 8, 12
     postures["power"] = fit_thumb(postures["power"], tips)
     postures["pinch"] = fit_thumb(postures["pinch"], tips)
-    kp = fk.keypoints(_with(hand, postures["pinch"]))
+    kp = fk.keypoints(hand.with_slots(postures["pinch"]))
     radius = capsule_radius_m(fk.keypoints(hand.open_raw))
     smallest = 2 * min(lo_m for shape in SHAPES if shape.grasp == "pinch" for lo_m, _ in shape.half_m[:1])
     pinch_fingers: tuple[str, ...] = ("index", "middle")
@@ -239,7 +239,7 @@ def fit_postures(hand: SimHand, fk: HandFK) -> tuple[dict[str, dict[str, float]]
     fingers = [f for f in hand.fingers if f != "thumb"]
     for pre, name in (("pinch_pre", "pinch"), ("preshape", "power")):
         closed = postures[name]
-        point = grasp_point(name, fk, _with(hand, closed), pinch_fingers)
+        point = grasp_point(name, fk, hand.with_slots(closed), pinch_fingers)
         clear = max(hi for shape in SHAPES if shape.grasp == name for _, hi in shape.half_m[:1]) + PRESHAPE_CLEAR_M
         chosen = {}
         # the thumb and the fingers each opened just enough: closing, they reach the object about together
@@ -259,17 +259,6 @@ def fit_postures(hand: SimHand, fk: HandFK) -> tuple[dict[str, dict[str, float]]
 
 def _open_udhm(hand: SimHand) -> np.ndarray:
     return np.asarray(hand.spec.to_udhm(hand.open_raw, hand.side), dtype=np.float64)
-
-
-def _with(hand: SimHand, overrides: dict[str, float]) -> np.ndarray:
-    """Native command of the open pose with UDHM slots set (as `SimHand.posture`)."""
-    udhm = _open_udhm(hand)
-    for slot, value in overrides.items():
-        udhm[UDHM_JOINT_NAMES.index(slot)] = value
-    raw = np.asarray(hand.spec.from_udhm(udhm, hand.side), dtype=np.float64)
-    dropped = ~np.isin(np.arange(len(raw)), hand.spec.active_joint_indices)
-    raw[dropped] = hand.open_raw[dropped]
-    return raw
 
 
 def grasp_point(kind: str, fk: HandFK, native_raw: np.ndarray, pinch_fingers=("index", "middle")) -> np.ndarray:
