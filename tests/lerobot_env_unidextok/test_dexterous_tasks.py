@@ -5,6 +5,7 @@ episodes, and refuses a hand that cannot do it at `gym.make` in one line."""
 import gymnasium as gym
 import numpy as np
 import pytest
+from sim_rollout import random_rollout  # tests/fixtures
 
 import lerobot_env_unidextok  # noqa: F401  (registers the gym ids)
 from lerobot_env_unidextok.columns import TASK_COLUMNS, TASK_TEXT
@@ -25,17 +26,6 @@ def _need(hand: str) -> None:
         pytest.skip(f"{hand}'s URDF is not found (set UNIDEXTOK_URDF_DIR to a copy of shared/data/urdf)")
 
 
-def _rollout(env: UniDexTokEnv, seed: int, steps: int) -> np.ndarray:
-    obs, _ = env.reset(seed=seed)
-    rng = np.random.default_rng(0)
-    states = [obs["agent_pos"]]
-    for _ in range(steps):
-        action = env.action_low + rng.uniform(0, 1, env.action_space.shape) * (env.action_high - env.action_low)
-        obs, *_ = env.step(action.astype(np.float32))
-        states.append(obs["agent_pos"])
-    return np.stack(states)
-
-
 @pytest.mark.parametrize("task", list(TASK_HANDS))
 def test_gymnasium_env_checker_passes(task):
     from gymnasium.utils.env_checker import check_env
@@ -47,9 +37,9 @@ def test_gymnasium_env_checker_passes(task):
 
 @pytest.mark.parametrize("task", list(TASK_HANDS))
 def test_a_seeded_episode_is_reproduced_exactly_and_the_columns_are_every_hands(task):
-    a = _rollout(UniDexTokEnv("shadow", task, render_mode=None), seed=7, steps=5)
-    b = _rollout(UniDexTokEnv("shadow", task, render_mode=None), seed=7, steps=5)
-    c = _rollout(UniDexTokEnv("shadow", task, render_mode=None), seed=8, steps=5)
+    a = random_rollout(UniDexTokEnv("shadow", task, render_mode=None), seed=7, steps=5)
+    b = random_rollout(UniDexTokEnv("shadow", task, render_mode=None), seed=7, steps=5)
+    c = random_rollout(UniDexTokEnv("shadow", task, render_mode=None), seed=8, steps=5)
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a[0], c[0])
     width = len(TASK_COLUMNS[task])

@@ -4,6 +4,7 @@ in the hand's native units, and one clear error for each bad input."""
 import gymnasium as gym
 import numpy as np
 import pytest
+from sim_rollout import random_rollout  # tests/fixtures
 
 import lerobot_env_unidextok  # noqa: F401  (registers the gym ids)
 from lerobot_env_unidextok import hand_model, sim_hands
@@ -14,17 +15,6 @@ from lerobot_unidextok import hands
 
 HANDS = ("inspire_rh56_unitree", "shadow", "allegro")
 TASKS = ("GraspLift-v0", "FingerPress-v0")
-
-
-def _rollout(env: UniDexTokEnv, seed: int, steps: int, rng_seed: int) -> np.ndarray:
-    obs, _ = env.reset(seed=seed)
-    rng = np.random.default_rng(rng_seed)
-    states = [obs["agent_pos"]]
-    for _ in range(steps):
-        action = env.action_low + rng.uniform(0, 1, env.action_space.shape) * (env.action_high - env.action_low)
-        obs, *_ = env.step(action.astype(np.float32))
-        states.append(obs["agent_pos"])
-    return np.stack(states)
 
 
 def test_gymnasium_env_checker_passes():
@@ -38,9 +28,9 @@ def test_gymnasium_env_checker_passes():
 def test_seeded_episodes_are_reproduced_exactly(hand):
     """Same seed, same actions: bit-identical observations in a fresh env; another seed: another episode."""
     task = "GraspLift-v0"
-    a = _rollout(UniDexTokEnv(hand, task, render_mode=None), seed=7, steps=6, rng_seed=0)
-    b = _rollout(UniDexTokEnv(hand, task, render_mode=None), seed=7, steps=6, rng_seed=0)
-    c = _rollout(UniDexTokEnv(hand, task, render_mode=None), seed=8, steps=6, rng_seed=0)
+    a = random_rollout(UniDexTokEnv(hand, task, render_mode=None), seed=7, steps=6, rng_seed=0)
+    b = random_rollout(UniDexTokEnv(hand, task, render_mode=None), seed=7, steps=6, rng_seed=0)
+    c = random_rollout(UniDexTokEnv(hand, task, render_mode=None), seed=8, steps=6, rng_seed=0)
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a[0], c[0])
 
@@ -124,8 +114,8 @@ def test_a_built_hand_passes_the_env_checker_and_reproduces_its_episodes(hand):
 
     _need(hand)
     check_env(UniDexTokEnv(hand, "FingerPress-v0", render_mode=None), skip_render_check=True)
-    a = _rollout(UniDexTokEnv(hand, "GraspLift-v0", render_mode=None), seed=7, steps=4, rng_seed=0)
-    b = _rollout(UniDexTokEnv(hand, "GraspLift-v0", render_mode=None), seed=7, steps=4, rng_seed=0)
+    a = random_rollout(UniDexTokEnv(hand, "GraspLift-v0", render_mode=None), seed=7, steps=4, rng_seed=0)
+    b = random_rollout(UniDexTokEnv(hand, "GraspLift-v0", render_mode=None), seed=7, steps=4, rng_seed=0)
     np.testing.assert_array_equal(a, b)
     spec = hands.get(hand)
     assert a.shape[1] == 6 + len(TASK_COLUMNS["GraspLift-v0"]) + spec.num_native
