@@ -6,8 +6,9 @@ spec (`SimHand.posture` -> `spec.from_udhm`); the grasp offsets (where the wrist
 `SimHand.grasp` (computed for a built hand, `urdf_hand.grasp_offsets`; a model file's `grasp:` entries). The
 expert reads only what the observation holds (the object's pose and size, the panel's place, the goal finger),
 plans its key poses once at the episode's start, and moves between them at most 3 cm per step; a sequence's
-presses (`FingerSequence-v0`) follow `presses_done`, each held until it counted (`SequencePresses`), and a pinch's
-lift, carry and set-down (`PinchPlace-v0`) follow the object's place (`PinchCarry`). Noise (its own
+presses (`FingerSequence-v0`) follow the due finger and `presses_done`, each held until it counted
+(`SequencePresses`), and a pinch's lift, carry and set-down (`PinchPlace-v0`) follow the object's place
+(`PinchCarry`). Noise (its own
 generator, seeded per episode): key poses +-4 mm (+-3 mm in height) and +-0.04 rad of yaw (a press turns the hand
 about its fingertips over the buttons), postures +-0.05 rad per UDHM slot, phase lengths +-1 step.
 """
@@ -49,6 +50,7 @@ class Expert:
         self.t = 0
         self.presses: SequencePresses | None = None  # FingerSequence-v0's, set by `sequence_segments`
         self.done_column = env.state_names.index("presses_done") if "presses_done" in env.state_names else -1
+        self.due_columns = [env.state_names.index(f"due_{f}") for f in PRESS_FINGERS if f"due_{f}" in env.state_names]
         self.carry: PinchCarry | None = None  # PinchPlace-v0's, set by `pinch_place_segments`
         self.object_columns = [env.state_names.index(c) for c in ("object_x", "object_y", "object_z")
                                if c in env.state_names]  # fmt: skip
@@ -98,7 +100,8 @@ class Expert:
         pose, hand = self.plan[min(self.t, len(self.plan) - 1)]
         if self.presses is not None and self.t >= len(self.plan):  # a sequence's presses, on what it observes
             done = int(round(float(obs["agent_pos"][self.done_column])))
-            pose, hand = self.presses.act(done, self.last_hand)
+            due = PRESS_FINGERS[int(np.argmax(obs["agent_pos"][self.due_columns]))]
+            pose, hand = self.presses.act(done, due, self.last_hand)
         if self.carry is not None and self.t >= len(self.plan):  # a pinch's carry and set-down, on what it observes
             state = obs["agent_pos"].astype(np.float64)
             pose, hand = self.carry.act(state[self.object_columns], state[-len(self.hand.native_names) :])
@@ -163,12 +166,10 @@ class Expert:
 
     def sequence_segments(self, task: dict[str, float]) -> list[Segment]:
         """Over the panel as for one press; the presses follow from the observation (`act`, `SequencePresses`)."""
-        order = sorted((f for f in PRESS_FINGERS if task[f"order_{f}"] > 0.5), key=lambda f: task[f"order_{f}"])
-        assert len(order) == SEQUENCE_LENGTH, order
         hover = self.hover_pose(task)
         open_ = self.posture("open")
-        presses = [self.posture(f"press_{f}") for f in order]
-        self.presses = SequencePresses(hover, [*presses, open_], self.steps(SEQUENCE_PRESS_STEPS))
+        presses = {f: self.posture(f"press_{f}") for f in self.env.task.fingers}
+        self.presses = SequencePresses(hover, presses, open_, self.steps(SEQUENCE_PRESS_STEPS))
         return [Segment(hover + [0, 0, 0.04, 0, 0, 0], open_, self.steps(8)), Segment(hover, open_, self.steps(3))]
 
     def pinch_place_segments(self, task: dict[str, float]) -> list[Segment]:
@@ -256,24 +257,26 @@ class PinchCarry:
 
 @dataclass
 class SequencePresses:
-    """A sequence's presses, closed loop on `presses_done`: the hand moves from where it is to the posture of the
-    press due (the next finger's press posture, the others open; after the last, open) over `steps`, and holds it
-    until the observation says the press counted. A slow hand (the Inspire's drives take about 0.5 s per e-fold)
-    then presses as long as it needs and a fast one moves on at once, within the 50 steps."""
+    """A sequence's presses, closed loop on the due finger and `presses_done`: the hand moves from where it is to
+    the posture of the press due (that finger's press posture, the others open; after the last, open) over `steps`,
+    and holds it until the observation says the press counted. A slow hand (the Inspire's drives take about 0.5 s
+    per e-fold) then presses as long as it needs and a fast one moves on at once, within the 50 steps."""
 
     hover: np.ndarray  # (6,) the wrist, held
-    postures: list[np.ndarray]  # (J,) per press due, then open
+    postures: dict[str, np.ndarray]  # finger -> (J,) its press posture
+    open_: np.ndarray  # (J,) after the last press
     steps: int
-    due: int = -1
+    done: int = -1
     start: np.ndarray | None = None
     k: int = 0
 
-    def act(self, done: int, hand_now: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        if done != self.due:
-            self.due, self.start, self.k = done, hand_now, 0
+    def act(self, done: int, due: str, hand_now: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if done != self.done:
+            self.done, self.start, self.k = done, hand_now, 0
         self.k += 1
         a = min(1.0, self.k / self.steps)
-        return self.hover, (1 - a) * self.start + a * self.postures[min(done, len(self.postures) - 1)]
+        target = self.postures[due] if done < SEQUENCE_LENGTH else self.open_
+        return self.hover, (1 - a) * self.start + a * target
 
 
 PINCH_CLOSE_STEPS = 6  # a pinch-and-place's pre-shape to closed

@@ -2,9 +2,13 @@
 
 The panel of `FingerPress-v0` (one button under each finger but the thumb, at the hand's press postures), its
 place drawn per episode; the goal is an order of three of the hand's pressing fingers (index, middle, ring,
-little), drawn per episode. Columns: the panel's place, each finger's place in the order (`order_<finger>`: 1,
-2, 3, or 0 when its button is not in the sequence) and how many of the three are done (`presses_done`), the same
-for every hand. A press counts when the button goes down 4 mm while its finger touches it.
+little), drawn per episode. Columns: the panel's place, the finger whose button is due now (`due_<finger>`, one-hot: 1.0
+for the due one, 0.0 for the others) and how many of the three are done (`presses_done`), the same for every hand.
+The order is given one step at a time: what a policy needs at each step is the button due now (which finger comes
+after it does not change what to do now, and the due column moves on the step the press counts), so it does not
+have to decode an order and count along it (the earlier `order_<finger>` columns, 1, 2, 3 or 0, which left trained
+policies picking the first finger at chance: docs/lerobot.md, issue 56). A press counts when the button goes down
+4 mm while its finger touches it.
 
 Success: the three buttons pressed in the order, each by its finger. The episode fails when a button is pressed
 out of turn (one not in the sequence, or a later one before the one due; a done button pressed again does not
@@ -48,8 +52,8 @@ class FingerSequence(FingerPress):
         self.done, self.failure = 0, ""
 
     def observe(self, data: mujoco.MjData) -> np.ndarray:
-        order = [float(self.order.index(f) + 1) if f in self.order else 0.0 for f in PRESS_FINGERS]
-        return np.array([*self.panel_pos(), *order, float(self.done)])
+        due = self.order[min(self.done, SEQUENCE_LENGTH - 1)]
+        return np.array([*self.panel_pos(), *(float(f == due) for f in PRESS_FINGERS), float(self.done)])
 
     def evaluate(self, data: mujoco.MjData) -> tuple[bool, bool]:
         if self.done == SEQUENCE_LENGTH or self.failure:
@@ -70,5 +74,6 @@ class FingerSequence(FingerPress):
 
     def failure_reason(self, terminated: bool) -> str:
         return self.failure or f"timeout ({self.done} of {SEQUENCE_LENGTH} done)"
+
 
 __all__ = ["SEQUENCE_LENGTH", "FingerSequence"]

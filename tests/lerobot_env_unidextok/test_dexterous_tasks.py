@@ -15,8 +15,10 @@ from lerobot_env_unidextok.errors import SimInputError
 from lerobot_env_unidextok.record import expert_episode
 
 # task -> hands its fast tests run on (the rates over 50 episodes per hand: docs/lerobot.md, bench_sim.py)
-TASK_HANDS = {"FingerSequence-v0": ("inspire_rh56_unitree", "shadow", "allegro"),
-              "PinchPlace-v0": ("shadow", "xhand1", "unitree_dex3_1")}  # the Allegro is refused: see below
+TASK_HANDS = {
+    "FingerSequence-v0": ("inspire_rh56_unitree", "shadow", "allegro"),
+    "PinchPlace-v0": ("shadow", "xhand1", "unitree_dex3_1"),
+}  # the Allegro is refused: see below
 
 
 def _need(hand: str) -> None:
@@ -59,32 +61,45 @@ def test_the_expert_succeeds_on_seeded_episodes(task):
 
 
 def test_finger_sequence_succeeds_only_in_order_and_by_each_finger():
-    """The order is in the columns; pressing the buttons in another order ends the episode as a failure, and
-    `presses_done` counts the presses of the expert's own run."""
+    """The due finger is in the columns (one-hot) and moves along the order as `presses_done` counts the expert's
+    presses; pressing another button of the sequence before the due one ends the episode as a failure."""
+    from lerobot_env_unidextok.columns import PRESS_FINGERS
     from lerobot_env_unidextok.experts import Expert
 
     env = UniDexTokEnv("allegro", "FingerSequence-v0", render_mode=None)
+    due_cols = [env.state_names.index(f"due_{f}") for f in PRESS_FINGERS]
+    done_col = env.state_names.index("presses_done")
     obs, _ = env.reset(seed=3)
-    cols = dict(zip(env.state_names, obs["agent_pos"], strict=True))
-    order = sorted((f for f in ("index", "middle", "ring") if cols[f"order_{f}"] > 0), key=lambda f: cols[f"order_{f}"])
-    assert tuple(order) == env.task.order and cols["presses_done"] == 0
+    assert list(obs["agent_pos"][due_cols]) == [float(f == env.task.order[0]) for f in PRESS_FINGERS]
+    assert obs["agent_pos"][done_col] == 0
     expert = Expert(env, np.random.default_rng(0), noise=False)
     expert.reset(obs)
-    seen = []
+    seen = {0: env.task.order[0]}  # presses done -> the finger the columns named due then
     for _ in range(50):
         obs, _, terminated, _, info = env.step(expert.act(obs))
-        seen.append(float(obs["agent_pos"][env.state_names.index("presses_done")]))
         if terminated:
             break
-    assert info["is_success"] and seen[-1] == 3 and sorted(set(seen)) == [0, 1, 2, 3]
+        seen[int(obs["agent_pos"][done_col])] = PRESS_FINGERS[int(np.argmax(obs["agent_pos"][due_cols]))]
+    assert info["is_success"] and obs["agent_pos"][done_col] == 3
+    assert tuple(seen[k] for k in range(3)) == env.task.order
 
-    # the same episode with the order reversed by the expert: the last finger's button first is out of turn
+    # the same episode with the expert shown the second finger as due: its button first is out of turn
+    class Swapped:
+        def __init__(self, a: int, b: int) -> None:
+            self.a, self.b = a, b
+
+        def __call__(self, obs):
+            state = obs["agent_pos"].copy()
+            state[[self.a, self.b]] = state[[self.b, self.a]]
+            return {**obs, "agent_pos": state}
+
     obs, _ = env.reset(seed=3)
+    first, second = (due_cols[PRESS_FINGERS.index(f)] for f in env.task.order[:2])
+    swap = Swapped(first, second)
     expert = Expert(env, np.random.default_rng(0), noise=False)
-    env.task.order = env.task.order[::-1]  # the expert reads the order from the observation
-    expert.reset(obs)
+    expert.reset(swap(obs))
     for _ in range(50):
-        obs, _, terminated, _, info = env.step(expert.act(obs))
+        obs, _, terminated, _, info = env.step(expert.act(swap(obs)))
         if terminated:
             break
     assert terminated and not info["is_success"] and env.task.failure == "wrong order"
