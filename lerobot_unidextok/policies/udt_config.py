@@ -59,10 +59,12 @@ from lerobot_unidextok.policies.train_output import refuse_training_into_a_unit
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, untrained_preset
 from lerobot_unidextok.processor import (
     HAND_INPUTS,
+    IDENTITIES,
     RANGE_CHECKS,
     REPRESENTATIONS,
     STATS_OF_MODE,
     HandLayout,
+    identity_width,
     tokenizer_output_dims,
 )
 from lerobot_unidextok.tokenizer import EncodingConfig, UniDexTokConfig
@@ -147,6 +149,10 @@ class UdtConfigMixin:
     udt_fixed_hand_ids: list[int] = field(default_factory=list)
     # Its hands the mix never had (unidextok-deploy --zero_shot=true): ids after udt_hand_vocabulary, no identity.
     udt_extra_hands: list[str] = field(default_factory=list)
+    # What tells a policy trained on a mix each row's hand, after the token view: onehot over the mix's vocabulary
+    # (a zero-shot hand: all zero) or morphology (the hand's slot presence and UDHM ranges from its spec,
+    # hands/morphology.py: an unseen hand is described in the terms the trained ones were).
+    udt_hand_identity: str = "onehot"
     # The mix's column renames (unidextok-mix --keep=all --name_map); filled from the dataset.
     udt_name_map: dict[str, str] = field(default_factory=dict)
     # Normalise each UDHM block of action (and observation.state: udt_hand_norm_state) with the statistics of the
@@ -213,6 +219,8 @@ class UdtConfigMixin:
         self._upgrade_legacy_encoding()
         if self.udt_hand_input not in HAND_INPUTS:
             raise ValueError(f"udt_hand_input must be one of {HAND_INPUTS}, got {self.udt_hand_input!r}")
+        if self.udt_hand_identity not in IDENTITIES:
+            raise ValueError(f"udt_hand_identity must be one of {IDENTITIES}, got {self.udt_hand_identity!r}")
         if self.udt_range_check not in RANGE_CHECKS:
             raise ValueError(f"udt_range_check must be one of {RANGE_CHECKS}, got {self.udt_range_check!r}")
         if str(self.udt_hand_norm).lower() == "false":  # YAML reads a bare `off` as false (draccus config files)
@@ -483,6 +491,11 @@ class UdtConfigMixin:
         """UDHM blocks of the state the step tokenises."""
         return len(self.udt_sides) if self.udt_hand_vocabulary else len(self.udt_hand_layout)
 
+    @property
+    def identity_width(self) -> int:
+        """Columns per block the hand identity adds to the token view: a mix's (`udt_hand_identity`), else none."""
+        return identity_width(self.udt_hand_identity, len(self.udt_hand_vocabulary)) if self.udt_hand_vocabulary else 0
+
     def validate_features(self) -> None:
         self._fill_from_dataset()
         state = self.input_features.get(OBS_STATE)
@@ -527,7 +540,7 @@ class UdtConfigMixin:
         self.input_features.pop(OBS_HAND_TOKENS, None)  # int64 ids must not reach the normalizer
         if OBS_HAND_TOKEN_FEATURES not in self.input_features:  # a reloaded config has it already
             _, env_width = tokenizer_output_dims(
-                self.tokenizer_config(), num_hands, self.udt_representation, len(self.udt_hand_vocabulary)
+                self.tokenizer_config(), num_hands, self.udt_representation, self.identity_width
             )
             self.input_features[OBS_HAND_TOKEN_FEATURES] = PolicyFeature(type=FeatureType.ENV, shape=(env_width,))
         super().validate_features()

@@ -90,6 +90,7 @@ def insert_udt_steps(
             hand_vocabulary=config.udt_hand_vocabulary,
             fixed_hand_ids=config.udt_fixed_hand_ids,
             extra_hands=config.udt_extra_hands,
+            identity=config.udt_hand_identity,
             **common,
         )
     else:
@@ -121,7 +122,7 @@ def insert_udt_steps(
                                          map_of=config.udt_episode_map_of))  # fmt: skip
     if config.udt_hand_input != "both":  # after the relative step (it reads the real state), before normalising
         at = max(i for i, s in enumerate(steps) if isinstance(s, NormalizerProcessorStep))
-        identity = config.num_udt_blocks * len(config.udt_hand_vocabulary)  # a mix's one-hot identity, kept
+        identity = config.num_udt_blocks * config.identity_width  # a mix's hand identity, kept
         steps.insert(at, HandInputStep(mode=config.udt_hand_input, state_names=list(config.udt_state_names),
                                        identity_width=identity))  # fmt: skip
     pre.steps = steps

@@ -11,7 +11,7 @@ from lerobot_unidextok.processor.guards import RANGE_CHECKS, hand_bounds_rad
 from lerobot_unidextok.processor.hand_action_scale import HAND_ACTION_SCALE_STEP_NAME, HandActionScaleStep
 from lerobot_unidextok.processor.hand_input import HAND_INPUT_STEP_NAME, HAND_INPUTS, HandInputStep
 from lerobot_unidextok.processor.hand_normalizer import HAND_NORMALIZER_STEP_NAME, STATS_OF_MODE, HandNormalizerStep
-from lerobot_unidextok.processor.mixed import MIXED_STEP_NAME, UniDexTokMixedTokenizerStep
+from lerobot_unidextok.processor.mixed import IDENTITIES, MIXED_STEP_NAME, UniDexTokMixedTokenizerStep, identity_width
 from lerobot_unidextok.processor.native import (
     NATIVE_TO_UDHM_STEP_NAME,
     UDHM_TO_NATIVE_STEP_NAME,
@@ -32,6 +32,8 @@ from lerobot_unidextok.processor.slot_mask import ACTION_SLOT_PAD_KEY, SLOT_MASK
 from lerobot_unidextok.processor.wrist_frame import WRIST_FRAME_STEP_NAME, WristFrameStep
 
 __all__ = [
+    "IDENTITIES",
+    "identity_width",
     "ACTION_SLOT_PAD_KEY",
     "HAND_ACTION_SCALE_STEP_NAME",
     "HAND_NORMALIZER_STEP_NAME",

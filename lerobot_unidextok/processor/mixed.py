@@ -4,8 +4,11 @@ A mixed dataset has one UDHM block per side any of its sources has, and its rows
 two Inspire hands, a LinkerHand L10 on the right only, a person's hands. `observation.hand_ids` ((H,) int64
 per frame) says which: an index into the record's `hand_vocabulary`, -1 where the block holds no hand. This
 step tokenises each row's blocks with that row's hands (hand conditioning, active DoFs and ranges per row) and
-tells the policy which embodiment it is looking at: a one-hot hand identity per block (over the vocabulary;
-all zero for an absent block) follows the token view in `observation.environment_state`.
+tells the policy which embodiment it is looking at: a hand identity per block follows the token view in
+`observation.environment_state` (all zero for an absent block). `identity` chooses it: `onehot` (the default) over
+the vocabulary, which a hand the mix never had cannot fill (all zero); `morphology`, the hand's morphology vector
+(`hands/morphology.py`: slot presence and UDHM ranges, 66 wide), which any registered hand fills the same way in
+any dataset, so a zero-shot hand is described in the terms the trained ones were.
 
 A checkpoint bound to one robot (`unidextok-deploy`) sets `fixed_hand_ids`: the robot's own state carries no
 `observation.hand_ids`, so its hands come from there, and the policy sees the same identity it trained with.
@@ -26,6 +29,7 @@ from lerobot_unidextok import hands
 from lerobot_unidextok.blocks import find_udhm_blocks
 from lerobot_unidextok.constants import OBS_HAND_IDS, UDHM_DIM
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
+from lerobot_unidextok.hands.morphology import MORPHOLOGY_WIDTH, morphology_vector
 from lerobot_unidextok.processor.guards import check_batch, check_ranges, check_registry, layout_bounds
 from lerobot_unidextok.processor.processor_unidextok import (
     STEP_NAME,
@@ -35,6 +39,14 @@ from lerobot_unidextok.processor.processor_unidextok import (
 
 MIXED_STEP_NAME = "unidextok.mixed_state_tokenizer"
 ABSENT = -1  # `observation.hand_ids` of a block that holds no hand
+IDENTITIES = ("onehot", "morphology")  # what tells the policy a row's hand (module docstring)
+
+
+def identity_width(identity: str, vocabulary_size: int) -> int:
+    """The columns per block the hand identity adds to the token view."""
+    if identity not in IDENTITIES:
+        raise ValueError(f"the hand identity must be one of {IDENTITIES}, got {identity!r}")
+    return vocabulary_size if identity == "onehot" else MORPHOLOGY_WIDTH
 
 
 @ProcessorStepRegistry.register(MIXED_STEP_NAME)
@@ -56,16 +68,19 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
     # vocabulary in fixed_hand_ids; tokenised by name, with an all-zero identity (the policy never saw them)
     extra_hands: list[str] = field(default_factory=list)
     hand_ids_key: str = OBS_HAND_IDS
+    identity: str = "onehot"  # onehot over the vocabulary | morphology (module docstring)
 
     _vocab_tokenizer_ids: torch.Tensor | None = field(default=None, init=False, repr=False)  # (V,)
     _vocab_active: torch.Tensor | None = field(default=None, init=False, repr=False)  # (V, 22) bool
     _vocab_bounds: tuple[torch.Tensor, torch.Tensor] | None = field(default=None, init=False, repr=False)  # (H,V,22)
+    _vocab_morphology: torch.Tensor | None = field(default=None, init=False, repr=False)  # (H, V+E, 66)
 
     def __post_init__(self, search_rounds: int | None = None) -> None:  # search_rounds: legacy (the base step's)
         self._check_settings()
         self.hand_vocabulary, self.state_names = list(self.hand_vocabulary), list(self.state_names)
         self.fixed_hand_ids, self.hand_layout = [int(i) for i in self.fixed_hand_ids], []
         self.extra_hands = list(self.extra_hands)
+        identity_width(self.identity, len(self.hand_vocabulary))  # a known identity, before anything loads
         if not self.hand_vocabulary or not self.state_names:
             raise ValueError(
                 f"{MIXED_STEP_NAME} needs the mixed dataset's hand_vocabulary and state_names; build it with "
@@ -90,6 +105,9 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
         self._vocab_active = torch.as_tensor(np.stack([hands.get(h).active_mask for h in names]))
         per_side = [layout_bounds(names, [side] * len(names)) for side in self._sides]
         self._vocab_bounds = torch.stack([lo for lo, _ in per_side]), torch.stack([hi for _, hi in per_side])
+        self._vocab_morphology = torch.as_tensor(
+            np.stack([np.stack([morphology_vector(h, side) for h in names]) for side in self._sides])
+        )
 
     @classmethod
     def from_dataset(cls, root: str | Path, **kwargs: Any) -> UniDexTokMixedTokenizerStep:
@@ -187,11 +205,25 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
             view = torch.zeros(b, h, cfg.num_tokens * cfg.codebook_dim * cfg.num_stages, device=device)
             if len(v):
                 view[present] = tok.code_vectors(found).flatten(1)  # (P, N*K*S*d)
-        identity = torch.zeros(b, h, len(self.hand_names), device=device)
-        identity[present] = torch.nn.functional.one_hot(v, len(self.hand_names)).float()  # (P, V + E)
-        identity = identity[..., : len(self.hand_vocabulary)]  # zero-shot hands: no identity the policy knows
+        identity = self._identity(vocab_ids, present, device)  # (B, H, V) or (B, H, 66)
         view = torch.cat([view.reshape(b, -1), identity.reshape(b, -1)], dim=1)  # (B, H*(F+V))
         return codes.reshape(b, -1), view.float()
+
+    def _identity(self, vocab_ids: torch.Tensor, present: torch.Tensor, device) -> torch.Tensor:
+        """(B, H, width) each block's hand identity: one-hot over the vocabulary (a zero-shot hand: all zero, no
+        identity the policy knows) or the hand's morphology vector; all zero where the block holds no hand."""
+        b, h = vocab_ids.shape
+        v = vocab_ids[present]  # (P,)
+        if self.identity == "onehot":
+            identity = torch.zeros(b, h, len(self.hand_names), device=device)
+            identity[present] = torch.nn.functional.one_hot(v, len(self.hand_names)).float()  # (P, V + E)
+            return identity[..., : len(self.hand_vocabulary)]
+        if self._vocab_morphology.device != device:
+            self._vocab_morphology = self._vocab_morphology.to(device)
+        identity = torch.zeros(b, h, MORPHOLOGY_WIDTH, device=device)
+        block = torch.arange(h, device=device).expand(b, h)[present]  # (P,)
+        identity[present] = self._vocab_morphology[block, v]  # (P, 66)
+        return identity
 
     def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
         if self.input_key not in observation:
@@ -211,8 +243,9 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
         self, features: dict[PipelineFeatureType, dict[str, PolicyFeature]]
     ) -> dict[PipelineFeatureType, dict[str, PolicyFeature]]:
         n_tokens, width = tokenizer_output_dims(
-            self.tokenizer.config, self.num_hands, self.representation, len(self.hand_vocabulary)
-        )
+            self.tokenizer.config, self.num_hands, self.representation,
+            identity_width(self.identity, len(self.hand_vocabulary)),
+        )  # fmt: skip
         obs = dict(features.get(PipelineFeatureType.OBSERVATION, {}))
         obs[self.token_key] = PolicyFeature(type=FeatureType.STATE, shape=(n_tokens,))
         obs[self.features_key] = PolicyFeature(type=FeatureType.ENV, shape=(width,))
@@ -227,7 +260,8 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
             "fixed_hand_ids": list(self.fixed_hand_ids),
             "extra_hands": list(self.extra_hands),
             "hand_ids_key": self.hand_ids_key,
+            "identity": self.identity,
         }
 
 
-__all__ = ["ABSENT", "MIXED_STEP_NAME", "UniDexTokMixedTokenizerStep"]
+__all__ = ["ABSENT", "IDENTITIES", "MIXED_STEP_NAME", "UniDexTokMixedTokenizerStep", "identity_width"]

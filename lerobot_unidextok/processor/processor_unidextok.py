@@ -60,15 +60,15 @@ REPRESENTATIONS = ("dequantized", "embedding")
 # tokenizer loading
 # ---------------------------------------------------------------------------------------------
 def tokenizer_output_dims(
-    config: UniDexTokConfig, num_hands: int, representation: str, vocabulary_size: int = 0
+    config: UniDexTokConfig, num_hands: int, representation: str, identity_width: int = 0
 ) -> tuple[int, int]:
     """(token count, float feature width) the step adds for `num_hands` hands; a mixed dataset's step also
-    appends a one-hot identity over its `vocabulary_size` hands per block."""
+    appends a hand identity `identity_width` wide per block (`processor/mixed.identity_width`)."""
     if representation not in REPRESENTATIONS:
         raise ValueError(f"representation must be one of {REPRESENTATIONS}, got {representation!r}")
     tokens = num_hands * config.symbols_per_hand()
     width = UDHM_DIM if representation == "dequantized" else config.num_tokens * config.codebook_dim * config.num_stages
-    return tokens, num_hands * (width + vocabulary_size)
+    return tokens, num_hands * (width + identity_width)
 
 
 # ---------------------------------------------------------------------------------------------

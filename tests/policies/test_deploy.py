@@ -277,3 +277,46 @@ def test_deploy_refuses_a_mix_checkpoint_whose_hand_statistics_hold_nan(edit, mi
     lines = [line for line in err.splitlines() if line.startswith("error:")]
     assert code == 2 and len(lines) == 1 and what in lines[0] and "Traceback" not in err, err
     assert not (tmp_path / "bound").exists() and not list(tmp_path.glob(".bound*"))
+
+
+@pytest.mark.slow
+def test_a_morphology_identity_is_trained_saved_and_given_to_a_zero_shot_hand(g1_l10_mix, tmp_path):
+    """`--policy.udt_hand_identity=morphology`: the policy reads each block's hand as its spec's morphology vector,
+    so a hand the mix never had (the Dexora's XHand1s, bound with --zero_shot=true) gets its own vector where the
+    one-hot identity gives it zeros; the bound checkpoint reloads and acts on that robot's native state."""
+    from lerobot.processor import PolicyProcessorPipeline
+
+    from lerobot_unidextok.constants import OBS_HAND_TOKEN_FEATURES, OBS_STATE, UDHM_DIM
+    from lerobot_unidextok.hands.morphology import MORPHOLOGY_WIDTH, morphology_vector
+    from lerobot_unidextok.processor import UniDexTokMixedTokenizerStep
+
+    torch.manual_seed(0)
+    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=[INSPIRE, L10])).save_pretrained(tmp_path / "tok")
+    out = tmp_path / "act"
+    r = subprocess.run([str(BIN / "lerobot-train"), "--policy.type=act_udt", "--dataset.repo_id=test/g1_l10_mix",
+                        f"--dataset.root={g1_l10_mix}", f"--policy.udt_pretrained={tmp_path / 'tok'}",
+                        "--policy.udt_hand_identity=morphology", "--policy.device=cpu", "--policy.push_to_hub=false",
+                        "--policy.dim_model=32", "--policy.n_heads=2", "--policy.dim_feedforward=64",
+                        "--policy.chunk_size=5", "--policy.n_action_steps=1", "--steps=2", "--batch_size=4",
+                        "--num_workers=0", "--save_freq=2", f"--output_dir={out}"],
+                       env=subprocess_env(HF_HOME=str(tmp_path / "hf")), capture_output=True, text=True,
+                       timeout=600)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    checkpoint = out / "checkpoints" / "last" / "pretrained_model"
+    config = json.loads((checkpoint / "config.json").read_text())
+    assert config["udt_hand_identity"] == "morphology"
+    assert config["input_features"][OBS_HAND_TOKEN_FEATURES]["shape"] == [2 * (UDHM_DIM + MORPHOLOGY_WIDTH)]
+    dexora = _dexora_robot(tmp_path)
+    r = _deploy(checkpoint, dexora, tmp_path / "x", "--zero_shot=true")
+    assert r.returncode == 0, r.stderr[-2000:]
+    pipe = PolicyProcessorPipeline.from_pretrained(tmp_path / "x", config_filename="policy_preprocessor.json")
+    (step,) = [s for s in pipe.steps if isinstance(s, UniDexTokMixedTokenizerStep)]
+    assert step.identity == "morphology" and step.extra_hands == ["xhand1"]
+    view = step.observation({OBS_STATE: torch.zeros(1, len(step.state_names))})[OBS_HAND_TOKEN_FEATURES]
+    tail = view[0, 2 * UDHM_DIM :].reshape(2, MORPHOLOGY_WIDTH).numpy()
+    for block, side in enumerate(step._sides):
+        np.testing.assert_array_equal(tail[block], morphology_vector("xhand1", side))
+    from lerobot_unidextok.hands import get
+
+    acted = _reload_and_act(tmp_path / "x", np.zeros((2, 2 * get("xhand1").num_native), np.float32), tmp_path)
+    assert np.isfinite(np.asarray(acted["actions"])).all()

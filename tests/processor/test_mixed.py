@@ -95,3 +95,34 @@ def test_the_step_survives_a_pipeline_save_and_reload(tok_dir, rows, tmp_path):
     a = step.observation({OBS_STATE: states, OBS_HAND_IDS: ids})[OBS_HAND_TOKEN_FEATURES]
     b = loaded.observation({OBS_STATE: states, OBS_HAND_IDS: ids})[OBS_HAND_TOKEN_FEATURES]
     torch.testing.assert_close(a, b, rtol=0, atol=0)
+
+
+def test_the_morphology_identity_describes_every_hand_and_a_zero_shot_one_too(tok_dir, rows):
+    """identity=morphology: each block's hand as its spec's vector (66 wide), a zero-shot hand included, where the
+    one-hot identity gives a hand the mix never had nothing."""
+    from lerobot_unidextok.hands.morphology import MORPHOLOGY_WIDTH, morphology_vector
+
+    states, ids = rows
+    step = UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, state_names=NAMES, pretrained=str(tok_dir),
+                                       identity="morphology")  # fmt: skip
+    view = step.observation({OBS_STATE: states, OBS_HAND_IDS: ids})[OBS_HAND_TOKEN_FEATURES]
+    assert view.shape == (10, 2 * (UDHM_DIM + MORPHOLOGY_WIDTH))
+    onehot = UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, state_names=NAMES, pretrained=str(tok_dir))
+    base = onehot.observation({OBS_STATE: states, OBS_HAND_IDS: ids})[OBS_HAND_TOKEN_FEATURES]
+    torch.testing.assert_close(view[:, : 2 * UDHM_DIM], base[:, : 2 * UDHM_DIM])  # the token view is the same
+    identity = view[:, 2 * UDHM_DIM :].reshape(10, 2, MORPHOLOGY_WIDTH).numpy()
+    np.testing.assert_array_equal(identity[0, 0], morphology_vector(INSPIRE, "left"))
+    np.testing.assert_array_equal(identity[0, 1], morphology_vector(INSPIRE, "right"))
+    np.testing.assert_array_equal(identity[7, 1], morphology_vector(L10, "right"))
+    assert not identity[5:, 0].any()  # the absent block
+    # bound zero-shot to a hand the mix never had: the one-hot identity is zero, the morphology is the hand's
+    for kind, width in (("onehot", len(VOCAB)), ("morphology", MORPHOLOGY_WIDTH)):
+        bound = UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, state_names=NAMES, pretrained=str(tok_dir),
+                                            fixed_hand_ids=[-1, 2], extra_hands=["linkerhand_l20"],
+                                            identity=kind, range_check="off", allow_unknown=True)  # fmt: skip
+        out = bound.observation({OBS_STATE: states[5:6]})[OBS_HAND_TOKEN_FEATURES]
+        tail = out[0, 2 * UDHM_DIM :].reshape(2, width).numpy()
+        want = morphology_vector("linkerhand_l20", "right") if kind == "morphology" else np.zeros(width)
+        np.testing.assert_array_equal(tail[1], want)
+    with pytest.raises(ValueError, match=r"hand identity must be one of \('onehot', 'morphology'\), got 'id'"):
+        UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, state_names=NAMES, pretrained=str(tok_dir), identity="id")
