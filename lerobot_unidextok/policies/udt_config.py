@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, ClassVar
 
 from lerobot.configs.types import FeatureType, NormalizationMode, PolicyFeature
 
@@ -87,6 +87,8 @@ def _mode_name(mode) -> str:
 class UdtConfigMixin:
     """The `udt_*` fields of a `<type>_udt` config; put it before the stock config class among the bases
     (`class ACTUdtConfig(UdtConfigMixin, ACTConfig)`). Each field's comment is its `--help` text."""
+
+    supports_hand_heads: ClassVar[bool] = False  # whether the policy builds udt_hand_heads (act_udt: true)
 
     # UniDexTok checkpoint folder, shipped id or Hub repo id (offline from the HF cache once pulled). Default:
     # the shipped `unidextok/universal-small-residual`, trained on every registered hand (no network needed);
@@ -206,6 +208,11 @@ class UdtConfigMixin:
     # Per hand, its grasp centre in the wrist frame (x, y, z m); filled from the dataset's record (unidextok-deploy:
     # the bound robot's), saved with the checkpoint; empty = no frame.
     udt_grasp_centres_m: dict[str, list[float]] = field(default_factory=dict)
+    # Per-hand output heads around the shared trunk (act_udt on a mix; policies/hand_heads.py): the action head
+    # plus a residual Linear per hand of udt_hand_vocabulary, zero at the start, each row through its own hand's
+    # (its first block's hand; a zero-shot or absent hand: the shared head only). Saved in model.safetensors and
+    # kept by unidextok-deploy. On one robot's dataset there is one hand and no heads are built.
+    udt_hand_heads: bool = False
     # Accepted and ignored, so --policy.discover_packages_path=lerobot_unidextok also works with
     # --policy.path=<checkpoint> (LeRobot passes every --policy.* flag to the loaded config).
     discover_packages_path: str | None = None
@@ -229,11 +236,20 @@ class UdtConfigMixin:
             raise ValueError(f"udt_hand_norm must be one of {tuple(HAND_NORMS)}, got {self.udt_hand_norm!r}")
         self._check_wrist_frame()
         self._check_hand_stats()
+        self._check_hand_heads()
         self._stock_normalization = dict(self.normalization_mapping)  # before the relative override
         if self.udt_relative_actions:  # offsets around the state: the absolute action stats do not describe them
             self.normalization_mapping = {**self.normalization_mapping, "ACTION": NormalizationMode.IDENTITY}
 
     # ----------------------------------------------------------------------------------------------
+    def _check_hand_heads(self) -> None:
+        """udt_hand_heads: a bool, on a policy type whose model has per-hand heads (`supports_hand_heads`)."""
+        if not isinstance(self.udt_hand_heads, bool):
+            raise ConfigError(f"udt_hand_heads must be true or false, got {self.udt_hand_heads!r}")
+        if self.udt_hand_heads and not self.supports_hand_heads:
+            raise ConfigError(f"udt_hand_heads: per-hand output heads exist for act_udt only ({self.type} has no single "
+                              "linear action head to give one per hand); set --policy.udt_hand_heads=false")  # fmt: skip
+
     def _check_wrist_frame(self) -> None:
         """udt_wrist_frame's value, and the filled frame's shape (a checkpoint's, or flags given by hand)."""
         if self.udt_wrist_frame not in WRIST_FRAMES:
@@ -503,6 +519,9 @@ class UdtConfigMixin:
             raise ValueError(f"{self.type} needs '{OBS_STATE}' (UDHM hand states) among the dataset features")
         width = state.shape[0]
         self.input_features.pop(OBS_HAND_IDS, None)  # read by the tokenizer step, never by the policy
+        if self.udt_hand_heads and not self.udt_hand_vocabulary:
+            logger.warning("%s: udt_hand_heads on one robot's dataset (one set of hands): no per-hand heads are built",
+                           self.type)  # fmt: skip
         if self.udt_hand_vocabulary:
             if len(self.udt_state_names) != width or not self.udt_sides:
                 raise ValueError(

@@ -10,6 +10,11 @@ so every real slot gets exactly the stock gradient and a lacking slot none. When
 `unidextok_sample_weight` ((B,), `unidextok.share_weights`: a mix's `--weights` as loss weights, since
 `lerobot-train` takes no sampler) each row's terms are multiplied by it. Without either key (checkpoints and
 pre-processors saved before them, `udt_mask_slots=false`) it is the stock `forward`. Inference is unchanged.
+
+With `udt_hand_heads` on a mix, `model.action_head` is `HandHeads` (`policies/hand_heads.py`): the shared head
+plus a zero-initialised residual head per hand of the mix, each row through its own hand's, which a hook on the
+model reads from the batch's `observation.hand_ids` (a bound robot: `udt_fixed_hand_ids`) on every
+`self.model(batch)` (training, `predict_action_chunk`, `select_action`). Without the flag the model is ACT's, parameter for parameter.
 """
 
 import torch
@@ -19,6 +24,7 @@ from lerobot.utils.constants import OBS_IMAGES
 
 from lerobot_unidextok.constants import ACTION
 from lerobot_unidextok.policies.act_udt.configuration_act_udt import ACTUdtConfig
+from lerobot_unidextok.policies.hand_heads import install_hand_heads
 from lerobot_unidextok.policies.udt_loss import own_share_weights, row_weights, share_weight
 from lerobot_unidextok.processor.slot_mask import ACTION_SLOT_PAD_KEY
 
@@ -32,6 +38,9 @@ class ACTUdtPolicy(ACTPolicy):
     def __init__(self, config: ACTUdtConfig, **kwargs):
         super().__init__(config, **kwargs)
         self._own_shares = own_share_weights(config)  # when the saved pre-processor weighs by another dataset's map
+        if config.udt_hand_heads and config.udt_hand_vocabulary:  # a residual head per hand of the mix, zero
+            install_hand_heads(self.model, len(config.udt_hand_vocabulary), config.num_udt_blocks,
+                               lambda: self.config.udt_fixed_hand_ids)  # fmt: skip
         if config.udt_relative_actions and config.udt_copy_start:  # the untrained policy copies the state
             torch.nn.init.zeros_(self.model.action_head.weight)
             torch.nn.init.zeros_(self.model.action_head.bias)
