@@ -15,8 +15,9 @@ built models, and every spec whose URDF is found under `$UNIDEXTOK_URDF_DIR`, el
 failures column says how the failed episodes failed: a grasp's by the kind of grasp its object needed (power or
 pinch), a press's as "wrong" (another button pressed: the episode ends) or "timeout" (the goal button not
 pressed in 50 steps), a sequence's as "wrong order" (a button pressed out of turn), "wrong finger" (the button due
-pressed by another finger) or "timeout (k of 3 done)" (`Task.failure_reason`). A hand a task refuses (too few
-fingers) gets a row saying so.
+pressed by another finger) or "timeout (k of 3 done)", a chord's as "wrong button" (one outside the chord down),
+"wrong finger" (a named button down by another finger) or "timeout (k of 2 down together)" (`Task.failure_reason`).
+A hand a task refuses (too few fingers) gets a row saying so.
 """
 
 from __future__ import annotations

@@ -23,12 +23,15 @@ TASK_COLUMNS: dict[str, tuple[str, ...]] = {
     # the cylinder (centre, radius, half height), the target's centre, and the finger that pinches with the thumb
     "PinchPlace-v0": ("object_x", "object_y", "object_z", "object_radius", "object_half_height", "target_x",
                       "target_y", "pinch_index", "pinch_middle"),
+    # the two fingers whose buttons go down together (two-hot)
+    "ChordPress-v0": ("panel_x", "panel_y", "panel_z", *(f"chord_{f}" for f in PRESS_FINGERS)),
 }  # fmt: skip
 TASK_TEXT = {
     "GraspLift-v0": "grasp the object and lift it",
     "FingerPress-v0": "press the button under the named finger",
     "FingerSequence-v0": "press the three buttons in the given order, each with its own finger",
     "PinchPlace-v0": "pinch the cylinder with the thumb and the named finger and stand it in the target",
+    "ChordPress-v0": "press the buttons under the two named fingers together, each with its own finger",
 }
 TASKS = tuple(TASK_COLUMNS)
 # what `observation.state_is_native` carries: 1.0, the state is the hand's native layout (processor/native.py)

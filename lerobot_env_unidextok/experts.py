@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lerobot_env_unidextok.chord_press import ChordPress
 from lerobot_env_unidextok.env import UniDexTokEnv
 from lerobot_env_unidextok.finger_sequence import SEQUENCE_LENGTH, FingerSequence
 from lerobot_env_unidextok.hand_model import SimHand
@@ -112,6 +113,8 @@ class Expert:
     def segments(self, task: dict[str, float], wrist: np.ndarray) -> list[Segment]:
         if isinstance(self.env.task, GraspLift):
             return self.grasp_segments(task)
+        if isinstance(self.env.task, ChordPress):  # before FingerPress: its panel is FingerPress's
+            return self.chord_segments(task)
         if isinstance(self.env.task, FingerSequence):  # before FingerPress: its panel is FingerPress's
             return self.sequence_segments(task)
         if isinstance(self.env.task, FingerPress):
@@ -162,6 +165,17 @@ class Expert:
         open_ = self.posture("open")
         press = self.posture(f"press_{goal}")
         return [Segment(above, open_, self.steps(8)), Segment(hover, open_, self.steps(3)),
+                Segment(hover, press, self.steps(5)), Segment(hover, press, 15)]  # fmt: skip
+
+    def chord_segments(self, task: dict[str, float]) -> list[Segment]:
+        """Over the panel as for one press; both named fingers to their press postures at once (each finger's UDHM
+        slots from its own press posture, the others open), held."""
+        chord = [f for f in PRESS_FINGERS if task[f"chord_{f}"] > 0.5]
+        hover = self.hover_pose(task)
+        open_ = self.posture("open")
+        slots = {k: v for f in chord for k, v in self.hand.postures[f"press_{f}"].items()}
+        press = self.jittered(self.hand.with_slots(slots))
+        return [Segment(hover + [0, 0, 0.04, 0, 0, 0], open_, self.steps(8)), Segment(hover, open_, self.steps(3)),
                 Segment(hover, press, self.steps(5)), Segment(hover, press, 15)]  # fmt: skip
 
     def sequence_segments(self, task: dict[str, float]) -> list[Segment]:

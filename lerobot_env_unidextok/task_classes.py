@@ -4,10 +4,11 @@ own."""
 
 from __future__ import annotations
 
+from lerobot_env_unidextok.chord_press import ChordPress
 from lerobot_env_unidextok.finger_sequence import FingerSequence
 from lerobot_env_unidextok.pinch_place import PinchPlace
 from lerobot_env_unidextok.tasks import FingerPress, GraspLift, Task
 
-TASKS: dict[str, type[Task]] = {t.name: t for t in (GraspLift, FingerPress, FingerSequence, PinchPlace)}
+TASKS: dict[str, type[Task]] = {t.name: t for t in (GraspLift, FingerPress, FingerSequence, PinchPlace, ChordPress)}
 
 __all__ = ["TASKS", "Task"]
