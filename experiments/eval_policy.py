@@ -109,7 +109,7 @@ def run(cfg: EvalPolicyConfig) -> dict:
             f"(unidextok-deploy --checkpoint={cfg.checkpoint} --robot={cfg.dataset} --output=...)"
         )
     t0 = time.process_time()
-    own, native = checkpoint_chunks(cfg.checkpoint, frames.state[rows])
+    own, native = checkpoint_chunks(cfg.checkpoint, frames.policy_input[rows])
     cpu = time.process_time() - t0
     dataset_cols, own_cols = prediction_columns(policy_cfg, frames.names)
     converted = np.zeros((*own.shape[:2], len(frames.names)))  # the prediction in the dataset's action columns

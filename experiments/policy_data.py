@@ -31,12 +31,19 @@ class RobotFrames:
     """Every frame of a converted dataset: converted state and action, episode of each row, and the layouts."""
 
     root: Path
-    state: np.ndarray  # (N, D) converted observation.state: passthrough (rad) + UDHM blocks (rad)
-    action: np.ndarray  # (N, D) converted action, same layout
+    state: np.ndarray  # (N, D) converted observation.state in the action's layout: passthrough (rad) + UDHM blocks
+    action: np.ndarray  # (N, D) converted action
     episode: np.ndarray  # (N,) episode index
-    names: list[str]  # the D state/action names
+    names: list[str]  # the D action names (and of `state`)
     hands: list[str]  # hand spec per UDHM block
     sides: list[str]
+    # (N, S) the whole observation.state, what a policy reads: `state` plus the columns no action has (a simulator
+    # task's object and goal columns); None = the same as `state`
+    policy_state: np.ndarray | None = None
+
+    @property
+    def policy_input(self) -> np.ndarray:
+        return self.state if self.policy_state is None else self.policy_state
 
     @property
     def passthrough_columns(self) -> np.ndarray:
@@ -91,14 +98,23 @@ def load_frames(root: str | Path) -> RobotFrames:
     root = Path(root)
     if not (root / INFO_PATH).is_file():
         raise FileNotFoundError(f"{root / INFO_PATH} not found: pass the root of a dataset written by unidextok-convert")
-    layout = UdhmDatasetMeta(root).hand_layout()
+    meta = UdhmDatasetMeta(root)
+    layout = meta.hand_layout()
     columns = [OBS_STATE, ACTION, "episode_index", "index"]
     tables = [pq.read_table(f, columns=columns).to_pandas() for f in data_files(root)]
     df = pd.concat(tables, ignore_index=True).sort_values("index")
     state = np.stack(df[OBS_STATE].to_numpy()).astype(np.float64)
     action = np.stack(df[ACTION].to_numpy()).astype(np.float64)
-    frames = RobotFrames(root, state, action, df["episode_index"].to_numpy(np.int64), layout.state_names,
-                         layout.hands, layout.sides)  # fmt: skip
+    names, policy_state = list(layout.state_names), None
+    action_names = list(meta.names(ACTION) or names)
+    if action_names != names:  # the state holds columns no action has (a simulator task's): align it to the action
+        missing = [n for n in action_names if n not in names]
+        if missing:
+            raise ValueError(f"{root}: action columns {missing[:4]} are not in {OBS_STATE}; no state to copy them from")
+        policy_state, state = state, state[:, [names.index(n) for n in action_names]]
+        names = action_names
+    frames = RobotFrames(root, state, action, df["episode_index"].to_numpy(np.int64), names, layout.hands,
+                         layout.sides, policy_state)  # fmt: skip
     frames.native_layout(ACTION)  # fails early for hands without native joints
     return frames
 
