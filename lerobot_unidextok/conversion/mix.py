@@ -32,12 +32,22 @@ conversion's own writer (`conversion.writer`, LeRobot's file format and statisti
 - Inputs that hold the same episodes are refused (`conversion/fingerprint.py`: one folder given twice, a copy,
   two conversions of one source, one hand of a recording converted beside all of it, a near copy; found by the
   content of each hand of each episode); `--allow_repeats=true` mixes them.
-- `--weights` (training-frame share per input): recorded as each input's `share` of the sampled training frames
-  (`--weights_by=sampling`, the default): `data/share_sampler.py` samples by it, and the `<type>_udt` policies
-  weight each row's loss by it under `lerobot-train`, whose sampler takes every frame equally. `--weights_by=copies`
-  writes an input's training episodes several times instead (`repeats`; test episodes once), for other policies.
-  They are checked as they enter (`utils/number_checks.checked_shares`): one positive number per input, divided by
-  the largest before they are summed (1e308 does not overflow), and no input's share below 1e-3.
+- Each input's `share` of the sampled training frames is chosen by a rule (`conversion/share_rule.py`), by default:
+  proportional to its training frames to the power `--share_alpha` (0.43, π0's exponent): 10 target
+  demonstrations beside 50 of one other hand get 0.33 of the frames, beside five hands' 50 each 0.09, near the
+  0.4 and 0.1 the closed-loop runs measured best (docs/lerobot.md, "Pooling hands"). `--share_alpha=1` is each
+  input at its frame share, 0 one equal share per input. The shares are recorded (`share` per input, `share_rule` and
+  `share_alpha` beside them) and printed; `data/share_sampler.py` samples by them, and the `<type>_udt` policies
+  weight each row's loss by them under `lerobot-train`, whose sampler takes every frame equally.
+  `--share_rule=frames` mixes as before the rule: each input at its frame share, no share recorded. A mix of one
+  input records none (all its frames are its own).
+- `--weights` (training-frame share per input) override the rule (`--share_rule=frames` with `--weights` is
+  refused: they contradict each other). With `--weights_by=sampling` (the default) they are recorded as the shares;
+  `--weights_by=copies` writes an input's training episodes several times instead (`repeats`; test episodes
+  once), for policies that are not `<type>_udt`, and records no share (without `--weights`, copies write each
+  episode once: the rule is honoured by sampling only). They are checked as they enter
+  (`utils/number_checks.checked_shares`): one positive number per input, divided by the largest before they are
+  summed (1e308 does not overflow), and no input's share below 1e-3 (the rule's shares are held to the same floor).
 
 Bad input (a dataset that was not converted, datasets at different fps, layouts that cannot share one vector)
 is one `MixError` naming the fix; nothing is written then.
@@ -67,6 +77,16 @@ from lerobot_unidextok.conversion.card import write_card
 from lerobot_unidextok.conversion.fingerprint import find_repeat
 from lerobot_unidextok.conversion.hand_stats import hand_stats
 from lerobot_unidextok.conversion.registry import resamples
+from lerobot_unidextok.conversion.share_rule import (
+    DEFAULT_ALPHA,
+    FRAMES,
+    POWER,
+    SHARE_RULES,
+    WEIGHTS,
+    alpha_problem,
+    power_shares,
+    rule_text,
+)
 from lerobot_unidextok.conversion.writer import UdhmDatasetWriter
 from lerobot_unidextok.data.destination import MIX_SOURCE, Kind, claim, move_into_place, recover, release
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
@@ -76,7 +96,7 @@ from lerobot_unidextok.data.wrist_frame import WristFrame, merge_frames
 from lerobot_unidextok.errors import InvalidInputError
 from lerobot_unidextok.utils.cli import progress_bar
 from lerobot_unidextok.utils.files import temp_sibling
-from lerobot_unidextok.utils.number_checks import checked_shares, weights_text
+from lerobot_unidextok.utils.number_checks import MIN_SHARE, checked_shares, weights_text
 
 logger = logging.getLogger(__name__)
 
@@ -98,7 +118,15 @@ class MixOptions:
     repo_id: str = "local/udhm_mix"  # dataset id of the mix (card, Hub)
     keep: str = "hands"  # "hands": the UDHM blocks only | "all": also the passthrough columns, aligned by name
     name_map: dict[str, str] = field(default_factory=dict)  # --keep=all: source column -> common column name
-    weights: list[float] = field(default_factory=list)  # training-frame share per input; [] = each episode once
+    # training-frame share per input, overriding the share rule; [] = the rule's shares (each episode written once)
+    weights: list[float] = field(default_factory=list)
+    # without --weights, each input's share of the sampled training frames: "power" (its training frames to the
+    # power share_alpha, conversion/share_rule.py) | "frames" (each input at its frame share, no share recorded: the
+    # mix before the rule)
+    share_rule: str = POWER
+    # the power rule's exponent in [0, 1]: 1 = each input at its frame share, 0 = one equal share per input; 0.43 is
+    # π0's (arXiv 2410.24164): near the shares measured best in docs/lerobot.md "Pooling hands"
+    share_alpha: float = DEFAULT_ALPHA
     # inputs that hold the same episodes (one folder twice, a copy, two conversions of one source; found by
     # content, conversion/fingerprint.py) are refused; true: mix them anyway, each as often as it is given
     allow_repeats: bool = False
@@ -119,6 +147,14 @@ class MixOptions:
         if self.weights:  # one positive, finite number per input, and no input's share below MIN_SHARE
             checked_shares(self.weights, "--weights", count=len(self.inputs))
             self.weights = [float(w) for w in self.weights]
+        if self.share_rule not in SHARE_RULES:
+            raise MixError(f"share_rule must be one of {SHARE_RULES}, got {self.share_rule!r}")
+        if alpha_problem(self.share_alpha):
+            raise MixError(alpha_problem(self.share_alpha))
+        self.share_alpha = float(self.share_alpha)
+        if self.weights and self.share_rule == FRAMES:
+            raise MixError("--weights and --share_rule=frames contradict each other (--weights set the shares, frames "
+                           "records none): pass one of them")  # fmt: skip
         if self.action_ahead < 1:
             raise MixError(f"action_ahead must be >= 1 frame, got {self.action_ahead}")
         if not self.root:
@@ -151,6 +187,8 @@ class MixReport:
     sources: list[MixedSource]
     train_shares: list[float]  # the training-frame share each input gets (sampled, or written)
     seconds: float
+    share_rule: str = FRAMES  # how the shares were chosen (the record's share_rule)
+    share_alpha: float | None = None  # the power rule's exponent
 
 
 # ---------------------------------------------------------------------------------------------
@@ -243,6 +281,27 @@ def repeat_factors(train_frames: list[int], weights: list[float]) -> list[int]:
     per_frame = [s / max(f, 1) for s, f in zip(shares, train_frames, strict=True)]
     base = min(per_frame)
     return [max(1, round(p / base)) for p in per_frame]
+
+
+def chosen_shares(train_frames: list[int], opts: MixOptions) -> tuple[list[float], str, float | None]:
+    """(each input's recorded share, or [] when none is; the rule that chose them; its exponent) for inputs with
+    `train_frames` training frames: `--weights` by sampling (rule "weights"), else the share rule ("power") for a
+    mix of several inputs by sampling, else none ("weights" by copies; "frames": --share_rule=frames, one input,
+    or copies without --weights)."""
+    if opts.weights:
+        by_sampling = opts.weights_by == "sampling"
+        return (checked_shares(opts.weights, "--weights") if by_sampling else []), WEIGHTS, None
+    if opts.share_rule == FRAMES or len(train_frames) < 2 or opts.weights_by != "sampling":
+        return [], FRAMES, None
+    shares = power_shares(train_frames, opts.share_alpha)
+    low = min(range(len(shares)), key=shares.__getitem__)
+    if shares[low] < MIN_SHARE:  # the floor --weights are held to (utils/number_checks.checked_shares)
+        raise MixError(
+            f"the share rule {rule_text(POWER, opts.share_alpha)} gives input {low} ({train_frames[low]} training "
+            f"frames) a share of {shares[low]:.3g}, below the {MIN_SHARE:g} an input needs to count in the mix: "
+            "lower --share_alpha, pass --weights, or leave that input out"
+        )
+    return shares, POWER, opts.share_alpha
 
 
 # ---------------------------------------------------------------------------------------------
@@ -447,7 +506,7 @@ def _mix_into(target: Path, inputs: list[_Input], opts: MixOptions, t0: float) -
                            "recorded test split, so the mix could neither train on its hands nor normalise them; "
                            "convert it again with a smaller --test_fraction (or more episodes), or leave it out")  # fmt: skip
     repeats = repeat_factors(train_frames, opts.weights if opts.weights_by == "copies" else [])
-    asked = checked_shares(opts.weights, "--weights") if opts.weights and opts.weights_by == "sampling" else []
+    asked, share_rule, share_alpha = chosen_shares(train_frames, opts)
     written = sum(r * f for r, f in zip(repeats, train_frames, strict=True))
     if written > MAX_GROWTH * max(sum(train_frames), 1):
         raise MixError(
@@ -514,6 +573,8 @@ def _mix_into(target: Path, inputs: list[_Input], opts: MixOptions, t0: float) -
             sources=sources,
             name_map=dict(opts.name_map),
             wrist_frame=mixed_wrist_frame(inputs, opts, mixer),
+            share_rule=share_rule,
+            share_alpha=share_alpha,
             action_rule=(
                 f"inputs without actions: action[t] = state[t + {opts.action_ahead}] (the last frames hold the last state)"
                 if not all(i.has_action for i in inputs)
@@ -534,7 +595,8 @@ def _mix_into(target: Path, inputs: list[_Input], opts: MixOptions, t0: float) -
         raise
     shares = [r * f for r, f in zip(repeats, train_frames, strict=True)]
     return MixReport(target, writer.num_episodes, writer.num_frames, test, sources,
-                     asked or [s / max(sum(shares), 1) for s in shares], time.perf_counter() - t0)  # fmt: skip
+                     asked or [s / max(sum(shares), 1) for s in shares], time.perf_counter() - t0,
+                     share_rule, share_alpha)  # fmt: skip
 
 
 def budget_steps(alone_steps: int, share: float) -> int:
@@ -547,12 +609,14 @@ def budget_steps(alone_steps: int, share: float) -> int:
 
 
 def format_report(report: MixReport) -> str:
-    """The summary `unidextok-mix` prints: per input, its episodes, repeats, training-frame share and the budget
-    rule's factor (`budget_steps`)."""
+    """The summary `unidextok-mix` prints: how the shares were chosen, then per input its episodes, repeats,
+    training-frame share and the budget rule's factor (`budget_steps`)."""
     lines = [
         f"wrote {report.root}: {report.num_episodes} episodes, {report.num_frames} frames, "
         f"{len(report.test_episodes)} test episodes ({report.seconds:.1f} s)"
     ]
+    if len(report.sources) > 1:
+        lines.append(_shares_line(report))
     for s, share in zip(report.sources, report.train_shares, strict=True):
         lines.append(
             f"  {s.dataset}: {s.robot_type or s.source}, hands {', '.join(s.hands)} ({', '.join(s.sides)}), "
@@ -565,4 +629,24 @@ def format_report(report: MixReport) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["MixError", "MixOptions", "MixReport", "budget_steps", "format_report", "mix", "repeat_factors"]
+def _shares_line(report: MixReport) -> str:
+    """'shares by the rule frames^0.43 (override with --weights): input 0 33.3 %, input 1 66.7 %' and the like."""
+    each = ", ".join(f"input {k} {share * 100:.1f} %" for k, share in enumerate(report.train_shares))
+    if report.share_rule == POWER:
+        return f"shares by the rule {rule_text(POWER, report.share_alpha)} (override with --weights): {each}"
+    if report.share_rule == WEIGHTS:
+        recorded = any(s.share for s in report.sources)
+        return f"shares by --weights ({'recorded' if recorded else 'as copies, none recorded'}): {each}"
+    return f"shares: each input at its frame share (no share recorded): {each}"
+
+
+__all__ = [
+    "MixError",
+    "MixOptions",
+    "MixReport",
+    "budget_steps",
+    "chosen_shares",
+    "format_report",
+    "mix",
+    "repeat_factors",
+]

@@ -68,7 +68,8 @@ class MixedSource:
     test_episodes: list[int]  # its test episodes, in its own numbering
     weight: float = 1.0  # the training-frame share asked for (`--weights`)
     repeats: int = 1  # how many times each of its training episodes was written (test episodes: once)
-    # its share of the sampled training frames (the normalised --weights, data/share_sampler.py); 0 = none asked
+    # its share of the sampled training frames (the normalised --weights, or the share rule's, data/share_sampler.py);
+    # 0 = none recorded (each input at its frame share)
     share: float = 0.0
     has_action: bool = True  # False: actions made by the mix's rule (`action_rule`)
     # its native layouts per key, as its own record has them (relative to its own converted columns)
@@ -123,6 +124,10 @@ class ConversionRecord:
     sources: list[MixedSource] = field(default_factory=list)  # the inputs, in order; episodes' origin["mix_source"]
     action_rule: str = ""  # how actions were made for inputs without them ("" = every input had actions)
     name_map: dict[str, str] = field(default_factory=dict)  # --keep=all: input column -> common column name
+    # how the sources' shares were chosen: "power" (frames^share_alpha, conversion/share_rule.py), "weights"
+    # (--weights), "frames" (none recorded: each input at its frame share); "" = mixed before the rule was recorded
+    share_rule: str = ""
+    share_alpha: float | None = None  # the exponent of share_rule "power"; None otherwise
     # per block side and hand: {"mean", "std", "frames"} of action - state over the training episodes (22 each)
     action_delta_stats: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
     # per key (observation.state, action, action_delta), block side and hand: that hand's statistics over the
