@@ -209,6 +209,17 @@ def test_a_checkpoint_without_the_flag_loads_and_acts_as_before(tok_dir, g1_l10_
     pre, _ = make_pre_post_processors(cfg, dataset_stats=meta.stats)
     batch = pre(_rows(g1_l10_mix, meta)[0])
     assert torch.equal(_chunk(again, batch), _chunk(policy, batch))
+    # the same checkpoint given heads to train further (--policy.path=... --policy.udt_hand_heads=true): its own
+    # parameters load, the heads (absent from its safetensors) start at zero, so it acts as before until trained
+    from lerobot.configs.policies import PreTrainedConfig
+
+    flagged = PreTrainedConfig.from_pretrained(tmp_path)
+    flagged.udt_hand_heads = True
+    grown = get_policy_class("act_udt").from_pretrained(tmp_path, config=flagged).eval()
+    head = grown.model.action_head
+    assert isinstance(head, HandHeads) and torch.count_nonzero(head.hand_weight) == 0
+    assert torch.equal(head.weight, policy.model.action_head.weight)
+    assert torch.equal(_chunk(grown, batch), _chunk(policy, batch))
 
 
 def _bound_actions(bound, robot_state: torch.Tensor, bump: int | None = None) -> torch.Tensor:
