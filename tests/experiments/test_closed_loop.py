@@ -64,6 +64,18 @@ def test_every_arm_trains_on_exactly_its_demonstrations_and_is_scored_in_closed_
     assert bound["udt_hand_norm"] == "auto" and bound["udt_mask_slots"] is True and bound["udt_input_shares"]
     alone_cfg = json.loads((folder / "alone_2/checkpoints/last/pretrained_model/config.json").read_text())
     assert alone_cfg["udt_hand_input"] == "both" and alone_cfg["udt_pretrained"] == cl.DEFAULT_TOKENIZER
+    # what lerobot-train saved is what the rendered user command asks for
+    job = next(j for j in cl.jobs(cfg) if j["hand"] == "shadow" and j["arm"] == "mix_2_pool2")
+    line = next(x for x in cl.user_commands(cfg, job) if x.startswith("lerobot-train "))
+    flags = dict(a[2:].split("=", 1) for a in shlex.split(line)[3:])
+    trained = json.loads((folder / "mix_2_pool2/checkpoints/last/pretrained_model/train_config.json").read_text())
+    assert (
+        trained["dataset"]["root"] == flags["dataset.root"] == str(mix) and trained["output_dir"] == flags["output_dir"]
+    )
+    assert [trained[k] for k in ("steps", "batch_size", "seed")] == [
+        int(flags[k]) for k in ("steps", "batch_size", "seed")
+    ]
+    assert trained["policy"]["n_action_steps"] == 10 and trained["policy"]["udt_copy_start"] is False
     state = json.loads((folder / "mix_state_2_pool2/bound/config.json").read_text())
     assert state["udt_hand_input"] == "state" and state["udt_pretrained"] is None
     # the budget rule divides by the share the mix recorded
