@@ -18,8 +18,10 @@ TASK_COLUMNS: dict[str, tuple[str, ...]] = {
     "GraspLift-v0": ("object_x", "object_y", "object_z", "object_yaw", "object_half_x", "object_half_y",
                      "object_half_z", "goal_z"),
     "FingerPress-v0": ("panel_x", "panel_y", "panel_z", *(f"goal_{f}" for f in PRESS_FINGERS)),
-    # the finger whose button is due now (one-hot), and how many of the three are done
-    "FingerSequence-v0": ("panel_x", "panel_y", "panel_z", *(f"due_{f}" for f in PRESS_FINGERS), "presses_done"),
+    # the finger whose button is due now, the next one's and the one's after it (each one-hot; all 0: none), and
+    # how many of the three are done
+    "FingerSequence-v0": ("panel_x", "panel_y", "panel_z", *(f"{k}_{f}" for k in ("due", "next", "then")
+                                                             for f in PRESS_FINGERS), "presses_done"),
     # the cylinder (centre, radius, half height), the target's centre, and the finger that pinches with the thumb
     "PinchPlace-v0": ("object_x", "object_y", "object_z", "object_radius", "object_half_height", "target_x",
                       "target_y", "pinch_index", "pinch_middle"),

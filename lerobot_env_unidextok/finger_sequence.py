@@ -2,13 +2,17 @@
 
 The panel of `FingerPress-v0` (one button under each finger but the thumb, at the hand's press postures), its
 place drawn per episode; the goal is an order of three of the hand's pressing fingers (index, middle, ring,
-little), drawn per episode. Columns: the panel's place, the finger whose button is due now (`due_<finger>`, one-hot: 1.0
-for the due one, 0.0 for the others) and how many of the three are done (`presses_done`), the same for every hand.
-The order is given one step at a time: what a policy needs at each step is the button due now (which finger comes
-after it does not change what to do now, and the due column moves on the step the press counts), so it does not
-have to decode an order and count along it (the earlier `order_<finger>` columns, 1, 2, 3 or 0, which left trained
-policies picking the first finger at chance: docs/lerobot.md, issue 56). A press counts when the button goes down
-4 mm while its finger touches it.
+little), drawn per episode. Columns: the panel's place, the presses still to do in their order, each place a
+one-hot over the four fingers (`due_<finger>`: the button due now; `next_<finger>`: the one after it;
+`then_<finger>`: the one after that; all 0 where no press is left), and how many of the three are done
+(`presses_done`), the same for every hand. A press counts when the button goes down 4 mm while its finger touches
+it.
+
+The order is given from now on, place by place, as a policy acts on it: what to press now is one column, and what
+comes after it is in the state too, as a chunked policy needs it (act_udt runs 10 actions per prediction and the
+Shadow's expert presses about 5 steps apart: one chunk spans up to two switches). Two earlier encodings left
+trained policies at the floor (docs/lerobot.md, issue 56): each finger's place in the order (`order_<finger>`: 1,
+2, 3, or 0) with `presses_done`, to be decoded and counted along, and the due finger alone.
 
 Success: the three buttons pressed in the order, each by its finger. The episode fails when a button is pressed
 out of turn (one not in the sequence, or a later one before the one due; a done button pressed again does not
@@ -53,7 +57,9 @@ class FingerSequence(FingerPress):
 
     def observe(self, data: mujoco.MjData) -> np.ndarray:
         due = self.order[min(self.done, SEQUENCE_LENGTH - 1)]
-        return np.array([*self.panel_pos(), *(float(f == due) for f in PRESS_FINGERS), float(self.done)])
+        ahead = [*self.order[self.done + 1 :], "", ""][:2]  # the next press and the one after it ("": none)
+        places = [float(f == g) for g in (due, *ahead) for f in PRESS_FINGERS]
+        return np.array([*self.panel_pos(), *places, float(self.done)])
 
     def evaluate(self, data: mujoco.MjData) -> tuple[bool, bool]:
         if self.done == SEQUENCE_LENGTH or self.failure:

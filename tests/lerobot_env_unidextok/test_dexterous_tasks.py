@@ -61,27 +61,33 @@ def test_the_expert_succeeds_on_seeded_episodes(task):
 
 
 def test_finger_sequence_succeeds_only_in_order_and_by_each_finger():
-    """The due finger is in the columns (one-hot) and moves along the order as `presses_done` counts the expert's
-    presses; pressing another button of the sequence before the due one ends the episode as a failure."""
+    """The presses still to do are in the columns, each place one-hot (due, next, then), and move along the order
+    as `presses_done` counts the expert's presses; pressing another button of the sequence before the due one ends
+    the episode as a failure."""
     from lerobot_env_unidextok.columns import PRESS_FINGERS
     from lerobot_env_unidextok.experts import Expert
 
     env = UniDexTokEnv("allegro", "FingerSequence-v0", render_mode=None)
-    due_cols = [env.state_names.index(f"due_{f}") for f in PRESS_FINGERS]
-    done_col = env.state_names.index("presses_done")
+    cols = {k: [env.state_names.index(f"{k}_{f}") for f in PRESS_FINGERS] for k in ("due", "next", "then")}
+    due_cols, done_col = cols["due"], env.state_names.index("presses_done")
+
+    def places(state: np.ndarray) -> list[str]:  # the fingers of due, next, then ("": no press left there)
+        return [PRESS_FINGERS[int(np.argmax(state[c]))] if state[c].max() > 0 else "" for c in cols.values()]
+
     obs, _ = env.reset(seed=3)
-    assert list(obs["agent_pos"][due_cols]) == [float(f == env.task.order[0]) for f in PRESS_FINGERS]
-    assert obs["agent_pos"][done_col] == 0
+    assert places(obs["agent_pos"]) == list(env.task.order) and obs["agent_pos"][done_col] == 0
+    assert all(sorted(obs["agent_pos"][c]) == [0, 0, 0, 1] for c in cols.values())
     expert = Expert(env, np.random.default_rng(0), noise=False)
     expert.reset(obs)
-    seen = {0: env.task.order[0]}  # presses done -> the finger the columns named due then
+    seen = {0: places(obs["agent_pos"])}  # presses done -> the fingers the columns named then
     for _ in range(50):
         obs, _, terminated, _, info = env.step(expert.act(obs))
         if terminated:
             break
-        seen[int(obs["agent_pos"][done_col])] = PRESS_FINGERS[int(np.argmax(obs["agent_pos"][due_cols]))]
+        seen[int(obs["agent_pos"][done_col])] = places(obs["agent_pos"])
     assert info["is_success"] and obs["agent_pos"][done_col] == 3
-    assert tuple(seen[k] for k in range(3)) == env.task.order
+    order = list(env.task.order)
+    assert [seen[k] for k in range(3)] == [order, [*order[1:], ""], [order[2], "", ""]]
 
     # the same episode with the expert shown the second finger as due: its button first is out of turn
     class Swapped:
