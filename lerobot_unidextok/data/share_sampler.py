@@ -19,7 +19,8 @@ several times:
   by the mix's frame counts), and unlike fractions of each batch alone they are not biased by the batches that
   miss a small input (a batch of 32 from an input of 5 % of the frames misses it 19 % of the time).
 
-The shares come from the mix's record (`MixedSource.share`, the normalised `--weights`; 0 = no share asked), the
+The shares come from the mix's record (`MixedSource.share`: the share rule's by default, frames^0.43, or the
+normalised `--weights`; 0 = no share, `--share_rule=frames`), the
 episodes' inputs from `EpisodeRecord.origin["mix_source"]`. `episode_map_key` names the dataset a map was made
 for, so a checkpoint trained further on another dataset (fine-tuning a pooled policy on one robot's data) gets the
 map of that dataset instead of weighting its rows by the old one (`policies/udt_config.py`).
@@ -103,8 +104,8 @@ class ShareSampler(torch.utils.data.Sampler[int]):
 
 
 def mix_shares(record: ConversionRecord) -> tuple[dict[int, int], list[float]]:
-    """({episode index: its input}, each input's share) of a mixed dataset's record; shares [] when none was asked
-    (`--weights` not given, or a mix written before shares, whose weights were honoured by copies)."""
+    """({episode index: its input}, each input's share) of a mixed dataset's record; shares [] when none was recorded
+    (`--share_rule=frames`, copies, or a mix written before shares, whose weights were honoured by copies)."""
     groups = {e.episode_index: int(e.origin.get("mix_source", 0)) for e in record.episodes}
     shares = [float(getattr(s, "share", 0.0)) for s in record.sources]
     return groups, (shares if any(shares) else [])
@@ -112,7 +113,7 @@ def mix_shares(record: ConversionRecord) -> tuple[dict[int, int], list[float]]:
 
 def episode_inputs(record: ConversionRecord) -> tuple[list[int], list[float]]:
     """(each episode's input by episode index, each input's share) of a mixed dataset's record; ([], []) when no
-    share was asked (a mix of copies, or `--weights` not given)."""
+    share was recorded (a mix of copies, or `--share_rule=frames`)."""
     groups, shares = mix_shares(record)
     if not shares:
         return [], []

@@ -174,13 +174,13 @@ class UdtConfigMixin:
     # No loss on the action slots a row's hand lacks (step unidextok.slot_mask; ACT and Diffusion): the policy is not
     # taught to predict zeros for joints the hand does not have.
     udt_mask_slots: bool = True
-    # On a mix whose --weights asked each input a share of the training frames (unidextok-mix, the default
-    # --weights_by=sampling): weight each row's loss by its input's share over its fraction of the rows trained on
+    # On a mix that records each input's share of the training frames (unidextok-mix's default share rule,
+    # frames^0.43, or its --weights with the default --weights_by=sampling): weight each row's loss by its input's share over its fraction of the rows trained on
     # (step unidextok.share_weights; lerobot-train takes no sampler from a plugin). ACT and Diffusion.
     udt_share_weights: bool = True
     # Each episode's input in the mix (by episode index; -1 none), filled from the mix's record.
     udt_episode_inputs: list[int] = field(default_factory=list)
-    # Each input's asked share of the training loss (the mix's normalised --weights), filled from its record.
+    # Each input's share of the training loss (the mix's rule or normalised --weights), filled from its record.
     udt_input_shares: list[float] = field(default_factory=list)
     # The dataset udt_episode_inputs and udt_input_shares were made for ("<N> episodes <fingerprint>"); a checkpoint
     # trained further on another dataset (fine-tuning: --policy.path=<checkpoint> --dataset.root=<other>) gets
@@ -419,7 +419,7 @@ class UdtConfigMixin:
         )  # fmt: skip
 
     def _fill_episode_map(self, meta: UdhmDatasetMeta) -> None:
-        """Each episode's input and each input's share (a mix with --weights; none otherwise), for the dataset
+        """Each episode's input and each input's share (a mix that records shares; none otherwise), for the dataset
         `meta` (`udt_episode_map_of`)."""
         inputs, shares = self._dataset_map(meta)
         self.udt_episode_inputs, self.udt_input_shares, self.udt_episode_weights = inputs, shares, []

@@ -1,8 +1,8 @@
 """Each input's share of a mix, as a loss weight per training row (`unidextok.share_weights`).
 
 `lerobot-train` (LeRobot 0.6.1) samples every frame of the chosen episodes equally and takes no sampler from a
-plugin, so the share `unidextok-mix --weights` asks for each input (`data/share_sampler.py`) reaches training as a
-weight: this pre-processor step reads each row's `episode_index` (LeRobot keeps it in the batch), looks up the
+plugin, so the share `unidextok-mix` records for each input (its rule's, or `--weights`; `data/share_sampler.py`)
+reaches training as a weight: this pre-processor step reads each row's `episode_index` (LeRobot keeps it in the batch), looks up the
 input that episode came from, and writes `share / (the input's rows / all rows)` as `unidextok_sample_weight` (B,)
 into the batch (`share_loss_weights`; the rows counted over the batches this step has seen, so the shares hold on
 any subset of episodes a run trains on); the ACT and Diffusion `<type>_udt` policies multiply each row's loss by

@@ -7,7 +7,7 @@ would be trained as real targets. When the batch carries `action_slot_is_pad` ((
 pre-processor's `unidextok.slot_mask` step), `forward` computes ACT's own loss with those entries multiplied by
 zero: the same sum over the valid steps and the same divisor (valid steps x action width) as the stock loss,
 so every real slot gets exactly the stock gradient and a lacking slot none. When the batch carries
-`unidextok_sample_weight` ((B,), `unidextok.share_weights`: a mix's `--weights` as loss weights, since
+`unidextok_sample_weight` ((B,), `unidextok.share_weights`: a mix's recorded shares as loss weights, since
 `lerobot-train` takes no sampler) each row's terms are multiplied by it. Without either key (checkpoints and
 pre-processors saved before them, `udt_mask_slots=false`) it is the stock `forward`. Inference is unchanged.
 

@@ -8,7 +8,7 @@ pre-processor's `unidextok.slot_mask` step), `forward` runs `masked_denoising_lo
 `compute_loss` (global conditioning, noise, timesteps, the U-Net's prediction, the epsilon or sample target) on
 the policy's own `DiffusionModel`, and the squared error with those entries multiplied by zero, divided as the
 stock loss divides (the valid steps x action width with `do_mask_loss_for_padding`, else every element), so a real
-slot gets exactly the stock gradient and a lacking slot none; `unidextok_sample_weight` ((B,), a mix's `--weights`)
+slot gets exactly the stock gradient and a lacking slot none; `unidextok_sample_weight` ((B,), a mix's recorded shares)
 multiplies each row's terms. Without either key it is the stock `forward`.
 """
 
