@@ -581,7 +581,12 @@ def run_one(cfg: ClosedLoopConfig, job: dict) -> dict:
     train_cpu = time.process_time() - cpu0
     cpu1 = time.process_time()
     scores = evaluate(cfg, bound, task, hand, seed)
-    result = {**job, **scores, "steps": steps, "dataset": str(p["root"]), "train_cpu_s": round(train_cpu, 1),
+    share = (
+        {"target_share": round(target_share_of(p["root"]), 4)}
+        if p["root"] not in p["paths"] and not p["zero_shot"]
+        else {}
+    )
+    result = {**job, **scores, **share, "steps": steps, "dataset": str(p["root"]), "train_cpu_s": round(train_cpu, 1),
               "eval_cpu_s": round(time.process_time() - cpu1, 1), "wall_s": round(time.time() - t0, 1)}  # fmt: skip
     done.parent.mkdir(parents=True, exist_ok=True)
     done.write_text(json.dumps(result))
@@ -781,6 +786,15 @@ def goals(result: dict, cfg: ClosedLoopConfig) -> list[dict]:
                     not short,
                     f"short: {', '.join(short)}" if short else "",
                 )
+    more = next((d for d in cfg.demos if d > n), None)
+    for task, by_pool in result["robustness"].items():
+        for k, t in by_pool.items():
+            both = [(r["mix"]["rate"], result["summary"][task][h][f"alone_{more}"]["mean"]) for h, r in t["rows"].items()
+                    if f"alone_{more}" in result["summary"][task][h]]  # fmt: skip
+            if both:
+                m, a = np.mean([b[0] for b in both]), np.mean([b[1] for b in both])
+                goal(f"{task} pool {k}: the mix at {n} demos reaches the hand alone at {more}, on average over "
+                     f"{len(both)} targets", float(m - a), m >= a, f"mix {m:.1f} %, alone at {more} {a:.1f} %")  # fmt: skip
     for key, e in result["experts"].items():
         value = 100 * e["successes"] / e["episodes"]
         goal(f"{key.replace('/', ' ')}: expert at least 95 %", value, value >= 95, f"{e['successes']}/{e['episodes']}")
@@ -845,6 +859,12 @@ def robustness_lines(result: dict) -> list[str]:
                   f"{t['mean']:+.1f}; within {NEVER_WORSE_POINTS:g} points of alone or better on {t['never_worse']}"
                   f"/{t['targets']}, mix >= zero-shot on {t['above_zero_shot']}/{t['targets']}"
                   for k, t in by_pool.items()]  # fmt: skip
+        for k in pools:
+            shares = [r["target_share"] for r in result["runs"]
+                      if r["task"] == task and r["arm"] == f"mix_{n}_pool{k}" and "target_share" in r]  # fmt: skip
+            if shares:
+                lines.append(f"- pool {k}: the target's share of the sampled training frames, as the mix set it: "
+                             f"{min(shares):.3f}-{max(shares):.3f} (mean {np.mean(shares):.3f})")  # fmt: skip
         lines += [""]
     return lines
 

@@ -81,6 +81,7 @@ def test_every_arm_trains_on_exactly_its_demonstrations_and_is_scored_in_closed_
     # the budget rule divides by the share the mix recorded
     share = cl.target_share_of(mix)
     assert 0 < share < 1 and runs[("shadow", "mix_rule_2_pool2")]["steps"] == budget_steps(2, share)
+    assert runs[("shadow", "mix_2_pool2")]["target_share"] == pytest.approx(share, abs=1e-4)
     pooled = json.loads((folder / "pooled_2_pool2/bound/config.json").read_text())
     assert pooled["udt_hand_norm"] == "off" and pooled["udt_mask_slots"] is False and not pooled["udt_input_shares"]
     zero = json.loads((folder / "zero_shot_pool2/bound/config.json").read_text())
@@ -93,6 +94,7 @@ def test_every_arm_trains_on_exactly_its_demonstrations_and_is_scored_in_closed_
     rob = result["robustness"]["FingerPress-v0"][2]
     assert set(rob["rows"]) == {"shadow", "allegro"} and rob["targets"] == 2
     text = cl.markdown(result)
+    assert "the target's share of the sampled training frames, as the mix set it" in text
     assert "robustness at 2 target demonstrations" in text and "| scripted expert |" in text and "Goals:" in text
     assert "| mix, 2 demos, 2-hand pool |" in text and "| zero-shot (other hands only), 2-hand pool |" in text
     assert "lerobot-train --config_path=$(unidextok-config lerobot/act_udt_cpu)" in text
@@ -222,11 +224,21 @@ def test_the_robustness_summary_pools_the_seeds_and_bounds_the_gain():
     runs = [{"task": "T", "hand": h, "arm": a, "successes": k, "episodes": 50}
             for h, alone, mix, zero in (("a", 20, 26, 5), ("b", 40, 36, 10), ("c", 25, 25, 30))
             for a, k in (("alone_10", alone), ("mix_10_pool2", mix), ("zero_shot_pool2", zero))]  # fmt: skip
-    cfg = cl.ClosedLoopConfig(hands=["shadow", "allegro"], demos=[10], mix_demos=[10])
-    rob = cl.robustness(cl.summarise(runs, cfg), cfg)["T"][2]
+    runs += [{"task": "T", "hand": h, "arm": "alone_25", "successes": 30, "episodes": 50} for h in "abc"]
+    cfg = cl.ClosedLoopConfig(hands=["shadow", "allegro"], demos=[10, 25], mix_demos=[10])
+    summary = cl.summarise(runs, cfg)
+    rob = cl.robustness(summary, cfg)["T"][2]
     assert rob["rows"]["a"]["gain"] == pytest.approx(12) and rob["worst"] == ["b", pytest.approx(-8)]
     assert rob["median"] == pytest.approx(0) and rob["mean"] == pytest.approx(4 / 3)
     assert rob["never_worse"] == 2 and rob["above_zero_shot"] == 2
     low, high = rob["rows"]["a"]["gain_interval"]
     assert low < 0 < 12 < high < 40  # 40 % -> 52 % is not significant at 50 episodes each (Newcombe: -7 to +30)
     assert rob["rows"]["a"]["mix"]["rate"] == pytest.approx(52) and rob["rows"]["c"]["zero_shot"]["rate"] == 60
+    goals = {g["goal"]: g for g in cl.goals({"summary": summary, "robustness": {"T": {2: rob}}, "experts": {}}, cfg)}
+    assert (
+        goals["T pool 2: the mix at 10 demos no more than 3 points below the hand alone on every target"]["met"]
+        is False
+    )
+    assert goals["T pool 2: the mix never below zero-shot"]["why"] == "c 50 < 60"
+    reach = goals["T pool 2: the mix at 10 demos reaches the hand alone at 25, on average over 3 targets"]
+    assert reach["value"] == pytest.approx((52 + 72 + 50) / 3 - 60) and reach["met"] is False
