@@ -95,6 +95,9 @@ HANDS = ("inspire_rh56_unitree", "shadow", "allegro", "leap", "xhand1", "linkerh
 # before the next prediction (a policy that re-plans every step stalls where the demonstrations pause)
 USER_FLAGS = ("--policy.udt_relative_actions=false", "--policy.udt_copy_start=false", "--policy.n_action_steps=10")
 CONFIG = "lerobot/act_udt_cpu"  # unidextok-config's name of the recipe
+# 2: the protocol of this module (issue 57: a recording and evaluation episodes per seed, datasets of exactly the
+# arm's demonstrations, the user's recipe); results without it were measured before (the caption says how)
+PROTOCOL = 2
 
 
 def encoding_flags(encoding: EncodingConfig | None) -> list[str]:
@@ -341,11 +344,11 @@ def plan(cfg: ClosedLoopConfig, job: dict) -> dict:
         weights, weights_by, tag = [cfg.target_weight] + [1.0] * len(others), "copies", f"w{cfg.target_weight:g}"
     elif cfg.share and kind != "without":
         weights, tag = [cfg.share] + [(1 - cfg.share) / len(others)] * len(others), f"s{cfg.share:g}"
-    root = paths[0] if len(paths) == 1 else mix_root(cfg, task, seed, paths, "frames" if kind == "without" else tag)
+    root = paths[0] if len(paths) == 1 else mix_root(cfg, task, seed, paths, tag)
     robot = (
         None if kind == "alone" else converted_root(cfg, task, hand, seed, job["demos"] or cfg.mix_demos[0], mapping)
     )
-    return {"inputs": inputs, "paths": paths, "mapping": mapping, "weights": [] if kind == "without" else weights,
+    return {"inputs": inputs, "paths": paths, "mapping": mapping, "weights": weights,
             "weights_by": weights_by, "root": root, "robot": robot, "zero_shot": kind == "without"}  # fmt: skip
 
 
@@ -570,10 +573,12 @@ def policy_dir(cfg: ClosedLoopConfig, job: dict) -> Path:
 def run_one(cfg: ClosedLoopConfig, job: dict) -> dict:
     task, hand, seed, label = job["task"], job["hand"], job["seed"], job["arm"]
     done = Path(cfg.output_root) / NAME / "runs" / f"seed{seed}" / f"{task}__{hand}__{label}.json"
-    if done.is_file():
-        return json.loads(done.read_text())
+    if done.is_file() and json.loads(done.read_text())["dataset"] == str(plan(cfg, job)["root"]):
+        return json.loads(done.read_text())  # a run on another dataset (a mix of other code) is made again
     p = make(cfg, job)
     out = policy_dir(cfg, job)
+    if done.is_file():
+        shutil.rmtree(out, ignore_errors=True)
     steps = job_steps(cfg, job, p["root"])
     cpu0, t0 = time.process_time(), time.time()
     model = train_policy(train_args(cfg, p["root"], out, seed, arm_flags(cfg, job["kind"]), steps), out)
@@ -651,7 +656,7 @@ def run(cfg: ClosedLoopConfig) -> dict:
                                    "per_seed": {str(s): e["successes"] for s, e in per_seed.items()}}  # fmt: skip
     runs = [run_one(cfg, job) for job in todo]
     summary = summarise(runs, cfg)
-    result = {"experiment": NAME, "config": dataclasses.asdict(cfg), "runs": runs, "summary": summary,
+    result = {"experiment": NAME, "protocol": PROTOCOL, "config": dataclasses.asdict(cfg), "runs": runs, "summary": summary,
               "robustness": robustness(summary, cfg), "experts": experts, "recording": recordings(cfg),
               "costs": {"data_cpu_s": data_cpu_s(cfg, todo), "train_cpu_s": round(sum(r["train_cpu_s"] for r in runs), 1),
                         "eval_cpu_s": round(sum(r["eval_cpu_s"] for r in runs), 1),
@@ -878,14 +883,21 @@ def markdown(result: dict) -> str:
         if runs
         else (0, 0)
     )
+    if result.get("protocol") == PROTOCOL:
+        how = (f"(each its own recording of every hand and its own {cfg['eval_episodes']} evaluation episodes), and "
+               f"the 95 % Wilson interval of the pooled episodes. Every dataset holds only the demonstrations its arm "
+               f"trains on. Policies: lerobot-train --config_path=$(unidextok-config {CONFIG}) {' '.join(USER_FLAGS)} "
+               f"--steps={cfg['steps']} --batch_size={cfg['batch_size']} (the policy's default hand input and "
+               f"tokenizer unless the arm says otherwise), {share_words(cfg['steps'], cfg['target_share'])}; mixes "
+               f"bound with unidextok-deploy. Pools: the target and the hands after it in {cfg['hands']}, cyclically.")  # fmt: skip
+    else:
+        how = (f"({cfg['eval_episodes']} episodes each), and the 95 % Wilson interval of the pooled episodes. The "
+               "protocol before issue 57: one recording per hand shared by every seed, the same evaluation episodes "
+               "for every seed, the target's demonstrations a subset of its pool chosen with --dataset.episodes (so "
+               "the statistics saw the whole pool), the hands as the UDHM state only (no tokenizer), mixes of every "
+               "hand of the run.")  # fmt: skip
     lines = [
-        f"Success rate (%) in closed loop, mean +- std over seeds {cfg['seeds']} (each its own recording of every hand "
-        f"and its own {cfg['eval_episodes']} evaluation episodes), and the 95 % Wilson interval of the pooled "
-        f"episodes. Every dataset holds only the demonstrations its arm trains on. Policies: lerobot-train "
-        f"--config_path=$(unidextok-config {CONFIG}) {' '.join(USER_FLAGS)} --steps={cfg['steps']} "
-        f"--batch_size={cfg['batch_size']} (the policy's default hand input and tokenizer unless the arm says "
-        f"otherwise), {share_words(cfg['steps'], cfg['target_share'])}; mixes bound with unidextok-deploy. Pools: the "
-        f"target and the hands after it in {cfg['hands']}, cyclically. {cpu_min:.1f} CPU-minutes in all "
+        f"Success rate (%) in closed loop, mean +- std over seeds {cfg['seeds']} {how} {cpu_min:.1f} CPU-minutes in all "
         f"({costs['data_cpu_s'] / 60:.1f} data, {costs['train_cpu_s'] / 60:.1f} training, {costs['eval_cpu_s'] / 60:.1f} "
         f"evaluation, {costs['expert_cpu_s'] / 60:.1f} experts; per policy {per_policy[0] / 60:.2f} training and "
         f"{per_policy[1] / 60:.2f} evaluation); the policies took {costs['runs_wall_s'] / 60:.0f} min of wall time "

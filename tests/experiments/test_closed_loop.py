@@ -95,6 +95,8 @@ def test_every_arm_trains_on_exactly_its_demonstrations_and_is_scored_in_closed_
     assert set(rob["rows"]) == {"shadow", "allegro"} and rob["targets"] == 2
     text = cl.markdown(result)
     assert "the target's share of the sampled training frames, as the mix set it" in text
+    assert "Every dataset holds only the demonstrations its arm trains on" in text  # this protocol's caption
+    assert "protocol before issue 57" in cl.markdown({**result, "protocol": None})  # a result measured before
     assert "robustness at 2 target demonstrations" in text and "| scripted expert |" in text and "Goals:" in text
     assert "| mix, 2 demos, 2-hand pool |" in text and "| zero-shot (other hands only), 2-hand pool |" in text
     assert "lerobot-train --config_path=$(unidextok-config lerobot/act_udt_cpu)" in text
@@ -146,6 +148,13 @@ def test_the_pool_is_the_target_and_the_hands_after_it_cyclically():
     assert plans["mix_10_pool2"]["inputs"] == [("linkerhand_l10", 10), ("inspire_rh56_unitree", 50)]
     assert [h for h, _ in plans["zero_shot_pool6"]["inputs"]] == list(cl.HANDS[:5])
     assert plans["alone_10"]["inputs"] == [("linkerhand_l10", 10)] and plans["alone_10"]["robot"] is None
+    # a mix with the mix's default shares is keyed by unidextok-mix's code (the default may change), and a run by
+    # its dataset: a rerun after such a change mixes and trains again
+    assert (
+        plans["mix_10_pool6"]["root"].name.endswith(f"_default-{cl._mix_code()}")
+        and not plans["mix_10_pool6"]["weights"]
+    )
+    assert plans["zero_shot_pool6"]["root"].name.endswith(f"_default-{cl._mix_code()}")
     assert cl.ClosedLoopConfig().pools == [6] and cl.ClosedLoopConfig(hands=["shadow", "leap"]).pools == [2]
     assert cl.parse_label("mix_10_pool2") == ("mix", 10, 2) and cl.parse_label("zero_shot_pool3") == ("zero_shot", 0, 3)
     assert cl.arm_title("mix_rule_10_pool3") == "mix, budget rule, 10 demos, 3-hand pool"
