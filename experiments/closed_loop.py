@@ -199,7 +199,7 @@ class ClosedLoopConfig:
         if len(self.hands) < 2 and set(self.arms) & set(MIX_ARMS):
             raise ValueError("the mix arms need at least two hands: --hands='[a,b]' or --arms='[alone]'")
         self.pools = self.pools or [len(self.hands)]
-        if any(not 2 <= k <= len(self.hands) for k in self.pools):
+        if set(self.arms) & set(MIX_ARMS) and any(not 2 <= k <= len(self.hands) for k in self.pools):
             raise ValueError(f"pools {self.pools} must be 2..{len(self.hands)} (the hands of --hands)")
         seed_ranges(self)
 
@@ -270,7 +270,7 @@ def converted_root(cfg: ClosedLoopConfig, task: str, hand: str, seed: int, episo
 
 def mix_root(cfg: ClosedLoopConfig, task: str, seed: int, inputs: list[Path], tag: str) -> Path:
     """A mix's folder, named by its inputs (hand and episodes each), their conversion and how the shares are set."""
-    names = "__".join(f"{p.parent.name}{p.name.rpartition('_')[2]}" for p in inputs)
+    names = "__".join(f"{p.parent.name}-{p.name.rpartition('_')[2]}" for p in inputs)  # shadow-10__allegro-50
     return Path(cfg.cache_dir) / task / f"seed{seed}" / "mixes" / f"{inputs[0].name.rpartition('_')[0]}_{names}_{tag}"
 
 

@@ -196,6 +196,7 @@ def test_bad_options_are_named():
         cl.ClosedLoopConfig(target_share=1.0)
     with pytest.raises(ValueError, match="pools"):
         cl.ClosedLoopConfig(hands=["shadow", "allegro"], pools=[3])
+    assert cl.ClosedLoopConfig(hands=["shadow"], arms=["alone"]).pools == [1]  # no mix: no pool to check
     with pytest.raises(ValueError, match="pool must be"):
         cl.ClosedLoopConfig(pool=2000)
     assert cl.ClosedLoopConfig(target_share=0.0).share is None and cl.ClosedLoopConfig(target_share=0.2).share == 0.2
