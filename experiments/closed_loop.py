@@ -49,6 +49,10 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   task only);
 - `tokens_nearest_<n>`, `tokens_search_<n>`: `mix_<n>` with the hands given only as the tokenizer's (`--tokenizer`)
   tokens (the nearest codes, or the tokenizer's own encoding unless `encoding` is set);
+- `mix_heads_<n>`: `mix_<n>` with a residual output head per hand (`--policy.udt_hand_heads=true`);
+  `mix_morph_<n>`, `zero_shot_morph`: `mix_<n>` and `zero_shot` with each hand told by its morphology vector
+  (`--policy.udt_hand_identity=morphology`) instead of a one-hot (with one other hand, zero-shot trains on that
+  robot alone and has no identity to set);
 - `zero_shot`: the pool's other hands, none of the target's demonstrations, bound with `--zero_shot=true` (one
   other hand: its converted recording, no mix); `zero_shot_no_frame`: the same in the robots' wrist frames.
 Also measured: the scripted expert on each seed's evaluation episodes. `robustness` gives per task and pool size
@@ -110,6 +114,7 @@ def encoding_flags(encoding: EncodingConfig | None) -> list[str]:
 # the state-only view (an ablation): no tokenizer, and the zeroed token view through the cheapest encoding
 STATE = ("--policy.udt_hand_input=state", "--policy.udt_pretrained=null", *encoding_flags(NEAREST_CODES))
 NO_FRAME = ("--policy.udt_wrist_frame=robot",)
+MORPHOLOGY = "--policy.udt_hand_identity=morphology"
 POOLED = ("--policy.udt_hand_norm=off", "--policy.udt_mask_slots=false", *NO_FRAME)
 # arm -> (its dataset, lerobot-train flags beyond the user's); the dataset: the target alone, the mix (`mix`), the
 # mix of the target's copies (`copies`), the packed mix, or the pool's other hands without the target
@@ -131,11 +136,18 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "tokens_search": ("mix", ()),
     "zero_shot": ("without", ()),
     "zero_shot_no_frame": ("without", NO_FRAME),
+    # issue 57's mechanisms, each the default arm plus one flag: a residual output head per hand around the shared
+    # trunk (policies/hand_heads.py), and the hand told by its morphology vector instead of a one-hot
+    # (hands/morphology.py; a zero-shot hand gets its own vector, not zeros)
+    "mix_heads": ("mix", ("--policy.udt_hand_heads=true",)),
+    "mix_morph": ("mix", (MORPHOLOGY,)),
+    "zero_shot_morph": ("without", (MORPHOLOGY,)),
 }
 MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
 ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")
 # run on ablation_targets: the ablations, the old recipe and the budget rule's arm
 PRUNED = (*ABLATIONS, "alone_no_frame", "pooled", "mix_rule")
+MECHANISMS = ("mix_heads", "mix_morph", "zero_shot_morph")  # run on `mechanism_pools`, after every other arm
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 MAPPINGS = {"semantic": "semantic", "packed": "append_pad"}  # a conversion's name -> unidextok-convert --mapping
 # seeds: seed s offsets every range below by s * SEED_STRIDE (`seed_ranges` checks none overlaps another)
@@ -178,6 +190,8 @@ class ClosedLoopConfig:
     figure_to: str = ""  # also write the gain figure there (e.g. docs/images/closed_loop.png)
     # the targets of the ablations, the old recipe and the budget rule (`PRUNED`; empty = every target)
     ablation_targets: list[str] = field(default_factory=list)
+    # the pool sizes of the mechanism arms (`MECHANISMS`; empty = every pool size): prune pools, not seeds or episodes
+    mechanism_pools: list[int] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         for name, given, allowed in (("tasks", self.tasks, SIM_TASK_IDS), ("arms", self.arms, tuple(ARMS))):
@@ -537,9 +551,13 @@ def jobs(cfg: ClosedLoopConfig) -> list[dict]:
                     kind = ARMS[arm][0]
                     counts = [0] if kind == "without" else cfg.demos if kind == "alone" else cfg.mix_demos
                     pools = [0] if kind == "alone" else cfg.pools
+                    if arm in MECHANISMS and cfg.mechanism_pools:
+                        pools = [k for k in pools if k in cfg.mechanism_pools]
+                    if arm == "zero_shot_morph":  # from one other hand: that robot alone, no identity to set
+                        pools = [k for k in pools if k > 2]
                     out += [{"task": task, "hand": hand, "seed": seed, "arm": arm_label(arm, n, k), "kind": arm,
                              "demos": n, "pool": k} for n in counts for k in pools]  # fmt: skip
-    return out
+    return sorted(out, key=lambda j: j["kind"] in MECHANISMS)  # the table's arms first, for every hand and seed
 
 
 def arm_label(arm: str, demos: int, pool: int = 0) -> str:
@@ -820,7 +838,9 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "packed": "mix, packed native", "tokens_nearest": "mix, tokens (nearest)",
               "tokens_search": "mix, tokens (tokenizer's encoding)", "zero_shot": "zero-shot (other hands only)",
               "zero_shot_no_frame": "zero-shot without the grasp-centre frame", "alone": "alone",
-              "alone_state": "alone, state input", "alone_no_frame": "alone without the grasp-centre frame"}  # fmt: skip
+              "alone_state": "alone, state input", "alone_no_frame": "alone without the grasp-centre frame",
+              "mix_heads": "mix, per-hand output heads", "mix_morph": "mix, morphology identity",
+              "zero_shot_morph": "zero-shot, morphology identity"}  # fmt: skip
 
 
 def arm_title(label: str) -> str:
