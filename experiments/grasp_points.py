@@ -43,7 +43,7 @@ PINCH_HALF_M = 0.02  # SHAPES: the power shapes' half widths are >= 0.022 m, the
 
 @dataclass
 class GraspPointsConfig:
-    cache_dir: str = "outputs/experiments/_sim"  # closed_loop.py's: <cache_dir>/GraspLift-v0/<hand>/native_<pool>
+    cache_dir: str = "outputs/experiments/_sim"  # closed_loop.py's: <cache_dir>/GraspLift-v0/seed0/<hand>/native_<pool>
     hands: list[str] = field(default_factory=lambda: list(HANDS))
     pool: int = 50
     lift_m: float = 0.01  # the object counts as lifted this far above its resting height
@@ -94,7 +94,7 @@ def hand_points(cfg: GraspPointsConfig, hand: str) -> tuple[list[dict], np.ndarr
     from lerobot_unidextok.data.reader import data_files
     from lerobot_unidextok.data.wrist_frame import read_recorded
 
-    root = Path(cfg.cache_dir) / TASK / hand / f"native_{cfg.pool}"
+    root = Path(cfg.cache_dir) / TASK / "seed0" / hand / f"native_{cfg.pool}"  # seed 0's recording
     frame = read_recorded(root)
     if frame is None or hand not in frame.grasp_centre_in_wrist_m:
         raise FileNotFoundError(f"{root}: no recorded GraspLift dataset with a grasp centre for {hand}; record it "

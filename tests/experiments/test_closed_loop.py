@@ -252,3 +252,20 @@ def test_the_robustness_summary_pools_the_seeds_and_bounds_the_gain():
     assert goals["T pool 2: the mix never below zero-shot"]["why"] == "c 50 < 60"
     reach = goals["T pool 2: the mix at 10 demos reaches the hand alone at 25, on average over 3 targets"]
     assert reach["value"] == pytest.approx((52 + 72 + 50) / 3 - 60) and reach["met"] is False
+
+
+def test_the_mechanism_arms_run_last_on_their_pools_and_add_one_flag_each():
+    cfg = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], arms=["alone", "mix", "zero_shot", "mix_heads", "mix_morph",
+                                                           "zero_shot_morph"],
+                              pools=[2, 3, 6], mechanism_pools=[2, 6], seeds=[0], demos=[10], mix_demos=[10])  # fmt: skip
+    order = [j["arm"] for j in cl.jobs(cfg)]
+    table = {"alone_10", "mix_10_pool2", "mix_10_pool3", "mix_10_pool6", "zero_shot_pool2", "zero_shot_pool3",
+             "zero_shot_pool6"}  # fmt: skip
+    mechanisms = {"mix_heads_10_pool2", "mix_heads_10_pool6", "mix_morph_10_pool2", "mix_morph_10_pool6",
+                  "zero_shot_morph_pool6"}  # fmt: skip
+    assert set(order) == table | mechanisms and len(order) == 6 * len(table | mechanisms)
+    assert set(order[: 6 * len(table)]) == table  # every hand's table arms before any mechanism arm
+    assert cl.arm_flags(cfg, "mix_heads") == ["--policy.udt_hand_heads=true"]
+    assert cl.arm_flags(cfg, "mix_morph") == cl.arm_flags(cfg, "zero_shot_morph") == [
+        "--policy.udt_hand_identity=morphology"
+    ]
