@@ -126,3 +126,20 @@ def test_the_morphology_identity_describes_every_hand_and_a_zero_shot_one_too(to
         np.testing.assert_array_equal(tail[1], want)
     with pytest.raises(ValueError, match=r"hand identity must be one of \('onehot', 'morphology'\), got 'id'"):
         UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, state_names=NAMES, pretrained=str(tok_dir), identity="id")
+
+
+def test_a_hands_morphology_identity_is_the_same_in_any_mix(tok_dir, rows):
+    """The one-hot of a hand depends on the mix's vocabulary (its place in it); its morphology does not."""
+    states, ids = rows
+    kwargs = dict(state_names=NAMES, pretrained=str(tok_dir), identity="morphology")
+    a = UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, **kwargs)
+    b = UniDexTokMixedTokenizerStep(hand_vocabulary=[L10, "human", INSPIRE], allow_unknown=True, **kwargs)
+    swapped = torch.where(ids == 1, 0, torch.where(ids == 0, 2, ids))  # the same hands under b's indices
+    view_a = a.observation({OBS_STATE: states, OBS_HAND_IDS: ids})[OBS_HAND_TOKEN_FEATURES]
+    view_b = b.observation({OBS_STATE: states, OBS_HAND_IDS: swapped})[OBS_HAND_TOKEN_FEATURES]
+    torch.testing.assert_close(view_a[:, 2 * UDHM_DIM :], view_b[:, 2 * UDHM_DIM :], rtol=0, atol=0)
+    onehot = [UniDexTokMixedTokenizerStep(hand_vocabulary=v, state_names=NAMES, pretrained=str(tok_dir),
+                                          allow_unknown=True) for v in (VOCAB, [L10, "human", INSPIRE])]  # fmt: skip
+    tails = [s.observation({OBS_STATE: states, OBS_HAND_IDS: i})[OBS_HAND_TOKEN_FEATURES][:, 2 * UDHM_DIM :]
+             for s, i in zip(onehot, (ids, swapped), strict=True)]  # fmt: skip
+    assert tails[0].shape != tails[1].shape  # a one-hot is as wide as its mix's vocabulary
