@@ -144,7 +144,8 @@ def summary(task_name: str, trace: EpisodeTrace) -> dict:
         up = [k for k, s in enumerate(states) if s["up_m"] >= PinchPlace.LIFTED_M]
         start = np.array(states[0]["xy"])
         out.update(finger=states[-1]["finger"], lifted=states[-1]["lifted"], released=not states[-1]["by"],
-                   start_mm=_mm(dist[0]), final_mm=_mm(dist[-1]), final_tilt_deg=round(states[-1]["tilt_deg"], 1),
+                   start_mm=_mm(dist[0]), final_mm=_mm(dist[-1]), final_up_mm=_mm(states[-1]["up_m"]),
+                   final_tilt_deg=round(states[-1]["tilt_deg"], 1),
                    let_go_mm=_mm(dist[held[-1]]) if held else None,
                    closest_lifted_mm=_mm(min(dist[k] for k in up)) if up else None)  # fmt: skip
         if held:
@@ -176,11 +177,18 @@ def aggregate(task_name: str, rows: list[dict], n_action_steps: int | None) -> d
         out["first_press"] = {k: first.get(k, 0) for k in ("due", "another of the three", "not in the order", "none")}
         out["presses_done"] = {str(k): sum(r["done"] == k for r in rows) for k in range(4)}
     elif task_name == "PinchPlace-v0":
+        from lerobot_env_unidextok.pinch_place import PinchPlace
+
         lifted = [r for r in rows if r["lifted"]]
         reasons = Counter(r["reason"] for r in rows)
+        # let go standing on the table: the task's resting height and upright tilt (its success test but the place)
+        on_table = [r for r in rows if r["released"] and abs(r["final_up_mm"]) <= 1000 * PinchPlace.RESTING_M]
+        upright_deg = np.degrees(PinchPlace.UPRIGHT_RAD)
         out.update(
             lifted=len(lifted), never_lifted=len(rows) - len(lifted), knocked_over=reasons["knocked over"],
-            dropped=reasons["dropped"], released=sum(r["released"] for r in rows),
+            dropped=reasons["dropped"], released=sum(r["released"] for r in rows), released_on_table=len(on_table),
+            released_standing=sum(bool(r["final_tilt_deg"] <= upright_deg) for r in on_table),
+            resting_mm=1000 * PinchPlace.RESTING_M, upright_deg=round(float(upright_deg), 1),
             let_go_mm_median=_median([r["let_go_mm"] for r in rows]),
             closest_lifted_mm_median=_median([r["closest_lifted_mm"] for r in lifted]),
             carry_along_mm_median=_median([r.get("carry_along_mm") for r in lifted]),
@@ -332,6 +340,8 @@ def markdown(result: dict) -> str:
             ["lifted (>= 15 mm)", s["lifted"]], ["never lifted", s["never_lifted"]],
             ["knocked over / dropped", f"{s['knocked_over']} / {s['dropped']}"],
             ["released at the end (no finger on it)", s["released"]],
+            [f"of them on the table (within {s['resting_mm']:g} mm of resting) / standing (under "
+             f"{s['upright_deg']:g} degrees)", f"{s['released_on_table']} / {s['released_standing']}"],
             ["let go (last touched): distance from the target's centre, median mm", _value(s["let_go_mm_median"])],
             ["closest to the target while lifted, median mm (lifted)", _value(s["closest_lifted_mm_median"])],
             ["carried toward the target, median mm (lifted)", _value(s["carry_along_mm_median"])],

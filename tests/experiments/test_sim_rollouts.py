@@ -46,7 +46,7 @@ def test_the_expert_pinches_lifts_and_sets_the_cylinder_down_in_the_target(tmp_p
     result = _run(tmp_path, "PinchPlace-v0")
     s = result["summary"]
     assert s["successes"] == 3 and s["lifted"] == 3 and s["never_lifted"] == 0 and s["released"] == 3
-    assert s["knocked_over"] == s["dropped"] == 0
+    assert s["knocked_over"] == s["dropped"] == 0 and s["released_on_table"] == s["released_standing"] == 3
     assert s["let_go_mm_median"] < 20 and s["closest_lifted_mm_median"] < 20  # the target's radius
     assert 60 <= s["start_mm_median"] <= 90 and s["carry_along_mm_median"] > 50 and s["final_tilt_deg_median"] < 20
     assert "chunk_phase_progress_mm" not in s  # the expert has no action chunk
