@@ -53,6 +53,14 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   `mix_morph_<n>`, `zero_shot_morph`: `mix_<n>` and `zero_shot` with each hand told by its morphology vector
   (`--policy.udt_hand_identity=morphology`) instead of a one-hot (with one other hand, zero-shot trains on that
   robot alone and has no identity to set);
+- `mix_ft_<n>`: pool, then specialise at matched compute: `mix_<n>` trained for `steps // 2` updates, bound to the
+  target, then trained further by the stock `lerobot-train --policy.path=<bound checkpoint>` on the target's own
+  dataset (`alone_<n>`'s: the same n demonstrations) for the other `steps - steps // 2` (`fine_tune_args`); the
+  fine-tune makes its episode map anew for that dataset (one robot: no shares), LeRobot's statistics
+  (`meta/stats.json`: the state's normaliser) are the target dataset's, and the per-hand statistics stay the
+  checkpoint's, whose target hand's are those of the same n demonstrations (the mix computes them from its rows of
+  that hand), so they equal what the target's dataset gives; the action's wrist (passthrough) columns keep the
+  mix's statistics (the per-hand step holds them, and lerobot-train overrides only LeRobot's normaliser);
 - `zero_shot`: the pool's other hands, none of the target's demonstrations, bound with `--zero_shot=true` (one
   other hand: its converted recording, no mix); `zero_shot_no_frame`: the same in the robots' wrist frames.
 Also measured: the scripted expert on each seed's evaluation episodes. `robustness` gives per task and pool size
@@ -142,12 +150,16 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "mix_heads": ("mix", ("--policy.udt_hand_heads=true",)),
     "mix_morph": ("mix", (MORPHOLOGY,)),
     "zero_shot_morph": ("without", (MORPHOLOGY,)),
+    # pool, then specialise (issue 57): `mix` for steps // 2, bound, then lerobot-train --policy.path= on the
+    # target's own dataset for the rest (`FINE_TUNED`, `fine_tune_args`)
+    "mix_ft": ("mix", ()),
 }
 MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
 ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")
 # run on ablation_targets: the ablations, the old recipe and the budget rule's arm
 PRUNED = (*ABLATIONS, "alone_no_frame", "pooled", "mix_rule")
-MECHANISMS = ("mix_heads", "mix_morph", "zero_shot_morph")  # run on `mechanism_pools`, after every other arm
+MECHANISMS = ("mix_heads", "mix_morph", "zero_shot_morph", "mix_ft")  # run on `mechanism_pools`, after every other arm
+FINE_TUNED = ("mix_ft",)  # trained in two stages: the mix, then the target's own dataset (`pool_then_fine_tune`)
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 MAPPINGS = {"semantic": "semantic", "packed": "append_pad"}  # a conversion's name -> unidextok-convert --mapping
 # seeds: seed s offsets every range below by s * SEED_STRIDE (`seed_ranges` checks none overlaps another)
@@ -438,6 +450,58 @@ def train_policy(args: list[str], out: Path) -> Path:
     return model
 
 
+def fine_tune_steps(cfg: ClosedLoopConfig) -> tuple[int, int]:
+    """(updates on the mix, updates on the target's own dataset) of a fine-tuned arm: `steps` in all."""
+    return cfg.steps // 2, cfg.steps - cfg.steps // 2
+
+
+def fine_tune_args(cfg: ClosedLoopConfig, checkpoint: Path, root: Path, out: Path, seed: int, steps: int) -> list[str]:
+    """The stock fine-tune's arguments, `lerobot-train <these>` (docs/lerobot.md "Pooling hands", step 6): the bound
+    checkpoint (its config, the user's flags included, is the policy's: no `--config_path`, whose policy section
+    would override it), the target's dataset, the updates, batch, seed and output; `--num_workers=0` is the
+    recipe's (act_udt_cpu.yaml) in place of LeRobot's default 4."""
+    return [f"--policy.path={checkpoint}", f"--dataset.repo_id={repo_id(cfg, root)}", f"--dataset.root={root}",
+            f"--steps={steps}", f"--batch_size={cfg.batch_size}", f"--seed={seed}", "--num_workers=0",
+            f"--output_dir={out}"]  # fmt: skip
+
+
+def fine_tune_policy(args: list[str], out: Path) -> Path:
+    """`lerobot-train <args>` as the stock command runs it (its `parser.wrap` reads `--policy.path` from the
+    command line, so the arguments are that command line while it runs, in this process); the `pretrained_model`."""
+    import sys
+
+    from lerobot.scripts.lerobot_train import train
+
+    import lerobot_policy_unidextok  # noqa: F401  (the <type>_udt policies, as LeRobot's CLIs discover them)
+
+    model = out / "checkpoints" / "last" / "pretrained_model"
+    if (model / "model.safetensors").is_file():
+        return model
+    shutil.rmtree(out, ignore_errors=True)
+    _serve_frames_from_memory()
+    argv, sys.argv = sys.argv, ["lerobot-train", *args]
+    try:
+        train()
+    finally:
+        sys.argv = argv
+    return model
+
+
+def pool_then_fine_tune(cfg: ClosedLoopConfig, job: dict, p: dict, out: Path) -> tuple[Path, dict]:
+    """A `FINE_TUNED` arm: its mix trained for the first half of `steps` (`out/pooled`), bound to the target
+    (`out/bound`), trained further on the target's own dataset (`p["robot"]`, the `alone` arm's) for the rest
+    (`out/fine_tuned`); (the checkpoint to score, what the run records of it)."""
+    first, second = fine_tune_steps(cfg)
+    pooled = train_policy(train_args(cfg, p["root"], out / "pooled", job["seed"], arm_flags(cfg, job["kind"]), first),
+                          out / "pooled")  # fmt: skip
+    bound = bind(pooled, p["robot"], out / "bound")
+    tuned = fine_tune_policy(fine_tune_args(cfg, bound, p["robot"], out / "fine_tuned", job["seed"], second),
+                             out / "fine_tuned")  # fmt: skip
+    for stage in ("pooled", "fine_tuned"):
+        shutil.rmtree(out / stage / "checkpoints" / "last" / "training_state", ignore_errors=True)
+    return tuned, {"pool_steps": first, "fine_tune_steps": second, "fine_tune_dataset": str(p["robot"])}
+
+
 _FRAMES: dict[tuple, dict] = {}  # (dataset root, frame index, delta timestamps) -> LeRobot's item
 
 
@@ -599,8 +663,12 @@ def run_one(cfg: ClosedLoopConfig, job: dict) -> dict:
         shutil.rmtree(out, ignore_errors=True)
     steps = job_steps(cfg, job, p["root"])
     cpu0, t0 = time.process_time(), time.time()
-    model = train_policy(train_args(cfg, p["root"], out, seed, arm_flags(cfg, job["kind"]), steps), out)
-    bound = model if p["robot"] is None else bind(model, p["robot"], out / "bound", zero_shot=p["zero_shot"])
+    stages: dict = {}
+    if job["kind"] in FINE_TUNED:
+        bound, stages = pool_then_fine_tune(cfg, job, p, out)
+    else:
+        model = train_policy(train_args(cfg, p["root"], out, seed, arm_flags(cfg, job["kind"]), steps), out)
+        bound = model if p["robot"] is None else bind(model, p["robot"], out / "bound", zero_shot=p["zero_shot"])
     train_cpu = time.process_time() - cpu0
     cpu1 = time.process_time()
     scores = evaluate(cfg, bound, task, hand, seed)
@@ -609,7 +677,7 @@ def run_one(cfg: ClosedLoopConfig, job: dict) -> dict:
         if p["root"] not in p["paths"] and not p["zero_shot"]
         else {}
     )
-    result = {**job, **scores, **share, "steps": steps, "dataset": str(p["root"]), "train_cpu_s": round(train_cpu, 1),
+    result = {**job, **scores, **share, **stages, "steps": steps, "dataset": str(p["root"]), "train_cpu_s": round(train_cpu, 1),
               "eval_cpu_s": round(time.process_time() - cpu1, 1), "wall_s": round(time.time() - t0, 1)}  # fmt: skip
     done.parent.mkdir(parents=True, exist_ok=True)
     done.write_text(json.dumps(result))
@@ -644,13 +712,20 @@ def user_commands(cfg: ClosedLoopConfig, job: dict) -> list[str]:
                                f"--root={q(str(p['root']))}", f"--repo_id={repo_id(cfg, p['root'])}", "--keep=all",
                                *weights, *by]))  # fmt: skip
     steps = job_steps(cfg, job, p["root"]) if job["kind"] == "mix_rule" else cfg.steps
-    args = train_args(cfg, p["root"], out, seed, arm_flags(cfg, job["kind"]), steps)
+    fine_tuned = job["kind"] in FINE_TUNED
+    trained = out / "pooled" if fine_tuned else out
+    steps = fine_tune_steps(cfg)[0] if fine_tuned else steps
+    args = train_args(cfg, p["root"], trained, seed, arm_flags(cfg, job["kind"]), steps)
     lines.append(" ".join([f"lerobot-train --config_path=$(unidextok-config {CONFIG})", *map(q, args)]))
-    policy = out / "checkpoints" / "last" / "pretrained_model"
+    policy = trained / "checkpoints" / "last" / "pretrained_model"
     if p["robot"] is not None:
         lines.append(f"unidextok-deploy --checkpoint={q(str(policy))} --robot={q(str(p['robot']))} "
                      f"--output={q(str(out / 'bound'))}" + (" --zero_shot=true" if p["zero_shot"] else ""))  # fmt: skip
         policy = out / "bound"
+    if fine_tuned:
+        args = fine_tune_args(cfg, policy, p["robot"], out / "fine_tuned", seed, fine_tune_steps(cfg)[1])
+        lines.append(" ".join(["lerobot-train", *map(q, args)]))
+        policy = out / "fine_tuned" / "checkpoints" / "last" / "pretrained_model"
     lines.append(f"lerobot-eval --policy.path={q(str(policy))} --env.type=unidextok --env.task={task} --env.hand={hand} "
                  f"--eval.n_episodes={cfg.eval_episodes} --eval.batch_size={min(cfg.eval_episodes, 50)} "
                  f"--eval.use_async_envs=false --policy.device=cpu --seed={eval_start(cfg, seed)} "
@@ -687,6 +762,11 @@ def run(cfg: ClosedLoopConfig) -> dict:
     result["wall_seconds"] = round(max(result["wall_seconds"], result["costs"]["runs_wall_s"]), 1)
     example = next((j for j in todo if j["kind"] == "mix"), None)
     result["user_commands"] = user_commands(cfg, example) if example else []
+    tuned = next((j for j in todo if j["kind"] in FINE_TUNED), None)
+    if tuned:  # its data commands are the mix's: from its first training on
+        lines = user_commands(cfg, tuned)
+        first = next(i for i, x in enumerate(lines) if x.startswith("lerobot-train "))
+        result["fine_tune_commands"] = lines[first:]
     result["goals"] = goals(result, cfg)
     result["command"] = command_line(cfg)
     result["provenance"] = {
@@ -840,7 +920,8 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "zero_shot_no_frame": "zero-shot without the grasp-centre frame", "alone": "alone",
               "alone_state": "alone, state input", "alone_no_frame": "alone without the grasp-centre frame",
               "mix_heads": "mix, per-hand output heads", "mix_morph": "mix, morphology identity",
-              "zero_shot_morph": "zero-shot, morphology identity"}  # fmt: skip
+              "zero_shot_morph": "zero-shot, morphology identity",
+              "mix_ft": "mix, then fine-tuned on the target (half the updates each)"}  # fmt: skip
 
 
 def arm_title(label: str) -> str:
@@ -944,6 +1025,9 @@ def markdown(result: dict) -> str:
     if result.get("user_commands"):
         lines += ["The commands a user runs for one mix arm (the first of the table):", "", "```bash",
                   *result["user_commands"], "```", ""]  # fmt: skip
+    if result.get("fine_tune_commands"):
+        lines += ["The fine-tuned arm's commands after its mix (half the updates on the mix, bound, the other half on "
+                  "the target's own dataset):", "", "```bash", *result["fine_tune_commands"], "```", ""]  # fmt: skip
     lines += ["Goals:", ""]
     lines += [f"- {'met' if g['met'] else 'NOT met'}: {g['goal']} ({g['value']:+.1f}" + (f"; {g['why']})" if g["why"] else ")")
               for g in result["goals"]]  # fmt: skip

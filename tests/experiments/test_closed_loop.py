@@ -107,9 +107,12 @@ def test_every_arm_trains_on_exactly_its_demonstrations_and_is_scored_in_closed_
 
 def test_the_train_args_are_the_rendered_user_command_and_the_default_arms_add_no_hand_flag():
     cfg = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], pools=[2, 3, 6], demos=[10], mix_demos=[10],
-                              arms=["alone", "mix", "zero_shot", "mix_state"])  # fmt: skip
+                              arms=["alone", "mix", "zero_shot", "mix_state", "mix_ft"])  # fmt: skip
     for job in cl.jobs(cfg):
         p = cl.plan(cfg, job)
+        if job["kind"] == "mix_ft":
+            _the_fine_tuned_arm_renders_both_of_its_trainings(cfg, job, p)
+            continue
         args = cl.train_args(
             cfg, p["root"], cl.policy_dir(cfg, job), job["seed"], cl.arm_flags(cfg, job["kind"]), cfg.steps
         )
@@ -134,6 +137,33 @@ def test_the_train_args_are_the_rendered_user_command_and_the_default_arms_add_n
         pool = cl.pool_hands(cfg.hands, job["hand"], job["pool"]) if job["pool"] else [job["hand"]]
         assert hands[: len(pool) - (job["kind"] == "zero_shot")] == (pool[1:] if job["kind"] == "zero_shot" else pool)
         assert lines[-1].startswith("lerobot-eval ") and f"--seed={cl.eval_start(cfg, job['seed'])}" in lines[-1]
+
+
+def _the_fine_tuned_arm_renders_both_of_its_trainings(cfg, job, p):
+    """mix_ft's commands: the mix trained for half the updates, bound to the target, fine-tuned by the stock
+    lerobot-train --policy.path= on the target's own dataset (the alone arm's) for the rest, then scored."""
+    out, lines = cl.policy_dir(cfg, job), cl.user_commands(cfg, job)
+    train = [line for line in lines if line.startswith("lerobot-train ")]
+    assert len(train) == 2 and train[0].startswith(
+        "lerobot-train --config_path=$(unidextok-config lerobot/act_udt_cpu) "
+    )
+    first, second = cl.fine_tune_steps(cfg)
+    assert first + second == cfg.steps and first == cfg.steps // 2
+    assert shlex.split(train[0])[3:] == cl.train_args(cfg, p["root"], out / "pooled", job["seed"], [], first)
+    bound = out / "bound"
+    assert shlex.split(train[1])[1:] == cl.fine_tune_args(
+        cfg, bound, p["robot"], out / "fine_tuned", job["seed"], second
+    )
+    alone = next(
+        j for j in cl.jobs(cfg) if j["hand"] == job["hand"] and j["seed"] == job["seed"] and j["kind"] == "alone"
+    )
+    assert p["robot"] == cl.plan(cfg, alone)["root"]  # the fine-tune's dataset is the alone arm's, nothing more
+    assert "--config_path" not in train[1] and f"--dataset.root={p['robot']}" in shlex.split(train[1])
+    deploy = next(i for i, line in enumerate(lines) if line.startswith("unidextok-deploy "))
+    assert lines.index(train[0]) < deploy < lines.index(train[1]) and f"--output={bound}" in lines[deploy]
+    assert sum(line.startswith("unidextok-mix ") for line in lines) == 1
+    tuned = out / "fine_tuned" / "checkpoints" / "last" / "pretrained_model"
+    assert lines[-1].startswith(f"lerobot-eval --policy.path={tuned} ")
 
 
 def test_the_pool_is_the_target_and_the_hands_after_it_cyclically():
@@ -269,3 +299,68 @@ def test_the_mechanism_arms_run_last_on_their_pools_and_add_one_flag_each():
     assert cl.arm_flags(cfg, "mix_morph") == cl.arm_flags(cfg, "zero_shot_morph") == [
         "--policy.udt_hand_identity=morphology"
     ]
+    fine = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], arms=["mix", "mix_ft"], pools=[2, 6], mechanism_pools=[6],
+                               seeds=[0], demos=[10], mix_demos=[10])  # fmt: skip
+    order = [j["arm"] for j in cl.jobs(fine)]
+    assert order[:6] == ["mix_10_pool2", "mix_10_pool6"] * 3 and set(order[12:]) == {"mix_ft_10_pool6"}
+    assert len(order) == 18 and cl.arm_flags(fine, "mix_ft") == []  # the default recipe, trained in two stages
+    assert cl.arm_title("mix_ft_10_pool6").startswith("mix, then fine-tuned on the target")
+
+
+@pytest.mark.slow
+def test_the_fine_tuned_arm_pools_then_trains_on_the_targets_own_dataset_with_its_statistics(tmp_path):
+    """mix_ft: the mix for half the updates, bound, then the stock lerobot-train --policy.path= on the alone arm's
+    dataset for the rest; the fine-tune's episode map and LeRobot's statistics are the target dataset's, and the
+    per-hand statistics it keeps are those of the same demonstrations. The action's passthrough (wrist) columns keep
+    the mix's statistics (the per-hand step's state; lerobot-train overrides only LeRobot's normaliser)."""
+    from safetensors.numpy import load_file
+
+    from lerobot_unidextok.blocks import passthrough_indices
+    from lerobot_unidextok.conversion.hand_stats import hand_stats, training_episodes
+    from lerobot_unidextok.data.share_sampler import episode_map_key
+
+    argv = ["--tasks=[FingerPress-v0]", "--hands=[shadow,allegro]", "--targets=[shadow]", *TINY, "--steps=3",
+            "--arms=[alone,mix_ft]", f"--output_root={tmp_path / 'out'}", f"--cache_dir={tmp_path / 'sim'}"]  # fmt: skip
+    cfg = cl.runtime.parse(cl.ClosedLoopConfig, argv)
+    result = cl.run(cfg)
+    runs = {r["arm"]: r for r in result["runs"]}
+    alone = tmp_path / "sim/FingerPress-v0/seed0/shadow/semantic_2"
+    tuned_run = runs["mix_ft_2_pool2"]
+    assert runs["alone_2"]["dataset"] == tuned_run["fine_tune_dataset"] == str(alone)
+    assert (tuned_run["pool_steps"], tuned_run["fine_tune_steps"], tuned_run["steps"]) == (1, 2, 3)  # matched compute
+    assert tuned_run["dataset"] != str(alone) and tuned_run["episodes"] == 2
+    folder = tmp_path / "out" / cl.NAME / "policies/FingerPress-v0/shadow/seed0/mix_ft_2_pool2"
+    model = folder / "fine_tuned/checkpoints/last/pretrained_model"
+    # what lerobot-train saved is what the rendered fine-tune command asks for
+    job = next(j for j in cl.jobs(cfg) if j["kind"] == "mix_ft")
+    line = [x for x in cl.user_commands(cfg, job) if x.startswith("lerobot-train ")][1]
+    flags = dict(a[2:].split("=", 1) for a in shlex.split(line)[1:])
+    trained = json.loads((model / "train_config.json").read_text())
+    assert trained["policy"]["pretrained_path"] == flags["policy.path"] == str(folder / "bound")
+    assert trained["dataset"]["root"] == flags["dataset.root"] == str(alone)
+    assert [trained[k] for k in ("steps", "batch_size", "seed", "num_workers")] == [
+        int(flags[k]) for k in ("steps", "batch_size", "seed", "num_workers")
+    ]
+    pooled = json.loads((folder / "pooled/checkpoints/last/pretrained_model/train_config.json").read_text())
+    assert pooled["steps"] == 1 and pooled["dataset"]["root"] == tuned_run["dataset"]
+    # the episode map made anew for the target's dataset: one robot, no shares
+    tuned = json.loads((model / "config.json").read_text())
+    assert tuned["udt_episode_map_of"] == episode_map_key(UdhmDatasetMeta(alone)) and tuned["udt_input_shares"] == []
+    assert tuned["udt_fixed_hand_ids"] and tuned["n_action_steps"] == 10 and tuned["udt_relative_actions"] is False
+    # LeRobot's statistics (the state's normaliser): the target dataset's, not the mix's
+    stats = json.loads((alone / "meta/stats.json").read_text())
+    mixed = json.loads((tmp_path / tuned_run["dataset"] / "meta/stats.json").read_text())
+    normaliser = load_file(next(model.glob("policy_preprocessor_step_*_normalizer_processor.safetensors")))
+    assert np.allclose(normaliser["observation.state.mean"], stats["observation.state"]["mean"], atol=1e-6)
+    assert not np.allclose(normaliser["observation.state.mean"], mixed["observation.state"]["mean"], atol=1e-6)
+    # the per-hand statistics stay the checkpoint's; the target's are those of the same demonstrations
+    own = hand_stats(alone, training_episodes(UdhmDatasetMeta(alone)))["action"]["right"]["shadow"]
+    kept = tuned["udt_hand_stats"]["action"]["right"]["shadow"]
+    assert kept["frames"] == own["frames"] == _frames(alone)
+    assert all(np.allclose(kept[k], own[k], atol=1e-6) for k in ("mean", "std"))
+    # the action's wrist columns: the mix's statistics, kept by the per-hand step
+    step = load_file(next(model.glob("policy_preprocessor_step_*_unidextok.hand_normalizer.safetensors")))
+    wrist = list(passthrough_indices(UdhmDatasetMeta(alone).names("action")))
+    assert np.allclose(step["action.passthrough.mean"], np.asarray(mixed["action"]["mean"])[wrist], atol=1e-6)
+    text = cl.markdown(result)
+    assert "The fine-tuned arm's commands after its mix" in text and f"--policy.path={folder / 'bound'}" in text
