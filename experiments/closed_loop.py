@@ -975,6 +975,33 @@ def robustness_lines(result: dict) -> list[str]:
     return lines
 
 
+def mechanism_lines(result: dict) -> list[str]:
+    """Per task, mechanism arm and pool size: the gain over the hand alone at the same demonstrations (points, per
+    target), its mean and worst, and the targets within `NEVER_WORSE_POINTS` of alone; zero-shot mechanisms against
+    the default zero-shot of the same pool. From the summary, so it reads what the table beside it shows."""
+    lines = []
+    n = result["config"]["mix_demos"][0]
+    for task, by_hand in result["summary"].items():
+        rows = []
+        for arm, base in (("mix", "alone"), ("mix_heads", "alone"), ("mix_morph", "alone"), ("mix_ft", "alone"),
+                          ("zero_shot_morph", "zero_shot")):  # fmt: skip
+            for k in result["config"]["pools"]:
+                label, ref = (f"{arm}_{n}_pool{k}", f"alone_{n}") if base == "alone" else (f"{arm}_pool{k}", f"{base}_pool{k}")
+                pairs = {h: a[label]["mean"] - a[ref]["mean"] for h, a in by_hand.items() if label in a and ref in a}
+                if len(pairs) < 2 or (arm == "mix" and f"mix_heads_{n}_pool{k}" not in next(iter(by_hand.values()))):
+                    continue
+                worst = min(pairs, key=pairs.get)
+                rows.append([arm_title(label), *(f"{pairs[h]:+.0f}" if h in pairs else "-" for h in by_hand),
+                             f"{np.mean(list(pairs.values())):+.1f}", f"{worst} {pairs[worst]:+.0f}",
+                             f"{sum(g >= -NEVER_WORSE_POINTS for g in pairs.values())}/{len(pairs)}"])  # fmt: skip
+        if rows:
+            lines += [f"**{task}**, each mechanism's gain (points, mean over seeds) over the hand alone at {n} "
+                      "demonstrations (zero-shot arms: over the default zero-shot of the same pool):", "",
+                      md_table(["arm", *by_hand, "mean", "worst", f"within {NEVER_WORSE_POINTS:g} points or better"],
+                               rows), ""]  # fmt: skip
+    return lines
+
+
 def markdown(result: dict) -> str:
     cfg, s, costs = result["config"], result["summary"], result["costs"]
     cpu_min = sum(costs[k] for k in ("data_cpu_s", "train_cpu_s", "eval_cpu_s", "expert_cpu_s")) / 60
@@ -1004,6 +1031,7 @@ def markdown(result: dict) -> str:
         f"{per_policy[1] / 60:.2f} evaluation); the policies took {costs['runs_wall_s'] / 60:.0f} min of wall time "
         "summed over them (runs already done are reused, so one command may be split over processes).", ""]  # fmt: skip
     lines += robustness_lines(result)
+    lines += mechanism_lines(result)
     for task, by_hand in s.items():
         hands = list(by_hand)
         arms = list(dict.fromkeys(a for h in hands for a in by_hand[h]))

@@ -364,3 +364,20 @@ def test_the_fine_tuned_arm_pools_then_trains_on_the_targets_own_dataset_with_it
     assert np.allclose(step["action.passthrough.mean"], np.asarray(mixed["action"]["mean"])[wrist], atol=1e-6)
     text = cl.markdown(result)
     assert "The fine-tuned arm's commands after its mix" in text and f"--policy.path={folder / 'bound'}" in text
+
+
+def test_the_mechanism_table_gives_each_arms_gain_over_the_hand_alone():
+    def arm(mean):
+        return {"mean": mean}
+
+    summary = {"GraspLift-v0": {
+        "shadow": {"alone_10": arm(50), "mix_10_pool2": arm(40), "mix_heads_10_pool2": arm(55), "zero_shot_pool6": arm(20),
+                   "zero_shot_morph_pool6": arm(10), "mix_morph_10_pool2": arm(48)},
+        "leap": {"alone_10": arm(40), "mix_10_pool2": arm(60), "mix_heads_10_pool2": arm(50), "zero_shot_pool6": arm(30),
+                 "zero_shot_morph_pool6": arm(36), "mix_morph_10_pool2": arm(70)},
+    }}  # fmt: skip
+    text = "\n".join(cl.mechanism_lines({"config": {"mix_demos": [10], "pools": [2, 6]}, "summary": summary}))
+    assert "| mix, 10 demos, 2-hand pool | -10 | +20 | +5.0 | shadow -10 | 1/2 |" in text
+    assert "| mix, per-hand output heads, 10 demos, 2-hand pool | +5 | +10 | +7.5 | shadow +5 | 2/2 |" in text
+    assert "| mix, morphology identity, 10 demos, 2-hand pool | -2 | +30 | +14.0 | shadow -2 | 2/2 |" in text
+    assert "| zero-shot, morphology identity, 6-hand pool | -10 | +6 | -2.0 | shadow -10 | 1/2 |" in text
