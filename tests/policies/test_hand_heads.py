@@ -16,20 +16,11 @@ from lerobot_unidextok.data import UdhmDatasetMeta
 from lerobot_unidextok.errors import ConfigError
 from lerobot_unidextok.policies import ACTUdtConfig, DiffusionUdtConfig
 from lerobot_unidextok.policies.hand_heads import HandHeads
-from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 
 CHUNK = 4
 TINY = dict(chunk_size=CHUNK, n_action_steps=CHUNK, dim_model=32, n_heads=2, dim_feedforward=64, n_encoder_layers=1,
             n_decoder_layers=1, use_vae=False)  # fmt: skip
 HEAD_KEYS = ("model.action_head.hand_weight", "model.action_head.hand_bias")
-
-
-@pytest.fixture(scope="module")
-def tok_dir(tmp_path_factory):
-    torch.manual_seed(2)
-    path = tmp_path_factory.mktemp("tok") / "unidextok-tiny"
-    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["human", L10, INSPIRE])).save_pretrained(path)
-    return path
 
 
 def _config(tok_dir, root, **kw) -> tuple[ACTUdtConfig, object]:

@@ -16,7 +16,6 @@ from lerobot_unidextok.constants import ACTION, OBS_HAND_IDS, OBS_STATE, UDHM_DI
 from lerobot_unidextok.data import UdhmDatasetMeta
 from lerobot_unidextok.policies import ACTUdtConfig, DiffusionUdtConfig
 from lerobot_unidextok.processor import ACTION_SLOT_PAD_KEY, HandNormalizerStep, SlotMaskStep
-from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 
 CHUNK = 4
 TINY = {
@@ -26,14 +25,6 @@ TINY = {
                           diffusion_step_embed_dim=16),
 }  # fmt: skip
 CLASSES = {"act_udt": ACTUdtConfig, "diffusion_udt": DiffusionUdtConfig}
-
-
-@pytest.fixture(scope="module")
-def tok_dir(tmp_path_factory):
-    torch.manual_seed(2)
-    path = tmp_path_factory.mktemp("tok") / "unidextok-tiny"
-    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["human", L10, INSPIRE])).save_pretrained(path)
-    return path
 
 
 def _config(kind: str, tok_dir, root, **kw):

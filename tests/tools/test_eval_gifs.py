@@ -3,14 +3,13 @@
 No CLI is run here (the tool's record/train/eval steps are the project's CLIs, tested where they live).
 """
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import av
 import numpy as np
 import pytest
 from PIL import Image, ImageSequence
+from tool_module import tool_module
 
 ROOT = Path(__file__).resolve().parents[2]
 COLOURS = ((220, 30, 30), (30, 220, 30), (30, 30, 220))  # frame i: one solid colour (RGB)
@@ -18,14 +17,8 @@ COLOURS = ((220, 30, 30), (30, 220, 30), (30, 30, 220))  # frame i: one solid co
 
 @pytest.fixture(scope="module")
 def eval_gifs():
-    spec = importlib.util.spec_from_file_location("unidextok_eval_gifs_tool", ROOT / "tools" / "sim" / "eval_gifs.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while the file executes
-    try:
-        spec.loader.exec_module(module)
+    with tool_module("sim/eval_gifs.py", "unidextok_eval_gifs_tool") as module:
         yield module
-    finally:
-        sys.modules.pop(spec.name, None)
 
 
 def _write_mp4(path: Path, fps: int) -> None:

@@ -3,25 +3,19 @@
 Runs `find_mutants` on small sources written here; no tests are run under mutation.
 """
 
-import importlib.util
 import sys
 from pathlib import Path
 
 import pytest
+from tool_module import tool_module
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
 def mutation():
-    spec = importlib.util.spec_from_file_location("unidextok_mutation_tool", ROOT / "tools" / "mutation.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while the file executes
-    try:
-        spec.loader.exec_module(module)
+    with tool_module("mutation.py", "unidextok_mutation_tool") as module:
         yield module
-    finally:
-        sys.modules.pop(spec.name, None)
 
 
 def _mutated_lines(mutation, source: str) -> dict[int, set[tuple[str, str]]]:
