@@ -25,7 +25,8 @@ Recipe. What a user runs: `unidextok-convert --source=lerobot --test_fraction=0`
 it), `lerobot-train --config_path=$(unidextok-config lerobot/act_udt_cpu)` with only `USER_FLAGS` (absolute actions,
 each predicted chunk of 10 actions run before the next prediction: closed-loop control, and lerobot-rollout
 refuses relative actions), `--steps`, `--batch_size` and the dataset, output and seed flags; so the hands go in as
-the policy's default gives them (the UDHM state and the shipped tokenizer's tokens). Mixed checkpoints are bound to
+the policy's default gives them (the UDHM state and the shipped tokenizer's tokens) and, on a mix, as the
+recipe gives them (each hand told by its morphology, a residual output head per hand). Mixed checkpoints are bound to
 the target with `unidextok-deploy`, and scored by LeRobot's `lerobot-eval` rollout (`eval_policy_all`, sync envs,
 no video) on `eval_episodes` episodes; success as the simulator decides it (`info["is_success"]`). Training runs
 LeRobot's own `lerobot-train` code in this process (its dataset items read once per process, then served from
@@ -36,7 +37,7 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   as the UDHM state only (`udt_hand_input=state`, no tokenizer); `alone_no_frame_<n>`: wrist actions in the robot's
   wrist frame;
 - `mix_<n>` for n in `mix_demos`: the target's n demonstrations and the pool's other hands' `pool` each, mixed
-  (semantic insertion, the hand's identity one-hot), bound to the target; `mix_state_<n>`: the same, state input;
+  (semantic insertion), bound to the target; `mix_state_<n>`: the same, state input;
 - `mix_rule_<n>`: `mix_<n>` trained for the budget rule's updates, `steps / share` with the target's share the
   mix recorded (its frame share when it recorded none), where every other arm trains `steps` (matched compute);
 - `pooled_<n>`: the recipe before 2026-12-05: LeRobot's one set of statistics for the mix, every slot trained, the
@@ -49,10 +50,11 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   task only);
 - `tokens_nearest_<n>`, `tokens_search_<n>`: `mix_<n>` with the hands given only as the tokenizer's (`--tokenizer`)
   tokens (the nearest codes, or the tokenizer's own encoding unless `encoding` is set);
-- `mix_heads_<n>`: `mix_<n>` with a residual output head per hand (`--policy.udt_hand_heads=true`);
-  `mix_morph_<n>`, `zero_shot_morph`: `mix_<n>` and `zero_shot` with each hand told by its morphology vector
-  (`--policy.udt_hand_identity=morphology`) instead of a one-hot (with one other hand, zero-shot trains on that
-  robot alone and has no identity to set);
+- the recipe's two pooling mechanisms (act_udt_cpu.yaml: `udt_hand_identity: morphology`, `udt_hand_heads:
+  true`), each taken out: `mix_heads_<n>` keeps the per-hand output heads and tells each hand by a one-hot
+  (`--policy.udt_hand_identity=onehot`), `mix_morph_<n>` and `zero_shot_morph` keep the morphology identity and
+  have no heads (`--policy.udt_hand_heads=false`); `mix_onehot_<n>` and `zero_shot_onehot` have neither, the
+  recipe before 2026-12-06 (with one other hand, zero-shot trains on that robot alone, where neither exists);
 - `mix_ft_<n>`: pool, then specialise at matched compute: `mix_<n>` trained for `steps // 2` updates, bound to the
   target, then trained further by the stock `lerobot-train --policy.path=<bound checkpoint>` on the target's own
   dataset (`alone_<n>`'s: the same n demonstrations) for the other `steps - steps // 2` (`fine_tune_args`); the
@@ -122,7 +124,8 @@ def encoding_flags(encoding: EncodingConfig | None) -> list[str]:
 # the state-only view (an ablation): no tokenizer, and the zeroed token view through the cheapest encoding
 STATE = ("--policy.udt_hand_input=state", "--policy.udt_pretrained=null", *encoding_flags(NEAREST_CODES))
 NO_FRAME = ("--policy.udt_wrist_frame=robot",)
-MORPHOLOGY = "--policy.udt_hand_identity=morphology"
+ONEHOT = "--policy.udt_hand_identity=onehot"
+NO_HEADS = "--policy.udt_hand_heads=false"
 POOLED = ("--policy.udt_hand_norm=off", "--policy.udt_mask_slots=false", *NO_FRAME)
 # arm -> (its dataset, lerobot-train flags beyond the user's); the dataset: the target alone, the mix (`mix`), the
 # mix of the target's copies (`copies`), the packed mix, or the pool's other hands without the target
@@ -144,12 +147,14 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "tokens_search": ("mix", ()),
     "zero_shot": ("without", ()),
     "zero_shot_no_frame": ("without", NO_FRAME),
-    # issue 57's mechanisms, each the default arm plus one flag: a residual output head per hand around the shared
-    # trunk (policies/hand_heads.py), and the hand told by its morphology vector instead of a one-hot
-    # (hands/morphology.py; a zero-shot hand gets its own vector, not zeros)
-    "mix_heads": ("mix", ("--policy.udt_hand_heads=true",)),
-    "mix_morph": ("mix", (MORPHOLOGY,)),
-    "zero_shot_morph": ("without", (MORPHOLOGY,)),
+    # issue 57's mechanisms, both in the recipe (act_udt_cpu.yaml), each taken out: a residual output head per hand
+    # around the shared trunk (policies/hand_heads.py), and the hand told by its morphology vector instead of a
+    # one-hot (hands/morphology.py; a zero-shot hand gets its own vector, not zeros)
+    "mix_heads": ("mix", (ONEHOT,)),
+    "mix_morph": ("mix", (NO_HEADS,)),
+    "zero_shot_morph": ("without", (NO_HEADS,)),
+    "mix_onehot": ("mix", (ONEHOT, NO_HEADS)),  # the recipe before 2026-12-06
+    "zero_shot_onehot": ("without", (ONEHOT, NO_HEADS)),
     # pool, then specialise (issue 57): `mix` for steps // 2, bound, then lerobot-train --policy.path= on the
     # target's own dataset for the rest (`FINE_TUNED`, `fine_tune_args`)
     "mix_ft": ("mix", ()),
@@ -158,7 +163,8 @@ MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
 ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")
 # run on ablation_targets: the ablations, the old recipe and the budget rule's arm
 PRUNED = (*ABLATIONS, "alone_no_frame", "pooled", "mix_rule")
-MECHANISMS = ("mix_heads", "mix_morph", "zero_shot_morph", "mix_ft")  # run on `mechanism_pools`, after every other arm
+# run on `mechanism_pools`, after every other arm
+MECHANISMS = ("mix_heads", "mix_morph", "mix_onehot", "zero_shot_morph", "zero_shot_onehot", "mix_ft")
 FINE_TUNED = ("mix_ft",)  # trained in two stages: the mix, then the target's own dataset (`pool_then_fine_tune`)
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 MAPPINGS = {"semantic": "semantic", "packed": "append_pad"}  # a conversion's name -> unidextok-convert --mapping
@@ -432,6 +438,25 @@ def train_args(cfg: ClosedLoopConfig, root: Path, out: Path, seed: int, flags: l
             f"--batch_size={cfg.batch_size}", f"--seed={seed}", f"--output_dir={out}", *flags]  # fmt: skip
 
 
+def recipe(cfg: ClosedLoopConfig, kind: str) -> dict:
+    """The policy settings an arm trains with (a run is reused only when they are unchanged): the `udt_*` defaults
+    of `act_udt`, then the policy section of the recipe's file (`CONFIG`), then the user's and the arm's
+    `--policy.<key>=<value>` flags, each value as YAML reads it (`true` -> True)."""
+    import yaml
+
+    from lerobot_unidextok.configs import resolve_config_path
+    from lerobot_unidextok.policies.udt_config import UdtConfigMixin
+
+    out = {f.name: f.default for f in dataclasses.fields(UdtConfigMixin)
+           if f.name.startswith("udt_") and f.default is not dataclasses.MISSING}  # fmt: skip
+    out.update(yaml.safe_load(Path(resolve_config_path(CONFIG)).read_text())["policy"])
+    for flag in [*USER_FLAGS, *arm_flags(cfg, kind)]:
+        key, _, value = flag.removeprefix("--").partition("=")
+        if key.startswith("policy."):
+            out[key.removeprefix("policy.")] = yaml.safe_load(value)
+    return out
+
+
 def train_policy(args: list[str], out: Path) -> Path:
     """lerobot-train (its own code, in this process) on act_udt_cpu.yaml with `args`; the `pretrained_model`."""
     import draccus
@@ -617,7 +642,8 @@ def jobs(cfg: ClosedLoopConfig) -> list[dict]:
                     pools = [0] if kind == "alone" else cfg.pools
                     if arm in MECHANISMS and cfg.mechanism_pools:
                         pools = [k for k in pools if k in cfg.mechanism_pools]
-                    if arm == "zero_shot_morph":  # from one other hand: that robot alone, no identity to set
+                    if arm in ("zero_shot_morph", "zero_shot_onehot"):  # one other hand: that robot alone, no
+                        # identity and one head, as in `zero_shot`
                         pools = [k for k in pools if k > 2]
                     out += [{"task": task, "hand": hand, "seed": seed, "arm": arm_label(arm, n, k), "kind": arm,
                              "demos": n, "pool": k} for n in counts for k in pools]  # fmt: skip
@@ -652,11 +678,28 @@ def policy_dir(cfg: ClosedLoopConfig, job: dict) -> Path:
     return Path(cfg.output_root) / NAME / "policies" / job["task"] / job["hand"] / f"seed{job['seed']}" / job["arm"]
 
 
+def run_path(cfg: ClosedLoopConfig, job: dict) -> Path:
+    """Where a job's result is kept (`runs/seed<s>/<task>__<hand>__<label>.json`)."""
+    return Path(cfg.output_root) / NAME / "runs" / f"seed{job['seed']}" / f"{job['task']}__{job['hand']}__{job['arm']}.json"
+
+
+def cached_run(cfg: ClosedLoopConfig, job: dict) -> dict | None:
+    """The job's kept result if it was trained on the dataset the job trains on and with its `recipe`, else None
+    (a run on another dataset, a mix of other code, or with other settings, a changed default included, is made
+    again)."""
+    done = run_path(cfg, job)
+    if not done.is_file():
+        return None
+    old = json.loads(done.read_text())
+    return old if old["dataset"] == str(plan(cfg, job)["root"]) and old.get("recipe") == recipe(cfg, job["kind"]) else None
+
+
 def run_one(cfg: ClosedLoopConfig, job: dict) -> dict:
     task, hand, seed, label = job["task"], job["hand"], job["seed"], job["arm"]
-    done = Path(cfg.output_root) / NAME / "runs" / f"seed{seed}" / f"{task}__{hand}__{label}.json"
-    if done.is_file() and json.loads(done.read_text())["dataset"] == str(plan(cfg, job)["root"]):
-        return json.loads(done.read_text())  # a run on another dataset (a mix of other code) is made again
+    cached = cached_run(cfg, job)
+    if cached is not None:
+        return cached
+    done, settings = run_path(cfg, job), recipe(cfg, job["kind"])
     p = make(cfg, job)
     out = policy_dir(cfg, job)
     if done.is_file():
@@ -677,7 +720,8 @@ def run_one(cfg: ClosedLoopConfig, job: dict) -> dict:
         if p["root"] not in p["paths"] and not p["zero_shot"]
         else {}
     )
-    result = {**job, **scores, **share, **stages, "steps": steps, "dataset": str(p["root"]), "train_cpu_s": round(train_cpu, 1),
+    result = {**job, **scores, **share, **stages, "steps": steps, "dataset": str(p["root"]), "recipe": settings,
+              "train_cpu_s": round(train_cpu, 1),
               "eval_cpu_s": round(time.process_time() - cpu1, 1), "wall_s": round(time.time() - t0, 1)}  # fmt: skip
     done.parent.mkdir(parents=True, exist_ok=True)
     done.write_text(json.dumps(result))
@@ -919,8 +963,11 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "tokens_search": "mix, tokens (tokenizer's encoding)", "zero_shot": "zero-shot (other hands only)",
               "zero_shot_no_frame": "zero-shot without the grasp-centre frame", "alone": "alone",
               "alone_state": "alone, state input", "alone_no_frame": "alone without the grasp-centre frame",
-              "mix_heads": "mix, per-hand output heads", "mix_morph": "mix, morphology identity",
-              "zero_shot_morph": "zero-shot, morphology identity",
+              "mix_heads": "mix, one-hot identity (heads, no morphology)",
+              "mix_morph": "mix, no per-hand heads (morphology only)",
+              "zero_shot_morph": "zero-shot, no per-hand heads (morphology only)",
+              "mix_onehot": "mix, one-hot identity and no heads (the recipe before 2026-12-06)",
+              "zero_shot_onehot": "zero-shot, one-hot identity and no heads (before 2026-12-06)",
               "mix_ft": "mix, then fine-tuned on the target (half the updates each)"}  # fmt: skip
 
 
@@ -983,7 +1030,8 @@ def mechanism_lines(result: dict) -> list[str]:
     n = result["config"]["mix_demos"][0]
     for task, by_hand in result["summary"].items():
         rows = []
-        for arm, base in (("mix", "alone"), ("mix_heads", "alone"), ("mix_morph", "alone"), ("mix_ft", "alone"),
+        for arm, base in (("mix", "alone"), ("mix_onehot", "alone"), ("mix_heads", "alone"), ("mix_morph", "alone"),
+                          ("mix_ft", "alone"), ("zero_shot_onehot", "zero_shot"),
                           ("zero_shot_morph", "zero_shot")):  # fmt: skip
             for k in result["config"]["pools"]:
                 label, ref = (f"{arm}_{n}_pool{k}", f"alone_{n}") if base == "alone" else (f"{arm}_pool{k}", f"{base}_pool{k}")

@@ -153,7 +153,9 @@ class UdtConfigMixin:
     udt_extra_hands: list[str] = field(default_factory=list)
     # What tells a policy trained on a mix each row's hand, after the token view: onehot over the mix's vocabulary
     # (a zero-shot hand: all zero) or morphology (the hand's slot presence and UDHM ranges from its spec,
-    # hands/morphology.py: an unseen hand is described in the terms the trained ones were).
+    # hands/morphology.py: an unseen hand is described in the terms the trained ones were). The ACT recipes
+    # (act_udt_cpu.yaml, act_udt.yaml) set morphology; onehot stays the default of a config without it (and of
+    # checkpoints saved before the field).
     udt_hand_identity: str = "onehot"
     # The mix's column renames (unidextok-mix --keep=all --name_map); filled from the dataset.
     udt_name_map: dict[str, str] = field(default_factory=dict)
@@ -211,7 +213,8 @@ class UdtConfigMixin:
     # Per-hand output heads around the shared trunk (act_udt on a mix; policies/hand_heads.py): the action head
     # plus a residual Linear per hand of udt_hand_vocabulary, zero at the start, each row through its own hand's
     # (its first block's hand; a zero-shot or absent hand: the shared head only). Saved in model.safetensors and
-    # kept by unidextok-deploy. On one robot's dataset there is one hand and no heads are built.
+    # kept by unidextok-deploy. On one robot's dataset there is one hand and no heads are built. On in the ACT
+    # recipes (act_udt_cpu.yaml, act_udt.yaml); off without a config (and in checkpoints saved before the field).
     udt_hand_heads: bool = False
     # Accepted and ignored, so --policy.discover_packages_path=lerobot_unidextok also works with
     # --policy.path=<checkpoint> (LeRobot passes every --policy.* flag to the loaded config).
@@ -520,8 +523,8 @@ class UdtConfigMixin:
         width = state.shape[0]
         self.input_features.pop(OBS_HAND_IDS, None)  # read by the tokenizer step, never by the policy
         if self.udt_hand_heads and not self.udt_hand_vocabulary:
-            logger.warning("%s: udt_hand_heads on one robot's dataset (one set of hands): no per-hand heads are built",
-                           self.type)  # fmt: skip
+            logger.info("%s: udt_hand_heads on one robot's dataset (one set of hands): no per-hand heads are built",
+                        self.type)  # fmt: skip
         if self.udt_hand_vocabulary:
             if len(self.udt_state_names) != width or not self.udt_sides:
                 raise ValueError(

@@ -190,6 +190,30 @@ def test_the_pool_is_the_target_and_the_hands_after_it_cyclically():
     assert cl.arm_title("mix_rule_10_pool3") == "mix, budget rule, 10 demos, 3-hand pool"
 
 
+def test_a_kept_run_is_reused_only_on_its_dataset_and_with_its_recipe(tmp_path, monkeypatch):
+    cfg = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], targets=["shadow"], pools=[2], demos=[10], mix_demos=[10],
+                              seeds=[0], arms=["mix", "mix_heads"], output_root=str(tmp_path))  # fmt: skip
+    job = next(j for j in cl.jobs(cfg) if j["kind"] == "mix")
+    settings = cl.recipe(cfg, "mix")
+    # the recipe is the policy's udt_* defaults, then act_udt_cpu.yaml's policy section, then the flags
+    assert settings["type"] == "act_udt" and settings["dim_model"] == 64 and settings["udt_hand_input"] == "both"
+    assert settings["udt_relative_actions"] is False and settings["n_action_steps"] == 10  # USER_FLAGS, as YAML reads them
+    assert cl.recipe(cfg, "mix_heads") == {**settings, "udt_hand_identity": "onehot"}
+    assert cl.cached_run(cfg, job) is None  # nothing kept yet
+    kept = {"dataset": str(cl.plan(cfg, job)["root"]), "recipe": settings, "successes": 7, "episodes": 50}
+    cl.run_path(cfg, job).parent.mkdir(parents=True)
+    cl.run_path(cfg, job).write_text(json.dumps(kept))
+    assert cl.cached_run(cfg, job) == kept
+    for changed in ({**kept, "recipe": {**settings, "udt_hand_heads": False}},  # a default changed since
+                    {k: v for k, v in kept.items() if k != "recipe"},  # kept before runs recorded their recipe
+                    {**kept, "dataset": kept["dataset"] + "_other"}):  # fmt: skip
+        cl.run_path(cfg, job).write_text(json.dumps(changed))
+        assert cl.cached_run(cfg, job) is None
+    cl.run_path(cfg, job).write_text(json.dumps(kept))
+    monkeypatch.setattr(cl, "USER_FLAGS", (*cl.USER_FLAGS, "--policy.udt_hand_heads=false"))
+    assert cl.cached_run(cfg, job) is None  # the same file, the recipe it is compared with changed
+
+
 def test_each_seed_draws_its_own_recording_and_evaluation_episodes(tmp_path):
     cfg = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], hands=["shadow", "allegro"], seeds=[0, 1], pool=3, demos=[1],
                               mix_demos=[1], cache_dir=str(tmp_path))  # fmt: skip
@@ -284,7 +308,7 @@ def test_the_robustness_summary_pools_the_seeds_and_bounds_the_gain():
     assert reach["value"] == pytest.approx((52 + 72 + 50) / 3 - 60) and reach["met"] is False
 
 
-def test_the_mechanism_arms_run_last_on_their_pools_and_add_one_flag_each():
+def test_the_mechanism_arms_run_last_on_their_pools_and_each_take_one_out_of_the_recipe():
     cfg = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], arms=["alone", "mix", "zero_shot", "mix_heads", "mix_morph",
                                                            "zero_shot_morph"],
                               pools=[2, 3, 6], mechanism_pools=[2, 6], seeds=[0], demos=[10], mix_demos=[10])  # fmt: skip
@@ -295,10 +319,14 @@ def test_the_mechanism_arms_run_last_on_their_pools_and_add_one_flag_each():
                   "zero_shot_morph_pool6"}  # fmt: skip
     assert set(order) == table | mechanisms and len(order) == 6 * len(table | mechanisms)
     assert set(order[: 6 * len(table)]) == table  # every hand's table arms before any mechanism arm
-    assert cl.arm_flags(cfg, "mix_heads") == ["--policy.udt_hand_heads=true"]
-    assert cl.arm_flags(cfg, "mix_morph") == cl.arm_flags(cfg, "zero_shot_morph") == [
-        "--policy.udt_hand_identity=morphology"
+    # the recipe has both mechanisms (act_udt_cpu.yaml); each arm takes one out, mix_onehot both (the old recipe)
+    assert cl.recipe(cfg, "mix")["udt_hand_identity"] == "morphology" and cl.recipe(cfg, "mix")["udt_hand_heads"] is True
+    assert cl.arm_flags(cfg, "mix_heads") == ["--policy.udt_hand_identity=onehot"]
+    assert cl.arm_flags(cfg, "mix_morph") == cl.arm_flags(cfg, "zero_shot_morph") == ["--policy.udt_hand_heads=false"]
+    assert cl.arm_flags(cfg, "mix_onehot") == cl.arm_flags(cfg, "zero_shot_onehot") == [
+        "--policy.udt_hand_identity=onehot", "--policy.udt_hand_heads=false"
     ]
+    assert cl.recipe(cfg, "mix_onehot") == {**cl.recipe(cfg, "mix"), "udt_hand_identity": "onehot", "udt_hand_heads": False}
     fine = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], arms=["mix", "mix_ft"], pools=[2, 6], mechanism_pools=[6],
                                seeds=[0], demos=[10], mix_demos=[10])  # fmt: skip
     order = [j["arm"] for j in cl.jobs(fine)]
@@ -378,6 +406,6 @@ def test_the_mechanism_table_gives_each_arms_gain_over_the_hand_alone():
     }}  # fmt: skip
     text = "\n".join(cl.mechanism_lines({"config": {"mix_demos": [10], "pools": [2, 6]}, "summary": summary}))
     assert "| mix, 10 demos, 2-hand pool | -10 | +20 | +5.0 | shadow -10 | 1/2 |" in text
-    assert "| mix, per-hand output heads, 10 demos, 2-hand pool | +5 | +10 | +7.5 | shadow +5 | 2/2 |" in text
-    assert "| mix, morphology identity, 10 demos, 2-hand pool | -2 | +30 | +14.0 | shadow -2 | 2/2 |" in text
-    assert "| zero-shot, morphology identity, 6-hand pool | -10 | +6 | -2.0 | shadow -10 | 1/2 |" in text
+    assert "| mix, one-hot identity (heads, no morphology), 10 demos, 2-hand pool | +5 | +10 | +7.5 | shadow +5 | 2/2 |" in text
+    assert "| mix, no per-hand heads (morphology only), 10 demos, 2-hand pool | -2 | +30 | +14.0 | shadow -2 | 2/2 |" in text
+    assert "| zero-shot, no per-hand heads (morphology only), 6-hand pool | -10 | +6 | -2.0 | shadow -10 | 1/2 |" in text
