@@ -33,8 +33,12 @@ Rows with several blocks (a two-hand robot): the row's head is the hand of its F
 the state's block order (left before right). A G1 with two Inspire hands uses the Inspire's head; a right-only
 L10 in a left+right mix (left block absent) uses the L10's. A robot with two different hands gets its first
 hand's head for the whole action (arm and wrist columns included): one head per embodiment, as HPT and
-CrossFormer have, not one per block. A row with no hand of the vocabulary (no block, or only zero-shot hands:
-`unidextok-deploy --zero_shot=true`, whose ids come after the vocabulary) uses the shared head alone.
+CrossFormer have, not one per block. A row whose hands are all zero-shot hands (`unidextok-deploy
+--zero_shot=true`, whose ids come after the vocabulary) goes through the shared head plus the mean of the trained
+hands' residual heads: the head of the average trained hand, as a policy without heads learns it (the shared head
+alone transferred worse: docs/lerobot.md "Pooling hands"). A row with no hand at all (no block holds one) uses the
+shared head alone. Training never sees either: every row of a
+mix holds a hand of its vocabulary.
 """
 
 from __future__ import annotations
@@ -47,7 +51,8 @@ from torch import nn
 from lerobot_unidextok.constants import OBS_HAND_IDS, OBS_STATE
 from lerobot_unidextok.errors import InvalidInputError
 
-NO_HAND = -1  # a row whose blocks hold no hand of the vocabulary: the shared head only
+NO_HAND = -1  # a row whose blocks hold no hand: the shared head only
+UNSEEN_HAND = -2  # a row whose hands are all zero-shot hands: the shared head plus the mean residual head
 
 
 class HandHeads(nn.Linear):
@@ -84,10 +89,12 @@ class HandHeads(nn.Linear):
         if rows.shape != (x.shape[0],):
             raise ValueError(f"HandHeads: {tuple(rows.shape)} row hands for a batch of {x.shape[0]} rows")
         out = super().forward(x)  # (B, S, A) the shared head
-        known = rows >= 0  # (B,)
-        pick = rows.clamp_min(0)  # (B,) a row without a hand reads head 0, multiplied by 0 below
-        residual = torch.einsum("bsd,bad->bsa", x, self.hand_weight[pick]) + self.hand_bias[pick][:, None]  # (B,S,A)
-        return out + residual * known[:, None, None].to(x.dtype)
+        weight = torch.cat([self.hand_weight, self.hand_weight.mean(0, keepdim=True)])  # (V + 1, A, D): + the mean
+        bias = torch.cat([self.hand_bias, self.hand_bias.mean(0, keepdim=True)])  # (V + 1, A)
+        # (B,) a row's head: its hand's, the mean (index V) for an unseen hand, head 0 for none (multiplied by 0)
+        pick = torch.where(rows == UNSEEN_HAND, self.num_hands, rows.clamp_min(0))
+        residual = torch.einsum("bsd,bad->bsa", x, weight[pick]) + bias[pick][:, None]  # (B, S, A)
+        return out + residual * (rows != NO_HAND)[:, None, None].to(x.dtype)
 
     def extra_repr(self) -> str:
         return f"{super().extra_repr()}, num_hands={self.num_hands}, num_blocks={self.num_blocks}"
@@ -97,7 +104,7 @@ def row_hands(batch: dict, num_hands: int, num_blocks: int, fixed_hand_ids: Sequ
     """Each row's hand for the heads: (B,) int64, the hand of the row's first block holding a hand of the V =
     `num_hands` vocabulary, NO_HAND (-1) for none. The ids are the batch's `observation.hand_ids` ((B, H), (B, T, H):
     the last step; (B,) with one block; one (H,) frame for every row), else `fixed_hand_ids` (a bound robot);
-    ids >= V (a bound robot's zero-shot hands) count as no hand."""
+    a row whose only hands are ids >= V (a bound robot's zero-shot hands): UNSEEN_HAND (-2)."""
     rows = batch[OBS_STATE].shape[0]
     ids = batch.get(OBS_HAND_IDS)
     if ids is None:
@@ -120,7 +127,8 @@ def row_hands(batch: dict, num_hands: int, num_blocks: int, fixed_hand_ids: Sequ
     present = (ids >= 0) & (ids < num_hands)  # (B, H) blocks holding a hand of the vocabulary
     first = present.to(torch.int8).argmax(-1)  # (B,) the first such block (argmax: the first maximum)
     picked = ids.gather(1, first[:, None]).squeeze(1)  # (B,)
-    return torch.where(present.any(-1), picked, torch.full_like(picked, NO_HAND))
+    unseen = torch.where((ids >= num_hands).any(-1), UNSEEN_HAND, NO_HAND)  # (B,) for rows without a known hand
+    return torch.where(present.any(-1), picked, unseen)
 
 
 def install_hand_heads(model: nn.Module, num_hands: int, num_blocks: int,
@@ -141,4 +149,4 @@ def install_hand_heads(model: nn.Module, num_hands: int, num_blocks: int,
     return heads
 
 
-__all__ = ["NO_HAND", "HandHeads", "install_hand_heads", "row_hands"]
+__all__ = ["NO_HAND", "UNSEEN_HAND", "HandHeads", "install_hand_heads", "row_hands"]

@@ -1,7 +1,7 @@
 """Per-hand output heads (`--policy.udt_hand_heads=true`, `policies/hand_heads.py`) on a real mix of two robots
 (unidextok-mix: a G1-like robot with two Inspire hands and a right-only LinkerHand L10 robot): built only with the
 flag, zero at the start, each row through its own hand's head after training, saved and reloaded bit for bit, kept
-by unidextok-deploy (the bound robot's head; a zero-shot hand: the shared head alone)."""
+by unidextok-deploy (the bound robot's head; a zero-shot hand: the mean of the trained hands' heads)."""
 
 import json
 
@@ -251,7 +251,7 @@ def test_a_bound_checkpoint_keeps_the_robots_own_head(trained, g1_like_hands, tm
     assert not torch.equal(_bound_actions(bound, state, bump=vocab.index(INSPIRE)), action)
 
 
-def test_a_zero_shot_binding_runs_with_the_shared_head_alone(trained, tmp_path):
+def test_a_zero_shot_binding_runs_with_the_mean_of_the_trained_hands_heads(trained, tmp_path):
     from lerobot.configs.policies import PreTrainedConfig
     from lerobot.datasets import LeRobotDataset
 
@@ -269,8 +269,35 @@ def test_a_zero_shot_binding_runs_with_the_shared_head_alone(trained, tmp_path):
     state = LeRobotDataset("test/dexora", root=robot)[5][OBS_STATE]
     action = _bound_actions(bound, state)
     assert torch.isfinite(action).all()
-    for hand in range(len(vocab)):  # no hand's head is read: the shared head alone
-        assert torch.equal(_bound_actions(bound, state, bump=hand), action)
+    bumped = [_bound_actions(bound, state, bump=hand) for hand in range(len(vocab))]
+    for hand in range(len(vocab)):  # every trained hand's head counts, each by 1 / V: the mean of the heads
+        assert not torch.allclose(bumped[hand], action, rtol=0, atol=1e-4)
+        torch.testing.assert_close(bumped[hand], bumped[0], rtol=0, atol=1e-5)
+
+
+def test_each_row_goes_through_its_hands_head_the_mean_head_or_the_shared_head_alone():
+    from lerobot_unidextok.policies.hand_heads import NO_HAND, UNSEEN_HAND, HandHeads, row_hands
+
+    torch.manual_seed(0)
+    heads = HandHeads(4, 3, num_hands=2, num_blocks=2)
+    with torch.no_grad():
+        heads.hand_weight.normal_()
+        heads.hand_bias.normal_()
+    # blocks (left, right): a known hand first, a known hand after an absent block, a zero-shot hand (id 2 >= V = 2)
+    # beside an absent block, no hand at all, a zero-shot hand before a known one
+    ids = torch.tensor([[1, 0], [-1, 0], [2, -1], [-1, -1], [2, 1]])
+    rows = row_hands({OBS_STATE: torch.zeros(5, 8), OBS_HAND_IDS: ids}, 2, 2, [])
+    assert rows.tolist() == [1, 0, UNSEEN_HAND, NO_HAND, 1]
+    x = torch.randn(5, 6, 4)  # (B, S, dim_model)
+    heads.row_hands = rows
+    out = heads(x)
+    shared = x @ heads.weight.T + heads.bias  # (B, S, A)
+    for b, h in ((0, 1), (1, 0), (4, 1)):  # (row, its hand)
+        own = torch.einsum("sd,ad->sa", x[b], heads.hand_weight[h]) + heads.hand_bias[h]
+        torch.testing.assert_close(out[b], shared[b] + own)
+    mean = torch.einsum("sd,ad->sa", x[2], heads.hand_weight.mean(0)) + heads.hand_bias.mean(0)
+    torch.testing.assert_close(out[2], shared[2] + mean)
+    torch.testing.assert_close(out[3], shared[3])
 
 
 def test_lerobot_train_takes_the_flag_and_saves_the_heads(tok_dir, g1_l10_mix, tmp_path):
