@@ -212,8 +212,8 @@ class UdtConfigMixin:
     udt_grasp_centres_m: dict[str, list[float]] = field(default_factory=dict)
     # Per-hand output heads around the shared trunk (act_udt on a mix; policies/hand_heads.py): the action head
     # plus a residual Linear per hand of udt_hand_vocabulary, zero at the start, each row through its own hand's
-    # (its first block's hand; a zero-shot or absent hand: the shared head only). Saved in model.safetensors and
-    # kept by unidextok-deploy. On one robot's dataset there is one hand and no heads are built. On in the ACT
+    # (its first block's hand; a zero-shot hand: the mean of the trained hands' heads; no hand: the shared head
+    # only). Saved in model.safetensors and kept by unidextok-deploy. On one robot's dataset there is one hand and no heads are built. On in the ACT
     # recipes (act_udt_cpu.yaml, act_udt.yaml); off without a config (and in checkpoints saved before the field).
     udt_hand_heads: bool = False
     # Accepted and ignored, so --policy.discover_packages_path=lerobot_unidextok also works with
