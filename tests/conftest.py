@@ -108,3 +108,19 @@ def g1_l10_mix(g1_like, l10_robot, tmp_path_factory) -> Path:
     mix(MixOptions(inputs=[str(g1_like["root"]), str(l10_robot)], root=str(root), repo_id="test/g1_l10_mix",
                    progress=False))  # fmt: skip
     return root
+
+
+@pytest.fixture(scope="module")
+def tok_dir(tmp_path_factory):
+    """A tiny untrained tokenizer knowing the human hand, the L10 and the Inspire (the mixes of the pooling,
+    hand-head and mixed-step tests; a test module may define its own)."""
+    import torch
+    from l10_robot import HAND as L10
+    from robot_udhm import INSPIRE
+
+    from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
+
+    torch.manual_seed(2)
+    path = tmp_path_factory.mktemp("tok") / "unidextok-tiny"
+    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["human", L10, INSPIRE])).save_pretrained(path)
+    return path

@@ -13,18 +13,9 @@ from lerobot_unidextok import hands
 from lerobot_unidextok.blocks import udhm_state_names
 from lerobot_unidextok.constants import OBS_HAND_IDS, OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE, UDHM_DIM
 from lerobot_unidextok.processor import UniDexTokMixedTokenizerStep, UniDexTokStateTokenizerStep
-from lerobot_unidextok.tokenizer import UniDexTok, UniDexTokConfig
 
 NAMES = udhm_state_names(["left", "right"])
 VOCAB = [INSPIRE, L10]
-
-
-@pytest.fixture(scope="module")
-def tok_dir(tmp_path_factory):
-    torch.manual_seed(0)
-    path = tmp_path_factory.mktemp("tok") / "tiny"
-    UniDexTok(UniDexTokConfig.from_preset("tiny", hand_names=["human", INSPIRE, L10])).save_pretrained(path)
-    return path
 
 
 @pytest.fixture(scope="module")
