@@ -17,6 +17,12 @@ mix's training episodes (`ConversionRecord.hand_stats`); a `<type>_udt` policy t
 computes them from that dataset's training episodes when `lerobot-train` builds it. Both are checked where they
 are written and read (`utils/number_checks.checked_hand_stats`: 22 finite numbers per statistic, a std >= 0, every
 hand of the vocabulary and no other), so a NaN std is one error naming the file, the hand and the statistic.
+
+A hand with few demonstrations has narrow statistics of its own (a joint its 10 demonstrations barely moved gets
+a tiny std, which a policy's held-out rows leave far behind). `shrunk_hand_stats` lends each hand of a mix
+`prior_frames` frames of the pool's statistics (per slot, over the hands that have the slot): its statistics
+become those of its frames joined by that many frames drawn from the pool, so a hand with many frames keeps
+nearly its own and one with few moves toward the pool's (weight n / (n + prior) on its own).
 """
 
 from __future__ import annotations
@@ -98,6 +104,61 @@ def hand_stats(root: str | Path, episodes: list[int] | None = None) -> dict[str,
                               "--validate=true) and convert it again")  # fmt: skip
 
 
+def shrunk_hand_stats(stats: dict[str, dict[str, dict[str, dict]]], prior_frames: float
+                      ) -> dict[str, dict[str, dict[str, dict]]]:  # fmt: skip
+    """`stats` (as `hand_stats` gives them) with each hand's statistics per slot moved toward the pool's: the
+    mixture of its `frames` frames and `prior_frames` frames of the pool (module docstring). The pool's mean and
+    std are the frame-weighted mixture's over the hands that have the slot (`HandSpec.active_mask`); the range
+    statistics (min, max, quantiles) are blended with the pool's lowest low and highest high by the same weight.
+    A slot the hand lacks, a side with one hand and `prior_frames <= 0` are left as they are; `frames` stays the
+    hand's own count."""
+    from lerobot_unidextok import hands as hand_specs
+
+    if prior_frames <= 0:
+        return stats
+    out: dict[str, dict[str, dict[str, dict]]] = {}
+    for key, per_side in stats.items():
+        out[key] = {}
+        for side, per_hand in per_side.items():
+            names = sorted(per_hand)
+            if len(names) < 2:
+                out[key][side] = per_hand
+                continue
+            has = np.stack([hand_specs.get(h).active_mask for h in names])  # (V, 22)
+            frames = np.array([float(per_hand[h]["frames"]) for h in names])  # (V,)
+            weight = frames[:, None] * has  # (V, 22)
+            total = np.maximum(weight.sum(0), 1e-12)
+            pooled: dict[str, np.ndarray] = {}
+            entries = {h: {k: np.asarray(v, np.float64) for k, v in per_hand[h].items() if k != "frames"}
+                       for h in names}  # fmt: skip
+            stat_names = set.intersection(*(set(e) for e in entries.values()))
+            if {"mean", "std"} <= stat_names:
+                mean = np.stack([entries[h]["mean"] for h in names])
+                second = np.stack([entries[h]["std"] ** 2 for h in names]) + mean**2
+                pooled["mean"] = (weight * mean).sum(0) / total
+                pooled["second"] = (weight * second).sum(0) / total
+            for name in stat_names - {"mean", "std"}:
+                values = np.stack([entries[h][name] for h in names])  # (V, 22)
+                low = name == "min" or (name.startswith("q") and float(QUANTILES.get(name, 1)) < 0.5)
+                masked = np.where(has, values, np.inf if low else -np.inf)
+                pooled[name] = masked.min(0) if low else masked.max(0)
+            out[key][side] = {}
+            for v, h in enumerate(names):
+                own = entries[h]
+                w = np.where(has[v], frames[v] / (frames[v] + prior_frames), 1.0)  # (22,): 1 = its own
+                new: dict[str, Any] = {}
+                if "mean" in pooled:
+                    mean = w * own["mean"] + (1 - w) * pooled["mean"]
+                    second = w * (own["std"] ** 2 + own["mean"] ** 2) + (1 - w) * pooled["second"]
+                    new["mean"], new["std"] = mean, np.sqrt(np.maximum(second - mean**2, 0.0))
+                for name in stat_names - {"mean", "std"}:
+                    new[name] = w * own[name] + (1 - w) * np.where(np.isfinite(pooled[name]), pooled[name], own[name])
+                rounded: dict[str, Any] = {k: [round(float(x), DIGITS) for x in new.get(k, own[k])] for k in own}
+                rounded["frames"] = per_hand[h]["frames"]
+                out[key][side][h] = rounded
+    return out
+
+
 def recorded_hand_stats(meta: UdhmDatasetMeta) -> dict[str, dict[str, dict[str, dict]]] | None:
     """The per-hand statistics a mix records (`ConversionRecord.hand_stats`), checked against its hand vocabulary
     and blocks; None when the record has none (one robot's dataset: `hand_stats` computes them)."""
@@ -120,4 +181,4 @@ def training_episodes(meta: UdhmDatasetMeta) -> list[int] | None:
     return [e for e in range(meta.total_episodes) if e not in test]
 
 
-__all__ = ["ACTION_DELTA", "QUANTILES", "hand_stats", "recorded_hand_stats", "training_episodes"]
+__all__ = ["ACTION_DELTA", "QUANTILES", "hand_stats", "recorded_hand_stats", "shrunk_hand_stats", "training_episodes"]

@@ -170,6 +170,11 @@ class UdtConfigMixin:
     # statistics of its own, which held-out states leave far behind: experiments/cross_embodiment.py). A checkpoint
     # keeps what it trained with (the halves it normalises per hand are in udt_hand_stats).
     udt_hand_norm_state: bool = False
+    # With udt_hand_norm on a mix: lend each hand's per-hand statistics this many episodes' worth of frames (the
+    # dataset's mean episode length) of the pool's statistics (conversion/hand_stats.shrunk_hand_stats: weight
+    # n / (n + prior) on its own), so a target with 10 demonstrations among hands with 50 is not normalised by
+    # the narrow spread of its few; 0 = each hand's own statistics only (as before 2026-12-06). One robot: no effect.
+    udt_hand_stats_prior: float = 0.0
     # The per-hand statistics and their modes {"modes": {key: mode}, key: {side: {hand: {lo, hi, "frames"}}}}; filled
     # from the dataset (a mix's record, or one robot's training episodes) and saved with the checkpoint.
     udt_hand_stats: dict[str, Any] = field(default_factory=dict)
@@ -229,6 +234,9 @@ class UdtConfigMixin:
         self._upgrade_legacy_encoding()
         if self.udt_hand_input not in HAND_INPUTS:
             raise ValueError(f"udt_hand_input must be one of {HAND_INPUTS}, got {self.udt_hand_input!r}")
+        if not (self.udt_hand_stats_prior >= 0):  # also NaN
+            raise ValueError(f"udt_hand_stats_prior is in episodes and must be >= 0 (0: each hand's own statistics), "
+                             f"got {self.udt_hand_stats_prior!r}")  # fmt: skip
         if self.udt_hand_identity not in IDENTITIES:
             raise ValueError(f"udt_hand_identity must be one of {IDENTITIES}, got {self.udt_hand_identity!r}")
         if self.udt_range_check not in RANGE_CHECKS:
@@ -483,6 +491,7 @@ class UdtConfigMixin:
             ACTION_DELTA,
             hand_stats,
             recorded_hand_stats,
+            shrunk_hand_stats,
             training_episodes,
         )
 
@@ -490,6 +499,9 @@ class UdtConfigMixin:
         if stats is None:
             stats = hand_stats(meta.root, training_episodes(meta))
             logger.info("%s: per-hand statistics computed from %s's training episodes", self.type, meta.root)
+        if self.udt_hand_stats_prior > 0:
+            frames_per_episode = float(meta.info.get("total_frames", 0)) / max(meta.total_episodes, 1)
+            stats = shrunk_hand_stats(stats, self.udt_hand_stats_prior * frames_per_episode)
         stock = getattr(self, "_stock_normalization", self.normalization_mapping)
         chosen: dict[str, Any] = {"modes": {}}
         for key, kind, source in ((OBS_STATE, "STATE", OBS_STATE),

@@ -257,6 +257,33 @@ def weighted_mix(g1_like, l10_robot, tmp_path_factory):
     return root
 
 
+def test_a_prior_lends_each_hand_of_a_mix_the_pools_statistics_and_the_checkpoint_keeps_them(tok_dir, g1_l10_mix,
+                                                                                                 tmp_path):
+    """udt_hand_stats_prior (episodes): the recorded per-hand statistics shrunk by that many episodes' worth of the
+    mix's frames (`shrunk_hand_stats`); saved in config.json and read back as trained."""
+    from lerobot_unidextok.conversion.hand_stats import shrunk_hand_stats
+
+    plain, meta = _config("act_udt", tok_dir, g1_l10_mix)
+    cfg, _ = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_stats_prior=4.0)
+    record = UdhmDatasetMeta(g1_l10_mix)
+    per_episode = record.info["total_frames"] / record.total_episodes
+    want = shrunk_hand_stats(record.record.hand_stats, 4.0 * per_episode)[ACTION]["right"]
+    got, own = cfg.udt_hand_stats[ACTION]["right"], plain.udt_hand_stats[ACTION]["right"]
+    assert set(got) == {INSPIRE, L10}
+    for hand in got:
+        np.testing.assert_allclose(got[hand]["std"], want[hand]["std"], atol=1e-7)
+        assert got[hand]["frames"] == own[hand]["frames"]
+    both = hands.get(INSPIRE).active_mask & hands.get(L10).active_mask
+    moved = np.abs(np.asarray(got[L10]["mean"]) - np.asarray(own[L10]["mean"]))[both]
+    assert moved.max() > 1e-4, "the prior moved nothing"
+    # the left block holds the G1's Inspire only: one hand, its own statistics
+    assert cfg.udt_hand_stats[ACTION]["left"] == plain.udt_hand_stats[ACTION]["left"]
+    cfg._save_pretrained(tmp_path)
+    saved = json.loads((tmp_path / "config.json").read_text())
+    assert saved["udt_hand_stats_prior"] == 4.0
+    assert saved["udt_hand_stats"][ACTION]["right"][L10]["std"] == got[L10]["std"]
+
+
 def test_hand_norm_state_false_leaves_the_state_to_lerobots_statistics(tok_dir, g1_l10_mix):
     """udt_hand_norm_state=false (the default): only the actions per hand; the state with LeRobot's statistics."""
     from lerobot.policies.factory import make_pre_post_processors

@@ -1,0 +1,63 @@
+"""Per-hand statistics shrunk toward the pool's (`conversion/hand_stats.shrunk_hand_stats`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lerobot_unidextok import hands
+from lerobot_unidextok.constants import ACTION, UDHM_DIM
+from lerobot_unidextok.conversion.hand_stats import shrunk_hand_stats
+
+FEW, MANY = "inspire_rh56_unitree", "linkerhand_l10"
+
+
+def _summary(x: np.ndarray) -> dict:
+    return {"mean": list(x.mean(0)), "std": list(x.std(0)), "min": list(x.min(0)), "max": list(x.max(0)),
+            "q01": list(np.quantile(x, 0.01, 0)), "q99": list(np.quantile(x, 0.99, 0)), "frames": len(x)}  # fmt: skip
+
+
+def _frames(hand: str, n: int, seed: int, spread: float) -> np.ndarray:
+    """(n, 22) angles in the hand's slots, zero in those it lacks (as a converted dataset holds them)."""
+    rng = np.random.default_rng(seed)
+    return rng.normal(0.4, spread, (n, UDHM_DIM)) * hands.get(hand).active_mask
+
+
+def test_a_hands_statistics_become_those_of_its_frames_joined_by_the_pools():
+    few, many = _frames(FEW, 30, 0, 0.01), _frames(MANY, 300, 1, 0.3)
+    stats = {ACTION: {"right": {FEW: _summary(few), MANY: _summary(many)}}}
+    # a prior as large as the pool's 330 frames: the few hand's frames joined by one copy of every pooled frame
+    out = shrunk_hand_stats(stats, prior_frames=330)[ACTION]["right"]
+    both = hands.get(FEW).active_mask & hands.get(MANY).active_mask
+    only_few = hands.get(FEW).active_mask & ~hands.get(MANY).active_mask
+    assert both.sum() >= 5
+    joined = np.concatenate([few, few, many])  # its own 30, then the pool's 330 (its own 30 and the other's 300)
+    np.testing.assert_allclose(np.asarray(out[FEW]["mean"])[both], joined.mean(0)[both], atol=1e-7)
+    np.testing.assert_allclose(np.asarray(out[FEW]["std"])[both], joined.std(0)[both], atol=1e-7)
+    # the narrow hand's std grew toward the pool's, and its frames are still its own
+    assert (np.asarray(out[FEW]["std"])[both] > 5 * np.asarray(stats[ACTION]["right"][FEW]["std"])[both]).all()
+    assert out[FEW]["frames"] == 30
+    # a slot the other hand lacks: the pool there is the hand itself, so nothing moves
+    np.testing.assert_allclose(np.asarray(out[FEW]["std"])[only_few], few.std(0)[only_few], atol=1e-7)
+    # the range statistics widen toward the pool's lowest low and highest high, never past them
+    lo, lo_pool = np.asarray(out[FEW]["min"])[both], np.minimum(few.min(0), many.min(0))[both]
+    assert (lo <= few.min(0)[both] + 1e-9).all() and (lo >= lo_pool - 1e-9).all() and (lo < few.min(0)[both]).any()
+    # the hand with ten times the frames moves far less (weight 300 / 630 on its own against 30 / 360)
+    moved = np.abs(np.asarray(out[MANY]["std"]) - many.std(0))[both].max()
+    moved_few = np.abs(np.asarray(out[FEW]["std"]) - few.std(0))[both].max()
+    assert moved < moved_few / 2
+
+
+def test_no_prior_and_one_hand_leave_the_statistics_as_they_are():
+    few, many = _frames(FEW, 30, 0, 0.01), _frames(MANY, 300, 1, 0.3)
+    stats = {ACTION: {"right": {FEW: _summary(few), MANY: _summary(many)}}}
+    assert shrunk_hand_stats(stats, prior_frames=0) is stats
+    alone = {ACTION: {"right": {FEW: _summary(few)}}}
+    assert shrunk_hand_stats(alone, prior_frames=1000) == alone
+
+
+def test_a_negative_prior_is_refused_by_the_policy_config():
+    from lerobot_unidextok.policies import ACTUdtConfig
+
+    with pytest.raises(ValueError, match="udt_hand_stats_prior is in episodes and must be >= 0"):
+        ACTUdtConfig(udt_hand_stats_prior=-1.0, device="cpu")
