@@ -55,8 +55,8 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   (`--policy.udt_hand_identity=onehot`), `mix_morph_<n>` and `zero_shot_morph` keep the morphology identity and
   have no heads (`--policy.udt_hand_heads=false`); `mix_onehot_<n>` and `zero_shot_onehot` have neither, the
   recipe before 2026-12-06 (with one other hand, zero-shot trains on that robot alone, where neither exists);
-- `mix_shrink_<n>` and `zero_shot_shrink`: each hand's per-hand statistics shrunk toward the pool's
-  (`--policy.udt_hand_stats_prior=10`: the pool lends each hand 10 episodes' worth of its statistics);
+- `mix_shrink_<n>`: each hand's per-hand statistics shrunk toward the pool's (`--policy.udt_hand_stats_prior=10`:
+  the pool lends each hand 10 episodes' worth of its statistics);
 - `mix_ft_<n>`: pool, then specialise at matched compute: `mix_<n>` trained for `steps // 2` updates, bound to the
   target, then trained further by the stock `lerobot-train --policy.path=<bound checkpoint>` on the target's own
   dataset (`alone_<n>`'s: the same n demonstrations) for the other `steps - steps // 2` (`fine_tune_args`); the
@@ -162,7 +162,6 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     # per-hand statistics shrunk toward the pool's (issue 57; conversion/hand_stats.shrunk_hand_stats): each hand
     # lent `SHRINK_EPISODES` episodes' worth of the pool's statistics
     "mix_shrink": ("mix", (SHRINK,)),
-    "zero_shot_shrink": ("without", (SHRINK,)),
     # pool, then specialise (issue 57): `mix` for steps // 2, bound, then lerobot-train --policy.path= on the
     # target's own dataset for the rest (`FINE_TUNED`, `fine_tune_args`)
     "mix_ft": ("mix", ()),
@@ -173,7 +172,7 @@ ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")
 PRUNED = (*ABLATIONS, "alone_no_frame", "pooled", "mix_rule")
 # run on `mechanism_pools`, after every other arm
 MECHANISMS = ("mix_heads", "mix_morph", "mix_onehot", "zero_shot_morph", "zero_shot_onehot", "mix_shrink",
-              "zero_shot_shrink", "mix_ft")
+              "mix_ft")
 FINE_TUNED = ("mix_ft",)  # trained in two stages: the mix, then the target's own dataset (`pool_then_fine_tune`)
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 MAPPINGS = {"semantic": "semantic", "packed": "append_pad"}  # a conversion's name -> unidextok-convert --mapping
@@ -651,8 +650,8 @@ def jobs(cfg: ClosedLoopConfig) -> list[dict]:
                     pools = [0] if kind == "alone" else cfg.pools
                     if arm in MECHANISMS and cfg.mechanism_pools:
                         pools = [k for k in pools if k in cfg.mechanism_pools]
-                    if arm in ("zero_shot_morph", "zero_shot_onehot", "zero_shot_shrink"):  # one other hand: that
-                        # robot alone, no identity, one head and one hand's statistics, as in `zero_shot`
+                    if arm in ("zero_shot_morph", "zero_shot_onehot"):  # one other hand: that robot alone, no
+                        # identity and one head, as in `zero_shot`
                         pools = [k for k in pools if k > 2]
                     out += [{"task": task, "hand": hand, "seed": seed, "arm": arm_label(arm, n, k), "kind": arm,
                              "demos": n, "pool": k} for n in counts for k in pools]  # fmt: skip
@@ -978,7 +977,6 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "mix_onehot": "mix, one-hot identity and no heads (the recipe before 2026-12-06)",
               "zero_shot_onehot": "zero-shot, one-hot identity and no heads (before 2026-12-06)",
               "mix_shrink": f"mix, per-hand statistics shrunk toward the pool's ({SHRINK_EPISODES} episodes)",
-              "zero_shot_shrink": f"zero-shot, per-hand statistics shrunk toward the pool's ({SHRINK_EPISODES} episodes)",
               "mix_ft": "mix, then fine-tuned on the target (half the updates each)"}  # fmt: skip
 
 
@@ -1043,7 +1041,7 @@ def mechanism_lines(result: dict) -> list[str]:
         rows = []
         for arm, base in (("mix", "alone"), ("mix_onehot", "alone"), ("mix_heads", "alone"), ("mix_morph", "alone"),
                           ("mix_shrink", "alone"), ("mix_ft", "alone"), ("zero_shot_onehot", "zero_shot"),
-                          ("zero_shot_morph", "zero_shot"), ("zero_shot_shrink", "zero_shot")):  # fmt: skip
+                          ("zero_shot_morph", "zero_shot")):  # fmt: skip
             for k in result["config"]["pools"]:
                 label, ref = (f"{arm}_{n}_pool{k}", f"alone_{n}") if base == "alone" else (f"{arm}_pool{k}", f"{base}_pool{k}")
                 pairs = {h: a[label]["mean"] - a[ref]["mean"] for h, a in by_hand.items() if label in a and ref in a}

@@ -26,8 +26,9 @@ What the mixin adds to the stock config, in `validate_features` (run when the po
   statistics are of absolute actions, not of the offsets the policy predicts);
 - unless `udt_hand_norm=off`, the per-hand statistics of the action blocks, and of the state's with
   `udt_hand_norm_state` (`udt_hand_stats`: a mix's record, or one robot's training episodes,
-  `conversion/hand_stats.py`) and IDENTITY for those keys in LeRobot's normaliser, whose work
-  `unidextok.hand_normalizer` does then (docs/lerobot.md "Pooling hands");
+  `conversion/hand_stats.py`; with `udt_hand_stats_prior`, each hand's shrunk toward the pool's) and IDENTITY
+  for those keys in LeRobot's normaliser, whose work `unidextok.hand_normalizer` does then (docs/lerobot.md
+  "Pooling hands");
 - unless `udt_wrist_frame=robot`, the wrist columns and each hand's grasp centre (`udt_wrist_columns`,
   `udt_grasp_centres_m`: the dataset record's `wrist_frame`), for `unidextok.wrist_frame`.
 """
