@@ -165,6 +165,9 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     # pool, then specialise (issue 57): `mix` for steps // 2, bound, then lerobot-train --policy.path= on the
     # target's own dataset for the rest (`FINE_TUNED`, `fine_tune_args`)
     "mix_ft": ("mix", ()),
+    # the same with the state normalised per hand too: LeRobot's fine-tune swaps the state's normaliser for the
+    # target dataset's statistics, this one keeps the checkpoint's (the per-hand step's)
+    "mix_ft_state_norm": ("mix", ("--policy.udt_hand_norm_state=true",)),
 }
 MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
 ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")
@@ -172,8 +175,8 @@ ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")
 PRUNED = (*ABLATIONS, "alone_no_frame", "pooled", "mix_rule")
 # run on `mechanism_pools`, after every other arm
 MECHANISMS = ("mix_heads", "mix_morph", "mix_onehot", "zero_shot_morph", "zero_shot_onehot", "mix_shrink",
-              "mix_ft")
-FINE_TUNED = ("mix_ft",)  # trained in two stages: the mix, then the target's own dataset (`pool_then_fine_tune`)
+              "mix_ft", "mix_ft_state_norm")
+FINE_TUNED = ("mix_ft", "mix_ft_state_norm")  # trained in two stages: the mix, then the target's own dataset (`pool_then_fine_tune`)
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 MAPPINGS = {"semantic": "semantic", "packed": "append_pad"}  # a conversion's name -> unidextok-convert --mapping
 # seeds: seed s offsets every range below by s * SEED_STRIDE (`seed_ranges` checks none overlaps another)
@@ -977,7 +980,8 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "mix_onehot": "mix, one-hot identity and no heads (the recipe before 2026-12-06)",
               "zero_shot_onehot": "zero-shot, one-hot identity and no heads (before 2026-12-06)",
               "mix_shrink": f"mix, per-hand statistics shrunk toward the pool's ({SHRINK_EPISODES} episodes)",
-              "mix_ft": "mix, then fine-tuned on the target (half the updates each)"}  # fmt: skip
+              "mix_ft": "mix, then fine-tuned on the target (half the updates each)",
+              "mix_ft_state_norm": "mix, then fine-tuned, the state normalised per hand (kept through the fine-tune)"}  # fmt: skip
 
 
 def arm_title(label: str) -> str:
@@ -1033,14 +1037,17 @@ def robustness_lines(result: dict) -> list[str]:
 
 def mechanism_lines(result: dict) -> list[str]:
     """Per task, mechanism arm and pool size: the gain over the hand alone at the same demonstrations (points, per
-    target), its mean and worst, and the targets within `NEVER_WORSE_POINTS` of alone; zero-shot mechanisms against
+    target), its mean (over the seeds, and per seed: the targets' mean gain on that seed's recordings and episodes)
+    and worst, and the targets within `NEVER_WORSE_POINTS` of alone; zero-shot mechanisms against
     the default zero-shot of the same pool. From the summary, so it reads what the table beside it shows."""
     lines = []
     n = result["config"]["mix_demos"][0]
+    rate = {(r["task"], r["hand"], r["arm"], r["seed"]): 100 * r["successes"] / r["episodes"] for r in result["runs"]}
     for task, by_hand in result["summary"].items():
         rows = []
         for arm, base in (("mix", "alone"), ("mix_onehot", "alone"), ("mix_heads", "alone"), ("mix_morph", "alone"),
-                          ("mix_shrink", "alone"), ("mix_ft", "alone"), ("zero_shot_onehot", "zero_shot"),
+                          ("mix_shrink", "alone"), ("mix_ft", "alone"), ("mix_ft_state_norm", "alone"),
+                          ("zero_shot_onehot", "zero_shot"),
                           ("zero_shot_morph", "zero_shot")):  # fmt: skip
             for k in result["config"]["pools"]:
                 label, ref = (f"{arm}_{n}_pool{k}", f"alone_{n}") if base == "alone" else (f"{arm}_pool{k}", f"{base}_pool{k}")
@@ -1048,13 +1055,19 @@ def mechanism_lines(result: dict) -> list[str]:
                 if len(pairs) < 2 or (arm == "mix" and f"mix_heads_{n}_pool{k}" not in next(iter(by_hand.values()))):
                     continue
                 worst = min(pairs, key=pairs.get)
+                # per seed, the targets' mean gain (each seed its own recordings and evaluation episodes)
+                by_seed = [np.mean([rate[(task, h, label, s)] - rate[(task, h, ref, s)] for h in pairs])
+                           for s in result["config"]["seeds"]
+                           if all((task, h, label, s) in rate and (task, h, ref, s) in rate for h in pairs)]  # fmt: skip
                 rows.append([arm_title(label), *(f"{pairs[h]:+.0f}" if h in pairs else "-" for h in by_hand),
-                             f"{np.mean(list(pairs.values())):+.1f}", f"{worst} {pairs[worst]:+.0f}",
+                             f"{np.mean(list(pairs.values())):+.1f}", " / ".join(f"{g:+.1f}" for g in by_seed) or "-",
+                             f"{worst} {pairs[worst]:+.0f}",
                              f"{sum(g >= -NEVER_WORSE_POINTS for g in pairs.values())}/{len(pairs)}"])  # fmt: skip
         if rows:
             lines += [f"**{task}**, each mechanism's gain (points, mean over seeds) over the hand alone at {n} "
                       "demonstrations (zero-shot arms: over the default zero-shot of the same pool):", "",
-                      md_table(["arm", *by_hand, "mean", "worst", f"within {NEVER_WORSE_POINTS:g} points or better"],
+                      md_table(["arm", *by_hand, "mean", "mean per seed", "worst",
+                                f"within {NEVER_WORSE_POINTS:g} points or better"],
                                rows), ""]  # fmt: skip
     return lines
 

@@ -174,7 +174,9 @@ class UdtConfigMixin:
     # With udt_hand_norm on a mix: lend each hand's per-hand statistics this many episodes' worth of frames (the
     # dataset's mean episode length) of the pool's statistics (conversion/hand_stats.shrunk_hand_stats: weight
     # n / (n + prior) on its own), so a target with 10 demonstrations among hands with 50 is not normalised by
-    # the narrow spread of its few; 0 = each hand's own statistics only (as before 2026-12-06). One robot: no effect.
+    # the narrow spread of its few. 0 (the default) = each hand's own statistics only. 10 paid among six hands
+    # and cost a little beside one or two others, within the seeds' spread (docs/lerobot.md "Pooling hands"), so
+    # it is an option, not the recipe. One robot: no effect.
     udt_hand_stats_prior: float = 0.0
     # The per-hand statistics and their modes {"modes": {key: mode}, key: {side: {hand: {lo, hi, "frames"}}}}; filled
     # from the dataset (a mix's record, or one robot's training episodes) and saved with the checkpoint.

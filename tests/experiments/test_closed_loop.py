@@ -404,8 +404,15 @@ def test_the_mechanism_table_gives_each_arms_gain_over_the_hand_alone():
         "leap": {"alone_10": arm(40), "mix_10_pool2": arm(60), "mix_heads_10_pool2": arm(50), "zero_shot_pool6": arm(30),
                  "zero_shot_morph_pool6": arm(36), "mix_morph_10_pool2": arm(70)},
     }}  # fmt: skip
-    text = "\n".join(cl.mechanism_lines({"config": {"mix_demos": [10], "pools": [2, 6]}, "summary": summary}))
-    assert "| mix, 10 demos, 2-hand pool | -10 | +20 | +5.0 | shadow -10 | 1/2 |" in text
-    assert "| mix, one-hot identity (heads, no morphology), 10 demos, 2-hand pool | +5 | +10 | +7.5 | shadow +5 | 2/2 |" in text
-    assert "| mix, no per-hand heads (morphology only), 10 demos, 2-hand pool | -2 | +30 | +14.0 | shadow -2 | 2/2 |" in text
-    assert "| zero-shot, no per-hand heads (morphology only), 6-hand pool | -10 | +6 | -2.0 | shadow -10 | 1/2 |" in text
+    # the mix's and the hand alone's runs per seed (successes of 50): the per-seed column is the targets' mean gain
+    runs = [{"task": "GraspLift-v0", "hand": hand, "arm": label, "seed": seed, "successes": k, "episodes": 50}
+            for hand, label, by_seed in (("shadow", "alone_10", (24, 26)), ("shadow", "mix_10_pool2", (20, 20)),
+                                         ("leap", "alone_10", (20, 20)), ("leap", "mix_10_pool2", (28, 32)))
+            for seed, k in enumerate(by_seed)]  # fmt: skip
+    text = "\n".join(cl.mechanism_lines({"config": {"mix_demos": [10], "pools": [2, 6], "seeds": [0, 1]},
+                                         "summary": summary, "runs": runs}))  # fmt: skip
+    # seed 0: (40 - 48 + 56 - 40) / 2; seed 1: (40 - 52 + 64 - 40) / 2
+    assert "| mix, 10 demos, 2-hand pool | -10 | +20 | +5.0 | +4.0 / +6.0 | shadow -10 | 1/2 |" in text
+    assert "| mix, one-hot identity (heads, no morphology), 10 demos, 2-hand pool | +5 | +10 | +7.5 | - | shadow +5 | 2/2 |" in text
+    assert "| mix, no per-hand heads (morphology only), 10 demos, 2-hand pool | -2 | +30 | +14.0 | - | shadow -2 | 2/2 |" in text
+    assert "| zero-shot, no per-hand heads (morphology only), 6-hand pool | -10 | +6 | -2.0 | - | shadow -10 | 1/2 |" in text
