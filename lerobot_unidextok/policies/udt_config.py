@@ -36,6 +36,7 @@ What the mixin adds to the stock config, in `validate_features` (run when the po
 from __future__ import annotations
 
 import logging
+import sys
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
@@ -54,7 +55,7 @@ from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.data.share_sampler import episode_inputs, episode_map_key
 from lerobot_unidextok.data.wrist_frame import NUM_COLUMNS as NUM_WRIST_COLUMNS
 from lerobot_unidextok.data.wrist_frame import WristFrame, check_centre
-from lerobot_unidextok.errors import ConfigError, InvalidInputError
+from lerobot_unidextok.errors import ConfigError, InvalidInputError, UserError
 from lerobot_unidextok.policies.relative_layout import relative_layout_problem
 from lerobot_unidextok.policies.train_output import refuse_training_into_a_unit
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, untrained_preset
@@ -230,6 +231,19 @@ class UdtConfigMixin:
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        try:
+            self._check_fields()
+        except (ValueError, UserError) as exc:
+            # lerobot-train's parser (draccus) reports a config whose __post_init__ raises only as "Couldn't
+            # instantiate class ACTUdtConfig using the given arguments": say what is wrong before it does
+            print(f"{self.type}: {exc}", file=sys.stderr)
+            raise
+        self._stock_normalization = dict(self.normalization_mapping)  # before the relative override
+        if self.udt_relative_actions:  # offsets around the state: the absolute action stats do not describe them
+            self.normalization_mapping = {**self.normalization_mapping, "ACTION": NormalizationMode.IDENTITY}
+
+    def _check_fields(self) -> None:
+        """Each udt_* field validated once, as given (flags, a config file or a checkpoint's config.json)."""
         if self.udt_representation not in REPRESENTATIONS:
             raise ValueError(f"udt_representation must be one of {REPRESENTATIONS}, got {self.udt_representation!r}")
         if self.udt_encoding is not None:
@@ -251,9 +265,6 @@ class UdtConfigMixin:
         self._check_wrist_frame()
         self._check_hand_stats()
         self._check_hand_heads()
-        self._stock_normalization = dict(self.normalization_mapping)  # before the relative override
-        if self.udt_relative_actions:  # offsets around the state: the absolute action stats do not describe them
-            self.normalization_mapping = {**self.normalization_mapping, "ACTION": NormalizationMode.IDENTITY}
 
     # ----------------------------------------------------------------------------------------------
     def _check_hand_heads(self) -> None:

@@ -56,8 +56,16 @@ def test_no_prior_and_one_hand_leave_the_statistics_as_they_are():
     assert shrunk_hand_stats(alone, prior_frames=1000) == alone
 
 
-def test_a_negative_prior_is_refused_by_the_policy_config():
-    from lerobot_unidextok.policies import ACTUdtConfig
+def test_a_negative_prior_is_refused_by_name_through_lerobot_trains_parser(capsys):
+    """lerobot-train's parser (draccus) says only "Couldn't instantiate class ACTUdtConfig"; the config says why."""
+    import draccus
+    from draccus.utils import DecodingError
+    from lerobot.configs.train import TrainPipelineConfig
 
-    with pytest.raises(ValueError, match="udt_hand_stats_prior is in episodes and must be >= 0"):
-        ACTUdtConfig(udt_hand_stats_prior=-1.0, device="cpu")
+    import lerobot_policy_unidextok  # noqa: F401  (the <type>_udt policies, as lerobot-train discovers them)
+    from lerobot_unidextok.configs import resolve_config_path
+
+    with pytest.raises(DecodingError, match="Couldn't instantiate class ACTUdtConfig"):
+        draccus.parse(TrainPipelineConfig, config_path=resolve_config_path("lerobot/act_udt_cpu"),
+                      args=["--dataset.repo_id=sim/x", "--policy.udt_hand_stats_prior=-1"])  # fmt: skip
+    assert "act_udt: udt_hand_stats_prior is in episodes and must be >= 0" in capsys.readouterr().err
