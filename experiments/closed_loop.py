@@ -65,6 +65,8 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   checkpoint's, whose target hand's are those of the same n demonstrations (the mix computes them from its rows of
   that hand), so they equal what the target's dataset gives; the action's wrist (passthrough) columns keep the
   mix's statistics (the per-hand step holds them, and lerobot-train overrides only LeRobot's normaliser);
+  `mix_ft_state_norm_<n>`: the same with the state normalised per hand in both stages
+  (`--policy.udt_hand_norm_state=true`), so the fine-tune keeps the mix's statistics of the state too;
 - `zero_shot`: the pool's other hands, none of the target's demonstrations, bound with `--zero_shot=true` (one
   other hand: its converted recording, no mix); `zero_shot_no_frame`: the same in the robots' wrist frames.
 Also measured: the scripted expert on each seed's evaluation episodes. `robustness` gives per task and pool size
