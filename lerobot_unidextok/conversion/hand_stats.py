@@ -36,11 +36,12 @@ from lerobot_unidextok.blocks import find_udhm_blocks
 from lerobot_unidextok.constants import ACTION, CONVERSION_PATH, HAND_TYPE_KEY, OBS_STATE, UDHM_DIM, UDHM_MASK_KEY
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.data.reader import data_files
-from lerobot_unidextok.utils.number_checks import checked_hand_stats
+from lerobot_unidextok.utils.number_checks import RANGE_PAIRS, checked_hand_stats
 
 ACTION_DELTA = "action_delta"  # the statistics of action - state (relative actions)
 QUANTILES = {"q01": 0.01, "q10": 0.10, "q90": 0.90, "q99": 0.99}
 DIGITS = 8  # decimals kept in the JSON record
+LOW_STATS = {low for low, _ in RANGE_PAIRS}  # min, q01, q10: the pool's is its lowest; max and the rest its highest
 
 
 def _summary(values: np.ndarray) -> dict[str, Any]:
@@ -139,7 +140,7 @@ def shrunk_hand_stats(stats: dict[str, dict[str, dict[str, dict]]], prior_frames
                 pooled["second"] = (weight * second).sum(0) / total
             for name in stat_names - {"mean", "std"}:
                 values = np.stack([entries[h][name] for h in names])  # (V, 22)
-                low = name == "min" or (name.startswith("q") and float(QUANTILES.get(name, 1)) < 0.5)
+                low = name in LOW_STATS
                 masked = np.where(has, values, np.inf if low else -np.inf)
                 pooled[name] = masked.min(0) if low else masked.max(0)
             out[key][side] = {}

@@ -177,8 +177,8 @@ class UdtConfigMixin:
     # dataset's mean episode length) of the pool's statistics (conversion/hand_stats.shrunk_hand_stats: weight
     # n / (n + prior) on its own), so a target with 10 demonstrations among hands with 50 is not normalised by
     # the narrow spread of its few. 0 (the default) = each hand's own statistics only. 10 paid among six hands
-    # and cost a little beside one or two others, within the seeds' spread (docs/lerobot.md "Pooling hands"), so
-    # it is an option, not the recipe. One robot: no effect.
+    # and cost a little beside one or two others, on every seed (docs/lerobot.md "Pooling hands"), so it is an
+    # option, not the recipe. One robot: no effect.
     udt_hand_stats_prior: float = 0.0
     # The per-hand statistics and their modes {"modes": {key: mode}, key: {side: {hand: {lo, hi, "frames"}}}}; filled
     # from the dataset (a mix's record, or one robot's training episodes) and saved with the checkpoint.
@@ -223,8 +223,9 @@ class UdtConfigMixin:
     # Per-hand output heads around the shared trunk (act_udt on a mix; policies/hand_heads.py): the action head
     # plus a residual Linear per hand of udt_hand_vocabulary, zero at the start, each row through its own hand's
     # (its first block's hand; a zero-shot hand: the mean of the trained hands' heads; no hand: the shared head
-    # only). Saved in model.safetensors and kept by unidextok-deploy. On one robot's dataset there is one hand and no heads are built. On in the ACT
-    # recipes (act_udt_cpu.yaml, act_udt.yaml); off without a config (and in checkpoints saved before the field).
+    # only). Saved in model.safetensors and kept by unidextok-deploy. On one robot's dataset there is one hand and
+    # no heads are built. On in the ACT recipes (act_udt_cpu.yaml, act_udt.yaml); off without a config (and in
+    # checkpoints saved before the field).
     udt_hand_heads: bool = False
     # Accepted and ignored, so --policy.discover_packages_path=lerobot_unidextok also works with
     # --policy.path=<checkpoint> (LeRobot passes every --policy.* flag to the loaded config).
