@@ -99,6 +99,9 @@ class CrossEmbodimentConfig:
     # actions: the recipe before 2026-12-05); "actions" (the default, as udt_hand_norm_state=false) / "state": only
     # that half per source, the other pooled
     hand_norm: str = "actions"
+    # Each source's own statistics (the per-source ones above) shrunk toward the pool's by this many episodes of
+    # the pool's frames, as `--policy.udt_hand_stats_prior` does (`conversion.hand_stats.shrunk_hand_stats`); 0 = off
+    hand_prior: float = 0.0
     mask_slots: bool = True  # no loss on the action slots a source's hand lacks (false: trained as zeros)
     target_share: float = 0.5  # share of the training batches' rows that are the target's; 0 = as they come
     share_by: str = "sampling"  # "sampling" (ShareSampler draws the batches) or "copies" (the target's rows repeated)
@@ -120,6 +123,8 @@ class CrossEmbodimentConfig:
             raise ValueError(f"normalise must be per_source or pooled, got {self.normalise!r}")
         if self.hand_norm not in HAND_NORMS:
             raise ValueError(f"hand_norm must be one of {HAND_NORMS}, got {self.hand_norm!r}")
+        if not self.hand_prior >= 0:
+            raise ValueError(f"hand_prior must be >= 0 episodes, got {self.hand_prior}")
         if self.share_by not in ("sampling", "copies"):
             raise ValueError(f"share_by must be sampling or copies, got {self.share_by!r}")
         if not 0.0 <= self.target_share < 1.0:
@@ -292,20 +297,29 @@ def training_set(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], ta
     packed = arm == "native_packed"
     others = sum(len(src.episode) for src in used[1:])
     share = cfg.target_share if others else 0.0
-    parts, scales = [], []
+    picked = []  # per source: its rows, hand input and action chunks
     for k, src in enumerate(used):
         rows = target_train if k == 0 else np.arange(len(src.episode))
-        if k == 0 and share and share_by == "copies":  # repeat the target's rows up to its share
-            rows = np.tile(rows, max(1, round(share / (1 - share) * others / len(rows))))
         cur, nxt = (src.packed, src.packed_next) if packed else (src.udhm, src.udhm_next)
         y, pad = chunks(cur, nxt, src.episode, cfg.act.chunk_size)
-        x = (views[src.name] if arm == "tokens_dequantized" else cur)[rows]
-        x_scale = Standardiser.fit(x) if hand_norm in ("per_source", "state") else None
-        y_scale = Standardiser.fit(y[rows][:, 0]) if cfg.normalise == "per_source" else None
+        picked.append((rows, (views[src.name] if arm == "tokens_dequantized" else cur)[rows], y[rows], pad[rows]))
+    x_scales = y_scales = [None] * len(used)
+    episodes = sum(len(np.unique(src.episode[rows])) for src, (rows, *_) in zip(used, picked, strict=True))
+    prior_frames = cfg.hand_prior * sum(len(rows) for rows, *_ in picked) / episodes  # at the mean episode length
+    if hand_norm in ("per_source", "state"):
+        x_scales = source_scales(used, [x for _, x, _, _ in picked], prior_frames, packed)
+    if cfg.normalise == "per_source":
+        y_scales = source_scales(used, [y[:, 0] for _, _, y, _ in picked], prior_frames, packed)
+    parts, scales = [], []
+    for k, (src, (rows, x, y, pad)) in enumerate(zip(used, picked, strict=True)):
+        if k == 0 and share and share_by == "copies":  # repeat the target's rows up to its share
+            copies = max(1, round(share / (1 - share) * others / len(rows)))
+            rows, x, y, pad = (np.tile(a, (copies,) + (1,) * (a.ndim - 1)) for a in (rows, x, y, pad))
+        x_scale, y_scale = x_scales[k], y_scales[k]
         lacks = lacking(src, packed) if mask else None
         scales.append((x_scale, y_scale, lacks))
-        parts.append((x if x_scale is None else x_scale(x), y[rows] if y_scale is None else y_scale(y[rows]),
-                      pad[rows], np.full(len(rows), k), None if lacks is None else np.tile(lacks, (len(rows), 1))))  # fmt: skip
+        parts.append((x if x_scale is None else x_scale(x), y if y_scale is None else y_scale(y),
+                      pad, np.full(len(rows), k), None if lacks is None else np.tile(lacks, (len(rows), 1))))  # fmt: skip
     xs, ys, pads, ids, slot_pads = (list(p) for p in zip(*parts, strict=True))
     n0, total = len(ids[0]), sum(len(i) for i in ids)
     order = None
@@ -316,6 +330,34 @@ def training_set(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], ta
     return TrainingSet(np.eye(len(sources))[np.concatenate(ids)], np.concatenate(xs), np.concatenate(ys),
                        np.concatenate(pads), None if not mask else np.concatenate(slot_pads), order, n0, *scales[0],
                        actions_prescaled=hand_norm in ("per_source", "actions") and cfg.normalise == "per_source")  # fmt: skip
+
+
+def source_scales(sources: list[Source], values: list[np.ndarray], prior_frames: float,
+                  packed: bool) -> list[Standardiser]:  # fmt: skip
+    """Each source's z-score of its (n, D) `values` rows: its own mean / std, or with `prior_frames` > 0 (UDHM
+    layout only) those shrunk toward the pool's by `conversion.hand_stats.shrunk_hand_stats`, each side a block,
+    each source's hand there one entry."""
+    own = [Standardiser.fit(v) for v in values]
+    if prior_frames <= 0 or packed:
+        return own
+    from lerobot_unidextok.conversion.hand_stats import shrunk_hand_stats
+
+    block = {side: slice(i * UDHM_DIM, (i + 1) * UDHM_DIM) for i, side in enumerate(SIDES)}
+    stats = {"x": {side: {src.hands[i]: {"mean": v[:, block[side]].mean(0), "std": v[:, block[side]].std(0),
+                                         "frames": len(v)}
+                          for src, v in zip(sources, values, strict=True) if src.hands[i] is not None}
+                   for i, side in enumerate(SIDES)}}  # fmt: skip
+    shrunk = shrunk_hand_stats(stats, prior_frames)["x"]
+    out = []
+    for src, scale in zip(sources, own, strict=True):
+        mean, std = scale.mean.copy(), scale.std.copy()
+        for i, side in enumerate(SIDES):
+            if src.hands[i] is not None:
+                entry = shrunk[side][src.hands[i]]
+                std_side = np.asarray(entry["std"])
+                mean[block[side]], std[block[side]] = entry["mean"], np.where(std_side > 1e-6, std_side, 1.0)
+        out.append(Standardiser(mean, std))
+    return out
 
 
 def run_one(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], target_train: np.ndarray,

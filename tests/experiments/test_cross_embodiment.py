@@ -131,6 +131,37 @@ def test_the_new_recipe_normalises_per_source_masks_and_samples_the_old_arm_does
     assert ce.CrossEmbodimentConfig().hand_norm == "actions"  # the recipe's default, as udt_hand_norm_state=false
 
 
+def test_a_prior_moves_each_sources_statistics_toward_the_pool(converted_g1):
+    """`--hand_prior` (as `--policy.udt_hand_stats_prior`): per slot, a source's mean is its frames' joined by
+    `prior` episodes' worth of the pool's; a side one source holds and a slot a hand lacks keep their own."""
+    from lerobot_unidextok import hands
+
+    frames, sources = _target_and_xhand(converted_g1)
+    cfg = ce.CrossEmbodimentConfig(target_episodes=[2], seeds=[0], hand_norm="per_source",
+                                   act=ce.CrossEmbodimentACT(steps=50, batch_size=8))  # fmt: skip
+    target_train = np.flatnonzero(frames.episode == np.unique(frames.episode)[0])
+    own = ce.training_set(cfg, "udhm_mix", sources, target_train, {}, seed=0)
+    shrunk = ce.training_set(dataclasses.replace(cfg, hand_prior=10.0), "udhm_mix", sources, target_train, {}, 0)
+    n, m = len(target_train), len(sources[1].episode)
+    prior = 10.0 * (n + m) / (1 + len(np.unique(sources[1].episode)))  # episodes at the mean episode length
+    w = n / (n + prior)
+    right = slice(22, 44)
+    target_x, xhand_x = sources[0].udhm[target_train][:, right], sources[1].udhm[:, right]
+    target_hand = dict(zip(frames.sides, frames.hands, strict=True))["right"]
+    both = hands.get(target_hand).active_mask & hands.get("xhand1").active_mask  # the slots the two hands share
+    pool_mean = (n * target_x.mean(0) + m * xhand_x.mean(0)) / (n + m)
+    expected = w * target_x.mean(0) + (1 - w) * pool_mean
+    np.testing.assert_allclose(shrunk.state_scale.mean[right][both], expected[both], atol=1e-6)
+    assert not np.allclose(shrunk.state_scale.mean[right][both], own.state_scale.mean[right][both])
+    np.testing.assert_allclose(shrunk.state_scale.mean[:22], own.state_scale.mean[:22])  # the left: one hand
+    np.testing.assert_allclose(shrunk.state_scale.std[:22], own.state_scale.std[:22])
+    assert (shrunk.action_scale.std != own.action_scale.std).any()  # the per-source actions are shrunk too
+    off = ce.training_set(dataclasses.replace(cfg, hand_prior=0.0), "udhm_mix", sources, target_train, {}, 0)
+    np.testing.assert_array_equal(off.hands, own.hands)
+    with pytest.raises(ValueError, match="hand_prior must be"):
+        ce.CrossEmbodimentConfig(hand_prior=-1.0)
+
+
 def test_a_masked_slot_gets_exactly_zero_gradient():
     """train_act's `slot_pad` loss (act_udt's, on the stock ACT): the masked action column's output layer gets no
     gradient, every other column does."""
