@@ -56,7 +56,8 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   have no heads (`--policy.udt_hand_heads=false`); `mix_onehot_<n>` and `zero_shot_onehot` have neither, the
   recipe before 2026-12-06 (with one other hand, zero-shot trains on that robot alone, where neither exists);
 - `mix_shrink_<n>`: each hand's per-hand statistics shrunk toward the pool's (`--policy.udt_hand_stats_prior=10`:
-  the pool lends each hand 10 episodes' worth of its statistics);
+  the pool lends each hand 10 episodes' worth of its statistics); `state_norm_shrink_<n>`: the same with the state
+  normalised per hand too (`--policy.udt_hand_norm_state=true`), whose statistics are then shrunk as well;
 - `mix_ft_<n>`: pool, then specialise at matched compute: `mix_<n>` trained for `steps // 2` updates, bound to the
   target, then trained further by the stock `lerobot-train --policy.path=<bound checkpoint>` on the target's own
   dataset (`alone_<n>`'s: the same n demonstrations) for the other `steps - steps // 2` (`fine_tune_args`); the
@@ -164,6 +165,8 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     # per-hand statistics shrunk toward the pool's (issue 57; conversion/hand_stats.shrunk_hand_stats): each hand
     # lent `SHRINK_EPISODES` episodes' worth of the pool's statistics
     "mix_shrink": ("mix", (SHRINK,)),
+    # the state normalised per hand too, every statistic shrunk toward the pool's: a candidate default
+    "state_norm_shrink": ("mix", ("--policy.udt_hand_norm_state=true", SHRINK)),
     # pool, then specialise (issue 57): `mix` for steps // 2, bound, then lerobot-train --policy.path= on the
     # target's own dataset for the rest (`FINE_TUNED`, `fine_tune_args`)
     "mix_ft": ("mix", ()),
@@ -177,7 +180,7 @@ ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")
 PRUNED = (*ABLATIONS, "alone_no_frame", "pooled", "mix_rule")
 # run on `mechanism_pools`, after every other arm
 MECHANISMS = ("mix_heads", "mix_morph", "mix_onehot", "zero_shot_morph", "zero_shot_onehot", "mix_shrink",
-              "mix_ft", "mix_ft_state_norm")
+              "state_norm_shrink", "mix_ft", "mix_ft_state_norm")
 FINE_TUNED = ("mix_ft", "mix_ft_state_norm")  # trained in two stages: the mix, then the target's own dataset (`pool_then_fine_tune`)
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 MAPPINGS = {"semantic": "semantic", "packed": "append_pad"}  # a conversion's name -> unidextok-convert --mapping
@@ -387,7 +390,7 @@ def plan(cfg: ClosedLoopConfig, job: dict) -> dict:
     weights, weights_by, tag = [], "sampling", f"default-{_mix_code()}"
     if kind == "copies":
         weights, weights_by, tag = [cfg.target_weight] + [1.0] * len(others), "copies", f"w{cfg.target_weight:g}"
-    elif cfg.share and kind != "without":
+    elif cfg.share and kind not in ("without", "alone"):  # the hand alone has no share to set
         weights, tag = [cfg.share] + [(1 - cfg.share) / len(others)] * len(others), f"s{cfg.share:g}"
     root = paths[0] if len(paths) == 1 else mix_root(cfg, task, seed, paths, tag)
     robot = (
@@ -982,6 +985,7 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "mix_onehot": "mix, one-hot identity and no heads (the recipe before 2026-12-06)",
               "zero_shot_onehot": "zero-shot, one-hot identity and no heads (before 2026-12-06)",
               "mix_shrink": f"mix, per-hand statistics shrunk toward the pool's ({SHRINK_EPISODES} episodes)",
+              "state_norm_shrink": f"mix, the state per hand too, shrunk toward the pool's ({SHRINK_EPISODES} episodes)",
               "mix_ft": "mix, then fine-tuned on the target (half the updates each)",
               "mix_ft_state_norm": "mix, then fine-tuned, the state normalised per hand (kept through the fine-tune)"}  # fmt: skip
 
@@ -1048,7 +1052,7 @@ def mechanism_lines(result: dict) -> list[str]:
     for task, by_hand in result["summary"].items():
         rows = []
         for arm, base in (("mix", "alone"), ("mix_onehot", "alone"), ("mix_heads", "alone"), ("mix_morph", "alone"),
-                          ("mix_shrink", "alone"), ("mix_ft", "alone"), ("mix_ft_state_norm", "alone"),
+                          ("mix_shrink", "alone"), ("state_norm_shrink", "alone"), ("mix_ft", "alone"), ("mix_ft_state_norm", "alone"),
                           ("zero_shot_onehot", "zero_shot"),
                           ("zero_shot_morph", "zero_shot")):  # fmt: skip
             for k in result["config"]["pools"]:

@@ -185,6 +185,10 @@ def test_the_pool_is_the_target_and_the_hands_after_it_cyclically():
         and not plans["mix_10_pool6"]["weights"]
     )
     assert plans["zero_shot_pool6"]["root"].name.endswith(f"_default-{cl._mix_code()}")
+    # an asked share goes to the mixes only: the hand alone and zero-shot have no target share to set
+    shared = {j["arm"]: cl.plan(cl.ClosedLoopConfig(**{**vars(cfg), "target_share": 0.25}), j) for j in cl.jobs(cfg)}
+    assert shared["mix_10_pool2"]["weights"] == [0.25, 0.75] and shared["mix_10_pool2"]["root"].name.endswith("_s0.25")
+    assert shared["alone_10"] == plans["alone_10"] and shared["zero_shot_pool6"] == plans["zero_shot_pool6"]
     assert cl.ClosedLoopConfig().pools == [6] and cl.ClosedLoopConfig(hands=["shadow", "leap"]).pools == [2]
     assert cl.parse_label("mix_10_pool2") == ("mix", 10, 2) and cl.parse_label("zero_shot_pool3") == ("zero_shot", 0, 3)
     assert cl.arm_title("mix_rule_10_pool3") == "mix, budget rule, 10 demos, 3-hand pool"
