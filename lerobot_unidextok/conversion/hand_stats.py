@@ -20,9 +20,9 @@ hand of the vocabulary and no other), so a NaN std is one error naming the file,
 
 A hand with few demonstrations has narrow statistics of its own (a joint its 10 demonstrations barely moved gets
 a tiny std, which a policy's held-out rows leave far behind). `shrunk_hand_stats` lends each hand of a mix
-`prior_frames` frames of the pool's statistics (per slot, over the hands that have the slot): its statistics
-become those of its frames joined by that many frames drawn from the pool, so a hand with many frames keeps
-nearly its own and one with few moves toward the pool's (weight n / (n + prior) on its own).
+`prior_frames` frames of the pool's statistics (per slot, over the hands of either side that have the slot): its
+statistics become those of its frames joined by that many frames drawn from the pool, so a hand with many frames
+keeps nearly its own and one with few moves toward the pool's (weight n / (n + prior) on its own).
 """
 
 from __future__ import annotations
@@ -108,55 +108,54 @@ def hand_stats(root: str | Path, episodes: list[int] | None = None) -> dict[str,
 def shrunk_hand_stats(stats: dict[str, dict[str, dict[str, dict]]], prior_frames: float
                       ) -> dict[str, dict[str, dict[str, dict]]]:  # fmt: skip
     """`stats` (as `hand_stats` gives them) with each hand's statistics per slot moved toward the pool's: the
-    mixture of its `frames` frames and `prior_frames` frames of the pool (module docstring). The pool's mean and
-    std are the frame-weighted mixture's over the hands that have the slot (`HandSpec.active_mask`); the range
-    statistics (min, max, quantiles) are blended with the pool's lowest low and highest high by the same weight.
-    A slot the hand lacks, a side with one hand and `prior_frames <= 0` are left as they are; `frames` stays the
-    hand's own count."""
+    mixture of its `frames` frames and `prior_frames` frames of the pool (module docstring). The pool spans both
+    sides (a UDHM slot means the same joint on a left and a right hand, so a side that holds one hand, such as a
+    two-handed robot's left in a mix of right hands, is shrunk toward the others too). Its mean and std are the
+    frame-weighted mixture's over the hands that have the slot (`HandSpec.active_mask`); the range statistics (min,
+    max, quantiles) are blended with the pool's lowest low and highest high by the same weight. A slot the hand
+    lacks, a key with one hand on one side and `prior_frames <= 0` are left as they are; `frames` stays the hand's
+    own count."""
     from lerobot_unidextok import hands as hand_specs
 
     if prior_frames <= 0:
         return stats
     out: dict[str, dict[str, dict[str, dict]]] = {}
     for key, per_side in stats.items():
-        out[key] = {}
-        for side, per_hand in per_side.items():
-            names = sorted(per_hand)
-            if len(names) < 2:
-                out[key][side] = per_hand
-                continue
-            has = np.stack([hand_specs.get(h).active_mask for h in names])  # (V, 22)
-            frames = np.array([float(per_hand[h]["frames"]) for h in names])  # (V,)
-            weight = frames[:, None] * has  # (V, 22)
-            total = np.maximum(weight.sum(0), 1e-12)
-            pooled: dict[str, np.ndarray] = {}
-            entries = {h: {k: np.asarray(v, np.float64) for k, v in per_hand[h].items() if k != "frames"}
-                       for h in names}  # fmt: skip
-            stat_names = set.intersection(*(set(e) for e in entries.values()))
-            if {"mean", "std"} <= stat_names:
-                mean = np.stack([entries[h]["mean"] for h in names])
-                second = np.stack([entries[h]["std"] ** 2 for h in names]) + mean**2
-                pooled["mean"] = (weight * mean).sum(0) / total
-                pooled["second"] = (weight * second).sum(0) / total
+        members = [(side, h) for side in sorted(per_side) for h in sorted(per_side[side])]  # every (side, hand)
+        if len(members) < 2:
+            out[key] = per_side
+            continue
+        has = np.stack([hand_specs.get(h).active_mask for _, h in members])  # (V, 22)
+        frames = np.array([float(per_side[side][h]["frames"]) for side, h in members])  # (V,)
+        weight = frames[:, None] * has  # (V, 22)
+        total = np.maximum(weight.sum(0), 1e-12)
+        entries = [{k: np.asarray(v, np.float64) for k, v in per_side[side][h].items() if k != "frames"}
+                   for side, h in members]  # fmt: skip
+        stat_names = set.intersection(*(set(e) for e in entries))
+        pooled: dict[str, np.ndarray] = {}
+        if {"mean", "std"} <= stat_names:
+            mean = np.stack([e["mean"] for e in entries])
+            second = np.stack([e["std"] ** 2 for e in entries]) + mean**2
+            pooled["mean"] = (weight * mean).sum(0) / total
+            pooled["second"] = (weight * second).sum(0) / total
+        for name in stat_names - {"mean", "std"}:
+            values = np.stack([e[name] for e in entries])  # (V, 22)
+            low = name in LOW_STATS
+            masked = np.where(has, values, np.inf if low else -np.inf)
+            pooled[name] = masked.min(0) if low else masked.max(0)
+        out[key] = {side: {} for side in per_side}
+        for v, ((side, h), own) in enumerate(zip(members, entries, strict=True)):
+            w = np.where(has[v], frames[v] / (frames[v] + prior_frames), 1.0)  # (22,): 1 = its own
+            new: dict[str, Any] = {}
+            if "mean" in pooled:
+                mean = w * own["mean"] + (1 - w) * pooled["mean"]
+                second = w * (own["std"] ** 2 + own["mean"] ** 2) + (1 - w) * pooled["second"]
+                new["mean"], new["std"] = mean, np.sqrt(np.maximum(second - mean**2, 0.0))
             for name in stat_names - {"mean", "std"}:
-                values = np.stack([entries[h][name] for h in names])  # (V, 22)
-                low = name in LOW_STATS
-                masked = np.where(has, values, np.inf if low else -np.inf)
-                pooled[name] = masked.min(0) if low else masked.max(0)
-            out[key][side] = {}
-            for v, h in enumerate(names):
-                own = entries[h]
-                w = np.where(has[v], frames[v] / (frames[v] + prior_frames), 1.0)  # (22,): 1 = its own
-                new: dict[str, Any] = {}
-                if "mean" in pooled:
-                    mean = w * own["mean"] + (1 - w) * pooled["mean"]
-                    second = w * (own["std"] ** 2 + own["mean"] ** 2) + (1 - w) * pooled["second"]
-                    new["mean"], new["std"] = mean, np.sqrt(np.maximum(second - mean**2, 0.0))
-                for name in stat_names - {"mean", "std"}:
-                    new[name] = w * own[name] + (1 - w) * np.where(np.isfinite(pooled[name]), pooled[name], own[name])
-                rounded: dict[str, Any] = {k: [round(float(x), DIGITS) for x in new.get(k, own[k])] for k in own}
-                rounded["frames"] = per_hand[h]["frames"]
-                out[key][side][h] = rounded
+                new[name] = w * own[name] + (1 - w) * np.where(np.isfinite(pooled[name]), pooled[name], own[name])
+            rounded: dict[str, Any] = {k: [round(float(x), DIGITS) for x in new.get(k, own[k])] for k in own}
+            rounded["frames"] = per_side[side][h]["frames"]
+            out[key][side][h] = rounded
     return out
 
 

@@ -178,7 +178,8 @@ class UdtConfigMixin:
     # n / (n + prior) on its own), so a target with 10 demonstrations among hands with 50 is not normalised by
     # the narrow spread of its few. 0 (the default) = each hand's own statistics only. 10 paid among six hands
     # and cost a little beside one or two others, on every seed (docs/lerobot.md "Pooling hands"), so it is an
-    # option, not the recipe. One robot: no effect.
+    # option, not the recipe. The pool spans both sides (a slot is the same joint on either hand). A one-handed
+    # robot's own dataset: no effect; a two-handed one's: each side shrunk toward the two.
     udt_hand_stats_prior: float = 0.0
     # The per-hand statistics and their modes {"modes": {key: mode}, key: {side: {hand: {lo, hi, "frames"}}}}; filled
     # from the dataset (a mix's record, or one robot's training episodes) and saved with the checkpoint.

@@ -48,7 +48,26 @@ def test_a_hands_statistics_become_those_of_its_frames_joined_by_the_pools():
     assert moved < moved_few / 2
 
 
+def test_the_pool_spans_both_sides():
+    """A UDHM slot is the same joint on a left and a right hand: a two-handed robot's left, the only left hand in a
+    mix of right hands, is shrunk toward them as if it were on their side."""
+    few, many = _frames(FEW, 30, 0, 0.01), _frames(MANY, 300, 1, 0.3)
+    apart = shrunk_hand_stats({ACTION: {"left": {FEW: _summary(few)}, "right": {MANY: _summary(many)}}}, 330)[ACTION]
+    together = shrunk_hand_stats({ACTION: {"right": {FEW: _summary(few), MANY: _summary(many)}}}, 330)[ACTION]
+    assert apart["left"][FEW] == together["right"][FEW] and apart["right"][MANY] == together["right"][MANY]
+    both = hands.get(FEW).active_mask & hands.get(MANY).active_mask
+    joined = np.concatenate([few, few, many])
+    np.testing.assert_allclose(np.asarray(apart["left"][FEW]["mean"])[both], joined.mean(0)[both], atol=1e-7)
+    # the same hand on both sides of one robot: each side joined by the pool of the two
+    left, right = _frames(FEW, 30, 2, 0.01), _frames(FEW, 30, 3, 0.01)
+    two = shrunk_hand_stats({ACTION: {"left": {FEW: _summary(left)}, "right": {FEW: _summary(right)}}}, 60)[ACTION]
+    joined = np.concatenate([left, left, right])
+    on = hands.get(FEW).active_mask
+    np.testing.assert_allclose(np.asarray(two["left"][FEW]["std"])[on], joined.std(0)[on], atol=1e-7)
+
+
 def test_no_prior_and_one_hand_leave_the_statistics_as_they_are():
+    """One hand on one side (a one-handed robot's own dataset) has no pool to be shrunk toward."""
     few, many = _frames(FEW, 30, 0, 0.01), _frames(MANY, 300, 1, 0.3)
     stats = {ACTION: {"right": {FEW: _summary(few), MANY: _summary(many)}}}
     assert shrunk_hand_stats(stats, prior_frames=0) is stats

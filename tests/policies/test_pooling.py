@@ -267,7 +267,8 @@ def test_a_prior_lends_each_hand_of_a_mix_the_pools_statistics_and_the_checkpoin
     cfg, _ = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_stats_prior=4.0)
     record = UdhmDatasetMeta(g1_l10_mix)
     per_episode = record.info["total_frames"] / record.total_episodes
-    want = shrunk_hand_stats(record.record.hand_stats, 4.0 * per_episode)[ACTION]["right"]
+    want_sides = shrunk_hand_stats(record.record.hand_stats, 4.0 * per_episode)[ACTION]
+    want = want_sides["right"]
     got, own = cfg.udt_hand_stats[ACTION]["right"], plain.udt_hand_stats[ACTION]["right"]
     assert set(got) == {INSPIRE, L10}
     for hand in got:
@@ -276,8 +277,10 @@ def test_a_prior_lends_each_hand_of_a_mix_the_pools_statistics_and_the_checkpoin
     both = hands.get(INSPIRE).active_mask & hands.get(L10).active_mask
     moved = np.abs(np.asarray(got[L10]["mean"]) - np.asarray(own[L10]["mean"]))[both]
     assert moved.max() > 1e-4, "the prior moved nothing"
-    # the left block holds the G1's Inspire only: one hand, its own statistics
-    assert cfg.udt_hand_stats[ACTION]["left"] == plain.udt_hand_stats[ACTION]["left"]
+    # the left block holds the G1's Inspire only; the pool spans both sides, so it is shrunk toward the right's hands
+    left, left_own = cfg.udt_hand_stats[ACTION]["left"][INSPIRE], plain.udt_hand_stats[ACTION]["left"][INSPIRE]
+    np.testing.assert_allclose(left["std"], want_sides["left"][INSPIRE]["std"], atol=1e-7)
+    assert np.abs(np.asarray(left["mean"]) - np.asarray(left_own["mean"]))[both].max() > 1e-4
     cfg._save_pretrained(tmp_path)
     saved = json.loads((tmp_path / "config.json").read_text())
     assert saved["udt_hand_stats_prior"] == 4.0
