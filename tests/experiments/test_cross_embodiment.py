@@ -133,7 +133,7 @@ def test_the_new_recipe_normalises_per_source_masks_and_samples_the_old_arm_does
 
 def test_a_prior_moves_each_sources_statistics_toward_the_pool(converted_g1):
     """`--hand_prior` (as `--policy.udt_hand_stats_prior`): per slot, a source's mean is its frames' joined by
-    `prior` episodes' worth of the pool's; a side one source holds and a slot a hand lacks keep their own."""
+    `prior` episodes' worth of the pool's, the pool over both sides' hands that have the slot."""
     from lerobot_unidextok import hands
 
     frames, sources = _target_and_xhand(converted_g1)
@@ -145,16 +145,18 @@ def test_a_prior_moves_each_sources_statistics_toward_the_pool(converted_g1):
     n, m = len(target_train), len(sources[1].episode)
     prior = 10.0 * (n + m) / (1 + len(np.unique(sources[1].episode)))  # episodes at the mean episode length
     w = n / (n + prior)
-    right = slice(22, 44)
-    target_x, xhand_x = sources[0].udhm[target_train][:, right], sources[1].udhm[:, right]
-    target_hand = dict(zip(frames.sides, frames.hands, strict=True))["right"]
-    both = hands.get(target_hand).active_mask & hands.get("xhand1").active_mask  # the slots the two hands share
-    pool_mean = (n * target_x.mean(0) + m * xhand_x.mean(0)) / (n + m)
-    expected = w * target_x.mean(0) + (1 - w) * pool_mean
-    np.testing.assert_allclose(shrunk.state_scale.mean[right][both], expected[both], atol=1e-6)
-    assert not np.allclose(shrunk.state_scale.mean[right][both], own.state_scale.mean[right][both])
-    np.testing.assert_allclose(shrunk.state_scale.mean[:22], own.state_scale.mean[:22])  # the left: one hand
-    np.testing.assert_allclose(shrunk.state_scale.std[:22], own.state_scale.std[:22])
+    # the pool spans both sides (a slot is the same joint on either hand): the G1's left and right, the XHand's right
+    target_hand = dict(zip(frames.sides, frames.hands, strict=True))
+    x = sources[0].udhm[target_train]
+    blocks = [(x[:, :22], hands.get(target_hand["left"]).active_mask, n),
+              (x[:, 22:], hands.get(target_hand["right"]).active_mask, n),
+              (sources[1].udhm[:, 22:], hands.get("xhand1").active_mask, m)]  # fmt: skip
+    weight = np.stack([k * has for _, has, k in blocks])
+    pool_mean = (weight * np.stack([b.mean(0) for b, _, _ in blocks])).sum(0) / np.maximum(weight.sum(0), 1)
+    for side, (b, has, _) in zip((slice(0, 22), slice(22, 44)), blocks[:2], strict=True):
+        expected = w * b.mean(0) + (1 - w) * pool_mean
+        np.testing.assert_allclose(shrunk.state_scale.mean[side][has], expected[has], atol=1e-6)
+        assert not np.allclose(shrunk.state_scale.mean[side][has], own.state_scale.mean[side][has])
     assert (shrunk.action_scale.std != own.action_scale.std).any()  # the per-source actions are shrunk too
     off = ce.training_set(dataclasses.replace(cfg, hand_prior=0.0), "udhm_mix", sources, target_train, {}, 0)
     np.testing.assert_array_equal(off.hands, own.hands)
