@@ -57,7 +57,8 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   recipe before 2026-12-06 (with one other hand, zero-shot trains on that robot alone, where neither exists);
 - `mix_shrink_<n>`: each hand's per-hand statistics shrunk toward the pool's (`--policy.udt_hand_stats_prior=10`:
   the pool lends each hand 10 episodes' worth of its statistics); `state_norm_shrink_<n>`: the same with the state
-  normalised per hand too (`--policy.udt_hand_norm_state=true`), whose statistics are then shrunk as well;
+  normalised per hand too (`--policy.udt_hand_norm_state=true`), whose statistics are then shrunk as well, and
+  `zero_shot_state_norm_shrink` the zero-shot arm with both;
 - `mix_ft_<n>`: pool, then specialise at matched compute: `mix_<n>` trained for `steps // 2` updates, bound to the
   target, then trained further by the stock `lerobot-train --policy.path=<bound checkpoint>` on the target's own
   dataset (`alone_<n>`'s: the same n demonstrations) for the other `steps - steps // 2` (`fine_tune_args`); the
@@ -133,6 +134,7 @@ ONEHOT = "--policy.udt_hand_identity=onehot"
 NO_HEADS = "--policy.udt_hand_heads=false"
 SHRINK_EPISODES = 10  # the pool's statistics lent to each hand, in episodes (about a 10-demonstration target's own)
 SHRINK = f"--policy.udt_hand_stats_prior={SHRINK_EPISODES}"
+STATE_SHRINK = ("--policy.udt_hand_norm_state=true", SHRINK)  # the state per hand, every statistic shrunk
 POOLED = ("--policy.udt_hand_norm=off", "--policy.udt_mask_slots=false", *NO_FRAME)
 # arm -> (its dataset, lerobot-train flags beyond the user's); the dataset: the target alone, the mix (`mix`), the
 # mix of the target's copies (`copies`), the packed mix, or the pool's other hands without the target
@@ -166,7 +168,8 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     # lent `SHRINK_EPISODES` episodes' worth of the pool's statistics
     "mix_shrink": ("mix", (SHRINK,)),
     # the state normalised per hand too, every statistic shrunk toward the pool's: a candidate default
-    "state_norm_shrink": ("mix", ("--policy.udt_hand_norm_state=true", SHRINK)),
+    "state_norm_shrink": ("mix", STATE_SHRINK),
+    "zero_shot_state_norm_shrink": ("without", STATE_SHRINK),
     # pool, then specialise (issue 57): `mix` for steps // 2, bound, then lerobot-train --policy.path= on the
     # target's own dataset for the rest (`FINE_TUNED`, `fine_tune_args`)
     "mix_ft": ("mix", ()),
@@ -180,7 +183,7 @@ ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")
 PRUNED = (*ABLATIONS, "alone_no_frame", "pooled", "mix_rule")
 # run on `mechanism_pools`, after every other arm
 MECHANISMS = ("mix_heads", "mix_morph", "mix_onehot", "zero_shot_morph", "zero_shot_onehot", "mix_shrink",
-              "state_norm_shrink", "mix_ft", "mix_ft_state_norm")
+              "state_norm_shrink", "zero_shot_state_norm_shrink", "mix_ft", "mix_ft_state_norm")
 FINE_TUNED = ("mix_ft", "mix_ft_state_norm")  # trained in two stages: the mix, then the target's own dataset (`pool_then_fine_tune`)
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 MAPPINGS = {"semantic": "semantic", "packed": "append_pad"}  # a conversion's name -> unidextok-convert --mapping
@@ -986,6 +989,7 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "zero_shot_onehot": "zero-shot, one-hot identity and no heads (before 2026-12-06)",
               "mix_shrink": f"mix, per-hand statistics shrunk toward the pool's ({SHRINK_EPISODES} episodes)",
               "state_norm_shrink": f"mix, the state per hand too, shrunk toward the pool's ({SHRINK_EPISODES} episodes)",
+              "zero_shot_state_norm_shrink": "zero-shot, the state per hand too, shrunk toward the pool's",
               "mix_ft": "mix, then fine-tuned on the target (half the updates each)",
               "mix_ft_state_norm": "mix, then fine-tuned, the state normalised per hand (kept through the fine-tune)"}  # fmt: skip
 
@@ -1053,7 +1057,7 @@ def mechanism_lines(result: dict) -> list[str]:
         rows = []
         for arm, base in (("mix", "alone"), ("mix_onehot", "alone"), ("mix_heads", "alone"), ("mix_morph", "alone"),
                           ("mix_shrink", "alone"), ("state_norm_shrink", "alone"), ("mix_ft", "alone"), ("mix_ft_state_norm", "alone"),
-                          ("zero_shot_onehot", "zero_shot"),
+                          ("zero_shot_onehot", "zero_shot"), ("zero_shot_state_norm_shrink", "zero_shot"),
                           ("zero_shot_morph", "zero_shot")):  # fmt: skip
             for k in result["config"]["pools"]:
                 label, ref = (f"{arm}_{n}_pool{k}", f"alone_{n}") if base == "alone" else (f"{arm}_pool{k}", f"{base}_pool{k}")

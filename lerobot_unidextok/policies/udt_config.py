@@ -169,9 +169,10 @@ class UdtConfigMixin:
     udt_hand_norm: str = "auto"
     # With udt_hand_norm: normalise the state's UDHM blocks per hand too (the default, false: only the actions per
     # hand, the state with LeRobot's one set of statistics per column; a target with few episodes has narrow
-    # statistics of its own, which held-out states leave far behind: experiments/cross_embodiment.py; in closed loop
-    # with 10 target demonstrations it pooled better, docs/lerobot.md "Pooling hands"). A checkpoint keeps what it
-    # trained with (the halves it normalises per hand are in udt_hand_stats), so a fine-tune keeps them too.
+    # statistics of its own, which held-out states leave far behind: experiments/cross_embodiment.py, unless
+    # udt_hand_stats_prior shrinks them; in closed loop with 10 target demonstrations it pooled better but its
+    # zero-shot transferred worse, docs/lerobot.md "Pooling hands"). A checkpoint keeps what it trained with (the
+    # halves it normalises per hand are in udt_hand_stats), so a fine-tune keeps them too.
     udt_hand_norm_state: bool = False
     # With udt_hand_norm on a mix: lend each hand's per-hand statistics this many episodes' worth of frames (the
     # dataset's mean episode length) of the pool's statistics (conversion/hand_stats.shrunk_hand_stats: weight
