@@ -56,7 +56,7 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   have no heads (`--policy.udt_hand_heads=false`); `mix_onehot_<n>` and `zero_shot_onehot` have neither, the
   recipe before 2026-12-06 (with one other hand, zero-shot trains on that robot alone, where neither exists);
 - `mix_shrink_<n>`: each hand's per-hand statistics shrunk toward the pool's (`--policy.udt_hand_stats_prior=10`:
-  the pool lends each hand 10 episodes' worth of its statistics); `state_norm_shrink_<n>`: the same with the state
+  the pool lends each hand 10 episodes' worth of its statistics; `shrink_episodes` sets another prior); `state_norm_shrink_<n>`: the same with the state
   normalised per hand too (`--policy.udt_hand_norm_state=true`), whose statistics are then shrunk as well, and
   `zero_shot_state_norm_shrink` the zero-shot arm with both;
 - `mix_ft_<n>`: pool, then specialise at matched compute: `mix_<n>` trained for `steps // 2` updates, bound to the
@@ -229,6 +229,8 @@ class ClosedLoopConfig:
     ablation_targets: list[str] = field(default_factory=list)
     # the pool sizes of the mechanism arms (`MECHANISMS`; empty = every pool size): prune pools, not seeds or episodes
     mechanism_pools: list[int] = field(default_factory=list)
+    # the shrunk arms' prior (`mix_shrink`, `state_norm_shrink`: --policy.udt_hand_stats_prior), in episodes
+    shrink_episodes: float = SHRINK_EPISODES
 
     def __post_init__(self) -> None:
         for name, given, allowed in (("tasks", self.tasks, SIM_TASK_IDS), ("arms", self.arms, tuple(ARMS))):
@@ -252,6 +254,8 @@ class ClosedLoopConfig:
         self.pools = self.pools or [len(self.hands)]
         if set(self.arms) & set(MIX_ARMS) and any(not 2 <= k <= len(self.hands) for k in self.pools):
             raise ValueError(f"pools {self.pools} must be 2..{len(self.hands)} (the hands of --hands)")
+        if not self.shrink_episodes > 0:
+            raise ValueError(f"shrink_episodes must be > 0 (the shrunk arms' prior), got {self.shrink_episodes}")
         seed_ranges(self)
 
     @property
@@ -685,7 +689,8 @@ def arm_flags(cfg: ClosedLoopConfig, arm: str) -> list[str]:
     tokens = ["--policy.udt_hand_input=tokens", f"--policy.udt_pretrained={cfg.tokenizer}"]
     view = {"tokens_nearest": [*tokens, *encoding_flags(NEAREST_CODES)],
             "tokens_search": [*tokens, *encoding_flags(cfg.encoding)]}.get(arm, [])  # fmt: skip
-    return [*view, *ARMS[arm][1]]
+    shrink = f"--policy.udt_hand_stats_prior={cfg.shrink_episodes:g}"
+    return [*view, *(shrink if flag == SHRINK else flag for flag in ARMS[arm][1])]
 
 
 def job_steps(cfg: ClosedLoopConfig, job: dict, root: Path) -> int:
@@ -987,16 +992,17 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "zero_shot_morph": "zero-shot, no per-hand heads (morphology only)",
               "mix_onehot": "mix, one-hot identity and no heads (the recipe before 2026-12-06)",
               "zero_shot_onehot": "zero-shot, one-hot identity and no heads (before 2026-12-06)",
-              "mix_shrink": f"mix, per-hand statistics shrunk toward the pool's ({SHRINK_EPISODES} episodes)",
-              "state_norm_shrink": f"mix, the state per hand too, shrunk toward the pool's ({SHRINK_EPISODES} episodes)",
+              "mix_shrink": "mix, per-hand statistics shrunk toward the pool's ({shrink:g} episodes)",
+              "state_norm_shrink": "mix, the state per hand too, shrunk toward the pool's ({shrink:g} episodes)",
               "zero_shot_state_norm_shrink": "zero-shot, the state per hand too, shrunk toward the pool's",
               "mix_ft": "mix, then fine-tuned on the target (half the updates each)",
               "mix_ft_state_norm": "mix, then fine-tuned, the state normalised per hand (kept through the fine-tune)"}  # fmt: skip
 
 
-def arm_title(label: str) -> str:
+def arm_title(label: str, shrink: float = SHRINK_EPISODES) -> str:
+    """The row title of an arm's label; `shrink`: the run's `shrink_episodes` (the shrunk arms' prior)."""
     arm, demos, pool = parse_label(label)
-    return ", ".join([ARM_TITLES.get(arm, arm), *([f"{demos} demos"] if demos else []),
+    return ", ".join([ARM_TITLES.get(arm, arm).format(shrink=shrink), *([f"{demos} demos"] if demos else []),
                       *([f"{pool}-hand pool"] if pool else [])])  # fmt: skip
 
 
@@ -1052,6 +1058,7 @@ def mechanism_lines(result: dict) -> list[str]:
     the default zero-shot of the same pool. From the summary, so it reads what the table beside it shows."""
     lines = []
     n = result["config"]["mix_demos"][0]
+    shrink = result["config"].get("shrink_episodes", SHRINK_EPISODES)  # results before the field: the default
     rate = {(r["task"], r["hand"], r["arm"], r["seed"]): 100 * r["successes"] / r["episodes"] for r in result["runs"]}
     for task, by_hand in result["summary"].items():
         rows = []
@@ -1069,7 +1076,7 @@ def mechanism_lines(result: dict) -> list[str]:
                 by_seed = [np.mean([rate[(task, h, label, s)] - rate[(task, h, ref, s)] for h in pairs])
                            for s in result["config"]["seeds"]
                            if all((task, h, label, s) in rate and (task, h, ref, s) in rate for h in pairs)]  # fmt: skip
-                rows.append([arm_title(label), *(f"{pairs[h]:+.0f}" if h in pairs else "-" for h in by_hand),
+                rows.append([arm_title(label, shrink), *(f"{pairs[h]:+.0f}" if h in pairs else "-" for h in by_hand),
                              f"{np.mean(list(pairs.values())):+.1f}", " / ".join(f"{g:+.1f}" for g in by_seed) or "-",
                              f"{worst} {pairs[worst]:+.0f}",
                              f"{sum(g >= -NEVER_WORSE_POINTS for g in pairs.values())}/{len(pairs)}"])  # fmt: skip
@@ -1128,7 +1135,8 @@ def markdown(result: dict) -> str:
                 cells.append(
                     f"{e['mean']:.1f} +- {e['std']:.1f} ({e['interval'][0]:.0f}-{e['interval'][1]:.0f})" if e else "-"
                 )
-            rows.append(["scripted expert" if arm == "expert" else arm_title(arm), *cells])
+            shrink = result["config"].get("shrink_episodes", SHRINK_EPISODES)
+            rows.append(["scripted expert" if arm == "expert" else arm_title(arm, shrink), *cells])
         lines += [f"**{task}**, every arm:", "", md_table(["policy", *hands], rows), ""]
     if result.get("user_commands"):
         lines += ["The commands a user runs for one mix arm (the first of the table):", "", "```bash",

@@ -326,6 +326,15 @@ def test_the_mechanism_arms_run_last_on_their_pools_and_each_take_one_out_of_the
     # the recipe has both mechanisms (act_udt_cpu.yaml); each arm takes one out, mix_onehot both (the old recipe)
     assert cl.recipe(cfg, "mix")["udt_hand_identity"] == "morphology" and cl.recipe(cfg, "mix")["udt_hand_heads"] is True
     assert cl.arm_flags(cfg, "mix_heads") == ["--policy.udt_hand_identity=onehot"]
+    # the shrunk arms' prior: 10 episodes unless --shrink_episodes says otherwise, the state arm's flag kept
+    assert cl.arm_flags(cfg, "mix_shrink") == ["--policy.udt_hand_stats_prior=10"]
+    small = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], shrink_episodes=2.5)
+    assert cl.arm_flags(small, "mix_shrink") == ["--policy.udt_hand_stats_prior=2.5"]
+    assert cl.arm_flags(small, "state_norm_shrink") == ["--policy.udt_hand_norm_state=true",
+                                                        "--policy.udt_hand_stats_prior=2.5"]  # fmt: skip
+    assert cl.recipe(small, "mix_shrink")["udt_hand_stats_prior"] == 2.5
+    with pytest.raises(ValueError, match="shrink_episodes must be > 0"):
+        cl.ClosedLoopConfig(shrink_episodes=0)
     assert cl.arm_flags(cfg, "mix_morph") == cl.arm_flags(cfg, "zero_shot_morph") == ["--policy.udt_hand_heads=false"]
     assert cl.arm_flags(cfg, "mix_onehot") == cl.arm_flags(cfg, "zero_shot_onehot") == [
         "--policy.udt_hand_identity=onehot", "--policy.udt_hand_heads=false"
