@@ -56,7 +56,8 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   have no heads (`--policy.udt_hand_heads=false`); `mix_onehot_<n>` and `zero_shot_onehot` have neither, the
   recipe before 2026-12-06 (with one other hand, zero-shot trains on that robot alone, where neither exists);
 - `mix_shrink_<n>`: each hand's per-hand statistics shrunk toward the pool's (`--policy.udt_hand_stats_prior=10`:
-  the pool lends each hand 10 episodes' worth of its statistics; `shrink_episodes` sets another prior); `state_norm_shrink_<n>`: the same with the state
+  the pool lends each hand 10 episodes' worth of its statistics; `shrink_episodes` sets another prior), and
+  `zero_shot_shrink` its zero-shot; `state_norm_shrink_<n>`: the same with the state
   normalised per hand too (`--policy.udt_hand_norm_state=true`), whose statistics are then shrunk as well, and
   `zero_shot_state_norm_shrink` the zero-shot arm with both;
 - `mix_ft_<n>`: pool, then specialise at matched compute: `mix_<n>` trained for `steps // 2` updates, bound to the
@@ -167,6 +168,7 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     # per-hand statistics shrunk toward the pool's (issue 57; conversion/hand_stats.shrunk_hand_stats): each hand
     # lent `SHRINK_EPISODES` episodes' worth of the pool's statistics
     "mix_shrink": ("mix", (SHRINK,)),
+    "zero_shot_shrink": ("without", (SHRINK,)),  # its zero-shot (one other hand: one robot, where it does nothing)
     # the state normalised per hand too, every statistic shrunk toward the pool's: a candidate default
     "state_norm_shrink": ("mix", STATE_SHRINK),
     "zero_shot_state_norm_shrink": ("without", STATE_SHRINK),
@@ -183,7 +185,7 @@ ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")
 PRUNED = (*ABLATIONS, "alone_no_frame", "pooled", "mix_rule")
 # run on `mechanism_pools`, after every other arm
 MECHANISMS = ("mix_heads", "mix_morph", "mix_onehot", "zero_shot_morph", "zero_shot_onehot", "mix_shrink",
-              "state_norm_shrink", "zero_shot_state_norm_shrink", "mix_ft", "mix_ft_state_norm")
+              "zero_shot_shrink", "state_norm_shrink", "zero_shot_state_norm_shrink", "mix_ft", "mix_ft_state_norm")
 FINE_TUNED = ("mix_ft", "mix_ft_state_norm")  # trained in two stages: the mix, then the target's own dataset (`pool_then_fine_tune`)
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
 MAPPINGS = {"semantic": "semantic", "packed": "append_pad"}  # a conversion's name -> unidextok-convert --mapping
@@ -993,6 +995,7 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "mix_onehot": "mix, one-hot identity and no heads (the recipe before 2026-12-06)",
               "zero_shot_onehot": "zero-shot, one-hot identity and no heads (before 2026-12-06)",
               "mix_shrink": "mix, per-hand statistics shrunk toward the pool's ({shrink:g} episodes)",
+              "zero_shot_shrink": "zero-shot, per-hand statistics shrunk toward the pool's ({shrink:g} episodes)",
               "state_norm_shrink": "mix, the state per hand too, shrunk toward the pool's ({shrink:g} episodes)",
               "zero_shot_state_norm_shrink": "zero-shot, the state per hand too, shrunk toward the pool's",
               "mix_ft": "mix, then fine-tuned on the target (half the updates each)",
@@ -1064,7 +1067,8 @@ def mechanism_lines(result: dict) -> list[str]:
         rows = []
         for arm, base in (("mix", "alone"), ("mix_onehot", "alone"), ("mix_heads", "alone"), ("mix_morph", "alone"),
                           ("mix_shrink", "alone"), ("state_norm_shrink", "alone"), ("mix_ft", "alone"), ("mix_ft_state_norm", "alone"),
-                          ("zero_shot_onehot", "zero_shot"), ("zero_shot_state_norm_shrink", "zero_shot"),
+                          ("zero_shot_onehot", "zero_shot"), ("zero_shot_shrink", "zero_shot"),
+                          ("zero_shot_state_norm_shrink", "zero_shot"),
                           ("zero_shot_morph", "zero_shot")):  # fmt: skip
             for k in result["config"]["pools"]:
                 label, ref = (f"{arm}_{n}_pool{k}", f"alone_{n}") if base == "alone" else (f"{arm}_pool{k}", f"{base}_pool{k}")

@@ -329,7 +329,8 @@ def test_the_mechanism_arms_run_last_on_their_pools_and_each_take_one_out_of_the
     # the shrunk arms' prior: 10 episodes unless --shrink_episodes says otherwise, the state arm's flag kept
     assert cl.arm_flags(cfg, "mix_shrink") == ["--policy.udt_hand_stats_prior=10"]
     small = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], shrink_episodes=2.5)
-    assert cl.arm_flags(small, "mix_shrink") == ["--policy.udt_hand_stats_prior=2.5"]
+    assert cl.arm_flags(small, "mix_shrink") == cl.arm_flags(small, "zero_shot_shrink") == [
+        "--policy.udt_hand_stats_prior=2.5"]
     assert cl.arm_flags(small, "state_norm_shrink") == ["--policy.udt_hand_norm_state=true",
                                                         "--policy.udt_hand_stats_prior=2.5"]  # fmt: skip
     assert cl.recipe(small, "mix_shrink")["udt_hand_stats_prior"] == 2.5
