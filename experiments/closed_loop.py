@@ -1002,6 +1002,11 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "mix_ft_state_norm": "mix, then fine-tuned, the state normalised per hand (kept through the fine-tune)"}  # fmt: skip
 
 
+def shrink_of(result: dict) -> float:
+    """The shrunk arms' prior a result ran with (results before the field: the default)."""
+    return result["config"].get("shrink_episodes", SHRINK_EPISODES)
+
+
 def arm_title(label: str, shrink: float = SHRINK_EPISODES) -> str:
     """The row title of an arm's label; `shrink`: the run's `shrink_episodes` (the shrunk arms' prior)."""
     arm, demos, pool = parse_label(label)
@@ -1061,7 +1066,7 @@ def mechanism_lines(result: dict) -> list[str]:
     the default zero-shot of the same pool. From the summary, so it reads what the table beside it shows."""
     lines = []
     n = result["config"]["mix_demos"][0]
-    shrink = result["config"].get("shrink_episodes", SHRINK_EPISODES)  # results before the field: the default
+    shrink = shrink_of(result)
     rate = {(r["task"], r["hand"], r["arm"], r["seed"]): 100 * r["successes"] / r["episodes"] for r in result["runs"]}
     for task, by_hand in result["summary"].items():
         rows = []
@@ -1139,8 +1144,7 @@ def markdown(result: dict) -> str:
                 cells.append(
                     f"{e['mean']:.1f} +- {e['std']:.1f} ({e['interval'][0]:.0f}-{e['interval'][1]:.0f})" if e else "-"
                 )
-            shrink = result["config"].get("shrink_episodes", SHRINK_EPISODES)
-            rows.append(["scripted expert" if arm == "expert" else arm_title(arm, shrink), *cells])
+            rows.append(["scripted expert" if arm == "expert" else arm_title(arm, shrink_of(result)), *cells])
         lines += [f"**{task}**, every arm:", "", md_table(["policy", *hands], rows), ""]
     if result.get("user_commands"):
         lines += ["The commands a user runs for one mix arm (the first of the table):", "", "```bash",

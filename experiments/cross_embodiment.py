@@ -350,13 +350,12 @@ def source_scales(sources: list[Source], values: list[np.ndarray], prior_frames:
     shrunk = shrunk_hand_stats(stats, prior_frames)["x"]
     out = []
     for src, scale in zip(sources, own, strict=True):
-        mean, std = scale.mean.copy(), scale.std.copy()
+        mean, std = scale.mean.copy(), scale.std.copy()  # a side the source lacks keeps its own (0 and 1)
         for i, side in enumerate(SIDES):
             if src.hands[i] is not None:
                 entry = shrunk[side][src.hands[i]]
-                std_side = np.asarray(entry["std"])
-                mean[block[side]], std[block[side]] = entry["mean"], np.where(std_side > 1e-6, std_side, 1.0)
-        out.append(Standardiser(mean, std))
+                mean[block[side]], std[block[side]] = entry["mean"], entry["std"]
+        out.append(Standardiser.of(mean, std))
     return out
 
 

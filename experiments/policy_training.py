@@ -47,8 +47,13 @@ class Standardiser:
 
     @classmethod
     def fit(cls, x: np.ndarray) -> Standardiser:
-        std = x.std(0)
-        return cls(x.mean(0), np.where(std > 1e-6, std, 1.0))
+        return cls.of(x.mean(0), x.std(0))
+
+    @classmethod
+    def of(cls, mean: np.ndarray, std: np.ndarray) -> Standardiser:
+        """From given statistics; a column with (near) zero spread maps to 0, as `fit` does."""
+        std = np.asarray(std, np.float64)
+        return cls(np.asarray(mean, np.float64), np.where(std > 1e-6, std, 1.0))
 
     @classmethod
     def identity(cls, width: int) -> Standardiser:
