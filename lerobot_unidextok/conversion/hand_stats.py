@@ -23,6 +23,8 @@ a tiny std, which a policy's held-out rows leave far behind). `shrunk_hand_stats
 `prior_frames` frames of the pool's statistics (per slot, over the hands of either side that have the slot): its
 statistics become those of its frames joined by that many frames drawn from the pool, so a hand with many frames
 keeps nearly its own and one with few moves toward the pool's (weight n / (n + prior) on its own).
+`pool_prior_episodes` sizes that prior by the pool: the more other hands a mix holds, the more its pooled
+statistics are a population's and the more of them a hand is lent (none on one hand's own dataset).
 """
 
 from __future__ import annotations
@@ -159,6 +161,14 @@ def shrunk_hand_stats(stats: dict[str, dict[str, dict[str, dict]]], prior_frames
     return out
 
 
+def pool_prior_episodes(stats: dict[str, dict[str, dict[str, dict]]], per_other_hand: float) -> float:
+    """The prior, in episodes, that lends each hand `per_other_hand` episodes of the pool's statistics for every
+    other hand in `stats` (as `hand_stats` gives them; a hand is counted once whichever sides hold it, as the pool
+    spans both): 0 on one hand's dataset, `per_other_hand` beside one other hand, 5x that among six."""
+    hands = {h for per_side in stats.values() for per_hand in per_side.values() for h in per_hand}
+    return per_other_hand * max(len(hands) - 1, 0)
+
+
 def recorded_hand_stats(meta: UdhmDatasetMeta) -> dict[str, dict[str, dict[str, dict]]] | None:
     """The per-hand statistics a mix records (`ConversionRecord.hand_stats`), checked against its hand vocabulary
     and blocks; None when the record has none (one robot's dataset: `hand_stats` computes them)."""
@@ -181,4 +191,5 @@ def training_episodes(meta: UdhmDatasetMeta) -> list[int] | None:
     return [e for e in range(meta.total_episodes) if e not in test]
 
 
-__all__ = ["ACTION_DELTA", "QUANTILES", "hand_stats", "recorded_hand_stats", "shrunk_hand_stats", "training_episodes"]
+__all__ = ["ACTION_DELTA", "QUANTILES", "hand_stats", "pool_prior_episodes", "recorded_hand_stats", "shrunk_hand_stats",
+           "training_episodes"]

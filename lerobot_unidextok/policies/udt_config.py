@@ -26,9 +26,9 @@ What the mixin adds to the stock config, in `validate_features` (run when the po
   statistics are of absolute actions, not of the offsets the policy predicts);
 - unless `udt_hand_norm=off`, the per-hand statistics of the action blocks, and of the state's with
   `udt_hand_norm_state` (`udt_hand_stats`: a mix's record, or one robot's training episodes,
-  `conversion/hand_stats.py`; with `udt_hand_stats_prior`, each hand's shrunk toward the pool's) and IDENTITY
-  for those keys in LeRobot's normaliser, whose work `unidextok.hand_normalizer` does then (docs/lerobot.md
-  "Pooling hands");
+  `conversion/hand_stats.py`; with a prior, `udt_hand_stats_prior[_per_hand]`, each hand's shrunk toward the
+  pool's) and IDENTITY for those keys in LeRobot's normaliser, whose work `unidextok.hand_normalizer` does then
+  (docs/lerobot.md "Pooling hands");
 - unless `udt_wrist_frame=robot`, the wrist columns and each hand's grasp centre (`udt_wrist_columns`,
   `udt_grasp_centres_m`: the dataset record's `wrist_frame`), for `unidextok.wrist_frame`.
 """
@@ -177,11 +177,16 @@ class UdtConfigMixin:
     # With udt_hand_norm on a mix: lend each hand's per-hand statistics this many episodes' worth of frames (the
     # dataset's mean episode length) of the pool's statistics (conversion/hand_stats.shrunk_hand_stats: weight
     # n / (n + prior) on its own), so a target with 10 demonstrations among hands with 50 is not normalised by
-    # the narrow spread of its few. 0 (the default) = each hand's own statistics only. 10 paid among six hands
-    # and cost a little beside one or two others, on every seed (docs/lerobot.md "Pooling hands"), so it is an
-    # option, not the recipe. The pool spans both sides (a slot is the same joint on either hand). A one-handed
-    # robot's own dataset: no effect; a two-handed one's: each side shrunk toward the two.
+    # the narrow spread of its few. The pool spans both sides (a slot is the same joint on either hand). 0 (the
+    # default) = udt_hand_stats_prior_per_hand decides; > 0 = this prior whatever the pool (a two-handed robot's
+    # own dataset: each side shrunk toward the two).
     udt_hand_stats_prior: float = 0.0
+    # When udt_hand_stats_prior is 0: the prior grows with the pool, this many episodes for each other hand of the
+    # mix (conversion/hand_stats.pool_prior_episodes; one robot's dataset: no other hand, no prior). A fixed 10
+    # paid among six hands and cost beside one or two others, on every seed; 2 per other hand (2 / 4 / 10 beside
+    # one / two / five) gained at each pool size (docs/lerobot.md "Pooling hands"), so the ACT recipes set 2; the
+    # policy's own default, without a config, is 0 (each hand's own statistics).
+    udt_hand_stats_prior_per_hand: float = 0.0
     # The per-hand statistics and their modes {"modes": {key: mode}, key: {side: {hand: {lo, hi, "frames"}}}}; filled
     # from the dataset (a mix's record, or one robot's training episodes) and saved with the checkpoint.
     udt_hand_stats: dict[str, Any] = field(default_factory=dict)
@@ -258,6 +263,9 @@ class UdtConfigMixin:
         if not (self.udt_hand_stats_prior >= 0):  # also NaN
             raise ValueError(f"udt_hand_stats_prior is in episodes and must be >= 0 (0: each hand's own statistics), "
                              f"got {self.udt_hand_stats_prior!r}")  # fmt: skip
+        if not (self.udt_hand_stats_prior_per_hand >= 0):
+            raise ValueError(f"udt_hand_stats_prior_per_hand is in episodes per other hand of the mix and must be >= 0 "
+                             f"(0: no prior), got {self.udt_hand_stats_prior_per_hand!r}")  # fmt: skip
         if self.udt_hand_identity not in IDENTITIES:
             raise ValueError(f"udt_hand_identity must be one of {IDENTITIES}, got {self.udt_hand_identity!r}")
         if self.udt_range_check not in RANGE_CHECKS:
@@ -508,6 +516,7 @@ class UdtConfigMixin:
         from lerobot_unidextok.conversion.hand_stats import (
             ACTION_DELTA,
             hand_stats,
+            pool_prior_episodes,
             recorded_hand_stats,
             shrunk_hand_stats,
             training_episodes,
@@ -517,9 +526,11 @@ class UdtConfigMixin:
         if stats is None:
             stats = hand_stats(meta.root, training_episodes(meta))
             logger.info("%s: per-hand statistics computed from %s's training episodes", self.type, meta.root)
-        if self.udt_hand_stats_prior > 0:
+        prior = self.udt_hand_stats_prior or pool_prior_episodes(stats, self.udt_hand_stats_prior_per_hand)
+        if prior > 0:
             frames_per_episode = float(meta.info.get("total_frames", 0)) / max(meta.total_episodes, 1)
-            stats = shrunk_hand_stats(stats, self.udt_hand_stats_prior * frames_per_episode)
+            stats = shrunk_hand_stats(stats, prior * frames_per_episode)
+            logger.info("%s: each hand's statistics shrunk toward the pool's by %g episodes", self.type, prior)
         stock = getattr(self, "_stock_normalization", self.normalization_mapping)
         chosen: dict[str, Any] = {"modes": {}}
         for key, kind, source in ((OBS_STATE, "STATE", OBS_STATE),

@@ -7,7 +7,7 @@ import pytest
 
 from lerobot_unidextok import hands
 from lerobot_unidextok.constants import ACTION, UDHM_DIM
-from lerobot_unidextok.conversion.hand_stats import shrunk_hand_stats
+from lerobot_unidextok.conversion.hand_stats import pool_prior_episodes, shrunk_hand_stats
 
 FEW, MANY = "inspire_rh56_unitree", "linkerhand_l10"
 
@@ -75,6 +75,16 @@ def test_no_prior_and_one_hand_leave_the_statistics_as_they_are():
     assert shrunk_hand_stats(alone, prior_frames=1000) == alone
 
 
+def test_the_pool_prior_counts_each_other_hand_once_whichever_side_holds_it():
+    """`pool_prior_episodes`: per other hand of the statistics' vocabulary; a hand on both sides is one hand."""
+    few, many = _summary(_frames(FEW, 30, 0, 0.01)), _summary(_frames(MANY, 300, 1, 0.3))
+    assert pool_prior_episodes({ACTION: {"right": {FEW: few}}}, 2.0) == 0.0
+    assert pool_prior_episodes({ACTION: {"left": {FEW: few}, "right": {FEW: few}}}, 2.0) == 0.0
+    assert pool_prior_episodes({ACTION: {"left": {FEW: few}, "right": {FEW: few, MANY: many}}}, 2.0) == 2.0
+    assert pool_prior_episodes({ACTION: {"right": {FEW: few, MANY: many, "leap": many}}}, 2.0) == 4.0
+    assert pool_prior_episodes({ACTION: {"right": {FEW: few, MANY: many}}}, 0.0) == 0.0
+
+
 def test_a_negative_prior_is_refused_by_name_through_lerobot_trains_parser(capsys):
     """lerobot-train's parser (draccus) says only "Couldn't instantiate class ACTUdtConfig"; the config says why."""
     import draccus
@@ -88,3 +98,7 @@ def test_a_negative_prior_is_refused_by_name_through_lerobot_trains_parser(capsy
         draccus.parse(TrainPipelineConfig, config_path=resolve_config_path("lerobot/act_udt_cpu"),
                       args=["--dataset.repo_id=sim/x", "--policy.udt_hand_stats_prior=-1"])  # fmt: skip
     assert "act_udt: udt_hand_stats_prior is in episodes and must be >= 0" in capsys.readouterr().err
+    with pytest.raises(DecodingError, match="Couldn't instantiate class ACTUdtConfig"):
+        draccus.parse(TrainPipelineConfig, config_path=resolve_config_path("lerobot/act_udt_cpu"),
+                      args=["--dataset.repo_id=sim/x", "--policy.udt_hand_stats_prior_per_hand=-2"])  # fmt: skip
+    assert "udt_hand_stats_prior_per_hand is in episodes per other hand of the mix" in capsys.readouterr().err

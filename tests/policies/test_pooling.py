@@ -3,6 +3,7 @@ slots a row's hand lacks (`unidextok.slot_mask` + the ACT / Diffusion loss), on 
 (unidextok-mix: a G1-like robot with two Inspire hands and a right-only LinkerHand L10 robot)."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -287,6 +288,24 @@ def test_a_prior_lends_each_hand_of_a_mix_the_pools_statistics_and_the_checkpoin
     assert saved["udt_hand_stats"][ACTION]["right"][L10]["std"] == got[L10]["std"]
 
 
+def test_the_prior_per_other_hand_grows_with_the_mix_and_a_fixed_prior_wins(tok_dir, g1_l10_mix):
+    """udt_hand_stats_prior_per_hand (act_udt_cpu.yaml's 2): that many episodes for each other hand of the mix (the
+    G1's Inspire on both sides is one hand, the L10 one more: 2 x 1); udt_hand_stats_prior > 0 replaces the rule."""
+    import yaml
+
+    from lerobot_unidextok.configs import resolve_config_path
+
+    recipe = yaml.safe_load(Path(resolve_config_path("lerobot/act_udt_cpu")).read_text())["policy"]
+    assert recipe["udt_hand_stats_prior_per_hand"] == 2
+    per_hand, _ = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_stats_prior_per_hand=2.0)
+    fixed, _ = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_stats_prior=2.0)
+    plain, _ = _config("act_udt", tok_dir, g1_l10_mix)
+    assert per_hand.udt_hand_stats == fixed.udt_hand_stats != plain.udt_hand_stats
+    both, _ = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_stats_prior=4.0, udt_hand_stats_prior_per_hand=2.0)
+    four, _ = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_stats_prior=4.0)
+    assert both.udt_hand_stats == four.udt_hand_stats != fixed.udt_hand_stats
+
+
 def test_hand_norm_state_false_leaves_the_state_to_lerobots_statistics(tok_dir, g1_l10_mix):
     """udt_hand_norm_state=false (the default): only the actions per hand; the state with LeRobot's statistics."""
     from lerobot.policies.factory import make_pre_post_processors
@@ -447,7 +466,6 @@ def test_fine_tuning_a_bound_mix_checkpoint_on_one_robot_makes_the_episode_map_a
     pre-processor keeps its step with the old map, whose weights the policy no longer takes."""
     import subprocess
     import sys
-    from pathlib import Path
 
     from lerobot.policies.factory import get_policy_class, make_pre_post_processors
     from linkerhand_udhm import subprocess_env
