@@ -26,7 +26,8 @@ it), `lerobot-train --config_path=$(unidextok-config lerobot/act_udt_cpu)` with 
 each predicted chunk of 10 actions run before the next prediction: closed-loop control, and lerobot-rollout
 refuses relative actions), `--steps`, `--batch_size` and the dataset, output and seed flags; so the hands go in as
 the policy's default gives them (the UDHM state and the shipped tokenizer's tokens) and, on a mix, as the
-recipe gives them (each hand told by its morphology, a residual output head per hand). Mixed checkpoints are bound to
+recipe gives them (each hand told by its morphology, a residual output head per hand, each hand's statistics shrunk
+toward the pool's by 2 episodes per other hand of the mix). Mixed checkpoints are bound to
 the target with `unidextok-deploy`, and scored by LeRobot's `lerobot-eval` rollout (`eval_policy_all`, sync envs,
 no video) on `eval_episodes` episodes; success as the simulator decides it (`info["is_success"]`). Training runs
 LeRobot's own `lerobot-train` code in this process (its dataset items read once per process, then served from
@@ -37,7 +38,10 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   as the UDHM state only (`udt_hand_input=state`, no tokenizer); `alone_no_frame_<n>`: wrist actions in the robot's
   wrist frame;
 - `mix_<n>` for n in `mix_demos`: the target's n demonstrations and the pool's other hands' `pool` each, mixed
-  (semantic insertion), bound to the target; `mix_state_<n>`: the same, state input;
+  (semantic insertion), bound to the target; `mix_state_<n>`: the same, state input; `mix_own_stats_<n>` and
+  `zero_shot_own_stats`: the recipe before the pool's prior (each hand's own statistics,
+  `--policy.udt_hand_stats_prior_per_hand=0`), which the arms measured on it (`mix_rule`, `state_norm`, the
+  mechanisms taken out, the fine-tunes) keep, so their runs stand;
 - `mix_rule_<n>`: `mix_<n>` trained for the budget rule's updates, `steps / share` with the target's share the
   mix recorded (its frame share when it recorded none), where every other arm trains `steps` (matched compute);
 - `pooled_<n>`: the recipe before 2026-12-05: LeRobot's one set of statistics for the mix, every slot trained, the
@@ -133,6 +137,9 @@ STATE = ("--policy.udt_hand_input=state", "--policy.udt_pretrained=null", *encod
 NO_FRAME = ("--policy.udt_wrist_frame=robot",)
 ONEHOT = "--policy.udt_hand_identity=onehot"
 NO_HEADS = "--policy.udt_hand_heads=false"
+# each hand's own statistics, no prior: the recipe before the pool's prior (act_udt_cpu.yaml's
+# udt_hand_stats_prior_per_hand: 2, 2026-12-06); the arms measured on that recipe keep it, so their runs stand
+OWN_STATS = "--policy.udt_hand_stats_prior_per_hand=0"
 SHRINK_EPISODES = 10  # the pool's statistics lent to each hand, in episodes (about a 10-demonstration target's own)
 SHRINK = f"--policy.udt_hand_stats_prior={SHRINK_EPISODES}"
 STATE_SHRINK = ("--policy.udt_hand_norm_state=true", SHRINK)  # the state per hand, every statistic shrunk
@@ -144,11 +151,12 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "alone_state": ("alone", STATE),
     "alone_no_frame": ("alone", NO_FRAME),
     "mix": ("mix", ()),
+    "mix_own_stats": ("mix", (OWN_STATS,)),  # the recipe before the pool's prior: each hand's own statistics
     "mix_state": ("mix", STATE),
-    "mix_rule": ("mix", ()),
+    "mix_rule": ("mix", (OWN_STATS,)),
     "pooled": ("copies", POOLED),
     "no_hand_norm": ("mix", ("--policy.udt_hand_norm=off",)),
-    "state_norm": ("mix", ("--policy.udt_hand_norm_state=true",)),
+    "state_norm": ("mix", ("--policy.udt_hand_norm_state=true", OWN_STATS)),
     "no_mask": ("mix", ("--policy.udt_mask_slots=false",)),
     "copies": ("copies", ()),
     "no_frame": ("mix", NO_FRAME),
@@ -156,35 +164,39 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "tokens_nearest": ("mix", ()),
     "tokens_search": ("mix", ()),
     "zero_shot": ("without", ()),
+    "zero_shot_own_stats": ("without", (OWN_STATS,)),
     "zero_shot_no_frame": ("without", NO_FRAME),
     # issue 57's mechanisms, both in the recipe (act_udt_cpu.yaml), each taken out: a residual output head per hand
     # around the shared trunk (policies/hand_heads.py), and the hand told by its morphology vector instead of a
-    # one-hot (hands/morphology.py; a zero-shot hand gets its own vector, not zeros)
-    "mix_heads": ("mix", (ONEHOT,)),
-    "mix_morph": ("mix", (NO_HEADS,)),
-    "zero_shot_morph": ("without", (NO_HEADS,)),
-    "mix_onehot": ("mix", (ONEHOT, NO_HEADS)),  # the recipe before 2026-12-06
-    "zero_shot_onehot": ("without", (ONEHOT, NO_HEADS)),
+    # one-hot (hands/morphology.py; a zero-shot hand gets its own vector, not zeros); measured on the recipe with
+    # each hand's own statistics (OWN_STATS)
+    "mix_heads": ("mix", (ONEHOT, OWN_STATS)),
+    "mix_morph": ("mix", (NO_HEADS, OWN_STATS)),
+    "zero_shot_morph": ("without", (NO_HEADS, OWN_STATS)),
+    "mix_onehot": ("mix", (ONEHOT, NO_HEADS, OWN_STATS)),  # the recipe before 2026-12-06
+    "zero_shot_onehot": ("without", (ONEHOT, NO_HEADS, OWN_STATS)),
     # per-hand statistics shrunk toward the pool's (issue 57; conversion/hand_stats.shrunk_hand_stats): each hand
-    # lent `SHRINK_EPISODES` episodes' worth of the pool's statistics
+    # lent `SHRINK_EPISODES` episodes' worth of the pool's statistics, whatever the pool (the fixed prior wins over
+    # the recipe's per-hand one)
     "mix_shrink": ("mix", (SHRINK,)),
     "zero_shot_shrink": ("without", (SHRINK,)),  # its zero-shot (one other hand: one robot, where it does nothing)
     # the state normalised per hand too, every statistic shrunk toward the pool's: a candidate default
     "state_norm_shrink": ("mix", STATE_SHRINK),
     "zero_shot_state_norm_shrink": ("without", STATE_SHRINK),
-    # pool, then specialise (issue 57): `mix` for steps // 2, bound, then lerobot-train --policy.path= on the
-    # target's own dataset for the rest (`FINE_TUNED`, `fine_tune_args`)
-    "mix_ft": ("mix", ()),
+    # pool, then specialise (issue 57): `mix_own_stats` for steps // 2, bound, then lerobot-train --policy.path= on
+    # the target's own dataset for the rest (`FINE_TUNED`, `fine_tune_args`)
+    "mix_ft": ("mix", (OWN_STATS,)),
     # the same with the state normalised per hand too: LeRobot's fine-tune swaps the state's normaliser for the
     # target dataset's statistics, this one keeps the checkpoint's (the per-hand step's)
-    "mix_ft_state_norm": ("mix", ("--policy.udt_hand_norm_state=true",)),
+    "mix_ft_state_norm": ("mix", ("--policy.udt_hand_norm_state=true", OWN_STATS)),
 }
 MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
 ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")
 # run on ablation_targets: the ablations, the old recipe and the budget rule's arm
 PRUNED = (*ABLATIONS, "alone_no_frame", "pooled", "mix_rule")
 # run on `mechanism_pools`, after every other arm
-MECHANISMS = ("mix_heads", "mix_morph", "mix_onehot", "zero_shot_morph", "zero_shot_onehot", "mix_shrink",
+MECHANISMS = ("mix_own_stats", "zero_shot_own_stats", "mix_heads", "mix_morph", "mix_onehot", "zero_shot_morph",
+              "zero_shot_onehot", "mix_shrink",
               "zero_shot_shrink", "state_norm_shrink", "zero_shot_state_norm_shrink", "mix_ft", "mix_ft_state_norm")
 FINE_TUNED = ("mix_ft", "mix_ft_state_norm")  # trained in two stages: the mix, then the target's own dataset (`pool_then_fine_tune`)
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
@@ -686,8 +698,8 @@ def parse_label(label: str) -> tuple[str, int, int]:
 
 
 def arm_flags(cfg: ClosedLoopConfig, arm: str) -> list[str]:
-    """The arm's lerobot-train flags beyond the user's: none for the default arms (`alone`, `mix`, `mix_rule`,
-    `zero_shot`); the state view, the token views or the mechanism an ablation turns off."""
+    """The arm's lerobot-train flags beyond the user's: none for the default arms (`alone`, `mix`, `zero_shot`);
+    the state view, the token views, the mechanism an ablation turns off or adds, or `OWN_STATS`."""
     tokens = ["--policy.udt_hand_input=tokens", f"--policy.udt_pretrained={cfg.tokenizer}"]
     view = {"tokens_nearest": [*tokens, *encoding_flags(NEAREST_CODES)],
             "tokens_search": [*tokens, *encoding_flags(cfg.encoding)]}.get(arm, [])  # fmt: skip
@@ -987,6 +999,8 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "copies": "mix with copies, not shares", "no_frame": "mix without the grasp-centre frame",
               "packed": "mix, packed native", "tokens_nearest": "mix, tokens (nearest)",
               "tokens_search": "mix, tokens (tokenizer's encoding)", "zero_shot": "zero-shot (other hands only)",
+              "mix_own_stats": "mix, each hand's own statistics (the recipe before the pool's prior)",
+              "zero_shot_own_stats": "zero-shot, each hand's own statistics (the recipe before the pool's prior)",
               "zero_shot_no_frame": "zero-shot without the grasp-centre frame", "alone": "alone",
               "alone_state": "alone, state input", "alone_no_frame": "alone without the grasp-centre frame",
               "mix_heads": "mix, one-hot identity (heads, no morphology)",
@@ -1063,18 +1077,22 @@ def mechanism_lines(result: dict) -> list[str]:
     """Per task, mechanism arm and pool size: the gain over the hand alone at the same demonstrations (points, per
     target), its mean (over the seeds, and per seed: the targets' mean gain on that seed's recordings and episodes)
     and worst, and the targets within `NEVER_WORSE_POINTS` of alone; zero-shot mechanisms against
-    the default zero-shot of the same pool. From the summary, so it reads what the table beside it shows."""
+    the zero-shot of the recipe before the pool's prior (`zero_shot_own_stats`) of the same pool. From the summary,
+    so it reads what the table beside it shows."""
     lines = []
     n = result["config"]["mix_demos"][0]
     shrink = shrink_of(result)
     rate = {(r["task"], r["hand"], r["arm"], r["seed"]): 100 * r["successes"] / r["episodes"] for r in result["runs"]}
     for task, by_hand in result["summary"].items():
         rows = []
-        for arm, base in (("mix", "alone"), ("mix_onehot", "alone"), ("mix_heads", "alone"), ("mix_morph", "alone"),
-                          ("mix_shrink", "alone"), ("state_norm_shrink", "alone"), ("mix_ft", "alone"), ("mix_ft_state_norm", "alone"),
-                          ("zero_shot_onehot", "zero_shot"), ("zero_shot_shrink", "zero_shot"),
-                          ("zero_shot_state_norm_shrink", "zero_shot"),
-                          ("zero_shot_morph", "zero_shot")):  # fmt: skip
+        # the zero-shot arms measured on the recipe before the pool's prior against its zero-shot, the recipe's
+        # zero-shot against that too
+        before = "zero_shot_own_stats"
+        for arm, base in (("mix", "alone"), ("mix_own_stats", "alone"), ("mix_onehot", "alone"),
+                          ("mix_heads", "alone"), ("mix_morph", "alone"), ("mix_shrink", "alone"),
+                          ("state_norm_shrink", "alone"), ("mix_ft", "alone"), ("mix_ft_state_norm", "alone"),
+                          ("zero_shot", before), ("zero_shot_onehot", before), ("zero_shot_shrink", before),
+                          ("zero_shot_state_norm_shrink", before), ("zero_shot_morph", before)):  # fmt: skip
             for k in result["config"]["pools"]:
                 label, ref = (f"{arm}_{n}_pool{k}", f"alone_{n}") if base == "alone" else (f"{arm}_pool{k}", f"{base}_pool{k}")
                 pairs = {h: a[label]["mean"] - a[ref]["mean"] for h, a in by_hand.items() if label in a and ref in a}
@@ -1091,7 +1109,8 @@ def mechanism_lines(result: dict) -> list[str]:
                              f"{sum(g >= -NEVER_WORSE_POINTS for g in pairs.values())}/{len(pairs)}"])  # fmt: skip
         if rows:
             lines += [f"**{task}**, each mechanism's gain (points, mean over seeds) over the hand alone at {n} "
-                      "demonstrations (zero-shot arms: over the default zero-shot of the same pool):", "",
+                      "demonstrations (zero-shot arms: over the zero-shot of the recipe before the pool's prior, "
+                      "each hand's own statistics, of the same pool):", "",
                       md_table(["arm", *by_hand, "mean", "mean per seed", "worst",
                                 f"within {NEVER_WORSE_POINTS:g} points or better"],
                                rows), ""]  # fmt: skip

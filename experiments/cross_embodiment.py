@@ -100,8 +100,12 @@ class CrossEmbodimentConfig:
     # that half per source, the other pooled
     hand_norm: str = "actions"
     # Each source's own statistics (the per-source ones above) shrunk toward the pool's by this many episodes of
-    # the pool's frames, as `--policy.udt_hand_stats_prior` does (`conversion.hand_stats.shrunk_hand_stats`); 0 = off
+    # the pool's frames, as `--policy.udt_hand_stats_prior` does (`conversion.hand_stats.shrunk_hand_stats`); 0 =
+    # `hand_prior_per_hand` decides
     hand_prior: float = 0.0
+    # When hand_prior is 0: this many episodes per other hand of the training rows' sources, as the ACT recipes'
+    # `udt_hand_stats_prior_per_hand: 2` (`conversion.hand_stats.pool_prior_episodes`); 0 = each source's own
+    hand_prior_per_hand: float = 2.0
     mask_slots: bool = True  # no loss on the action slots a source's hand lacks (false: trained as zeros)
     target_share: float = 0.5  # share of the training batches' rows that are the target's; 0 = as they come
     share_by: str = "sampling"  # "sampling" (ShareSampler draws the batches) or "copies" (the target's rows repeated)
@@ -123,8 +127,9 @@ class CrossEmbodimentConfig:
             raise ValueError(f"normalise must be per_source or pooled, got {self.normalise!r}")
         if self.hand_norm not in HAND_NORMS:
             raise ValueError(f"hand_norm must be one of {HAND_NORMS}, got {self.hand_norm!r}")
-        if not self.hand_prior >= 0:
-            raise ValueError(f"hand_prior must be >= 0 episodes, got {self.hand_prior}")
+        if not self.hand_prior >= 0 or not self.hand_prior_per_hand >= 0:
+            raise ValueError(f"hand_prior and hand_prior_per_hand must be >= 0 episodes, got {self.hand_prior} and "
+                             f"{self.hand_prior_per_hand}")  # fmt: skip
         if self.share_by not in ("sampling", "copies"):
             raise ValueError(f"share_by must be sampling or copies, got {self.share_by!r}")
         if not 0.0 <= self.target_share < 1.0:
@@ -305,7 +310,8 @@ def training_set(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], ta
         picked.append((rows, (views[src.name] if arm == "tokens_dequantized" else cur)[rows], y[rows], pad[rows]))
     x_scales = y_scales = [None] * len(used)
     episodes = sum(len(np.unique(src.episode[rows])) for src, (rows, *_) in zip(used, picked, strict=True))
-    prior_frames = cfg.hand_prior * sum(len(rows) for rows, *_ in picked) / episodes  # at the mean episode length
+    prior = 0.0 if old else cfg.hand_prior or prior_episodes(used, cfg.hand_prior_per_hand)
+    prior_frames = prior * sum(len(rows) for rows, *_ in picked) / episodes  # at the mean episode length
     if hand_norm in ("per_source", "state"):
         x_scales = source_scales(used, [x for _, x, _, _ in picked], prior_frames, packed)
     if cfg.normalise == "per_source":
@@ -330,6 +336,15 @@ def training_set(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], ta
     return TrainingSet(np.eye(len(sources))[np.concatenate(ids)], np.concatenate(xs), np.concatenate(ys),
                        np.concatenate(pads), None if not mask else np.concatenate(slot_pads), order, n0, *scales[0],
                        actions_prescaled=hand_norm in ("per_source", "actions") and cfg.normalise == "per_source")  # fmt: skip
+
+
+def prior_episodes(sources: list[Source], per_other_hand: float) -> float:
+    """The prior the recipe's rule gives these sources: `per_other_hand` episodes for each other hand among them
+    (`conversion.hand_stats.pool_prior_episodes` on their hands, whichever side holds them)."""
+    from lerobot_unidextok.conversion.hand_stats import pool_prior_episodes
+
+    hands = {h: {} for src in sources for h in src.hands if h is not None}
+    return pool_prior_episodes({"x": {"any": hands}}, per_other_hand)
 
 
 def source_scales(sources: list[Source], values: list[np.ndarray], prior_frames: float,
@@ -508,6 +523,16 @@ def summarise(runs: list[dict], cfg: CrossEmbodimentConfig) -> dict:
     return out
 
 
+def prior_words(cfg: dict) -> str:
+    """How a result's per-source statistics were shrunk toward the pool's (results before the fields: not)."""
+    if cfg.get("hand_prior"):
+        return f"each source's statistics shrunk toward the pool's by {cfg['hand_prior']:g} episodes"
+    if cfg.get("hand_prior_per_hand"):
+        return (f"each source's statistics shrunk toward the pool's by {cfg['hand_prior_per_hand']:g} episodes per "
+                "other hand")
+    return "each source's own statistics"
+
+
 def markdown(result: dict) -> str:
     cfg, s = result["config"], result["summary"]
     act = cfg["act"]
@@ -532,7 +557,7 @@ def markdown(result: dict) -> str:
         f"# {NAME}", "",
         f"LeRobot's ACT (stock model, act_udt_cpu.yaml's sizes, chunk {act['chunk_size']}, {act['steps']} steps at "
         f"batch {act['batch_size']}, one CPU thread), relative actions z-scored {cfg['normalise'].replace('_', ' ')}, "
-        f"the hand input z-scored {cfg.get('hand_norm', 'pooled').replace('_', ' ')}, "
+        f"the hand input z-scored {cfg.get('hand_norm', 'pooled').replace('_', ' ')}, {prior_words(cfg)}, "
         f"{'no loss on the slots a source lacks' if cfg.get('mask_slots') else 'every slot trained'}, the target "
         f"{cfg['target_share']:.0%} of the mixed training rows ({cfg.get('share_by', 'copies')}); `{OLD_ARM}`: the "
         f"recipe before 2026-12-05 (hand input pooled, every slot trained, copies); seeds {cfg['seeds']}. Target: "

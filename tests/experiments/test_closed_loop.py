@@ -149,7 +149,10 @@ def _the_fine_tuned_arm_renders_both_of_its_trainings(cfg, job, p):
     )
     first, second = cl.fine_tune_steps(cfg)
     assert first + second == cfg.steps and first == cfg.steps // 2
-    assert shlex.split(train[0])[3:] == cl.train_args(cfg, p["root"], out / "pooled", job["seed"], [], first)
+    # measured on the recipe before the pool's prior: each hand's own statistics, so its runs stand
+    assert cl.arm_flags(cfg, job["kind"]) == [cl.OWN_STATS]
+    assert shlex.split(train[0])[3:] == cl.train_args(cfg, p["root"], out / "pooled", job["seed"], [cl.OWN_STATS],
+                                                      first)  # fmt: skip
     bound = out / "bound"
     assert shlex.split(train[1])[1:] == cl.fine_tune_args(
         cfg, bound, p["robot"], out / "fine_tuned", job["seed"], second
@@ -202,7 +205,9 @@ def test_a_kept_run_is_reused_only_on_its_dataset_and_with_its_recipe(tmp_path, 
     # the recipe is the policy's udt_* defaults, then act_udt_cpu.yaml's policy section, then the flags
     assert settings["type"] == "act_udt" and settings["dim_model"] == 64 and settings["udt_hand_input"] == "both"
     assert settings["udt_relative_actions"] is False and settings["n_action_steps"] == 10  # USER_FLAGS, as YAML reads them
-    assert cl.recipe(cfg, "mix_heads") == {**settings, "udt_hand_identity": "onehot"}
+    assert settings["udt_hand_stats_prior_per_hand"] == 2  # act_udt_cpu.yaml's pool prior
+    assert cl.recipe(cfg, "mix_own_stats") == {**settings, "udt_hand_stats_prior_per_hand": 0}
+    assert cl.recipe(cfg, "mix_heads") == {**settings, "udt_hand_identity": "onehot", "udt_hand_stats_prior_per_hand": 0}
     assert cl.cached_run(cfg, job) is None  # nothing kept yet
     kept = {"dataset": str(cl.plan(cfg, job)["root"]), "recipe": settings, "successes": 7, "episodes": 50}
     cl.run_path(cfg, job).parent.mkdir(parents=True)
@@ -325,7 +330,13 @@ def test_the_mechanism_arms_run_last_on_their_pools_and_each_take_one_out_of_the
     assert set(order[: 6 * len(table)]) == table  # every hand's table arms before any mechanism arm
     # the recipe has both mechanisms (act_udt_cpu.yaml); each arm takes one out, mix_onehot both (the old recipe)
     assert cl.recipe(cfg, "mix")["udt_hand_identity"] == "morphology" and cl.recipe(cfg, "mix")["udt_hand_heads"] is True
-    assert cl.arm_flags(cfg, "mix_heads") == ["--policy.udt_hand_identity=onehot"]
+    assert cl.arm_flags(cfg, "mix_heads") == ["--policy.udt_hand_identity=onehot", cl.OWN_STATS]
+    # the arms measured on the recipe before the pool's prior keep each hand's own statistics; the recipe's do not
+    assert cl.OWN_STATS == "--policy.udt_hand_stats_prior_per_hand=0"
+    assert all(cl.OWN_STATS in cl.arm_flags(cfg, a) for a in ("mix_own_stats", "zero_shot_own_stats", "mix_morph",
+                                                              "mix_onehot", "zero_shot_onehot", "zero_shot_morph",
+                                                              "mix_rule", "state_norm", "mix_ft", "mix_ft_state_norm"))
+    assert not any(cl.OWN_STATS in cl.arm_flags(cfg, a) for a in ("alone", "mix", "zero_shot"))
     # the shrunk arms' prior: 10 episodes unless --shrink_episodes says otherwise, the state arm's flag kept
     assert cl.arm_flags(cfg, "mix_shrink") == ["--policy.udt_hand_stats_prior=10"]
     small = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], shrink_episodes=2.5)
@@ -336,16 +347,19 @@ def test_the_mechanism_arms_run_last_on_their_pools_and_each_take_one_out_of_the
     assert cl.recipe(small, "mix_shrink")["udt_hand_stats_prior"] == 2.5
     with pytest.raises(ValueError, match="shrink_episodes must be > 0"):
         cl.ClosedLoopConfig(shrink_episodes=0)
-    assert cl.arm_flags(cfg, "mix_morph") == cl.arm_flags(cfg, "zero_shot_morph") == ["--policy.udt_hand_heads=false"]
+    assert cl.arm_flags(cfg, "mix_morph") == cl.arm_flags(cfg, "zero_shot_morph") == [
+        "--policy.udt_hand_heads=false", cl.OWN_STATS]
     assert cl.arm_flags(cfg, "mix_onehot") == cl.arm_flags(cfg, "zero_shot_onehot") == [
-        "--policy.udt_hand_identity=onehot", "--policy.udt_hand_heads=false"
+        "--policy.udt_hand_identity=onehot", "--policy.udt_hand_heads=false", cl.OWN_STATS
     ]
-    assert cl.recipe(cfg, "mix_onehot") == {**cl.recipe(cfg, "mix"), "udt_hand_identity": "onehot", "udt_hand_heads": False}
+    assert cl.recipe(cfg, "mix_onehot") == {**cl.recipe(cfg, "mix"), "udt_hand_identity": "onehot", "udt_hand_heads": False,
+                                            "udt_hand_stats_prior_per_hand": 0}  # fmt: skip
     fine = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], arms=["mix", "mix_ft"], pools=[2, 6], mechanism_pools=[6],
                                seeds=[0], demos=[10], mix_demos=[10])  # fmt: skip
     order = [j["arm"] for j in cl.jobs(fine)]
     assert order[:6] == ["mix_10_pool2", "mix_10_pool6"] * 3 and set(order[12:]) == {"mix_ft_10_pool6"}
-    assert len(order) == 18 and cl.arm_flags(fine, "mix_ft") == []  # the default recipe, trained in two stages
+    # the recipe before the pool's prior, trained in two stages
+    assert len(order) == 18 and cl.arm_flags(fine, "mix_ft") == [cl.OWN_STATS]
     assert cl.arm_title("mix_ft_10_pool6").startswith("mix, then fine-tuned on the target")
 
 
@@ -413,10 +427,10 @@ def test_the_mechanism_table_gives_each_arms_gain_over_the_hand_alone():
         return {"mean": mean}
 
     summary = {"GraspLift-v0": {
-        "shadow": {"alone_10": arm(50), "mix_10_pool2": arm(40), "mix_heads_10_pool2": arm(55), "zero_shot_pool6": arm(20),
-                   "zero_shot_morph_pool6": arm(10), "mix_morph_10_pool2": arm(48)},
-        "leap": {"alone_10": arm(40), "mix_10_pool2": arm(60), "mix_heads_10_pool2": arm(50), "zero_shot_pool6": arm(30),
-                 "zero_shot_morph_pool6": arm(36), "mix_morph_10_pool2": arm(70)},
+        "shadow": {"alone_10": arm(50), "mix_10_pool2": arm(40), "mix_heads_10_pool2": arm(55), "zero_shot_pool6": arm(24),
+                   "zero_shot_own_stats_pool6": arm(20), "zero_shot_morph_pool6": arm(10), "mix_morph_10_pool2": arm(48)},
+        "leap": {"alone_10": arm(40), "mix_10_pool2": arm(60), "mix_heads_10_pool2": arm(50), "zero_shot_pool6": arm(40),
+                 "zero_shot_own_stats_pool6": arm(30), "zero_shot_morph_pool6": arm(36), "mix_morph_10_pool2": arm(70)},
     }}  # fmt: skip
     # the mix's and the hand alone's runs per seed (successes of 50): the per-seed column is the targets' mean gain
     runs = [{"task": "GraspLift-v0", "hand": hand, "arm": label, "seed": seed, "successes": k, "episodes": 50}
@@ -429,4 +443,6 @@ def test_the_mechanism_table_gives_each_arms_gain_over_the_hand_alone():
     assert "| mix, 10 demos, 2-hand pool | -10 | +20 | +5.0 | +4.0 / +6.0 | shadow -10 | 1/2 |" in text
     assert "| mix, one-hot identity (heads, no morphology), 10 demos, 2-hand pool | +5 | +10 | +7.5 | - | shadow +5 | 2/2 |" in text
     assert "| mix, no per-hand heads (morphology only), 10 demos, 2-hand pool | -2 | +30 | +14.0 | - | shadow -2 | 2/2 |" in text
+    # the zero-shot arms against the zero-shot of the recipe before the pool's prior, the recipe's zero-shot too
     assert "| zero-shot, no per-hand heads (morphology only), 6-hand pool | -10 | +6 | -2.0 | - | shadow -10 | 1/2 |" in text
+    assert "| zero-shot (other hands only), 6-hand pool | +4 | +10 | +7.0 | - | shadow +4 | 2/2 |" in text

@@ -90,7 +90,7 @@ def test_the_slots_a_source_lacks_are_its_specs_and_whole_missing_sides(converte
 
 def test_the_new_recipe_normalises_per_source_masks_and_samples_the_old_arm_does_not(converted_g1):
     frames, sources = _target_and_xhand(converted_g1)
-    cfg = ce.CrossEmbodimentConfig(target_episodes=[2], seeds=[0], hand_norm="per_source",
+    cfg = ce.CrossEmbodimentConfig(target_episodes=[2], seeds=[0], hand_norm="per_source", hand_prior_per_hand=0.0,
                                    act=ce.CrossEmbodimentACT(steps=50, batch_size=8))  # fmt: skip
     target_train = np.flatnonzero(frames.episode == np.unique(frames.episode)[0])
     new = ce.training_set(cfg, "udhm_mix", sources, target_train, {}, seed=0)
@@ -117,9 +117,10 @@ def test_the_new_recipe_normalises_per_source_masks_and_samples_the_old_arm_does
     assert old.slot_pad is None and old.order is None and old.state_scale is None and old.target_lacks is None
     assert old.target_rows > n0 and old.target_rows % n0 == 0  # the target's rows copied up to its share
     np.testing.assert_allclose(old.hands[:n0], raw)  # the raw input, z-scored pooled by train_act
-    flags = ce.CrossEmbodimentConfig(hand_norm="pooled", mask_slots=False, share_by="copies", act=cfg.act)
+    flags = ce.CrossEmbodimentConfig(hand_norm="pooled", mask_slots=False, share_by="copies", hand_prior_per_hand=0.0,
+                                     act=cfg.act)  # fmt: skip
     same = ce.training_set(flags, "udhm_mix", sources, target_train, {}, seed=0)
-    np.testing.assert_array_equal(same.hands, old.hands)  # the old recipe is these three flags away
+    np.testing.assert_array_equal(same.hands, old.hands)  # the old recipe is these four flags away
     np.testing.assert_array_equal(same.actions, old.actions)
     assert new.actions_prescaled and not old.actions_prescaled and not same.actions_prescaled
     state = ce.training_set(dataclasses.replace(cfg, hand_norm="state"), "udhm_mix", sources, target_train, {}, 0)
@@ -137,7 +138,7 @@ def test_a_prior_moves_each_sources_statistics_toward_the_pool(converted_g1):
     from lerobot_unidextok import hands
 
     frames, sources = _target_and_xhand(converted_g1)
-    cfg = ce.CrossEmbodimentConfig(target_episodes=[2], seeds=[0], hand_norm="per_source",
+    cfg = ce.CrossEmbodimentConfig(target_episodes=[2], seeds=[0], hand_norm="per_source", hand_prior_per_hand=0.0,
                                    act=ce.CrossEmbodimentACT(steps=50, batch_size=8))  # fmt: skip
     target_train = np.flatnonzero(frames.episode == np.unique(frames.episode)[0])
     own = ce.training_set(cfg, "udhm_mix", sources, target_train, {}, seed=0)
@@ -160,8 +161,34 @@ def test_a_prior_moves_each_sources_statistics_toward_the_pool(converted_g1):
     assert (shrunk.action_scale.std != own.action_scale.std).any()  # the per-source actions are shrunk too
     off = ce.training_set(dataclasses.replace(cfg, hand_prior=0.0), "udhm_mix", sources, target_train, {}, 0)
     np.testing.assert_array_equal(off.hands, own.hands)
-    with pytest.raises(ValueError, match="hand_prior must be"):
+    with pytest.raises(ValueError, match="hand_prior and hand_prior_per_hand must be"):
         ce.CrossEmbodimentConfig(hand_prior=-1.0)
+    with pytest.raises(ValueError, match="hand_prior and hand_prior_per_hand must be"):
+        ce.CrossEmbodimentConfig(hand_prior_per_hand=-1.0)
+
+
+def test_the_default_prior_is_the_recipes_rule_per_other_hand(converted_g1):
+    """By default (as act_udt_cpu.yaml's `udt_hand_stats_prior_per_hand: 2`) the prior is 2 episodes per other hand
+    among the training rows' sources: the G1's Inspire on both sides is one hand, the XHand one more, so 2; the
+    target alone has no other hand and keeps its own statistics; `udhm_mix_old` never shrinks."""
+    frames, sources = _target_and_xhand(converted_g1)
+    assert ce.CrossEmbodimentConfig().hand_prior_per_hand == 2.0
+    assert ce.prior_episodes(sources, 2.0) == 2.0
+    assert ce.prior_episodes(sources[:1], 2.0) == 0.0
+    cfg = ce.CrossEmbodimentConfig(target_episodes=[2], seeds=[0], hand_norm="per_source",
+                                   act=ce.CrossEmbodimentACT(steps=50, batch_size=8))  # fmt: skip
+    target_train = np.flatnonzero(frames.episode == np.unique(frames.episode)[0])
+    default = ce.training_set(cfg, "udhm_mix", sources, target_train, {}, seed=0)
+    fixed = ce.training_set(dataclasses.replace(cfg, hand_prior=2.0), "udhm_mix", sources, target_train, {}, 0)
+    own = ce.training_set(dataclasses.replace(cfg, hand_prior_per_hand=0.0), "udhm_mix", sources, target_train, {}, 0)
+    np.testing.assert_array_equal(default.state_scale.std, fixed.state_scale.std)
+    assert (default.state_scale.std != own.state_scale.std).any()
+    alone = [ce.training_set(dataclasses.replace(cfg, hand_prior_per_hand=k), "target_only", sources, target_train,
+                             {}, 0) for k in (0.0, 2.0)]  # fmt: skip
+    np.testing.assert_array_equal(alone[0].state_scale.std, alone[1].state_scale.std)
+    old = [ce.training_set(dataclasses.replace(cfg, hand_prior_per_hand=k), ce.OLD_ARM, sources, target_train, {}, 0)
+           for k in (0.0, 2.0)]  # fmt: skip
+    np.testing.assert_array_equal(old[0].actions, old[1].actions)
 
 
 def test_a_masked_slot_gets_exactly_zero_gradient():
