@@ -815,6 +815,14 @@ def user_commands(cfg: ClosedLoopConfig, job: dict) -> list[str]:
     return lines
 
 
+def paid_runs(runs: list[dict]) -> list[dict]:
+    """The runs whose policy is counted in the costs: a kept run that stands for a second arm (`same_policy_as`: the
+    label of the run of the same policy, e.g. zero-shot from one other hand, where a mix's statistics do not exist)
+    is paid for once, when that run is among `runs`."""
+    labels = {(r["task"], r["hand"], r["seed"], r["arm"]) for r in runs}
+    return [r for r in runs if (r["task"], r["hand"], r["seed"], r.get("same_policy_as")) not in labels]
+
+
 def run(cfg: ClosedLoopConfig) -> dict:
     from lerobot_env_unidextok.success import wilson_interval
 
@@ -831,12 +839,13 @@ def run(cfg: ClosedLoopConfig) -> dict:
                                    "per_seed": {str(s): e["successes"] for s, e in per_seed.items()}}  # fmt: skip
     runs = [run_one(cfg, job) for job in todo]
     summary = summarise(runs, cfg)
+    paid = paid_runs(runs)
     result = {"experiment": NAME, "protocol": PROTOCOL, "config": dataclasses.asdict(cfg), "runs": runs, "summary": summary,
               "robustness": robustness(summary, cfg), "experts": experts, "recording": recordings(cfg),
-              "costs": {"data_cpu_s": data_cpu_s(cfg, todo), "train_cpu_s": round(sum(r["train_cpu_s"] for r in runs), 1),
-                        "eval_cpu_s": round(sum(r["eval_cpu_s"] for r in runs), 1),
+              "costs": {"data_cpu_s": data_cpu_s(cfg, todo), "train_cpu_s": round(sum(r["train_cpu_s"] for r in paid), 1),
+                        "eval_cpu_s": round(sum(r["eval_cpu_s"] for r in paid), 1),
                         "expert_cpu_s": round(sum(e["cpu_s"] for e in experts.values()), 1),
-                        "runs_wall_s": round(sum(r["wall_s"] for r in runs), 1),
+                        "runs_wall_s": round(sum(r["wall_s"] for r in paid), 1), "policies": len(paid),
                         "this_process_cpu_s": round(time.process_time() - cpu0, 1)},
               "git_commit": git_commit(), "wall_seconds": round(time.time() - t0, 1),
               "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
@@ -1121,11 +1130,8 @@ def markdown(result: dict) -> str:
     cfg, s, costs = result["config"], result["summary"], result["costs"]
     cpu_min = sum(costs[k] for k in ("data_cpu_s", "train_cpu_s", "eval_cpu_s", "expert_cpu_s")) / 60
     runs = result["runs"]
-    per_policy = (
-        (sum(r["train_cpu_s"] for r in runs) / len(runs), sum(r["eval_cpu_s"] for r in runs) / len(runs))
-        if runs
-        else (0, 0)
-    )
+    policies = costs.get("policies", len(runs))  # results before the field: every run its own policy
+    per_policy = (costs["train_cpu_s"] / policies, costs["eval_cpu_s"] / policies) if policies else (0, 0)
     if result.get("protocol") == PROTOCOL:
         how = (f"(each its own recording of every hand and its own {cfg['eval_episodes']} evaluation episodes), and "
                f"the 95 % Wilson interval of the pooled episodes. Every dataset holds only the demonstrations its arm "
@@ -1141,6 +1147,8 @@ def markdown(result: dict) -> str:
                "hand of the run.")  # fmt: skip
     lines = [
         f"Success rate (%) in closed loop, mean +- std over seeds {cfg['seeds']} {how} {cpu_min:.1f} CPU-minutes in all "
+        f"for {policies} policies"
+        f"{f' ({len(runs)} runs: a run standing for two arms is one policy)' if policies != len(runs) else ''} "
         f"({costs['data_cpu_s'] / 60:.1f} data, {costs['train_cpu_s'] / 60:.1f} training, {costs['eval_cpu_s'] / 60:.1f} "
         f"evaluation, {costs['expert_cpu_s'] / 60:.1f} experts; per policy {per_policy[0] / 60:.2f} training and "
         f"{per_policy[1] / 60:.2f} evaluation); the policies took {costs['runs_wall_s'] / 60:.0f} min of wall time "

@@ -446,3 +446,11 @@ def test_the_mechanism_table_gives_each_arms_gain_over_the_hand_alone():
     # the zero-shot arms against the zero-shot of the recipe before the pool's prior, the recipe's zero-shot too
     assert "| zero-shot, no per-hand heads (morphology only), 6-hand pool | -10 | +6 | -2.0 | - | shadow -10 | 1/2 |" in text
     assert "| zero-shot (other hands only), 6-hand pool | +4 | +10 | +7.0 | - | shadow +4 | 2/2 |" in text
+
+
+def test_a_run_standing_for_two_arms_is_paid_for_once():
+    run = {"task": "T", "hand": "h", "seed": 0}
+    a = {**run, "arm": "zero_shot_pool2", "train_cpu_s": 10.0}
+    b = {**run, "arm": "zero_shot_own_stats_pool2", "same_policy_as": "zero_shot_pool2", "train_cpu_s": 10.0}
+    other_seed = {**b, "seed": 1}  # its twin is not among the runs: paid
+    assert cl.paid_runs([a, b, other_seed]) == [a, other_seed]
