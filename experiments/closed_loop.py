@@ -40,8 +40,8 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
 - `mix_<n>` for n in `mix_demos`: the target's n demonstrations and the pool's other hands' `pool` each, mixed
   (semantic insertion), bound to the target; `mix_state_<n>`: the same, state input; `mix_own_stats_<n>` and
   `zero_shot_own_stats`: the recipe before the pool's prior (each hand's own statistics,
-  `--policy.udt_hand_stats_prior_per_hand=0`), which the arms measured on it (`mix_rule`, `state_norm`, the
-  mechanisms taken out, the fine-tunes) keep, so their runs stand;
+  `--policy.udt_hand_stats_prior_per_hand=0`), which the arms measured on it (`state_norm`, the mechanisms taken
+  out, the fine-tunes) keep, so their runs stand;
 - `mix_rule_<n>`: `mix_<n>` trained for the budget rule's updates, `steps / share` with the target's share the
   mix recorded (its frame share when it recorded none), where every other arm trains `steps` (matched compute);
 - `pooled_<n>`: the recipe before 2026-12-05: LeRobot's one set of statistics for the mix, every slot trained, the
@@ -153,7 +153,7 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "mix": ("mix", ()),
     "mix_own_stats": ("mix", (OWN_STATS,)),  # the recipe before the pool's prior: each hand's own statistics
     "mix_state": ("mix", STATE),
-    "mix_rule": ("mix", (OWN_STATS,)),
+    "mix_rule": ("mix", ()),
     "pooled": ("copies", POOLED),
     "no_hand_norm": ("mix", ("--policy.udt_hand_norm=off",)),
     "state_norm": ("mix", ("--policy.udt_hand_norm_state=true", OWN_STATS)),
@@ -698,8 +698,8 @@ def parse_label(label: str) -> tuple[str, int, int]:
 
 
 def arm_flags(cfg: ClosedLoopConfig, arm: str) -> list[str]:
-    """The arm's lerobot-train flags beyond the user's: none for the default arms (`alone`, `mix`, `zero_shot`);
-    the state view, the token views, the mechanism an ablation turns off or adds, or `OWN_STATS`."""
+    """The arm's lerobot-train flags beyond the user's: none for the default arms (`alone`, `mix`, `mix_rule`,
+    `zero_shot`); the state view, the token views, the mechanism an ablation turns off or adds, or `OWN_STATS`."""
     tokens = ["--policy.udt_hand_input=tokens", f"--policy.udt_pretrained={cfg.tokenizer}"]
     view = {"tokens_nearest": [*tokens, *encoding_flags(NEAREST_CODES)],
             "tokens_search": [*tokens, *encoding_flags(cfg.encoding)]}.get(arm, [])  # fmt: skip

@@ -335,8 +335,8 @@ def test_the_mechanism_arms_run_last_on_their_pools_and_each_take_one_out_of_the
     assert cl.OWN_STATS == "--policy.udt_hand_stats_prior_per_hand=0"
     assert all(cl.OWN_STATS in cl.arm_flags(cfg, a) for a in ("mix_own_stats", "zero_shot_own_stats", "mix_morph",
                                                               "mix_onehot", "zero_shot_onehot", "zero_shot_morph",
-                                                              "mix_rule", "state_norm", "mix_ft", "mix_ft_state_norm"))
-    assert not any(cl.OWN_STATS in cl.arm_flags(cfg, a) for a in ("alone", "mix", "zero_shot"))
+                                                              "state_norm", "mix_ft", "mix_ft_state_norm"))
+    assert not any(cl.OWN_STATS in cl.arm_flags(cfg, a) for a in ("alone", "mix", "mix_rule", "zero_shot"))
     # the shrunk arms' prior: 10 episodes unless --shrink_episodes says otherwise, the state arm's flag kept
     assert cl.arm_flags(cfg, "mix_shrink") == ["--policy.udt_hand_stats_prior=10"]
     small = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], shrink_episodes=2.5)
