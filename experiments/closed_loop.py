@@ -936,6 +936,7 @@ def robustness(summary: dict, cfg: ClosedLoopConfig) -> dict:
                 "mean": float(np.mean(list(gains.values()))), "targets": len(rows),
                 "never_worse": sum(g >= -NEVER_WORSE_POINTS for g in gains.values()),
                 "above_zero_shot": sum(r["mix"]["rate"] >= r["zero_shot"]["rate"] for r in rows.values() if "zero_shot" in r),
+                "with_zero_shot": sum("zero_shot" in r for r in rows.values()),
             }  # fmt: skip
     return out
 
@@ -958,12 +959,9 @@ def goals(result: dict, cfg: ClosedLoopConfig) -> list[dict]:
                  f"{t['never_worse']}/{t['targets']} targets" + (f"; below: {', '.join(worse)}" if worse else ""))  # fmt: skip
             below = [f"{h} {r['mix']['rate']:.0f} < {r['zero_shot']['rate']:.0f}" for h, r in rows.items()
                      if "zero_shot" in r and r["mix"]["rate"] < r["zero_shot"]["rate"]]  # fmt: skip
-            goal(
-                f"{task} pool {k}: the mix never below zero-shot",
-                float(t["above_zero_shot"]),
-                not below,
-                "; ".join(below),
-            )
+            if any("zero_shot" in r for r in rows.values()):  # judged only where zero-shot ran
+                goal(f"{task} pool {k}: the mix never below zero-shot", float(t["above_zero_shot"]), not below,
+                     "; ".join(below))  # fmt: skip
             goal(
                 f"{task} pool {k}: mean gain at least +10 points",
                 t["mean"],
@@ -1070,7 +1068,8 @@ def robustness_lines(result: dict) -> list[str]:
                   "seeds' episodes; gain = mix - alone, points):", "", md_table(head, rows), ""]  # fmt: skip
         lines += [f"- pool {k}: worst {t['worst'][0]} {t['worst'][1]:+.0f}, median {t['median']:+.1f}, mean "
                   f"{t['mean']:+.1f}; within {NEVER_WORSE_POINTS:g} points of alone or better on {t['never_worse']}"
-                  f"/{t['targets']}, mix >= zero-shot on {t['above_zero_shot']}/{t['targets']}"
+                  f"/{t['targets']}"
+                  + (f", mix >= zero-shot on {t['above_zero_shot']}/{zero}" if (zero := t.get("with_zero_shot", t["targets"])) else "")
                   for k, t in by_pool.items()]  # fmt: skip
         for k in pools:
             shares = [r["target_share"] for r in result["runs"]

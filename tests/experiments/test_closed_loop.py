@@ -315,6 +315,15 @@ def test_the_robustness_summary_pools_the_seeds_and_bounds_the_gain():
     assert goals["T pool 2: the mix never below zero-shot"]["why"] == "c 50 < 60"
     reach = goals["T pool 2: the mix at 10 demos reaches the hand alone at 25, on average over 3 targets"]
     assert reach["value"] == pytest.approx((52 + 72 + 50) / 3 - 60) and reach["met"] is False
+    assert rob["with_zero_shot"] == 3
+    # without zero-shot runs (a mix-only command) the goal is not judged, and the summary line does not count it
+    mixes = [r for r in runs if not r["arm"].startswith("zero_shot")]
+    summary = cl.summarise(mixes, cfg)
+    alone = cl.robustness(summary, cfg)
+    assert alone["T"][2]["with_zero_shot"] == 0
+    assert not [g for g in cl.goals({"summary": summary, "robustness": alone, "experts": {}}, cfg) if "zero-shot" in g["goal"]]
+    lines = cl.robustness_lines({"config": {"mix_demos": [10]}, "robustness": alone, "runs": mixes})
+    assert not any("mix >= zero-shot" in line for line in lines)
 
 
 def test_the_mechanism_arms_run_last_on_their_pools_and_each_take_one_out_of_the_recipe():
