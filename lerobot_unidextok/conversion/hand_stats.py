@@ -24,7 +24,9 @@ a tiny std, which a policy's held-out rows leave far behind). `shrunk_hand_stats
 statistics become those of its frames joined by that many frames drawn from the pool, so a hand with many frames
 keeps nearly its own and one with few moves toward the pool's (weight n / (n + prior) on its own).
 `pool_prior_episodes` sizes that prior by the pool: the more other hands a mix holds, the more its pooled
-statistics are a population's and the more of them a hand is lent (none on one hand's own dataset).
+statistics are a population's and the more of them a hand is lent; with fewer than `MIN_PRIOR_HANDS` hands, none
+(shrinking toward a mean estimated from the groups themselves pays only from about four groups: James and Stein,
+Efron and Morris; measured in closed loop, docs/lerobot.md "Pooling hands").
 """
 
 from __future__ import annotations
@@ -107,6 +109,9 @@ def hand_stats(root: str | Path, episodes: list[int] | None = None) -> dict[str,
                               "--validate=true) and convert it again")  # fmt: skip
 
 
+MIN_PRIOR_HANDS = 4  # `pool_prior_episodes`: no prior in a mix of fewer hands (module docstring)
+
+
 def shrunk_hand_stats(stats: dict[str, dict[str, dict[str, dict]]], prior_frames: float
                       ) -> dict[str, dict[str, dict[str, dict]]]:  # fmt: skip
     """`stats` (as `hand_stats` gives them) with each hand's statistics per slot moved toward the pool's: the
@@ -164,9 +169,10 @@ def shrunk_hand_stats(stats: dict[str, dict[str, dict[str, dict]]], prior_frames
 def pool_prior_episodes(stats: dict[str, dict[str, dict[str, dict]]], per_other_hand: float) -> float:
     """The prior, in episodes, that lends each hand `per_other_hand` episodes of the pool's statistics for every
     other hand in `stats` (as `hand_stats` gives them; a hand is counted once whichever sides hold it, as the pool
-    spans both): 0 on one hand's dataset, `per_other_hand` beside one other hand, 5x that among six."""
+    spans both) when they hold at least `MIN_PRIOR_HANDS` hands: 3x `per_other_hand` among four, 5x among six;
+    0 with fewer (one hand's dataset, a mix of two or three)."""
     hands = {h for per_side in stats.values() for per_hand in per_side.values() for h in per_hand}
-    return per_other_hand * max(len(hands) - 1, 0)
+    return per_other_hand * (len(hands) - 1) if len(hands) >= MIN_PRIOR_HANDS else 0.0
 
 
 def recorded_hand_stats(meta: UdhmDatasetMeta) -> dict[str, dict[str, dict[str, dict]]] | None:
@@ -191,5 +197,5 @@ def training_episodes(meta: UdhmDatasetMeta) -> list[int] | None:
     return [e for e in range(meta.total_episodes) if e not in test]
 
 
-__all__ = ["ACTION_DELTA", "QUANTILES", "hand_stats", "pool_prior_episodes", "recorded_hand_stats", "shrunk_hand_stats",
+__all__ = ["ACTION_DELTA", "MIN_PRIOR_HANDS", "QUANTILES", "hand_stats", "pool_prior_episodes", "recorded_hand_stats", "shrunk_hand_stats",
            "training_episodes"]

@@ -181,12 +181,13 @@ class UdtConfigMixin:
     # default) = udt_hand_stats_prior_per_hand decides; > 0 = this prior whatever the pool (a two-handed robot's
     # own dataset: each side shrunk toward the two).
     udt_hand_stats_prior: float = 0.0
-    # When udt_hand_stats_prior is 0: the prior grows with the pool, this many episodes for each other hand of the
-    # mix (conversion/hand_stats.pool_prior_episodes; one robot's dataset: no other hand, no prior). A fixed 10
-    # paid among six hands and cost beside one or two others, on every seed; 2 per other hand (2 / 4 / 10 beside
-    # one / two / five) gained +12.0 / +11.9 / +15.7 points over the hand alone in closed loop (each hand's own
-    # statistics: +10.8 / +13.7 / +11.4) and transferred better among six (docs/lerobot.md "Pooling hands"), so
-    # the ACT recipes set 2; the policy's own default, without a config, is 0 (each hand's own statistics).
+    # When udt_hand_stats_prior is 0: the prior grows with the pool, this many episodes for each other hand of a
+    # mix of four hands or more (conversion/hand_stats.pool_prior_episodes; fewer hands, one robot's dataset
+    # included: no prior). Among six hands 2 per other hand (10) gained +15.7 points over the hand alone in closed
+    # loop against +11.4 with each hand's own statistics, on every seed, and transferred better; beside one or two
+    # other hands it did not help (12 pairs outside the pool rule: own statistics within 3 points of alone on all,
+    # the prior on 9; docs/lerobot.md "Pooling hands"), so the ACT recipes set 2 and the rule starts at four hands.
+    # The policy's own default, without a config, is 0 (each hand's own statistics).
     udt_hand_stats_prior_per_hand: float = 0.0
     # The per-hand statistics and their modes {"modes": {key: mode}, key: {side: {hand: {lo, hi, "frames"}}}}; filled
     # from the dataset (a mix's record, or one robot's training episodes) and saved with the checkpoint.

@@ -7,7 +7,7 @@ import pytest
 
 from lerobot_unidextok import hands
 from lerobot_unidextok.constants import ACTION, UDHM_DIM
-from lerobot_unidextok.conversion.hand_stats import pool_prior_episodes, shrunk_hand_stats
+from lerobot_unidextok.conversion.hand_stats import MIN_PRIOR_HANDS, pool_prior_episodes, shrunk_hand_stats
 
 FEW, MANY = "inspire_rh56_unitree", "linkerhand_l10"
 
@@ -75,14 +75,19 @@ def test_no_prior_and_one_hand_leave_the_statistics_as_they_are():
     assert shrunk_hand_stats(alone, prior_frames=1000) == alone
 
 
-def test_the_pool_prior_counts_each_other_hand_once_whichever_side_holds_it():
-    """`pool_prior_episodes`: per other hand of the statistics' vocabulary; a hand on both sides is one hand."""
+def test_the_pool_prior_counts_each_other_hand_once_and_starts_at_four_hands():
+    """`pool_prior_episodes`: per other hand of the statistics' vocabulary from `MIN_PRIOR_HANDS` hands on (a hand
+    on both sides is one hand); none in a mix of fewer."""
     few, many = _summary(_frames(FEW, 30, 0, 0.01)), _summary(_frames(MANY, 300, 1, 0.3))
+    assert MIN_PRIOR_HANDS == 4
     assert pool_prior_episodes({ACTION: {"right": {FEW: few}}}, 2.0) == 0.0
-    assert pool_prior_episodes({ACTION: {"left": {FEW: few}, "right": {FEW: few}}}, 2.0) == 0.0
-    assert pool_prior_episodes({ACTION: {"left": {FEW: few}, "right": {FEW: few, MANY: many}}}, 2.0) == 2.0
-    assert pool_prior_episodes({ACTION: {"right": {FEW: few, MANY: many, "leap": many}}}, 2.0) == 4.0
-    assert pool_prior_episodes({ACTION: {"right": {FEW: few, MANY: many}}}, 0.0) == 0.0
+    assert pool_prior_episodes({ACTION: {"left": {FEW: few}, "right": {FEW: few, MANY: many}}}, 2.0) == 0.0
+    assert pool_prior_episodes({ACTION: {"right": {FEW: few, MANY: many, "leap": many}}}, 2.0) == 0.0
+    four = {FEW: few, MANY: many, "leap": many, "allegro": many}
+    assert pool_prior_episodes({ACTION: {"right": four}}, 2.0) == 6.0
+    assert pool_prior_episodes({ACTION: {"left": {FEW: few}, "right": four}}, 2.0) == 6.0  # FEW counted once
+    assert pool_prior_episodes({ACTION: {"right": {**four, "shadow": many, "xhand1": many}}}, 2.0) == 10.0
+    assert pool_prior_episodes({ACTION: {"right": four}}, 0.0) == 0.0
 
 
 def test_a_negative_prior_is_refused_by_name_through_lerobot_trains_parser(capsys):

@@ -169,24 +169,26 @@ def test_a_prior_moves_each_sources_statistics_toward_the_pool(converted_g1):
 
 def test_the_default_prior_is_the_recipes_rule_per_other_hand(converted_g1):
     """By default (as act_udt_cpu.yaml's `udt_hand_stats_prior_per_hand: 2`) the prior is 2 episodes per other hand
-    among the training rows' sources: the G1's Inspire on both sides is one hand, the XHand one more, so 2; the
-    target alone has no other hand and keeps its own statistics; `udhm_mix_old` never shrinks."""
+    among the training rows' sources from four hands on: the experiment's pool (the G1's Inspire on both sides, the
+    human hand, the L10, the XHand) gets 6; the G1 with the XHand alone, two hands, none; `udhm_mix_old` never
+    shrinks."""
+    from types import SimpleNamespace
+
     frames, sources = _target_and_xhand(converted_g1)
     assert ce.CrossEmbodimentConfig().hand_prior_per_hand == 2.0
-    assert ce.prior_episodes(sources, 2.0) == 2.0
-    assert ce.prior_episodes(sources[:1], 2.0) == 0.0
+    pool = [SimpleNamespace(hands=h) for h in (("inspire_rh56_unitree", "inspire_rh56_unitree"), (None, "human"),
+                                               (None, "linkerhand_l10"), (None, "xhand1"))]  # fmt: skip
+    assert ce.prior_episodes(pool, 2.0) == 6.0 and ce.prior_episodes(pool[:3], 2.0) == 0.0
+    assert ce.prior_episodes(sources, 2.0) == 0.0
     cfg = ce.CrossEmbodimentConfig(target_episodes=[2], seeds=[0], hand_norm="per_source",
                                    act=ce.CrossEmbodimentACT(steps=50, batch_size=8))  # fmt: skip
     target_train = np.flatnonzero(frames.episode == np.unique(frames.episode)[0])
     default = ce.training_set(cfg, "udhm_mix", sources, target_train, {}, seed=0)
-    fixed = ce.training_set(dataclasses.replace(cfg, hand_prior=2.0), "udhm_mix", sources, target_train, {}, 0)
     own = ce.training_set(dataclasses.replace(cfg, hand_prior_per_hand=0.0), "udhm_mix", sources, target_train, {}, 0)
-    np.testing.assert_array_equal(default.state_scale.std, fixed.state_scale.std)
-    assert (default.state_scale.std != own.state_scale.std).any()
-    alone = [ce.training_set(dataclasses.replace(cfg, hand_prior_per_hand=k), "target_only", sources, target_train,
-                             {}, 0) for k in (0.0, 2.0)]  # fmt: skip
-    np.testing.assert_array_equal(alone[0].state_scale.std, alone[1].state_scale.std)
-    old = [ce.training_set(dataclasses.replace(cfg, hand_prior_per_hand=k), ce.OLD_ARM, sources, target_train, {}, 0)
+    fixed = ce.training_set(dataclasses.replace(cfg, hand_prior=2.0), "udhm_mix", sources, target_train, {}, 0)
+    np.testing.assert_array_equal(default.state_scale.std, own.state_scale.std)
+    assert (fixed.state_scale.std != own.state_scale.std).any()
+    old = [ce.training_set(dataclasses.replace(cfg, hand_prior=k), ce.OLD_ARM, sources, target_train, {}, 0)
            for k in (0.0, 2.0)]  # fmt: skip
     np.testing.assert_array_equal(old[0].actions, old[1].actions)
 

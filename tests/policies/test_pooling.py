@@ -288,9 +288,11 @@ def test_a_prior_lends_each_hand_of_a_mix_the_pools_statistics_and_the_checkpoin
     assert saved["udt_hand_stats"][ACTION]["right"][L10]["std"] == got[L10]["std"]
 
 
-def test_the_prior_per_other_hand_grows_with_the_mix_and_a_fixed_prior_wins(tok_dir, g1_l10_mix):
-    """udt_hand_stats_prior_per_hand (act_udt_cpu.yaml's 2): that many episodes for each other hand of the mix (the
-    G1's Inspire on both sides is one hand, the L10 one more: 2 x 1); udt_hand_stats_prior > 0 replaces the rule."""
+def test_the_prior_per_other_hand_needs_four_hands_and_a_fixed_prior_wins(tok_dir, g1_l10_mix):
+    """udt_hand_stats_prior_per_hand (act_udt_cpu.yaml's 2): that many episodes for each other hand of a mix of four
+    hands or more (`pool_prior_episodes`, tested with its counts in tests/conversion/test_hand_stats.py); this mix
+    holds two (the G1's Inspire on both sides is one hand, the L10 one more), so no prior;
+    udt_hand_stats_prior > 0 replaces the rule."""
     import yaml
 
     from lerobot_unidextok.configs import resolve_config_path
@@ -300,7 +302,7 @@ def test_the_prior_per_other_hand_grows_with_the_mix_and_a_fixed_prior_wins(tok_
     per_hand, _ = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_stats_prior_per_hand=2.0)
     fixed, _ = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_stats_prior=2.0)
     plain, _ = _config("act_udt", tok_dir, g1_l10_mix)
-    assert per_hand.udt_hand_stats == fixed.udt_hand_stats != plain.udt_hand_stats
+    assert per_hand.udt_hand_stats == plain.udt_hand_stats != fixed.udt_hand_stats
     both, _ = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_stats_prior=4.0, udt_hand_stats_prior_per_hand=2.0)
     four, _ = _config("act_udt", tok_dir, g1_l10_mix, udt_hand_stats_prior=4.0)
     assert both.udt_hand_stats == four.udt_hand_stats != fixed.udt_hand_stats
