@@ -26,8 +26,8 @@ it), `lerobot-train --config_path=$(unidextok-config lerobot/act_udt_cpu)` with 
 each predicted chunk of 10 actions run before the next prediction: closed-loop control, and lerobot-rollout
 refuses relative actions), `--steps`, `--batch_size` and the dataset, output and seed flags; so the hands go in as
 the policy's default gives them (the UDHM state and the shipped tokenizer's tokens) and, on a mix, as the
-recipe gives them (each hand told by its morphology, a residual output head per hand, each hand's statistics shrunk
-toward the pool's by 2 episodes per other hand of the mix). Mixed checkpoints are bound to
+recipe gives them (each hand told by its morphology, a residual output head per hand, and among four hands or more
+each hand's statistics shrunk toward the pool's by 2 episodes per other hand). Mixed checkpoints are bound to
 the target with `unidextok-deploy`, and scored by LeRobot's `lerobot-eval` rollout (`eval_policy_all`, sync envs,
 no video) on `eval_episodes` episodes; success as the simulator decides it (`info["is_success"]`). Training runs
 LeRobot's own `lerobot-train` code in this process (its dataset items read once per process, then served from
@@ -138,7 +138,8 @@ NO_FRAME = ("--policy.udt_wrist_frame=robot",)
 ONEHOT = "--policy.udt_hand_identity=onehot"
 NO_HEADS = "--policy.udt_hand_heads=false"
 # each hand's own statistics, no prior: the recipe before the pool's prior (act_udt_cpu.yaml's
-# udt_hand_stats_prior_per_hand: 2, 2026-12-06); the arms measured on that recipe keep it, so their runs stand
+# udt_hand_stats_prior_per_hand: 2, 2026-12-06; the same as the recipe in a mix of fewer than four hands); the arms
+# measured on that recipe keep it, so their runs stand
 OWN_STATS = "--policy.udt_hand_stats_prior_per_hand=0"
 SHRINK_EPISODES = 10  # the pool's statistics lent to each hand, in episodes (about a 10-demonstration target's own)
 SHRINK = f"--policy.udt_hand_stats_prior={SHRINK_EPISODES}"
