@@ -1067,11 +1067,12 @@ def robustness_lines(result: dict) -> list[str]:
             rows.append(cells)
         lines += [f"**{task}**, robustness at {n} target demonstrations (success %, 95 % interval over the pooled "
                   "seeds' episodes; gain = mix - alone, points):", "", md_table(head, rows), ""]  # fmt: skip
-        lines += [f"- pool {k}: worst {t['worst'][0]} {t['worst'][1]:+.0f}, median {t['median']:+.1f}, mean "
-                  f"{t['mean']:+.1f}; within {NEVER_WORSE_POINTS:g} points of alone or better on {t['never_worse']}"
-                  f"/{t['targets']}"
-                  + (f", mix >= zero-shot on {t['above_zero_shot']}/{zero}" if (zero := t.get("with_zero_shot", t["targets"])) else "")
-                  for k, t in by_pool.items()]  # fmt: skip
+        for k, t in by_pool.items():
+            zero = t.get("with_zero_shot", t["targets"])  # results before the field: zero-shot ran on every target
+            lines.append(f"- pool {k}: worst {t['worst'][0]} {t['worst'][1]:+.0f}, median {t['median']:+.1f}, mean "
+                         f"{t['mean']:+.1f}; within {NEVER_WORSE_POINTS:g} points of alone or better on "
+                         f"{t['never_worse']}/{t['targets']}"
+                         + (f", mix >= zero-shot on {t['above_zero_shot']}/{zero}" if zero else ""))  # fmt: skip
         for k in pools:
             shares = [r["target_share"] for r in result["runs"]
                       if r["task"] == task and r["arm"] == f"mix_{n}_pool{k}" and "target_share" in r]  # fmt: skip

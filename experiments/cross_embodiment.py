@@ -339,12 +339,11 @@ def training_set(cfg: CrossEmbodimentConfig, arm: str, sources: list[Source], ta
 
 
 def prior_episodes(sources: list[Source], per_other_hand: float) -> float:
-    """The prior the recipe's rule gives these sources: `per_other_hand` episodes for each other hand among them
-    (`conversion.hand_stats.pool_prior_episodes` on their hands, whichever side holds them)."""
-    from lerobot_unidextok.conversion.hand_stats import pool_prior_episodes
+    """The prior the recipe's rule gives these sources (`conversion.hand_stats.prior_episodes_for` their hands,
+    whichever side holds them)."""
+    from lerobot_unidextok.conversion.hand_stats import prior_episodes_for
 
-    hands = {h: {} for src in sources for h in src.hands if h is not None}
-    return pool_prior_episodes({"x": {"any": hands}}, per_other_hand)
+    return prior_episodes_for({h for src in sources for h in src.hands if h is not None}, per_other_hand)
 
 
 def source_scales(sources: list[Source], values: list[np.ndarray], prior_frames: float,

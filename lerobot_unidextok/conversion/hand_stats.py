@@ -31,6 +31,7 @@ Efron and Morris; measured in closed loop, docs/lerobot.md "Pooling hands").
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
@@ -166,13 +167,19 @@ def shrunk_hand_stats(stats: dict[str, dict[str, dict[str, dict]]], prior_frames
     return out
 
 
+def prior_episodes_for(hands: Collection[str], per_other_hand: float) -> float:
+    """The prior, in episodes, that lends each of the distinct `hands` `per_other_hand` episodes of the pool's
+    statistics for every other one when there are at least `MIN_PRIOR_HANDS`: 3x `per_other_hand` among four, 5x
+    among six; 0 with fewer (one hand's dataset, a mix of two or three)."""
+    n = len(set(hands))
+    return per_other_hand * (n - 1) if n >= MIN_PRIOR_HANDS else 0.0
+
+
 def pool_prior_episodes(stats: dict[str, dict[str, dict[str, dict]]], per_other_hand: float) -> float:
-    """The prior, in episodes, that lends each hand `per_other_hand` episodes of the pool's statistics for every
-    other hand in `stats` (as `hand_stats` gives them; a hand is counted once whichever sides hold it, as the pool
-    spans both) when they hold at least `MIN_PRIOR_HANDS` hands: 3x `per_other_hand` among four, 5x among six;
-    0 with fewer (one hand's dataset, a mix of two or three)."""
-    hands = {h for per_side in stats.values() for per_hand in per_side.values() for h in per_hand}
-    return per_other_hand * (len(hands) - 1) if len(hands) >= MIN_PRIOR_HANDS else 0.0
+    """`prior_episodes_for` the hands of `stats` (as `hand_stats` gives them; a hand is counted once whichever sides
+    hold it, as the pool spans both)."""
+    return prior_episodes_for({h for per_side in stats.values() for per_hand in per_side.values() for h in per_hand},
+                              per_other_hand)  # fmt: skip
 
 
 def recorded_hand_stats(meta: UdhmDatasetMeta) -> dict[str, dict[str, dict[str, dict]]] | None:
@@ -197,5 +204,5 @@ def training_episodes(meta: UdhmDatasetMeta) -> list[int] | None:
     return [e for e in range(meta.total_episodes) if e not in test]
 
 
-__all__ = ["ACTION_DELTA", "MIN_PRIOR_HANDS", "QUANTILES", "hand_stats", "pool_prior_episodes", "recorded_hand_stats", "shrunk_hand_stats",
-           "training_episodes"]
+__all__ = ["ACTION_DELTA", "MIN_PRIOR_HANDS", "QUANTILES", "hand_stats", "pool_prior_episodes", "prior_episodes_for",
+           "recorded_hand_stats", "shrunk_hand_stats", "training_episodes"]
