@@ -246,6 +246,9 @@ class ClosedLoopConfig:
     mechanism_pools: list[int] = field(default_factory=list)
     # the shrunk arms' prior (`mix_shrink`, `state_norm_shrink`: --policy.udt_hand_stats_prior), in episodes
     shrink_episodes: float = SHRINK_EPISODES
+    # record and evaluate with the fingertips' columns (`unidextok-sim-record --fingertips=true`, `lerobot-eval
+    # --env.fingertips=true`): each fingertip's place from the grasp centre, the same space for every hand (issue 57)
+    fingertips: bool = False
 
     def __post_init__(self) -> None:
         for name, given, allowed in (("tasks", self.tasks, SIM_TASK_IDS), ("arms", self.arms, tuple(ARMS))):
@@ -330,8 +333,13 @@ def _cpu_s(folder: Path) -> float:
     return float((folder.parent / f"{folder.name}.cpu").read_text())
 
 
+def task_dir(cfg: ClosedLoopConfig, task: str) -> str:
+    """The cache folder of a task's datasets: recordings with the fingertips' columns are other datasets."""
+    return f"{task}_fingertips" if cfg.fingertips else task
+
+
 def native_root(cfg: ClosedLoopConfig, task: str, hand: str, seed: int, episodes: int) -> Path:
-    return Path(cfg.cache_dir) / task / f"seed{seed}" / hand / f"native_{episodes}"
+    return Path(cfg.cache_dir) / task_dir(cfg, task) / f"seed{seed}" / hand / f"native_{episodes}"
 
 
 def converted_root(cfg: ClosedLoopConfig, task: str, hand: str, seed: int, episodes: int, mapping: str) -> Path:
@@ -341,7 +349,7 @@ def converted_root(cfg: ClosedLoopConfig, task: str, hand: str, seed: int, episo
 def mix_root(cfg: ClosedLoopConfig, task: str, seed: int, inputs: list[Path], tag: str) -> Path:
     """A mix's folder, named by its inputs (hand and episodes each), their conversion and how the shares are set."""
     names = "__".join(f"{p.parent.name}-{p.name.rpartition('_')[2]}" for p in inputs)  # shadow-10__allegro-50
-    return Path(cfg.cache_dir) / task / f"seed{seed}" / "mixes" / f"{inputs[0].name.rpartition('_')[0]}_{names}_{tag}"
+    return Path(cfg.cache_dir) / task_dir(cfg, task) / f"seed{seed}" / "mixes" / f"{inputs[0].name.rpartition('_')[0]}_{names}_{tag}"
 
 
 def repo_id(cfg: ClosedLoopConfig, root: Path) -> str:
@@ -363,7 +371,7 @@ def recorded(cfg: ClosedLoopConfig, task: str, hand: str, seed: int, episodes: i
         cpu = time.process_time()
         start, noise = record_seeds(seed)
         report = record(RecordConfig(hand=hand, task=task, episodes=episodes, root=str(native), seed=start,
-                                     noise_seed=noise, repo_id=repo_id(cfg, native)))  # fmt: skip
+                                     noise_seed=noise, repo_id=repo_id(cfg, native), fingertips=cfg.fingertips))  # fmt: skip
         (native.parent / f"{native.name}.json").write_text(json.dumps(
             {"episodes": report.episodes, "attempts": report.attempts, "frames": report.frames}))  # fmt: skip
         (native.parent / f"{native.name}.cpu").write_text(f"{time.process_time() - cpu:.1f}")
@@ -448,8 +456,9 @@ def recordings(cfg: ClosedLoopConfig) -> dict:
     """{task/hand/seed<s>/<episodes>: what unidextok-sim-record reported} of every recording made for this run."""
     out = {}
     for path in sorted(Path(cfg.cache_dir).glob("*/seed*/*/native_*.json")):
-        task, seed, hand = path.parts[-4:-1]
-        if task in cfg.tasks and hand in cfg.hands and int(seed[4:]) in cfg.seeds:
+        folder, seed, hand = path.parts[-4:-1]
+        task = next((t for t in cfg.tasks if task_dir(cfg, t) == folder), None)
+        if task is not None and hand in cfg.hands and int(seed[4:]) in cfg.seeds:
             out[f"{task}/{hand}/{seed}/{path.stem.rpartition('_')[2]}"] = json.loads(path.read_text())
     return out
 
@@ -629,7 +638,7 @@ def evaluate(cfg: ClosedLoopConfig, checkpoint: Path, task: str, hand: str, seed
     import lerobot_policy_unidextok  # noqa: F401  (the <type>_udt policies and steps, as lerobot-eval discovers them)
     from lerobot_env_unidextok.configuration import UniDexTokEnvConfig
 
-    env_cfg = UniDexTokEnvConfig(task=task, hand=hand)
+    env_cfg = UniDexTokEnvConfig(task=task, hand=hand, fingertips=cfg.fingertips)
     envs = make_env(env_cfg, n_envs=min(cfg.eval_episodes, 50), use_async_envs=False)
     policy_cfg = PreTrainedConfig.from_pretrained(checkpoint)
     policy_cfg.pretrained_path, policy_cfg.device = str(checkpoint), "cpu"
@@ -783,7 +792,8 @@ def user_commands(cfg: ClosedLoopConfig, job: dict) -> list[str]:
     for h, n in [*p["inputs"], *robot]:
         native, conv = native_root(cfg, task, h, seed, n), converted_root(cfg, task, h, seed, n, p["mapping"])
         lines += [f"unidextok-sim-record --hand={h} --task={task} --episodes={n} --root={q(str(native))} --seed={start} "
-                  f"--noise_seed={noise} --repo_id={repo_id(cfg, native)}",
+                  f"--noise_seed={noise} --repo_id={repo_id(cfg, native)}"
+                  + (" --fingertips=true" if cfg.fingertips else ""),
                   f"unidextok-convert --source=lerobot --input={q(str(native))} --root={q(str(conv))} "
                   f"--repo_id={repo_id(cfg, conv)} --test_fraction=0 "
                   + (f"--mapping={MAPPINGS[p['mapping']]} " if p["mapping"] != "semantic" else "")
@@ -812,7 +822,7 @@ def user_commands(cfg: ClosedLoopConfig, job: dict) -> list[str]:
     lines.append(f"lerobot-eval --policy.path={q(str(policy))} --env.type=unidextok --env.task={task} --env.hand={hand} "
                  f"--eval.n_episodes={cfg.eval_episodes} --eval.batch_size={min(cfg.eval_episodes, 50)} "
                  f"--eval.use_async_envs=false --policy.device=cpu --seed={eval_start(cfg, seed)} "
-                 f"--output_dir={q(str(out / 'eval'))}")  # fmt: skip
+                 f"--output_dir={q(str(out / 'eval'))}" + (" --env.fingertips=true" if cfg.fingertips else ""))  # fmt: skip
     return lines
 
 

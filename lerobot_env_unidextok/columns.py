@@ -1,8 +1,10 @@
 """The simulator's vectors by name, without MuJoCo: what LeRobot's config needs to size features and register ids.
 
-observation.state (`agent_pos`) = WRIST_NAMES + TASK_COLUMNS[task] + the hand's native joints, each named
-`right_<native joint>` (`right_little`, `right_FFJ4`, `right_joint_0.0`); action = WRIST_NAMES + the same hand
-columns. The task columns are the same for every hand, so datasets of different hands mix by name
+observation.state (`agent_pos`) = WRIST_NAMES + TASK_COLUMNS[task] [+ FINGERTIP_COLUMNS] + the hand's native
+joints, each named `right_<native joint>` (`right_little`, `right_FFJ4`, `right_joint_0.0`); action = WRIST_NAMES +
+the same hand columns. The fingertip columns (the env's `fingertips=True`) are each fingertip's position relative
+to the hand's grasp centre, in the world's axes (m): forward kinematics of the state, the same space for every
+hand (a closed hand's tips near 0); a finger the hand lacks is 0. The task columns are the same for every hand, so datasets of different hands mix by name
 (`unidextok-mix --keep=all`); the hand's columns are found by their prefix (`unidextok-convert --source=lerobot
 --source_options='{"hands": {"right": "<hand>:right_"}}'`).
 """
@@ -36,6 +38,8 @@ TASK_TEXT = {
     "ChordPress-v0": "press the buttons under the two named fingers together, each with its own finger",
 }
 TASKS = tuple(TASK_COLUMNS)
+FINGERS = ("thumb", "index", "middle", "ring", "little")  # every finger a simulated hand may have, in order
+FINGERTIP_COLUMNS = tuple(f"tip_{f}_{axis}" for f in FINGERS for axis in "xyz")  # (15,) m, module docstring
 # what `observation.state_is_native` carries: 1.0, the state is the hand's native layout (processor/native.py)
 STATE_IS_NATIVE_KEY = "state_is_native"
 
@@ -47,8 +51,8 @@ def hand_columns(native_names: tuple[str, ...] | list[str]) -> list[str]:
     return [f"{HAND_PREFIX}{n}" for n in native_names]
 
 
-def state_names(task: str, native_names: tuple[str, ...] | list[str]) -> list[str]:
-    return [*WRIST_NAMES, *TASK_COLUMNS[task], *hand_columns(native_names)]
+def state_names(task: str, native_names: tuple[str, ...] | list[str], fingertips: bool = False) -> list[str]:
+    return [*WRIST_NAMES, *TASK_COLUMNS[task], *(FINGERTIP_COLUMNS if fingertips else ()), *hand_columns(native_names)]
 
 
 def action_names(native_names: tuple[str, ...] | list[str]) -> list[str]:

@@ -45,6 +45,9 @@ class UniDexTokEnvConfig(EnvConfig):
     episode_length: int = EPISODE_STEPS  # steps (at fps) before an episode is cut
     # what the policy's model predicts: "udhm" (<type>_udt: wrist + one UDHM block) or "native"
     policy_action: str = "udhm"
+    # observe each fingertip's position from the hand's grasp centre too (columns.FINGERTIP_COLUMNS, 15 values): a
+    # policy trained on a recording made with `unidextok-sim-record --fingertips=true` needs it
+    fingertips: bool = False
     render_width: int = 320
     render_height: int = 240
     features: dict[str, PolicyFeature] = field(default_factory=dict)
@@ -66,10 +69,10 @@ class UniDexTokEnvConfig(EnvConfig):
         task_classes.TASKS[self.task](sim_hand)
         native = sim_hand.native_names
         # the checkpoint lerobot-eval was given, read from the command line as LeRobot's EvalPipelineConfig does
-        check_policy_fits(parser.get_path_arg("policy"), self.task, self.hand)
+        check_policy_fits(parser.get_path_arg("policy"), self.task, self.hand, self.fingertips)
         hand_width = UDHM_DIM if self.policy_action == "udhm" else len(native)
         self.features = {
-            "agent_pos": PolicyFeature(type=FeatureType.STATE, shape=(len(state_names(self.task, native)),)),
+            "agent_pos": PolicyFeature(type=FeatureType.STATE, shape=(len(state_names(self.task, native, self.fingertips)),)),
             "action": PolicyFeature(type=FeatureType.ACTION, shape=(len(WRIST_NAMES) + hand_width,)),
         }
 
@@ -84,7 +87,7 @@ class UniDexTokEnvConfig(EnvConfig):
     @property
     def gym_kwargs(self) -> dict:
         return {"hand": self.hand, "max_episode_steps": self.episode_length, "width": self.render_width,
-                "height": self.render_height}  # fmt: skip
+                "height": self.render_height, "fingertips": self.fingertips}  # fmt: skip
 
 
 register_gym_ids()

@@ -1,7 +1,8 @@
 """`UniDexTokEnv`: a gymnasium env of one hand (any hand spec with a model) on the floating wrist, doing one task.
 
 Observation `{"agent_pos": (6 + T + J,) float32}`: the wrist pose (x, y, z in m; roll, pitch, yaw in rad), the
-task's object and goal columns (`Task.state_names`), then the hand's native joint state in its spec's units (an
+task's object and goal columns (`Task.state_names`), with `fingertips=True` each fingertip's position from the
+hand's grasp centre (15, m, `columns.FINGERTIP_COLUMNS`), then the hand's native joint state in its spec's units (an
 Inspire's six values in [0, 1] for `inspire_rh56_unitree`, as Unitree's datasets record them). LeRobot maps
 `agent_pos` to `observation.state`; the names are `UniDexTokEnv.state_names` and `action_names`.
 Action `(6 + J,)`: the wrist target pose, then the hand's native joint command, both absolute. Values outside
@@ -26,10 +27,10 @@ import gymnasium as gym
 import numpy as np
 
 from lerobot_env_unidextok import sim_hands
-from lerobot_env_unidextok.columns import FPS, STATE_IS_NATIVE_KEY, action_names, state_names
+from lerobot_env_unidextok.columns import FINGERS, FPS, STATE_IS_NATIVE_KEY, action_names, state_names
 from lerobot_env_unidextok.errors import SimInputError
 from lerobot_env_unidextok.gl import mujoco, render_problem
-from lerobot_env_unidextok.grasp_centre import wrist_frame_of
+from lerobot_env_unidextok.grasp_centre import grasp_centre_in_wrist_m, wrist_frame_of
 from lerobot_env_unidextok.scene import WRIST_NAMES, WRIST_RANGE, Scene, base_spec
 from lerobot_env_unidextok.task_classes import TASKS, Task
 from lerobot_unidextok.data.wrist_frame import WristFrame
@@ -71,7 +72,8 @@ class UniDexTokEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": FPS}
 
     def __init__(self, hand: str = "inspire_rh56_unitree", task: str = "GraspLift-v0",
-                 render_mode: str | None = "rgb_array", width: int = 320, height: int = 240) -> None:  # fmt: skip
+                 render_mode: str | None = "rgb_array", width: int = 320, height: int = 240,
+                 fingertips: bool = False) -> None:  # fmt: skip
         self.hand_name, self.task_name = hand, task
         self.scene, self.task = make_scene(hand, task)
         self.model = self.scene.model
@@ -80,7 +82,10 @@ class UniDexTokEnv(gym.Env):
         self.render_mode, self.width, self.height = render_mode, width, height
         self._renderer: Any = None
         self._render_failed = False
-        self.state_names = state_names(task, self.hand.native_names)
+        self.state_names = state_names(task, self.hand.native_names, fingertips)
+        # the fingertips' observation: the grasp centre in the wrist frame (3,) and the wrist body, or None
+        self._grasp_centre_m = grasp_centre_in_wrist_m(self.scene) if fingertips else None
+        self._wrist_body = self.model.body("wrist").id
         self.action_names = action_names(self.hand.native_names)
         j = len(self.hand.native_names)
         raw_lo, raw_hi = np.asarray(self.hand.spec.raw_range(self.hand.side), dtype=np.float64).T
@@ -131,9 +136,20 @@ class UniDexTokEnv(gym.Env):
         return self._obs(), float(success), bool(success or failed), False, info
 
     def _obs(self) -> dict[str, np.ndarray]:
-        state = np.concatenate([self.scene.wrist_pose(self.data), self.task.observe(self.data),
+        tips = () if self._grasp_centre_m is None else (self._fingertips_m(),)
+        state = np.concatenate([self.scene.wrist_pose(self.data), self.task.observe(self.data), *tips,
                                 self.scene.native_state(self.data)])  # fmt: skip
         return {"agent_pos": state.astype(np.float32), STATE_IS_NATIVE_KEY: np.ones(1, dtype=np.float32)}
+
+    def _fingertips_m(self) -> np.ndarray:
+        """(15,) each fingertip of `FINGERS` minus the grasp centre, world axes (m); 0 for a finger the hand lacks."""
+        b = self._wrist_body
+        centre = self.data.xpos[b] + self.data.xmat[b].reshape(3, 3) @ self._grasp_centre_m  # (3,) world
+        tips = np.zeros((len(FINGERS), 3))
+        for i, finger in enumerate(FINGERS):
+            if finger in self.scene.tip_body:
+                tips[i] = self.scene.fingertip(self.data, finger) - centre
+        return tips.reshape(-1)
 
     def wrist_frame(self) -> WristFrame:
         """The wrist frame a recording of this hand carries: the wrist columns and the hand's grasp centre

@@ -25,12 +25,12 @@ from typing import Any
 import numpy as np
 import yaml
 
+from lerobot_env_unidextok.columns import FINGERS
 from lerobot_env_unidextok.errors import SimHandError
 from lerobot_unidextok import hands
 from lerobot_unidextok.constants import UDHM_JOINT_NAMES
 
 MODELS_DIR = Path(__file__).parent / "hand_models"
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 
 
 @dataclass(frozen=True)

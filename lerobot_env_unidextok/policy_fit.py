@@ -2,7 +2,7 @@
 its config.json before anything runs (no weights, no MuJoCo): `--env.type=unidextok`'s config calls it.
 
 A `<type>_udt` checkpoint records what it takes: its converted state's column names (`udt_state_names`, which
-hold the simulator task's columns), whether it is a mix of hands never bound to one (`udt_hand_vocabulary`
+hold the simulator task's columns, and the fingertips' when it was recorded with them), whether it is a mix of hands never bound to one (`udt_hand_vocabulary`
 without `udt_fixed_hand_ids`), and the hand whose native state it reads (`udt_native_state_layout.hands`).
 Each misfit is one line naming what differs and the fix; before, a policy of another task was told at its
 first step that it "was trained on another robot or hand", and an unbound mix ended in a KeyError traceback.
@@ -14,15 +14,16 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from lerobot_env_unidextok.columns import TASK_COLUMNS
+from lerobot_env_unidextok.columns import FINGERTIP_COLUMNS, TASK_COLUMNS
 from lerobot_env_unidextok.errors import SimInputError
 
 CLOSED_LOOP_DOCS = "docs/lerobot.md, 'Closed-loop evaluation'"
 
 
-def check_policy_fits(policy_path: str | None, task: str, hand: str) -> None:
+def check_policy_fits(policy_path: str | None, task: str, hand: str, fingertips: bool = False) -> None:
     """Refuse (SimInputError) a local `<type>_udt` checkpoint at `policy_path` that was trained on another
-    task, is a mix never bound to a hand, or reads another hand's native state than `hand`."""
+    task, with the fingertips' columns when the env has none (or without them when it has), is a mix never bound to
+    a hand, or reads another hand's native state than `hand`."""
     config = _config(policy_path)
     if config is None:
         return
@@ -34,6 +35,13 @@ def check_policy_fits(policy_path: str | None, task: str, hand: str) -> None:
             f"columns {', '.join(TASK_COLUMNS[trained[0]])}), but --env.task={task}: pass --env.task={trained[0]}, "
             f"or a policy trained on {task} (unidextok-sim-record --task={task}, then unidextok-convert and "
             f"lerobot-train; {CLOSED_LOOP_DOCS})"
+        )
+    trained_tips = set(FINGERTIP_COLUMNS) <= set(names)
+    if trained and trained_tips != fingertips:
+        raise SimInputError(
+            f"the policy {policy_path} was trained {'with' if trained_tips else 'without'} the fingertips' columns "
+            f"(tip_<finger>_x/y/z, unidextok-sim-record --fingertips={str(trained_tips).lower()}), but "
+            f"--env.fingertips={str(fingertips).lower()}: pass --env.fingertips={str(trained_tips).lower()}"
         )
     bind = (
         f"unidextok-deploy --checkpoint={policy_path} --robot=<a converted dataset of {hand}: unidextok-sim-record "

@@ -54,6 +54,9 @@ class RecordConfig:
     keep_failures: bool = False
     max_attempts_factor: float = 1.5  # give up after this many attempts per episode asked
     episode_length: int = 50  # steps before an episode is cut (at 10 fps)
+    # record each fingertip's position from the hand's grasp centre too (columns.FINGERTIP_COLUMNS; evaluate its
+    # policies with lerobot-eval --env.fingertips=true)
+    fingertips: bool = False
 
     def __post_init__(self) -> None:
         if not self.root:
@@ -123,7 +126,7 @@ def _record_into(root: Path, cfg: RecordConfig) -> RecordReport:
 
     from lerobot_env_unidextok.env import UniDexTokEnv  # start-up: MuJoCo and torch load with it, not with --help
 
-    env = UniDexTokEnv(cfg.hand, cfg.task, render_mode=None)
+    env = UniDexTokEnv(cfg.hand, cfg.task, render_mode=None, fingertips=cfg.fingertips)
     features = {
         "observation.state": {"dtype": "float32", "shape": (len(env.state_names),), "names": env.state_names},
         "action": {"dtype": "float32", "shape": (len(env.action_names),), "names": env.action_names},

@@ -71,3 +71,24 @@ def test_a_policy_that_fits_or_cannot_be_read_passes(tmp_path, monkeypatch):
     (tmp_path / "broken").mkdir()
     (tmp_path / "broken" / "config.json").write_text("[1, 2")
     assert _env(monkeypatch, tmp_path / "broken").hand == "shadow"  # LeRobot's own loading says what is wrong
+
+
+def test_a_policy_trained_with_or_without_the_fingertips_is_told_the_env_flag(tmp_path, monkeypatch):
+    from lerobot_env_unidextok.columns import FINGERTIP_COLUMNS
+
+    layout = {"udt_native_state_layout": {"hands": [{"hand": "shadow"}]}}
+    plain = _checkpoint(tmp_path / "plain", "FingerPress-v0", **layout)
+    tips = tmp_path / "tips"
+    tips.mkdir()
+    names = [*WRIST_NAMES, *TASK_COLUMNS["FingerPress-v0"], *FINGERTIP_COLUMNS, *udhm_state_names(["right"])]
+    (tips / "config.json").write_text(json.dumps({"type": "act_udt", "udt_state_names": names, **layout}))
+    monkeypatch.setattr(sys, "argv", ["lerobot-eval", f"--policy.path={tips}", "--env.type=unidextok"])
+    with pytest.raises(SimInputError, match=r"trained with the fingertips' columns .* pass --env.fingertips=true$"):
+        UniDexTokEnvConfig(task="FingerPress-v0", hand="shadow")
+    env = UniDexTokEnvConfig(task="FingerPress-v0", hand="shadow", fingertips=True)
+    assert env.gym_kwargs["fingertips"] is True
+    monkeypatch.setattr(sys, "argv", ["lerobot-eval", f"--policy.path={plain}", "--env.type=unidextok"])
+    without = UniDexTokEnvConfig(task="FingerPress-v0", hand="shadow")
+    assert env.features["agent_pos"].shape[0] == without.features["agent_pos"].shape[0] + 15
+    with pytest.raises(SimInputError, match="trained without the fingertips' columns .* pass --env.fingertips=false$"):
+        UniDexTokEnvConfig(task="FingerPress-v0", hand="shadow", fingertips=True)

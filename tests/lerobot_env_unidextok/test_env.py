@@ -11,6 +11,7 @@ from lerobot_env_unidextok import hand_model, sim_hands
 from lerobot_env_unidextok.columns import TASK_COLUMNS, WRIST_NAMES
 from lerobot_env_unidextok.env import UniDexTokEnv
 from lerobot_env_unidextok.errors import SimInputError
+from lerobot_env_unidextok.gl import mujoco
 from lerobot_unidextok import hands
 
 HANDS = ("inspire_rh56_unitree", "shadow", "allegro")
@@ -121,3 +122,33 @@ def test_a_built_hand_passes_the_env_checker_and_reproduces_its_episodes(hand):
     assert a.shape[1] == 6 + len(TASK_COLUMNS["GraspLift-v0"]) + spec.num_native
     lo, hi = np.asarray(spec.raw_range("right"), dtype=np.float32).T
     assert np.all((a[:, -spec.num_native :] >= lo - 1e-4) & (a[:, -spec.num_native :] <= hi + 1e-4))
+
+
+@pytest.mark.parametrize("hand", HANDS)
+def test_fingertips_are_the_tips_from_the_grasp_centre_in_one_space_for_every_hand(hand):
+    """`fingertips=True` adds the same 15 columns for every hand, after the task's, and changes nothing else; they
+    are each tip's place from the grasp centre (m): far at the open start, and at the power grasp (in free space)
+    their mean is the grasp centre itself; a finger the hand lacks (the Allegro's little finger) is 0."""
+    from lerobot_env_unidextok.columns import FINGERS, FINGERTIP_COLUMNS
+
+    task = "GraspLift-v0"
+    plain, tips = UniDexTokEnv(hand, task, render_mode=None), UniDexTokEnv(hand, task, render_mode=None, fingertips=True)
+    at = 6 + len(TASK_COLUMNS[task])
+    assert tips.state_names == [*plain.state_names[:at], *FINGERTIP_COLUMNS, *plain.state_names[at:]]
+    assert tips.observation_space["agent_pos"].shape == (len(plain.state_names) + 15,)
+    a, _ = plain.reset(seed=3)
+    b, _ = tips.reset(seed=3)
+    np.testing.assert_array_equal(np.delete(b["agent_pos"], range(at, at + 15)), a["agent_pos"])
+    open_m = b["agent_pos"][at : at + 15].reshape(5, 3)
+    present = np.array([f in tips.hand.fingers for f in FINGERS])
+    assert np.all(open_m[~present] == 0) and np.linalg.norm(open_m[present], axis=1).min() > 0.03
+    # the hand put at its power posture: the tips' centroid is the grasp centre (its definition, grasp_centre.py)
+    tips.scene.place_hand(tips.data, tips.hand.posture("power"))
+    mujoco.mj_kinematics(tips.model, tips.data)
+    np.testing.assert_allclose(tips._obs()["agent_pos"][at : at + 15].reshape(5, 3)[present].mean(0), 0, atol=1e-6)
+    # the power grasp commanded in free space, the wrist still: every tip comes closer to the centre
+    tips.reset(seed=3)
+    for _ in range(15):
+        obs, *_ = tips.step(np.concatenate([b["agent_pos"][:6], tips.hand.posture("power")]).astype(np.float32))
+    closed_m = obs["agent_pos"][at : at + 15].reshape(5, 3)[present]
+    assert np.all(np.linalg.norm(closed_m, axis=1) < np.linalg.norm(open_m[present], axis=1))
