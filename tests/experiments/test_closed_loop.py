@@ -246,6 +246,29 @@ def test_each_seed_draws_its_own_recording_and_evaluation_episodes(tmp_path):
         cl.ClosedLoopConfig(eval_seed=100_000)  # evaluation episodes that are recorded demonstrations
 
 
+def test_the_fingertips_recording_is_the_same_demonstrations_with_the_tips_in_a_cache_of_its_own(tmp_path):
+    from lerobot_env_unidextok.columns import FINGERTIP_COLUMNS
+
+    base = dict(tasks=["GraspLift-v0"], hands=["shadow", "allegro"], seeds=[0], pool=2, demos=[1], mix_demos=[1],
+                cache_dir=str(tmp_path))  # fmt: skip
+    plain, tips = cl.ClosedLoopConfig(**base), cl.ClosedLoopConfig(**base, fingertips=True)
+    a, b = (cl.recorded(c, "GraspLift-v0", "allegro", 0, 1) for c in (plain, tips))
+    assert a != b and b.parts[-4] == "GraspLift-v0_fingertips"
+    names = [UdhmDatasetMeta(r).names("observation.state") for r in (a, b)]
+    assert [n for n in names[1] if n not in FINGERTIP_COLUMNS] == names[0] and set(FINGERTIP_COLUMNS) <= set(names[1])
+
+    def frames(root):
+        return pd.read_parquet(next((root / "data").rglob("*.parquet")))
+
+    np.testing.assert_array_equal(np.stack(frames(a)["action"]), np.stack(frames(b)["action"]))  # the same expert
+    job = next(j for j in cl.jobs(tips) if j["kind"] == "mix" and j["hand"] == "shadow")
+    lines = cl.user_commands(tips, job)
+    assert all(line.endswith("--fingertips=true") for line in lines if line.startswith("unidextok-sim-record "))
+    assert lines[-1].startswith("lerobot-eval ") and lines[-1].endswith("--env.fingertips=true")
+    assert not any("-fingertips=" in line or "_fingertips/" in line for line in cl.user_commands(plain, job))
+    assert set(cl.recordings(tips)) == {"GraspLift-v0/allegro/seed0/1"}
+
+
 def test_bad_options_are_named():
     with pytest.raises(ValueError, match="unknown arms"):
         cl.ClosedLoopConfig(arms=["alone", "magic"])
