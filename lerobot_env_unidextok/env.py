@@ -27,7 +27,7 @@ import gymnasium as gym
 import numpy as np
 
 from lerobot_env_unidextok import sim_hands
-from lerobot_env_unidextok.columns import FINGERS, FPS, STATE_IS_NATIVE_KEY, action_names, state_names
+from lerobot_env_unidextok.columns import FPS, STATE_IS_NATIVE_KEY, action_names, state_names, tip_sources
 from lerobot_env_unidextok.errors import SimInputError
 from lerobot_env_unidextok.gl import mujoco, render_problem
 from lerobot_env_unidextok.grasp_centre import grasp_centre_in_wrist_m, wrist_frame_of
@@ -86,6 +86,7 @@ class UniDexTokEnv(gym.Env):
         # the fingertips' observation: the grasp centre in the wrist frame (3,) and the wrist body, or None
         self._grasp_centre_m = grasp_centre_in_wrist_m(self.scene) if fingertips else None
         self._wrist_body = self.model.body("wrist").id
+        self._tip_sources = tip_sources(self.hand.fingers)  # (5,) the finger filling each finger's columns
         self.action_names = action_names(self.hand.native_names)
         j = len(self.hand.native_names)
         raw_lo, raw_hi = np.asarray(self.hand.spec.raw_range(self.hand.side), dtype=np.float64).T
@@ -142,14 +143,11 @@ class UniDexTokEnv(gym.Env):
         return {"agent_pos": state.astype(np.float32), STATE_IS_NATIVE_KEY: np.ones(1, dtype=np.float32)}
 
     def _fingertips_m(self) -> np.ndarray:
-        """(15,) each fingertip of `FINGERS` minus the grasp centre, world axes (m); 0 for a finger the hand lacks."""
+        """(15,) the tip of each finger of `tip_sources` minus the grasp centre, world axes (m)."""
         b = self._wrist_body
         centre = self.data.xpos[b] + self.data.xmat[b].reshape(3, 3) @ self._grasp_centre_m  # (3,) world
-        tips = np.zeros((len(FINGERS), 3))
-        for i, finger in enumerate(FINGERS):
-            if finger in self.scene.tip_body:
-                tips[i] = self.scene.fingertip(self.data, finger) - centre
-        return tips.reshape(-1)
+        tips = {f: self.scene.fingertip(self.data, f) - centre for f in set(self._tip_sources)}
+        return np.concatenate([tips[f] for f in self._tip_sources])
 
     def wrist_frame(self) -> WristFrame:
         """The wrist frame a recording of this hand carries: the wrist columns and the hand's grasp centre

@@ -128,7 +128,8 @@ def test_a_built_hand_passes_the_env_checker_and_reproduces_its_episodes(hand):
 def test_fingertips_are_the_tips_from_the_grasp_centre_in_one_space_for_every_hand(hand):
     """`fingertips=True` adds the same 15 columns for every hand, after the task's, and changes nothing else; they
     are each tip's place from the grasp centre (m): far at the open start, and at the power grasp (in free space)
-    their mean is the grasp centre itself; a finger the hand lacks (the Allegro's little finger) is 0."""
+    their mean is the grasp centre itself; a finger the hand lacks (the Allegro's little finger) takes its nearest
+    finger's tip (the ring's)."""
     from lerobot_env_unidextok.columns import FINGERS, FINGERTIP_COLUMNS
 
     task = "GraspLift-v0"
@@ -141,7 +142,11 @@ def test_fingertips_are_the_tips_from_the_grasp_centre_in_one_space_for_every_ha
     np.testing.assert_array_equal(np.delete(b["agent_pos"], range(at, at + 15)), a["agent_pos"])
     open_m = b["agent_pos"][at : at + 15].reshape(5, 3)
     present = np.array([f in tips.hand.fingers for f in FINGERS])
-    assert np.all(open_m[~present] == 0) and np.linalg.norm(open_m[present], axis=1).min() > 0.03
+    assert np.linalg.norm(open_m[present], axis=1).min() > 0.03
+    if hand == "allegro":  # four fingers: the little finger's columns hold the ring's tip
+        assert not present[4] and np.array_equal(open_m[4], open_m[3])
+    else:
+        assert present.all() and len({tuple(t) for t in open_m}) == 5
     # the hand put at its power posture: the tips' centroid is the grasp centre (its definition, grasp_centre.py)
     tips.scene.place_hand(tips.data, tips.hand.posture("power"))
     mujoco.mj_kinematics(tips.model, tips.data)
@@ -152,3 +157,14 @@ def test_fingertips_are_the_tips_from_the_grasp_centre_in_one_space_for_every_ha
         obs, *_ = tips.step(np.concatenate([b["agent_pos"][:6], tips.hand.posture("power")]).astype(np.float32))
     closed_m = obs["agent_pos"][at : at + 15].reshape(5, 3)[present]
     assert np.all(np.linalg.norm(closed_m, axis=1) < np.linalg.norm(open_m[present], axis=1))
+
+
+def test_a_finger_the_hand_lacks_takes_its_nearest_fingers_tip():
+    from lerobot_env_unidextok.columns import FINGERS, tip_sources
+
+    assert tip_sources(FINGERS) == FINGERS
+    assert tip_sources(("thumb", "index", "middle", "ring")) == ("thumb", "index", "middle", "ring", "ring")
+    assert tip_sources(("thumb", "index", "middle")) == ("thumb", "index", "middle", "middle", "middle")
+    assert tip_sources(("thumb", "index", "ring", "little")) == ("thumb", "index", "index", "ring", "little")
+    with pytest.raises(ValueError, match="a finger besides the thumb"):
+        tip_sources(("thumb",))
