@@ -9,6 +9,7 @@ the figures hold on shared cores.
 
     .venv/bin/python benchmarks/bench_sim.py                          # 100 episodes per hand and task
     .venv/bin/python benchmarks/bench_sim.py --episodes 20 --hands shadow
+    .venv/bin/python benchmarks/bench_sim.py --episodes 20 --hands leap --fingertips   # with the fingertip columns
 
 Hands: by default every hand spec the simulator runs (`sim_hands.sim_hand_names()`: the model files', the shipped
 built models, and every spec whose URDF is found under `$UNIDEXTOK_URDF_DIR`, else ../shared/data/urdf). The
@@ -37,6 +38,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1000)
     ap.add_argument("--hands", nargs="+", default=None, help="hand specs (default: every one the simulator runs)")
     ap.add_argument("--tasks", nargs="+", default=list(TASKS), help=f"default: every task ({', '.join(TASKS)})")
+    ap.add_argument("--fingertips", action="store_true", help="observe the fingertip columns too (--env.fingertips)")
     args = ap.parse_args()
 
     from lerobot_env_unidextok import sim_hands
@@ -51,7 +53,7 @@ def main() -> None:
     for hand in args.hands or sim_hands.sim_hand_names():
         for task in args.tasks:
             try:
-                env = UniDexTokEnv(hand, task, render_mode=None)
+                env = UniDexTokEnv(hand, task, render_mode=None, fingertips=args.fingertips)
             except SimInputError as err:  # a hand the task refuses
                 print(f"| {hand} | {task} | refused | - | {err} | - | - | - |")
                 continue
