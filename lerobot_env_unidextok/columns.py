@@ -4,8 +4,8 @@ observation.state (`agent_pos`) = WRIST_NAMES + TASK_COLUMNS[task] [+ FINGERTIP_
 joints, each named `right_<native joint>` (`right_little`, `right_FFJ4`, `right_joint_0.0`); action = WRIST_NAMES +
 the same hand columns. The fingertip columns (the env's `fingertips=True`) are each fingertip's position relative
 to the hand's grasp centre, in the world's axes (m): forward kinematics of the state, the same space for every
-hand (a closed hand's tips near 0); a finger the hand lacks takes its nearest finger's tip (`tip_sources`). The task columns are the same for every hand, so datasets of different hands mix by name
-(`unidextok-mix --keep=all`); the hand's columns are found by their prefix (`unidextok-convert --source=lerobot
+hand (a closed hand's tips near 0); a finger the hand lacks takes its nearest finger's tip (`tip_sources`). The
+task columns are the same for every hand, so datasets of different hands mix by name (`unidextok-mix --keep=all`); the hand's columns are found by their prefix (`unidextok-convert --source=lerobot
 --source_options='{"hands": {"right": "<hand>:right_"}}'`).
 """
 
@@ -40,23 +40,6 @@ TASK_TEXT = {
 TASKS = tuple(TASK_COLUMNS)
 FINGERS = ("thumb", "index", "middle", "ring", "little")  # every finger a simulated hand may have, in order
 FINGERTIP_COLUMNS = tuple(f"tip_{f}_{axis}" for f in FINGERS for axis in "xyz")  # (15,) m, module docstring
-
-
-def tip_sources(fingers: tuple[str, ...] | list[str]) -> tuple[str, ...]:
-    """The finger whose tip fills each of `FINGERS`' columns on a hand with `fingers`: its own, or for a finger the
-    hand lacks its nearest neighbour toward the index, else toward the little finger (a four-finger hand's little
-    columns hold its ring's tip), so the columns never hold a value no hand has (a 0 would put a tip at the grasp
-    centre)."""
-    if not set(fingers) & set(FINGERS[1:]):
-        raise ValueError(f"a hand needs a finger besides the thumb for its fingertip columns, got {list(fingers)}")
-    out = []
-    for i, finger in enumerate(FINGERS):
-        if finger in fingers or i == 0:
-            out.append(finger if finger in fingers else next(f for f in FINGERS[1:] if f in fingers))
-            continue
-        order = [*FINGERS[i - 1 : 0 : -1], *FINGERS[i + 1 :]]  # toward the index, then toward the little finger
-        out.append(next(f for f in order if f in fingers))
-    return tuple(out)
 # what `observation.state_is_native` carries: 1.0, the state is the hand's native layout (processor/native.py)
 STATE_IS_NATIVE_KEY = "state_is_native"
 
@@ -66,6 +49,18 @@ HAND_PREFIX = "right_"  # every simulated hand is a right hand
 
 def hand_columns(native_names: tuple[str, ...] | list[str]) -> list[str]:
     return [f"{HAND_PREFIX}{n}" for n in native_names]
+
+
+def tip_sources(fingers: tuple[str, ...] | list[str]) -> tuple[str, ...]:
+    """The finger whose tip fills each of `FINGERS`' columns on a hand with `fingers`: its own, or for a finger the
+    hand lacks its nearest neighbour toward the index, else toward the little finger (a four-finger hand's little
+    columns hold its ring's tip), so the columns never hold a value no hand has (a 0 would put a tip at the grasp
+    centre)."""
+    if not set(fingers) & set(FINGERS[1:]):
+        raise ValueError(f"a hand needs a finger besides the thumb for its fingertip columns, got {list(fingers)}")
+    # per finger: itself, its neighbours toward the index, then toward the little finger
+    nearest = ([f, *(FINGERS[i - 1 : 0 : -1] if i else ()), *FINGERS[i + 1 :]] for i, f in enumerate(FINGERS))
+    return tuple(next(f for f in order if f in fingers) for order in nearest)
 
 
 def state_names(task: str, native_names: tuple[str, ...] | list[str], fingertips: bool = False) -> list[str]:

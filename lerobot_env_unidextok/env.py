@@ -83,10 +83,9 @@ class UniDexTokEnv(gym.Env):
         self._renderer: Any = None
         self._render_failed = False
         self.state_names = state_names(task, self.hand.native_names, fingertips)
-        # the fingertips' observation: the grasp centre in the wrist frame (3,) and the wrist body, or None
-        self._grasp_centre_m = grasp_centre_in_wrist_m(self.scene) if fingertips else None
+        # with fingertips: the grasp centre in the wrist frame (3,) and the finger filling each finger's columns (5,)
+        self._tips = (grasp_centre_in_wrist_m(self.scene), tip_sources(self.hand.fingers)) if fingertips else None
         self._wrist_body = self.model.body("wrist").id
-        self._tip_sources = tip_sources(self.hand.fingers)  # (5,) the finger filling each finger's columns
         self.action_names = action_names(self.hand.native_names)
         j = len(self.hand.native_names)
         raw_lo, raw_hi = np.asarray(self.hand.spec.raw_range(self.hand.side), dtype=np.float64).T
@@ -137,17 +136,18 @@ class UniDexTokEnv(gym.Env):
         return self._obs(), float(success), bool(success or failed), False, info
 
     def _obs(self) -> dict[str, np.ndarray]:
-        tips = () if self._grasp_centre_m is None else (self._fingertips_m(),)
+        tips = () if self._tips is None else (self._fingertips_m(),)
         state = np.concatenate([self.scene.wrist_pose(self.data), self.task.observe(self.data), *tips,
                                 self.scene.native_state(self.data)])  # fmt: skip
         return {"agent_pos": state.astype(np.float32), STATE_IS_NATIVE_KEY: np.ones(1, dtype=np.float32)}
 
     def _fingertips_m(self) -> np.ndarray:
         """(15,) the tip of each finger of `tip_sources` minus the grasp centre, world axes (m)."""
+        centre_in_wrist_m, sources = self._tips
         b = self._wrist_body
-        centre = self.data.xpos[b] + self.data.xmat[b].reshape(3, 3) @ self._grasp_centre_m  # (3,) world
-        tips = {f: self.scene.fingertip(self.data, f) - centre for f in set(self._tip_sources)}
-        return np.concatenate([tips[f] for f in self._tip_sources])
+        centre = self.data.xpos[b] + self.data.xmat[b].reshape(3, 3) @ centre_in_wrist_m  # (3,) world
+        tips = {f: self.scene.fingertip(self.data, f) - centre for f in set(sources)}
+        return np.concatenate([tips[f] for f in sources])
 
     def wrist_frame(self) -> WristFrame:
         """The wrist frame a recording of this hand carries: the wrist columns and the hand's grasp centre
