@@ -5,8 +5,9 @@ joints, each named `right_<native joint>` (`right_little`, `right_FFJ4`, `right_
 the same hand columns. The fingertip columns (the env's `fingertips=True`) are each fingertip's position relative
 to the hand's grasp centre, in the world's axes (m): forward kinematics of the state, the same space for every
 hand (a closed hand's tips near 0); a finger the hand lacks takes its nearest finger's tip (`tip_sources`). The
-task columns are the same for every hand, so datasets of different hands mix by name (`unidextok-mix --keep=all`); the hand's columns are found by their prefix (`unidextok-convert --source=lerobot
---source_options='{"hands": {"right": "<hand>:right_"}}'`).
+task columns are the same for every hand, so datasets of different hands mix by name (`unidextok-mix --keep=all`);
+the hand's columns are found by their prefix (`unidextok-convert --source=lerobot --source_options='{"hands":
+{"right": "<hand>:right_"}}'`).
 """
 
 from __future__ import annotations
