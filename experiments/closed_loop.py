@@ -75,7 +75,8 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   `mix_ft_state_norm_<n>`: the same with the state normalised per hand in both stages
   (`--policy.udt_hand_norm_state=true`), so the fine-tune keeps the mix's statistics of the state too;
 - `zero_shot`: the pool's other hands, none of the target's demonstrations, bound with `--zero_shot=true` (one
-  other hand: its converted recording, no mix); `zero_shot_no_frame`: the same in the robots' wrist frames.
+  other hand: its converted recording, no mix); `zero_shot_no_frame`: the same in the robots' wrist frames;
+  `zero_shot_state`: the same with the state-only view (`mix_state`'s flags).
 Also measured: the scripted expert on each seed's evaluation episodes. `robustness` gives per task and pool size
 the gain of the mix over the hand alone per target with 95 % intervals, its worst, median and mean; `plot` draws
 those gains (`closed_loop.png`) and success against the target's demonstrations (`closed_loop_curves.png`).
@@ -167,6 +168,7 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "zero_shot": ("without", ()),
     "zero_shot_own_stats": ("without", (OWN_STATS,)),
     "zero_shot_no_frame": ("without", NO_FRAME),
+    "zero_shot_state": ("without", STATE),  # the state-only view's zero-shot, beside `alone_state` and `mix_state`
     # issue 57's mechanisms, both in the recipe (act_udt_cpu.yaml), each taken out: a residual output head per hand
     # around the shared trunk (policies/hand_heads.py), and the hand told by its morphology vector instead of a
     # one-hot (hands/morphology.py; a zero-shot hand gets its own vector, not zeros); measured on the recipe with
@@ -1021,6 +1023,7 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "zero_shot_own_stats": "zero-shot, each hand's own statistics (the recipe before the pool's prior)",
               "zero_shot_no_frame": "zero-shot without the grasp-centre frame", "alone": "alone",
               "alone_state": "alone, state input", "alone_no_frame": "alone without the grasp-centre frame",
+              "zero_shot_state": "zero-shot, state input",
               "mix_heads": "mix, one-hot identity (heads, no morphology)",
               "mix_morph": "mix, no per-hand heads (morphology only)",
               "zero_shot_morph": "zero-shot, no per-hand heads (morphology only)",
