@@ -67,14 +67,19 @@ def test_the_card_tables_are_the_recorded_evaluation(model, recorded, section, k
     assert f"{recorded['training_cpu_s'] / 60:.1f} CPU-minutes" in text
 
 
+# the card's figures against a recomputation: a new install can move a nearest code on a borderline row (torch
+# 2.11.0 moved the in-range and G1 MPJAE by 1.2e-4 and 7.7e-4 of their value), so not to float precision
+CARD_REL = 2e-3
+
+
 def test_the_in_range_figures_are_what_the_shipped_weights_measure(model, recorded):
-    """The nearest codes are a continuous function of the weights: the card's figures to 1e-4 (both stages and the
-    first stage alone), recomputed for the two recorded hands and a range-only one."""
+    """The card's figures to `CARD_REL` (both stages and the first stage alone), recomputed for the two recorded
+    hands and a range-only one."""
     for key, stages in (("results", None), ("first_stage", 1)):
         got = in_range_figures(model, ["human", "inspire_rh56_unitree", "shadow"], stages=stages)
         for name, entry in got.items():
             for metric, value in recorded[key][name].items():
-                assert entry[metric] == pytest.approx(value, rel=1e-4, abs=1e-6), (key, name, metric)
+                assert entry[metric] == pytest.approx(value, rel=CARD_REL, abs=1e-6), (key, name, metric)
 
 
 @pytest.mark.parametrize("hand", ["inspire_rh56_unitree", "linkerhand_l10", "human", "shadow"])
@@ -111,5 +116,5 @@ def test_the_real_g1_test_episodes_decode_as_the_card_says(model, recorded, real
                            source_options={"hands": G1_HANDS}, progress=False))  # fmt: skip
     got = held_out_figures(model, {"G1 Inspire": str(root)})[G1]
     for key, value in recorded["results"][G1].items():
-        assert got[key] == pytest.approx(value, rel=1e-4, abs=1e-6), key
+        assert got[key] == pytest.approx(value, rel=CARD_REL, abs=1e-6), key
     assert np.isfinite(got["mpjae_deg"]) and got["rows"] > 1000
