@@ -1,8 +1,8 @@
 """lerobot-unidextok's simulator: dexterous hands on a floating wrist in MuJoCo, as a LeRobot env plugin.
 
 Importing this package registers the gymnasium ids `lerobot_env_unidextok/<task>` for every task of
-`columns.TASKS` (`GraspLift-v0`, `FingerPress-v0`, `FingerSequence-v0`, `PinchPlace-v0`, `ChordPress-v0`;
-gymnasium only: the env module, and MuJoCo, load on `gym.make`); `lerobot_env_unidextok.configuration` registers
+`columns.TASKS` (`GraspLift-v0`, `FingerPress-v0`, `FingerSequence-v0`, `PinchPlace-v0`, `ChordPress-v0`,
+`PinchLift-v0`; gymnasium only: the env module, and MuJoCo, load on `gym.make`); `lerobot_env_unidextok.configuration` registers
 LeRobot's `--env.type=unidextok` config, and LeRobot's CLIs import it through `lerobot_policy_unidextok` (the
 distribution they discover). Needs the `sim` extra (`pip install 'lerobot_policy_unidextok[sim]'`) to run an episode.
 

@@ -30,6 +30,9 @@ TASK_COLUMNS: dict[str, tuple[str, ...]] = {
                       "target_y", "pinch_index", "pinch_middle"),
     # the two fingers whose buttons go down together (two-hot)
     "ChordPress-v0": ("panel_x", "panel_y", "panel_z", *(f"chord_{f}" for f in PRESS_FINGERS)),
+    # the cylinder (centre, radius, half height) and the finger that pinches with the thumb
+    "PinchLift-v0": ("object_x", "object_y", "object_z", "object_radius", "object_half_height", "pinch_index",
+                     "pinch_middle"),
 }  # fmt: skip
 TASK_TEXT = {
     "GraspLift-v0": "grasp the object and lift it",
@@ -37,6 +40,7 @@ TASK_TEXT = {
     "FingerSequence-v0": "press the three buttons in the given order, each with its own finger",
     "PinchPlace-v0": "pinch the cylinder with the thumb and the named finger and stand it in the target",
     "ChordPress-v0": "press the buttons under the two named fingers together, each with its own finger",
+    "PinchLift-v0": "pinch the cylinder with the thumb and the named finger and lift it",
 }
 TASKS = tuple(TASK_COLUMNS)
 FINGERS = ("thumb", "index", "middle", "ring", "little")  # every finger a simulated hand may have, in order

@@ -34,8 +34,9 @@ UDHM_DIM = 22
 class UniDexTokEnvConfig(EnvConfig):
     # the task: GraspLift-v0 (grasp and lift objects of varied shape, size and place), FingerPress-v0 (press the
     # button under the finger the goal names), FingerSequence-v0 (three buttons in a given order, each by its own
-    # finger), PinchPlace-v0 (pinch a cylinder with the thumb and the named finger, stand it in a target) or
-    # ChordPress-v0 (the buttons under two named fingers down together, each by its own finger)
+    # finger), PinchPlace-v0 (pinch a cylinder with the thumb and the named finger, stand it in a target),
+    # ChordPress-v0 (the buttons under two named fingers down together, each by its own finger) or PinchLift-v0
+    # (pinch a cylinder with the thumb and the named finger, lift it)
     task: str | None = "GraspLift-v0"
     fps: int = FPS
     # the hand: a registered hand spec with a simulation model: a model file (inspire_rh56_unitree, inspire_rh56,

@@ -8,7 +8,7 @@ expert reads only what the observation holds (the object's pose and size, the pa
 plans its key poses once at the episode's start, and moves between them at most 3 cm per step; a sequence's
 presses (`FingerSequence-v0`) follow the due finger and `presses_done`, each held until it counted
 (`SequencePresses`), and a pinch's lift, carry and set-down (`PinchPlace-v0`) follow the object's place
-(`PinchCarry`). Noise (its own
+(`PinchCarry`); a pinch and lift (`PinchLift-v0`) is planned open loop, as the grasp. Noise (its own
 generator, seeded per episode): key poses +-4 mm (+-3 mm in height) and +-0.04 rad of yaw (a press turns the hand
 about its fingertips over the buttons), postures +-0.05 rad per UDHM slot, phase lengths +-1 step.
 """
@@ -23,6 +23,7 @@ from lerobot_env_unidextok.chord_press import ChordPress
 from lerobot_env_unidextok.env import UniDexTokEnv
 from lerobot_env_unidextok.finger_sequence import SEQUENCE_LENGTH, FingerSequence
 from lerobot_env_unidextok.hand_model import SimHand
+from lerobot_env_unidextok.pinch_lift import PinchLift
 from lerobot_env_unidextok.pinch_place import PINCH_FINGERS, PinchPlace, pinch_of
 from lerobot_env_unidextok.tasks import PRESS_FINGERS, FingerPress, GraspLift
 
@@ -119,6 +120,8 @@ class Expert:
             return self.sequence_segments(task)
         if isinstance(self.env.task, FingerPress):
             return self.press_segments(task)
+        if isinstance(self.env.task, PinchLift):  # before PinchPlace: its cylinder is PinchPlace's
+            return self.pinch_lift_segments(task)
         if isinstance(self.env.task, PinchPlace):
             return self.pinch_place_segments(task)
         raise TypeError(f"no expert for {type(self.env.task).__name__}")
@@ -186,16 +189,29 @@ class Expert:
         self.presses = SequencePresses(hover, presses, open_, self.steps(SEQUENCE_PRESS_STEPS))
         return [Segment(hover + [0, 0, 0.04, 0, 0, 0], open_, self.steps(8)), Segment(hover, open_, self.steps(3))]
 
-    def pinch_place_segments(self, task: dict[str, float]) -> list[Segment]:
-        """Over the cylinder, down, pinch; the rest follows from the observation (`act`, `PinchCarry`). The wrist
-        level, its yaw 0: the point halfway between the fingers where they close to the cylinder's width
-        (`pinch_place.Pinch.point_m`) on its centre."""
+    def pinch_pose(self, task: dict[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The wrist at the pinch (level, its yaw 0: the point halfway between the fingers where they close to the
+        cylinder's width, `pinch_place.Pinch.point_m`, on its centre), the pre-shape and the hold, with noise."""
         finger = next(f for f in PINCH_FINGERS if task[f"pinch_{f}"] > 0.5)
         pinch = pinch_of(self.hand, finger)
         width = 2 * task["object_radius"]
         centre = np.array([task["object_x"], task["object_y"], task["object_z"]])
         grasp = self.jitter(np.array([*(centre - pinch.point_m(width)), 0.0, 0.0, 0.0]))
-        pre, hold = self.jittered(pinch.pre), self.jittered(pinch.hold(width))
+        return grasp, self.jittered(pinch.pre), self.jittered(pinch.hold(width))
+
+    def pinch_lift_segments(self, task: dict[str, float]) -> list[Segment]:
+        """Over the cylinder, down, pinch, lift: open loop, as the grasp's (no phase waits in place, the lift starts
+        slowly while the fingers are still closing)."""
+        grasp, pre, hold = self.pinch_pose(task)
+        up = np.array([0, 0, 1.0, 0, 0, 0])
+        return [Segment(grasp + 0.05 * up, pre, self.steps(8)), Segment(grasp, pre, self.steps(4)),
+                Segment(grasp, hold, self.steps(PINCH_CLOSE_STEPS)), Segment(grasp + 0.01 * up, hold, 6),
+                Segment(grasp + 0.07 * up, hold, self.steps(6)), Segment(grasp + 0.07 * up, hold, 10)]  # fmt: skip
+
+    def pinch_place_segments(self, task: dict[str, float]) -> list[Segment]:
+        """Over the cylinder, down, pinch; the rest follows from the observation (`act`, `PinchCarry`). The wrist
+        at the pinch (`pinch_pose`)."""
+        grasp, pre, hold = self.pinch_pose(task)
         self.carry = PinchCarry(self.hand, np.array([task["target_x"], task["target_y"]]),
                                 task["object_half_height"], grasp.copy(), hold, self.posture("open"))  # fmt: skip
         return [Segment(grasp + [0, 0, 0.05, 0, 0, 0], pre, self.steps(8)), Segment(grasp, pre, self.steps(4)),

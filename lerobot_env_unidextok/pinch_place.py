@@ -187,23 +187,42 @@ class PinchPlace(Task):
         return list(TASK_COLUMNS[self.name])
 
     def add_to_spec(self, spec: mujoco.MjSpec) -> None:
-        body = spec.worldbody.add_body(name="pinch_object", pos=[0.06, 0, HALF_HEIGHT_M[1]])
-        body.add_freejoint(name="pinch_object")
-        body.add_geom(name="pinch_object", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[RADIUS_M[1], HALF_HEIGHT_M[1], 0],
-                      rgba=[0.85, 0.45, 0.1, 1], friction=[2.0, 0.05, 0.01], condim=6, density=DENSITY)  # fmt: skip
+        self.add_cylinder(spec)
         target = spec.worldbody.add_body(name="target", pos=[0.06, 0.08, TABLE_Z])
         target.add_geom(name="target", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[TARGET_RADIUS_M, 0.0005, 0],
                         pos=[0, 0, 0.0005], rgba=[0.2, 0.75, 0.3, 0.6], contype=0, conaffinity=0)  # fmt: skip
 
+    @staticmethod
+    def add_cylinder(spec: mujoco.MjSpec) -> None:
+        body = spec.worldbody.add_body(name="pinch_object", pos=[0.06, 0, HALF_HEIGHT_M[1]])
+        body.add_freejoint(name="pinch_object")
+        body.add_geom(name="pinch_object", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[RADIUS_M[1], HALF_HEIGHT_M[1], 0],
+                      rgba=[0.85, 0.45, 0.1, 1], friction=[2.0, 0.05, 0.01], condim=6, density=DENSITY)  # fmt: skip
+
     def bind(self, scene: Scene) -> None:
+        self.bind_cylinder(scene)
+        self.target_body = scene.model.body("target").id
+
+    def bind_cylinder(self, scene: Scene) -> None:
         m = scene.model
         self.scene = scene
         self.body, self.geom = m.body("pinch_object").id, m.geom("pinch_object").id
         self.qpos = int(m.jnt_qposadr[m.joint("pinch_object").id])
         self.qvel = int(m.jnt_dofadr[m.joint("pinch_object").id])
-        self.target_body = m.body("target").id
 
     def reset(self, data: mujoco.MjData, rng: np.random.Generator) -> None:
+        xy = self.draw_cylinder(rng)
+        m = self.scene.model
+        while True:  # a direction that keeps the target in its area
+            angle, distance = rng.uniform(-np.pi, np.pi), rng.uniform(*self.TARGET_DISTANCE_M)
+            self.target = xy + distance * np.array([np.cos(angle), np.sin(angle)])
+            if all(lo <= v <= hi for v, (lo, hi) in zip(self.target, self.TARGET_AREA, strict=True)):
+                break
+        m.body_pos[self.target_body] = [*self.target, TABLE_Z]
+        self.place_cylinder(data, xy, rng)
+
+    def draw_cylinder(self, rng: np.random.Generator) -> np.ndarray:
+        """The episode's cylinder size (the model resized) and (2,) place on the table."""
         m = self.scene.model
         self.radius, self.half_height = rng.uniform(*RADIUS_M), rng.uniform(*HALF_HEIGHT_M)
         volume = np.pi * self.radius**2 * 2 * self.half_height
@@ -214,13 +233,10 @@ class PinchPlace(Task):
             mass * self.radius**2 / 2]  # fmt: skip
         m.geom_rbound[self.geom] = float(np.hypot(self.radius, self.half_height))
         m.geom_aabb[self.geom] = [0, 0, 0, self.radius, self.radius, self.half_height]
-        xy = np.array([rng.uniform(*self.AREA[0]), rng.uniform(*self.AREA[1])])
-        while True:  # a direction that keeps the target in its area
-            angle, distance = rng.uniform(-np.pi, np.pi), rng.uniform(*self.TARGET_DISTANCE_M)
-            self.target = xy + distance * np.array([np.cos(angle), np.sin(angle)])
-            if all(lo <= v <= hi for v, (lo, hi) in zip(self.target, self.TARGET_AREA, strict=True)):
-                break
-        m.body_pos[self.target_body] = [*self.target, TABLE_Z]
+        return np.array([rng.uniform(*self.AREA[0]), rng.uniform(*self.AREA[1])])
+
+    def place_cylinder(self, data: mujoco.MjData, xy: np.ndarray, rng: np.random.Generator) -> None:
+        """The finger drawn, the cylinder standing at `xy`, the episode's flags cleared."""
         self.finger = PINCH_FINGERS[rng.integers(len(PINCH_FINGERS))]
         self.rest_z = TABLE_Z + self.half_height
         data.qpos[self.qpos : self.qpos + 7] = [*xy, self.rest_z, 1, 0, 0, 0]

@@ -6,9 +6,11 @@ from __future__ import annotations
 
 from lerobot_env_unidextok.chord_press import ChordPress
 from lerobot_env_unidextok.finger_sequence import FingerSequence
+from lerobot_env_unidextok.pinch_lift import PinchLift
 from lerobot_env_unidextok.pinch_place import PinchPlace
 from lerobot_env_unidextok.tasks import FingerPress, GraspLift, Task
 
-TASKS: dict[str, type[Task]] = {t.name: t for t in (GraspLift, FingerPress, FingerSequence, PinchPlace, ChordPress)}
+TASKS: dict[str, type[Task]] = {t.name: t for t in (GraspLift, FingerPress, FingerSequence, PinchPlace, ChordPress,
+                                                    PinchLift)}
 
 __all__ = ["TASKS", "Task"]

@@ -1,5 +1,5 @@
 """The `Task` base and the first two tasks: what each adds to the scene, how an episode is drawn, what it observes,
-when it succeeds. Each later task has a module of its own (`finger_sequence.py`, `pinch_place.py`); `task_classes.py`
+when it succeeds. Each later task has a module of its own (`finger_sequence.py`, `pinch_place.py`, `chord_press.py`, `pinch_lift.py`); `task_classes.py`
 lists them all.
 
 - `GraspLift-v0`: one object on the table, drawn per episode: a box or an upright cylinder wide enough to need a

@@ -1,4 +1,4 @@
-"""The dexterous tasks after GraspLift and FingerPress (issue 56): each passes gymnasium's checker, reproduces a
+"""The dexterous tasks after GraspLift and FingerPress (issue 56; ChordPress-v0: test_chord_press.py): each passes gymnasium's checker, reproduces a
 seeded episode exactly, has the same task columns for every hand, is done by its scripted expert on seeded
 episodes, and refuses a hand that cannot do it at `gym.make` in one line."""
 
@@ -18,7 +18,8 @@ from lerobot_env_unidextok.record import expert_episode
 TASK_HANDS = {
     "FingerSequence-v0": ("inspire_rh56_unitree", "shadow", "allegro"),
     "PinchPlace-v0": ("shadow", "xhand1", "unitree_dex3_1"),
-}  # the Allegro is refused: see below
+    "PinchLift-v0": ("leap", "linkerhand_o7", "unitree_dex3_1"),
+}  # the Allegro is refused by both pinches: see below
 
 
 def _need(hand: str) -> None:
@@ -111,12 +112,13 @@ def test_finger_sequence_succeeds_only_in_order_and_by_each_finger():
     assert terminated and not info["is_success"] and env.task.failure == "wrong order"
 
 
-def test_pinch_place_fails_when_another_finger_than_the_named_one_touches():
+@pytest.mark.parametrize("task", ["PinchPlace-v0", "PinchLift-v0"])
+def test_a_pinch_fails_when_another_finger_than_the_named_one_touches(task):
     """The expert pinches with the finger its first observation named; the task then names the other one: the
     named finger's neighbour holds the cylinder, which ends the episode as a failure, not a success."""
     from lerobot_env_unidextok.experts import Expert
 
-    env = UniDexTokEnv("shadow", "PinchPlace-v0", render_mode=None)
+    env = UniDexTokEnv("shadow", task, render_mode=None)
     obs, _ = env.reset(seed=1001)
     cols = dict(zip(env.state_names, obs["agent_pos"], strict=True))
     assert cols["pinch_index"] + cols["pinch_middle"] == 1
@@ -134,6 +136,7 @@ def test_pinch_place_fails_when_another_finger_than_the_named_one_touches():
 @pytest.mark.parametrize(("task", "hand", "refusal"), [
     ("FingerSequence-v0", "unitree_dex3_1", r"^hand 'unitree_dex3_1' has 2 fingers besides the thumb .*FingerPress-v0"),
     ("PinchPlace-v0", "allegro", r"^hand 'allegro' cannot pinch .*no closer than 35 mm to the middle's .*GraspLift-v0"),
+    ("PinchLift-v0", "allegro", r"^hand 'allegro' cannot pinch .*PinchLift-v0 asks for.* 35 mm to the middle's "),
 ])  # fmt: skip
 def test_a_hand_that_cannot_do_the_task_is_refused_in_one_line(task, hand, refusal):
     _need(hand)
@@ -143,3 +146,26 @@ def test_a_hand_that_cannot_do_the_task_is_refused_in_one_line(task, hand, refus
     # and as lerobot-eval meets it: --env.task / --env.hand are checked when its config is made, before gym.make
     with pytest.raises(SimInputError, match=refusal):
         UniDexTokEnvConfig(task=task, hand=hand)
+
+
+def test_pinch_lift_succeeds_only_while_the_two_fingers_hold_it_up():
+    """The expert's episode: success comes once the cylinder is 4 cm over its rest with the thumb and the named
+    finger on it, not before (lifted 2 cm is not enough); with no target, the columns are the cylinder and the
+    finger alone."""
+    from lerobot_env_unidextok.experts import Expert
+    from lerobot_env_unidextok.pinch_lift import PinchLift
+
+    env = UniDexTokEnv("shadow", "PinchLift-v0", render_mode=None)
+    assert not any(c.startswith("target") for c in TASK_COLUMNS["PinchLift-v0"])
+    obs, _ = env.reset(seed=1002)
+    expert = Expert(env, np.random.default_rng(0), noise=False)
+    expert.reset(obs)
+    heights = []
+    for _ in range(50):
+        obs, _, terminated, _, info = env.step(expert.act(obs))
+        heights.append(float(obs["agent_pos"][env.state_names.index("object_z")]) - env.task.rest_z)
+        if info["is_success"] or terminated:
+            break
+    assert info["is_success"] and not env.task.failure
+    assert heights[-1] >= PinchLift.GOAL_M and max(heights[:-1]) < PinchLift.GOAL_M  # the first frame at 4 cm
+    assert any(0.02 <= h < PinchLift.GOAL_M for h in heights)  # it passed 2 cm without succeeding
