@@ -1,6 +1,6 @@
 """Per-episode outcomes in the simulator: a trained `<type>_udt` checkpoint, or the scripted expert, on seeded
 episodes of one task and hand; how each episode ended as the task says it (success, `failure_reason`) and, for
-FingerSequence-v0 and PinchPlace-v0, what happened on the way (docs/lerobot.md, "The new tasks in closed loop").
+FingerSequence-v0 and PinchPlace-v0, what happened on the way (docs/tasks.md, "The new tasks in closed loop").
 
     python experiments/sim_rollouts.py --task=PinchPlace-v0 --hand=shadow \
         --checkpoint=<out>/closed_loop/policies/PinchPlace-v0/shadow/alone_25_seed0/checkpoints/last/pretrained_model

@@ -16,7 +16,7 @@ from lerobot_env_unidextok.errors import SimInputError
 from lerobot_env_unidextok.record import expert_episode
 
 TASK = "ChordPress-v0"
-# the hands the expert is tested on (its rates over 50 episodes per hand: docs/lerobot.md, bench_sim.py): both
+# the hands the expert is tested on (its rates over 50 episodes per hand: docs/tasks.md, bench_sim.py): both
 # model files, a built hand of three fingers besides the thumb (the Allegro) and one of four (the XHand)
 HANDS = ("inspire_rh56_unitree", "shadow", "allegro", "xhand1")
 

@@ -14,7 +14,7 @@ from lerobot_env_unidextok.env import UniDexTokEnv
 from lerobot_env_unidextok.errors import SimInputError
 from lerobot_env_unidextok.record import expert_episode
 
-# task -> hands its fast tests run on (the rates over 50 episodes per hand: docs/lerobot.md, bench_sim.py)
+# task -> hands its fast tests run on (the rates over 50 episodes per hand: docs/tasks.md, bench_sim.py)
 TASK_HANDS = {
     "FingerSequence-v0": ("inspire_rh56_unitree", "shadow", "allegro"),
     "PinchPlace-v0": ("shadow", "xhand1", "unitree_dex3_1"),

@@ -30,7 +30,7 @@ def test_the_expert_succeeds_on_seeded_episodes(hand, task):
                                   "linkerhand_l25", "linkerhand_o7", "brainco_revo1", "unitree_dex3_1"])  # fmt: skip
 def test_the_expert_of_a_hand_built_from_its_urdf_succeeds(hand):
     """Four seeded episodes per task of every hand the simulator builds from its URDF, with no number tuned for
-    it (the rates over 100 episodes: docs/lerobot.md, bench_sim.py)."""
+    it (the rates over 100 episodes: docs/tasks.md, bench_sim.py)."""
     from lerobot_env_unidextok import sim_hands
 
     if hand not in sim_hands.sim_hand_names():

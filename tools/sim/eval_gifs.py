@@ -1,7 +1,7 @@
 """One GIF per task of what a trained policy does: LeRobot's own `lerobot-eval` video of a closed-loop episode.
 
     OMP_NUM_THREADS=1 nice -n 10 .venv/bin/python tools/sim/eval_gifs.py --hand shadow \
-        --tasks GraspLift-v0 FingerPress-v0 ChordPress-v0 FingerSequence-v0 PinchPlace-v0
+        --tasks GraspLift-v0 FingerPress-v0 ChordPress-v0 FingerSequence-v0 PinchPlace-v0 PinchLift-v0
 
 For each task, the user's path of docs/lerobot.md section 8 ("From a pip install to a success rate"), each step
 its real CLI in a subprocess, into `--work_dir/<hand>/<task>/` (not committed):
@@ -37,7 +37,7 @@ import av
 import numpy as np
 from PIL import Image
 
-TASKS = ("GraspLift-v0", "FingerPress-v0", "ChordPress-v0", "FingerSequence-v0", "PinchPlace-v0")
+TASKS = ("GraspLift-v0", "FingerPress-v0", "ChordPress-v0", "FingerSequence-v0", "PinchPlace-v0", "PinchLift-v0")
 # docs/lerobot.md section 8, step 3: the flags a user adds to act_udt_cpu.yaml for closed-loop control
 CLOSED_LOOP_FLAGS = ("--policy.udt_relative_actions=false", "--policy.udt_copy_start=false",
                      "--policy.n_action_steps=10")  # fmt: skip
