@@ -1,6 +1,7 @@
 """Per-episode outcomes in the simulator: a trained `<type>_udt` checkpoint, or the scripted expert, on seeded
 episodes of one task and hand; how each episode ended as the task says it (success, `failure_reason`) and, for
-FingerSequence-v0 and PinchPlace-v0, what happened on the way (docs/tasks.md, "The new tasks in closed loop").
+FingerSequence-v0, PinchPlace-v0 and PinchLift-v0, what happened on the way (docs/tasks.md, "The new tasks in
+closed loop").
 
     python experiments/sim_rollouts.py --task=PinchPlace-v0 --hand=shadow \
         --checkpoint=<out>/closed_loop/policies/PinchPlace-v0/shadow/alone_25_seed0/checkpoints/last/pretrained_model
@@ -24,7 +25,10 @@ Measured per episode (`summary`):
   closest it came to the target while lifted (`closest_lifted_mm`), how far it was carried toward the target from
   its start to where it was let go (`carry_along_mm`, and off that line: `carry_across_mm`), the tilt at the end;
   and, per phase of the policy's action chunk (step k of the episode runs action (k - 1) mod `n_action_steps` of
-  a chunk), the mean distance it came closer to the target on the steps it was held at least 5 mm up.
+  a chunk), the mean distance it came closer to the target on the steps it was held at least 5 mm up;
+- PinchLift-v0: the highest the cylinder rose, whether it was lifted (15 mm), which fingers ever touched it, and
+  how the pinch went (`pinch`): "none" (no finger touched it), "one finger" (only the thumb or only the named
+  finger, never both at once), "both, not lifted" (both on it at once, never 15 mm up), "lifted".
 """
 
 from __future__ import annotations
@@ -81,8 +85,8 @@ class SimRolloutsConfig:
 # what the task's state says, step by step
 # ---------------------------------------------------------------------------------------------
 def task_state(env) -> dict:
-    """What the task's state says now (`env`: the unwrapped UniDexTokEnv): FingerSequence-v0's and PinchPlace-v0's;
-    nothing for the other tasks (their success and failure reasons only)."""
+    """What the task's state says now (`env`: the unwrapped UniDexTokEnv): FingerSequence-v0's, PinchPlace-v0's and
+    PinchLift-v0's; nothing for the other tasks (their success and failure reasons only)."""
     task, data = env.task, env.data
     if env.task_name == "FingerSequence-v0":
         return {"order": list(task.order), "pressed": [f for f, down in task.pressed(data).items() if down],
@@ -93,6 +97,9 @@ def task_state(env) -> dict:
                 "up_m": float(pos[2] - task.rest_z), "lifted": bool(task.lifted),
                 "by": sorted(task.scene.fingers_touching(data, task.geom)),
                 "tilt_deg": float(np.degrees(task.tilt_rad(data)))}  # fmt: skip
+    if env.task_name == "PinchLift-v0":
+        return {"finger": task.finger, "up_m": float(data.qpos[task.qpos + 2] - task.rest_z),
+                "lifted": bool(task.lifted), "by": sorted(task.scene.fingers_touching(data, task.geom))}  # fmt: skip
     return {}
 
 
@@ -156,6 +163,14 @@ def summary(task_name: str, trace: EpisodeTrace) -> dict:
         # the progress toward the target of each step k (1..T) that starts held at least HELD_UP_M up
         out["held_up_progress_mm"] = [[k, _mm(dist[k - 1] - dist[k])] for k in range(1, len(states))
                                       if states[k - 1]["by"] and states[k - 1]["up_m"] >= HELD_UP_M]  # fmt: skip
+    elif task_name == "PinchLift-v0":
+        finger = states[-1]["finger"]
+        both = any({"thumb", finger} <= set(s["by"]) for s in states)
+        lifted = states[-1]["lifted"]
+        pinch = ("lifted" if lifted else "both, not lifted" if both
+                 else "one finger" if any(s["by"] for s in states) else "none")  # fmt: skip
+        out.update(finger=finger, lifted=lifted, pinch=pinch, max_up_mm=_mm(max(s["up_m"] for s in states)),
+                   touched_by=sorted({f for s in states for f in s["by"]}))  # fmt: skip
     return out
 
 
@@ -205,6 +220,11 @@ def aggregate(task_name: str, rows: list[dict], n_action_steps: int | None) -> d
                 {"phase": p, "steps": len(v), "mean_mm": round(float(np.mean(v)), 1) if v else None}
                 for p, v in phases.items()
             ]  # fmt: skip
+    elif task_name == "PinchLift-v0":
+        pinch = Counter(r["pinch"] for r in rows)
+        out["pinch"] = {k: pinch.get(k, 0) for k in ("none", "one finger", "both, not lifted", "lifted")}
+        out["another_finger_touched"] = sum(bool(set(r["touched_by"]) - {"thumb", r["finger"]}) for r in rows)
+        out["max_up_mm_median"] = _median([r["max_up_mm"] for r in rows])
     return out
 
 
@@ -349,6 +369,10 @@ def markdown(result: dict) -> str:
             ["start: distance from the target's centre, median mm", _value(s["start_mm_median"])],
             ["final tilt, median degrees", _value(s["final_tilt_deg_median"])],
         ]  # fmt: skip
+    elif result["task"] == "PinchLift-v0":
+        rows += [[f"pinch: {k}", v] for k, v in s["pinch"].items()]
+        rows += [["another finger touched it", s["another_finger_touched"]],
+                 ["highest the cylinder rose, median mm", _value(s["max_up_mm_median"])]]  # fmt: skip
     lines = [f"{result['task']}, {result['hand']}, {who}: {n} episodes (seeds {result['eval_seed']}-"
              f"{result['eval_seed'] + n - 1}), {result['cpu_s']} CPU-s", "", md_table(["measure", "episodes"], rows)]  # fmt: skip
     phases = s.get("chunk_phase_progress_mm")

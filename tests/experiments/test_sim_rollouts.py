@@ -1,4 +1,4 @@
-"""experiments/sim_rollouts.py: the scripted expert on seeded episodes of FingerSequence-v0 and PinchPlace-v0 (each
+"""experiments/sim_rollouts.py: the scripted expert on seeded episodes of FingerSequence-v0, PinchPlace-v0 and PinchLift-v0 (each
 episode's end as the task says it, and the task's own measures), the same success as closed_loop.py's expert path;
 a checkpoint trained on other task columns refused in one line; and (slow) a 2-update policy trained by
 closed_loop.py run through LeRobot's rollout, its successes those closed_loop.py's lerobot-eval rollout counted."""
@@ -55,6 +55,17 @@ def test_the_expert_pinches_lifts_and_sets_the_cylinder_down_in_the_target(tmp_p
         assert all(gain is not None for _, gain in e["held_up_progress_mm"])
     assert [e["success"] for e in result["episodes"]] == _expert_episode_successes("PinchPlace-v0", 3)
     assert "| lifted (>= 15 mm) | 3 |" in sr.markdown(result)
+
+
+def test_the_expert_pinches_the_cylinder_with_the_named_finger_and_lifts_it(tmp_path):
+    result = _run(tmp_path, "PinchLift-v0")
+    s = result["summary"]
+    assert s["successes"] == 3 and s["pinch"] == {"none": 0, "one finger": 0, "both, not lifted": 0, "lifted": 3}
+    assert s["another_finger_touched"] == 0 and s["max_up_mm_median"] >= 40  # the task's goal: 4 cm
+    for e in result["episodes"]:
+        assert e["lifted"] and e["touched_by"] == sorted(["thumb", e["finger"]])
+    assert [e["success"] for e in result["episodes"]] == _expert_episode_successes("PinchLift-v0", 3)
+    assert "| pinch: lifted | 3 |" in sr.markdown(result)
 
 
 def test_another_task_reports_success_and_failure_reasons_only(tmp_path):
