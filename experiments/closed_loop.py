@@ -246,6 +246,8 @@ class ClosedLoopConfig:
     ablation_targets: list[str] = field(default_factory=list)
     # the pool sizes of the mechanism arms (`MECHANISMS`; empty = every pool size): prune pools, not seeds or episodes
     mechanism_pools: list[int] = field(default_factory=list)
+    # the pool sizes of the zero-shot arms (empty = every pool size): zero-shot from k - 1 other hands
+    zero_shot_pools: list[int] = field(default_factory=list)
     # the shrunk arms' prior (`mix_shrink`, `state_norm_shrink`: --policy.udt_hand_stats_prior), in episodes
     shrink_episodes: float = SHRINK_EPISODES
     # record and evaluate with the fingertips' columns (`unidextok-sim-record --fingertips=true`, `lerobot-eval
@@ -274,6 +276,9 @@ class ClosedLoopConfig:
         self.pools = self.pools or [len(self.hands)]
         if set(self.arms) & set(MIX_ARMS) and any(not 2 <= k <= len(self.hands) for k in self.pools):
             raise ValueError(f"pools {self.pools} must be 2..{len(self.hands)} (the hands of --hands)")
+        for name, given in (("mechanism_pools", self.mechanism_pools), ("zero_shot_pools", self.zero_shot_pools)):
+            if set(given) - set(self.pools):
+                raise ValueError(f"{name} {given} must be among pools {self.pools}")
         if not self.shrink_episodes > 0:
             raise ValueError(f"shrink_episodes must be > 0 (the shrunk arms' prior), got {self.shrink_episodes}")
         seed_ranges(self)
@@ -691,6 +696,8 @@ def jobs(cfg: ClosedLoopConfig) -> list[dict]:
                     pools = [0] if kind == "alone" else cfg.pools
                     if arm in MECHANISMS and cfg.mechanism_pools:
                         pools = [k for k in pools if k in cfg.mechanism_pools]
+                    if kind == "without" and cfg.zero_shot_pools:
+                        pools = [k for k in pools if k in cfg.zero_shot_pools]
                     if arm in ("zero_shot_morph", "zero_shot_onehot"):  # one other hand: that robot alone, no
                         # identity and one head, as in `zero_shot`
                         pools = [k for k in pools if k > 2]

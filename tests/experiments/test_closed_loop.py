@@ -349,6 +349,16 @@ def test_the_robustness_summary_pools_the_seeds_and_bounds_the_gain():
     assert not any("mix >= zero-shot" in line for line in lines)
 
 
+def test_zero_shot_runs_only_on_its_pools_when_they_are_named():
+    base = dict(tasks=["GraspLift-v0"], arms=["alone", "mix", "zero_shot"], pools=[2, 3, 6], seeds=[0], demos=[10],
+                mix_demos=[10])  # fmt: skip
+    every = {j["arm"] for j in cl.jobs(cl.ClosedLoopConfig(**base))}
+    pruned = {j["arm"] for j in cl.jobs(cl.ClosedLoopConfig(**base, zero_shot_pools=[6]))}
+    assert every - pruned == {"zero_shot_pool2", "zero_shot_pool3"} and "mix_10_pool2" in pruned
+    with pytest.raises(ValueError, match=r"zero_shot_pools \[5\] must be among pools \[2, 3, 6\]"):
+        cl.ClosedLoopConfig(**base, zero_shot_pools=[5])
+
+
 def test_the_mechanism_arms_run_last_on_their_pools_and_each_take_one_out_of_the_recipe():
     cfg = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], arms=["alone", "mix", "zero_shot", "mix_heads", "mix_morph",
                                                            "zero_shot_morph"],
