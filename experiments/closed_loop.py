@@ -990,7 +990,7 @@ def goals(result: dict, cfg: ClosedLoopConfig) -> list[dict]:
             )
             zero = [(h, r) for h, r in rows.items() if "zero_shot" in r]
             if zero:
-                part = 0.5 if k >= 6 else 1 / 3  # from five other hands; from one or two
+                part = 0.5 if k > 3 else 1 / 3  # from three other hands or more (five, the issue says); from one or two
                 short = [h for h, r in zero if r["zero_shot"]["rate"] < part * r["alone"]["rate"]]
                 goal(
                     f"{task} pool {k}: zero-shot at least {part:.2g} of the hand alone at {n} demos on every target",

@@ -339,6 +339,10 @@ def test_the_robustness_summary_pools_the_seeds_and_bounds_the_gain():
     reach = goals["T pool 2: the mix at 10 demos reaches the hand alone at 25, on average over 3 targets"]
     assert reach["value"] == pytest.approx((52 + 72 + 50) / 3 - 60) and reach["met"] is False
     assert rob["with_zero_shot"] == 3
+    # zero-shot from one other hand is judged at a third of the hand alone (c: 60 of 50); from four, at half
+    assert goals["T pool 2: zero-shot at least 0.33 of the hand alone at 10 demos on every target"]["why"] == "short: a, b"
+    five = {g["goal"] for g in cl.goals({"summary": summary, "robustness": {"T": {5: rob}}, "experts": {}}, cfg)}
+    assert "T pool 5: zero-shot at least 0.5 of the hand alone at 10 demos on every target" in five
     # without zero-shot runs (a mix-only command) the goal is not judged, and the summary line does not count it
     mixes = [r for r in runs if not r["arm"].startswith("zero_shot")]
     summary = cl.summarise(mixes, cfg)
