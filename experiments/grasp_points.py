@@ -2,18 +2,21 @@
 
 A mix teaches a hand what the other hands did: with wrist actions in the grasp-centre frame (docs/lerobot.md "The
 grasp-centre frame"), where their grasp centres went relative to the object. This measures that point per hand on
-the GraspLift recordings `experiments/closed_loop.py` made (its `--cache_dir`), so a hand whose own point lies far
-from the others' can be told apart from one the policy simply fails on.
+the GraspLift-v0 or PinchLift-v0 recordings `experiments/closed_loop.py` made (its `--cache_dir`), so a hand whose
+own point lies far from the others' can be told apart from one the policy simply fails on.
 
 Per recorded episode: the lift frame is the first whose object centre is `lift_m` above where it rested; there the
 grasp centre c_h (the recording's `meta/unidextok_wrist_frame.json`) in world is wrist xyz + R(roll, pitch, yaw) c_h,
 and its offset from the object centre is turned into the object's frame by the object's yaw (the drawn yaw of a box;
-a cylinder's is 0). The grasp kind follows the object (`lerobot_env_unidextok.tasks.SHAPES`: power for the two
-larger shapes, pinch for the two small ones). Per hand and kind: the mean offset (cm), its spread, the wrist pitch
+a cylinder's is 0; PinchLift's cylinder has no yaw column). The grasp kind follows the object on GraspLift
+(`lerobot_env_unidextok.tasks.SHAPES`: power for the two larger shapes, pinch for the two small ones) and the named
+finger on PinchLift (`index`, `middle`: the thumb's partner). Per hand and kind: the mean offset (cm), its spread, the wrist pitch
 (rad), and the distance from the hand's mean offset to the mean of the other hands' (what a policy pooled without
 this hand is taught).
 
     python experiments/grasp_points.py --cache_dir=outputs/experiments/_sim [--frame=wrist]
+    python experiments/grasp_points.py --task=PinchLift-v0 --cache_dir=outputs/pinchlift/_sim \
+        --hands='[inspire_rh56_unitree,shadow,leap,xhand1,linkerhand_l10]' 
 """
 
 from __future__ import annotations
@@ -36,14 +39,15 @@ from experiments.common import git_commit, md_table, write_result
 
 logger = logging.getLogger(__name__)
 NAME = "grasp_points"
-TASK = "GraspLift-v0"
+TASKS = {"GraspLift-v0": ("power", "pinch"), "PinchLift-v0": ("index", "middle")}  # task -> its grasp kinds
 FRAMES = ("grasp_centre", "wrist")
 PINCH_HALF_M = 0.02  # SHAPES: the power shapes' half widths are >= 0.022 m, the pinch shapes' <= 0.017 m
 
 
 @dataclass
 class GraspPointsConfig:
-    cache_dir: str = "outputs/experiments/_sim"  # closed_loop.py's: <cache_dir>/GraspLift-v0/seed0/<hand>/native_<pool>
+    task: str = "GraspLift-v0"  # or PinchLift-v0
+    cache_dir: str = "outputs/experiments/_sim"  # closed_loop.py's: <cache_dir>/<task>/seed0/<hand>/native_<pool>
     hands: list[str] = field(default_factory=lambda: list(HANDS))
     pool: int = 50
     lift_m: float = 0.01  # the object counts as lifted this far above its resting height
@@ -55,6 +59,8 @@ class GraspPointsConfig:
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
             raise ValueError(f"frame must be one of {FRAMES}, got {self.frame!r}")
+        if self.task not in TASKS:
+            raise ValueError(f"task must be one of {tuple(TASKS)}, got {self.task!r}")
 
 
 def rotation_rpy(rpy: np.ndarray) -> np.ndarray:
@@ -78,9 +84,12 @@ def grasp_point(state: np.ndarray, names: list[str], centre_m: np.ndarray, lift_
     rpy = row[[col[n] for n in ("wrist_roll", "wrist_pitch", "wrist_yaw")]]
     obj = row[[col[n] for n in ("object_x", "object_y", "object_z")]]
     world = wrist + rotation_rpy(rpy) @ centre_m - obj  # grasp centre from the object centre, world axes
-    yaw = row[col["object_yaw"]]
+    yaw = row[col["object_yaw"]] if "object_yaw" in col else 0.0  # PinchLift's upright cylinder: no yaw
     in_object = rotation_rpy(np.array([0.0, 0.0, -yaw])) @ world
-    kind = "pinch" if row[col["object_half_x"]] < PINCH_HALF_M else "power"
+    if "pinch_index" in col:  # PinchLift: the finger the thumb pinches with
+        kind = "index" if row[col["pinch_index"]] > 0.5 else "middle"
+    else:
+        kind = "pinch" if row[col["object_half_x"]] < PINCH_HALF_M else "power"
     return {"kind": kind, "offset_m": in_object, "pitch_rad": float(rpy[1])}
 
 
@@ -94,11 +103,12 @@ def hand_points(cfg: GraspPointsConfig, hand: str) -> tuple[list[dict], np.ndarr
     from lerobot_unidextok.data.reader import data_files
     from lerobot_unidextok.data.wrist_frame import read_recorded
 
-    root = Path(cfg.cache_dir) / TASK / "seed0" / hand / f"native_{cfg.pool}"  # seed 0's recording
+    root = Path(cfg.cache_dir) / cfg.task / "seed0" / hand / f"native_{cfg.pool}"  # seed 0's recording
     frame = read_recorded(root)
     if frame is None or hand not in frame.grasp_centre_in_wrist_m:
-        raise FileNotFoundError(f"{root}: no recorded GraspLift dataset with a grasp centre for {hand}; record it "
-                                f"with experiments/closed_loop.py --cache_dir={cfg.cache_dir} --hands='[{hand}]'")  # fmt: skip
+        raise FileNotFoundError(f"{root}: no recorded {cfg.task} dataset with a grasp centre for {hand}; record it "
+                                f"with experiments/closed_loop.py --tasks='[{cfg.task}]' --cache_dir={cfg.cache_dir} "
+                                f"--hands='[{hand}]'")  # fmt: skip
     names = json.loads((root / INFO_PATH).read_text())["features"]["observation.state"]["names"]
     table = pd.concat([pd.read_parquet(p) for p in data_files(root)])
     grasp_centre = np.asarray(frame.grasp_centre_in_wrist_m[hand])
@@ -116,7 +126,7 @@ def run(cfg: GraspPointsConfig) -> dict:
     measured = {hand: hand_points(cfg, hand) for hand in cfg.hands}
     points = {hand: ps for hand, (ps, _) in measured.items()}
     rows = []
-    for kind in ("power", "pinch"):
+    for kind in TASKS[cfg.task]:
         means = {h: np.mean([p["offset_m"] for p in ps if p["kind"] == kind], axis=0) for h, ps in points.items()}
         for hand, ps in points.items():
             own = [p for p in ps if p["kind"] == kind]
@@ -144,7 +154,8 @@ def markdown(result: dict) -> str:
 
 def run_and_write(cfg: GraspPointsConfig) -> dict:
     result = run(cfg)
-    name = NAME if cfg.frame == "grasp_centre" else f"{NAME}_{cfg.frame}"
+    name = "_".join([NAME, *([cfg.frame] if cfg.frame != "grasp_centre" else []),
+                     *(["pinchlift"] if cfg.task == "PinchLift-v0" else [])])  # fmt: skip
     folder = Path(cfg.output_root) / name
     folder.mkdir(parents=True, exist_ok=True)
     write_result(folder, name, result, f"# {name}\n\n{markdown(result)}")

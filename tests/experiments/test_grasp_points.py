@@ -38,6 +38,22 @@ def test_an_unknown_frame_and_a_hand_never_recorded_are_named(tmp_path):
     with pytest.raises(ValueError, match=r"frame must be one of \('grasp_centre', 'wrist'\)"):
         gp.GraspPointsConfig(frame="palm")
     cfg = gp.GraspPointsConfig(cache_dir=str(tmp_path), hands=["shadow"])
-    with pytest.raises(FileNotFoundError, match=r"no recorded GraspLift dataset .* for shadow; record it with "
-                                                r"experiments/closed_loop.py"):  # fmt: skip
+    with pytest.raises(FileNotFoundError, match=r"no recorded GraspLift-v0 dataset .* for shadow; record it with "
+                                                r"experiments/closed_loop.py --tasks='\[GraspLift-v0\]'"):  # fmt: skip
         gp.run(cfg)
+    with pytest.raises(ValueError, match=r"task must be one of \('GraspLift-v0', 'PinchLift-v0'\)"):
+        gp.GraspPointsConfig(task="FingerPress-v0")
+
+
+def test_a_pinch_lift_episode_is_kept_by_its_named_finger_in_the_world_axes():
+    """PinchLift's columns: no yaw (an upright cylinder) and no half widths; the kind is the thumb's partner."""
+    names = ["wrist_x", "wrist_y", "wrist_z", "wrist_roll", "wrist_pitch", "wrist_yaw", "object_x", "object_y",
+             "object_z", "object_radius", "object_half_height", "pinch_index", "pinch_middle"]  # fmt: skip
+    state = np.zeros((6, len(names)))
+    state[:, :6] = [0.10, 0.03, 0.12, 0.0, 0.0, 0.0]
+    state[:, 6:9] = [0.08, 0.0, 0.016]
+    state[:, 12] = 1.0  # the middle finger
+    state[4:, 8] += 0.02
+    point = gp.grasp_point(state, names, np.array([0.01, 0.0, -0.05]), lift_m=0.01)
+    np.testing.assert_allclose(point["offset_m"], [0.03, 0.03, 0.034], atol=1e-12)
+    assert point["kind"] == "middle"
