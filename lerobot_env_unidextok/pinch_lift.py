@@ -52,12 +52,7 @@ class PinchLift(PinchPlace):
         z = float(data.qpos[self.qpos + 2])
         by = self.scene.fingers_touching(data, self.geom)
         self.lifted |= z >= self.rest_z + self.LIFTED_M
-        if by - {"thumb", self.finger}:
-            self.failure = "other finger"
-        elif not by and self.tilt_rad(data) > self.FALLEN_RAD:
-            self.failure = "knocked over"
-        elif self.touched and not by and z > self.rest_z + self.DROPPED_M:
-            self.failure = "dropped"
+        self.failure = self.pinch_failure(data, z, by)
         self.touched = bool(by)
         if self.failure:
             return False, True

@@ -254,6 +254,17 @@ class PinchPlace(Task):
         w, x, y, z = data.qpos[self.qpos + 3 : self.qpos + 7]
         return float(np.arccos(np.clip(1 - 2 * (x * x + y * y), -1, 1)))
 
+    def pinch_failure(self, data: mujoco.MjData, z: float, by: set[str]) -> str:
+        """How a pinch of the cylinder failed now, at height `z` with the fingers `by` on it ("": it did not): another
+        finger on it, knocked over (lying tilted with no finger on it) or dropped (let go over the table)."""
+        if by - {"thumb", self.finger}:
+            return "other finger"
+        if not by and self.tilt_rad(data) > self.FALLEN_RAD:
+            return "knocked over"
+        if self.touched and not by and z > self.rest_z + self.DROPPED_M:
+            return "dropped"
+        return ""
+
     def evaluate(self, data: mujoco.MjData) -> tuple[bool, bool]:
         if self.failure:
             return False, True
@@ -262,14 +273,8 @@ class PinchPlace(Task):
         self.lifted |= z >= self.rest_z + self.LIFTED_M
         on_table = abs(z - self.rest_z) <= self.RESTING_M
         inside = np.linalg.norm(data.qpos[self.qpos : self.qpos + 2] - self.target) <= TARGET_RADIUS_M
-        if by - {"thumb", self.finger}:
-            self.failure = "other finger"
-        elif not by and self.tilt_rad(data) > self.FALLEN_RAD:
-            self.failure = "knocked over"
-        elif self.touched and not by and z > self.rest_z + self.DROPPED_M:
-            self.failure = "dropped"
-        elif self.lifted and self.touched and not by and on_table and not inside:
-            self.failure = "outside the target"
+        self.failure = self.pinch_failure(data, z, by) or (
+            "outside the target" if self.lifted and self.touched and not by and on_table and not inside else "")
         self.touched = bool(by)
         if self.failure:
             return False, True
