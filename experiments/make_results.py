@@ -132,21 +132,41 @@ def reduced_size_note(result: dict) -> str | None:
             "and \"The shipped universal tokenizer\".")  # fmt: skip
 
 
-def section(name: str, r: dict | None, image_dir: Path, page: Path) -> list[str]:
-    """The page's lines for one experiment (its figures copied next to the page)."""
+def section_title(name: str, label: str = "") -> str:
+    """`closed_loop`, or `closed_loop (PinchLift-v0)` for a second run of one experiment kept beside the first."""
+    return f"{name} ({label})" if label else name
+
+
+def section(name: str, r: dict | None, image_dir: Path, page: Path, label: str = "") -> list[str]:
+    """The page's lines for one experiment (its figures copied next to the page, a labelled section's under
+    `<name>_<label>_`, so that the unlabelled section's figures stay)."""
+    title = section_title(name, label)
     if r is None:
-        return [f"## {name}", "", f"Not run yet: `{COMMANDS[name]}`.", ""]
+        return [f"## {title}", "", f"Not run yet: `{COMMANDS[name]}`.", ""]
     body = MARKDOWN[name](r).split("\n")
     body = body[2:] if body and body[0].startswith("# ") else body  # drop the experiment's own title
     note = reduced_size_note(r)
-    out = [f"## {name}", "", *([note, ""] if note else []), f"Command: `{shown_command(r.get('command', COMMANDS[name]))}`", "",
+    out = [f"## {title}", "", *([note, ""] if note else []), f"Command: `{shown_command(r.get('command', COMMANDS[name]))}`", "",
            _provenance_line(r), "", *body, ""]  # fmt: skip
-    return out + _copy_figures(name, r.get("figures", {}), image_dir, page) + [""]
+    prefix = f"{name}_{label}" if label else name
+    return out + _copy_figures(prefix, r.get("figures", {}), image_dir, page) + [""]
 
 
-def update_sections(results_dir: str | Path, page: str | Path, names: list[str], image_dir: str | Path | None = None) -> str:
+def _section_order(titles) -> list[str]:
+    """The experiments' order, each labelled section right after its experiment's, then anything else."""
+    titles = list(titles)
+    order = []
+    for name in EXPERIMENTS:
+        order += [t for t in titles if t == name] + sorted(t for t in titles if t.startswith(f"{name} ("))
+    return order + [t for t in titles if t not in order]
+
+
+def update_sections(results_dir: str | Path, page: str | Path, names: list[str], image_dir: str | Path | None = None,
+                    label: str = "") -> str:
     """Replace (or add, in the page's experiment order) only `names`' sections of an existing page, from their
-    JSON files; the other sections stay as they are (for a checkout holding only some experiments' results)."""
+    JSON files; the other sections stay as they are (for a checkout holding only some experiments' results).
+    With a `label`, the sections are `<name> (<label>)`, kept beside the unlabelled ones (another run of the
+    same experiment, e.g. `closed_loop` on a second task)."""
     results_dir, page = Path(results_dir), Path(page)
     image_dir = Path(image_dir) if image_dir else page.parent / "results"
     unknown = sorted(set(names) - set(EXPERIMENTS))
@@ -161,12 +181,20 @@ def update_sections(results_dir: str | Path, page: str | Path, names: list[str],
     head, *chunks = page.read_text().split("\n## ")
     sections = {c.split("\n", 1)[0].strip(): "## " + c for c in chunks}  # untouched text kept byte for byte
     for name in names:
-        sections[name] = "\n".join(section(name, results[name], image_dir, page)).rstrip() + "\n"
-    order = [n for n in EXPERIMENTS if n in sections] + [n for n in sections if n not in EXPERIMENTS]
-    text = head + "".join("\n" + sections[n] for n in order)
+        sections[section_title(name, label)] = "\n".join(section(name, results[name], image_dir, page, label)).rstrip() + "\n"
+    text = head + "".join("\n" + sections[n] for n in _section_order(sections))
     page.write_text(text)
     logger.info("updated %s in %s", names, page)
     return text
+
+
+def _labelled_sections(page: Path) -> dict[str, str]:
+    """An existing page's labelled sections (`## <experiment> (<label>)`), byte for byte."""
+    if not page.is_file():
+        return {}
+    _, *chunks = page.read_text().split("\n## ")
+    sections = {c.split("\n", 1)[0].strip(): "## " + c.rstrip() + "\n" for c in chunks}
+    return {t: text for t, text in sections.items() if t.split(" (", 1)[0] in EXPERIMENTS and t.endswith(")")}
 
 
 def build_page(results_dir: str | Path, page: str | Path, image_dir: str | Path | None = None) -> str:
@@ -188,8 +216,14 @@ def build_page(results_dir: str | Path, page: str | Path, image_dir: str | Path 
            f"Data sources on this page: {', '.join(sources)}.", ""]  # fmt: skip
     for name in EXPERIMENTS:
         out += section(name, results.get(name), image_dir, page)
-    _remove_stale_figures(image_dir, out)
+    kept = _labelled_sections(page)  # other runs' sections (`--label`): their JSON files are elsewhere
     text = "\n".join(out).rstrip() + "\n"
+    if kept:
+        head, *chunks = text.split("\n## ")
+        sections = {c.split("\n", 1)[0].strip(): "## " + c.rstrip() + "\n" for c in chunks} | kept
+        text = head + "".join("\n" + sections[n] for n in _section_order(sections))
+        out = text.split("\n")
+    _remove_stale_figures(image_dir, out)
     page.parent.mkdir(parents=True, exist_ok=True)
     page.write_text(text)
     logger.info("wrote %s", page)
@@ -203,13 +237,20 @@ class ResultsPageConfig:
     image_dir: str = ""  # figures copied here; empty = <page folder>/results
     # Replace only these experiments' sections of the existing page (the others' JSON files may be absent).
     only: list[str] = field(default_factory=list)
+    # With --only: name the sections `<experiment> (<label>)`, kept beside the unlabelled ones, for another run of
+    # the same experiment (e.g. --results_dir=outputs/pinchlift --only='[closed_loop]' --label=PinchLift-v0).
+    label: str = ""
+
+    def __post_init__(self):
+        if self.label and not self.only:
+            raise ValueError("--label names the sections --only writes; give --only='[<experiment>]' too")
 
 
 def main(argv: list[str] | None = None) -> None:
     cfg = draccus.parse(ResultsPageConfig, args=argv)
     logging.basicConfig(level=logging.INFO)
     if cfg.only:
-        update_sections(cfg.results_dir, cfg.page, cfg.only, cfg.image_dir or None)
+        update_sections(cfg.results_dir, cfg.page, cfg.only, cfg.image_dir or None, cfg.label)
     else:
         build_page(cfg.results_dir, cfg.page, cfg.image_dir or None)
     print(f"wrote {cfg.page}")

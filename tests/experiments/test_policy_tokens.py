@@ -96,6 +96,14 @@ def test_policy_tokens_on_the_results_page(g1_like, tmp_path):
     assert "| udhm |" in text
     again = update_sections(tmp_path, tmp_path / "page.md", ["policy_tokens"])
     assert again == text  # replaced in place, not appended twice
+    # another run of the same experiment, labelled, sits beside the first and survives a rebuilt page
+    labelled = update_sections(tmp_path, tmp_path / "page.md", ["policy_tokens"], label="second run")
+    assert labelled.startswith(text.rstrip()) and labelled.count("| udhm |") == 2
+    assert labelled.index("## policy_tokens\n") < labelled.index("## policy_tokens (second run)\n")
+    rebuilt = build_page(tmp_path, tmp_path / "page.md")
+    assert "## policy_tokens (second run)\n" in rebuilt and "measured elsewhere" not in rebuilt
+    assert rebuilt.index("## policy_tokens\n") < rebuilt.index("## policy_tokens (second run)\n")
+    assert rebuilt.index("## policy_tokens (second run)\n") < rebuilt.index("## rate_distortion")
 
 
 def test_policy_tokens_rejects_unknown_inputs():
