@@ -124,27 +124,34 @@ def test_a_mixed_policy_bound_to_each_robot_takes_its_native_state_and_returns_i
 
 
 @pytest.mark.slow
-def test_deploy_refuses_what_it_cannot_bind(mixed_policy, g1_like, tmp_path):
+def test_deploy_refuses_what_it_cannot_bind(mixed_policy, g1_like, tmp_path, monkeypatch, capsys):
+    """In this process (the entry point runs as a subprocess in the test above): each refusal is exit 2 and one
+    line, a zero-shot bind and a rebind with --overwrite=true succeed."""
+
+    def deploy_cli(checkpoint: Path, robot: Path, out: Path, *extra: str) -> tuple[int, str]:
+        return _deploy_in_process(monkeypatch, capsys, f"--checkpoint={checkpoint}", f"--robot={robot}",
+                                  f"--output={out}", *extra)  # fmt: skip
+
     dexora = _dexora_robot(tmp_path)  # two XHand1 hands: never in the mix
-    r = _deploy(mixed_policy, dexora, tmp_path / "x")
-    assert r.returncode == 2 and r.stderr.startswith("error: ") and "never in the mix" in r.stderr
+    code, err = deploy_cli(mixed_policy, dexora, tmp_path / "x")
+    assert code == 2 and err.startswith("error: ") and "never in the mix" in err
     assert not (tmp_path / "x").exists()
-    r = _deploy(mixed_policy, dexora, tmp_path / "x", "--zero_shot=true")
-    assert r.returncode == 0, r.stderr[-2000:]
+    code, err = deploy_cli(mixed_policy, dexora, tmp_path / "x", "--zero_shot=true")
+    assert code == 0, err[-2000:]
     assert json.loads((tmp_path / "x" / "config.json").read_text())["udt_extra_hands"] == ["xhand1"]
     # its hands are normalised with the pooled statistics of the mix's hands (processor/hand_normalizer.py)
     normaliser = [s for s in json.loads((tmp_path / "x" / "policy_preprocessor.json").read_text())["steps"]
                   if s["registry_name"] == "unidextok.hand_normalizer"]  # fmt: skip
     assert [s["config"]["extra_hands"] for s in normaliser] == [["xhand1"]]
     # binding again into it: refused with the flag that exists; with it, the bound checkpoint is replaced
-    r = _deploy(mixed_policy, g1_like["root"], tmp_path / "x")
-    assert r.returncode == 2 and "pass --overwrite=true to replace it" in r.stderr, r.stderr[-2000:]
-    r = _deploy(mixed_policy, g1_like["root"], tmp_path / "x", "--overwrite=true")
-    assert r.returncode == 0, r.stderr[-2000:]
+    code, err = deploy_cli(mixed_policy, g1_like["root"], tmp_path / "x")
+    assert code == 2 and "pass --overwrite=true to replace it" in err, err[-2000:]
+    code, err = deploy_cli(mixed_policy, g1_like["root"], tmp_path / "x", "--overwrite=true")
+    assert code == 0, err[-2000:]
     assert json.loads((tmp_path / "x" / "config.json").read_text())["udt_extra_hands"] == []
     assert json.loads((tmp_path / "x" / "unidextok_deploy.json").read_text())["robot"] == str(g1_like["root"])
-    r = _deploy(tmp_path / "nowhere", g1_like["root"], tmp_path / "y")
-    assert r.returncode == 2 and "is not a LeRobot policy checkpoint" in r.stderr
+    code, err = deploy_cli(tmp_path / "nowhere", g1_like["root"], tmp_path / "y")
+    assert code == 2 and "is not a LeRobot policy checkpoint" in err
 
 
 def _dexora_robot(tmp_path: Path) -> Path:
