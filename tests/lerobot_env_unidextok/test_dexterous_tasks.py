@@ -169,3 +169,44 @@ def test_pinch_lift_succeeds_only_while_the_two_fingers_hold_it_up():
     assert info["is_success"] and not env.task.failure
     assert heights[-1] >= PinchLift.GOAL_M and max(heights[:-1]) < PinchLift.GOAL_M  # the first frame at 4 cm
     assert any(0.02 <= h < PinchLift.GOAL_M for h in heights)  # it passed 2 cm without succeeding
+
+
+@pytest.mark.parametrize("hand", ["leap", "linkerhand_o7"])
+def test_a_pinch_tasks_recording_carries_the_pinch_point_where_the_object_is_held(hand):
+    """The pinch tasks record the hand's pinch point as its grasp centre (`grasp_centre.py`, `Task.grip`): the same
+    for both pinch tasks, not the power grasp's fingertip centroid; where the expert lifts the cylinder, the
+    pinch point sits in it (within the smallest radius, beyond half the gap between the index's and the
+    middle's pinch points, the frame's one per-finger difference), and the power centroid far from it."""
+    import torch
+
+    from lerobot_env_unidextok.grasp_centre import wrist_frame_of
+    from lerobot_env_unidextok.pinch_place import RADIUS_M, pinch_of
+    from lerobot_unidextok.processor.wrist_frame import rotation_rpy  # the recordings' convention
+
+    _need(hand)
+    env = UniDexTokEnv(hand, "PinchLift-v0", render_mode=None)
+    pinch = np.asarray(env.wrist_frame().grasp_centre_in_wrist_m[hand])
+    place = UniDexTokEnv(hand, "PinchPlace-v0", render_mode=None).wrist_frame()
+    assert np.allclose(pinch, place.grasp_centre_in_wrist_m[hand])
+    power = np.asarray(wrist_frame_of(hand).grasp_centre_in_wrist_m[hand])
+    grasp = UniDexTokEnv(hand, "GraspLift-v0", render_mode=None).wrist_frame()
+    assert np.allclose(power, grasp.grasp_centre_in_wrist_m[hand])
+    points = [pinch_of(env.hand, f).point_m(2 * np.mean(RADIUS_M)) for f in ("index", "middle")]
+    half_gap_m = np.linalg.norm(points[0] - points[1]) / 2
+    col = {n: i for i, n in enumerate(env.state_names)}
+    held = {"pinch": [], "power": []}
+    for seed in range(1000, 1004):
+        states, _, success = expert_episode(env, seed, seed, 120)
+        if not success:
+            continue
+        z = states[:, col["object_z"]]
+        row = states[np.flatnonzero(z > z[0] + 0.01)[0]]
+        wrist = row[[col["wrist_x"], col["wrist_y"], col["wrist_z"]]]
+        rpy = row[[col["wrist_roll"], col["wrist_pitch"], col["wrist_yaw"]]]
+        obj = row[[col["object_x"], col["object_y"], col["object_z"]]]
+        for name, centre in (("pinch", pinch), ("power", power)):
+            rotation = rotation_rpy(torch.as_tensor(rpy, dtype=torch.float64)).numpy()
+            held[name].append(np.linalg.norm(wrist + rotation @ centre - obj))
+    assert len(held["pinch"]) >= 2
+    assert np.mean(held["pinch"]) < half_gap_m + RADIUS_M[0], (held, half_gap_m)  # inside the cylinder
+    assert min(held["power"]) > 0.04, held

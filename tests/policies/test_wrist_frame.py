@@ -213,6 +213,23 @@ def test_deploy_binds_the_target_robots_own_centre_to_the_mix_and_zero_shot(sim,
     notes = [r.getMessage() for r in caplog.records if "overrides" in r.getMessage()]
     assert len(notes) == 1 and notes[0].startswith("note: --grasp_centre_m=[0.05, 0.0, -0.05] overrides the grasp "
                                                    f"centre {_centre(sim, 'allegro')} m of 'allegro' that")  # fmt: skip
+    # a robot dataset recording another centre for a hand the checkpoint learned (a pinch task's recording of it):
+    # the robot's is bound, and one note names both and the flag that keeps the checkpoint's
+    shadow_record = sim["shadow"]["udhm"] / "meta" / "unidextok_conversion.json"
+    saved = shadow_record.read_text()
+    pinch_like = json.loads(saved)
+    pinch_like["wrist_frame"]["grasp_centre_in_wrist_m"]["shadow"] = [0.11, 0.04, -0.07]
+    try:
+        shadow_record.write_text(json.dumps(pinch_like))
+        caplog.clear()
+        with caplog.at_level("WARNING", logger="lerobot_unidextok.policies.deploy_frame"):
+            other_grip = deploy(checkpoint, sim["shadow"]["udhm"], tmp_path / "other_grip")
+    finally:
+        shadow_record.write_text(saved)
+    assert json.loads((other_grip / "config.json").read_text())["udt_grasp_centres_m"]["shadow"] == [0.11, 0.04, -0.07]
+    notes = [r.getMessage() for r in caplog.records if "the checkpoint learned" in r.getMessage()]
+    assert len(notes) == 1 and f"the checkpoint learned {_centre(sim, 'shadow')} m" in notes[0], notes
+    assert f"--grasp_centre_m={_centre(sim, 'shadow')}" in notes[0]
     for absurd in ([1e6, 0.0, 0.0], [-5.0, 3.0, 7.0]):  # metres typed as mm, or nonsense: refused before binding
         with pytest.raises(WristFrameError, match=r"--grasp_centre_m: .* m at ind.*beyond the plausible 0.3 m"):
             deploy(checkpoint, sim["allegro"]["udhm"], tmp_path / "absurd", zero_shot=True, grasp_centre_m=absurd)
