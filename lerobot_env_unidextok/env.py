@@ -84,7 +84,7 @@ class UniDexTokEnv(gym.Env):
         self._render_failed = False
         self.state_names = state_names(task, self.hand.native_names, fingertips)
         # with fingertips: the grasp centre in the wrist frame (3,) and the finger filling each finger's columns (5,)
-        self._tips = (grasp_centre_in_wrist_m(self.scene, self.task.grip), tip_sources(self.hand.fingers)) if fingertips else None
+        self._tips = (grasp_centre_in_wrist_m(self.scene), tip_sources(self.hand.fingers)) if fingertips else None
         self._wrist_body = self.model.body("wrist").id
         self.action_names = action_names(self.hand.native_names)
         j = len(self.hand.native_names)
@@ -150,9 +150,9 @@ class UniDexTokEnv(gym.Env):
         return np.concatenate([tips[f] for f in sources])
 
     def wrist_frame(self) -> WristFrame:
-        """The wrist frame a recording of this hand carries: the wrist columns and the hand's grasp centre for
-        the task's grip (`grasp_centre.py`)."""
-        return wrist_frame_of(self.hand_name, self.task.grip)
+        """The wrist frame a recording of this hand carries: the wrist columns and the hand's grasp centre
+        (`grasp_centre.py`)."""
+        return wrist_frame_of(self.hand_name)
 
     # -- rendering -------------------------------------------------------------------------------
     def render(self) -> np.ndarray:

@@ -152,7 +152,6 @@ def _pinch(hand_name: str, finger: str) -> Pinch:
 class PinchPlace(Task):
     name = "PinchPlace-v0"
     grasps = True
-    grip = "pinch"  # the recording's grasp centre: the pinch point (`grasp_centre.py`)
     description = TASK_TEXT[name]
     AREA = ((0.03, 0.09), (-0.06, 0.06))  # x, y ranges of the object's centre (m)
     TARGET_AREA = ((0.0, 0.13), (-0.10, 0.10))  # x, y ranges of the target's centre (m)

@@ -38,9 +38,6 @@ class Task(abc.ABC):
     # frame of `grasp_centre.py`). Measured in closed loop: zero-shot presses with the grasp centre's frame
     # succeeded 0-35 % against 73-90 % without it (docs/lerobot.md "Pooling hands")
     grasps: bool = False
-    # which grasp centre a recording carries (`grasp_centre.GRIPS`): the fingertips' centroid at the power posture,
-    # or the thumb-finger pinch point for a task that pinches
-    grip: str = "power"
 
     def __init__(self, hand: SimHand) -> None:
         self.hand = hand

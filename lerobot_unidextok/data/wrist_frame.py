@@ -129,8 +129,7 @@ def merge_frames(frames: list[WristFrame], where: str) -> WristFrame | None:
             if hand in centres and not np.allclose(centres[hand], centre, atol=1e-6):
                 raise WristFrameError(
                     f"{where}: hand {hand!r} has two grasp centres ({centres[hand]} and {centre}): its inputs were "
-                    "recorded with different hand models, or for tasks of different grips (a power grasp's centre "
-                    "and a pinch's, lerobot_env_unidextok/grasp_centre.py); mix recordings of one model and one grip"
+                    "recorded with different hand models; record them again with one"
                 )
             centres[hand] = list(centre)
     return WristFrame(list(first.columns), first.rotation, centres)

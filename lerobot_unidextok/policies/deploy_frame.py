@@ -66,10 +66,10 @@ def bound_grasp_centres(config: UdtConfigMixin, robot: UdhmDatasetMeta,
             centres[hand] = list(flag)
         elif hand in recorded:
             if hand in centres and not np.allclose(centres[hand], recorded[hand], rtol=0, atol=1e-6):
-                logger.warning("note: %s records the grasp centre %s m of %r, the checkpoint learned %s m (a "
-                               "recording of another grip, grasp_centre.py?); the robot's is used: pass "
-                               "--grasp_centre_m=%s to keep the checkpoint's", robot.root, list(recorded[hand]),
-                               hand, centres[hand], list(centres[hand]))  # fmt: skip
+                logger.warning("note: %s records the grasp centre %s m of %r, the checkpoint learned %s m (recorded "
+                               "with another hand model?); the robot's is used: pass --grasp_centre_m=%s to keep the "
+                               "checkpoint's", robot.root, list(recorded[hand]), hand, centres[hand],
+                               list(centres[hand]))  # fmt: skip
             centres[hand] = list(recorded[hand])
         elif hand not in centres:
             raise FrameBindError(

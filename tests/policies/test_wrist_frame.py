@@ -213,20 +213,20 @@ def test_deploy_binds_the_target_robots_own_centre_to_the_mix_and_zero_shot(sim,
     notes = [r.getMessage() for r in caplog.records if "overrides" in r.getMessage()]
     assert len(notes) == 1 and notes[0].startswith("note: --grasp_centre_m=[0.05, 0.0, -0.05] overrides the grasp "
                                                    f"centre {_centre(sim, 'allegro')} m of 'allegro' that")  # fmt: skip
-    # a robot dataset recording another centre for a hand the checkpoint learned (a pinch task's recording of it):
-    # the robot's is bound, and one note names both and the flag that keeps the checkpoint's
+    # a robot dataset recording another centre for a hand the checkpoint learned (another model of the hand): the
+    # robot's is bound, and one note names both and the flag that keeps the checkpoint's
     shadow_record = sim["shadow"]["udhm"] / "meta" / "unidextok_conversion.json"
     saved = shadow_record.read_text()
-    pinch_like = json.loads(saved)
-    pinch_like["wrist_frame"]["grasp_centre_in_wrist_m"]["shadow"] = [0.11, 0.04, -0.07]
+    remodelled = json.loads(saved)
+    remodelled["wrist_frame"]["grasp_centre_in_wrist_m"]["shadow"] = [0.11, 0.04, -0.07]
     try:
-        shadow_record.write_text(json.dumps(pinch_like))
+        shadow_record.write_text(json.dumps(remodelled))
         caplog.clear()
         with caplog.at_level("WARNING", logger="lerobot_unidextok.policies.deploy_frame"):
-            other_grip = deploy(checkpoint, sim["shadow"]["udhm"], tmp_path / "other_grip")
+            other_model = deploy(checkpoint, sim["shadow"]["udhm"], tmp_path / "other_model")
     finally:
         shadow_record.write_text(saved)
-    assert json.loads((other_grip / "config.json").read_text())["udt_grasp_centres_m"]["shadow"] == [0.11, 0.04, -0.07]
+    assert json.loads((other_model / "config.json").read_text())["udt_grasp_centres_m"]["shadow"] == [0.11, 0.04, -0.07]
     notes = [r.getMessage() for r in caplog.records if "the checkpoint learned" in r.getMessage()]
     assert len(notes) == 1 and f"the checkpoint learned {_centre(sim, 'shadow')} m" in notes[0], notes
     assert f"--grasp_centre_m={_centre(sim, 'shadow')}" in notes[0]
