@@ -14,6 +14,12 @@ finger on PinchLift (`index`, `middle`: the thumb's partner). Per hand and kind:
 (rad), and the distance from the hand's mean offset to the mean of the other hands' (what a policy pooled without
 this hand is taught).
 
+On PinchLift also the posture each hand's expert holds the cylinder with (`pinch_holds`): its thumb-finger pinch
+(`lerobot_env_unidextok.pinch_place.pinch_of`, fitted per hand by forward kinematics) closed on a cylinder of the
+task's middle width, in UDHM degrees, and per hand the mean distance of its thumb's slots (and the pinching
+finger's curl) from the other hands' mean over the slots both move: what a policy pooled without this hand
+commands its thumb to do.
+
     python experiments/grasp_points.py --cache_dir=outputs/experiments/_sim [--frame=wrist]
     python experiments/grasp_points.py --task=PinchLift-v0 --cache_dir=outputs/pinchlift/_sim \
         --hands='[inspire_rh56_unitree,shadow,leap,xhand1,linkerhand_l10]' 
@@ -139,8 +145,51 @@ def run(cfg: GraspPointsConfig) -> dict:
                          "from_others_cm": round(float(100 * np.linalg.norm(means[hand] - others)), 1),
                          "centre_from_wrist_cm": round(float(100 * np.linalg.norm(measured[hand][1])), 1)})  # fmt: skip
     never = {h: sum(p["kind"] == "never lifted" for p in ps) for h, ps in points.items()}
-    return {"config": vars(cfg), "rows": rows, "never_lifted": never, "git_commit": git_commit(),
+    holds = pinch_holds(cfg.hands) if cfg.task == "PinchLift-v0" else []
+    return {"config": vars(cfg), "rows": rows, "never_lifted": never, "holds": holds, "git_commit": git_commit(),
             "wall_seconds": round(time.time() - t0, 1)}  # fmt: skip
+
+
+def from_others_deg(postures: dict[str, np.ndarray]) -> dict[str, float]:
+    """Per hand: the mean |own - the other hands' mean| (deg) over the slots it and at least one other hand move
+    (NaN in a posture: a slot the hand lacks)."""
+    out = {}
+    for hand, own in postures.items():
+        others = np.array([p for h, p in postures.items() if h != hand])
+        moved = ~np.isnan(others).all(0)
+        mean = np.full(own.shape, np.nan)
+        mean[moved] = np.nanmean(others[:, moved], axis=0)
+        both = ~np.isnan(own) & ~np.isnan(mean)
+        out[hand] = float(np.mean(np.abs(own[both] - mean[both]))) if both.any() else float("nan")
+    return out
+
+
+def pinch_holds(hands: list[str]) -> list[dict]:
+    """Per pinching finger and hand: the expert's hold of a cylinder of PinchLift's middle width, in UDHM degrees
+    (the thumb's slots, then the finger's MCP, PIP, DIP), and its distance from the other hands' mean."""
+    from lerobot_env_unidextok import sim_hands
+    from lerobot_env_unidextok.pinch_place import PINCH_FINGERS, RADIUS_M, THUMB_SLOTS, pinch_of
+    from lerobot_unidextok.constants import UDHM_JOINT_NAMES
+
+    width_m = 2 * float(np.mean(RADIUS_M))
+    rows = []
+    for finger in PINCH_FINGERS:
+        slots = [*THUMB_SLOTS, *(f"{finger}_{j}_flex" for j in ("mcp", "pip", "dip"))]
+        index = [UDHM_JOINT_NAMES.index(s) for s in slots]
+        postures = {}
+        for hand in hands:
+            sim_hand = sim_hands.load(hand)
+            hold = pinch_of(sim_hand, finger).hold(width_m)
+            udhm_deg = np.degrees(np.asarray(sim_hand.spec.to_udhm(hold, sim_hand.side), dtype=np.float64))
+            postures[hand] = np.where(np.asarray(sim_hand.spec.active_mask, dtype=bool), udhm_deg, np.nan)[index]
+        n = len(THUMB_SLOTS)
+        thumb = from_others_deg({h: p[:n] for h, p in postures.items()})
+        curl = from_others_deg({h: p[n:] for h, p in postures.items()})
+        rows += [{"hand": h, "finger": finger, "width_mm": round(1000 * width_m, 1), "slots": slots,
+                  "hold_deg": [None if np.isnan(v) else round(float(v), 1) for v in p],
+                  "thumb_from_others_deg": round(thumb[h], 1), "curl_from_others_deg": round(curl[h], 1)}
+                 for h, p in postures.items()]  # fmt: skip
+    return rows
 
 
 def markdown(result: dict) -> str:
@@ -149,7 +198,18 @@ def markdown(result: dict) -> str:
     rows = [[r["hand"], r["kind"], r["episodes"], ", ".join(f"{v:+.1f}" for v in r["offset_cm"]), f"{r['spread_cm']:.1f}",
              f"{r['pitch_rad']:.2f}", f"{r['from_others_cm']:.1f}", f"{r['centre_from_wrist_cm']:.1f}"]
             for r in result["rows"]]  # fmt: skip
-    return md_table(head, rows)
+    text = md_table(head, rows)
+    holds = result.get("holds") or []
+    if holds:
+        slots = [s.replace("_flex", "").replace("thumb_", "") for s in holds[0]["slots"][:5]]
+        head = ["hand", "pinch", *(f"thumb {s} (deg)" for s in slots), "finger MCP, PIP, DIP (deg)",
+                "thumb from the others' mean (deg)", "finger from the others' mean (deg)"]  # fmt: skip
+        rows = [[h["hand"], h["finger"], *("-" if v is None else f"{v:.0f}" for v in h["hold_deg"][:5]),
+                 ", ".join("-" if v is None else f"{v:.0f}" for v in h["hold_deg"][5:]),
+                 f"{h['thumb_from_others_deg']:.0f}", f"{h['curl_from_others_deg']:.0f}"] for h in holds]  # fmt: skip
+        text += (f"\n\nThe expert's hold of a {holds[0]['width_mm']:.0f} mm cylinder, in UDHM degrees ('-': a slot the "
+                 "hand lacks):\n\n" + md_table(head, rows))  # fmt: skip
+    return text
 
 
 def run_and_write(cfg: GraspPointsConfig) -> dict:

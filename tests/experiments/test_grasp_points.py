@@ -57,3 +57,13 @@ def test_a_pinch_lift_episode_is_kept_by_its_named_finger_in_the_world_axes():
     point = gp.grasp_point(state, names, np.array([0.01, 0.0, -0.05]), lift_m=0.01)
     np.testing.assert_allclose(point["offset_m"], [0.03, 0.03, 0.034], atol=1e-12)
     assert point["kind"] == "middle"
+
+
+def test_a_hands_posture_is_compared_with_the_others_mean_over_the_slots_both_move():
+    nan = np.nan
+    postures = {"a": np.array([10.0, 20.0, nan]), "b": np.array([30.0, nan, 5.0]), "c": np.array([50.0, 40.0, 15.0])}
+    d = gp.from_others_deg(postures)
+    assert d["a"] == pytest.approx((abs(10 - 40) + abs(20 - 40)) / 2)  # its third slot it lacks
+    assert d["b"] == pytest.approx((abs(30 - 30) + abs(5 - 15)) / 2)  # its second slot it lacks
+    assert d["c"] == pytest.approx((abs(50 - 20) + abs(40 - 20) + abs(15 - 5)) / 3)
+    assert np.isnan(gp.from_others_deg({"a": np.array([nan]), "b": np.array([1.0])})["a"])  # nothing in common
