@@ -346,15 +346,14 @@ def test_pull_fails_when_the_hub_refuses_even_with_a_warm_cache(hub, tok_dir, tm
     assert missing.returncode == 2 and missing.stderr.startswith("error: the Hub has no model lab/never-pushed")
 
 
-def test_push_refuses_a_damaged_checkpoint_before_uploading(hub, tok_dir, tmp_path):
+def test_push_refuses_a_damaged_checkpoint_before_uploading(hub, tok_dir, tmp_path, monkeypatch, capsys):
     folder = tmp_path / "ckpt"
     shutil.copytree(tok_dir, folder)
     weights = folder / "model.safetensors"
     weights.write_bytes(weights.read_bytes()[:-64])
-    r = run_cli(["unidextok-push", f"--local_dir={folder}", "--repo_id=lab/damaged"], HF_ENDPOINT=hub.url,
-                HF_TOKEN=TOKEN, HF_HUB_OFFLINE="0", HF_HOME=str(tmp_path / "hf"))  # fmt: skip
-    assert r.returncode == 2 and r.stderr.startswith(f"error: {weights} cannot be read"), r.stderr[-2000:]
-    assert "nothing was pushed" in r.stderr and ("model", "lab/damaged") not in hub.repos
+    code, err = _push_in_process(hub, monkeypatch, capsys, folder, "lab/damaged")
+    assert code == 2 and err.startswith(f"error: {weights} cannot be read"), err[-2000:]
+    assert "nothing was pushed" in err and ("model", "lab/damaged") not in hub.repos
 
 
 def test_push_refuses_a_tokenizer_with_a_nan_weight_naming_it(hub, tok_dir, tmp_path, monkeypatch, capsys):
@@ -373,7 +372,7 @@ def test_push_refuses_a_tokenizer_with_a_nan_weight_naming_it(hub, tok_dir, tmp_
 
 
 @pytest.mark.parametrize("edit", ["unknown_key", "hidden_dim"])
-def test_push_refuses_a_checkpoint_that_reads_but_does_not_load(hub, tok_dir, tmp_path, edit):
+def test_push_refuses_a_checkpoint_that_reads_but_does_not_load(hub, tok_dir, tmp_path, edit, monkeypatch, capsys):
     """Every file reads, but the config does not build the model the weights are: a key this version does not
     know, or a hidden_dim the weights do not have. Both used to be published with rc 0."""
     folder = tmp_path / "ckpt"
@@ -381,11 +380,10 @@ def test_push_refuses_a_checkpoint_that_reads_but_does_not_load(hub, tok_dir, tm
     config = json.loads((folder / "config.json").read_text())
     config |= {"hiden_dim": 64} if edit == "unknown_key" else {"hidden_dim": config["hidden_dim"] * 2}
     (folder / "config.json").write_text(json.dumps(config))
-    r = run_cli(["unidextok-push", f"--local_dir={folder}", "--repo_id=lab/edited"], HF_ENDPOINT=hub.url,
-                HF_TOKEN=TOKEN, HF_HUB_OFFLINE="0", HF_HOME=str(tmp_path / "hf"))  # fmt: skip
+    code, err = _push_in_process(hub, monkeypatch, capsys, folder, "lab/edited")
     why = "keys this version does not know" if edit == "unknown_key" else "does not fit the config.json beside it"
-    assert r.returncode == 2 and r.stderr.startswith(f"error: {folder} does not load, so nothing was pushed"), r.stderr
-    assert why in r.stderr and ("model", "lab/edited") not in hub.repos
+    assert code == 2 and err.startswith(f"error: {folder} does not load, so nothing was pushed"), err
+    assert why in err and ("model", "lab/edited") not in hub.repos
 
 
 def test_a_whole_policy_checkpoint_is_pushed(hub, tmp_path):

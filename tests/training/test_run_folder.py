@@ -57,7 +57,21 @@ def test_a_run_folder_inside_or_equal_to_a_dataset_is_refused(g1_like, tmp_path)
     assert sorted(str(p.relative_to(data)) for p in data.rglob("*")) == before
 
 
-def test_eval_never_writes_its_report_inside_a_dataset_or_a_checkpoint(g1_like, tmp_path):
+def _eval_in_process(monkeypatch, capsys, *args: str) -> tuple[int, str]:
+    """`unidextok-eval args` in this process: (exit status, stderr). Its entry point runs as a subprocess in
+    `test_the_eval_command_names_a_set_aside_best_in_one_line`."""
+    from lerobot_unidextok.scripts.eval import main
+
+    monkeypatch.setattr(sys, "argv", ["unidextok-eval", *args])
+    try:
+        main()
+        code = 0
+    except SystemExit as e:
+        code = e.code
+    return code, capsys.readouterr().err
+
+
+def test_eval_never_writes_its_report_inside_a_dataset_or_a_checkpoint(g1_like, tmp_path, monkeypatch, capsys):
     """`unidextok-eval --output=<dataset>/meta/stats` replaced the dataset's stats.json (--validate still said
     VALID, lerobot-train then failed with a TypeError); now refused in one line. A checkpoint whose config does
     not fit its weights is one line too, not a traceback."""
@@ -66,20 +80,19 @@ def test_eval_never_writes_its_report_inside_a_dataset_or_a_checkpoint(g1_like, 
     data = tmp_path / "data"
     shutil.copytree(g1_like["root"], data)
     stats = (data / "meta" / "stats.json").read_bytes()
-    eval_cli = [str(BIN / "unidextok-eval"), f"--checkpoint={run}", f"--datasets=[{g1_like['root']}]"]
-    r = subprocess.run([*eval_cli, f"--output={data / 'meta' / 'stats'}"], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 2 and r.stderr.startswith("error: --output would write"), r.stderr[-2000:]
-    assert "inside a dataset written by unidextok-convert" in r.stderr
+    eval_args = [f"--checkpoint={run}", f"--datasets=[{g1_like['root']}]"]
+    code, err = _eval_in_process(monkeypatch, capsys, *eval_args, f"--output={data / 'meta' / 'stats'}")
+    assert code == 2 and err.startswith("error: --output would write"), err[-2000:]
+    assert "inside a dataset written by unidextok-convert" in err
     assert (data / "meta" / "stats.json").read_bytes() == stats
-    r = subprocess.run([*eval_cli, f"--output={g1_like['root'] / 'meta' / 'stats'}"], capture_output=True, text=True,
-                       timeout=300)  # fmt: skip
-    assert r.returncode == 2 and "sits inside the input" in r.stderr
+    code, err = _eval_in_process(monkeypatch, capsys, *eval_args, f"--output={g1_like['root'] / 'meta' / 'stats'}")
+    assert code == 2 and "sits inside the input" in err
     config = json.loads((run / "best" / "config.json").read_text())
     (run / "best" / "config.json").write_text(json.dumps({**config, "hidden_dim": config["hidden_dim"] * 2}))
-    r = subprocess.run([*eval_cli, f"--output={tmp_path / 'report'}"], capture_output=True, text=True, timeout=300)
-    errors = [line for line in r.stderr.splitlines() if line.startswith("error: ")]
-    assert r.returncode == 2 and len(errors) == 1 and "does not fit the config.json beside it" in errors[0], r.stderr
-    assert "Traceback" not in r.stderr
+    code, err = _eval_in_process(monkeypatch, capsys, *eval_args, f"--output={tmp_path / 'report'}")
+    errors = [line for line in err.splitlines() if line.startswith("error: ")]
+    assert code == 2 and len(errors) == 1 and "does not fit the config.json beside it" in errors[0], err
+    assert "Traceback" not in err
 
 
 def _files(folder: Path) -> dict[str, bytes]:
