@@ -6,6 +6,7 @@ because both read them at import time.
 
 from __future__ import annotations
 
+import logging
 import os
 import sys
 import tempfile
@@ -27,6 +28,36 @@ os.environ.setdefault("NO_PROXY", "127.0.0.1,localhost")
 from lerobot_unidextok.utils.shared_data import real_data_dir  # noqa: E402  (after the HF variables)
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
+
+
+def _kept_root_logging():
+    """Around each test phase: the root logger's handlers and level as they were. A CLI's `main()` run in a test's
+    process sets up logging (`logging.basicConfig`) on that test's captured stderr, which is closed once the test
+    ends; a later test in the same worker then logged "--- Logging error ---" tracebacks into its own stderr."""
+    root = logging.getLogger()
+    handlers, level = root.handlers[:], root.level
+    try:
+        return (yield)
+    finally:
+        root.handlers[:] = handlers
+        root.setLevel(level)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_setup(item):
+    return (yield from _kept_root_logging())
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item):
+    return (yield from _kept_root_logging())
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_teardown(item, nextitem):
+    return (yield from _kept_root_logging())
+
+
 REAL_DATA_DIR = real_data_dir(REPO_ROOT)
 
 
