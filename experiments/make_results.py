@@ -188,12 +188,17 @@ def update_sections(results_dir: str | Path, page: str | Path, names: list[str],
     return text
 
 
+def _split_sections(text: str) -> tuple[str, dict[str, str]]:
+    """A page's text before its first `## ` section, and each section by title (ending in one newline)."""
+    head, *chunks = text.split("\n## ")
+    return head, {c.split("\n", 1)[0].strip(): "## " + c.rstrip() + "\n" for c in chunks}
+
+
 def _labelled_sections(page: Path) -> dict[str, str]:
-    """An existing page's labelled sections (`## <experiment> (<label>)`), byte for byte."""
+    """An existing page's labelled sections (`## <experiment> (<label>)`)."""
     if not page.is_file():
         return {}
-    _, *chunks = page.read_text().split("\n## ")
-    sections = {c.split("\n", 1)[0].strip(): "## " + c.rstrip() + "\n" for c in chunks}
+    _, sections = _split_sections(page.read_text())
     return {t: text for t, text in sections.items() if t.split(" (", 1)[0] in EXPERIMENTS and t.endswith(")")}
 
 
@@ -219,8 +224,8 @@ def build_page(results_dir: str | Path, page: str | Path, image_dir: str | Path 
     kept = _labelled_sections(page)  # other runs' sections (`--label`): their JSON files are elsewhere
     text = "\n".join(out).rstrip() + "\n"
     if kept:
-        head, *chunks = text.split("\n## ")
-        sections = {c.split("\n", 1)[0].strip(): "## " + c.rstrip() + "\n" for c in chunks} | kept
+        head, sections = _split_sections(text)
+        sections |= kept
         text = head + "".join("\n" + sections[n] for n in _section_order(sections))
         out = text.split("\n")
     _remove_stale_figures(image_dir, out)

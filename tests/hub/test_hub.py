@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 import torch
+from cli_main import run_main
 from linkerhand_udhm import subprocess_env
 from robot_udhm import INSPIRE
 
@@ -404,13 +405,7 @@ def _push_in_process(hub, monkeypatch, capsys, folder: Path, repo_id: str) -> tu
 
     for name, value in (("HF_ENDPOINT", hub.url), ("HF_TOKEN", TOKEN), ("HF_HUB_OFFLINE", "0")):
         monkeypatch.setenv(name, value)
-    monkeypatch.setattr(sys, "argv", ["unidextok-push", f"--local_dir={folder}", f"--repo_id={repo_id}"])
-    try:
-        push_main()
-        code = 0
-    except SystemExit as e:
-        code = e.code
-    return code, capsys.readouterr().err
+    return run_main(push_main, "unidextok-push", [f"--local_dir={folder}", f"--repo_id={repo_id}"], monkeypatch, capsys)
 
 
 @pytest.mark.parametrize("edit", ["missing_tensor", "extra_tensor", "other_type", "unknown_step", "nan_weight",

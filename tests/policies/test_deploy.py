@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from cli_main import run_main
 from l10_robot import HAND as L10
 from linkerhand_udhm import subprocess_env
 from robot_udhm import INSPIRE
@@ -207,13 +208,7 @@ def _deploy_in_process(monkeypatch, capsys, *args: str) -> tuple[int, str]:
     """`unidextok-deploy args` in this process: (exit status, stderr)."""
     from lerobot_unidextok.scripts.deploy import main
 
-    monkeypatch.setattr(sys, "argv", ["unidextok-deploy", *args])
-    try:
-        main()
-        code = 0
-    except SystemExit as e:
-        code = e.code
-    return code, capsys.readouterr().err
+    return run_main(main, "unidextok-deploy", list(args), monkeypatch, capsys)
 
 
 @pytest.mark.parametrize("edit", ["missing_tensor", "extra_tensor", "other_type", "unknown_step", "nan_weight",

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
+from cli_main import run_main
 
 from lerobot_unidextok.data.destination import DestinationError
 from lerobot_unidextok.errors import CheckpointNotFoundError, ConfigError, InvalidInputError, MissingInputError
@@ -62,13 +63,7 @@ def _eval_in_process(monkeypatch, capsys, *args: str) -> tuple[int, str]:
     `test_the_eval_command_names_a_set_aside_best_in_one_line`."""
     from lerobot_unidextok.scripts.eval import main
 
-    monkeypatch.setattr(sys, "argv", ["unidextok-eval", *args])
-    try:
-        main()
-        code = 0
-    except SystemExit as e:
-        code = e.code
-    return code, capsys.readouterr().err
+    return run_main(main, "unidextok-eval", list(args), monkeypatch, capsys)
 
 
 def test_eval_never_writes_its_report_inside_a_dataset_or_a_checkpoint(g1_like, tmp_path, monkeypatch, capsys):
