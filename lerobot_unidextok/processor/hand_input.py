@@ -7,7 +7,9 @@ model gets the same inputs with the other view constant:
 
 - `both` (the default): nothing changes;
 - `state`: the token view is zero; the hands reach the model as their UDHM state only (a mix's hand identity, the
-  view's last `identity_width` columns, stays: it is not a view of the state);
+  view's last `identity_width` columns, stays: it is not a view of the state). A `<type>_udt` policy's tokenizer
+  step then does not encode at all (`encode=False`: the view comes zero from it); checkpoints saved before
+  that encode and are zeroed here, the same inputs;
 - `tokens`: the UDHM blocks of `observation.state` are zero (the passthrough columns stay); the hands reach the
   model only through the token view. The relative-action step before it has already read the real state.
 

@@ -193,17 +193,18 @@ class UniDexTokMixedTokenizerStep(UniDexTokStateTokenizerStep):
         codes = torch.full((b, h, cfg.num_tokens, cfg.num_groups * cfg.num_stages), ABSENT, dtype=torch.long,
                            device=device)  # fmt: skip
         active = self._vocab_active[v]  # (P, 22)
-        if len(v):
+        encode = bool(len(v)) and self.encode  # not encoded: codes stay ABSENT, the view zero
+        if encode:
             ids = self._vocab_tokenizer_ids[v]  # (P,)
             found, decoded = tok.encode_decode(picked, ids, mask=active if self.searches else None, encoding=self.encoding)
             codes[present] = found  # (P, N, K)
         if self.representation == "dequantized":
             view = torch.zeros(b, h, UDHM_DIM, device=device)
-            if len(v):
+            if encode:
                 view[present] = decoded * active  # (P, 22), slots a hand lacks set to zero
         else:
             view = torch.zeros(b, h, cfg.num_tokens * cfg.codebook_dim * cfg.num_stages, device=device)
-            if len(v):
+            if encode:
                 view[present] = tok.code_vectors(found).flatten(1)  # (P, N*K*S*d)
         identity = self._identity(vocab_ids, present, device)  # (B, H, V) or (B, H, 66)
         view = torch.cat([view.reshape(b, -1), identity.reshape(b, -1)], dim=1)  # (B, H*(F+V))

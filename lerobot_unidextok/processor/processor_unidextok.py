@@ -111,6 +111,10 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
     # Legacy (steps saved before EncodingConfig): rounds of the tokenizer's own search, upgraded on load into
     # `encoding` (the tokenizer's encoding with that many rounds); not saved.
     search_rounds: InitVar[int | None] = None
+    # False: the tokenizer is not run; the tokens are -1 (no code) and the token view zero, the widths unchanged.
+    # A `<type>_udt` policy that reads the state alone (`udt_hand_input=state`) never reads them: the step then
+    # still converts, checks and (on a mix) gives each row's hand identity, without paying for the encoding.
+    encode: bool = True
     input_key: str = OBS_STATE
     token_key: str = OBS_HAND_TOKENS
     features_key: str = OBS_HAND_TOKEN_FEATURES
@@ -245,6 +249,10 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
         rows = self.hand_blocks(states)  # (B, H, 22)
         b, h = rows.shape[:2]
         tok = self.tokenizer
+        if not self.encode:
+            n_tokens, width = tokenizer_output_dims(tok.config, h, self.representation)
+            return (torch.full((b, n_tokens), -1, dtype=torch.long, device=rows.device),
+                    torch.zeros(b, width, device=rows.device))  # fmt: skip
         if tok.enc_pos.device != rows.device:
             tok.to(rows.device)
         if self._hand_ids.device != rows.device:
@@ -300,6 +308,7 @@ class UniDexTokStateTokenizerStep(ObservationProcessorStep):
             "allow_unknown": self.allow_unknown,
             "range_check": self.range_check,
             "encoding": asdict(self.encoding) if self.encoding is not None else None,
+            "encode": self.encode,
             "input_key": self.input_key,
             "token_key": self.token_key,
             "features_key": self.features_key,

@@ -14,6 +14,7 @@ import pytest
 
 from lerobot_unidextok import hands
 from lerobot_unidextok.pretrained import DEFAULT_TOKENIZER, UNIVERSAL_SMALL
+from lerobot_unidextok.processor import STEP_NAME
 from lerobot_unidextok.tokenizer import UniDexTokConfig
 
 HAND = "unitree_dex3_1"
@@ -80,6 +81,9 @@ def test_a_hand_the_tokenizer_does_not_know_trains_when_its_tokens_are_not_the_i
     assert (model / "model.safetensors").is_file()
     config = json.loads((model / "config.json").read_text())
     assert config["udt_hand_layout"] == [HAND] and config["udt_allow_unknown"] is False  # the user's setting, kept
+    steps = json.loads((model / "policy_preprocessor.json").read_text())["steps"]
+    tokenizer = next(s["config"] for s in steps if s.get("registry_name") == STEP_NAME)
+    assert tokenizer["encode"] is (config["udt_hand_input"] != "state")  # the state alone: the tokenizer never runs
 
 
 def test_the_documented_command_trains_the_hand_with_the_default_tokenizer(dex3_robot, tmp_path):

@@ -13,6 +13,7 @@ from lerobot_unidextok import hands
 from lerobot_unidextok.blocks import udhm_state_names
 from lerobot_unidextok.constants import OBS_HAND_IDS, OBS_HAND_TOKEN_FEATURES, OBS_HAND_TOKENS, OBS_STATE, UDHM_DIM
 from lerobot_unidextok.processor import UniDexTokMixedTokenizerStep, UniDexTokStateTokenizerStep
+from lerobot_unidextok.tokenizer import UniDexTok
 
 NAMES = udhm_state_names(["left", "right"])
 VOCAB = [INSPIRE, L10]
@@ -134,3 +135,20 @@ def test_a_hands_morphology_identity_is_the_same_in_any_mix(tok_dir, rows):
     tails = [s.observation({OBS_STATE: states, OBS_HAND_IDS: i})[OBS_HAND_TOKEN_FEATURES][:, 2 * UDHM_DIM :]
              for s, i in zip(onehot, (ids, swapped), strict=True)]  # fmt: skip
     assert tails[0].shape != tails[1].shape  # a one-hot is as wide as its mix's vocabulary
+
+
+def test_a_mixed_step_that_does_not_encode_keeps_each_rows_identity(tok_dir, rows, monkeypatch):
+    """`encode=False` (`udt_hand_input=state`): the hand identity the policy reads is the encoding step's, the
+    token view zero and every code -1, without running the tokenizer."""
+    states, ids = rows
+    want = UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, state_names=NAMES, pretrained=str(tok_dir),
+                                       identity="morphology").observation({OBS_STATE: states, OBS_HAND_IDS: ids})  # fmt: skip
+    monkeypatch.setattr(UniDexTok, "encode_decode", lambda *a, **k: pytest.fail("the tokenizer ran"))
+    quiet = UniDexTokMixedTokenizerStep(hand_vocabulary=VOCAB, state_names=NAMES, pretrained=str(tok_dir),
+                                        identity="morphology", encode=False)  # fmt: skip
+    out = quiet.observation({OBS_STATE: states, OBS_HAND_IDS: ids})
+    view, tokens = out[OBS_HAND_TOKEN_FEATURES], out[OBS_HAND_TOKENS]
+    assert view.shape == want[OBS_HAND_TOKEN_FEATURES].shape and tokens.shape == want[OBS_HAND_TOKENS].shape
+    assert not view[:, : 2 * UDHM_DIM].any() and (tokens == -1).all()
+    torch.testing.assert_close(view[:, 2 * UDHM_DIM :], want[OBS_HAND_TOKEN_FEATURES][:, 2 * UDHM_DIM :])
+    assert view[:, 2 * UDHM_DIM :].any() and quiet.get_config()["encode"] is False

@@ -586,3 +586,21 @@ def test_a_step_saved_with_the_legacy_search_rounds_encodes_as_it_did():
         assert old.get_config()["encoding"]["rounds"] == rounds and "search_rounds" not in old.get_config()
     with pytest.raises(ValueError, match="give `encoding` only"):
         UniDexTokStateTokenizerStep(hand_layout=[INSPIRE], search_rounds=1, encoding=NEAREST_CODES)
+
+
+def test_a_step_that_does_not_encode_gives_no_codes_a_zero_view_and_still_checks(tok_dir, states, monkeypatch):
+    """`encode=False` (a `<type>_udt` policy with `udt_hand_input=state`): the widths of the encoding step, codes
+    -1, the view zero, the tokenizer never run; the state is still checked, and the setting survives a reload."""
+    encoding = UniDexTokStateTokenizerStep(hand_layout=PAIR, pretrained=str(tok_dir))
+    want = encoding.observation({OBS_STATE: states[:4]})
+    quiet = UniDexTokStateTokenizerStep(hand_layout=PAIR, pretrained=str(tok_dir), encode=False)
+    for method in ("encode", "encode_decode"):
+        monkeypatch.setattr(UniDexTok, method, lambda *a, **k: pytest.fail("the tokenizer ran"))
+    out = quiet.observation({OBS_STATE: states[:4]})
+    assert out[OBS_HAND_TOKENS].shape == want[OBS_HAND_TOKENS].shape and (out[OBS_HAND_TOKENS] == -1).all()
+    assert out[OBS_HAND_TOKEN_FEATURES].shape == want[OBS_HAND_TOKEN_FEATURES].shape
+    assert not out[OBS_HAND_TOKEN_FEATURES].any() and want[OBS_HAND_TOKEN_FEATURES].any()
+    with pytest.raises(ValueError, match="degrees"):
+        quiet.observation({OBS_STATE: torch.rad2deg(states[:4])})
+    assert quiet.get_config()["encode"] is False
+    assert UniDexTokStateTokenizerStep(**{**quiet.get_config(), "pretrained": str(tok_dir)}).encode is False
