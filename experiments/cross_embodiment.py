@@ -23,7 +23,7 @@ the hand input through the shipped tokenizer's codes and back). Every arm gets t
 hands in UDHM degrees and in the Inspire's native units; `copy_state` (every future action = the current
 state) as reference.
 
-The recipe (the `<type>_udt` defaults, docs/lerobot.md "Pooling hands"), each part one flag:
+The recipe (the `<type>_udt` defaults, docs/pooling.md), each part one flag:
 - `normalise=per_source`: the relative actions z-scored with each source's own mean / std (a source holds one
   hand per block, so per source is per hand), the target's predictions un-scaled with the target's;
 - `hand_norm=actions`: the per-source actions not z-scored again, the hand input z-scored pooled over every

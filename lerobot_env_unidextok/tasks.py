@@ -36,7 +36,7 @@ class Task(abc.ABC):
     description: str  # the episode's task text
     # whether the hand closes on an object: only then does a recording carry the hand's grasp centre (the wrist
     # frame of `grasp_centre.py`). Measured in closed loop: zero-shot presses with the grasp centre's frame
-    # succeeded 0-35 % against 73-90 % without it (docs/lerobot.md "Pooling hands")
+    # succeeded 0-35 % against 73-90 % without it (docs/pooling.md)
     grasps: bool = False
 
     def __init__(self, hand: SimHand) -> None:

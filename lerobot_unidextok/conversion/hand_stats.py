@@ -26,7 +26,7 @@ keeps nearly its own and one with few moves toward the pool's (weight n / (n + p
 `pool_prior_episodes` sizes that prior by the pool: the more other hands a mix holds, the more its pooled
 statistics are a population's and the more of them a hand is lent; with fewer than `MIN_PRIOR_HANDS` hands, none
 (shrinking toward a mean estimated from the groups themselves pays only from about four groups: James and Stein,
-Efron and Morris; measured in closed loop, docs/lerobot.md "Pooling hands").
+Efron and Morris; measured in closed loop, docs/pooling.md).
 """
 
 from __future__ import annotations

@@ -35,7 +35,7 @@ conversion's own writer (`conversion.writer`, LeRobot's file format and statisti
 - Each input's `share` of the sampled training frames is chosen by a rule (`conversion/share_rule.py`), by default:
   proportional to its training frames to the power `--share_alpha` (0.43, π0's exponent): 10 target
   demonstrations beside 50 of one other hand get 0.33 of the frames, beside five hands' 50 each 0.09, near the
-  0.4 and 0.1 the closed-loop runs measured best (docs/lerobot.md, "Pooling hands"). `--share_alpha=1` is each
+  0.4 and 0.1 the closed-loop runs measured best (docs/pooling.md). `--share_alpha=1` is each
   input at its frame share, 0 one equal share per input. The shares are recorded (`share` per input, `share_rule` and
   `share_alpha` beside them) and printed; `data/share_sampler.py` samples by them, and the `<type>_udt` policies
   weight each row's loss by them under `lerobot-train`, whose sampler takes every frame equally.
@@ -125,7 +125,7 @@ class MixOptions:
     # mix before the rule)
     share_rule: str = POWER
     # the power rule's exponent in [0, 1]: 1 = each input at its frame share, 0 = one equal share per input; 0.43 is
-    # π0's (arXiv 2410.24164): near the shares measured best in docs/lerobot.md "Pooling hands"
+    # π0's (arXiv 2410.24164): near the shares measured best in docs/pooling.md
     share_alpha: float = DEFAULT_ALPHA
     # inputs that hold the same episodes (one folder twice, a copy, two conversions of one source; found by
     # content, conversion/fingerprint.py) are refused; true: mix them anyway, each as often as it is given
@@ -601,8 +601,8 @@ def _mix_into(target: Path, inputs: list[_Input], opts: MixOptions, t0: float) -
 
 def budget_steps(alone_steps: int, share: float) -> int:
     """The budget rule for a mix: the updates in which an input with `share` of the sampled training frames sees
-    its frames as often as in `alone_steps` updates on it alone (`alone_steps / share`; docs/lerobot.md "Pooling
-    hands" measures it against matched compute)."""
+    its frames as often as in `alone_steps` updates on it alone (`alone_steps / share`; docs/pooling.md
+    measures it against matched compute)."""
     if not 0 < share <= 1:
         raise MixError(f"a share of the training frames must be in (0, 1], got {share}")
     return max(1, round(alone_steps / share))

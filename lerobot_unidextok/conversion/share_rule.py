@@ -9,8 +9,8 @@ one equal share per input; in between, a small input gets more than its frames a
 0.43 is π0's exponent (Black et al. 2024, "π0: A Vision-Language-Action Flow Model for General Robot Control",
 arXiv 2410.24164, section V-A: each task-robot combination of the pre-training mixture weighted by n^0.43, n its
 samples). With 10 target demonstrations beside 50 per other hand it gives the target 0.33 of the frames between two
-hands and 0.09 among six, where the closed-loop runs measured their best shares, 0.4 and 0.1 (docs/lerobot.md,
-"Pooling hands"): the share follows the pool without a number typed in per pool.
+hands and 0.09 among six, where the closed-loop runs measured their best shares, 0.4 and 0.1 (docs/pooling.md):
+the share follows the pool without a number typed in per pool.
 
 `--share_rule=frames` keeps the mix as it was before the rule: each input at its frame share, no share recorded.
 `--weights` overrides the rule.

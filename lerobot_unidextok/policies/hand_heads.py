@@ -36,7 +36,7 @@ hand's head for the whole action (arm and wrist columns included): one head per 
 CrossFormer have, not one per block. A row whose hands are all zero-shot hands (`unidextok-deploy
 --zero_shot=true`, whose ids come after the vocabulary) goes through the shared head plus the mean of the trained
 hands' residual heads: the head of the average trained hand, as a policy without heads learns it (the shared head
-alone transferred worse: docs/lerobot.md "Pooling hands"). A row with no hand at all (no block holds one) uses the
+alone transferred worse: docs/pooling.md). A row with no hand at all (no block holds one) uses the
 shared head alone. Training never sees either: every row of a
 mix holds a hand of its vocabulary.
 """

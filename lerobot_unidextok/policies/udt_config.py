@@ -28,7 +28,7 @@ What the mixin adds to the stock config, in `validate_features` (run when the po
   `udt_hand_norm_state` (`udt_hand_stats`: a mix's record, or one robot's training episodes,
   `conversion/hand_stats.py`; with a prior, `udt_hand_stats_prior[_per_hand]`, each hand's shrunk toward the
   pool's) and IDENTITY for those keys in LeRobot's normaliser, whose work `unidextok.hand_normalizer` does then
-  (docs/lerobot.md "Pooling hands");
+  (docs/pooling.md);
 - unless `udt_wrist_frame=robot`, the wrist columns and each hand's grasp centre (`udt_wrist_columns`,
   `udt_grasp_centres_m`: the dataset record's `wrist_frame`), for `unidextok.wrist_frame`.
 """
@@ -171,7 +171,7 @@ class UdtConfigMixin:
     # hand, the state with LeRobot's one set of statistics per column; a target with few episodes has narrow
     # statistics of its own, which held-out states leave far behind: experiments/cross_embodiment.py, unless
     # udt_hand_stats_prior shrinks them; in closed loop with 10 target demonstrations it pooled better but its
-    # zero-shot transferred worse, docs/lerobot.md "Pooling hands"). A checkpoint keeps what it trained with (the
+    # zero-shot transferred worse, docs/pooling.md). A checkpoint keeps what it trained with (the
     # halves it normalises per hand are in udt_hand_stats), so a fine-tune keeps them too.
     udt_hand_norm_state: bool = False
     # With udt_hand_norm on a mix: lend each hand's per-hand statistics this many episodes' worth of frames (the
@@ -186,7 +186,7 @@ class UdtConfigMixin:
     # included: no prior). Among six hands 2 per other hand (10) gained +15.7 points over the hand alone in closed
     # loop against +11.4 with each hand's own statistics, on every seed, and transferred better; beside one or two
     # other hands it did not help (12 pairs outside the pool rule: own statistics within 3 points of alone on all,
-    # the prior on 9; docs/lerobot.md "Pooling hands"), so the ACT recipes set 2 and the rule starts at four hands.
+    # the prior on 9; docs/pooling.md), so the ACT recipes set 2 and the rule starts at four hands.
     # The policy's own default, without a config, is 0 (each hand's own statistics).
     udt_hand_stats_prior_per_hand: float = 0.0
     # The per-hand statistics and their modes {"modes": {key: mode}, key: {side: {hand: {lo, hi, "frames"}}}}; filled
@@ -220,7 +220,7 @@ class UdtConfigMixin:
     # at zero); step unidextok.hand_input, before the normaliser.
     udt_hand_input: str = "both"
     # The wrist position of state and action as the position of the hand's grasp centre (step unidextok.wrist_frame,
-    # docs/lerobot.md "Pooling hands"): auto = when the dataset records a wrist frame with a grasp centre for every
+    # docs/pooling.md): auto = when the dataset records a wrist frame with a grasp centre for every
     # hand (the simulator's recordings), grasp_centre = the same but refused without one, robot = the wrist as
     # recorded (the ablation; what every dataset without a frame gets).
     udt_wrist_frame: str = "auto"

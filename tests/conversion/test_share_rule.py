@@ -33,7 +33,7 @@ def _converted(base: Path, name: str, episodes: int, seed: int) -> Path:
 @pytest.fixture(scope="module")
 def pool(tmp_path_factory) -> list[Path]:
     """A small target (2 episodes) and five other inputs of 10 episodes each: the ratio of 10 target
-    demonstrations beside 50 per other hand (docs/lerobot.md, "Pooling hands"), at a fifth of the size."""
+    demonstrations beside 50 per other hand (docs/pooling.md), at a fifth of the size."""
     base = tmp_path_factory.mktemp("share_rule")
     return [_converted(base, "target", 2, seed=0)] + [_converted(base, f"other{k}", 10, seed=100 * (k + 1))
                                                       for k in range(5)]  # fmt: skip
