@@ -202,7 +202,7 @@ MECHANISMS = ("mix_own_stats", "zero_shot_own_stats", "mix_heads", "mix_morph", 
               "zero_shot_onehot", "mix_shrink",
               "zero_shot_shrink", "state_norm_shrink", "zero_shot_state_norm_shrink", "mix_ft", "mix_ft_state_norm")
 FINE_TUNED = ("mix_ft", "mix_ft_state_norm")  # trained in two stages: the mix, then the target's own dataset (`pool_then_fine_tune`)
-FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/lerobot.md)
+FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/pooling.md)
 MAPPINGS = {"semantic": "semantic", "packed": "append_pad"}  # a conversion's name -> unidextok-convert --mapping
 # seeds: seed s offsets every range below by s * SEED_STRIDE (`seed_ranges` checks none overlaps another)
 SEED_STRIDE = 10_000

@@ -1,6 +1,6 @@
 """Where each hand's scripted expert holds an object when it lifts it, in the grasp-centre frame the policies learn.
 
-A mix teaches a hand what the other hands did: with wrist actions in the grasp-centre frame (docs/lerobot.md "The
+A mix teaches a hand what the other hands did: with wrist actions in the grasp-centre frame (docs/pooling.md "The
 grasp-centre frame"), where their grasp centres went relative to the object. This measures that point per hand on
 the GraspLift-v0 or PinchLift-v0 recordings `experiments/closed_loop.py` made (its `--cache_dir`), so a hand whose
 own point lies far from the others' can be told apart from one the policy simply fails on.
