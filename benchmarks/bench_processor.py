@@ -264,9 +264,10 @@ def compare_encodings(args) -> None:
 
 
 def act_policy(names: list[str], frames: torch.Tensor, act_config: str, pretrained: str | None,
-               encoding: EncodingConfig | None):  # fmt: skip
+               encoding: EncodingConfig | None, hand_input: str = "both"):  # fmt: skip
     """(policy, pre, post, step): LeRobot's ACT with `act_config`'s sizes on the G1-like state, re-predicting every
-    tick; `pretrained` None = the stock ACT on the state alone (step None), else `act_udt` with that tokenizer."""
+    tick; `pretrained` None = the stock ACT on the state alone (step None), else `act_udt` with that tokenizer and
+    `hand_input` (`state`: the step does not encode)."""
     import yaml
     from lerobot.configs.types import FeatureType, PolicyFeature
     from lerobot.policies.act.configuration_act import ACTConfig
@@ -289,7 +290,8 @@ def act_policy(names: list[str], frames: torch.Tensor, act_config: str, pretrain
         cfg = ACTConfig(device="cpu", **features, **sizes)
         return ACTPolicy(cfg).eval(), *make_act_pre_post_processors(cfg, dataset_stats=stats), None
     cfg = ACTUdtConfig(device="cpu", **features, **sizes, udt_pretrained=pretrained, udt_hand_layout=[INSPIRE, INSPIRE],
-                       udt_state_names=names, udt_native_action=False, udt_native_state=False, udt_encoding=encoding)  # fmt: skip
+                       udt_state_names=names, udt_native_action=False, udt_native_state=False, udt_encoding=encoding,
+                       udt_hand_input=hand_input)  # fmt: skip
     cfg.validate_features()
     from lerobot_unidextok.policies.act_udt import ACTUdtPolicy
 
@@ -305,6 +307,8 @@ def select_action_loop(args) -> None:
         loops[f"act_udt, {label}"] = act_policy(names, frames, args.act_config, args.pretrained, enc)
     for path in args.candidates:  # each with its own encoding
         loops[f"act_udt, candidate {path}"] = act_policy(names, frames, args.act_config, path, None)
+    # the state alone (`--policy.udt_hand_input=state`): the step converts and checks, and does not encode
+    loops["act_udt, state input"] = act_policy(names, frames, args.act_config, args.pretrained, None, "state")
     tick: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in loops}
     step_ms = {k: [] for k in loops}
     for label, (_, _, _, step) in loops.items():
