@@ -133,7 +133,10 @@ def encoding_flags(encoding: EncodingConfig | None) -> list[str]:
     )
 
 
-# the state-only view (an ablation): no tokenizer, and the zeroed token view through the cheapest encoding
+# the state-only view (an ablation): an untrained tokenizer and the nearest codes, from when the step still encoded
+# the view it then zeroed; since it no longer encodes with `udt_hand_input=state` (`encode: false`) the two
+# further flags change only the seed's draws (docs/pooling.md "The hand input"), and stay so that the runs made
+# with them are reused
 STATE = ("--policy.udt_hand_input=state", "--policy.udt_pretrained=null", *encoding_flags(NEAREST_CODES))
 NO_FRAME = ("--policy.udt_wrist_frame=robot",)
 ONEHOT = "--policy.udt_hand_identity=onehot"
