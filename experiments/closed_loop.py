@@ -545,10 +545,9 @@ def fine_tune_steps(cfg: ClosedLoopConfig) -> tuple[int, int]:
 
 def fine_tune_args(cfg: ClosedLoopConfig, checkpoint: Path, root: Path, out: Path, seed: int, steps: int) -> list[str]:
     """The stock fine-tune's arguments, `lerobot-train <these>` (docs/lerobot.md "One policy, several robots",
-    step 6): the bound
-    checkpoint (its config, the user's flags included, is the policy's: no `--config_path`, whose policy section
-    would override it), the target's dataset, the updates, batch, seed and output; `--num_workers=0` is the
-    recipe's (act_udt_cpu.yaml) in place of LeRobot's default 4."""
+    step 6): the bound checkpoint (its config, the user's flags included, is the policy's: no `--config_path`,
+    whose policy section would override it), the target's dataset, the updates, batch, seed and output;
+    `--num_workers=0` is the recipe's (act_udt_cpu.yaml) in place of LeRobot's default 4."""
     return [f"--policy.path={checkpoint}", f"--dataset.repo_id={repo_id(cfg, root)}", f"--dataset.root={root}",
             f"--steps={steps}", f"--batch_size={cfg.batch_size}", f"--seed={seed}", "--num_workers=0",
             f"--output_dir={out}"]  # fmt: skip

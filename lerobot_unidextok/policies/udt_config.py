@@ -376,11 +376,17 @@ class UdtConfigMixin:
         return UniDexTokConfig.from_preset(preset) if preset else UniDexTokConfig.from_pretrained(self.udt_pretrained)
 
     @property
+    def reads_tokens(self) -> bool:
+        """Whether the token view is one of the policy's inputs (udt_hand_input both or tokens); with the state
+        alone the tokenizer step does not encode (`encode=False`)."""
+        return self.udt_hand_input != "state"
+
+    @property
     def reads_trained_tokens(self) -> bool:
         """Whether what the policy reads depends on the tokenizer knowing each hand: the token view is an input
-        (udt_hand_input both or tokens) and comes from a trained tokenizer (not an untrained preset, which knows no
-        hand). Otherwise the tokenizer is never asked about the hands: a hand it was not trained on trains as any."""
-        return self.udt_hand_input != "state" and self.untrained_preset() is None
+        (`reads_tokens`) and comes from a trained tokenizer (not an untrained preset, which knows no hand).
+        Otherwise the tokenizer is never asked about the hands: a hand it was not trained on trains as any."""
+        return self.reads_tokens and self.untrained_preset() is None
 
     def untrained_preset(self) -> str | None:
         """The preset of an untrained tokenizer when one was asked for (as `UniDexTokStateTokenizerStep`

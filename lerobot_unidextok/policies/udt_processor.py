@@ -84,7 +84,7 @@ def insert_udt_steps(
         allow_unknown=config.udt_allow_unknown or not config.reads_trained_tokens,
         range_check=config.udt_range_check,
         encoding=config.udt_encoding,
-        encode=config.udt_hand_input != "state",  # the state alone: the token view is never read, so never made
+        encode=config.reads_tokens,  # the state alone: the token view is never read, so never made
     )
     if config.udt_hand_vocabulary:  # a mix of robots and people: hands per row, and their identity
         step = UniDexTokMixedTokenizerStep(
