@@ -74,6 +74,11 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   mix's statistics (the per-hand step holds them, and lerobot-train overrides only LeRobot's normaliser);
   `mix_ft_state_norm_<n>`: the same with the state normalised per hand in both stages
   (`--policy.udt_hand_norm_state=true`), so the fine-tune keeps the mix's statistics of the state too;
+  `mix_ft_default_<n>`: the documented path, the recipe's own mix (no flag beyond the user's) then the same bind
+  and stock fine-tune; since 2026-12-07 `unidextok-deploy` moves the state's statistics into a step the
+  fine-tune's override does not reach (`processor/kept_normalizer.py`), so this fine-tune keeps the mix's
+  statistics of the state too (`mix_ft` and `mix_ft_state_norm` were measured before: `mix_ft`'s fine-tune read
+  the target dataset's);
 - `zero_shot`: the pool's other hands, none of the target's demonstrations, bound with `--zero_shot=true` (one
   other hand: its converted recording, no mix); `zero_shot_no_frame`: the same in the robots' wrist frames;
   `zero_shot_state`: the same with the state-only view (`mix_state`'s flags).
@@ -195,6 +200,9 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     # the same with the state normalised per hand too: LeRobot's fine-tune swaps the state's normaliser for the
     # target dataset's statistics, this one keeps the checkpoint's (the per-hand step's)
     "mix_ft_state_norm": ("mix", ("--policy.udt_hand_norm_state=true", OWN_STATS)),
+    # the documented path: the recipe's own mix (no flag), bound, the stock fine-tune; the bound checkpoint keeps
+    # the mix's state statistics through it (processor/kept_normalizer.py, 2026-12-07)
+    "mix_ft_default": ("mix", ()),
 }
 MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
 ABLATIONS = ("no_hand_norm", "state_norm", "no_mask", "copies", "no_frame")
@@ -203,8 +211,9 @@ PRUNED = (*ABLATIONS, "alone_no_frame", "pooled", "mix_rule")
 # run on `mechanism_pools`, after every other arm
 MECHANISMS = ("mix_own_stats", "zero_shot_own_stats", "mix_heads", "mix_morph", "mix_onehot", "zero_shot_morph",
               "zero_shot_onehot", "mix_shrink",
-              "zero_shot_shrink", "state_norm_shrink", "zero_shot_state_norm_shrink", "mix_ft", "mix_ft_state_norm")
-FINE_TUNED = ("mix_ft", "mix_ft_state_norm")  # trained in two stages: the mix, then the target's own dataset (`pool_then_fine_tune`)
+              "zero_shot_shrink", "state_norm_shrink", "zero_shot_state_norm_shrink", "mix_ft", "mix_ft_state_norm",
+              "mix_ft_default")
+FINE_TUNED = ("mix_ft", "mix_ft_state_norm", "mix_ft_default")  # trained in two stages: the mix, then the target's own dataset (`pool_then_fine_tune`)
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/pooling.md)
 MAPPINGS = {"semantic": "semantic", "packed": "append_pad"}  # a conversion's name -> unidextok-convert --mapping
 # seeds: seed s offsets every range below by s * SEED_STRIDE (`seed_ranges` checks none overlaps another)
@@ -1050,7 +1059,8 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "state_norm_shrink": "mix, the state per hand too, shrunk toward the pool's ({shrink:g} episodes)",
               "zero_shot_state_norm_shrink": "zero-shot, the state per hand too, shrunk toward the pool's",
               "mix_ft": "mix, then fine-tuned on the target (half the updates each)",
-              "mix_ft_state_norm": "mix, then fine-tuned, the state normalised per hand (kept through the fine-tune)"}  # fmt: skip
+              "mix_ft_state_norm": "mix, then fine-tuned, the state normalised per hand (kept through the fine-tune)",
+              "mix_ft_default": "mix, deployed, then fine-tuned (the recipe's mix; the state's statistics kept)"}  # fmt: skip
 
 
 def shrink_of(result: dict) -> float:
@@ -1130,6 +1140,7 @@ def mechanism_lines(result: dict) -> list[str]:
         for arm, base in (("mix", "alone"), ("mix_own_stats", "alone"), ("mix_onehot", "alone"),
                           ("mix_heads", "alone"), ("mix_morph", "alone"), ("mix_shrink", "alone"),
                           ("state_norm_shrink", "alone"), ("mix_ft", "alone"), ("mix_ft_state_norm", "alone"),
+                          ("mix_ft_default", "alone"),
                           ("zero_shot", before), ("zero_shot_onehot", before), ("zero_shot_shrink", before),
                           ("zero_shot_state_norm_shrink", before), ("zero_shot_morph", before)):  # fmt: skip
             for k in result["config"]["pools"]:
