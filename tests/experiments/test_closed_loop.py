@@ -188,6 +188,11 @@ def test_the_pool_is_the_target_and_the_hands_after_it_cyclically():
         and not plans["mix_10_pool6"]["weights"]
     )
     assert plans["zero_shot_pool6"]["root"].name.endswith(f"_default-{cl._mix_code()}")
+    # the key is the code's, not its prose's: a docstring or comment edited keeps the mixes, a changed line does not
+    source = '"""Mix."""\nALPHA = 0.43  # pi0\n\n\ndef share(n):\n    """Its share."""\n    return n**ALPHA\n'
+    assert cl.code_key(source) == cl.code_key(source.replace("Its share.", "The share, see docs/pooling.md.")
+                                              .replace("# pi0", "# pi0's exponent").replace('"""Mix."""', '"""A mix."""'))
+    assert cl.code_key(source) != cl.code_key(source.replace("0.43", "0.5"))
     # an asked share goes to the mixes only: the hand alone and zero-shot have no target share to set
     shared = {j["arm"]: cl.plan(cl.ClosedLoopConfig(**{**vars(cfg), "target_share": 0.25}), j) for j in cl.jobs(cfg)}
     assert shared["mix_10_pool2"]["weights"] == [0.25, 0.75] and shared["mix_10_pool2"]["root"].name.endswith("_s0.25")
