@@ -4,8 +4,7 @@
 with the new dataset's `meta/stats.json` in place of the statistics saved in its `normalizer_processor`: the
 override is keyed by that registry name. A policy pooled over several hands learnt its trunk on the mix's scale of
 `observation.state`; fine-tuned on one robot's dataset of 10 demonstrations it would read that robot's narrow
-scale instead, a different input for the same state (issue 57: the fine-tune without it lost the L10 7-9 points
-on the grasp). `unidextok-deploy` therefore moves the state's statistics out of LeRobot's normaliser into this
+scale instead, a different input for the same state. `unidextok-deploy` therefore moves the state's statistics out of LeRobot's normaliser into this
 step: the same class, the same arithmetic (bit for bit), under its own registry name, so no override reaches it
 and a fine-tune of the bound checkpoint keeps the scale the trunk learnt. LeRobot's normaliser stays in the
 pipeline (the fine-tune's override must find it) with no observation key left to normalise.
@@ -41,7 +40,11 @@ def keep_state_normalizer(steps: list) -> list:
     feature = stock.features.get(OBS_STATE)
     keys = stock.normalize_observation_keys
     mode = stock.norm_map.get(feature.type, NormalizationMode.IDENTITY) if feature else NormalizationMode.IDENTITY
-    if mode == NormalizationMode.IDENTITY or OBS_STATE not in stock.stats or (keys is not None and OBS_STATE not in keys):
+    if (
+        mode == NormalizationMode.IDENTITY
+        or OBS_STATE not in stock.stats
+        or (keys is not None and OBS_STATE not in keys)
+    ):
         return steps
     kept = KeptNormalizerStep(features={OBS_STATE: feature}, norm_map={feature.type: mode},
                               stats={OBS_STATE: stock.stats[OBS_STATE]}, eps=stock.eps, device=stock.device,

@@ -37,7 +37,11 @@ def test_the_kept_step_normalises_the_state_as_lerobots_did_bit_for_bit():
     steps = keep_state_normalizer([stock])
     assert [type(s) for s in steps] == [NormalizerProcessorStep, KeptNormalizerStep]
     rest, kept = steps
-    assert STATE not in rest.stats and STATE not in rest.normalize_observation_keys and ENV in rest.normalize_observation_keys
+    assert (
+        STATE not in rest.stats
+        and STATE not in rest.normalize_observation_keys
+        and ENV in rest.normalize_observation_keys
+    )
     assert set(kept.stats) == {STATE} and kept.norm_map == {FeatureType.STATE: NormalizationMode.MEAN_STD}
     before, after = _pipeline([stock])(_batch()), _pipeline(steps)(_batch())
     for key in (STATE, ENV):
@@ -68,5 +72,7 @@ def test_a_fine_tunes_override_reaches_lerobots_normaliser_and_not_the_kept_one(
 def test_nothing_moves_when_lerobots_normaliser_does_not_normalise_the_state(case):
     norm_map = {**NORM_MAP, FeatureType.STATE: NormalizationMode.IDENTITY} if case == "state per hand" else NORM_MAP
     stats = {k: v for k, v in _stats(1.0).items() if k != STATE} if case == "no state statistics" else _stats(1.0)
-    steps = [] if case == "no normaliser" else [NormalizerProcessorStep(features=FEATURES, norm_map=norm_map, stats=stats)]
+    steps = (
+        [] if case == "no normaliser" else [NormalizerProcessorStep(features=FEATURES, norm_map=norm_map, stats=stats)]
+    )
     assert keep_state_normalizer(steps) is steps
