@@ -74,11 +74,9 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   mix's statistics (the per-hand step holds them, and lerobot-train overrides only LeRobot's normaliser);
   `mix_ft_state_norm_<n>`: the same with the state normalised per hand in both stages
   (`--policy.udt_hand_norm_state=true`), so the fine-tune keeps the mix's statistics of the state too;
-  `mix_ft_default_<n>`: the documented path, the recipe's own mix (no flag beyond the user's) then the same bind
-  and stock fine-tune; since 2026-12-07 `unidextok-deploy` moves the state's statistics into a step the
-  fine-tune's override does not reach (`processor/kept_normalizer.py`), so this fine-tune keeps the mix's
-  statistics of the state too (`mix_ft` and `mix_ft_state_norm` were measured before: `mix_ft`'s fine-tune read
-  the target dataset's);
+  `mix_ft_default_<n>`: the path with no flag beyond the user's, the recipe's own mix (with the pool's prior from
+  four hands on, where `mix_ft` lends none) then the same bind and stock fine-tune, whose state normaliser takes
+  the target dataset's statistics;
 - `zero_shot`: the pool's other hands, none of the target's demonstrations, bound with `--zero_shot=true` (one
   other hand: its converted recording, no mix); `zero_shot_no_frame`: the same in the robots' wrist frames;
   `zero_shot_state`: the same with the state-only view (`mix_state`'s flags).
@@ -200,8 +198,7 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     # the same with the state normalised per hand too: LeRobot's fine-tune swaps the state's normaliser for the
     # target dataset's statistics, this one keeps the checkpoint's (the per-hand step's)
     "mix_ft_state_norm": ("mix", ("--policy.udt_hand_norm_state=true", OWN_STATS)),
-    # the documented path: the recipe's own mix (no flag), bound, the stock fine-tune; the bound checkpoint keeps
-    # the mix's state statistics through it (processor/kept_normalizer.py, 2026-12-07)
+    # pool, then fine-tune with no flag beyond the user's: the recipe's own mix, bound, the stock fine-tune
     "mix_ft_default": ("mix", ()),
 }
 MIX_ARMS = tuple(a for a, (data, _) in ARMS.items() if data != "alone")
@@ -1074,7 +1071,7 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "zero_shot_state_norm_shrink": "zero-shot, the state per hand too, shrunk toward the pool's",
               "mix_ft": "mix, then fine-tuned on the target (half the updates each)",
               "mix_ft_state_norm": "mix, then fine-tuned, the state normalised per hand (kept through the fine-tune)",
-              "mix_ft_default": "mix, deployed, then fine-tuned (the recipe's mix; the state's statistics kept)"}  # fmt: skip
+              "mix_ft_default": "mix, then fine-tuned (the recipe's own mix, no flag)"}  # fmt: skip
 
 
 def shrink_of(result: dict) -> float:

@@ -21,10 +21,7 @@ and its normaliser statistics unchanged:
   as the arms of a hands-only mix, are left out: `source_names` says where the rest sit).
 
 The bound config says the same (`udt_fixed_hand_ids`, `udt_native_layout`, `udt_native_state_layout`), so
-LeRobot's stock factory, `lerobot-rollout` and `--policy.path` fine-tuning rebuild the same processors. The state's
-statistics move from LeRobot's normaliser to `unidextok.kept_normalizer` (the same arithmetic): a stock
-`lerobot-train --policy.path=<bound checkpoint>` on the robot's own dataset would otherwise swap them for that
-dataset's, and the trunk trained on the mix's scale would read another (`processor/kept_normalizer.py`). A robot
+LeRobot's stock factory, `lerobot-rollout` and `--policy.path` fine-tuning rebuild the same processors. A robot
 whose hands were never in the mix is refused unless `zero_shot`: its hands are then tokenised (by the
 tokenizer's own embedding, or its unknown-hand one) with an all-zero identity the policy never saw, and normalised
 with the pooled statistics of the mix's hands. A checkpoint trained on one robot's dataset binds zero-shot to
@@ -65,7 +62,6 @@ from lerobot_unidextok.processor import (
     SlotMaskStep,
     UDHMToNativeCommandStep,
     UniDexTokMixedTokenizerStep,
-    keep_state_normalizer,
 )
 from lerobot_unidextok.utils.files import temp_sibling
 
@@ -217,7 +213,6 @@ def _deploy_into(checkpoint: Path, robot: Path, output: Path, zero_shot: bool, o
     else:
         pre.steps = _bound_pre_steps(pre.steps, bound, binding)
     pre.steps, post.steps = (_bound_scale(steps, binding) for steps in (pre.steps, post.steps))
-    pre.steps = keep_state_normalizer(pre.steps)  # a fine-tune of the bound checkpoint keeps the trunk's state scale
     if centres:
         pre.steps, post.steps = (bound_frame_steps(steps, bound) for steps in (pre.steps, post.steps))
     if bound.udt_native_layout and not single:

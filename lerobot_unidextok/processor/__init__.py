@@ -4,18 +4,13 @@ direction (`native.py`); per-hand normalisation of the state and actions (`hand_
 scale of checkpoints saved before it, `hand_action_scale.py`); the action slots a row's hand lacks, left out of the
 loss (`slot_mask.py`); each input's share of a mix as a loss weight per row (`share_weights.py`); which view of
 the hands the model reads, state or tokens (`hand_input.py`); and the wrist position as the hand's grasp centre
-(`wrist_frame.py`); and a bound checkpoint's state normaliser, kept through a fine-tune (`kept_normalizer.py`)."""
+(`wrist_frame.py`)."""
 
 from lerobot_unidextok.layout import HandLayout, NativeLayout
 from lerobot_unidextok.processor.guards import RANGE_CHECKS, hand_bounds_rad
 from lerobot_unidextok.processor.hand_action_scale import HAND_ACTION_SCALE_STEP_NAME, HandActionScaleStep
 from lerobot_unidextok.processor.hand_input import HAND_INPUT_STEP_NAME, HAND_INPUTS, HandInputStep
 from lerobot_unidextok.processor.hand_normalizer import HAND_NORMALIZER_STEP_NAME, STATS_OF_MODE, HandNormalizerStep
-from lerobot_unidextok.processor.kept_normalizer import (
-    KEPT_NORMALIZER_STEP_NAME,
-    KeptNormalizerStep,
-    keep_state_normalizer,
-)
 from lerobot_unidextok.processor.mixed import IDENTITIES, MIXED_STEP_NAME, UniDexTokMixedTokenizerStep, identity_width
 from lerobot_unidextok.processor.native import (
     NATIVE_TO_UDHM_STEP_NAME,
@@ -44,7 +39,6 @@ __all__ = [
     "HAND_NORMALIZER_STEP_NAME",
     "HAND_INPUTS",
     "HAND_INPUT_STEP_NAME",
-    "KEPT_NORMALIZER_STEP_NAME",
     "MIXED_STEP_NAME",
     "NATIVE_TO_UDHM_STEP_NAME",
     "RANGE_CHECKS",
@@ -59,7 +53,6 @@ __all__ = [
     "HandActionScaleStep",
     "HandInputStep",
     "HandNormalizerStep",
-    "KeptNormalizerStep",
     "HandLayout",
     "NativeLayout",
     "NativeToUDHMStateStep",
@@ -70,7 +63,6 @@ __all__ = [
     "UniDexTokStateTokenizerStep",
     "WristFrameStep",
     "hand_bounds_rad",
-    "keep_state_normalizer",
     "token_preview",
     "tokenizer_output_dims",
     "tokens_to_native",
