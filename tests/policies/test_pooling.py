@@ -499,7 +499,8 @@ def test_fine_tuning_a_bound_mix_checkpoint_on_one_robot_makes_the_episode_map_a
     assert tuned["udt_episode_inputs"] == [] and tuned["udt_input_shares"] == []  # one robot: no shares to weigh by
     # the state's statistics are the robot dataset's (LeRobot's override of its normaliser), not the mix's: keeping
     # the mix's was measured and lost 1.5-3.4 points on the pinch (docs/pooling.md, "Pool, then fine-tune")
-    from lerobot.datasets import LeRobotDatasetMetadata as Meta
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.datasets import LeRobotDataset, LeRobotDatasetMetadata
     from lerobot.processor import NormalizerProcessorStep, PolicyProcessorPipeline
 
     from lerobot_unidextok.policies.checkpoint import PREPROCESSOR
@@ -508,15 +509,13 @@ def test_fine_tuning_a_bound_mix_checkpoint_on_one_robot_makes_the_episode_map_a
         steps = PolicyProcessorPipeline.from_pretrained(folder, config_filename=PREPROCESSOR).steps
         return next(s for s in steps if type(s) is NormalizerProcessorStep).stats[OBS_STATE]
 
-    robot_stats, bound_stats = Meta("test/g1_hands", root=robot).stats[OBS_STATE], state_stats(bound)
+    robot_stats = LeRobotDatasetMetadata("test/g1_hands", root=robot).stats[OBS_STATE]
+    bound_stats = state_stats(bound)
     tuned_stats = state_stats(out / "checkpoints" / "last" / "pretrained_model")
     assert not np.allclose(bound_stats["std"], robot_stats["std"])  # the mix's scale is not the robot's
     for stat in ("mean", "std"):
         np.testing.assert_allclose(tuned_stats[stat], robot_stats[stat], rtol=1e-6)
     # in the process: the reloaded pipeline still weighs by the mix's map; the policy takes none of it
-    from lerobot.configs.policies import PreTrainedConfig
-    from lerobot.datasets import LeRobotDataset, LeRobotDatasetMetadata
-
     tuning = PreTrainedConfig.from_pretrained(bound)
     tuning._runtime_dataset_meta = LeRobotDatasetMetadata("test/g1_hands", root=robot)
     policy = get_policy_class("act_udt").from_pretrained(bound, config=tuning)
