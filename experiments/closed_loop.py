@@ -88,6 +88,7 @@ those gains (`closed_loop.png`) and success against the target's demonstrations 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import logging
@@ -422,9 +423,10 @@ def mixed(root: Path, inputs: list[Path], repo: str, weights: list[float], weigh
     return root
 
 
+@functools.cache
 def _mix_code() -> str:
     """A short hash of `unidextok-mix`'s code: a mix made with its default shares is keyed by it (the default may
-    change)."""
+    change). Hashed once a process (every job's plan asks)."""
     from lerobot_unidextok.conversion import mix
 
     return code_key(Path(mix.__file__).read_text())
