@@ -21,6 +21,7 @@ is reported as bound or pushed. The check is stricter than LeRobot's own load wh
 
 from __future__ import annotations
 
+import functools
 import importlib
 import json
 import logging
@@ -60,9 +61,11 @@ def check_policy_checkpoint(folder: str | Path) -> None:
         _check_pipeline(folder / name)
 
 
+@functools.cache
 def _register_plugins() -> None:
     """What LeRobot's CLIs do first: import the installed plugin packages (lerobot_policy_*: policy types and
-    processor steps, ours too), without their one INFO line per plugin."""
+    processor steps, ours too), without their one INFO line per plugin. Once a process: LeRobot reads every
+    installed distribution's metadata to find them (about half a second), and a deploy checks two checkpoints."""
     from lerobot.utils.import_utils import register_third_party_plugins
 
     previous = logging.root.manager.disable
