@@ -13,6 +13,7 @@ from lerobot_unidextok.baselines import QuantizedAEConfig, QuantizedAETokenizer,
 
 @pytest.fixture(scope="module", params=["fsq", "rvq"])
 def fitted(request, train_states, masks):
+    torch.manual_seed(0)  # the weights and batches draw from torch's global generator: whatever ran before
     tok = QuantizedAETokenizer(QuantizedAEConfig.from_preset("tiny", quantizer=request.param))
     history = tok.fit(train_states, masks)
     return tok, history
