@@ -341,16 +341,12 @@ def test_relative_actions_refuse_an_action_layout_that_is_not_the_states_first_c
 # ---------------------------------------------------------------------------------------------
 # the real lerobot-train CLI
 # ---------------------------------------------------------------------------------------------
-def _run_train(args: list[str], out: Path, hf: Path) -> subprocess.CompletedProcess:
+def _train(args: list[str], out: Path, hf: Path) -> Path:
     base = [str(BIN / "lerobot-train"), "--num_workers=0", f"--output_dir={out}", "--log_freq=1", "--save_freq=3"]
     r = subprocess.run(base + args, env=subprocess_env(HF_HOME=str(hf)), check=False, capture_output=True,
                        text=True, timeout=600)  # fmt: skip
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
-    return r
-
-
-def _train(args: list[str], out: Path, hf: Path) -> Path:
-    _run_train(args, out, hf)
+    assert "Traceback" not in r.stdout + r.stderr and "is installed but cannot be loaded" not in r.stderr
     return out / "checkpoints" / "last" / "pretrained_model"
 
 
@@ -390,23 +386,6 @@ def test_lerobot_train_help_finds_the_plugin_without_the_flag_and_describes_ever
             continue
         description = _help_text(r.stdout, f"--policy.{f.name}")
         assert len(description.split()) >= 4, (f.name, description)  # a sentence, not just the type
-
-
-@pytest.mark.slow
-def test_lerobot_train_without_the_plugin_flag(tok_dir, g1_like, tmp_path):
-    """LeRobot's own plugin convention: the `lerobot_policy_unidextok` distribution is imported by
-    register_third_party_plugins(), so `--policy.type=act_udt` trains with no --policy.discover_packages_path."""
-    root = g1_like["root"]
-    r = _run_train(["--policy.type=act_udt", "--dataset.repo_id=test/g1_like_udhm", f"--dataset.root={root}",
-                    f"--policy.udt_pretrained={tok_dir}", "--policy.device=cpu", "--policy.push_to_hub=false",
-                    "--steps=2", "--batch_size=4", "--wandb.enable=false", *TINY_ACT], tmp_path / "act",
-                   tmp_path / "hf")  # fmt: skip
-    assert "Traceback" not in r.stdout + r.stderr and "is installed but cannot be loaded" not in r.stderr
-    ckpt = tmp_path / "act" / "checkpoints" / "last" / "pretrained_model"
-    cfg = json.loads((ckpt / "config.json").read_text())
-    assert cfg["type"] == "act_udt" and cfg["udt_state_names"] == STATE_NAMES
-    pre = [s["registry_name"] for s in json.loads((ckpt / "policy_preprocessor.json").read_text())["steps"]]
-    assert pre.index("to_batch_processor") < pre.index(STEP_NAME) < pre.index("normalizer_processor")
 
 
 @pytest.mark.slow
@@ -476,15 +455,17 @@ def test_lerobot_train_act_and_diffusion_resume_and_reload(tok_dir, g1_like, tmp
     The reloaded post-processor's native action equals the dataset's native layout applied to the policy's
     converted action (the old check, hands in [0, 1], held by clipping alone), and the reloaded pre-processor
     takes the robot's native state as well as the converted one (it refused the native width), also inside
-    `lerobot-rollout` driving a robot of the native layout."""
+    `lerobot-rollout` driving a robot of the native layout. The diffusion policy trains without
+    --policy.discover_packages_path: LeRobot's own plugin convention imports the `lerobot_policy_unidextok`
+    distribution in register_third_party_plugins()."""
     root, hf = g1_like["root"], tmp_path / "hf"
     data = ["--dataset.repo_id=test/g1_like_udhm", f"--dataset.root={root}", f"--policy.udt_pretrained={tok_dir}"]
     plugin = "--policy.discover_packages_path=lerobot_unidextok"
     # ACT from the shipped config file, overridden by flags
     act = _train([f"--config_path={shipped_config('lerobot/act_udt')}", plugin, *data, "--steps=3",
                   "--batch_size=4", "--num_workers=0", *TINY_ACT], tmp_path / "act", hf)  # fmt: skip
-    # Diffusion from flags only (n_obs_steps=2: the step sees (B, 2, 58) states)
-    diff = _train(["--policy.type=diffusion_udt", plugin, *data, "--policy.device=cpu", "--policy.push_to_hub=false",
+    # Diffusion from flags only, no plugin flag (n_obs_steps=2: the step sees (B, 2, 58) states)
+    diff = _train(["--policy.type=diffusion_udt", *data, "--policy.device=cpu", "--policy.push_to_hub=false",
                    "--steps=3", "--batch_size=4", "--wandb.enable=false", *TINY_DIFFUSION], tmp_path / "diff", hf)  # fmt: skip
     for ckpt, udt_type in ((act, "act_udt"), (diff, "diffusion_udt")):
         cfg = json.loads((ckpt / "config.json").read_text())
