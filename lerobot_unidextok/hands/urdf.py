@@ -1,5 +1,5 @@
-"""A robot hand's URDF: its joints and links read as XML, and its MANO-21 keypoints by forward kinematics with
-`yourdfpy` (optional extra ``urdf``).
+"""A robot hand's URDF: its joints and links read by `yourdfpy` (optional extra ``urdf``), and its MANO-21
+keypoints by forward kinematics along its joint chains, every configuration at once (numpy).
 
     hand = UrdfHand.load("allegro_hand_right.urdf", spec.urdf.keypoints["right"])
     keypoints_m = hand.keypoints_m([{"joint_1.0": 0.5}, ...])   # (N, 21, 3) in the URDF base frame
@@ -113,21 +113,54 @@ class UrdfHand:
         """
         if followers:
             cfgs = [self.full_cfg(c) for c in cfgs]
-        base = self.model.base_link
-        offsets = np.array([(*k.offset_m, 1.0) for k in self.keypoints])  # (21, 4) homogeneous
+        links = self.link_transforms(cfgs, sorted({k.link for k in self.keypoints}))  # link -> (N, 4, 4)
         out = np.empty((len(cfgs), len(self.keypoints), 3))
-        for i, cfg in enumerate(cfgs):
-            self.model.update_cfg(cfg)
-            for k, kp in enumerate(self.keypoints):
-                tf = self.model.get_transform(frame_to=kp.link, frame_from=base)  # (4, 4) link -> base
-                out[i, k] = (tf @ offsets[k])[:3]
+        for k, kp in enumerate(self.keypoints):
+            tf = links[kp.link]  # (N, 4, 4) link -> base
+            out[:, k] = tf[:, :3, :3] @ np.asarray(kp.offset_m, dtype=float) + tf[:, :3, 3]
         return out
 
     def link_origins_m(self, cfg: dict[str, float] | None = None) -> dict[str, np.ndarray]:
         """Every link origin (m, base frame) at ``cfg`` (default: rest): for writing a keypoint map."""
-        self.model.update_cfg(self.full_cfg(cfg or {}))
-        base = self.model.base_link
-        return {n: self.model.get_transform(frame_to=n, frame_from=base)[:3, 3].copy() for n in self.model.link_map}
+        links = self.link_transforms([self.full_cfg(cfg or {})], list(self.model.link_map))
+        return {name: tf[0, :3, 3].copy() for name, tf in links.items()}
+
+    def link_transforms(self, cfgs: list[dict[str, float]], links: Collection[str]) -> dict[str, np.ndarray]:
+        """Each of ``links``' (N, 4, 4) transform to the base frame at N configurations that give every movable
+        joint (radians, or metres for a prismatic one): the URDF's joint chain, all configurations at once.
+        What yourdfpy's `update_cfg` + `get_transform` give one configuration at a time, 10-20x slower."""
+        by_child = {j.child: j for j in self.model.robot.joints}
+        done: dict[str, np.ndarray] = {self.model.base_link: np.broadcast_to(np.eye(4), (len(cfgs), 4, 4))}
+
+        def pose(link: str) -> np.ndarray:
+            if link not in done:
+                joint = by_child[link]
+                done[link] = pose(joint.parent) @ _joint_transforms(joint, cfgs, self.path.name)
+            return done[link]
+
+        return {link: pose(link) for link in links}
+
+
+def _joint_transforms(joint, cfgs: list[dict[str, float]], urdf: str) -> np.ndarray:
+    """(N, 4, 4) parent -> child transform of a yourdfpy joint at each configuration: its origin, then its motion
+    about (revolute, continuous) or along (prismatic) its axis; every other type is its origin alone."""
+    origin = np.eye(4) if joint.origin is None else np.asarray(joint.origin, dtype=float)
+    n = len(cfgs)
+    if joint.type not in ("revolute", "continuous", "prismatic"):
+        return np.broadcast_to(origin, (n, 4, 4))
+    try:
+        q = np.array([c[joint.name] for c in cfgs], dtype=float)  # (N,)
+    except KeyError:
+        raise ValueError(f"{urdf}: a configuration does not give the movable joint {joint.name!r}") from None
+    axis = np.array([1.0, 0.0, 0.0]) if joint.axis is None else np.asarray(joint.axis, dtype=float)
+    motion = np.tile(np.eye(4), (n, 1, 1))  # (N, 4, 4)
+    if joint.type == "prismatic":
+        motion[:, :3, 3] = q[:, None] * axis
+    else:  # Rodrigues: I + sin(q) K + (1 - cos(q)) K^2 about the unit axis
+        x, y, z = axis / np.linalg.norm(axis)
+        k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+        motion[:, :3, :3] += np.sin(q)[:, None, None] * k + (1.0 - np.cos(q))[:, None, None] * (k @ k)
+    return origin @ motion
 
 
 def resolve_mimic_chains(
