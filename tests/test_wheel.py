@@ -6,6 +6,7 @@ command runs from a folder outside the checkout, offline, and must import the wh
 """
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -35,12 +36,13 @@ def installed(tmp_path_factory):
     return site, site / "bin", wheel
 
 
-def _run(installed, args: list[str], cwd: Path, timeout: int = 600, unset=()) -> subprocess.CompletedProcess:
+def _run(installed, args: list[str], cwd: Path, timeout: int = 600, unset=(), **extra: str) -> subprocess.CompletedProcess:
     """`args` run from `cwd` on the installed wheel, offline, without the checkout's data folders (and without the
-    variables in `unset`)."""
+    variables in `unset`; with those in `extra`)."""
     site, bin_dir, _ = installed
-    env = subprocess_env(PYTHONPATH=str(site), HF_HUB_OFFLINE="1", HF_HOME=str(cwd / "hf"), MPLBACKEND="Agg",
-                         PATH=f"{bin_dir}{os.pathsep}{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")  # fmt: skip
+    env = subprocess_env(**{"PYTHONPATH": str(site), "HF_HUB_OFFLINE": "1", "HF_HOME": str(cwd / "hf"), "MPLBACKEND": "Agg",
+                            "PATH": f"{bin_dir}{os.pathsep}{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}",
+                            **extra})  # fmt: skip
     for name in ("UNIDEXTOK_REAL_DATA", "UNIDEXTOK_URDF_DIR", *unset):
         env.pop(name, None)
     r = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
@@ -85,8 +87,12 @@ def test_readme_pip_commands_run_from_the_installed_wheel(installed, tmp_path):
     assert "train/small" in listed and "lerobot/act_udt_cpu" in listed
     config = _run(installed, ["unidextok-config", "lerobot/act_udt_cpu"], tmp_path).stdout.strip()
     assert config.startswith(str(site)) and Path(config).is_file()
-    demo = _run(installed, ["unidextok-demo", "--quick", "--preset=tiny", "--steps=20", "--out=demo"], tmp_path)
-    assert "UniDexTok shipped" in demo.stdout and (tmp_path / "demo" / "plots" / "per_joint_error.png").is_file()
+    # the demo, every stage (tests/test_demo.py pins that `make demo` runs this module): the loopback Hub is the only
+    # network (the conftest proxy settings), so its hub-cache stage runs too
+    out = tmp_path / "demo"
+    demo = _run(installed, ["unidextok-demo", "--quick", "--preset=tiny", "--steps=60", f"--out={out}"], tmp_path,
+                HF_HUB_OFFLINE="0", HF_LEROBOT_HOME=str(tmp_path / "hf" / "lerobot"), OMP_NUM_THREADS="1").stdout  # fmt: skip
+    _the_demo_ran_every_stage(demo, out)
     # the demo converts a sample of every source format with the wheel's converters
     from lerobot_unidextok.samples import available_sample_sources
 
@@ -100,6 +106,23 @@ def test_readme_pip_commands_run_from_the_installed_wheel(installed, tmp_path):
                      f"--output_dir={tmp_path / 'policy'}", "--policy.udt_pretrained=unidextok/universal-small"],
          tmp_path)  # fmt: skip
     assert (tmp_path / "policy" / "checkpoints" / "last" / "pretrained_model" / "config.json").is_file()
+
+
+def _the_demo_ran_every_stage(text: str, out: Path) -> None:
+    """Every stage of the demo ran and left its outputs: converted datasets, a trained tokenizer that reloads by
+    repo id from the local hub cache with identical weights, the evaluation, the pictures. Catches a stage that
+    crashes, one that silently writes nothing, a tokenizer that does not round-trip through the hub cache."""
+    for n in range(1, 7):
+        assert f"\n{n}. " in text, f"stage {n} missing"
+    assert "UniDexTok shipped" in text and "weights identical = True" in text and "Demo finished" in text
+    trained = re.search(r"trained (\d+) steps .* best selection-episode joint MAE ([\d.]+) deg", text)
+    assert trained and int(trained.group(1)) == 60 and float(trained.group(2)) > 0
+    converted = sorted(p.name for p in (out / "converted").iterdir())
+    assert len(converted) >= 6 and all((out / "converted" / c / "meta" / "info.json").is_file() for c in converted)
+    assert (out / "tokenizer" / "model.safetensors").is_file() and (out / "tokenizer" / "config.json").is_file()
+    assert (out / "eval.json").is_file() and (out / "eval.md").is_file()
+    pictures = sorted(p.name for p in (out / "plots").glob("*.png"))
+    assert {"per_joint_error.png", "codebook_usage.png"} <= set(pictures) and len(pictures) >= 4, pictures
 
 
 @pytest.mark.slow
