@@ -284,10 +284,12 @@ def test_deploy_refuses_a_mix_checkpoint_whose_hand_statistics_hold_nan(edit, mi
 
 
 @pytest.mark.slow
-def test_a_morphology_identity_is_trained_saved_and_given_to_a_zero_shot_hand(g1_l10_mix, tmp_path):
+def test_a_morphology_identity_is_trained_saved_and_given_to_a_zero_shot_hand(g1_l10_mix, tmp_path, monkeypatch,
+                                                                             capsys):
     """`--policy.udt_hand_identity=morphology`: the policy reads each block's hand as its spec's morphology vector,
     so a hand the mix never had (the Dexora's XHand1s, bound with --zero_shot=true) gets its own vector where the
-    one-hot identity gives it zeros; the bound checkpoint reloads and acts on that robot's native state."""
+    one-hot identity gives it zeros; the bound checkpoint reloads and acts on that robot's native state. The bind
+    and the reload run in this process (their own processes: the test above)."""
     from lerobot.processor import PolicyProcessorPipeline
 
     from lerobot_unidextok.constants import OBS_HAND_TOKEN_FEATURES, OBS_STATE, UDHM_DIM
@@ -311,8 +313,9 @@ def test_a_morphology_identity_is_trained_saved_and_given_to_a_zero_shot_hand(g1
     assert config["udt_hand_identity"] == "morphology"
     assert config["input_features"][OBS_HAND_TOKEN_FEATURES]["shape"] == [2 * (UDHM_DIM + MORPHOLOGY_WIDTH)]
     dexora = _dexora_robot(tmp_path)
-    r = _deploy(checkpoint, dexora, tmp_path / "x", "--zero_shot=true")
-    assert r.returncode == 0, r.stderr[-2000:]
+    code, err = _deploy_in_process(monkeypatch, capsys, f"--checkpoint={checkpoint}", f"--robot={dexora}",
+                                   f"--output={tmp_path / 'x'}", "--zero_shot=true")  # fmt: skip
+    assert code == 0, err[-2000:]
     pipe = PolicyProcessorPipeline.from_pretrained(tmp_path / "x", config_filename="policy_preprocessor.json")
     (step,) = [s for s in pipe.steps if isinstance(s, UniDexTokMixedTokenizerStep)]
     assert step.identity == "morphology" and step.extra_hands == ["xhand1"]
@@ -320,7 +323,14 @@ def test_a_morphology_identity_is_trained_saved_and_given_to_a_zero_shot_hand(g1
     tail = view[0, 2 * UDHM_DIM :].reshape(2, MORPHOLOGY_WIDTH).numpy()
     for block, side in enumerate(step._sides):
         np.testing.assert_array_equal(tail[block], morphology_vector("xhand1", side))
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
     from lerobot_unidextok.hands import get
 
-    acted = _reload_and_act(tmp_path / "x", np.zeros((2, 2 * get("xhand1").num_native), np.float32), tmp_path)
-    assert np.isfinite(np.asarray(acted["actions"])).all()
+    cfg = PreTrainedConfig.from_pretrained(tmp_path / "x")
+    policy = get_policy_class(cfg.type).from_pretrained(tmp_path / "x").eval()
+    pre, post = make_pre_post_processors(cfg, pretrained_path=str(tmp_path / "x"))
+    with torch.inference_mode():
+        action = post(policy.select_action(pre({OBS_STATE: torch.zeros(2 * get("xhand1").num_native)})))
+    assert action.shape == (1, 2 * get("xhand1").num_native) and torch.isfinite(action).all()
