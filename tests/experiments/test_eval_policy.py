@@ -82,11 +82,8 @@ def test_eval_policy_scores_a_simulator_dataset_whose_state_has_task_columns(tmp
     r = subprocess.run(train, env=env, capture_output=True, text=True, timeout=600, check=False)
     assert r.returncode == 0, r.stderr[-3000:]
     ckpt = tmp_path / "act" / "checkpoints" / "last" / "pretrained_model"
-    out = tmp_path / "eval.json"
-    r = subprocess.run([sys.executable, str(REPO / "experiments" / "eval_policy.py"), f"--checkpoint={ckpt}",
-                        f"--dataset={root}", "--episodes=[2]", f"--output={out}"], env=env, capture_output=True,
-                       text=True, timeout=300, check=False)  # fmt: skip
-    assert r.returncode == 0, r.stderr[-3000:]
-    result = json.loads(out.read_text())
+    from experiments.eval_policy import EvalPolicyConfig, run  # in this process: the test above runs its CLI
+
+    result = run(EvalPolicyConfig(checkpoint=str(ckpt), dataset=str(root), episodes=[2]))
     assert result["episodes"] == [2] and result["native_width"] == 6 + 6  # the wrist and the Inspire's 6 joints
     assert all(np.isfinite(v) for v in result["policy"].values())
