@@ -2,7 +2,8 @@
 # Both create .venv with Python 3.12 if it is missing and install the package into it.
 VENV ?= .venv
 PY := $(VENV)/bin/python
-# test files run in this many processes (pytest-xdist; a file's tests share one process and its fixtures)
+# test files run in this many processes (pytest-xdist; a file's tests share one process and its fixtures), handed
+# out longest first (tests/durations.json, tests/conftest.py)
 TEST_WORKERS ?= 2
 PYTHON312 ?= $(shell command -v python3.12 || command -v python3)
 
@@ -20,7 +21,7 @@ demo: install
 	$(PY) -m lerobot_unidextok.demo $(ARGS)
 
 test: install
-	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile $(ARGS)
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder $(ARGS)
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache

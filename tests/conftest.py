@@ -6,6 +6,7 @@ because both read them at import time.
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import sys
@@ -56,6 +57,20 @@ def pytest_runtest_call(item):
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_teardown(item, nextitem):
     return (yield from _kept_root_logging())
+
+
+def pytest_collection_modifyitems(config, items):
+    """Test files longest first, by their times in tests/durations.json (`tools/test_durations.py` writes it); a
+    file not listed goes last, and each file's tests keep their order. `make test` hands whole files to its
+    workers in this order (`--dist loadfile --no-loadscope-reorder`), so the run does not end on one worker
+    finishing a long file while the other idles (xdist's own order, by number of tests, left 40-80 s of that)."""
+    durations = json.loads((REPO_ROOT / "tests" / "durations.json").read_text())
+
+    def seconds(item) -> float:
+        path = item.path
+        return durations.get(path.relative_to(REPO_ROOT).as_posix(), 0.0) if path.is_relative_to(REPO_ROOT) else 0.0
+
+    items.sort(key=lambda item: -seconds(item))
 
 
 REAL_DATA_DIR = real_data_dir(REPO_ROOT)
