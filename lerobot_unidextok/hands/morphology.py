@@ -37,4 +37,16 @@ def morphology_vector(hand: str, side: str = "right") -> np.ndarray:
     return np.concatenate([active, lo / np.pi, hi / np.pi]).astype(np.float32)
 
 
-__all__ = ["MORPHOLOGY_WIDTH", "morphology_vector"]
+def nearest_hand(hand: str, candidates: list[str], side: str = "right") -> str:
+    """The hand of `candidates` whose morphology vector is nearest `hand`'s (Euclidean; a tie: the first).
+
+    What a policy that never saw `hand` knows best: the trained hand that has the most of its slots over the most
+    similar ranges (`unidextok-deploy --zero_shot_slots=nearest`)."""
+    if not candidates:
+        raise ValueError(f"no hands to compare {hand!r} with")
+    own = morphology_vector(hand, side)
+    distances = [float(np.linalg.norm(morphology_vector(h, side) - own)) for h in candidates]
+    return candidates[int(np.argmin(distances))]
+
+
+__all__ = ["MORPHOLOGY_WIDTH", "morphology_vector", "nearest_hand"]

@@ -23,8 +23,10 @@ and its normaliser statistics unchanged:
 The bound config says the same (`udt_fixed_hand_ids`, `udt_native_layout`, `udt_native_state_layout`), so
 LeRobot's stock factory, `lerobot-rollout` and `--policy.path` fine-tuning rebuild the same processors. A robot
 whose hands were never in the mix is refused unless `zero_shot`: its hands are then tokenised (by the
-tokenizer's own embedding, or its unknown-hand one) with an all-zero identity the policy never saw, and normalised
-with the pooled statistics of the mix's hands. A checkpoint trained on one robot's dataset binds zero-shot to
+tokenizer's own embedding, or its unknown-hand one), told to the policy by their morphology vector (a one-hot
+identity: all zero, a hand the policy never saw), and normalised with the pooled statistics of the mix's hands;
+`zero_shot_slots="nearest"` has such a hand drive only the slots of the trained hand nearest it in morphology
+(`driven_slots`). A checkpoint trained on one robot's dataset binds zero-shot to
 another robot's hands too (`deploy_single.py`). A checkpoint that learned the wrist in each hand's grasp-centre
 frame gets the robot's own grasp centre in its `unidextok.wrist_frame` steps (`deploy_frame.py`).
 """
@@ -37,15 +39,18 @@ import logging
 import shutil
 from pathlib import Path
 
+import numpy as np
 from lerobot.configs.policies import PreTrainedConfig
 from lerobot.processor import PolicyProcessorPipeline
 
+from lerobot_unidextok import hands
 from lerobot_unidextok.blocks import find_udhm_blocks, passthrough_indices
 from lerobot_unidextok.constants import ACTION, OBS_STATE
 from lerobot_unidextok.data.destination import Kind, claim, move_into_place, release
 from lerobot_unidextok.data.meta import UdhmDatasetMeta
 from lerobot_unidextok.data.wrist_frame import check_centre
 from lerobot_unidextok.errors import InvalidInputError
+from lerobot_unidextok.hands.morphology import nearest_hand
 from lerobot_unidextok.layout import NativeLayout
 from lerobot_unidextok.policies.checkpoint import POSTPROCESSOR, PREPROCESSOR, check_policy_checkpoint
 from lerobot_unidextok.policies.deploy_frame import bound_frame_steps, bound_grasp_centres
@@ -56,6 +61,7 @@ from lerobot_unidextok.policies.deploy_single import (
     with_tokenizer_step,
 )
 from lerobot_unidextok.policies.udt_config import UdtConfigMixin
+from lerobot_unidextok.policies.udt_processor import row_hands
 from lerobot_unidextok.processor import (
     HandActionScaleStep,
     HandNormalizerStep,
@@ -63,11 +69,14 @@ from lerobot_unidextok.processor import (
     UDHMToNativeCommandStep,
     UniDexTokMixedTokenizerStep,
 )
+from lerobot_unidextok.udhm.joints import JOINT_NAMES
 from lerobot_unidextok.utils.files import temp_sibling
 
 logger = logging.getLogger(__name__)
 
 KEPT_FILES = ("model.safetensors", "train_config.json", "README.md")
+# what a zero-shot hand drives: every slot it has ("own"), or those of the trained hand nearest it ("nearest")
+ZERO_SHOT_SLOTS = ("own", "nearest")
 
 
 class DeployError(InvalidInputError):
@@ -83,6 +92,8 @@ class Binding:
     state_layout: NativeLayout  # the robot's native state -> the mix's state
     action_layout: NativeLayout  # the mix's action -> the robot's native action (what the mix predicts of it)
     robot_names: list[str]  # the robot's converted state columns (its dataset's), also taken by the bound step
+    # per zero-shot hand, the UDHM slots it drives (`driven_slots`); absent: every slot it has
+    extra_hand_slots: dict[str, list[int]] = dataclasses.field(default_factory=dict)
 
 
 def bind_layouts(config: UdtConfigMixin, robot: UdhmDatasetMeta, zero_shot: bool = False) -> Binding:
@@ -156,11 +167,17 @@ def _into_mix(robot: NativeLayout, mix_names: list[str], mix_sides: list[str], w
 
 
 def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_shot: bool = False,
-           overwrite: bool = False, grasp_centre_m: list[float] | None = None) -> Path:
+           overwrite: bool = False, grasp_centre_m: list[float] | None = None, zero_shot_slots: str = "own") -> Path:
     """Write the checkpoint at `checkpoint`, bound to the robot of the converted dataset `robot`, to `output`
     (`overwrite`: replace a policy checkpoint there, once the new one is whole; `data.destination.claim`);
-    `grasp_centre_m`: the robot's grasp centre for a checkpoint in the grasp-centre frame (`deploy_frame.py`)."""
+    `grasp_centre_m`: the robot's grasp centre for a checkpoint in the grasp-centre frame (`deploy_frame.py`);
+    `zero_shot_slots`: what a zero-shot hand drives (`ZERO_SHOT_SLOTS`, `driven_slots`)."""
     checkpoint, robot = Path(checkpoint), Path(robot)
+    if zero_shot_slots not in ZERO_SHOT_SLOTS:
+        raise DeployError(f"--zero_shot_slots must be one of {ZERO_SHOT_SLOTS}, got {zero_shot_slots!r}")
+    if zero_shot_slots != "own" and not zero_shot:
+        raise DeployError(f"--zero_shot_slots={zero_shot_slots} narrows what a zero-shot hand drives: pass it "
+                          "with --zero_shot=true")  # fmt: skip
     if grasp_centre_m is not None:  # before anything is read: 3 numbers in m within 0.3 m of the wrist
         check_centre("the robot's hands", grasp_centre_m, "--grasp_centre_m")
     if not (checkpoint / "config.json").is_file() or not (checkpoint / PREPROCESSOR).is_file():
@@ -170,13 +187,31 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
         )
     output = claim(output, Kind.POLICY, inputs=[checkpoint, robot], overwrite=overwrite, flag="--output")
     try:
-        return _deploy_into(checkpoint, robot, output, zero_shot, overwrite, grasp_centre_m)
+        return _deploy_into(checkpoint, robot, output, zero_shot, overwrite, grasp_centre_m, zero_shot_slots)
     finally:
         release(output)  # the destination's lock (data/destination.py), however the binding ended
 
 
+def driven_slots(known: list[str], extra: list[str], how: str = "own") -> dict[str, list[int]]:
+    """{zero-shot hand: the UDHM slots it drives} for `how` = "nearest": the slots it shares with the trained hand
+    of `known` nearest it in morphology (`hands/morphology.nearest_hand`), so the policy sees and drives it as it
+    saw that hand, which lacks the others (they are held at 0 in its state and commanded 0); "own": {} (every slot
+    it has, those no trained hand has held at 0 in its state: `processor/slot_mask.py`)."""
+    if how == "own" or not extra:
+        return {}
+    out = {}
+    for hand in extra:
+        near = nearest_hand(hand, known)
+        shared = hands.get(hand).active_mask & hands.get(near).active_mask
+        out[hand] = [int(i) for i in np.flatnonzero(shared)]
+        dropped = [JOINT_NAMES[i] for i in np.flatnonzero(hands.get(hand).active_mask & ~shared)]
+        logger.info("zero-shot %s drives the %d slots it shares with %s, the trained hand nearest it in morphology; "
+                    "not driven: %s", hand, len(out[hand]), near, ", ".join(dropped) or "none")  # fmt: skip
+    return out
+
+
 def _deploy_into(checkpoint: Path, robot: Path, output: Path, zero_shot: bool, overwrite: bool,
-                 grasp_centre_m: list[float] | None) -> Path:  # fmt: skip
+                 grasp_centre_m: list[float] | None, how: str = "own") -> Path:  # fmt: skip
     """`deploy` into the claimed `output`."""
     check_policy_checkpoint(checkpoint)
     config = PreTrainedConfig.from_pretrained(checkpoint)
@@ -203,6 +238,8 @@ def _deploy_into(checkpoint: Path, robot: Path, output: Path, zero_shot: bool, o
             udt_native_state_layout=binding.state_layout.to_dict() if config.udt_native_state else {},
             udt_native_layout=binding.action_layout.to_dict() if config.udt_native_action else {},
         )
+    known, extra, _ = row_hands(bound)
+    binding.extra_hand_slots = driven_slots(known, extra, how)
     centres = bound_grasp_centres(config, UdhmDatasetMeta(Path(robot)), grasp_centre_m)
     if centres:  # the robot's own grasp centre turns the predicted grasp centre into its wrist command
         bound = dataclasses.replace(bound, udt_grasp_centres_m=centres)
@@ -213,6 +250,8 @@ def _deploy_into(checkpoint: Path, robot: Path, output: Path, zero_shot: bool, o
     else:
         pre.steps = _bound_pre_steps(pre.steps, bound, binding)
     pre.steps, post.steps = (_bound_scale(steps, binding) for steps in (pre.steps, post.steps))
+    if binding.extra_hand_slots:
+        _check_slots_bound(pre.steps, post.steps)
     if centres:
         pre.steps, post.steps = (bound_frame_steps(steps, bound) for steps in (pre.steps, post.steps))
     if bound.udt_native_layout and not single:
@@ -230,6 +269,7 @@ def _deploy_into(checkpoint: Path, robot: Path, output: Path, zero_shot: bool, o
         (tmp / "unidextok_deploy.json").write_text(json.dumps(
             {"checkpoint": str(checkpoint), "robot": str(robot), "robot_type": UdhmDatasetMeta(robot).robot_type,
              "fixed_hand_ids": binding.fixed_hand_ids, "zero_shot_hands": binding.extra_hands,
+             "zero_shot_slots": {h: binding.extra_hand_slots.get(h, "own") for h in binding.extra_hands},
              "grasp_centres_m": {h: centres[h] for h in UdhmDatasetMeta(robot).block_hands() if h in centres}},
             indent=2))  # fmt: skip
         check_policy_checkpoint(tmp)  # what is shipped loads, before it is called bound
@@ -264,16 +304,33 @@ def _bound_scale(steps: list, binding: Binding) -> list:
             s = HandActionScaleStep(**{**s.get_config(), "fixed_hand_ids": binding.fixed_hand_ids})
         elif isinstance(s, HandNormalizerStep):
             bound = HandNormalizerStep(**{**s.get_config(), "fixed_hand_ids": binding.fixed_hand_ids,
-                                          "extra_hands": binding.extra_hands})  # fmt: skip
+                                          "extra_hands": binding.extra_hands,
+                                          "extra_hand_slots": binding.extra_hand_slots})  # fmt: skip
             bound.load_state_dict(s.state_dict())
             s = bound
         elif isinstance(s, SlotMaskStep):
             known = [h for h in s.hand_vocabulary if h not in binding.extra_hands]
             s = SlotMaskStep(**{**s.get_config(), "fixed_hand_ids": binding.fixed_hand_ids,
                                 "hand_vocabulary": [*known, *binding.extra_hands],
-                                "extra_hands": list(binding.extra_hands)})  # fmt: skip
+                                "extra_hands": list(binding.extra_hands),
+                                "extra_hand_slots": binding.extra_hand_slots})  # fmt: skip
         out.append(s)
     return out
 
 
-__all__ = ["Binding", "DeployError", "bind_layouts", "deploy"]
+def _check_slots_bound(pre_steps: list, post_steps: list) -> None:
+    """A narrowed zero-shot hand needs the slot mask (its state held) and the hand normaliser's unnormalize (its
+    action zeroed): refuse a checkpoint trained without them rather than bind half of it."""
+    has_mask = any(isinstance(s, SlotMaskStep) for s in pre_steps)
+    has_norm = any(isinstance(s, HandNormalizerStep) and s.mode == "unnormalize" and "action" in s.modes
+                   for s in post_steps)  # fmt: skip
+    if not (has_mask and has_norm):
+        raise DeployError(
+            "--zero_shot_slots=nearest holds a zero-shot hand's other slots in the slot mask and zeroes their "
+            "action in the hand normaliser; this checkpoint was trained without "
+            f"{'the slot mask (udt_mask_slots)' if not has_mask else 'per-hand normalisation (udt_hand_norm)'}: "
+            "bind it with --zero_shot_slots=own"
+        )
+
+
+__all__ = ["ZERO_SHOT_SLOTS", "Binding", "DeployError", "bind_layouts", "deploy", "driven_slots"]

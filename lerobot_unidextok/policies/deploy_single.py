@@ -78,6 +78,8 @@ class SingleBinding:
     state_layout: NativeLayout  # the robot's native state -> the trained converted state
     action_layout: NativeLayout  # the trained action -> the robot's native action
     robot_names: list[str]  # the robot's own converted state columns
+    # per zero-shot hand, the UDHM slots it drives (`deploy.driven_slots`); absent: every slot it has
+    extra_hand_slots: dict[str, list[int]] = dataclasses.field(default_factory=dict)
 
 
 def bind_single_robot(

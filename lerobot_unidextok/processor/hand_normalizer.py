@@ -23,7 +23,9 @@ have them, and one hand's range sets another's scale. So, before LeRobot's norma
 A hand without statistics (a zero-shot hand bound by `unidextok-deploy --zero_shot=true`, `extra_hands`) is
 normalised per slot with the pooled statistics of the known hands that have that slot (MEAN_STD: the pooled mean
 and std over their frames; range modes: the lowest low and highest high); a slot no known hand has passes
-unscaled. A block without a hand (id -1) passes unscaled.
+unscaled. A block without a hand (id -1) passes unscaled. `extra_hand_slots` narrows the slots such a hand drives
+(`unidextok-deploy --zero_shot_slots=nearest`): `unnormalize` sets its others to 0 as it does the slots it lacks
+(with relative actions an offset of 0).
 
 The statistics are checked where they enter (`utils/number_checks.py`: finite, a std and frames >= 0, every hand
 of the vocabulary with statistics and no other), when the step is built and in `load_state_dict`, so a damaged
@@ -95,6 +97,9 @@ class HandNormalizerStep(ProcessorStep):
     action_names: list[str] = field(default_factory=list)  # the action's columns
     hand_vocabulary: list[str] = field(default_factory=list)  # what the hand ids index (with statistics)
     extra_hands: list[str] = field(default_factory=list)  # ids after the vocabulary: zero-shot, pooled statistics
+    # per zero-shot hand, the UDHM slots (0..21) it drives (absent: every slot of its own); unnormalize commands
+    # its other slots 0 (`unidextok-deploy --zero_shot_slots=nearest`, `slot_mask.py`)
+    extra_hand_slots: dict[str, list[int]] = field(default_factory=dict)
     fixed_hand_ids: list[int] = field(default_factory=list)  # the hand per state block ([] = per row)
     relative_actions: bool = False  # the action is an offset from the state (scaled, not shifted)
     hand_ids_key: str = OBS_HAND_IDS
@@ -124,7 +129,15 @@ class HandNormalizerStep(ProcessorStep):
         if self.fixed_hand_ids and len(self.fixed_hand_ids) != len(self._sides):
             raise ValueError(f"{name}: fixed_hand_ids {self.fixed_hand_ids} must give one hand per block {self._sides}")
         names = self.hand_names
-        self._active = torch.as_tensor(np.stack([hands.get(h).active_mask for h in names]))  # (V + E, 22)
+        active = np.stack([hands.get(h).active_mask for h in names])  # (V + E, 22)
+        self.extra_hand_slots = {h: sorted(int(i) for i in slots) for h, slots in self.extra_hand_slots.items()}
+        stray = sorted(set(self.extra_hand_slots) - set(self.extra_hands))
+        if stray or any(not 0 <= i < UDHM_DIM for slots in self.extra_hand_slots.values() for i in slots):
+            raise ValueError(f"{name}: extra_hand_slots must give slots 0..{UDHM_DIM - 1} of the extra_hands "
+                             f"{self.extra_hands}; got {self.extra_hand_slots}")  # fmt: skip
+        for h, slots in self.extra_hand_slots.items():
+            active[names.index(h)] &= np.isin(np.arange(UDHM_DIM), slots)
+        self._active = torch.as_tensor(active)
         fix = "compute them again (lerobot-train fills udt_hand_stats from the dataset)"
         for key in self.modes:
             if self.stats.get(key):
@@ -296,6 +309,7 @@ class HandNormalizerStep(ProcessorStep):
             "action_names": list(self.action_names),
             "hand_vocabulary": list(self.hand_vocabulary),
             "extra_hands": list(self.extra_hands),
+            "extra_hand_slots": {h: list(slots) for h, slots in self.extra_hand_slots.items()},
             "fixed_hand_ids": list(self.fixed_hand_ids),
             "relative_actions": self.relative_actions,
             "hand_ids_key": self.hand_ids_key,

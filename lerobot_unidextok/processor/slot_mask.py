@@ -17,7 +17,9 @@ A hand the policy never trained on (`extra_hands`, after the vocabulary: `unidex
 can have slots that none of the trained hands has. Every training row held 0 there, and LeRobot's statistics of
 such a column have std 0, so its normaliser divides the new hand's angle by 1e-8. For that hand's blocks the step
 holds those state slots at 0, the value the policy learnt with (the input side of the mask); a trained hand's
-rows are left as they are.
+rows are left as they are. `extra_hand_slots` can narrow what a zero-shot hand drives further (`unidextok-deploy
+--zero_shot_slots=nearest`: the slots of the trained hand nearest it in morphology): its other slots are held at
+0 too, as in the rows of that trained hand, which lacks them (the hand normaliser commands them 0).
 """
 
 from __future__ import annotations
@@ -51,6 +53,8 @@ class SlotMaskStep(ProcessorStep):
     hand_ids_key: str = OBS_HAND_IDS
     # the vocabulary's last hands, never trained on (zero-shot): their state slots no trained hand has held at 0
     extra_hands: list[str] = field(default_factory=list)
+    # per zero-shot hand, the UDHM slots (0..21) it drives (absent: every slot of its own); its others held at 0
+    extra_hand_slots: dict[str, list[int]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self._state_blocks = find_udhm_blocks(self.state_names)
@@ -69,7 +73,19 @@ class SlotMaskStep(ProcessorStep):
         if self._first_extra < 0 or self.hand_vocabulary[self._first_extra :] != self.extra_hands:
             raise ValueError(f"{SLOT_MASK_STEP_NAME}: extra_hands {self.extra_hands} must end hand_vocabulary "
                              f"{self.hand_vocabulary}")  # fmt: skip
-        self._untrained = torch.as_tensor(~active[: self._first_extra].any(axis=0))  # (22,) slots no trained hand has
+        untrained = ~active[: self._first_extra].any(axis=0)  # (22,) slots no trained hand has
+        self.extra_hand_slots = {h: sorted(int(i) for i in slots) for h, slots in self.extra_hand_slots.items()}
+        stray = sorted(set(self.extra_hand_slots) - set(self.extra_hands))
+        bad = {h: s for h, s in self.extra_hand_slots.items() if any(not 0 <= i < UDHM_DIM for i in s)}
+        if stray or bad:
+            raise ValueError(f"{SLOT_MASK_STEP_NAME}: extra_hand_slots must give slots 0..{UDHM_DIM - 1} of the "
+                             f"extra_hands {self.extra_hands}; got {stray or bad}")  # fmt: skip
+        hold = np.zeros((len(self.hand_vocabulary) + 1, UDHM_DIM), bool)  # (V + 1, 22): the last row, no hand
+        for i, name in enumerate(self.extra_hands, start=self._first_extra):
+            hold[i] = untrained
+            if name in self.extra_hand_slots:
+                hold[i] |= ~np.isin(np.arange(UDHM_DIM), self.extra_hand_slots[name])
+        self._hold = torch.as_tensor(hold)
 
     def pad_mask(self, ids: torch.Tensor, batch: int) -> torch.Tensor:
         """(batch, A) bool from (R, H) hand ids (R = batch, or 1 for a robot's fixed hands)."""
@@ -84,15 +100,16 @@ class SlotMaskStep(ProcessorStep):
         return mask
 
     def held_state(self, state: torch.Tensor, ids: torch.Tensor) -> torch.Tensor:
-        """`state` (..., D) with the slots no trained hand has at 0 in every block an extra hand holds; `ids`
-        (R, H) hand ids, R = 1 (fixed) or the rows of `state` flattened over its leading dimensions."""
+        """`state` (..., D) with the slots no trained hand has (and those an extra hand does not drive,
+        `extra_hand_slots`) at 0 in every block an extra hand holds; `ids` (R, H) hand ids, R = 1 (fixed) or the
+        rows of `state` flattened over its leading dimensions."""
         rows = state.reshape(-1, state.shape[-1])
         ids = ids.reshape(-1, len(self._sides))
         ids = ids.expand(rows.shape[0], -1) if ids.shape[0] == 1 else ids
         out = rows.clone()
         for block in self._state_blocks:
-            new_hand = (ids[:, self._sides.index(block.side)] >= self._first_extra).to(rows.device)  # (R,)
-            hold = new_hand[:, None] & self._untrained.to(rows.device)[None, :]  # (R, 22)
+            hand = ids[:, self._sides.index(block.side)]  # (R,)
+            hold = self._hold[torch.where(hand < 0, len(self.hand_vocabulary), hand).cpu()].to(rows.device)  # (R, 22)
             out[:, block.slice] = torch.where(hold, torch.zeros((), dtype=rows.dtype, device=rows.device),
                                               rows[:, block.slice])  # fmt: skip
         return out.reshape(state.shape)
@@ -134,6 +151,7 @@ class SlotMaskStep(ProcessorStep):
             "fixed_hand_ids": list(self.fixed_hand_ids),
             "hand_ids_key": self.hand_ids_key,
             "extra_hands": list(self.extra_hands),
+            "extra_hand_slots": {h: list(slots) for h, slots in self.extra_hand_slots.items()},
         }
 
 

@@ -26,6 +26,9 @@ class DeployConfig:
     output: str = ""  # the bound checkpoint folder (must not exist unless --overwrite)
     # a robot whose hands were never in the mix: bind it anyway (its hands get no identity the policy knows)
     zero_shot: bool = False
+    # what a zero-shot hand drives: "own" (every slot it has) or "nearest" (only the slots of the trained hand
+    # nearest it in morphology; its others held at 0 and commanded 0: docs/pooling.md "Zero-shot slots")
+    zero_shot_slots: str = "own"
     # the robot's grasp centre (x, y, z m, in its wrist frame) for a policy that learned the wrist in each hand's
     # grasp-centre frame, within 0.3 m of the wrist; default: the robot's converted dataset's record, else the
     # checkpoint's for a known hand (a recorded centre the flag overrides is named in a note)
@@ -44,7 +47,7 @@ def deploy_cli(cfg: DeployConfig) -> None:
         if not getattr(cfg, flag):
             raise DeployError(f"--{flag} is required (unidextok-deploy --help)")
     out = deploy(cfg.checkpoint, dataset_folder(cfg.robot), cfg.output, zero_shot=cfg.zero_shot,
-                 overwrite=cfg.overwrite, grasp_centre_m=cfg.grasp_centre_m)
+                 overwrite=cfg.overwrite, grasp_centre_m=cfg.grasp_centre_m, zero_shot_slots=cfg.zero_shot_slots)
     print(f"wrote {out}: {cfg.checkpoint} bound to the robot of {cfg.robot}")
 
 

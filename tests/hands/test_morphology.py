@@ -5,7 +5,7 @@ import pytest
 
 from lerobot_unidextok import hands
 from lerobot_unidextok.constants import UDHM_DIM
-from lerobot_unidextok.hands.morphology import MORPHOLOGY_WIDTH, morphology_vector
+from lerobot_unidextok.hands.morphology import MORPHOLOGY_WIDTH, morphology_vector, nearest_hand
 from lerobot_unidextok.udhm import JOINT_LIMITS_RAD
 
 
@@ -35,3 +35,24 @@ def test_hands_of_different_kinematics_get_different_vectors():
     vectors = {n: morphology_vector(n).tobytes() for n in ("inspire_rh56_unitree", "shadow", "allegro", "leap",
                                                           "xhand1", "linkerhand_l10", "unitree_dex3_1")}  # fmt: skip
     assert len(set(vectors.values())) == len(vectors)
+
+
+SIX = ["inspire_rh56_unitree", "shadow", "allegro", "leap", "xhand1", "linkerhand_l10"]
+
+
+@pytest.mark.parametrize("name", SIX)
+def test_the_nearest_hand_is_the_least_distant_morphology(name):
+    others = [h for h in SIX if h != name]
+    near = nearest_hand(name, others)
+    distance = {h: float(np.linalg.norm(morphology_vector(h) - morphology_vector(name))) for h in others}
+    assert near in others and distance[near] == min(distance.values())
+    assert nearest_hand(name, [*others, name]) == name  # a hand is nearest itself
+
+
+def test_nearest_hands_of_the_pool_follow_their_slots():
+    """The four-fingered Shadow is nearest the four-fingered LEAP, the L10 the Inspire (both five fingers with a
+    two-joint thumb and one flexion per finger)."""
+    assert nearest_hand("shadow", [h for h in SIX if h != "shadow"]) == "leap"
+    assert nearest_hand("linkerhand_l10", [h for h in SIX if h != "linkerhand_l10"]) == "inspire_rh56_unitree"
+    with pytest.raises(ValueError, match="no hands to compare"):
+        nearest_hand("shadow", [])

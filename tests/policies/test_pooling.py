@@ -367,6 +367,36 @@ def _save_checkpoint(cfg, meta, out):
     return out
 
 
+def test_extra_hand_slots_narrow_what_a_zero_shot_hand_drives():
+    """With `extra_hand_slots` (unidextok-deploy --zero_shot_slots=nearest) a zero-shot hand's state reads 0 on
+    every slot outside those it drives, as well as on the slots no trained hand has; a trained hand's rows are as
+    they were, and the narrowing survives get_config (the saved processor)."""
+    from lerobot.lerobot_types import TransitionKey
+
+    names = [f"{side}_{n}" for side in ("left", "right") for n in UDHM_JOINT_NAMES]
+    vocab = [INSPIRE, "allegro", "shadow"]
+    shadow, allegro = hands.get("shadow").active_mask, hands.get("allegro").active_mask
+    driven = [int(i) for i in np.flatnonzero(shadow & allegro)]
+    step = SlotMaskStep(state_names=names, action_names=names, hand_vocabulary=vocab, extra_hands=["shadow"],
+                        extra_hand_slots={"shadow": driven}, fixed_hand_ids=[1, 2])  # fmt: skip
+    state = torch.rand(2, 2 * UDHM_DIM) + 0.1
+    out = step({TransitionKey.OBSERVATION: {OBS_STATE: state}})[TransitionKey.OBSERVATION][OBS_STATE]
+    kept = torch.zeros(UDHM_DIM, dtype=torch.bool)
+    kept[driven] = True
+    assert torch.equal(out[:, :UDHM_DIM], state[:, :UDHM_DIM])  # the Allegro (trained), left
+    assert torch.equal(out[:, UDHM_DIM:], torch.where(kept, state[:, UDHM_DIM:], torch.zeros(())))  # the Shadow
+    assert len(driven) < int(shadow.sum()) and (shadow & ~allegro & (hands.get(INSPIRE).active_mask | allegro)).any()
+    again = SlotMaskStep(**step.get_config())
+    assert again.extra_hand_slots == {"shadow": driven}
+    assert torch.equal(again({TransitionKey.OBSERVATION: {OBS_STATE: state}})[TransitionKey.OBSERVATION][OBS_STATE], out)
+    with pytest.raises(ValueError, match="extra_hand_slots must give slots"):
+        SlotMaskStep(state_names=names, action_names=names, hand_vocabulary=vocab, extra_hands=["shadow"],
+                     extra_hand_slots={"allegro": driven})  # fmt: skip
+    with pytest.raises(ValueError, match="extra_hand_slots must give slots"):
+        SlotMaskStep(state_names=names, action_names=names, hand_vocabulary=vocab, extra_hands=["shadow"],
+                     extra_hand_slots={"shadow": [22]})  # fmt: skip
+
+
 @pytest.mark.parametrize("state_half", [False, True], ids=["actions_per_hand", "state_too"])
 def test_a_single_robot_checkpoint_binds_zero_shot_to_another_robots_hands(tok_dir, g1_like_hands, tmp_path,
                                                                            state_half):  # fmt: skip
@@ -421,6 +451,58 @@ def test_a_single_robot_checkpoint_binds_zero_shot_to_another_robots_hands(tok_d
         mean, std = torch.tensor(s["mean"]), torch.tensor(s["std"])
         want = torch.where(has, (x[:, block.slice] - mean) / torch.where(std > 1e-6, std, 1.0), x[:, block.slice])
         torch.testing.assert_close(z[:, block.slice], want, rtol=1e-5, atol=1e-5)
+
+
+def test_zero_shot_slots_nearest_drives_only_the_nearest_trained_hands_slots(tok_dir, g1_like_hands, tmp_path):
+    """--zero_shot_slots=nearest: an Inspire-only checkpoint bound to two XHand1 hands drives only the slots the
+    XHand1 shares with the Inspire (its nearest, and only, trained hand): the bound pre-processor holds its other
+    state slots at 0 and the post-processor commands 0 there; the record names the slots. Asked without
+    --zero_shot, or with an unknown mode, the binding is refused before anything is written."""
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.lerobot_types import TransitionKey
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    import lerobot_policy_unidextok  # noqa: F401
+    from lerobot_unidextok.policies.deploy import DeployError, deploy
+
+    cfg, meta = _config("act_udt", tok_dir, g1_like_hands["root"])
+    checkpoint = _save_checkpoint(cfg, meta, tmp_path / "inspire_act")
+    robot = _dexora_robot(tmp_path)
+    for kw, match in (({}, "pass it with --zero_shot=true"), ({"zero_shot": True}, "must be one of")):
+        with pytest.raises(DeployError, match=match):
+            deploy(checkpoint, robot, tmp_path / "refused", zero_shot_slots="nearest" if kw == {} else "all", **kw)
+        assert not (tmp_path / "refused").exists()
+    bound = deploy(checkpoint, robot, tmp_path / "on_xhand", zero_shot=True, zero_shot_slots="nearest")
+    xhand, inspire = hands.get("xhand1").active_mask, hands.get(INSPIRE).active_mask
+    driven = [int(i) for i in np.flatnonzero(xhand & inspire)]
+    assert 0 < len(driven) < int(xhand.sum())
+    record = json.loads((bound / "unidextok_deploy.json").read_text())
+    assert record["zero_shot_slots"] == {"xhand1": driven}
+    cfg2 = PreTrainedConfig.from_pretrained(bound)
+    pre, post = make_pre_post_processors(cfg2, pretrained_path=str(bound))
+    mask = next(s for s in pre.steps if isinstance(s, SlotMaskStep))
+    unnormalise = next(s for s in post.steps if isinstance(s, HandNormalizerStep))
+    assert mask.extra_hand_slots == unnormalise.extra_hand_slots == {"xhand1": driven}
+    kept = torch.zeros(UDHM_DIM, dtype=torch.bool)
+    kept[driven] = True
+    state = torch.rand(1, len(cfg2.udt_state_names)) + 0.1
+    held = mask({TransitionKey.OBSERVATION: {OBS_STATE: state}})[TransitionKey.OBSERVATION][OBS_STATE]
+    action = unnormalise({TransitionKey.ACTION: torch.randn(1, len(cfg2.udt_action_names)) + 3.0})[TransitionKey.ACTION]
+    for block in find_udhm_blocks(cfg2.udt_state_names):
+        assert torch.equal(held[0, block.slice], torch.where(kept, state[0, block.slice], torch.zeros(())))
+    for block in find_udhm_blocks(cfg2.udt_action_names):
+        assert (action[0, block.slice][~kept] == 0).all() and (action[0, block.slice][kept] != 0).all()
+    policy = get_policy_class(cfg2.type).from_pretrained(bound).eval()
+    from lerobot.datasets import LeRobotDataset
+
+    native = post(policy.select_action(pre({OBS_STATE: LeRobotDataset("test/dexora", root=robot)[5][OBS_STATE]})))
+    assert native.shape == (1, len(UdhmDatasetMeta(robot).native_layout(ACTION).native_names))
+    assert torch.isfinite(native).all()
+    cfg, meta = _config("act_udt", tok_dir, g1_like_hands["root"], udt_mask_slots=False)
+    unmasked = _save_checkpoint(cfg, meta, tmp_path / "unmasked")
+    with pytest.raises(DeployError, match=r"without the slot mask \(udt_mask_slots\).*--zero_shot_slots=own"):
+        deploy(unmasked, robot, tmp_path / "refused", zero_shot=True, zero_shot_slots="nearest")
+    assert not (tmp_path / "refused").exists()
 
 
 def _dexora_robot(tmp_path):
