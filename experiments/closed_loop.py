@@ -79,7 +79,9 @@ Arms, per task, target hand and seed; mix arms and zero-shot per pool size (`<ar
   the target dataset's statistics;
 - `zero_shot`: the pool's other hands, none of the target's demonstrations, bound with `--zero_shot=true` (one
   other hand: its converted recording, no mix); `zero_shot_no_frame`: the same in the robots' wrist frames;
-  `zero_shot_state`: the same with the state-only view (`mix_state`'s flags).
+  `zero_shot_state`: the same with the state-only view (`mix_state`'s flags); `zero_shot_nearest`: `zero_shot`'s
+  policy (trained once) bound with `--zero_shot_slots=nearest` as well, so the target drives only the slots of
+  the pool's hand nearest it in morphology (`hands/morphology.nearest_hand`).
 Also measured: the scripted expert on each seed's evaluation episodes. `robustness` gives per task and pool size
 the gain of the mix over the hand alone per target with 95 % intervals, its worst, median and mean; `plot` draws
 those gains (`closed_loop.png`) and success against the target's demonstrations (`closed_loop_curves.png`).
@@ -176,6 +178,9 @@ ARMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "zero_shot_own_stats": ("without", (OWN_STATS,)),
     "zero_shot_no_frame": ("without", NO_FRAME),
     "zero_shot_state": ("without", STATE),  # the state-only view's zero-shot, beside `alone_state` and `mix_state`
+    # `zero_shot`'s policy bound with `unidextok-deploy --zero_shot_slots=nearest`: the target drives only the slots
+    # of the trained hand nearest it in morphology (`BIND`; trained once, `SAME_POLICY`)
+    "zero_shot_nearest": ("without", ()),
     # issue 57's mechanisms, both in the recipe (act_udt_cpu.yaml), each taken out: a residual output head per hand
     # around the shared trunk (policies/hand_heads.py), and the hand told by its morphology vector instead of a
     # one-hot (hands/morphology.py; a zero-shot hand gets its own vector, not zeros); measured on the recipe with
@@ -210,7 +215,10 @@ PRUNED = (*ABLATIONS, "alone_no_frame", "pooled", "mix_rule")
 MECHANISMS = ("mix_own_stats", "zero_shot_own_stats", "mix_heads", "mix_morph", "mix_onehot", "zero_shot_morph",
               "zero_shot_onehot", "mix_shrink",
               "zero_shot_shrink", "state_norm_shrink", "zero_shot_state_norm_shrink", "mix_ft", "mix_ft_state_norm",
-              "mix_ft_default")
+              "mix_ft_default", "zero_shot_nearest")
+# arms that bind another arm's policy differently: the arm whose policy they take, and unidextok-deploy's options
+SAME_POLICY = {"zero_shot_nearest": "zero_shot"}
+BIND = {"zero_shot_nearest": {"zero_shot_slots": "nearest"}}
 FINE_TUNED = ("mix_ft", "mix_ft_state_norm", "mix_ft_default")  # trained in two stages: the mix, then the target's own dataset (`pool_then_fine_tune`)
 FINGER_ONLY = ("packed",)  # the grasp closes every finger together: insertion and packing tie there (docs/pooling.md)
 MAPPINGS = {"semantic": "semantic", "packed": "append_pad"}  # a conversion's name -> unidextok-convert --mapping
@@ -653,12 +661,13 @@ def _serve_frames_from_memory() -> None:
     lerobot_train.make_train_eval_datasets = make_train_eval_datasets
 
 
-def bind(checkpoint: Path, robot: Path, out: Path, zero_shot: bool = False) -> Path:
+def bind(checkpoint: Path, robot: Path, out: Path, zero_shot: bool = False, **options) -> Path:
+    """`unidextok-deploy` into `out` (kept when it is there); `options`: its further flags (`BIND`)."""
     from lerobot_unidextok.policies.deploy import deploy
 
     if not (out / "model.safetensors").is_file():
         shutil.rmtree(out, ignore_errors=True)
-        deploy(checkpoint, robot, out, zero_shot=zero_shot)
+        deploy(checkpoint, robot, out, zero_shot=zero_shot, **options)
     return out
 
 
@@ -765,6 +774,12 @@ def policy_dir(cfg: ClosedLoopConfig, job: dict) -> Path:
     return Path(cfg.output_root) / NAME / "policies" / job["task"] / job["hand"] / f"seed{job['seed']}" / job["arm"]
 
 
+def trained_dir(cfg: ClosedLoopConfig, job: dict) -> Path:
+    """Where the job's policy is trained: its own folder, or that of the arm whose policy it binds (`SAME_POLICY`)."""
+    same = SAME_POLICY.get(job["kind"])
+    return policy_dir(cfg, {**job, "arm": arm_label(same, job["demos"], job["pool"])}) if same else policy_dir(cfg, job)
+
+
 def run_path(cfg: ClosedLoopConfig, job: dict) -> Path:
     """Where a job's result is kept (`runs/seed<s>/<task>__<hand>__<label>.json`)."""
     return Path(cfg.output_root) / NAME / "runs" / f"seed{job['seed']}" / f"{job['task']}__{job['hand']}__{job['arm']}.json"
@@ -797,8 +812,10 @@ def run_one(cfg: ClosedLoopConfig, job: dict) -> dict:
     if job["kind"] in FINE_TUNED:
         bound, stages = pool_then_fine_tune(cfg, job, p, out)
     else:
-        model = train_policy(train_args(cfg, p["root"], out, seed, arm_flags(cfg, job["kind"]), steps), out)
-        bound = model if p["robot"] is None else bind(model, p["robot"], out / "bound", zero_shot=p["zero_shot"])
+        trained = trained_dir(cfg, job)
+        model = train_policy(train_args(cfg, p["root"], trained, seed, arm_flags(cfg, job["kind"]), steps), trained)
+        bound = model if p["robot"] is None else bind(model, p["robot"], out / "bound", zero_shot=p["zero_shot"],
+                                                      **BIND.get(job["kind"], {}))  # fmt: skip
     train_cpu = time.process_time() - cpu0
     cpu1 = time.process_time()
     scores = evaluate(cfg, bound, task, hand, seed)
@@ -807,7 +824,8 @@ def run_one(cfg: ClosedLoopConfig, job: dict) -> dict:
         if p["root"] not in p["paths"] and not p["zero_shot"]
         else {}
     )
-    result = {**job, **scores, **share, **stages, "steps": steps, "dataset": str(p["root"]), "recipe": settings,
+    same = {"same_policy_as": arm_label(SAME_POLICY[job["kind"]], job["demos"], job["pool"])} if job["kind"] in SAME_POLICY else {}
+    result = {**job, **scores, **share, **stages, **same, "steps": steps, "dataset": str(p["root"]), "recipe": settings,
               "train_cpu_s": round(train_cpu, 1),
               "eval_cpu_s": round(time.process_time() - cpu1, 1), "wall_s": round(time.time() - t0, 1)}  # fmt: skip
     done.parent.mkdir(parents=True, exist_ok=True)
@@ -845,14 +863,15 @@ def user_commands(cfg: ClosedLoopConfig, job: dict) -> list[str]:
                                *weights, *by]))  # fmt: skip
     steps = job_steps(cfg, job, p["root"]) if job["kind"] == "mix_rule" else cfg.steps
     fine_tuned = job["kind"] in FINE_TUNED
-    trained = out / "pooled" if fine_tuned else out
+    trained = out / "pooled" if fine_tuned else trained_dir(cfg, job)
     steps = fine_tune_steps(cfg)[0] if fine_tuned else steps
     args = train_args(cfg, p["root"], trained, seed, arm_flags(cfg, job["kind"]), steps)
     lines.append(" ".join([f"lerobot-train --config_path=$(unidextok-config {CONFIG})", *map(q, args)]))
     policy = trained / "checkpoints" / "last" / "pretrained_model"
     if p["robot"] is not None:
         lines.append(f"unidextok-deploy --checkpoint={q(str(policy))} --robot={q(str(p['robot']))} "
-                     f"--output={q(str(out / 'bound'))}" + (" --zero_shot=true" if p["zero_shot"] else ""))  # fmt: skip
+                     f"--output={q(str(out / 'bound'))}" + (" --zero_shot=true" if p["zero_shot"] else "")
+                     + "".join(f" --{k}={v}" for k, v in BIND.get(job["kind"], {}).items()))  # fmt: skip
         policy = out / "bound"
     if fine_tuned:
         args = fine_tune_args(cfg, policy, p["robot"], out / "fine_tuned", seed, fine_tune_steps(cfg)[1])
@@ -1061,6 +1080,7 @@ ARM_TITLES = {"mix": "mix", "mix_state": "mix, state input", "mix_rule": "mix, b
               "zero_shot_no_frame": "zero-shot without the grasp-centre frame", "alone": "alone",
               "alone_state": "alone, state input", "alone_no_frame": "alone without the grasp-centre frame",
               "zero_shot_state": "zero-shot, state input",
+              "zero_shot_nearest": "zero-shot, the recipe's policy driving its nearest trained hand's slots (--zero_shot_slots=nearest; over the recipe's zero-shot)",
               "mix_heads": "mix, one-hot identity (heads, no morphology)",
               "mix_morph": "mix, no per-hand heads (morphology only)",
               "zero_shot_morph": "zero-shot, no per-hand heads (morphology only)",
@@ -1154,7 +1174,8 @@ def mechanism_lines(result: dict) -> list[str]:
                           ("state_norm_shrink", "alone"), ("mix_ft", "alone"), ("mix_ft_state_norm", "alone"),
                           ("mix_ft_default", "alone"),
                           ("zero_shot", before), ("zero_shot_onehot", before), ("zero_shot_shrink", before),
-                          ("zero_shot_state_norm_shrink", before), ("zero_shot_morph", before)):  # fmt: skip
+                          ("zero_shot_state_norm_shrink", before), ("zero_shot_morph", before),
+                          ("zero_shot_nearest", "zero_shot")):  # fmt: skip
             for k in result["config"]["pools"]:
                 label, ref = (f"{arm}_{n}_pool{k}", f"alone_{n}") if base == "alone" else (f"{arm}_pool{k}", f"{base}_pool{k}")
                 pairs = {h: a[label]["mean"] - a[ref]["mean"] for h, a in by_hand.items() if label in a and ref in a}

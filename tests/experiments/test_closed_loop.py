@@ -505,3 +505,22 @@ def test_a_run_standing_for_two_arms_is_paid_for_once():
     b = {**run, "arm": "zero_shot_own_stats_pool2", "same_policy_as": "zero_shot_pool2", "train_cpu_s": 10.0}
     other_seed = {**b, "seed": 1}  # its twin is not among the runs: paid
     assert cl.paid_runs([a, b, other_seed]) == [a, other_seed]
+
+
+def test_the_nearest_slots_arm_binds_the_zero_shot_policy_with_the_deploy_flag_and_trains_nothing_new():
+    """zero_shot_nearest is `zero_shot`'s policy (the same training command, output folder and recipe) bound with
+    `unidextok-deploy --zero_shot=true --zero_shot_slots=nearest` into a folder of its own."""
+    cfg = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], pools=[6], demos=[10], arms=["zero_shot", "zero_shot_nearest"],
+                              seeds=[0])  # fmt: skip
+    by_kind = {j["kind"]: j for j in cl.jobs(cfg) if j["hand"] == "shadow"}
+    plain, near = by_kind["zero_shot"], by_kind["zero_shot_nearest"]
+    assert cl.jobs(cfg)[-1]["kind"] == "zero_shot_nearest"  # a mechanism: after the table's arms
+    assert cl.trained_dir(cfg, near) == cl.policy_dir(cfg, plain) != cl.policy_dir(cfg, near)
+    assert cl.recipe(cfg, "zero_shot_nearest") == cl.recipe(cfg, "zero_shot")
+    lines, plain_lines = cl.user_commands(cfg, near), cl.user_commands(cfg, plain)
+    train = [x for x in lines if x.startswith("lerobot-train ")]
+    assert train == [x for x in plain_lines if x.startswith("lerobot-train ")]
+    deploy = next(x for x in lines if x.startswith("unidextok-deploy "))
+    assert deploy.endswith(" --zero_shot=true --zero_shot_slots=nearest")
+    assert f"--output={cl.policy_dir(cfg, near) / 'bound'}" in deploy
+    assert lines[-1].startswith(f"lerobot-eval --policy.path={cl.policy_dir(cfg, near) / 'bound'} ")
