@@ -892,6 +892,17 @@ def paid_runs(runs: list[dict]) -> list[dict]:
     return [r for r in runs if (r["task"], r["hand"], r["seed"], r.get("same_policy_as")) not in labels]
 
 
+def run_costs(runs: list[dict]) -> dict:
+    """Training and evaluation CPU seconds, wall seconds, policies and evaluations of `runs`: a policy is paid once
+    (`paid_runs`); another arm's policy bound a second way (`SAME_POLICY`) is trained once but evaluated again, so
+    its evaluation is paid."""
+    paid = paid_runs(runs)
+    scored = paid + [r for r in runs if r["kind"] in SAME_POLICY and r not in paid]
+    return {"train_cpu_s": round(sum(r["train_cpu_s"] for r in paid), 1),
+            "eval_cpu_s": round(sum(r["eval_cpu_s"] for r in scored), 1), "evaluations": len(scored),
+            "runs_wall_s": round(sum(r["wall_s"] for r in scored), 1), "policies": len(paid)}  # fmt: skip
+
+
 def run(cfg: ClosedLoopConfig) -> dict:
     from lerobot_env_unidextok.success import wilson_interval
 
@@ -911,10 +922,8 @@ def run(cfg: ClosedLoopConfig) -> dict:
     paid = paid_runs(runs)
     result = {"experiment": NAME, "protocol": PROTOCOL, "config": dataclasses.asdict(cfg), "runs": runs, "summary": summary,
               "robustness": robustness(summary, cfg), "experts": experts, "recording": recordings(cfg),
-              "costs": {"data_cpu_s": data_cpu_s(cfg, todo), "train_cpu_s": round(sum(r["train_cpu_s"] for r in paid), 1),
-                        "eval_cpu_s": round(sum(r["eval_cpu_s"] for r in paid), 1),
+              "costs": {"data_cpu_s": data_cpu_s(cfg, todo), **run_costs(runs),
                         "expert_cpu_s": round(sum(e["cpu_s"] for e in experts.values()), 1),
-                        "runs_wall_s": round(sum(r["wall_s"] for r in paid), 1), "policies": len(paid),
                         "this_process_cpu_s": round(time.process_time() - cpu0, 1)},
               "git_commit": git_commit(), "wall_seconds": round(time.time() - t0, 1),
               "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
@@ -1205,7 +1214,8 @@ def markdown(result: dict) -> str:
     cpu_min = sum(costs[k] for k in ("data_cpu_s", "train_cpu_s", "eval_cpu_s", "expert_cpu_s")) / 60
     runs = result["runs"]
     policies = costs.get("policies", len(runs))  # results before the field: every run its own policy
-    per_policy = (costs["train_cpu_s"] / policies, costs["eval_cpu_s"] / policies) if policies else (0, 0)
+    evaluations = costs.get("evaluations", policies)  # results before the field: one evaluation per policy
+    per_policy = (costs["train_cpu_s"] / policies, costs["eval_cpu_s"] / evaluations) if policies else (0, 0)
     if result.get("protocol") == PROTOCOL:
         how = (f"(each its own recording of every hand and its own {cfg['eval_episodes']} evaluation episodes), and "
                f"the 95 % Wilson interval of the pooled episodes. Every dataset holds only the demonstrations its arm "
@@ -1225,7 +1235,10 @@ def markdown(result: dict) -> str:
         f"{f' ({len(runs)} runs: a run standing for two arms is one policy)' if policies != len(runs) else ''} "
         f"({costs['data_cpu_s'] / 60:.1f} data, {costs['train_cpu_s'] / 60:.1f} training, {costs['eval_cpu_s'] / 60:.1f} "
         f"evaluation, {costs['expert_cpu_s'] / 60:.1f} experts; per policy {per_policy[0] / 60:.2f} training and "
-        f"{per_policy[1] / 60:.2f} evaluation); the policies took {costs['runs_wall_s'] / 60:.0f} min of wall time "
+        + (f"{per_policy[1] / 60:.2f} evaluation)" if evaluations == policies else
+           f"per evaluation {per_policy[1] / 60:.2f}: {evaluations} evaluations, a policy bound a second way scored "
+           "again)")
+        + f"; the policies took {costs['runs_wall_s'] / 60:.0f} min of wall time "
         "summed over them (runs already done are reused, so one command may be split over processes).", ""]  # fmt: skip
     lines += robustness_lines(result)
     lines += mechanism_lines(result)

@@ -4,6 +4,7 @@ unidextok-deploy, each scored by lerobot-eval's rollout in the simulator; the da
 only the demonstrations its arm trains on, each seed its own recording and evaluation episodes), the pool rule,
 the rendered user commands, the robustness summary and the CPU accounting."""
 
+import dataclasses
 import json
 import shlex
 
@@ -524,3 +525,22 @@ def test_the_nearest_slots_arm_binds_the_zero_shot_policy_with_the_deploy_flag_a
     assert deploy.endswith(" --zero_shot=true --zero_shot_slots=nearest")
     assert f"--output={cl.policy_dir(cfg, near) / 'bound'}" in deploy
     assert lines[-1].startswith(f"lerobot-eval --policy.path={cl.policy_dir(cfg, near) / 'bound'} ")
+
+
+def test_a_policy_bound_a_second_way_pays_its_evaluation_not_its_training():
+    """The costs line: zero_shot_nearest's runs add their evaluation (a binding and 50 episodes of their own) but
+    no policy and no training to the zero-shot runs whose policy they bind."""
+    cfg = cl.ClosedLoopConfig(tasks=["GraspLift-v0"], pools=[6], demos=[10], arms=["zero_shot", "zero_shot_nearest"],
+                              seeds=[0])  # fmt: skip
+    base = {"task": "GraspLift-v0", "hand": "shadow", "seed": 0, "successes": 10, "episodes": 50, "wall_s": 60.0}
+    runs = [{**base, "arm": "zero_shot_pool6", "kind": "zero_shot", "train_cpu_s": 30.0, "eval_cpu_s": 6.0},
+            {**base, "arm": "zero_shot_nearest_pool6", "kind": "zero_shot_nearest", "same_policy_as": "zero_shot_pool6",
+             "train_cpu_s": 0.5, "eval_cpu_s": 6.0}]  # fmt: skip
+    costs = cl.run_costs(runs)
+    assert costs == {"train_cpu_s": 30.0, "eval_cpu_s": 12.0, "evaluations": 2, "runs_wall_s": 120.0, "policies": 1}
+    assert cl.run_costs(runs[1:])["policies"] == 1  # without its twin among the runs, it is the policy paid for
+    result = {"config": dataclasses.asdict(cfg), "runs": runs, "summary": cl.summarise(runs, cfg), "protocol": cl.PROTOCOL,
+              "costs": {"data_cpu_s": 0.0, "expert_cpu_s": 0.0, **costs}, "experts": {}, "goals": []}  # fmt: skip
+    text = cl.markdown(result)
+    assert "for 1 policies (2 runs: a run standing for two arms is one policy)" in text
+    assert "per policy 0.50 training and per evaluation 0.10: 2 evaluations" in text
