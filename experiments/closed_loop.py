@@ -919,7 +919,6 @@ def run(cfg: ClosedLoopConfig) -> dict:
                                    "per_seed": {str(s): e["successes"] for s, e in per_seed.items()}}  # fmt: skip
     runs = [run_one(cfg, job) for job in todo]
     summary = summarise(runs, cfg)
-    paid = paid_runs(runs)
     result = {"experiment": NAME, "protocol": PROTOCOL, "config": dataclasses.asdict(cfg), "runs": runs, "summary": summary,
               "robustness": robustness(summary, cfg), "experts": experts, "recording": recordings(cfg),
               "costs": {"data_cpu_s": data_cpu_s(cfg, todo), **run_costs(runs),
@@ -1320,7 +1319,7 @@ def plot(result: dict, out_path: Path) -> dict[str, Path]:
 def plot_curves(result: dict, out_path: Path) -> Path:
     """Success (%) against the target's demonstrations, one panel per task (rows) and target hand (columns), the
     mix arms at the largest pool: the hand alone, the mix (and its other recipes) as curves, zero-shot at 0
-    (hollow: without the grasp-centre frame), the expert as a dashed line; bars are 95 % Wilson intervals."""
+    (hollow: without the grasp-centre frame; bound with --zero_shot_slots=nearest: the diamond beside it), the expert as a dashed line; bars are 95 % Wilson intervals."""
     from matplotlib.figure import Figure
 
     from lerobot_unidextok.viz.style import save
@@ -1341,15 +1340,16 @@ def plot_curves(result: dict, out_path: Path) -> Path:
                            [max(0.0, v["interval"][1] - v["mean"]) for _, v in points]]  # fmt: skip
                     ax.errorbar([n for n, _ in points], [v["mean"] for _, v in points], yerr=err, color=color,
                                 marker=marker, ms=5, lw=1.4, capsize=3, label=label)  # fmt: skip
-            for arm, face, label in (
-                ("zero_shot", "#b10dc9", "zero-shot"),
-                ("zero_shot_no_frame", "none", "zero-shot, robot frame"),
+            for arm, color, face, marker, x, label in (
+                ("zero_shot", "#b10dc9", "#b10dc9", "o", 0.0, "zero-shot"),
+                ("zero_shot_no_frame", "#b10dc9", "none", "o", 0.0, "zero-shot, robot frame"),
+                ("zero_shot_nearest", "#ff851b", "#ff851b", "D", 0.6, "zero-shot, --zero_shot_slots=nearest"),
             ):
                 z = arms.get((arm, 0, k_max))
                 if z:
-                    ax.errorbar([0], [z["mean"]], yerr=[[max(0.0, z["mean"] - z["interval"][0])],
+                    ax.errorbar([x], [z["mean"]], yerr=[[max(0.0, z["mean"] - z["interval"][0])],
                                                         [max(0.0, z["interval"][1] - z["mean"])]],
-                                color="#b10dc9", mfc=face, marker="o", ms=7, capsize=3, ls="none", label=label)  # fmt: skip
+                                color=color, mfc=face, marker=marker, ms=7, capsize=3, ls="none", label=label)  # fmt: skip
             expert = result["experts"].get(f"{task}/{hand}")
             if expert:
                 ax.axhline(
