@@ -173,11 +173,7 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
     `grasp_centre_m`: the robot's grasp centre for a checkpoint in the grasp-centre frame (`deploy_frame.py`);
     `zero_shot_slots`: what a zero-shot hand drives (`ZERO_SHOT_SLOTS`, `driven_slots`)."""
     checkpoint, robot = Path(checkpoint), Path(robot)
-    if zero_shot_slots not in ZERO_SHOT_SLOTS:
-        raise DeployError(f"--zero_shot_slots must be one of {ZERO_SHOT_SLOTS}, got {zero_shot_slots!r}")
-    if zero_shot_slots != "own" and not zero_shot:
-        raise DeployError(f"--zero_shot_slots={zero_shot_slots} narrows what a zero-shot hand drives: pass it "
-                          "with --zero_shot=true")  # fmt: skip
+    check_zero_shot_slots(zero_shot, zero_shot_slots)
     if grasp_centre_m is not None:  # before anything is read: 3 numbers in m within 0.3 m of the wrist
         check_centre("the robot's hands", grasp_centre_m, "--grasp_centre_m")
     if not (checkpoint / "config.json").is_file() or not (checkpoint / PREPROCESSOR).is_file():
@@ -190,6 +186,15 @@ def deploy(checkpoint: str | Path, robot: str | Path, output: str | Path, zero_s
         return _deploy_into(checkpoint, robot, output, zero_shot, overwrite, grasp_centre_m, zero_shot_slots)
     finally:
         release(output)  # the destination's lock (data/destination.py), however the binding ended
+
+
+def check_zero_shot_slots(zero_shot: bool, zero_shot_slots: str) -> None:
+    """Refuse an unknown `zero_shot_slots`, or one that narrows without `zero_shot` (before any file is read)."""
+    if zero_shot_slots not in ZERO_SHOT_SLOTS:
+        raise DeployError(f"--zero_shot_slots must be one of {ZERO_SHOT_SLOTS}, got {zero_shot_slots!r}")
+    if zero_shot_slots != "own" and not zero_shot:
+        raise DeployError(f"--zero_shot_slots={zero_shot_slots} narrows what a zero-shot hand drives: pass it "
+                          "with --zero_shot=true")  # fmt: skip
 
 
 def driven_slots(known: list[str], extra: list[str], how: str = "own") -> dict[str, list[int]]:
@@ -333,4 +338,4 @@ def _check_slots_bound(pre_steps: list, post_steps: list) -> None:
         )
 
 
-__all__ = ["ZERO_SHOT_SLOTS", "Binding", "DeployError", "bind_layouts", "deploy", "driven_slots"]
+__all__ = ["ZERO_SHOT_SLOTS", "Binding", "DeployError", "bind_layouts", "check_zero_shot_slots", "deploy", "driven_slots"]

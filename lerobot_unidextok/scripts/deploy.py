@@ -41,11 +41,12 @@ class DeployConfig:
 def deploy_cli(cfg: DeployConfig) -> None:
     import lerobot_policy_unidextok  # noqa: F401  (registers the <type>_udt policies and steps; not for --help)
     from lerobot_unidextok.data.reader import dataset_folder
-    from lerobot_unidextok.policies.deploy import DeployError, deploy
+    from lerobot_unidextok.policies.deploy import DeployError, check_zero_shot_slots, deploy
 
     for flag in ("checkpoint", "robot", "output"):
         if not getattr(cfg, flag):
             raise DeployError(f"--{flag} is required (unidextok-deploy --help)")
+    check_zero_shot_slots(cfg.zero_shot, cfg.zero_shot_slots)  # a flag's mistake before any path is looked up
     out = deploy(cfg.checkpoint, dataset_folder(cfg.robot), cfg.output, zero_shot=cfg.zero_shot,
                  overwrite=cfg.overwrite, grasp_centre_m=cfg.grasp_centre_m, zero_shot_slots=cfg.zero_shot_slots)
     print(f"wrote {out}: {cfg.checkpoint} bound to the robot of {cfg.robot}")

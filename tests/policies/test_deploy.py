@@ -141,6 +141,21 @@ def test_deploy_refuses_what_it_cannot_bind(mixed_policy, g1_like, tmp_path, mon
     normaliser = [s for s in json.loads((tmp_path / "x" / "policy_preprocessor.json").read_text())["steps"]
                   if s["registry_name"] == "unidextok.hand_normalizer"]  # fmt: skip
     assert [s["config"]["extra_hands"] for s in normaliser] == [["xhand1"]]
+    # --zero_shot_slots=nearest on the mix: the XHand1 drives the slots it shares with the mix's hand nearest it
+    code, err = deploy_cli(mixed_policy, dexora, tmp_path / "near", "--zero_shot=true", "--zero_shot_slots=nearest")
+    assert code == 0, err[-2000:]
+    from lerobot_unidextok import hands
+    from lerobot_unidextok.hands.morphology import nearest_hand
+
+    vocab = json.loads((tmp_path / "near" / "config.json").read_text())["udt_hand_vocabulary"]
+    near = nearest_hand("xhand1", vocab)
+    shared = [int(i) for i in np.flatnonzero(hands.get("xhand1").active_mask & hands.get(near).active_mask)]
+    assert json.loads((tmp_path / "near" / "unidextok_deploy.json").read_text())["zero_shot_slots"] == {"xhand1": shared}
+    # a mistaken flag is named before any path is looked up
+    for flags, says in ((["--zero_shot_slots=nearest"], "pass it with --zero_shot=true"),
+                        (["--zero_shot=true", "--zero_shot_slots=all"], "must be one of ('own', 'nearest')")):  # fmt: skip
+        code, err = deploy_cli(tmp_path / "nowhere", tmp_path / "no_robot", tmp_path / "z", *flags)
+        assert code == 2 and says in err and not (tmp_path / "z").exists(), err[-2000:]
     # binding again into it: refused with the flag that exists; with it, the bound checkpoint is replaced
     code, err = deploy_cli(mixed_policy, g1_like["root"], tmp_path / "x")
     assert code == 2 and "pass --overwrite=true to replace it" in err, err[-2000:]
