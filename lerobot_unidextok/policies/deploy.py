@@ -327,7 +327,7 @@ def _check_slots_bound(pre_steps: list, post_steps: list) -> None:
     """A narrowed zero-shot hand needs the slot mask (its state held) and the hand normaliser's unnormalize (its
     action zeroed): refuse a checkpoint trained without them rather than bind half of it."""
     has_mask = any(isinstance(s, SlotMaskStep) for s in pre_steps)
-    has_norm = any(isinstance(s, HandNormalizerStep) and s.mode == "unnormalize" and "action" in s.modes
+    has_norm = any(isinstance(s, HandNormalizerStep) and s.mode == "unnormalize" and ACTION in s.modes
                    for s in post_steps)  # fmt: skip
     if not (has_mask and has_norm):
         raise DeployError(

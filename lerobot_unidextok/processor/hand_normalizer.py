@@ -51,7 +51,7 @@ from lerobot.processor import ProcessorStep, ProcessorStepRegistry
 from lerobot_unidextok import hands
 from lerobot_unidextok.blocks import find_udhm_blocks, passthrough_indices
 from lerobot_unidextok.constants import ACTION, OBS_HAND_IDS, OBS_STATE, UDHM_DIM
-from lerobot_unidextok.processor.hand_rows import match_rows, row_hand_ids
+from lerobot_unidextok.processor.hand_rows import driven_slot_masks, match_rows, row_hand_ids
 from lerobot_unidextok.utils.number_checks import MAX_STAT_RAD, NumberError, checked_hand_stats, checked_tensor
 
 HAND_NORMALIZER_STEP_NAME = "unidextok.hand_normalizer"
@@ -130,13 +130,10 @@ class HandNormalizerStep(ProcessorStep):
             raise ValueError(f"{name}: fixed_hand_ids {self.fixed_hand_ids} must give one hand per block {self._sides}")
         names = self.hand_names
         active = np.stack([hands.get(h).active_mask for h in names])  # (V + E, 22)
-        self.extra_hand_slots = {h: sorted(int(i) for i in slots) for h, slots in self.extra_hand_slots.items()}
-        stray = sorted(set(self.extra_hand_slots) - set(self.extra_hands))
-        if stray or any(not 0 <= i < UDHM_DIM for slots in self.extra_hand_slots.values() for i in slots):
-            raise ValueError(f"{name}: extra_hand_slots must give slots 0..{UDHM_DIM - 1} of the extra_hands "
-                             f"{self.extra_hands}; got {self.extra_hand_slots}")  # fmt: skip
-        for h, slots in self.extra_hand_slots.items():
-            active[names.index(h)] &= np.isin(np.arange(UDHM_DIM), slots)
+        driven = driven_slot_masks(self.extra_hand_slots, self.extra_hands, name)
+        self.extra_hand_slots = {h: [int(i) for i in np.flatnonzero(m)] for h, m in driven.items()}
+        for h, mask in driven.items():
+            active[names.index(h)] &= mask
         self._active = torch.as_tensor(active)
         fix = "compute them again (lerobot-train fills udt_hand_stats from the dataset)"
         for key in self.modes:

@@ -1,6 +1,7 @@
 """Each row's hands for the steps that treat rows by the hand they hold (`unidextok.hand_normalizer`,
 `unidextok.wrist_frame`): where the hand ids come from, and how one entry per row meets a value of other leading
-dims (a (B, chunk, A) action chunk, or (B * n_obs) rows of ids for a (B, ...) value)."""
+dims (a (B, chunk, A) action chunk, or (B * n_obs) rows of ids for a (B, ...) value); and the slots a zero-shot
+hand drives (`unidextok.slot_mask`, `unidextok.hand_normalizer`)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,8 @@ from typing import Any
 
 import numpy as np
 import torch
+
+from lerobot_unidextok.constants import UDHM_DIM
 
 
 def row_hand_ids(
@@ -41,4 +44,15 @@ def match_rows(per_row: torch.Tensor, lead: tuple[int, ...], step: str) -> tuple
     raise ValueError(f"{step}: {rows} rows of hand ids for a value of shape {lead}")
 
 
-__all__ = ["match_rows", "row_hand_ids"]
+def driven_slot_masks(extra_hand_slots: dict[str, list[int]], extra_hands: list[str], step: str) -> dict[str, np.ndarray]:
+    """{zero-shot hand: (22,) bool, the UDHM slots it drives} from a step's `extra_hand_slots` (`unidextok-deploy
+    --zero_shot_slots=nearest`), checked: only hands of `extra_hands`, slots 0..21."""
+    bad = {h: list(s) for h, s in extra_hand_slots.items()
+           if h not in extra_hands or any(not 0 <= int(i) < UDHM_DIM for i in s)}  # fmt: skip
+    if bad:
+        raise ValueError(f"{step}: extra_hand_slots must give slots 0..{UDHM_DIM - 1} of the extra_hands "
+                         f"{extra_hands}; got {bad}")  # fmt: skip
+    return {h: np.isin(np.arange(UDHM_DIM), [int(i) for i in s]) for h, s in extra_hand_slots.items()}
+
+
+__all__ = ["driven_slot_masks", "match_rows", "row_hand_ids"]

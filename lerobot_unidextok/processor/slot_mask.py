@@ -36,6 +36,7 @@ from lerobot.processor import ProcessorStep, ProcessorStepRegistry
 from lerobot_unidextok import hands
 from lerobot_unidextok.blocks import find_udhm_blocks
 from lerobot_unidextok.constants import OBS_HAND_IDS, OBS_STATE, UDHM_DIM
+from lerobot_unidextok.processor.hand_rows import driven_slot_masks
 
 SLOT_MASK_STEP_NAME = "unidextok.slot_mask"
 ACTION_SLOT_PAD_KEY = "action_slot_is_pad"  # (B, A) bool in the batch: true = no loss on that action slot
@@ -74,17 +75,11 @@ class SlotMaskStep(ProcessorStep):
             raise ValueError(f"{SLOT_MASK_STEP_NAME}: extra_hands {self.extra_hands} must end hand_vocabulary "
                              f"{self.hand_vocabulary}")  # fmt: skip
         untrained = ~active[: self._first_extra].any(axis=0)  # (22,) slots no trained hand has
-        self.extra_hand_slots = {h: sorted(int(i) for i in slots) for h, slots in self.extra_hand_slots.items()}
-        stray = sorted(set(self.extra_hand_slots) - set(self.extra_hands))
-        bad = {h: s for h, s in self.extra_hand_slots.items() if any(not 0 <= i < UDHM_DIM for i in s)}
-        if stray or bad:
-            raise ValueError(f"{SLOT_MASK_STEP_NAME}: extra_hand_slots must give slots 0..{UDHM_DIM - 1} of the "
-                             f"extra_hands {self.extra_hands}; got {stray or bad}")  # fmt: skip
+        driven = driven_slot_masks(self.extra_hand_slots, self.extra_hands, SLOT_MASK_STEP_NAME)
+        self.extra_hand_slots = {h: [int(i) for i in np.flatnonzero(m)] for h, m in driven.items()}
         hold = np.zeros((len(self.hand_vocabulary) + 1, UDHM_DIM), bool)  # (V + 1, 22): the last row, no hand
         for i, name in enumerate(self.extra_hands, start=self._first_extra):
-            hold[i] = untrained
-            if name in self.extra_hand_slots:
-                hold[i] |= ~np.isin(np.arange(UDHM_DIM), self.extra_hand_slots[name])
+            hold[i] = untrained | ~driven.get(name, np.ones(UDHM_DIM, bool))
         self._hold = torch.as_tensor(hold)
 
     def pad_mask(self, ids: torch.Tensor, batch: int) -> torch.Tensor:
